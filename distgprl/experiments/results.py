@@ -125,7 +125,9 @@ def read_json(path: str | Path) -> dict[str, Any]:
     try:
         document = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
-        raise SchemaVersionError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})")
+        raise SchemaVersionError(
+            f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})"
+        ) from None
     version = document.get("meta", {}).get("schema_version")
     if version != SCHEMA_VERSION:
         raise SchemaVersionError(

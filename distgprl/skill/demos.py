@@ -118,9 +118,7 @@ def load_demonstration(path: str | Path, min_rows: int = 2) -> Demonstration:
             )
         values.append(parsed)
     if len(values) < max(min_rows, 2):
-        raise UserInputError(
-            f"{path}: {len(values)} data row(s), need at least {max(min_rows, 2)}"
-        )
+        raise UserInputError(f"{path}: {len(values)} data row(s), need at least {max(min_rows, 2)}")
     data = np.asarray(values, dtype=float)
     return Demonstration(
         times=data[:, 0].copy(),

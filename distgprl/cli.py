@@ -1,0 +1,74 @@
+"""The `distgprl` command line: each command parses, loads a config, calls one function.
+
+Bad input (unknown names, invalid files) exits with code 2 and one line on stderr.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from distgprl.errors import UserInputError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Dist-GPRL reproduction: fit, simulate, train, evaluate, report.",
+)
+
+
+@app.callback()
+def _root() -> None:
+    """Dist-GPRL reproduction: fit, simulate, train, evaluate, report."""
+
+
+def _user_errors(func):
+    """Turn `UserInputError` into one clear line on stderr and exit code 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except UserInputError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(code=2) from None
+
+    return wrapper
+
+
+@app.command()
+@_user_errors
+def fit(
+    task: Annotated[str | None, typer.Option(help="Fit the task's shipped demo (dcp|dbm).")] = None,
+    demo: Annotated[Path | None, typer.Option(help="Fit a demonstration CSV instead.")] = None,
+    n_via_points: Annotated[int, typer.Option(min=2, help="Number of via-points N.")] = 15,
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/skills"),
+) -> None:
+    """Fit the GP via-point skill to a demonstration; write JSON and a figure."""
+    from distgprl.data import demo_path
+    from distgprl.experiments.skills import fit_demonstration
+    from distgprl.skill.gp import FitConfig
+
+    if (task is None) == (demo is None):
+        raise UserInputError("give exactly one of --task or --demo")
+    source = demo_path(task) if task is not None else demo
+    output = fit_demonstration(
+        source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points)
+    )
+    worst = max(output.rmse["position"][:3])
+    typer.echo(
+        f"fitted {output.skill.name}: length scale {output.skill.kernel.length_scale:.4f}, "
+        f"max position RMSE {worst * 1000:.3f} mm -> {output.json_path}, {output.figure_path}"
+    )
+
+
+def main() -> None:  # pragma: no cover - console entry for `python -m distgprl.cli`
+    app(prog_name="distgprl")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,125 @@
+"""`distgprl fit`: fit the GP skill to a demonstration and write its result files."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from distgprl.experiments.results import read_json, write_json
+from distgprl.skill.demos import Demonstration, load_demonstration
+from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
+
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+@dataclass(frozen=True)
+class FitOutput:
+    """Where `fit_demonstration` wrote its files, and the fitted skill."""
+
+    skill: GPSkill
+    json_path: Path
+    figure_path: Path
+    rmse: dict[str, list[float]]
+
+
+def fit_demonstration(
+    demo_file: str | Path,
+    out_dir: str | Path = "results/skills",
+    name: str | None = None,
+    config: FitConfig | None = None,
+) -> FitOutput:
+    """Fit a skill to a demonstration CSV; write ``<name>.json`` and ``<name>.png``.
+
+    The demonstration is validated first (a `UserInputError` leaves nothing written).
+    """
+    config = config or FitConfig()
+    demo = load_demonstration(demo_file, min_rows=config.n_via_points)
+    name = name or demo.name
+    skill = fit_skill(demo, config)
+    skill = GPSkill(
+        kernel=skill.kernel,
+        via_times=skill.via_times,
+        via_points=skill.via_points,
+        prior_mean=skill.prior_mean,
+        duration=skill.duration,
+        name=name,
+    )
+    rmse = reconstruction_error(skill, demo)
+    out_dir = Path(out_dir)
+    figure_path = plot_fit(skill, demo, out_dir / f"{name}.png")
+    json_path = write_json(
+        out_dir / f"{name}.json",
+        {
+            "skill": skill.to_dict(),
+            "demonstration": {
+                "file": str(demo_file),
+                "sha256": demo.sha256,
+                "samples": int(demo.times.shape[0]),
+            },
+            "rmse": {"axes": list(AXES), **rmse},
+            "figure": figure_path.name,
+        },
+        kind="skill",
+        fit_config=config.__dict__,
+    )
+    return FitOutput(skill, json_path, figure_path, rmse)
+
+
+def load_skill(path: str | Path) -> GPSkill:
+    """Load a skill written by `fit_demonstration`."""
+    return GPSkill.from_dict(read_json(path)["skill"])
+
+
+def plot_fit(skill: GPSkill, demo: Demonstration, out_path: str | Path) -> Path:
+    """Figure: demonstration vs GP for position, velocity and acceleration per axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from distgprl.experiments.results import atomic_write_bytes
+
+    tau = demo.normalised_times
+    t = demo.times - demo.times[0]
+    gp = [
+        skill.position(skill.via_points, tau),
+        skill.velocity(skill.via_points, tau),
+        skill.acceleration(skill.via_points, tau),
+    ]
+    demo_velocity = np.gradient(demo.poses, demo.times, axis=0)
+    reference = [demo.poses, demo_velocity, np.gradient(demo_velocity, demo.times, axis=0)]
+    rows = ("position", "velocity", "acceleration")
+    units = (("m", "rad"), ("m/s", "rad/s"), ("m/s²", "rad/s²"))
+    fig, axes = plt.subplots(3, 6, figsize=(18, 8), sharex=True)
+    for r, row in enumerate(rows):
+        for a, axis_name in enumerate(AXES):
+            ax = axes[r, a]
+            ax.plot(t, reference[r][:, a], color="0.6", lw=2.5, label="demonstration")
+            ax.plot(t, gp[r][:, a], color="C0", lw=1.2, label="GP skill")
+            if r == 0:
+                ax.plot(
+                    skill.via_times * skill.duration,
+                    skill.via_points[:, a],
+                    "o",
+                    color="C3",
+                    ms=3,
+                    label="via-points",
+                )
+                ax.set_title(axis_name)
+            if a == 0:
+                ax.set_ylabel(f"{row} [{units[r][0]}]")
+            elif a == 3:
+                ax.set_ylabel(f"[{units[r][1]}]")
+            if r == 2:
+                ax.set_xlabel("t [s]")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"GP skill '{skill.name}': l = {skill.kernel.length_scale:.3f} (normalised time)")
+    fig.tight_layout()
+    import io
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=80)
+    plt.close(fig)
+    return atomic_write_bytes(out_path, buffer.getvalue())

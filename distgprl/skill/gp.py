@@ -1,0 +1,421 @@
+"""The GP via-point skill model (paper §III-A, §IV-A; DESIGN §2).
+
+A demonstration is modelled by six independent Gaussian processes (x, y, z, rx, ry, rz)
+over normalised time tau in [0, 1] that share one squared-exponential kernel
+
+    k(a, b) = sigma_f^2 exp(-(a - b)^2 / (2 l^2)).
+
+The kernel's length scale ``l``, signal variance and noise variance are fitted to the
+demonstration by maximising the marginal likelihood (summed over the six axes, each
+axis standardised first). The skill is then the posterior mean conditioned on N
+via-points Gamma (N, 6) at evenly spaced times (Eq. gp_param):
+
+    zeta(tau) = mu + k_v(tau) [K_vv + sigma_y^2 I]^{-1} (Gamma - mu),
+
+with a constant per-axis prior mean ``mu`` (the demonstration's mean), which keeps the
+trajectory well behaved between via-points. Position, velocity and acceleration at any
+query times are therefore affine maps of Gamma; this module precomputes the matrices
+``M``, ``dM``, ``ddM`` (analytic kernel derivatives) so that
+
+    position     = mu + M   (Gamma - mu)         # m, rad
+    velocity     =      dM  (Gamma - mu)         # m/s, rad/s
+    acceleration =      ddM (Gamma - mu)         # m/s^2, rad/s^2
+
+The correlation operator S = K (K + lambda I)^{-1} (Eq. global_S) uses the kernel's
+correlation matrix (unit signal variance) at the via-point times, so lambda is a
+scale-free ratio; a window uses its principal sub-block S_W (Eq. transformed_action).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+from scipy.optimize import minimize
+
+from distgprl.skill.demos import Demonstration
+
+N_AXES = 6
+DEFAULT_N_VIA_POINTS = 15
+DEFAULT_CORRELATION_LAMBDA = 1e-2
+
+
+@dataclass(frozen=True)
+class KernelParams:
+    """Squared-exponential kernel hyperparameters, in normalised time.
+
+    Attributes:
+        length_scale: correlation length in normalised time tau (dimensionless).
+        signal_variance: prior variance of the standardised signal.
+        noise_variance: observation-noise variance of the standardised signal.
+    """
+
+    length_scale: float
+    signal_variance: float = 1.0
+    noise_variance: float = 1e-6
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """How `fit_skill` fits the kernel and places the via-points.
+
+    Attributes:
+        n_via_points: number of via-points N (paper: 15).
+        max_fit_samples: demonstration samples used for the marginal-likelihood fit
+            (evenly subsampled; the fit is O(n^3)).
+        min_length_scale_fraction: lower bound of the length scale as a fraction of the
+            via-point spacing (a length scale far below the spacing cannot be
+            represented by N via-points).
+        max_length_scale: upper bound of the length scale (normalised time).
+        min_noise_variance: lower bound of the standardised noise variance (jitter).
+    """
+
+    n_via_points: int = DEFAULT_N_VIA_POINTS
+    max_fit_samples: int = 300
+    min_length_scale_fraction: float = 0.5
+    max_length_scale: float = 2.0
+    min_noise_variance: float = 1e-6
+
+
+def se_kernel(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+    """k(a, b), shape (len(a), len(b))."""
+    diff = a[:, None] - b[None, :]
+    return variance * np.exp(-0.5 * (diff / length_scale) ** 2)
+
+
+def se_kernel_d1(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+    """d k(a, b) / d a, shape (len(a), len(b))."""
+    diff = a[:, None] - b[None, :]
+    return -diff / length_scale**2 * se_kernel(a, b, length_scale, variance)
+
+
+def se_kernel_d2(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+    """d^2 k(a, b) / d a^2, shape (len(a), len(b))."""
+    diff = a[:, None] - b[None, :]
+    l2 = length_scale**2
+    return (diff**2 / l2**2 - 1.0 / l2) * se_kernel(a, b, length_scale, variance)
+
+
+def _negative_log_marginal_likelihood(log_params: np.ndarray, tau: np.ndarray, y: np.ndarray):
+    """Sum over axes of -log p(y_axis | tau, theta) and its gradient w.r.t. log params."""
+    length_scale, signal_variance, noise_variance = np.exp(log_params)
+    n, n_axes = y.shape
+    base = se_kernel(tau, tau, length_scale, 1.0)
+    k_signal = signal_variance * base
+    k = k_signal + noise_variance * np.eye(n)
+    try:
+        factor = cho_factor(k, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return 1e12, np.zeros(3)
+    alpha = cho_solve(factor, y, check_finite=False)  # (n, axes)
+    log_det = 2.0 * np.sum(np.log(np.diag(factor[0])))
+    nll = 0.5 * np.sum(y * alpha) + 0.5 * n_axes * log_det + 0.5 * n * n_axes * np.log(2 * np.pi)
+    # d nll / d theta = -0.5 tr((alpha alpha^T - axes K^-1) dK/dtheta), summed over axes.
+    inner = alpha @ alpha.T - n_axes * cho_solve(factor, np.eye(n), check_finite=False)
+    diff2 = (tau[:, None] - tau[None, :]) ** 2
+    d_length = k_signal * diff2 / length_scale**2  # dK / dlog(l)
+    d_signal = k_signal  # dK / dlog(sf2)
+    d_noise = noise_variance * np.eye(n)  # dK / dlog(sn2)
+    grad = np.array([-0.5 * np.sum(inner * d) for d in (d_length, d_signal, d_noise)])
+    return nll, grad
+
+
+def fit_kernel(
+    tau: np.ndarray,
+    values: np.ndarray,
+    length_scale_bounds: tuple[float, float] = (1e-3, 2.0),
+    min_noise_variance: float = 1e-8,
+) -> KernelParams:
+    """Fit shared SE hyperparameters to standardised multi-axis data by marginal likelihood.
+
+    Args:
+        tau: shape (n,), normalised times in [0, 1].
+        values: shape (n, d); each axis is standardised (zero mean, unit std) before fitting.
+        length_scale_bounds: (min, max) length scale, normalised time.
+        min_noise_variance: jitter floor for the standardised noise variance (it also
+            bounds how strongly a via-point change can overshoot between via-points).
+
+    Returns:
+        The maximum-likelihood `KernelParams` (for the standardised signal).
+    """
+    y = standardise(values)[0]
+    lo, hi = length_scale_bounds
+    best = None
+    # A few starts across the admissible length-scale range: the likelihood is multimodal.
+    for start_length in np.geomspace(max(lo, 1e-3), hi, 4):
+        x0 = np.log([start_length, 1.0, max(1e-4, min_noise_variance)])
+        result = minimize(
+            _negative_log_marginal_likelihood,
+            x0,
+            args=(tau, y),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=[
+                (np.log(lo), np.log(hi)),
+                (np.log(1e-2), np.log(1e3)),
+                (np.log(min_noise_variance), np.log(1.0)),
+            ],
+        )
+        if best is None or result.fun < best.fun:
+            best = result
+    length_scale, signal_variance, noise_variance = np.exp(best.x)
+    return KernelParams(float(length_scale), float(signal_variance), float(noise_variance))
+
+
+def standardise(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-axis (values - mean) / std; returns (standardised, mean, std); std floored at 1e-9."""
+    mean = values.mean(axis=0)
+    std = np.maximum(values.std(axis=0), 1e-9)
+    return (values - mean) / std, mean, std
+
+
+@dataclass(frozen=True)
+class GPSkill:
+    """A fitted via-point skill: kernel, via-point times, demonstration via-points.
+
+    Attributes:
+        kernel: fitted `KernelParams` (standardised signal).
+        via_times: shape (N,), normalised times of the via-points in [0, 1].
+        via_points: shape (N, 6), the demonstration's via-points Gamma_0, m and rad.
+        prior_mean: shape (6,), constant prior mean per axis, m and rad.
+        duration: trajectory duration in seconds (tau = t / duration).
+        name: skill name.
+    """
+
+    kernel: KernelParams
+    via_times: np.ndarray
+    via_points: np.ndarray
+    prior_mean: np.ndarray
+    duration: float
+    name: str = "skill"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def n_via_points(self) -> int:
+        return int(self.via_times.shape[0])
+
+    # -- linear maps -----------------------------------------------------------------------
+    @cached_property
+    def _inverse_gram(self) -> np.ndarray:
+        """[K_vv + sigma_y^2 I]^{-1}, shape (N, N) (Eq. gp_param)."""
+        k = self.kernel
+        gram = se_kernel(self.via_times, self.via_times, k.length_scale, k.signal_variance)
+        gram = gram + k.noise_variance * np.eye(self.n_via_points)
+        return cho_solve(cho_factor(gram, lower=True), np.eye(self.n_via_points))
+
+    def position_map(self, tau: np.ndarray) -> np.ndarray:
+        """M, shape (m, N): position(tau) = mu + M (Gamma - mu)."""
+        k = self.kernel
+        cross = se_kernel(np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance)
+        return cross @ self._inverse_gram
+
+    def velocity_map(self, tau: np.ndarray) -> np.ndarray:
+        """dM, shape (m, N): velocity(tau) = dM (Gamma - mu), per second."""
+        k = self.kernel
+        cross = se_kernel_d1(
+            np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance
+        )
+        return cross @ self._inverse_gram / self.duration
+
+    def acceleration_map(self, tau: np.ndarray) -> np.ndarray:
+        """ddM, shape (m, N): acceleration(tau) = ddM (Gamma - mu), per second squared."""
+        k = self.kernel
+        cross = se_kernel_d2(
+            np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance
+        )
+        return cross @ self._inverse_gram / self.duration**2
+
+    def maps(self, tau: np.ndarray) -> TrajectoryMaps:
+        """All three maps at the query times, bundled for repeated evaluation."""
+        tau = np.asarray(tau, dtype=float)
+        return TrajectoryMaps(
+            tau=tau,
+            position=self.position_map(tau),
+            velocity=self.velocity_map(tau),
+            acceleration=self.acceleration_map(tau),
+            prior_mean=self.prior_mean,
+        )
+
+    # -- evaluation -------------------------------------------------------------------------
+    def position(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Trajectory poses at ``tau`` for via-points (N, 6): shape (m, 6), m and rad."""
+        return self.prior_mean + self.position_map(tau) @ (via_points - self.prior_mean)
+
+    def velocity(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Velocities at ``tau``: shape (m, 6), m/s and rad/s."""
+        return self.velocity_map(tau) @ (via_points - self.prior_mean)
+
+    def acceleration(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Accelerations at ``tau``: shape (m, 6), m/s^2 and rad/s^2."""
+        return self.acceleration_map(tau) @ (via_points - self.prior_mean)
+
+    # -- correlation operator ---------------------------------------------------------------
+    def correlation_operator(self, correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA):
+        """S = K (K + lambda I)^{-1}, shape (N, N) (Eq. global_S).
+
+        K is the kernel's correlation matrix (unit variance) at the via-point times, so
+        S is symmetric with eigenvalues mu / (mu + lambda) in (0, 1).
+        """
+        key = ("S", float(correlation_lambda))
+        if key not in self._cache:
+            if correlation_lambda <= 0:
+                raise ValueError("correlation_lambda must be > 0")
+            corr = se_kernel(self.via_times, self.via_times, self.kernel.length_scale, 1.0)
+            n = self.n_via_points
+            # K (K + lambda I)^{-1} = I - lambda (K + lambda I)^{-1}; symmetrise rounding.
+            s = np.eye(n) - correlation_lambda * np.linalg.inv(
+                corr + correlation_lambda * np.eye(n)
+            )
+            self._cache[key] = 0.5 * (s + s.T)
+        return self._cache[key]
+
+    def window_operator(
+        self, indices: Sequence[int], correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA
+    ) -> np.ndarray:
+        """Principal sub-block S_W, shape (L, L), for the via-point indices of a window."""
+        idx = np.asarray(indices, dtype=int)
+        return self.correlation_operator(correlation_lambda)[np.ix_(idx, idx)].copy()
+
+    # -- task conditioning -----------------------------------------------------------------
+    def nearest_via_index(self, tau: float) -> int:
+        """Index of the via-point nearest to normalised time ``tau``."""
+        return int(np.argmin(np.abs(self.via_times - tau)))
+
+    def condition_on_offset(
+        self,
+        offset: np.ndarray,
+        first_index: int,
+        last_index: int | None = None,
+        via_points: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Via-points conditioned on a task configuration (DESIGN §2).
+
+        The interaction via-point ``first_index`` and its successors up to ``last_index``
+        (inclusive; default the last via-point) are translated by the object offset.
+
+        Args:
+            offset: shape (3,) position offset in m (or (6,) to also offset rotation).
+            first_index: index of the interaction via-point.
+            last_index: last shifted index (inclusive), default N - 1.
+            via_points: via-points to condition, default the demonstration's.
+
+        Returns:
+            Conditioned via-points, shape (N, 6).
+        """
+        gamma = (self.via_points if via_points is None else via_points).copy()
+        last = self.n_via_points - 1 if last_index is None else last_index
+        if not 0 <= first_index <= last < self.n_via_points:
+            raise ValueError(f"invalid via-point range {first_index}..{last}")
+        offset = np.asarray(offset, dtype=float)
+        gamma[first_index : last + 1, : offset.shape[0]] += offset
+        return gamma
+
+    # -- serialisation ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "kernel": {
+                "length_scale": self.kernel.length_scale,
+                "signal_variance": self.kernel.signal_variance,
+                "noise_variance": self.kernel.noise_variance,
+            },
+            "duration_s": self.duration,
+            "via_times": self.via_times.tolist(),
+            "via_points": self.via_points.tolist(),
+            "prior_mean": self.prior_mean.tolist(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> GPSkill:
+        return cls(
+            kernel=KernelParams(**data["kernel"]),
+            via_times=np.asarray(data["via_times"], dtype=float),
+            via_points=np.asarray(data["via_points"], dtype=float),
+            prior_mean=np.asarray(data["prior_mean"], dtype=float),
+            duration=float(data["duration_s"]),
+            name=data.get("name", "skill"),
+        )
+
+
+@dataclass(frozen=True)
+class TrajectoryMaps:
+    """Precomputed maps at fixed query times; shapes (m, N). See `GPSkill.maps`."""
+
+    tau: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    prior_mean: np.ndarray
+
+    def positions(self, via_points: np.ndarray) -> np.ndarray:
+        """(m, 6) poses for via-points (N, 6)."""
+        return self.prior_mean + self.position @ (via_points - self.prior_mean)
+
+
+def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
+    """Fit the GP skill to a demonstration (DESIGN §2).
+
+    1. Standardise each axis and fit the shared kernel by marginal likelihood on at most
+       ``config.max_fit_samples`` evenly subsampled samples.
+    2. Via-points Gamma_0 = GP posterior mean of the demonstration at N evenly spaced tau.
+
+    Raises:
+        ValueError: if the demonstration has fewer samples than via-points.
+    """
+    config = config or FitConfig()
+    n_via = config.n_via_points
+    if n_via < 2:
+        raise ValueError("n_via_points must be >= 2")
+    if demo.poses.shape[0] < n_via:
+        raise ValueError(
+            f"demonstration has {demo.poses.shape[0]} samples, fewer than {n_via} via-points"
+        )
+    tau = demo.normalised_times
+    poses = demo.poses
+    step = max(1, int(np.ceil(len(tau) / config.max_fit_samples)))
+    sub = np.unique(np.r_[np.arange(0, len(tau), step), len(tau) - 1])
+    spacing = 1.0 / (n_via - 1)
+    kernel = fit_kernel(
+        tau[sub],
+        poses[sub],
+        length_scale_bounds=(config.min_length_scale_fraction * spacing, config.max_length_scale),
+        min_noise_variance=config.min_noise_variance,
+    )
+    standardised, mean, std = standardise(poses[sub])
+    via_times = np.linspace(0.0, 1.0, n_via)
+    # Posterior mean of the dense (subsampled) demonstration at the via-point times.
+    gram = se_kernel(tau[sub], tau[sub], kernel.length_scale, kernel.signal_variance)
+    gram += kernel.noise_variance * np.eye(len(sub))
+    cross = se_kernel(via_times, tau[sub], kernel.length_scale, kernel.signal_variance)
+    via_standardised = cross @ cho_solve(cho_factor(gram, lower=True), standardised)
+    via_points = mean + std * via_standardised
+    # Pin the end via-points to the demonstration's start and end poses exactly.
+    via_points[0] = poses[0]
+    via_points[-1] = poses[-1]
+    return GPSkill(
+        kernel=kernel,
+        via_times=via_times,
+        via_points=via_points,
+        prior_mean=poses.mean(axis=0),
+        duration=demo.duration,
+        name=demo.name,
+    )
+
+
+def reconstruction_error(skill: GPSkill, demo: Demonstration) -> dict[str, list[float]]:
+    """Per-axis RMSE of the skill (at its demonstration via-points) against the demo.
+
+    Returns ``{"position": [6 floats], "velocity": [6 floats]}`` (m, rad; m/s, rad/s).
+    The demonstration's velocity is its central finite difference.
+    """
+    tau = demo.normalised_times
+    position = skill.position(skill.via_points, tau)
+    velocity = skill.velocity(skill.via_points, tau)
+    demo_velocity = np.gradient(demo.poses, demo.times, axis=0)
+    return {
+        "position": np.sqrt(np.mean((position - demo.poses) ** 2, axis=0)).tolist(),
+        "velocity": np.sqrt(np.mean((velocity - demo_velocity) ** 2, axis=0)).tolist(),
+    }

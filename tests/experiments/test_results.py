@@ -1,0 +1,57 @@
+"""Versioned, atomic result IO (distgprl/experiments/results.py)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from distgprl.experiments import results
+
+
+def test_json_round_trip_with_meta(tmp_path):
+    path = results.write_json(tmp_path / "a" / "x.json", {"value": [1, 2.5]}, seed=3)
+    document = results.read_json(path)
+    assert document["value"] == [1, 2.5]
+    meta = document["meta"]
+    assert meta["schema_version"] == results.SCHEMA_VERSION
+    assert meta["seed"] == 3
+    for key in ("package_version", "git_commit", "utc_time", "libraries"):
+        assert key in meta
+    assert "torch" in meta["libraries"]
+
+
+def test_unknown_schema_version_is_a_clear_error(tmp_path):
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps({"meta": {"schema_version": 999}}))
+    with pytest.raises(results.SchemaVersionError, match="schema_version 999 is not supported"):
+        results.read_json(path)
+
+
+def test_csv_round_trip_and_version_check(tmp_path):
+    rows = [{"a": 1, "b": 0.5}, {"a": 2, "b": 1.5}]
+    path = results.write_csv(tmp_path / "r.csv", rows, ["a", "b"], seed=1)
+    meta, back = results.read_csv(path)
+    assert meta["seed"] == 1 and back == [{"a": "1", "b": "0.5"}, {"a": "2", "b": "1.5"}]
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(results.SchemaVersionError, match="missing '# meta:'"):
+        results.read_csv(path)
+
+
+def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
+    target = tmp_path / "f.txt"
+    results.atomic_write_text(target, "old")
+
+    def boom(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results.os, "replace", boom)
+    with pytest.raises(KeyboardInterrupt):
+        results.atomic_write_text(target, "new")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["f.txt"]
+
+
+def test_config_hash_is_order_independent():
+    assert results.config_hash({"a": 1, "b": 2}) == results.config_hash({"b": 2, "a": 1})
+    assert results.config_hash({"a": 1}) != results.config_hash({"a": 2})

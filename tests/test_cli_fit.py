@@ -1,0 +1,59 @@
+"""`distgprl fit` through typer's runner, including every bad-input case."""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from distgprl.cli import app
+from distgprl.experiments.results import read_json
+
+runner = CliRunner()
+
+
+def test_fit_demo_writes_json_and_figure(tmp_path, smooth_demo_file):
+    out = tmp_path / "skills"
+    result = runner.invoke(app, ["fit", "--demo", str(smooth_demo_file), "--out-dir", str(out)])
+    assert result.exit_code == 0, result.output
+    document = read_json(out / "synthetic.json")
+    assert len(document["skill"]["via_points"]) == 15
+    assert document["demonstration"]["sha256"]
+    assert max(document["rmse"]["position"]) < 1e-3
+    assert document["skill"]["kernel"]["length_scale"] > 0
+    assert (out / "synthetic.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("body", "fragment"),
+    [
+        ("t,x,y,z,rx,ry\n0,1,2,3,4,5\n", "missing column"),
+        ("t,x,y,z,rx,ry,rz\n0,1,2,3,4,5,6\n1,1,2,x,4,5,6\n", ":3: column 'z' is not a number"),
+        ("t,x,y,z,rx,ry,rz\n0,1,2,3,4,5,6\n1,1,2,nan,4,5,6\n", "not finite"),
+        ("t,x,y,z,rx,ry,rz\n1,1,2,3,4,5,6\n0,1,2,3,4,5,6\n", "time must increase"),
+        (
+            "t,x,y,z,rx,ry,rz\n" + "".join(f"{i},1,2,3,4,5,6\n" for i in range(5)),
+            "need at least 15",
+        ),
+    ],
+)
+def test_bad_demo_exits_2_with_one_line_and_writes_nothing(tmp_path, body, fragment):
+    demo = tmp_path / "bad.csv"
+    demo.write_text(body)
+    out = tmp_path / "skills"
+    result = runner.invoke(app, ["fit", "--demo", str(demo), "--out-dir", str(out)])
+    assert result.exit_code == 2
+    assert fragment in result.output
+    assert str(demo) in result.output
+    assert result.output.strip().count("\n") == 0
+    assert not out.exists()
+
+
+def test_unknown_task_lists_valid_names(tmp_path):
+    result = runner.invoke(app, ["fit", "--task", "nope", "--out-dir", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "valid tasks: dcp, dbm" in result.output
+
+
+def test_task_and_demo_are_exclusive(tmp_path, smooth_demo_file):
+    result = runner.invoke(app, ["fit", "--task", "dcp", "--demo", str(smooth_demo_file)])
+    assert result.exit_code == 2
