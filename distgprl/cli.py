@@ -72,3 +72,61 @@ def main() -> None:  # pragma: no cover - console entry for `python -m distgprl.
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
+
+
+@app.command()
+@_user_errors
+def train(
+    method: Annotated[str, typer.Option(help="Method name (see the methods table).")],
+    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    steps: Annotated[int | None, typer.Option(min=3, help="Override total RL steps.")] = None,
+    resume: Annotated[
+        bool, typer.Option(help="Continue a killed run from its checkpoint.")
+    ] = False,
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    evaluate: Annotated[bool, typer.Option(help="Evaluate after training.")] = True,
+) -> None:
+    """Train one method on one task and seed (resumable); then evaluate it."""
+    from distgprl.experiments.runner import train_run
+
+    folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
+
+
+@app.command()
+@_user_errors
+def evaluate(
+    method: Annotated[str, typer.Option(help="Method name, or `demo` for the reference.")],
+    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    episodes: Annotated[
+        int | None, typer.Option(min=1, help="Evaluation TCs (default: preset).")
+    ] = None,
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+) -> None:
+    """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
+    from distgprl.experiments.runner import describe, evaluate_run
+
+    summary = evaluate_run(task, method, seed, preset, episodes, root)
+    typer.echo(describe(summary))
+
+
+@app.command()
+@_user_errors
+def render(
+    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
+    tc: Annotated[int, typer.Option(min=0, help="Evaluation TC index.")] = 0,
+) -> None:
+    """Render an episode of the TC-conditioned demonstration (headless)."""
+    from distgprl.data import check_task_name
+    from distgprl.sim.render import render_episode
+
+    check_task_name(task)
+    if out.suffix.lower() not in (".png", ".gif"):
+        raise UserInputError(f"{out}: output must end in .png or .gif")
+    path = render_episode(task, tc, out)
+    typer.echo(f"wrote {path}")

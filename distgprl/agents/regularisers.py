@@ -1,0 +1,118 @@
+"""The actor-loss regularisers of Dist-GPRL in torch (paper §IV-B, Eq. actor_final_compact).
+
+Both terms are functions of the *actor's sampled action*: the action is mapped to
+adapted via-points exactly as the environment does (scale, S_W, frozen rows), and the
+adapted trajectory is read through the GP's linear maps, so gradients reach the actor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from distgprl.envs.adaptation import ActionLayout
+from distgprl.skill.gp import GPSkill
+
+
+@dataclass(frozen=True)
+class RegulariserWeights:
+    """lambda_sim, lambda_hap (Eq. actor_final_compact) and lambda_v, lambda_a (Eq. sim_compact)."""
+
+    lambda_sim: float = 0.5
+    lambda_hap: float = 0.2
+    lambda_velocity: float = 1.0
+    lambda_acceleration: float = 0.05
+
+
+class ActorRegulariser(nn.Module):
+    """lambda_sim L_sim + lambda_hap L_hap for a batch of observations and actions.
+
+    Args:
+        skill: the task's GP skill (maps and demonstration via-points).
+        layout: the environment's `ActionLayout` (indices, operators, scale, frozen rows).
+        weights: the four weights; a zero weight skips its term entirely.
+        hap_prior: a module with ``loss(x (B, Nq, 3)) -> scalar`` (Eq. hap_compact), or None.
+        n_similarity_samples: T, trajectory samples of Eq. sim_compact.
+        n_hap_queries: N_q, positions sampled along the trajectory for L_hap.
+    """
+
+    def __init__(
+        self,
+        skill: GPSkill,
+        layout: ActionLayout,
+        weights: RegulariserWeights,
+        hap_prior: nn.Module | None = None,
+        n_similarity_samples: int = 50,
+        n_hap_queries: int = 20,
+    ) -> None:
+        super().__init__()
+        self.weights = weights
+        self.n_via_points = skill.n_via_points
+        self.n_steps = layout.n_steps
+        self.points_per_step = layout.points_per_step
+        if weights.lambda_hap > 0 and hap_prior is None:
+            raise ValueError("lambda_hap > 0 needs a hap_prior")
+        self.hap_prior = hap_prior if weights.lambda_hap > 0 else None
+
+        def buffer(name: str, value: np.ndarray, dtype=torch.float32) -> None:
+            self.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype))
+
+        mask = np.ones(layout.indices.shape)
+        for index in layout.frozen:
+            mask[layout.indices == index] = 0.0
+        buffer("indices", layout.indices, torch.long)
+        buffer("operators", layout.operators)
+        buffer("scale", layout.scale)
+        buffer("mask", mask)
+        buffer("prior_mean", skill.prior_mean)
+        tau = np.linspace(0.0, 1.0, n_similarity_samples)
+        demo_centered = skill.via_points - skill.prior_mean
+        buffer("velocity_map", skill.velocity_map(tau))
+        buffer("acceleration_map", skill.acceleration_map(tau))
+        buffer("demo_velocity", skill.velocity_map(tau) @ demo_centered)
+        buffer("demo_acceleration", skill.acceleration_map(tau) @ demo_centered)
+        buffer("hap_map", skill.position_map(np.linspace(0.0, 1.0, n_hap_queries)))
+
+    def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
+        batch = aux.shape[0]
+        n = self.n_via_points
+        gamma = aux[:, : n * 6].reshape(batch, n, 6)
+        step = aux[:, n * 6 : n * 6 + self.n_steps].argmax(dim=1)
+        raw = actions.reshape(batch, self.points_per_step, 6) * self.scale
+        delta = torch.bmm(self.operators[step], raw) * self.mask[step].unsqueeze(-1)
+        index = self.indices[step].unsqueeze(-1).expand(-1, -1, 6)
+        return gamma.scatter_add(1, index, delta)
+
+    def similarity_loss(self, centered: torch.Tensor) -> torch.Tensor:
+        """L_sim (Eq. sim_compact) for centered via-points (B, N, 6)."""
+        velocity = torch.matmul(self.velocity_map, centered)  # (B, T, 6)
+        acceleration = torch.matmul(self.acceleration_map, centered)
+        cos = nn.functional.cosine_similarity(
+            velocity, self.demo_velocity.expand_as(velocity), dim=-1
+        )
+        l1 = (acceleration - self.demo_acceleration).abs().sum(dim=-1)
+        return self.weights.lambda_velocity * (1.0 - cos.mean(dim=1)) + (
+            self.weights.lambda_acceleration * l1.mean(dim=1)
+        )
+
+    def forward(self, aux: torch.Tensor, actions: torch.Tensor) -> tuple[torch.Tensor, dict]:
+        """Total regularisation (scalar) and its logged terms."""
+        terms: dict[str, float] = {}
+        total = actions.new_zeros(())
+        if self.weights.lambda_sim <= 0 and self.hap_prior is None:
+            return total, terms
+        centered = self.adapted_via_points(aux, actions) - self.prior_mean
+        if self.weights.lambda_sim > 0:
+            l_sim = self.similarity_loss(centered).mean()
+            total = total + self.weights.lambda_sim * l_sim
+            terms["l_sim"] = float(l_sim.detach())
+        if self.hap_prior is not None:
+            positions = (torch.matmul(self.hap_map, centered) + self.prior_mean)[..., :3]
+            l_hap = self.hap_prior.loss(positions)
+            total = total + self.weights.lambda_hap * l_hap
+            terms["l_hap"] = float(l_hap.detach())
+        return total, terms

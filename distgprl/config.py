@@ -1,0 +1,199 @@
+"""Configuration: frozen dataclasses with the paper's defaults, overridden by YAML presets.
+
+A preset (``experiments/<name>.yaml``) has one mapping per section (``env``, ``sac``,
+``run``) and optional per-task overrides under ``tasks: {dcp: {env: {...}}}``. Unknown
+keys are an error, so a typo in a preset never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from distgprl.errors import UserInputError
+
+PRESET_DIR = Path(__file__).resolve().parents[1] / "experiments"
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """The adaptation MDP (paper §IV, DESIGN §3).
+
+    Attributes:
+        n_via_points: N (paper: 15).
+        window_size: L (paper: 5); windows overlap by one via-point.
+        n_windows: RL steps per episode (paper: 3).
+        correlation_lambda: lambda of S = K (K + lambda I)^-1 (paper: 1e-2).
+        position_action_scale: m of via-point change per unit raw action.
+        rotation_action_scale: rad of via-point change per unit raw action.
+        lambda_ga: weight of the gradient-alignment reward (paper: 0.2).
+        progress_weight: r_tc weight of the change in task progress (in [0, 1]).
+        success_bonus: r_tc bonus on success at the end of the episode.
+        collision_penalty: r_tc penalty for a segment with a collision.
+        sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward).
+        sd_d_min: d_min of Eq. safety_reward, m.
+        sd_epsilon: epsilon of Eq. safety_reward, m.
+        sd_samples_per_segment: instants per executed segment at which the tool points
+            are checked against the EDF for r_sd (the segment is executed in as many
+            chunks).
+        blend_fraction: fraction of a segment over which a jump between the robot's
+            pose and the re-planned trajectory (caused by updating the overlap
+            via-point) is blended out with a minimum-jerk weight.
+        clearance_clip: observed EDF clearances are clipped to this value, m.
+        signature_weight: GPRL's signature-similarity reward weight.
+        signature_depth: truncation level of the path signature (GPRL).
+        signature_scale: distance scale of the signature similarity (GPRL).
+    """
+
+    n_via_points: int = 15
+    window_size: int = 5
+    n_windows: int = 3
+    correlation_lambda: float = 1e-2
+    position_action_scale: float = 0.08
+    rotation_action_scale: float = 0.15
+    lambda_ga: float = 0.2
+    progress_weight: float = 10.0
+    success_bonus: float = 10.0
+    collision_penalty: float = 10.0
+    sd_beta: float = 2e-4
+    sd_d_min: float = 0.03
+    sd_epsilon: float = 0.01
+    sd_samples_per_segment: int = 4
+    blend_fraction: float = 0.3
+    clearance_clip: float = 0.3
+    signature_weight: float = 1.0
+    signature_depth: int = 3
+    signature_scale: float = 0.05
+
+
+@dataclass(frozen=True)
+class SACConfig:
+    """SAC (Haarnoja et al. 2018 defaults) and the regularised actor loss.
+
+    Attributes:
+        lambda_sim: weight of L_sim (paper: 0.5).
+        lambda_hap: weight of L_hap (paper: 0.2).
+        lambda_velocity: lambda_v of Eq. sim_compact.
+        lambda_acceleration: lambda_a of Eq. sim_compact (per m/s^2 of L1 error).
+        n_similarity_samples: T, trajectory samples for L_sim.
+        hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
+        anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
+            from start to end over the run.
+    """
+
+    learning_rate: float = 3e-4
+    buffer_size: int = 1_000_000
+    batch_size: int = 256
+    gamma: float = 0.99
+    tau: float = 0.005
+    learning_starts: int = 1000
+    train_freq: int = 1
+    gradient_steps: int = 1
+    net_arch: tuple[int, ...] = (256, 256)
+    lambda_sim: float = 0.5
+    lambda_hap: float = 0.2
+    lambda_velocity: float = 1.0
+    lambda_acceleration: float = 0.05
+    n_similarity_samples: int = 50
+    hap_k: int = 8
+    hap_temperature: float = 0.05
+    hap_n_query: int = 20
+    anneal_start: float = 0.2
+    anneal_end: float = 0.002
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Training and evaluation sizes.
+
+    Attributes:
+        total_steps: RL steps (3 per episode).
+        eval_every: learning-curve evaluation period, steps.
+        curve_episodes: TCs of the fixed learning-curve set evaluated each time.
+        eval_episodes: evaluation TCs for the final evaluation (paper: 100).
+        checkpoint_every: checkpoint period (model + replay buffer), steps.
+        torch_threads: torch intra-op threads per run.
+    """
+
+    total_steps: int = 30_000
+    eval_every: int = 1_500
+    curve_episodes: int = 20
+    eval_episodes: int = 100
+    checkpoint_every: int = 3_000
+    torch_threads: int = 1
+
+
+@dataclass(frozen=True)
+class Config:
+    """A resolved configuration (what `config.json` of a run records)."""
+
+    preset: str = "paper"
+    env: EnvConfig = field(default_factory=EnvConfig)
+    sac: SACConfig = field(default_factory=SACConfig)
+    run: RunConfig = field(default_factory=RunConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+_SECTIONS = {"env": EnvConfig, "sac": SACConfig, "run": RunConfig}
+
+
+def _apply(section_cls, current, overrides: dict[str, Any], where: str):
+    names = {f.name: f for f in fields(section_cls)}
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise UserInputError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(names)}"
+        )
+    values = {}
+    for key, value in overrides.items():
+        default = getattr(current, key)
+        if isinstance(default, tuple):
+            value = tuple(value)
+        elif isinstance(default, bool) or not isinstance(default, int | float):
+            pass
+        elif isinstance(default, int) and not isinstance(value, int):
+            raise UserInputError(f"{where}: {key} must be an integer, got {value!r}")
+        elif isinstance(default, float):
+            value = float(value)
+        values[key] = value
+    return replace(current, **values)
+
+
+def load_config(
+    preset: str = "paper",
+    task: str | None = None,
+    overrides: dict[str, dict[str, Any]] | None = None,
+) -> Config:
+    """Resolve a preset (and the task's overrides in it) into a `Config`."""
+    path = PRESET_DIR / f"{preset}.yaml"
+    if not path.exists():
+        valid = sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
+        raise UserInputError(f"unknown preset {preset!r}; valid presets: {', '.join(valid)}")
+    data = yaml.safe_load(path.read_text()) or {}
+    config = Config(preset=preset)
+    layers = [(data, str(path))]
+    if task is not None and task in (data.get("tasks") or {}):
+        layers.append((data["tasks"][task], f"{path}: tasks.{task}"))
+    if overrides:
+        layers.append((overrides, "overrides"))
+    for layer, where in layers:
+        unknown = sorted(set(layer) - set(_SECTIONS) - {"tasks"})
+        if unknown:
+            raise UserInputError(f"{where}: unknown section(s) {', '.join(unknown)}")
+        for section, cls in _SECTIONS.items():
+            if layer.get(section):
+                updated = _apply(cls, getattr(config, section), layer[section], where)
+                config = replace(config, **{section: updated})
+    episode = config.env.n_windows
+    for key in ("total_steps", "eval_every", "checkpoint_every"):
+        if getattr(config.run, key) % episode:
+            raise UserInputError(
+                f"run.{key} = {getattr(config.run, key)} must be a multiple of the episode "
+                f"length ({episode} RL steps) so that runs stop between episodes"
+            )
+    return config

@@ -1,0 +1,384 @@
+"""The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
+
+Env ids: ``DistGPRL-DCP-v0`` and ``DistGPRL-DBM-v0`` (registered in `distgprl.envs`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from distgprl.agents.methods import MethodSpec, get_method
+from distgprl.config import EnvConfig
+from distgprl.safety.edf import DistanceField
+from distgprl.skill.gp import GPSkill
+
+REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
+
+
+@dataclass(frozen=True)
+class ActionLayout:
+    """Which via-points each RL step adapts and how raw actions map onto them.
+
+    Attributes:
+        indices: per step, the via-point indices its action covers, shape (n_steps, A_v).
+        operators: per step, the (A_v, A_v) matrix applied to the raw action
+            (S_W for covariance-transformed windows, identity otherwise).
+        segment_bounds: normalised times bounding the executed segments, shape (n_steps+1,).
+        scale: per-axis scale of the raw action, shape (6,), m and rad.
+        frozen: via-point indices whose update is forced to zero (e.g. GPRL's TC via-point).
+    """
+
+    indices: np.ndarray
+    operators: np.ndarray
+    segment_bounds: np.ndarray
+    scale: np.ndarray
+    frozen: tuple[int, ...] = ()
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.indices.shape[0])
+
+    @property
+    def points_per_step(self) -> int:
+        return int(self.indices.shape[1])
+
+    def delta(self, step: int, raw_action: np.ndarray) -> np.ndarray:
+        """Delta Gamma for the step's via-points, shape (A_v, 6) (Eq. transformed_action)."""
+        scaled = raw_action.reshape(self.points_per_step, 6) * self.scale
+        delta = self.operators[step] @ scaled
+        for index in self.frozen:
+            delta[self.indices[step] == index] = 0.0
+        return delta
+
+
+def build_action_layout(
+    skill: GPSkill, config: EnvConfig, method: MethodSpec, frozen: tuple[int, ...] = ()
+) -> ActionLayout:
+    """Windows W_k = {1 + k (L - 1), ..., 1 + k (L - 1) + L - 1} (one-point overlap).
+
+    Windowed methods adapt W_k at step k; global methods adapt all interior via-points
+    1..N-2 at every step. Segment k runs from the first via-point of W_k (0 for k = 0)
+    to the first via-point of W_{k+1} (1 for the last).
+    """
+    n, length, steps = config.n_via_points, config.window_size, config.n_windows
+    if n != skill.n_via_points:
+        raise ValueError(f"config n_via_points {n} != skill's {skill.n_via_points}")
+    starts = [1 + k * (length - 1) for k in range(steps)]
+    if starts[-1] + length - 1 > n - 2:
+        raise ValueError(f"{steps} windows of {length} do not fit in {n} via-points")
+    windows = np.array([np.arange(s, s + length) for s in starts])
+    bounds = np.r_[0.0, skill.via_times[starts[1:]], 1.0]
+    if method.action_mode == "global":
+        interior = np.arange(1, n - 1)
+        indices = np.tile(interior, (steps, 1))
+        operators = np.tile(np.eye(len(interior)), (steps, 1, 1))
+    else:
+        indices = windows
+        if method.covariance_transform:
+            operators = np.stack(
+                [skill.window_operator(w, config.correlation_lambda) for w in windows]
+            )
+        else:
+            operators = np.tile(np.eye(length), (steps, 1, 1))
+    scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
+    return ActionLayout(indices, operators, bounds, scale, tuple(frozen))
+
+
+def min_jerk(u: np.ndarray) -> np.ndarray:
+    """Minimum-jerk blend 10u^3 - 15u^4 + 6u^5 on [0, 1] (clipped)."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10 - 15 * u + 6 * u**2)
+
+
+def cosine(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """Row-wise cosine similarity of (n, d) arrays; 0 where either row is ~0."""
+    na = np.linalg.norm(a, axis=-1)
+    nb = np.linalg.norm(b, axis=-1)
+    valid = (na > eps) & (nb > eps)
+    out = np.zeros(na.shape)
+    out[valid] = np.sum(a[valid] * b[valid], axis=-1) / (na[valid] * nb[valid])
+    return out
+
+
+class AdaptationEnv(gym.Env):
+    """Windowed, covariance-correlated via-point adaptation of a GP skill (Dist-GPRL).
+
+    One episode adapts and executes the task's demonstrated skill, conditioned on a task
+    configuration (TC), in ``n_windows`` = 3 RL steps. Everything below is for the
+    windowed methods (L = 5, N = 15); global methods (``action_mode == "global"``) use
+    the same steps and segments with all 13 interior via-points in state and action.
+
+    **Observation** (``Dict``; networks see only ``state``):
+
+    ========================  ========  ==================================================
+    ``state`` slice           size      meaning (units)
+    ========================  ========  ==================================================
+    Gamma_W                   L x 6     window via-points, standardised per axis by the
+                                        demonstration via-points' mean/std (dimensionless)
+    c                         L         EDF clearance at the window via-point positions,
+                                        clipped to [-clip, clip] (m)
+    e_o                       3         object position - TCP position (m)
+    e_g                       3         goal position - TCP position (m)
+    phi                       1         phase t_s / n_windows in [0, 1)
+    ========================  ========  ==================================================
+
+    ``aux`` (not seen by the networks; used by the regularised actor loss): the full
+    current via-points Gamma (N x 6, m and rad, flattened) and a one-hot of the step.
+
+    **Action**: raw a in [-1, 1]^(L x 6), row-major (via-point, axis). It is scaled per
+    axis (``position_action_scale`` m, ``rotation_action_scale`` rad), then correlated
+    Delta Gamma = S_W a (Eq. transformed_action; identity for ``dist-gprl-nocov`` and
+    global methods) and added to the window's via-points (Eq. updated_via_points).
+    Via-points 0 (start) and N-1 (end) never change; GPRL also freezes the TC via-point.
+
+    **Transition**: the adapted trajectory's segment for this step (from the window's
+    first via-point time to the next window's, the first from t = 0 and the last to the
+    end) is executed in the simulator at its control rate while the object and the
+    obstacles keep moving. If updating the overlap via-point moved the planned pose at the
+    segment start away from where the robot is, the difference is blended out with a
+    minimum-jerk weight over ``blend_fraction`` of the segment (continuity).
+
+    **Reward** (Eq. total_reward) r = r_tc + r_sd + lambda_ga r_ga (+ r_signature for
+    GPRL), with r_tc = r_progress + r_success + r_collision. Each term is in ``info``
+    under its name and they sum to the reward:
+
+    - ``r_progress`` = progress_weight * (task progress after - before), progress in [0, 1];
+    - ``r_success`` = success_bonus at the last step if the task succeeded;
+    - ``r_collision`` = -collision_penalty if the segment had a collision;
+    - ``r_sd`` = -beta sum_i 1[d_i < d_min] / (d_i + eps) over the tool points at
+      ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward; 0 if the
+      method has no distance rewards);
+    - ``r_ga`` = lambda_ga * mean_j cos(Delta Gamma_j[xyz], grad d(v_j)) over the window
+      via-points (Eq. grad_alignment_reward; 0 without distance rewards);
+    - ``r_signature`` = signature_weight * signature similarity between the executed
+      segment's planned path and the demonstration's (GPRL only).
+
+    **Start**: ``reset(seed, options={"tc": TaskConfig})`` or a TC sampled from the
+    task's training distribution with the env's generator. The via-points are the
+    demonstration's, conditioned on the TC: the interaction via-point and its successors
+    move by the object's start offset; via-point 0 is the robot's start pose.
+
+    **End**: ``terminated`` after ``n_windows`` steps (no early termination; collisions
+    are penalised and recorded, and execution continues). ``info`` at the end carries
+    ``success``, ``collision``, ``min_clearance`` (m), ``kinematic_retention`` (mean
+    velocity cosine to the demonstration) and ``adaptation_time_s`` per step.
+
+    The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
+    action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
+
+    **Versions**: v0 — first release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"]}
+
+    def __init__(
+        self,
+        task: str,
+        method: str | MethodSpec = "dist-gprl",
+        config: EnvConfig | None = None,
+        skill: GPSkill | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        from distgprl.envs.tasks import load_task_skill, make_task_sim
+
+        self.config = config or EnvConfig()
+        self.method = method if isinstance(method, MethodSpec) else get_method(method)
+        if self.method.action_mode not in ("window", "global", "none"):
+            raise ValueError(f"method {self.method.name} does not use the via-point MDP")
+        self.task_name = task
+        self.spec_task, self.sim = make_task_sim(task)
+        self.skill = skill or load_task_skill(task, self.config.n_via_points)
+        self.render_mode = render_mode
+        self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
+        frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
+        self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
+        self.field = DistanceField(self.sim.obstacle_shapes())
+        # Demonstration reference: velocity samples for kinematic retention.
+        self._retention_tau = np.linspace(0.0, 1.0, 100)
+        self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
+        self._via_mean = self.skill.via_points.mean(axis=0)
+        self._via_std = np.maximum(self.skill.via_points.std(axis=0), 1e-3)
+        self._segment_maps = self._build_segment_maps()
+        if self.method.signature_reward:
+            from distgprl.skill.signature import signature_similarity
+
+            self._signature_similarity = signature_similarity
+        n_points = self.layout.points_per_step
+        state_dim = n_points * 6 + n_points + 3 + 3 + 1
+        n = self.config.n_via_points
+        self.observation_space = spaces.Dict(
+            {
+                "state": spaces.Box(-np.inf, np.inf, (state_dim,), np.float32),
+                "aux": spaces.Box(-np.inf, np.inf, (n * 6 + self.layout.n_steps,), np.float32),
+            }
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, (n_points * 6,), np.float32)
+        self._rng = np.random.default_rng()
+        self.gamma = self.skill.via_points.copy()
+        self.step_index = 0
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _build_segment_maps(self):
+        """Per step: control times and the GP position map for the executed segment."""
+        duration = self.skill.duration
+        dt = self.sim.control_dt
+        n_total = int(round(duration / dt))
+        times = (np.arange(n_total) + 1) * dt  # targets for the end of each control period
+        tau_all = np.clip(times / duration, 0.0, 1.0)
+        maps = []
+        bounds = self.layout.segment_bounds
+        for k in range(self.layout.n_steps):
+            lo, hi = bounds[k], bounds[k + 1]
+            mask = (tau_all > lo + 1e-12) & (tau_all <= hi + 1e-12)
+            tau = tau_all[mask]
+            maps.append((tau, self.skill.position_map(tau), lo, hi))
+        return maps
+
+    def conditioned_via_points(self, tc) -> np.ndarray:
+        """Demonstration via-points conditioned on a TC (DESIGN §2), shape (N, 6)."""
+        offset = np.r_[np.asarray(tc.object_offset, dtype=float)[:2], 0.0]
+        gamma = self.skill.condition_on_offset(offset, self.interaction_index)
+        gamma[0] = self.sim.tcp_pose()
+        return gamma
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
+        window = self.gamma[indices]
+        clearance, _ = self.field.distance(window[:, :3])
+        clip = self.config.clearance_clip
+        tcp = self.sim.tcp_pose()[:3]
+        state = np.concatenate(
+            [
+                ((window - self._via_mean) / self._via_std).ravel(),
+                np.clip(clearance, -clip, clip),
+                self.sim.object_position() - tcp,
+                self.sim.goal_position() - tcp,
+                [self.step_index / self.layout.n_steps],
+            ]
+        ).astype(np.float32)
+        one_hot = np.zeros(self.layout.n_steps)
+        one_hot[min(self.step_index, self.layout.n_steps - 1)] = 1.0
+        aux = np.concatenate([self.gamma.ravel(), one_hot]).astype(np.float32)
+        return {"state": state, "aux": aux}
+
+    def _segment_poses(self, step: int) -> np.ndarray:
+        """The poses to execute for ``step`` (with continuity blending), shape (m, 6)."""
+        tau, position_map, lo, hi = self._segment_maps[step]
+        poses = self.skill.prior_mean + position_map @ (self.gamma - self.skill.prior_mean)
+        if step > 0 and len(tau):
+            planned_start = self.skill.position(self.gamma, np.array([lo]))[0]
+            jump = self._last_commanded - planned_start
+            weight = 1.0 - min_jerk((tau - lo) / max(self.config.blend_fraction * (hi - lo), 1e-9))
+            poses = poses + weight[:, None] * jump
+        return poses
+
+    def _clearance_penalty(self) -> float:
+        """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""
+        self.field.update(self.sim.obstacle_shapes())
+        d, _ = self.field.distance(self.sim.tool_points())
+        close = d < self.config.sd_d_min
+        return -self.config.sd_beta * float(
+            np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
+        )
+
+    # -- gymnasium API ---------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        tc = (options or {}).get("tc")
+        if tc is None:
+            tc = self.spec_task.sample_tc(self._rng)
+        self.tc = tc
+        self.sim.reset(tc)
+        self.gamma = self.conditioned_via_points(tc)
+        self.gamma_initial = self.gamma.copy()
+        self.step_index = 0
+        self.field.update(self.sim.obstacle_shapes())
+        self._progress = self.sim.task_progress()
+        self._collision = False
+        self._min_clearance = np.inf
+        self._adaptation_times: list[float] = []
+        self._last_commanded = self.gamma[0].copy()
+        return self._observation(), {"tc": tc}
+
+    def step(self, action: np.ndarray):
+        if self.step_index >= self.layout.n_steps:
+            raise RuntimeError("episode is over; call reset()")
+        config, step = self.config, self.step_index
+        start = time.perf_counter()
+        # Read obstacles -> update EDF (Alg. 1).
+        self.field.update(self.sim.obstacle_shapes())
+        indices = self.layout.indices[step]
+        raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        if self.method.action_mode == "none":  # the `demo` reference executes Gamma_0
+            raw = np.zeros_like(raw)
+        delta = self.layout.delta(step, raw)  # Eq. transformed_action
+        self.gamma[indices] += delta  # Eq. updated_via_points
+        terms = dict.fromkeys(REWARD_TERMS, 0.0)
+        if self.method.distance_rewards:
+            _, gradient = self.field.distance(self.gamma[indices, :3])
+            terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
+        poses = self._segment_poses(step)
+        self._adaptation_times.append(time.perf_counter() - start)
+
+        # Execute the segment in chunks; r_sd is evaluated after each chunk.
+        segment_collision = False
+        chunks = np.array_split(np.arange(len(poses)), config.sd_samples_per_segment)
+        for chunk in chunks:
+            if len(chunk) == 0:
+                continue
+            result = self.sim.execute(poses[chunk])
+            segment_collision |= result.collision
+            self._min_clearance = min(self._min_clearance, result.min_clearance)
+            if self.method.distance_rewards:
+                terms["r_sd"] += self._clearance_penalty()
+        if len(poses):
+            self._last_commanded = poses[-1].copy()
+        self._collision |= segment_collision
+        progress = self.sim.task_progress()
+        terms["r_progress"] = config.progress_weight * (progress - self._progress)
+        self._progress = progress
+        if segment_collision:
+            terms["r_collision"] = -config.collision_penalty
+        if self.method.signature_reward and len(poses) > 1:
+            tau = self._segment_maps[step][0]
+            reference = self.skill.position(self.gamma_initial, tau)[:, :3]
+            terms["r_signature"] = config.signature_weight * float(
+                self._signature_similarity(
+                    poses[:, :3], reference, config.signature_depth, config.signature_scale
+                )
+            )
+        self.step_index += 1
+        terminated = self.step_index >= self.layout.n_steps
+        info: dict = {"step": step}
+        if terminated:
+            success = bool(self.sim.success())
+            if success:
+                terms["r_success"] = config.success_bonus
+            velocity = self.skill.velocity(self.gamma, self._retention_tau)
+            info.update(
+                success=success,
+                collision=bool(self._collision),
+                min_clearance=float(self._min_clearance),
+                kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
+                adaptation_time_s=list(self._adaptation_times),
+                final_via_points=self.gamma.copy(),
+            )
+        self.field.update(self.sim.obstacle_shapes())
+        reward = float(sum(terms.values()))
+        info.update(terms)
+        return self._observation(), reward, terminated, False, info
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self.sim.render_rgb(480, 360)
+        return None
+
+    def close(self) -> None:
+        self.sim.close()

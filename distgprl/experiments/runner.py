@@ -1,0 +1,539 @@
+"""Train and evaluate one (task, method, seed) run; results under one versioned folder.
+
+Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
+
+- ``config.json``     resolved configuration, method spec, config hash (written first);
+- ``progress.csv``    learning-curve evaluations (success, collision, return) every
+                      ``eval_every`` steps on the fixed learning-curve TCs;
+- ``checkpoints/``    latest model, replay buffer and RNG state (never committed);
+- ``model.zip``       the final policy (never committed);
+- ``evaluation.csv``  one row per evaluation episode;
+- ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
+- ``done.json``       marker written last: the run is complete (with wall times).
+
+Every file is written atomically, so a killed run leaves either the previous file or
+the new one, never half of one.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from distgprl.agents.methods import MethodSpec, get_method
+from distgprl.config import Config, load_config
+from distgprl.data import check_task_name
+from distgprl.errors import UserInputError
+from distgprl.experiments.results import (
+    atomic_write_bytes,
+    config_hash,
+    read_csv,
+    read_json,
+    write_csv,
+    write_json,
+)
+
+PROGRESS_FIELDS = (
+    "step",
+    "episodes",
+    "success_rate",
+    "collision_rate",
+    "mean_return",
+    "min_clearance_p5",
+    "wall_time_s",
+    "l_sim",
+    "l_hap",
+    "ent_coef",
+)
+EVALUATION_FIELDS = (
+    "episode",
+    "object_offset_x",
+    "object_offset_y",
+    "obstacle_offset_x",
+    "obstacle_offset_y",
+    "success",
+    "collision",
+    "min_clearance",
+    "return",
+    "kinematic_retention",
+    "adaptation_ms_w1",
+    "adaptation_ms_w2",
+    "adaptation_ms_w3",
+    "policy_ms",
+)
+
+
+def run_dir(root: str | Path, preset: str, task: str, method: str, seed: int) -> Path:
+    """``<root>/<preset>/<task>/<method>/seed<k>``."""
+    return Path(root) / preset / task / method / f"seed{seed}"
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything that identifies a run."""
+
+    task: str
+    method: MethodSpec
+    seed: int
+    config: Config
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "task": self.task,
+            "method": self.method.to_dict(),
+            "seed": self.seed,
+            "config": self.config.to_dict(),
+        }
+
+    @property
+    def hash(self) -> str:
+        return config_hash(self.to_dict())
+
+
+def resolve_run(
+    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
+) -> RunSpec:
+    """Validate names and resolve the configuration of a run."""
+    check_task_name(task)
+    spec = get_method(method)
+    overrides = {"run": {"total_steps": steps}} if steps is not None else None
+    config = load_config(preset, task=task, overrides=overrides)
+    return RunSpec(task, spec, int(seed), config)
+
+
+# -- environments and agents ---------------------------------------------------------------
+def make_env(run: RunSpec):
+    """The adaptation environment for a run (ProMP-RRL uses its residual environment)."""
+    if run.method.action_mode == "residual":
+        from distgprl.envs.residual import ResidualEnv
+
+        return ResidualEnv(run.task, run.config.env)
+    from distgprl.envs.adaptation import AdaptationEnv
+
+    return AdaptationEnv(run.task, run.method, run.config.env)
+
+
+def build_regulariser(env, run: RunSpec):
+    """lambda_sim L_sim + lambda_hap L_hap for methods that use them, else None."""
+    method, sac = run.method, run.config.sac
+    if not (method.similarity_loss or method.hap_prior):
+        return None
+    from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
+
+    hap_prior = None
+    if method.hap_prior:
+        from distgprl.envs.tasks import load_task_hap_prior
+
+        hap_prior = load_task_hap_prior(run.task, k=sac.hap_k, temperature=sac.hap_temperature)
+    weights = RegulariserWeights(
+        lambda_sim=sac.lambda_sim if method.similarity_loss else 0.0,
+        lambda_hap=sac.lambda_hap if method.hap_prior else 0.0,
+        lambda_velocity=sac.lambda_velocity,
+        lambda_acceleration=sac.lambda_acceleration,
+    )
+    return ActorRegulariser(
+        env.skill,
+        env.layout,
+        weights,
+        hap_prior=hap_prior,
+        n_similarity_samples=sac.n_similarity_samples,
+        n_hap_queries=sac.hap_n_query,
+    )
+
+
+def make_agent(env, run: RunSpec):
+    """A `RegularisedSAC` configured from the run's shared SAC configuration."""
+    from distgprl.agents.sac import RegularisedSAC, StateOnlyExtractor, exponential_anneal
+
+    sac = run.config.sac
+    anneal = run.method.entropy == "anneal"
+    return RegularisedSAC(
+        "MultiInputPolicy",
+        env,
+        learning_rate=sac.learning_rate,
+        buffer_size=sac.buffer_size,
+        batch_size=sac.batch_size,
+        gamma=sac.gamma,
+        tau=sac.tau,
+        learning_starts=sac.learning_starts,
+        train_freq=sac.train_freq,
+        gradient_steps=sac.gradient_steps,
+        ent_coef=sac.anneal_start if anneal else "auto",
+        policy_kwargs={
+            "features_extractor_class": StateOnlyExtractor,
+            "net_arch": list(sac.net_arch),
+        },
+        seed=run.seed,
+        device="cpu",
+        verbose=0,
+        regulariser=build_regulariser(env, run),
+        entropy_schedule=exponential_anneal(sac.anneal_start, sac.anneal_end) if anneal else None,
+        total_training_steps=run.config.run.total_steps,
+    )
+
+
+# -- episodes ----------------------------------------------------------------------------------
+def run_episode(env, tc, policy=None) -> dict[str, Any]:
+    """One episode on a given TC; ``policy(obs) -> action`` or None (zero action)."""
+    obs, _ = env.reset(options={"tc": tc})
+    total, policy_time = 0.0, 0.0
+    while True:
+        start = time.perf_counter()
+        action = (
+            np.zeros(env.action_space.shape, dtype=np.float32) if policy is None else policy(obs)
+        )
+        policy_time += time.perf_counter() - start
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += reward
+        if terminated or truncated:
+            break
+    adaptation = [1000 * t for t in info.get("adaptation_time_s", [])] + [np.nan] * 3
+    return {
+        "object_offset_x": float(tc.object_offset[0]),
+        "object_offset_y": float(tc.object_offset[1]),
+        "obstacle_offset_x": float(tc.obstacle_offset[0]),
+        "obstacle_offset_y": float(tc.obstacle_offset[1]),
+        "success": int(info["success"]),
+        "collision": int(info["collision"]),
+        "min_clearance": float(info["min_clearance"]),
+        "return": float(total),
+        "kinematic_retention": float(info["kinematic_retention"]),
+        "adaptation_ms_w1": adaptation[0],
+        "adaptation_ms_w2": adaptation[1],
+        "adaptation_ms_w3": adaptation[2],
+        "policy_ms": 1000 * policy_time,
+    }
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance."""
+    if not rows:
+        raise ValueError("no episodes to summarise")
+
+    def column(name):
+        return np.array([float(r[name]) for r in rows])
+
+    adaptation = np.nansum(
+        np.stack([column(f"adaptation_ms_w{k}") for k in (1, 2, 3)], axis=1), axis=1
+    )
+    return {
+        "episodes": len(rows),
+        "success_rate": float(column("success").mean()),
+        "collision_rate": float(column("collision").mean()),
+        "min_clearance_p5": float(np.percentile(column("min_clearance"), 5)),
+        "mean_min_clearance": float(column("min_clearance").mean()),
+        "mean_return": float(column("return").mean()),
+        "mean_kinematic_retention": float(column("kinematic_retention").mean()),
+        "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
+        "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
+    }
+
+
+def evaluate_policy(env, tcs, policy=None, progress: bool = False) -> list[dict[str, Any]]:
+    """Run one deterministic episode per TC."""
+    iterator = tcs
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(tcs, desc="evaluate", unit="ep", leave=False)
+    rows = []
+    for index, tc in enumerate(iterator):
+        rows.append({"episode": index, **run_episode(env, tc, policy)})
+    return rows
+
+
+def deterministic_policy(model):
+    def policy(obs):
+        action, _ = model.predict(obs, deterministic=True)
+        return action
+
+    return policy
+
+
+# -- checkpoints --------------------------------------------------------------------------------
+def _checkpoint_paths(folder: Path) -> dict[str, Path]:
+    ckpt = folder / "checkpoints"
+    return {
+        "dir": ckpt,
+        "model": ckpt / "model.zip",
+        "buffer": ckpt / "replay_buffer.pkl",
+        "state": ckpt / "state.pkl",
+    }
+
+
+def _rng_state(model, env) -> dict[str, Any]:
+    import torch
+
+    return {
+        "num_timesteps": int(model.num_timesteps),
+        "episode_count": int(getattr(model, "_episode_num", 0)),
+        "torch": torch.get_rng_state(),
+        "env_rng": env._rng.bit_generator.state,
+        "action_space": model.action_space.np_random.bit_generator.state,
+    }
+
+
+def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
+    """Model, replay buffer and RNG state, each written atomically; state last."""
+    paths = _checkpoint_paths(folder)
+    paths["dir"].mkdir(parents=True, exist_ok=True)
+    tmp_model = paths["dir"] / ".model.tmp.zip"
+    model.save(tmp_model)
+    tmp_model.replace(paths["model"])
+    tmp_buffer = paths["dir"] / ".buffer.tmp.pkl"
+    model.save_replay_buffer(tmp_buffer)
+    tmp_buffer.replace(paths["buffer"])
+    state = {**_rng_state(model, env), **extra}
+    atomic_write_bytes(paths["state"], pickle.dumps(state))
+
+
+def load_checkpoint(folder: Path, env, run: RunSpec):
+    """(model, state) from the run's checkpoint; a clear error if it is unusable."""
+    import torch
+
+    from distgprl.agents.sac import RegularisedSAC
+
+    paths = _checkpoint_paths(folder)
+    try:
+        state = pickle.loads(paths["state"].read_bytes())
+        model = RegularisedSAC.load(
+            paths["model"],
+            env=env,
+            device="cpu",
+            custom_objects={"regulariser": None, "entropy_schedule": None},
+        )
+        model.load_replay_buffer(paths["buffer"])
+    except Exception as exc:  # any unreadable piece makes the checkpoint unusable
+        raise UserInputError(
+            f"{paths['dir']}: corrupt or incompatible checkpoint ({type(exc).__name__}: {exc}); "
+            "delete the run folder to start over"
+        ) from None
+    if model.replay_buffer.size() < min(state["num_timesteps"], model.buffer_size):
+        raise UserInputError(f"{paths['buffer']}: replay buffer is shorter than the checkpoint")
+    fresh = make_agent(env, run)  # rebuild the non-pickled parts from the task and config
+    model.regulariser = fresh.regulariser
+    model.entropy_schedule = fresh.entropy_schedule
+    model.total_training_steps = fresh.total_training_steps
+    torch.set_rng_state(state["torch"])
+    env._rng.bit_generator.state = state["env_rng"]
+    model.action_space.np_random.bit_generator.state = state["action_space"]
+    return model, state
+
+
+# -- train ----------------------------------------------------------------------------------
+def train_run(
+    task: str,
+    method: str,
+    seed: int,
+    preset: str = "paper",
+    steps: int | None = None,
+    resume: bool = False,
+    root: str | Path = "results",
+    show_progress: bool = True,
+    evaluate_after: bool = True,
+) -> Path:
+    """Train one run (resumable) and, by default, evaluate it. Returns the run folder."""
+    import torch
+
+    run = resolve_run(task, method, seed, preset, steps)
+    if not run.method.trainable:
+        raise UserInputError(f"method {method!r} does not train; use `distgprl evaluate`")
+    folder = run_dir(root, preset, task, method, seed)
+    torch.set_num_threads(run.config.run.torch_threads)
+    config_path = folder / "config.json"
+    paths = _checkpoint_paths(folder)
+    if (folder / "done.json").exists() and not resume:
+        raise UserInputError(f"{folder}: run is already complete (delete it to train again)")
+    if config_path.exists():
+        recorded = read_json(config_path).get("config_hash")
+        if recorded != run.hash:
+            raise UserInputError(
+                f"{config_path}: existing run has a different configuration "
+                f"({recorded} != {run.hash}); delete it or choose another root"
+            )
+        if not resume:
+            raise UserInputError(f"{folder}: run exists; pass --resume to continue it")
+    write_json(
+        config_path,
+        {"run": run.to_dict(), "config_hash": run.hash},
+        kind="config",
+        config_hash=run.hash,
+        seed=seed,
+    )
+    env = make_env(run)
+    eval_env = make_env(run)
+    spec = env.spec_task
+    curve_tcs = spec.training_curve_tcs(run.config.run.curve_episodes)
+    progress_rows: list[dict[str, Any]] = []
+    wall_offset = 0.0
+    if resume and paths["state"].exists():
+        model, state = load_checkpoint(folder, env, run)
+        wall_offset = state.get("wall_time_s", 0.0)
+        if (folder / "progress.csv").exists():
+            _, progress_rows = read_csv(folder / "progress.csv")
+            progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
+    else:
+        for stale in (folder / "progress.csv", paths["dir"]):
+            if stale.is_dir():
+                shutil.rmtree(stale)
+            elif stale.exists():
+                stale.unlink()
+        model = make_agent(env, run)
+        env.reset(seed=seed)
+    total = run.config.run.total_steps
+    eval_every = run.config.run.eval_every
+    ckpt_every = run.config.run.checkpoint_every
+    start_wall = time.perf_counter()
+    bar = None
+    if show_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=total, initial=model.num_timesteps, desc=f"{task}/{method}/s{seed}", unit="step"
+        )
+
+    def record_curve():
+        rows = evaluate_policy(eval_env, curve_tcs, deterministic_policy(model))
+        summary = summarise(rows)
+        terms = model.last_regulariser_terms
+        progress_rows.append(
+            {
+                "step": model.num_timesteps,
+                "episodes": int(model._episode_num),
+                "success_rate": summary["success_rate"],
+                "collision_rate": summary["collision_rate"],
+                "mean_return": summary["mean_return"],
+                "min_clearance_p5": summary["min_clearance_p5"],
+                "wall_time_s": wall_offset + time.perf_counter() - start_wall,
+                "l_sim": terms.get("l_sim", ""),
+                "l_hap": terms.get("l_hap", ""),
+                "ent_coef": terms.get("ent_coef", model.current_entropy_coefficient()),
+            }
+        )
+        write_csv(
+            folder / "progress.csv",
+            progress_rows,
+            PROGRESS_FIELDS,
+            config_hash=run.hash,
+            seed=seed,
+            task=task,
+            method=method,
+        )
+
+    if model.num_timesteps == 0 and not progress_rows:
+        record_curve()
+    while model.num_timesteps < total:
+        next_stop = min(
+            total,
+            (model.num_timesteps // eval_every + 1) * eval_every,
+            (model.num_timesteps // ckpt_every + 1) * ckpt_every,
+        )
+        before = model.num_timesteps
+        model.learn(
+            total_timesteps=next_stop - model.num_timesteps,
+            reset_num_timesteps=False,
+            progress_bar=False,
+        )
+        if bar is not None:
+            bar.update(model.num_timesteps - before)
+        if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
+            record_curve()
+        if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
+            save_checkpoint(
+                folder, model, env, {"wall_time_s": wall_offset + time.perf_counter() - start_wall}
+            )
+    if bar is not None:
+        bar.close()
+    tmp = folder / ".model.tmp.zip"
+    model.save(tmp)
+    tmp.replace(folder / "model.zip")
+    train_wall = wall_offset + time.perf_counter() - start_wall
+    env.close()
+    eval_env.close()
+    if evaluate_after:
+        evaluate_run(task, method, seed, preset, root=root, show_progress=show_progress)
+    write_json(
+        folder / "done.json",
+        {"steps": total, "train_wall_time_s": train_wall},
+        kind="done",
+        config_hash=run.hash,
+        seed=seed,
+    )
+    return folder
+
+
+# -- evaluate -------------------------------------------------------------------------------
+def evaluate_run(
+    task: str,
+    method: str,
+    seed: int = 0,
+    preset: str = "paper",
+    episodes: int | None = None,
+    root: str | Path = "results",
+    show_progress: bool = True,
+) -> dict[str, Any]:
+    """Evaluate a trained run (or the `demo` reference) on the evaluation TCs.
+
+    Writes ``evaluation.csv`` and ``summary.json`` into the run folder; returns the summary.
+    """
+    run = resolve_run(task, method, seed, preset)
+    episodes = episodes or run.config.run.eval_episodes
+    folder = run_dir(root, preset, task, method, seed)
+    env = make_env(run)
+    policy = None
+    if run.method.trainable:
+        model_path = folder / "model.zip"
+        if not model_path.exists():
+            raise UserInputError(
+                f"{model_path}: no trained model; run `distgprl train --method {method} "
+                f"--task {task} --seed {seed} --preset {preset}` first"
+            )
+        from distgprl.agents.sac import RegularisedSAC
+
+        try:
+            model = RegularisedSAC.load(
+                model_path,
+                device="cpu",
+                custom_objects={"regulariser": None, "entropy_schedule": None},
+            )
+        except Exception as exc:
+            raise UserInputError(
+                f"{model_path}: cannot load model ({type(exc).__name__}: {exc})"
+            ) from None
+        if model.observation_space != env.observation_space or (
+            model.action_space != env.action_space
+        ):
+            raise UserInputError(
+                f"{model_path}: model spaces do not match the {task}/{method} environment"
+            )
+        policy = deterministic_policy(model)
+    else:
+        write_json(
+            folder / "config.json",
+            {"run": run.to_dict(), "config_hash": run.hash},
+            kind="config",
+            config_hash=run.hash,
+            seed=seed,
+        )
+    tcs = env.spec_task.evaluation_tcs(episodes)
+    start = time.perf_counter()
+    rows = evaluate_policy(env, tcs, policy, progress=show_progress)
+    wall = time.perf_counter() - start
+    env.close()
+    summary = {**summarise(rows), "evaluation_wall_time_s": wall}
+    meta = {"config_hash": run.hash, "seed": seed, "task": task, "method": method, "preset": preset}
+    write_csv(folder / "evaluation.csv", rows, EVALUATION_FIELDS, **meta)
+    write_json(folder / "summary.json", {"summary": summary}, kind="summary", **meta)
+    return summary
+
+
+def describe(summary: dict[str, Any]) -> str:
+    """One line for the terminal."""
+    return json.dumps({k: round(v, 4) if isinstance(v, float) else v for k, v in summary.items()})
