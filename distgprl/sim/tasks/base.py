@@ -1,0 +1,451 @@
+"""Task configurations, task specifications and the common task-simulation base class.
+
+A *task configuration* (TC) is what varies between episodes: the manipulated object's
+start offset and the dynamic obstacle's start offset (both xy, metres, world frame)
+from the nominal scene. A :class:`TaskSpec` describes a task (demonstration, nominal TC,
+TC sampler, fixed evaluation sets). A :class:`TaskSim` subclass assembles robot, tool and
+scene in its own PyBullet client and executes Cartesian trajectories.
+
+Time: the simulation clock starts at 0 on :meth:`TaskSim.reset` and advances by
+``control_dt`` per executed pose; object and obstacle motion are functions of this clock
+and continue across :meth:`TaskSim.execute` calls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet
+
+from distgprl.errors import UserInputError
+from distgprl.safety.shapes import Shape
+from distgprl.sim.bullet import PhysicsConfig, make_client
+from distgprl.sim.robot import ToolSpec, UR5e
+from distgprl.sim.transforms import pose_to_matrix
+
+EVALUATION_SEED = 7_130_911
+"""Seed of the fixed 100-TC evaluation set. No training run may use it."""
+
+TRAINING_CURVE_SEED = 5_204_377
+"""Seed of the fixed TC set used for evaluations during training (learning curves)."""
+
+DEMO_DIR = Path(__file__).resolve().parents[2] / "data" / "demos"
+"""Folder of the shipped demonstrations."""
+
+
+def _as_xy(value: object, name: str) -> tuple[float, float]:
+    array = np.asarray(value, dtype=float).reshape(-1)
+    if array.shape != (2,) or not np.all(np.isfinite(array)):
+        raise UserInputError(f"{name} must be two finite numbers (x, y in metres), got {value!r}")
+    return (float(array[0]), float(array[1]))
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """One task configuration.
+
+    Attributes:
+        object_offset: start offset (dx, dy) of the manipulated object from its nominal
+            start, world frame, m. Stored as a tuple; ``np.asarray`` gives shape (2,).
+        obstacle_offset: start offset (dx, dy) of the dynamic obstacle from its nominal
+            start, world frame, m.
+    """
+
+    object_offset: tuple[float, float] = (0.0, 0.0)
+    obstacle_offset: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "object_offset", _as_xy(self.object_offset, "object_offset"))
+        object.__setattr__(self, "obstacle_offset", _as_xy(self.obstacle_offset, "obstacle_offset"))
+
+    def to_dict(self) -> dict[str, list[float]]:
+        """JSON-friendly form."""
+        return {
+            "object_offset": list(self.object_offset),
+            "obstacle_offset": list(self.obstacle_offset),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> TaskConfig:
+        """Inverse of :meth:`to_dict`."""
+        return cls(object_offset=data["object_offset"], obstacle_offset=data["obstacle_offset"])
+
+
+@dataclass(frozen=True)
+class SegmentResult:
+    """Outcome of executing one trajectory segment.
+
+    Attributes:
+        collision: any contact (penetration distance <= 0) between a robot link or the
+            tool and an obstacle during the segment, checked after every physics step and
+            at every control step (exempt pairs are listed by the task).
+        min_clearance: minimum distance (m) between robot/tool and the obstacles over the
+            segment's control steps, capped at the task's ``clearance_cutoff``; <= 0 on
+            contact.
+        ik_failures: poses with no IK solution within the joint limits (the previous joint
+            target is then held).
+        steps: poses executed (control periods).
+    """
+
+    collision: bool
+    min_clearance: float
+    ik_failures: int
+    steps: int
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A task: its demonstration, TC ranges and fixed evaluation sets.
+
+    Attributes:
+        name: registry key ("dcp", "dbm").
+        title: human-readable name.
+        demo_path: the shipped nominal demonstration CSV.
+        varied_demo_dir: folder with 20 varied demonstrations and their ``tcs.json``.
+        nominal_tc: the TC the demonstration was made for (zero offsets).
+        interaction_time: normalised time tau in [0, 1] at which the demonstration engages
+            the object (the tool reaches its pre-contact pose next to the object; the
+            first physical contact follows within 0.1 in tau). The conditioned skill moves
+            via-points from here on by the object offset.
+        goal: one-line description of the goal and the success criterion.
+        sampler: draws one TC from a generator (see :meth:`sample_tc`).
+        make_sim: builds a fresh task simulation.
+    """
+
+    name: str
+    title: str
+    demo_path: Path
+    varied_demo_dir: Path
+    nominal_tc: TaskConfig
+    interaction_time: float
+    goal: str
+    sampler: Callable[[np.random.Generator], TaskConfig]
+    make_sim: Callable[[], TaskSim]
+
+    def sample_tc(self, rng: np.random.Generator) -> TaskConfig:
+        """One random TC drawn with ``rng`` (task-specific ranges, see the task module)."""
+        return self.sampler(rng)
+
+    def evaluation_tcs(self, n: int = 100) -> tuple[TaskConfig, ...]:
+        """The fixed evaluation TCs (first ``n`` draws from :data:`EVALUATION_SEED`)."""
+        rng = np.random.default_rng(EVALUATION_SEED)
+        return tuple(self.sampler(rng) for _ in range(n))
+
+    def training_curve_tcs(self, n: int = 20) -> tuple[TaskConfig, ...]:
+        """The fixed TCs for learning-curve evaluations (from :data:`TRAINING_CURVE_SEED`)."""
+        rng = np.random.default_rng(TRAINING_CURVE_SEED)
+        return tuple(self.sampler(rng) for _ in range(n))
+
+
+class TaskSim:
+    """Common machinery of the task simulations (robot + tool + scene in one client).
+
+    Subclasses build the scene in :meth:`_build_scene`, place objects for a TC in
+    :meth:`_place`, move the kinematic bodies in :meth:`_move_kinematic` and define
+    :meth:`task_progress`, :meth:`success`, :meth:`obstacle_shapes`.
+
+    The manipulated object is *conveyed* (moved kinematically at a constant velocity)
+    until the robot first touches it; from then on it is a free rigid body under contact
+    physics, starting with the conveying velocity.
+
+    Attributes:
+        control_dt: control period, s (one pose of :meth:`execute` per period).
+        demo_duration: duration of the task's demonstration, s.
+        clearance_cutoff: distances above this (m) are reported as this value.
+
+    Args:
+        physics: physics settings (default :class:`PhysicsConfig`: 25 Hz control,
+            3 physics steps of 1/75 s per control period).
+        clearance_cutoff: see above, m (default 0.10).
+    """
+
+    tool: ToolSpec
+    demo_duration: float
+    start_joint_positions: np.ndarray
+
+    def __init__(
+        self, physics: PhysicsConfig | None = None, clearance_cutoff: float = 0.10
+    ) -> None:
+        physics = physics if physics is not None else PhysicsConfig()
+        self.physics = physics
+        self.control_dt = physics.control_dt
+        self.clearance_cutoff = clearance_cutoff
+        self.client = make_client(physics)
+        self.robot = UR5e(self.client, self.tool)
+        self.object_body = -1
+        self.obstacle_bodies: tuple[int, ...] = ()
+        self.exempt_links: dict[int, frozenset[int]] = {}
+        self._build_scene()
+        for body, links in self.exempt_links.items():
+            for link in links:
+                self.client.setCollisionFilterPair(self.robot.body, body, link, -1, 0)
+        self._robot_body = self.robot.body
+        # bound once: BulletClient's attribute lookup is slow in the inner loop
+        self._step_simulation = self.client.stepSimulation
+        self._contact_points = self.client.getContactPoints
+        self._closest_points = self.client.getClosestPoints
+        self._reset_base_pose = self.client.resetBasePositionAndOrientation
+        self._reset_base_velocity = self.client.resetBaseVelocity
+        self._obstacle_set = frozenset(self.obstacle_bodies)
+        self._initial_state = self.client.saveState()
+        self.time = 0.0
+        self.tc = TaskConfig()
+        self._q_command = np.zeros(6)
+        self._object_released = False
+        self._object_start = np.zeros(3)
+        self._object_velocity = np.zeros(3)
+        self._object_quaternion = (0.0, 0.0, 0.0, 1.0)
+        self.reset(TaskConfig())
+
+    # ------------------------------------------------------------------ to implement
+    def _build_scene(self) -> None:
+        raise NotImplementedError
+
+    def _place(self, tc: TaskConfig) -> None:
+        """Set object start/velocity and the obstacles' paths for ``tc``."""
+        raise NotImplementedError
+
+    def _move_kinematic(self, time: float) -> None:
+        """Put the kinematically moved obstacles at their poses for ``time`` (s)."""
+        raise NotImplementedError
+
+    def obstacle_shapes(self) -> tuple[Shape, ...]:
+        """Every obstacle (static and moving) at its current pose."""
+        raise NotImplementedError
+
+    def task_progress(self) -> float:
+        """Dense task progress in [0, 1]."""
+        raise NotImplementedError
+
+    def success(self) -> bool:
+        """Whether the task is accomplished in the current state."""
+        raise NotImplementedError
+
+    def goal_position(self) -> np.ndarray:
+        """Goal point (3,), m, world frame."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ public API
+    def reset(self, tc: TaskConfig) -> None:
+        """Restore the initial world, put the robot at the demo's start and place ``tc``.
+
+        Deterministic: the same TC always gives the same state.
+        """
+        self.client.restoreState(self._initial_state)
+        self.tc = tc
+        self.time = 0.0
+        self._object_released = False
+        self.robot.reset_joints(self.start_joint_positions)
+        self._q_command = np.array(self.start_joint_positions, dtype=float)
+        self._place(tc)
+        self._object_velocity_list = self._object_velocity.tolist()
+        self._convey_object(0.0)
+        self._move_kinematic(0.0)
+
+    def tcp_pose(self) -> np.ndarray:
+        """Current TCP pose (6,): x, y, z (m), rx, ry, rz (rad)."""
+        return self.robot.tcp_pose()
+
+    def joint_positions(self) -> np.ndarray:
+        """Measured joint positions (6,), rad."""
+        return self.robot.joint_positions()
+
+    def object_position(self) -> np.ndarray:
+        """Centre of the manipulated object (3,), m."""
+        return np.asarray(self.client.getBasePositionAndOrientation(self.object_body)[0])
+
+    def object_orientation(self) -> np.ndarray:
+        """Quaternion (x, y, z, w) of the manipulated object."""
+        return np.asarray(self.client.getBasePositionAndOrientation(self.object_body)[1])
+
+    def tool_points(self) -> np.ndarray:
+        """About 50 points (m, 3) on the tool surface, world frame, m."""
+        return self.robot.tool_points()
+
+    @property
+    def object_released(self) -> bool:
+        """True once the robot has touched the object (it then moves freely)."""
+        return self._object_released
+
+    def clearance(self) -> float:
+        """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff."""
+        best = cutoff = self.clearance_cutoff
+        closest_points = self._closest_points
+        robot_body = self._robot_body
+        for body in self.obstacle_bodies:
+            exempt = self.exempt_links.get(body)
+            for point in closest_points(bodyA=robot_body, bodyB=body, distance=cutoff):
+                if point[8] < best and (exempt is None or point[3] not in exempt):
+                    best = point[8]
+        return best
+
+    def execute(self, poses: np.ndarray) -> SegmentResult:
+        """Track Cartesian TCP poses, one per control period, with dynamics.
+
+        Args:
+            poses: shape (n, 6): x, y, z (m), rx, ry, rz (rad), world frame. Pose k is the
+                target at the end of control period k of this segment.
+
+        Each pose is converted by IK (branch nearest the previous joint target) into a
+        joint target; the joint position controllers move to it, linearly interpolated
+        over ``physics.substeps`` physics steps, with feed-forward velocity. Object and
+        obstacles keep moving. Collisions are checked after every physics step,
+        clearance at every control step.
+        """
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
+            raise UserInputError(f"poses must be a finite (n, 6) array, got shape {poses.shape}")
+        robot = self.robot
+        step_simulation = self._step_simulation
+        contact_points = self._contact_points
+        substeps = self.physics.substeps
+        dt = self.physics.physics_dt
+        robot_body = self._robot_body
+        object_body = self.object_body
+        obstacles = self._obstacle_set
+        exempt = self.exempt_links
+        no_links: frozenset[int] = frozenset()
+        collision = False
+        min_clearance = self.clearance_cutoff
+        failures = 0
+        fractions = [(s + 1) / substeps for s in range(substeps)]
+        inverse_dt = 1.0 / self.control_dt
+        for pose in poses:
+            q_target = robot.ik_nearest(pose_to_matrix(pose), self._q_command)
+            if q_target is None:
+                failures += 1
+                q_target = self._q_command
+            q_previous = self._q_command
+            delta = q_target - q_previous
+            velocity = delta * inverse_dt
+            for step, fraction in enumerate(fractions):
+                robot.command(q_previous + fraction * delta, velocity)
+                time = self.time + (step + 1) * dt
+                self._move_kinematic(time)
+                step_simulation()
+                for contact in contact_points(bodyA=robot_body):
+                    if contact[8] > 0.0:
+                        continue
+                    other = contact[2]
+                    if other == object_body:
+                        self._object_released = True
+                    elif other in obstacles and contact[3] not in exempt.get(other, no_links):
+                        collision = True
+                if not self._object_released:
+                    self._convey_object(time)
+            self.time += substeps * dt
+            self._q_command = q_target
+            clearance = self.clearance()
+            if clearance < min_clearance:
+                min_clearance = clearance
+        if min_clearance <= 0.0:
+            collision = True
+        return SegmentResult(
+            collision=collision,
+            min_clearance=float(min_clearance),
+            ik_failures=failures,
+            steps=int(poses.shape[0]),
+        )
+
+    def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
+        """An RGB image (height, width, 3) uint8 of the scene (headless TinyRenderer)."""
+        view = self.client.computeViewMatrix(
+            cameraEyePosition=self.camera_eye,
+            cameraTargetPosition=self.camera_target,
+            cameraUpVector=[0.0, 0.0, 1.0],
+        )
+        projection = self.client.computeProjectionMatrixFOV(
+            fov=50.0, aspect=width / height, nearVal=0.05, farVal=5.0
+        )
+        image = self.client.getCameraImage(
+            width, height, view, projection, renderer=pybullet.ER_TINY_RENDERER, shadow=0
+        )
+        rgba = np.asarray(image[2], dtype=np.uint8).reshape(height, width, 4)
+        return np.ascontiguousarray(rgba[:, :, :3])
+
+    camera_eye: tuple[float, float, float] = (1.4, -0.9, 0.9)
+    camera_target: tuple[float, float, float] = (0.5, 0.0, 0.1)
+
+    def close(self) -> None:
+        """Disconnect the PyBullet client (idempotent)."""
+        if getattr(self, "client", None) is not None:
+            try:
+                self.client.disconnect()
+            except Exception:  # noqa: BLE001 - already disconnected
+                pass
+            self.client = None  # type: ignore[assignment]
+
+    def __enter__(self) -> TaskSim:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ helpers
+    def _convey_object(self, time: float) -> None:
+        if self._object_released:
+            return
+        start, velocity = self._object_start, self._object_velocity
+        self._reset_base_pose(
+            self.object_body,
+            (start[0] + velocity[0] * time, start[1] + velocity[1] * time, start[2]),
+            self._object_quaternion,
+        )
+        self._reset_base_velocity(self.object_body, self._object_velocity_list, (0.0, 0.0, 0.0))
+
+
+def smooth_step(x: np.ndarray) -> np.ndarray:
+    """Minimum-jerk blend 10x^3 - 15x^4 + 6x^5 of x clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
+
+
+def condition_by_translation(
+    times: np.ndarray,
+    poses: np.ndarray,
+    object_offset: np.ndarray,
+    interaction_time: float,
+    blend: float = 0.15,
+) -> np.ndarray:
+    """Approximate TC conditioning of a demonstration (stand-in for the GP skill).
+
+    Samples at normalised time tau >= ``interaction_time`` are translated by the object
+    offset (dx, dy, 0); before it the translation ramps in with a minimum-jerk blend over
+    ``blend`` (in tau), so the start pose stays put.
+
+    Args:
+        times: (n,) s. poses: (n, 6). object_offset: (2,) m.
+    Returns:
+        The conditioned poses (n, 6).
+    """
+    tau = (times - times[0]) / (times[-1] - times[0])
+    weight = smooth_step((tau - (interaction_time - blend)) / blend)
+    shifted = np.array(poses, dtype=float, copy=True)
+    shifted[:, 0] += weight * float(object_offset[0])
+    shifted[:, 1] += weight * float(object_offset[1])
+    return shifted
+
+
+def resample_to_control(times: np.ndarray, poses: np.ndarray, control_dt: float) -> np.ndarray:
+    """Poses (k, 6) at the control instants dt, 2 dt, ... up to the end (linear interp.)."""
+    count = int(math.floor((times[-1] - times[0]) / control_dt + 1e-9))
+    query = times[0] + control_dt * np.arange(1, count + 1)
+    return np.stack([np.interp(query, times, poses[:, j]) for j in range(6)], axis=1)
+
+
+__all__ = [
+    "DEMO_DIR",
+    "EVALUATION_SEED",
+    "TRAINING_CURVE_SEED",
+    "SegmentResult",
+    "TaskConfig",
+    "TaskSim",
+    "TaskSpec",
+    "condition_by_translation",
+    "resample_to_control",
+    "smooth_step",
+]

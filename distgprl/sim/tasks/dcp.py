@@ -1,0 +1,220 @@
+"""DCP: dynamic cube pushing with a shovel (paper §V-A).
+
+Scene (world = UR base frame, m; the robot stands on the table at the origin):
+
+- table: static obstacle, ``Box``, top face z = 0, x in [0.12, 1.2], y in [-0.8, 0.8].
+- wall: static obstacle, ``Box``, face at x = 0.79, y in [-0.45, 0.45], 0.15 m tall.
+- target cube (manipulated object): 5 cm, 0.2 kg, friction 0.5; drifts at
+  ``drift_velocity`` until the tool touches it, then moves freely under contact physics.
+- obstacle cube (dynamic obstacle, ``Box``): 6 cm, moved kinematically along
+  x(t) = cx + A sin(2 pi t / T + phase) at a fixed y.
+- goal: a rectangle on the table (visual only), ``goal_centre`` +- ``goal_half_extents``.
+
+TC: ``object_offset`` shifts the target cube's start, uniform in a disk of radius 0.20 m;
+``obstacle_offset`` shifts the obstacle's path (its centre line), uniform in a disk of
+radius 0.10 m.
+
+Success: the target cube's centre lies inside the goal rectangle (and the cube is on the
+table). Progress: fraction of the initial cube-to-goal distance covered.
+
+The robot stands on a pedestal at the table's edge (base at table height, the table
+starts at x = 0.12 m), so no robot link is exempt: every robot/tool contact with the
+table, the wall or the obstacle cube is a collision. The table is a box (not PyBullet's
+infinite plane, whose single-point contact lets a pushed cube sink), described to the
+distance field as the same box.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from distgprl.safety.shapes import Box, Shape
+from distgprl.sim.bullet import create_shape_body
+from distgprl.sim.robot import SHOVEL
+from distgprl.sim.tasks.base import TaskConfig, TaskSim
+from distgprl.sim.transforms import pose_to_matrix
+
+IDENTITY = np.eye(3)
+
+
+@dataclass(frozen=True)
+class DCPScene:
+    """Geometry and motion constants of the DCP scene (m, s, kg)."""
+
+    table_centre: tuple[float, float, float] = (0.66, 0.0, -0.05)
+    table_half_extents: tuple[float, float, float] = (0.54, 0.8, 0.05)
+    wall_centre: tuple[float, float, float] = (0.80, 0.0, 0.075)
+    wall_half_extents: tuple[float, float, float] = (0.01, 0.45, 0.075)
+    cube_half: float = 0.025
+    cube_mass: float = 0.2
+    cube_start: tuple[float, float] = (0.56, -0.20)
+    drift_velocity: tuple[float, float] = (0.0, -0.02)
+    obstacle_half: float = 0.03
+    obstacle_centre: tuple[float, float] = (0.50, 0.02)
+    obstacle_amplitude: float = 0.15
+    obstacle_period: float = 4.0
+    obstacle_phase: float = -0.236
+    goal_centre: tuple[float, float] = (0.56, 0.22)
+    goal_half_extents: tuple[float, float] = (0.12, 0.10)
+    object_offset_radius: float = 0.20
+    obstacle_offset_radius: float = 0.10
+    start_pose: tuple[float, ...] = (0.35, -0.25, 0.30, 0.0, 0.0, 0.0)
+
+
+SCENE = DCPScene()
+HOME = np.array([2.2, -1.75, 1.6, -1.42, -1.571, -2.51])
+"""Reference configuration (elbow up, wrist down) that picks the start IK branch."""
+
+
+def engagement_time() -> float:
+    """Time (s) at which the DCP expert reaches its engage pose behind the cube."""
+    return 2.0
+
+
+def sample_dcp_tc(rng: np.random.Generator) -> TaskConfig:
+    """Object offset uniform in a 0.20 m disk, obstacle offset uniform in a 0.10 m disk."""
+
+    def disk(radius: float) -> tuple[float, float]:
+        r = radius * math.sqrt(rng.uniform())
+        angle = rng.uniform(0.0, 2.0 * math.pi)
+        return (r * math.cos(angle), r * math.sin(angle))
+
+    return TaskConfig(
+        object_offset=disk(SCENE.object_offset_radius),
+        obstacle_offset=disk(SCENE.obstacle_offset_radius),
+    )
+
+
+class DCPSim(TaskSim):
+    """Dynamic cube pushing simulation (see the module docstring for the scene)."""
+
+    tool = SHOVEL
+    demo_duration = 4.8
+    camera_eye = (1.35, -0.75, 0.75)
+    camera_target = (0.55, 0.0, 0.05)
+
+    def __init__(self, scene: DCPScene = SCENE, **kwargs) -> None:
+        self.scene = scene
+        super().__init__(**kwargs)
+
+    def _build_scene(self) -> None:
+        scene = self.scene
+        self.start_joint_positions = self.robot.ik_nearest(
+            pose_to_matrix(np.asarray(scene.start_pose)), HOME
+        )
+        client = self.client
+        self._table = Box(
+            "table",
+            np.asarray(scene.table_centre),
+            IDENTITY,
+            np.asarray(scene.table_half_extents),
+        )
+        self._wall = Box(
+            "wall", np.asarray(scene.wall_centre), IDENTITY, np.asarray(scene.wall_half_extents)
+        )
+        self._obstacle_template = Box(
+            "obstacle_cube",
+            np.zeros(3),
+            IDENTITY,
+            np.full(3, scene.obstacle_half),
+            dynamic=True,
+        )
+        self.table_body = create_shape_body(client, self._table, (0.82, 0.8, 0.75, 1.0))
+        self.wall_body = create_shape_body(client, self._wall, (0.6, 0.45, 0.35, 1.0))
+        obstacle_start = Box(
+            "obstacle_cube",
+            np.array([*scene.obstacle_centre, scene.obstacle_half]),
+            IDENTITY,
+            np.full(3, scene.obstacle_half),
+        )
+        self.obstacle_body = create_shape_body(client, obstacle_start, (0.85, 0.2, 0.2, 1.0))
+        cube = Box(
+            "target_cube",
+            np.array([*scene.cube_start, scene.cube_half]),
+            IDENTITY,
+            np.full(3, scene.cube_half),
+        )
+        self.object_body = create_shape_body(
+            client, cube, (0.2, 0.4, 0.9, 1.0), mass=scene.cube_mass, lateral_friction=0.5
+        )
+        goal_visual = client.createVisualShape(
+            3,  # GEOM_BOX
+            halfExtents=[*scene.goal_half_extents, 0.0008],
+            rgbaColor=[0.2, 0.8, 0.3, 0.6],
+        )
+        client.createMultiBody(
+            baseMass=0.0,
+            baseVisualShapeIndex=goal_visual,
+            basePosition=[*scene.goal_centre, 0.0008],
+        )
+        self.obstacle_bodies = (self.table_body, self.wall_body, self.obstacle_body)
+        self.exempt_links = {}
+        self._obstacle_position = np.array([*scene.obstacle_centre, scene.obstacle_half])
+        self._obstacle_line = np.array(scene.obstacle_centre)
+        self._start_cube_xy = np.array(scene.cube_start)
+
+    def _place(self, tc: TaskConfig) -> None:
+        scene = self.scene
+        start_xy = np.asarray(scene.cube_start) + np.asarray(tc.object_offset)
+        # a hair above the table so the conveyed cube never starts in penetration
+        self._object_start = np.array([start_xy[0], start_xy[1], scene.cube_half + 1e-4])
+        self._object_velocity = np.array([*scene.drift_velocity, 0.0])
+        self._obstacle_line = np.asarray(scene.obstacle_centre) + np.asarray(tc.obstacle_offset)
+        self._start_cube_xy = start_xy
+
+    def obstacle_position_at(self, time: float) -> np.ndarray:
+        """Centre (3,), m, of the obstacle cube at ``time`` s for the current TC."""
+        scene = self.scene
+        phase = 2.0 * math.pi * time / scene.obstacle_period + scene.obstacle_phase
+        return np.array(
+            [
+                self._obstacle_line[0] + scene.obstacle_amplitude * math.sin(phase),
+                self._obstacle_line[1],
+                scene.obstacle_half + 1e-4,
+            ]
+        )
+
+    def _move_kinematic(self, time: float) -> None:
+        self._obstacle_position = self.obstacle_position_at(time)
+        self.client.resetBasePositionAndOrientation(
+            self.obstacle_body, self._obstacle_position.tolist(), (0.0, 0.0, 0.0, 1.0)
+        )
+
+    def obstacle_shapes(self) -> tuple[Shape, ...]:
+        """Table (box), wall and obstacle cube (current pose), as EDF primitives."""
+        obstacle = Box(
+            "obstacle_cube",
+            self._obstacle_position.copy(),
+            IDENTITY,
+            np.full(3, self.scene.obstacle_half),
+            dynamic=True,
+        )
+        return (self._table, self._wall, obstacle)
+
+    def goal_position(self) -> np.ndarray:
+        """Centre of the goal region at cube-centre height (3,), m."""
+        return np.array([*self.scene.goal_centre, self.scene.cube_half])
+
+    def in_goal(self, position: np.ndarray) -> bool:
+        """Whether a cube centre (3,) counts as inside the goal region (and on the table)."""
+        centre = np.asarray(self.scene.goal_centre)
+        half = np.asarray(self.scene.goal_half_extents)
+        inside = bool(np.all(np.abs(np.asarray(position[:2]) - centre) <= half))
+        return inside and float(position[2]) < 2.0 * self.scene.cube_half
+
+    def success(self) -> bool:
+        """The target cube's centre is inside the goal region, on the table."""
+        return self.in_goal(self.object_position())
+
+    def task_progress(self) -> float:
+        """1 - (cube-goal distance) / (initial cube-goal distance), in [0, 1]; 1 in the goal."""
+        position = self.object_position()
+        if self.in_goal(position):
+            return 1.0
+        goal = np.asarray(self.scene.goal_centre)
+        initial = float(np.linalg.norm(self._start_cube_xy - goal))
+        now = float(np.linalg.norm(position[:2] - goal))
+        return float(np.clip(1.0 - now / max(initial, 1e-9), 0.0, 1.0))

@@ -1,0 +1,75 @@
+"""Task registry, task configurations, TC samplers and the fixed evaluation sets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from distgprl.errors import UserInputError
+from distgprl.sim.tasks import TASKS, TaskConfig, get_task
+from distgprl.sim.tasks.dbm import SCENE as DBM_SCENE
+from distgprl.sim.tasks.dcp import SCENE as DCP_SCENE
+
+
+def test_registry_and_unknown_name():
+    """Both tasks are registered; an unknown name raises UserInputError listing valid names."""
+    assert set(TASKS) == {"dcp", "dbm"}
+    assert get_task("dcp").name == "dcp"
+    with pytest.raises(UserInputError, match="dbm, dcp"):
+        get_task("cube")
+
+
+def test_task_config_validates_and_round_trips():
+    """TCs store two finite floats per offset, reject bad input and survive to_dict/from_dict."""
+    tc = TaskConfig(object_offset=np.array([0.1, -0.05]), obstacle_offset=[0.0, 0.02])
+    assert tc.object_offset == (0.1, -0.05)
+    assert TaskConfig.from_dict(tc.to_dict()) == tc
+    with pytest.raises(UserInputError):
+        TaskConfig(object_offset=(0.1, 0.2, 0.3))
+    with pytest.raises(UserInputError):
+        TaskConfig(object_offset=(float("nan"), 0.0))
+
+
+def test_dcp_sampler_ranges():
+    """DCP: object offsets within 0.20 m, obstacle offsets within 0.10 m, spread over the disks."""
+    rng = np.random.default_rng(0)
+    tcs = [get_task("dcp").sample_tc(rng) for _ in range(2000)]
+    objects = np.array([tc.object_offset for tc in tcs])
+    obstacles = np.array([tc.obstacle_offset for tc in tcs])
+    assert np.linalg.norm(objects, axis=1).max() <= DCP_SCENE.object_offset_radius
+    assert np.linalg.norm(obstacles, axis=1).max() <= DCP_SCENE.obstacle_offset_radius
+    assert np.linalg.norm(objects, axis=1).max() > 0.19
+    assert np.all(np.abs(objects.mean(axis=0)) < 0.01)
+
+
+def test_dbm_sampler_ranges():
+    """DBM: offsets along the conveyor only, within +-0.20 m, bars never closer than the gap."""
+    rng = np.random.default_rng(0)
+    tcs = [get_task("dbm").sample_tc(rng) for _ in range(2000)]
+    objects = np.array([tc.object_offset for tc in tcs])
+    obstacles = np.array([tc.obstacle_offset for tc in tcs])
+    assert np.all(objects[:, 0] == 0.0) and np.all(obstacles[:, 0] == 0.0)
+    assert np.abs(objects[:, 1]).max() <= 0.2 and np.abs(obstacles[:, 1]).max() <= 0.2
+    assert np.abs(objects[:, 1]).max() > 0.19
+    gap = (
+        (DBM_SCENE.target_start_y + objects[:, 1])
+        - (DBM_SCENE.other_start_y + obstacles[:, 1])
+        - 2 * DBM_SCENE.bar_half_extents[1]
+    )
+    assert gap.min() >= DBM_SCENE.min_bar_gap
+
+
+@pytest.mark.parametrize("name", ["dcp", "dbm"])
+def test_evaluation_sets_are_fixed(name):
+    """The 100 evaluation TCs are the same on every call, distinct and differ from the others."""
+    spec = get_task(name)
+    first = spec.evaluation_tcs()
+    assert len(first) == 100
+    assert first == spec.evaluation_tcs(100)
+    assert len(set(first)) == 100
+    assert spec.evaluation_tcs(10) == first[:10]
+    curve = spec.training_curve_tcs()
+    assert len(curve) == 20 and curve == spec.training_curve_tcs()
+    assert not set(curve) & set(first)
+    assert 0.0 < spec.interaction_time < 1.0
+    assert spec.demo_path.is_file()
