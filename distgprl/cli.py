@@ -119,14 +119,43 @@ def evaluate(
 def render(
     task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
     out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
-    tc: Annotated[int, typer.Option(min=0, help="Evaluation TC index.")] = 0,
+    tc: Annotated[int | None, typer.Option(help="Evaluation TC index (default: nominal).")] = None,
 ) -> None:
-    """Render an episode of the TC-conditioned demonstration (headless)."""
+    """Render an episode of the TC-conditioned GP skill (headless)."""
     from distgprl.data import check_task_name
-    from distgprl.sim.render import render_episode
+    from distgprl.envs.render import render_demo_episode
 
     check_task_name(task)
-    if out.suffix.lower() not in (".png", ".gif"):
-        raise UserInputError(f"{out}: output must end in .png or .gif")
-    path = render_episode(task, tc, out)
-    typer.echo(f"wrote {path}")
+    summary = render_demo_episode(task, tc, out)
+    typer.echo(f"wrote {out}: " + ", ".join(f"{k}={v}" for k, v in summary.items() if k != "path"))
+
+
+@app.command()
+@_user_errors
+def hap(
+    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    out: Annotated[
+        Path | None, typer.Option(help="Figure path (default results/hap/<task>.png).")
+    ] = None,
+) -> None:
+    """Build (or load) the task's HAP safe subspace; report it and plot C_safe."""
+    from distgprl.data import check_task_name
+    from distgprl.envs.tasks import load_task_subspace
+    from distgprl.safety.hap import plot_subspace
+    from distgprl.sim.tasks import get_task
+
+    check_task_name(task)
+    subspace, loaded = load_task_subspace(task)
+    stats = subspace.stats
+    out = out or Path("results/hap") / f"{task}.png"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sim = get_task(task).make_sim()
+    try:
+        plot_subspace(subspace, sim.obstacle_shapes(), out, title=f"{task.upper()} C_safe")
+    finally:
+        sim.close()
+    typer.echo(
+        f"{task}: C_safe {len(subspace.unique_positions)} positions "
+        f"({stats.n_mapped}/{stats.n_reachable} reachable poses mapped), "
+        f"build {stats.build_seconds:.1f} s{' (cached)' if loaded else ''} -> {out}"
+    )

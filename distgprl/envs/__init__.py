@@ -1,0 +1,18 @@
+"""Gymnasium environments: the adaptation MDP and the ProMP-RRL residual MDP.
+
+Registered ids (``gymnasium.make(id, method=...)``):
+
+- ``DistGPRL-DCP-v0``, ``DistGPRL-DBM-v0``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v0``, ``ProMPRRL-DBM-v0``: `distgprl.envs.residual.ResidualEnv`.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+for _task in ("dcp", "dbm"):
+    for _prefix, _entry in (
+        ("DistGPRL", "distgprl.envs.adaptation:AdaptationEnv"),
+        ("ProMPRRL", "distgprl.envs.residual:ResidualEnv"),
+    ):
+        _id = f"{_prefix}-{_task.upper()}-v0"
+        if _id not in registry:
+            register(id=_id, entry_point=_entry, kwargs={"task": _task})

@@ -16,6 +16,7 @@ from distgprl.agents.methods import MethodSpec, get_method
 from distgprl.config import EnvConfig
 from distgprl.safety.edf import DistanceField
 from distgprl.skill.gp import GPSkill
+from distgprl.skill.rotations import nearest_equivalent_rotvec
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
@@ -73,7 +74,7 @@ def build_action_layout(
         raise ValueError(f"{steps} windows of {length} do not fit in {n} via-points")
     windows = np.array([np.arange(s, s + length) for s in starts])
     bounds = np.r_[0.0, skill.via_times[starts[1:]], 1.0]
-    if method.action_mode == "global":
+    if method.action_mode == "global":  # residual/none: windows without S (below)
         interior = np.arange(1, n - 1)
         indices = np.tile(interior, (steps, 1))
         operators = np.tile(np.eye(len(interior)), (steps, 1, 1))
@@ -188,7 +189,7 @@ class AdaptationEnv(gym.Env):
 
         self.config = config or EnvConfig()
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        if self.method.action_mode not in ("window", "global", "none"):
+        if self.method.action_mode not in ("window", "global", "none", "residual"):
             raise ValueError(f"method {self.method.name} does not use the via-point MDP")
         self.task_name = task
         self.spec_task, self.sim = make_task_sim(task)
@@ -204,6 +205,10 @@ class AdaptationEnv(gym.Env):
         self._via_mean = self.skill.via_points.mean(axis=0)
         self._via_std = np.maximum(self.skill.via_points.std(axis=0), 1e-3)
         self._segment_maps = self._build_segment_maps()
+        mean = self.skill.prior_mean
+        self._gp_bases = [
+            mean[None, :] * (1.0 - m.sum(axis=1))[:, None] for _, m, _, _ in self._segment_maps
+        ]
         if self.method.signature_reward:
             from distgprl.skill.signature import signature_similarity
 
@@ -224,7 +229,11 @@ class AdaptationEnv(gym.Env):
 
     # -- helpers ---------------------------------------------------------------------------
     def _build_segment_maps(self):
-        """Per step: control times and the GP position map for the executed segment."""
+        """Per step: control-period times tau (m,) and the position map (m, N) of the segment.
+
+        The executed poses of step k are ``base_k + map_k @ gamma`` with ``base_k`` from
+        `_segment_base` (for the GP skill, mu - map_k mu, a constant).
+        """
         duration = self.skill.duration
         dt = self.sim.control_dt
         n_total = int(round(duration / dt))
@@ -236,19 +245,44 @@ class AdaptationEnv(gym.Env):
             lo, hi = bounds[k], bounds[k + 1]
             mask = (tau_all > lo + 1e-12) & (tau_all <= hi + 1e-12)
             tau = tau_all[mask]
-            maps.append((tau, self.skill.position_map(tau), lo, hi))
+            maps.append((tau, self._parameter_map(tau), lo, hi))
         return maps
+
+    # -- trajectory representation hooks (the residual baseline overrides these) -----------
+    def _parameter_map(self, tau: np.ndarray) -> np.ndarray:
+        """Linear map from the adapted parameters (N, 6) to poses at ``tau``: (m, N)."""
+        return self.skill.position_map(tau)
+
+    def _segment_base(self, step: int) -> np.ndarray:
+        """Pose offset of step ``step``'s segment, (m, 6): mu - (M 1) mu^T for the GP."""
+        return self._gp_bases[step]
+
+    def _plan(self, tau: np.ndarray) -> np.ndarray:
+        """Planned poses at ``tau`` from the current parameters, shape (m, 6)."""
+        return self.skill.position(self.gamma, tau)
+
+    def _planned_velocity(self, tau: np.ndarray) -> np.ndarray:
+        """Planned velocities at ``tau``, shape (m, 6), m/s and rad/s."""
+        return self.skill.velocity(self.gamma, tau)
+
+    def _window_poses(self, indices: np.ndarray) -> np.ndarray:
+        """Poses that stand for the step's adapted points (the window via-points)."""
+        return self.gamma[indices]
+
+    def _initial_parameters(self, tc) -> np.ndarray:
+        """Parameters at the start of an episode: the TC-conditioned via-points."""
+        return self.conditioned_via_points(tc)
 
     def conditioned_via_points(self, tc) -> np.ndarray:
         """Demonstration via-points conditioned on a TC (DESIGN §2), shape (N, 6)."""
         offset = np.r_[np.asarray(tc.object_offset, dtype=float)[:2], 0.0]
         gamma = self.skill.condition_on_offset(offset, self.interaction_index)
-        gamma[0] = self.sim.tcp_pose()
+        gamma[0] = self._start_pose
         return gamma
 
     def _observation(self) -> dict[str, np.ndarray]:
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
-        window = self.gamma[indices]
+        window = self._window_poses(indices)
         clearance, _ = self.field.distance(window[:, :3])
         clip = self.config.clearance_clip
         tcp = self.sim.tcp_pose()[:3]
@@ -269,9 +303,10 @@ class AdaptationEnv(gym.Env):
     def _segment_poses(self, step: int) -> np.ndarray:
         """The poses to execute for ``step`` (with continuity blending), shape (m, 6)."""
         tau, position_map, lo, hi = self._segment_maps[step]
-        poses = self.skill.prior_mean + position_map @ (self.gamma - self.skill.prior_mean)
-        if step > 0 and len(tau):
-            planned_start = self.skill.position(self.gamma, np.array([lo]))[0]
+        poses = self._segment_base(step) + position_map @ self.gamma
+        if len(tau):
+            # Where the re-planned trajectory puts the last commanded control instant.
+            planned_start = self._plan(np.array([self._last_tau]))[0]
             jump = self._last_commanded - planned_start
             weight = 1.0 - min_jerk((tau - lo) / max(self.config.blend_fraction * (hi - lo), 1e-9))
             poses = poses + weight[:, None] * jump
@@ -296,7 +331,10 @@ class AdaptationEnv(gym.Env):
             tc = self.spec_task.sample_tc(self._rng)
         self.tc = tc
         self.sim.reset(tc)
-        self.gamma = self.conditioned_via_points(tc)
+        start = self.sim.tcp_pose()
+        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
+        self._start_pose = start
+        self.gamma = self._initial_parameters(tc)
         self.gamma_initial = self.gamma.copy()
         self.step_index = 0
         self.field.update(self.sim.obstacle_shapes())
@@ -304,7 +342,8 @@ class AdaptationEnv(gym.Env):
         self._collision = False
         self._min_clearance = np.inf
         self._adaptation_times: list[float] = []
-        self._last_commanded = self.gamma[0].copy()
+        self._last_commanded = start.copy()
+        self._last_tau = 0.0
         return self._observation(), {"tc": tc}
 
     def step(self, action: np.ndarray):
@@ -322,7 +361,7 @@ class AdaptationEnv(gym.Env):
         self.gamma[indices] += delta  # Eq. updated_via_points
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
-            _, gradient = self.field.distance(self.gamma[indices, :3])
+            _, gradient = self.field.distance(self._window_poses(indices)[:, :3])
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
         poses = self._segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
@@ -340,6 +379,7 @@ class AdaptationEnv(gym.Env):
                 terms["r_sd"] += self._clearance_penalty()
         if len(poses):
             self._last_commanded = poses[-1].copy()
+            self._last_tau = float(self._segment_maps[step][0][-1])
         self._collision |= segment_collision
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
@@ -348,7 +388,7 @@ class AdaptationEnv(gym.Env):
             terms["r_collision"] = -config.collision_penalty
         if self.method.signature_reward and len(poses) > 1:
             tau = self._segment_maps[step][0]
-            reference = self.skill.position(self.gamma_initial, tau)[:, :3]
+            reference = self.skill.position(self.skill.via_points, tau)[:, :3]
             terms["r_signature"] = config.signature_weight * float(
                 self._signature_similarity(
                     poses[:, :3], reference, config.signature_depth, config.signature_scale
@@ -361,14 +401,14 @@ class AdaptationEnv(gym.Env):
             success = bool(self.sim.success())
             if success:
                 terms["r_success"] = config.success_bonus
-            velocity = self.skill.velocity(self.gamma, self._retention_tau)
+            velocity = self._planned_velocity(self._retention_tau)
             info.update(
                 success=success,
                 collision=bool(self._collision),
                 min_clearance=float(self._min_clearance),
                 kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
                 adaptation_time_s=list(self._adaptation_times),
-                final_via_points=self.gamma.copy(),
+                final_parameters=self.gamma.copy(),
             )
         self.field.update(self.sim.obstacle_shapes())
         reward = float(sum(terms.values()))

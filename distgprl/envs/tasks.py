@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
 
 from distgprl.data import check_task_name, demo_path
+from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
 
@@ -29,3 +34,73 @@ def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
 
     path = demo_path(check_task_name(task))
     return _fit_cached(task, n_via_points, file_sha256(path))
+
+
+def hap_cache_dir() -> Path:
+    """Where HAP subspaces are cached: ``$DISTGPRL_CACHE_DIR/hap`` or ``~/.cache/distgprl/hap``."""
+    root = os.environ.get("DISTGPRL_CACHE_DIR")
+    return (Path(root) if root else Path.home() / ".cache" / "distgprl") / "hap"
+
+
+def task_hap_config(task: str, n_via_points: int = 15) -> HapConfig:
+    """The HAP grid for a task, derived from its demonstration (DESIGN §4).
+
+    Workspace: the box spanned by the demonstration's positions and by the object offsets
+    of the TC range (±0.2 m in x and y), padded by 0.1 m, with a 0.1 m grid. Orientations:
+    the demonstration's start orientation and the same turned by ±45° about the world z
+    axis. Root: the demonstration's start position.
+    """
+    from scipy.spatial.transform import Rotation
+
+    skill = load_task_skill(task, n_via_points)
+    positions = skill.via_points[:, :3]
+    lower = positions.min(axis=0) - np.array([0.3, 0.3, 0.1])
+    upper = positions.max(axis=0) + np.array([0.3, 0.3, 0.1])
+    lower[2] = max(lower[2], 0.02)
+    base = Rotation.from_rotvec(skill.via_points[0, 3:])
+    orientations = tuple(
+        tuple(float(v) for v in (Rotation.from_euler("z", yaw) * base).as_rotvec())
+        for yaw in (-np.pi / 4, 0.0, np.pi / 4)
+    )
+    return HapConfig(
+        workspace_lower=tuple(float(v) for v in lower),
+        workspace_upper=tuple(float(v) for v in upper),
+        orientations=orientations,
+        root_position=tuple(float(v) for v in positions[0]),
+    )
+
+
+def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
+    """The task's HAP safe subspace against its static obstacles (built once, then cached)."""
+    from distgprl.sim.tasks import get_task
+
+    spec = get_task(check_task_name(task))
+    sim = spec.make_sim()  # a dedicated instance: the collision checks move its robot
+    try:
+        static = [s for s in sim.obstacle_shapes() if not s.dynamic]
+        return build_or_load(
+            task_hap_config(task),
+            sim.robot.ik_all,
+            sim.configuration_in_collision,
+            obstacles=static,
+            robot_id=f"ur5e+{sim.tool.name}/{task}/hap-wiring-v1",
+            cache_dir=hap_cache_dir(),
+            joint_lower=sim.robot.lower_limits,
+            joint_upper=sim.robot.upper_limits,
+            progress=progress,
+        )
+    finally:
+        sim.close()
+
+
+@lru_cache(maxsize=8)
+def _hap_prior_cached(task: str, k: int, temperature: float):
+    from distgprl.safety.hap_loss import HapPrior
+
+    subspace, _ = load_task_subspace(task)
+    return HapPrior(subspace.unique_positions, k=k, temperature=temperature)
+
+
+def load_task_hap_prior(task: str, k: int = 8, temperature: float = 0.05):
+    """The L_hap prior (Eq. hap_compact) over the task's static C_safe."""
+    return _hap_prior_cached(task, int(k), float(temperature))

@@ -271,6 +271,27 @@ class TaskSim:
         """True once the robot has touched the object (it then moves freely)."""
         return self._object_released
 
+    def configuration_in_collision(
+        self, q: np.ndarray, margin: float = 0.0, include_dynamic: bool = False
+    ) -> bool:
+        """Kinematic check: does the robot at joint positions ``q`` (6,), rad, touch an obstacle?
+
+        True if any robot link or the tool is within ``margin`` (m) of a static obstacle (and
+        of the moving ones if ``include_dynamic``). Self-collision is not checked. This moves
+        the robot (no dynamics): use a sim instance dedicated to checking (e.g. for HAP).
+        """
+        self.robot.reset_joints(np.asarray(q, dtype=float))
+        dynamic = () if include_dynamic else getattr(self, "dynamic_obstacle_bodies", ())
+        robot_body = self._robot_body
+        for body in self.obstacle_bodies:
+            if body in dynamic:
+                continue
+            exempt = self.exempt_links.get(body)
+            for point in self._closest_points(bodyA=robot_body, bodyB=body, distance=margin):
+                if point[8] <= margin and (exempt is None or point[3] not in exempt):
+                    return True
+        return False
+
     def clearance(self) -> float:
         """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff."""
         best = cutoff = self.clearance_cutoff

@@ -206,6 +206,7 @@ class DBMSim(TaskSim):
             origin=other_centre,
         )
         self.obstacle_bodies = (self.roller_body, self.rail_body, self.other_bar_body)
+        self.dynamic_obstacle_bodies = (self.other_bar_body,)
         self.exempt_links = {}
         self._other_start = other_centre
         self._other_position = other_centre.copy()

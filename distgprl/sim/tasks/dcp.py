@@ -151,6 +151,7 @@ class DCPSim(TaskSim):
             basePosition=[*scene.goal_centre, 0.0008],
         )
         self.obstacle_bodies = (self.table_body, self.wall_body, self.obstacle_body)
+        self.dynamic_obstacle_bodies = (self.obstacle_body,)
         self.exempt_links = {}
         self._obstacle_position = np.array([*scene.obstacle_centre, scene.obstacle_half])
         self._obstacle_line = np.array(scene.obstacle_centre)

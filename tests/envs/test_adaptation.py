@@ -1,0 +1,138 @@
+"""The adaptation MDP on the real task simulations (small, deterministic fixtures)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import distgprl.envs  # noqa: F401  (registers the env ids)
+from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
+
+
+@pytest.fixture(scope="module")
+def dcp_env():
+    env = AdaptationEnv("dcp", "dist-gprl")
+    yield env
+    env.close()
+
+
+def rollout(env, tc, actions):
+    obs, _ = env.reset(options={"tc": tc})
+    records = []
+    for action in actions:
+        obs, reward, terminated, truncated, info = env.step(action)
+        records.append((obs, reward, terminated, info))
+    return records
+
+
+def test_passes_gymnasium_check_env():
+    env = gym.make("DistGPRL-DCP-v0", method="dist-gprl").unwrapped
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_episode_is_three_steps_and_reward_terms_sum_to_reward(dcp_env):
+    rng = np.random.default_rng(0)
+    tc = dcp_env.spec_task.evaluation_tcs(3)[1]
+    actions = rng.uniform(-1, 1, size=(3, dcp_env.action_space.shape[0]))
+    records = rollout(dcp_env, tc, actions)
+    assert [r[2] for r in records] == [False, False, True]
+    for _, reward, _, info in records:
+        assert reward == pytest.approx(sum(info[k] for k in REWARD_TERMS), abs=1e-9)
+    final = records[-1][3]
+    for key in ("success", "collision", "min_clearance", "kinematic_retention"):
+        assert key in final
+    assert len(final["adaptation_time_s"]) == 3
+
+
+def test_window_update_applies_the_covariance_transform(dcp_env):
+    tc = dcp_env.spec_task.nominal_tc
+    dcp_env.reset(options={"tc": tc})
+    before = dcp_env.gamma.copy()
+    action = np.random.default_rng(1).uniform(-1, 1, size=30)
+    dcp_env.step(action)
+    window = dcp_env.layout.indices[0]
+    expected = dcp_env.skill.window_operator(window) @ (action.reshape(5, 6) * dcp_env.layout.scale)
+    np.testing.assert_allclose(dcp_env.gamma[window] - before[window], expected, atol=1e-12)
+    untouched = np.setdiff1d(np.arange(15), window)
+    np.testing.assert_array_equal(dcp_env.gamma[untouched], before[untouched])
+
+
+def test_nocov_applies_the_raw_scaled_action():
+    env = AdaptationEnv("dcp", "dist-gprl-nocov")
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    before = env.gamma.copy()
+    action = np.random.default_rng(2).uniform(-1, 1, size=30)
+    env.step(action)
+    window = env.layout.indices[0]
+    np.testing.assert_allclose(
+        env.gamma[window] - before[window], action.reshape(5, 6) * env.layout.scale
+    )
+    env.close()
+
+
+def test_same_tc_and_actions_give_identical_outcomes(dcp_env):
+    tc = dcp_env.spec_task.evaluation_tcs(5)[4]
+    actions = np.random.default_rng(3).uniform(-1, 1, size=(3, 30))
+    first = rollout(dcp_env, tc, actions)
+    second = rollout(dcp_env, tc, actions)
+    for a, b in zip(first, second, strict=True):
+        np.testing.assert_array_equal(a[0]["state"], b[0]["state"])
+        assert a[1] == b[1]
+
+
+def test_demo_method_ignores_actions():
+    env = AdaptationEnv("dcp", "demo")
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    before = env.gamma.copy()
+    env.step(np.ones(30))
+    np.testing.assert_array_equal(env.gamma, before)
+    env.close()
+
+
+def test_distance_terms_only_for_methods_with_distance_rewards():
+    env = AdaptationEnv("dcp", "gprl-h")
+    tc = env.spec_task.evaluation_tcs(2)[0]
+    records = rollout(env, tc, np.full((3, 30), 0.5))
+    assert all(r[3]["r_sd"] == 0.0 and r[3]["r_ga"] == 0.0 for r in records)
+    env.close()
+
+
+def test_gradient_alignment_reward_is_positive_for_moves_along_the_gradient(dcp_env):
+    dcp_env.reset(options={"tc": dcp_env.spec_task.nominal_tc})
+    window = dcp_env.layout.indices[0]
+    _, gradient = dcp_env.field.distance(dcp_env.gamma[window, :3])
+    # Raw action whose S_W-transformed position part points along the EDF gradient.
+    target = np.zeros((5, 6))
+    target[:, :3] = gradient * 0.02
+    raw = np.linalg.solve(dcp_env.layout.operators[0], target) / dcp_env.layout.scale
+    raw = np.clip(raw, -1, 1).ravel()
+    _, _, _, _, info = dcp_env.step(raw)
+    assert info["r_ga"] > 0
+
+
+def test_global_method_observes_and_adapts_all_interior_via_points():
+    env = AdaptationEnv("dcp", "dist-gprl-global")
+    assert env.action_space.shape == (78,)
+    assert env.observation_space["state"].shape == (78 + 13 + 7,)
+    env.close()
+
+
+def test_gprl_holds_the_tc_via_point():
+    env = AdaptationEnv("dcp", "gprl")
+    tc = env.spec_task.evaluation_tcs(1)[0]
+    env.reset(options={"tc": tc})
+    held = env.gamma[env.interaction_index].copy()
+    for _ in range(3):
+        env.step(np.ones(78))
+    np.testing.assert_array_equal(env.gamma[env.interaction_index], held)
+    env.close()
+
+
+def test_dbm_env_runs_an_episode():
+    env = AdaptationEnv("dbm", "dist-gprl")
+    records = rollout(env, env.spec_task.evaluation_tcs(1)[0], np.zeros((3, 30)))
+    assert records[-1][2]
+    env.close()

@@ -1,0 +1,144 @@
+"""train / evaluate runs at reduced size: every method, determinism, resume, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from distgprl.errors import UserInputError
+from distgprl.experiments import runner
+from distgprl.experiments.results import read_csv, read_json
+
+STEPS = 120  # the `ci` preset shortened further; still past learning_starts
+
+
+def train(tmp_path, method, task="dcp", seed=0, steps=STEPS, **kwargs):
+    return runner.train_run(
+        task,
+        method,
+        seed,
+        preset="ci",
+        steps=steps,
+        root=tmp_path,
+        show_progress=False,
+        **kwargs,
+    )
+
+
+@pytest.mark.parametrize(
+    "method",
+    ["dist-gprl", "gprl-d", "gprl-h", "dist-gprl-global", "dist-gprl-nocov", "gprl", "promp-rrl"],
+)
+def test_every_method_trains_and_evaluates(tmp_path, method):
+    folder = train(tmp_path, method)
+    for name in (
+        "config.json",
+        "progress.csv",
+        "evaluation.csv",
+        "summary.json",
+        "done.json",
+        "model.zip",
+    ):
+        assert (folder / name).exists(), name
+    summary = read_json(folder / "summary.json")["summary"]
+    assert 0.0 <= summary["success_rate"] <= 1.0
+    assert 0.0 <= summary["collision_rate"] <= 1.0
+    _, progress = read_csv(folder / "progress.csv")
+    assert [int(r["step"]) for r in progress] == [0, 120]
+    _, rows = read_csv(folder / "evaluation.csv")
+    assert len(rows) == 6
+    if method in ("dist-gprl", "gprl-h", "dist-gprl-global", "dist-gprl-nocov"):
+        assert progress[-1]["l_hap"] != ""
+    if method == "gprl":
+        assert float(progress[-1]["ent_coef"]) < 0.2
+
+
+def test_same_seed_gives_identical_progress(tmp_path):
+    a = train(tmp_path / "a", "dist-gprl", evaluate_after=False)
+    b = train(tmp_path / "b", "dist-gprl", evaluate_after=False)
+    _, rows_a = read_csv(a / "progress.csv")
+    _, rows_b = read_csv(b / "progress.csv")
+    for ra, rb in zip(rows_a, rows_b, strict=True):
+        for key in ("success_rate", "collision_rate", "mean_return", "l_sim", "l_hap"):
+            assert ra[key] == rb[key], key
+
+
+def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_path, monkeypatch):
+    original = runner.save_checkpoint
+    calls = {"n": 0}
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise KeyboardInterrupt  # killed right after the first checkpoint
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    assert not (folder / "done.json").exists()
+    with pytest.raises(UserInputError, match="pass --resume"):
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    assert read_json(folder / "done.json")["steps"] == 240
+    from distgprl.agents.sac import RegularisedSAC
+
+    model = RegularisedSAC.load(
+        folder / "checkpoints" / "model.zip",
+        device="cpu",
+        custom_objects={"regulariser": None, "entropy_schedule": None},
+    )
+    model.load_replay_buffer(folder / "checkpoints" / "replay_buffer.pkl")
+    assert model.num_timesteps == 240
+    assert model.replay_buffer.size() == 240
+    _, progress = read_csv(folder / "progress.csv")
+    assert [int(r["step"]) for r in progress] == [0, 120, 240]
+
+
+def test_corrupt_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
+    original = runner.save_checkpoint
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, "gprl-d", steps=240, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    (folder / "checkpoints" / "model.zip").write_bytes(b"not a zip")
+    with pytest.raises(UserInputError, match="corrupt or incompatible checkpoint"):
+        train(tmp_path, "gprl-d", steps=240, evaluate_after=False, resume=True)
+
+
+def test_evaluate_demo_reference_writes_summary(tmp_path):
+    summary = runner.evaluate_run(
+        "dcp", "demo", 0, "ci", episodes=4, root=tmp_path, show_progress=False
+    )
+    assert summary["episodes"] == 4
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    meta, rows = read_csv(folder / "evaluation.csv")
+    assert meta["method"] == "demo" and len(rows) == 4
+    assert np.isfinite(float(rows[0]["min_clearance"]))
+
+
+def test_missing_model_and_bad_names_are_clear_errors(tmp_path):
+    with pytest.raises(UserInputError, match="no trained model"):
+        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+    with pytest.raises(UserInputError, match="valid methods"):
+        runner.evaluate_run("dcp", "nope", 0, "ci", root=tmp_path)
+    with pytest.raises(UserInputError, match="valid tasks"):
+        runner.evaluate_run("nope", "demo", 0, "ci", root=tmp_path)
+    with pytest.raises(UserInputError, match="does not train"):
+        runner.train_run("dcp", "demo", 0, "ci", root=tmp_path)
+
+
+def test_incompatible_model_file_is_a_clear_error(tmp_path):
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder.mkdir(parents=True)
+    (folder / "model.zip").write_bytes(b"junk")
+    with pytest.raises(UserInputError, match="cannot load model"):
+        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
