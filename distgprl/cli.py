@@ -66,6 +66,75 @@ def fit(
     )
 
 
+def _split(text: str | None) -> list[str] | None:
+    return [item.strip() for item in text.split(",") if item.strip()] if text else None
+
+
+@app.command()
+@_user_errors
+def sweep(
+    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    methods: Annotated[
+        str | None, typer.Option(help="Comma-separated methods (default all).")
+    ] = None,
+    tasks: Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")] = None,
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    workers: Annotated[int, typer.Option(min=1, help="Parallel jobs.")] = 1,
+    executor: Annotated[str, typer.Option(help="local | ray.")] = "local",
+    address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+) -> None:
+    """Train and evaluate every (method, task, seed); finished runs are skipped."""
+    from distgprl.experiments.sweep import plan_jobs, run_sweep
+
+    try:
+        seed_list = [int(s) for s in _split(seeds) or []]
+    except ValueError:
+        raise UserInputError(f"--seeds must be comma-separated integers, got {seeds!r}") from None
+    jobs = plan_jobs(preset, _split(methods), _split(tasks), seed_list, root)
+
+    def report(result, finished, total):
+        extra = f" ({result.error})" if result.error else ""
+        typer.echo(
+            f"[{finished}/{total}] {result.job.name}: {result.status} "
+            f"in {result.seconds:.0f} s{extra}"
+        )
+
+    results = run_sweep(jobs, workers, executor, address, on_result=report)
+    failed = [r for r in results if r.status == "failed"]
+    typer.echo(f"sweep: {len(results) - len(failed)}/{len(results)} runs complete")
+    if failed:
+        raise typer.Exit(code=1)
+
+
+@app.command()
+@_user_errors
+def tables(
+    preset: Annotated[str, typer.Option(help="Preset whose results to tabulate.")] = "paper",
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+) -> None:
+    """Table I (and Table II if hardware trials exist) as CSV, Markdown and LaTeX."""
+    from distgprl.report.tables import write_tables
+
+    for path in write_tables(root, preset, out_dir):
+        typer.echo(f"wrote {path}")
+
+
+@app.command()
+@_user_errors
+def curves(
+    preset: Annotated[str, typer.Option(help="Preset whose results to plot.")] = "paper",
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+) -> None:
+    """Learning-curve figures (HAP effect, covariance effect, all methods), PNG and PDF."""
+    from distgprl.report.curves import write_curves
+
+    for path in write_curves(root, preset, out_dir):
+        typer.echo(f"wrote {path}")
+
+
 def main() -> None:  # pragma: no cover - console entry for `python -m distgprl.cli`
     app(prog_name="distgprl")
 

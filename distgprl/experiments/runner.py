@@ -18,6 +18,7 @@ the new one, never half of one.
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import shutil
 import time
@@ -258,8 +259,17 @@ def deterministic_policy(model):
 
 
 # -- checkpoints --------------------------------------------------------------------------------
+def checkpoint_dir(folder: Path) -> Path:
+    """Checkpoints of a run: ``<folder>/checkpoints``, or, when ``DISTGPRL_CHECKPOINT_ROOT``
+    is set, the same relative path under that root (e.g. a disk that outlives the work tree)."""
+    root = os.environ.get("DISTGPRL_CHECKPOINT_ROOT")
+    if not root:
+        return folder / "checkpoints"
+    return Path(root) / Path(*folder.resolve().parts[-4:]) / "checkpoints"
+
+
 def _checkpoint_paths(folder: Path) -> dict[str, Path]:
-    ckpt = folder / "checkpoints"
+    ckpt = checkpoint_dir(folder)
     return {
         "dir": ckpt,
         "model": ckpt / "model.zip",

@@ -86,11 +86,11 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     from distgprl.agents.sac import RegularisedSAC
 
     model = RegularisedSAC.load(
-        folder / "checkpoints" / "model.zip",
+        runner.checkpoint_dir(folder) / "model.zip",
         device="cpu",
         custom_objects={"regulariser": None, "entropy_schedule": None},
     )
-    model.load_replay_buffer(folder / "checkpoints" / "replay_buffer.pkl")
+    model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
     assert model.num_timesteps == 240
     assert model.replay_buffer.size() == 240
     _, progress = read_csv(folder / "progress.csv")
@@ -109,7 +109,7 @@ def test_corrupt_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
         train(tmp_path, "gprl-d", steps=240, evaluate_after=False)
     monkeypatch.setattr(runner, "save_checkpoint", original)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
-    (folder / "checkpoints" / "model.zip").write_bytes(b"not a zip")
+    (runner.checkpoint_dir(folder) / "model.zip").write_bytes(b"not a zip")
     with pytest.raises(UserInputError, match="corrupt or incompatible checkpoint"):
         train(tmp_path, "gprl-d", steps=240, evaluate_after=False, resume=True)
 

@@ -1,0 +1,190 @@
+"""`distgprl sweep`: every (task, method, seed) as an independent, resumable job.
+
+- A job whose run folder has ``done.json`` with the same config hash is skipped.
+- A job whose run folder has a checkpoint resumes from it; one with only a config starts
+  over (its partial files are replaced atomically).
+- A failing job writes ``error.json`` (type, message, traceback) into its run folder and
+  the sweep goes on; the next sweep retries it.
+- The `demo` reference is evaluated once per task (seed 0); it has no training.
+
+Executors: ``local`` (worker processes on this machine) and ``ray`` (the same job
+function submitted to a Ray cluster; optional extra ``distgprl[ray]``).
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+from distgprl.agents.methods import TABLE_ORDER, get_method
+from distgprl.data import TASK_NAMES, check_task_name
+from distgprl.errors import UserInputError
+from distgprl.experiments.results import read_json, write_json
+from distgprl.experiments.runner import evaluate_run, resolve_run, run_dir, train_run
+
+
+@dataclass(frozen=True)
+class Job:
+    """One (task, method, seed) of a sweep."""
+
+    task: str
+    method: str
+    seed: int
+    preset: str
+    root: str
+
+    @property
+    def name(self) -> str:
+        return f"{self.task}/{self.method}/seed{self.seed}"
+
+
+@dataclass(frozen=True)
+class JobResult:
+    job: Job
+    status: str  # "done", "skipped", "failed"
+    seconds: float
+    error: str = ""
+
+
+def plan_jobs(
+    preset: str,
+    methods: Sequence[str] | None = None,
+    tasks: Sequence[str] | None = None,
+    seeds: Sequence[int] = (0, 1, 2),
+    root: str | Path = "results",
+) -> list[Job]:
+    """All jobs of a sweep in table order (validates every name first)."""
+    methods = list(methods or TABLE_ORDER)
+    tasks = list(tasks or TASK_NAMES)
+    for method in methods:
+        get_method(method)
+    for task in tasks:
+        check_task_name(task)
+    if not seeds:
+        raise UserInputError("no seeds given")
+    jobs = []
+    for task in tasks:
+        for method in methods:
+            method_seeds = [0] if not get_method(method).trainable else list(seeds)
+            for seed in method_seeds:
+                jobs.append(Job(task, method, int(seed), preset, str(root)))
+    return jobs
+
+
+def is_complete(job: Job) -> bool:
+    """True if the job's run folder holds a finished run of the same configuration."""
+    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    marker = folder / ("done.json" if get_method(job.method).trainable else "summary.json")
+    if not marker.exists():
+        return False
+    try:
+        recorded = read_json(marker)["meta"].get("config_hash")
+    except Exception:
+        return False
+    return recorded == resolve_run(job.task, job.method, job.seed, job.preset).hash
+
+
+def run_job(job: Job) -> JobResult:
+    """Run one job to completion (resuming if possible); never raises for a run failure."""
+    import torch
+
+    torch.set_num_threads(1)
+    start = time.perf_counter()
+    if is_complete(job):
+        return JobResult(job, "skipped", 0.0)
+    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    try:
+        if get_method(job.method).trainable:
+            resume = (folder / "config.json").exists()
+            train_run(
+                job.task,
+                job.method,
+                job.seed,
+                job.preset,
+                resume=resume,
+                root=job.root,
+                show_progress=False,
+            )
+        else:
+            evaluate_run(
+                job.task, job.method, job.seed, job.preset, root=job.root, show_progress=False
+            )
+    except Exception as exc:  # recorded, the sweep goes on
+        message = f"{type(exc).__name__}: {exc}"
+        write_json(
+            folder / "error.json",
+            {"job": asdict(job), "error": message, "traceback": traceback.format_exc()},
+            kind="error",
+        )
+        return JobResult(job, "failed", time.perf_counter() - start, message)
+    error_file = folder / "error.json"
+    if error_file.exists():
+        error_file.unlink()
+    return JobResult(job, "done", time.perf_counter() - start)
+
+
+def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
+    if workers <= 1:
+        for job in jobs:
+            yield run_job(job)
+        return
+    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+        pending = {pool.submit(run_job, job) for job in jobs}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                yield future.result()
+
+
+def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[JobResult]:
+    try:
+        import ray
+    except ImportError:
+        raise UserInputError(
+            "the ray executor needs the optional extra: pip install 'distgprl[ray]'"
+        ) from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
+    try:
+        remote = ray.remote(num_cpus=1)(run_job)
+        pending = [remote.remote(job) for job in jobs]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                yield ray.get(ref)
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def run_sweep(
+    jobs: list[Job],
+    workers: int = 1,
+    executor: str = "local",
+    address: str | None = None,
+    on_result: Callable[[JobResult, int, int], None] | None = None,
+) -> list[JobResult]:
+    """Run every job; ``on_result(result, finished, total)`` reports live progress."""
+    if executor not in ("local", "ray"):
+        raise UserInputError(f"unknown executor {executor!r}; valid: local, ray")
+    todo = [job for job in jobs if not is_complete(job)]
+    results = [JobResult(job, "skipped", 0.0) for job in jobs if job not in todo]
+    total = len(jobs)
+    for result in results:
+        if on_result:
+            on_result(result, len(results), total)
+    stream = _run_local(todo, workers) if executor == "local" else _run_ray(todo, workers, address)
+    for result in stream:
+        results.append(result)
+        if on_result:
+            on_result(result, len(results), total)
+    return results

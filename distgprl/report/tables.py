@@ -1,0 +1,210 @@
+"""Table I (simulation) and Table II (hardware) from result files only.
+
+Each cell is the mean ± standard deviation over seeds with a 95 % confidence interval
+(Student t over seeds; a single seed has no interval). Rows follow the paper's order,
+then the ablation and the `demo` reference. Pure functions of the files they read.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from distgprl.agents.methods import METHODS, TABLE_ORDER
+from distgprl.experiments.results import atomic_write_text, read_csv, read_json
+
+METRICS = (
+    ("success_rate", "Success"),
+    ("collision_rate", "Collision"),
+    ("min_clearance_p5", "MinCl (m)"),
+    ("mean_kinematic_retention", "KinRet"),
+)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Aggregate of one metric over seeds."""
+
+    mean: float
+    std: float
+    ci_low: float
+    ci_high: float
+    n: int
+
+    def text(self, digits: int = 2) -> str:
+        if self.n == 0:
+            return "–"
+        if self.n == 1:
+            return f"{self.mean:.{digits}f}"
+        return f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
+
+
+def aggregate(values: list[float]) -> Cell:
+    """Mean, sample std and 95 % t-interval over seeds."""
+    array = np.asarray(values, dtype=float)
+    n = len(array)
+    if n == 0:
+        return Cell(np.nan, np.nan, np.nan, np.nan, 0)
+    mean = float(array.mean())
+    if n == 1:
+        return Cell(mean, 0.0, np.nan, np.nan, 1)
+    std = float(array.std(ddof=1))
+    half = float(stats.t.ppf(0.975, n - 1) * std / np.sqrt(n))
+    return Cell(mean, std, mean - half, mean + half, n)
+
+
+def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
+    """{(task, method): [summary per seed]} from ``<root>/<preset>/<task>/<method>/seed*/``."""
+    out: dict[tuple[str, str], list[dict]] = {}
+    base = Path(root) / preset
+    for path in sorted(base.glob("*/*/seed*/summary.json")):
+        task, method = path.parts[-4], path.parts[-3]
+        out.setdefault((task, method), []).append(read_json(path)["summary"])
+    return out
+
+
+def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
+    """Rows of Table I: one per (method), columns per task and metric."""
+    summaries = collect_summaries(Path(root), preset)
+    tasks = sorted(
+        {task for task, _ in summaries},
+        key=lambda t: ("dcp", "dbm").index(t) if t in ("dcp", "dbm") else 9,
+    )
+    rows = []
+    for method in TABLE_ORDER:
+        if not any((task, method) in summaries for task in tasks):
+            continue
+        row = {"method": method, "label": METHODS[method].label}
+        for task in tasks:
+            seeds = summaries.get((task, method), [])
+            row[f"{task}_seeds"] = len(seeds)
+            for key, _ in METRICS:
+                row[f"{task}_{key}"] = aggregate([s[key] for s in seeds])
+        rows.append(row)
+    return rows, tasks
+
+
+def hardware_table(root: str | Path) -> list[dict]:
+    """Rows of Table II from ``<root>/hardware/<method>/*.csv`` trial files (if any)."""
+    rows = []
+    base = Path(root) / "hardware"
+    for method in TABLE_ORDER:
+        files = sorted((base / method).glob("*.csv")) if (base / method).exists() else []
+        trials = [r for f in files for r in read_csv(f)[1]]
+        if not trials:
+            continue
+        success = [float(r["success"]) for r in trials]
+        collision = [float(r["collision"]) for r in trials]
+        clearance = [float(r["min_clearance"]) for r in trials]
+        rows.append(
+            {
+                "method": method,
+                "label": METHODS[method].label,
+                "trials": len(trials),
+                "success_rate": float(np.mean(success)),
+                "collision_rate": float(np.mean(collision)),
+                "min_clearance_p5": float(np.percentile(clearance, 5)),
+            }
+        )
+    return rows
+
+
+def _csv_text(rows: list[dict], tasks: list[str]) -> str:
+    buffer = io.StringIO()
+    fields = ["method", "label"]
+    for task in tasks:
+        fields.append(f"{task}_seeds")
+        for key, _ in METRICS:
+            fields += [f"{task}_{key}_{part}" for part in ("mean", "std", "ci_low", "ci_high")]
+    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        out = {"method": row["method"], "label": row["label"]}
+        for task in tasks:
+            out[f"{task}_seeds"] = row.get(f"{task}_seeds", 0)
+            for key, _ in METRICS:
+                cell = row.get(f"{task}_{key}", aggregate([]))
+                for part in ("mean", "std", "ci_low", "ci_high"):
+                    value = getattr(cell, part)
+                    out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
+        writer.writerow(out)
+    return buffer.getvalue()
+
+
+def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
+    header = ["Method"] + [f"{t.upper()} {name}" for t in tasks for _, name in METRICS]
+    lines = [
+        f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets)",
+        "",
+        "| " + " | ".join(header) + " |",
+        "|" + "---|" * len(header),
+    ]
+    for row in rows:
+        cells = [row["label"]]
+        for task in tasks:
+            n = row.get(f"{task}_seeds", 0)
+            for index, (key, _) in enumerate(METRICS):
+                cell = row.get(f"{task}_{key}", aggregate([]))
+                text = cell.text(3 if key == "min_clearance_p5" else 2)
+                cells.append(f"{text} [{n}]" if index == 0 and n else text)
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
+    columns = "l" + "c" * (len(tasks) * len(METRICS))
+    lines = [
+        "\\begin{table}[htb]",
+        "\\centering",
+        f"\\caption{{Simulation results ({preset} preset), mean $\\pm$ std over seeds}}",
+        "\\label{tab:sim_results}",
+        f"\\begin{{tabular}}{{{columns}}}",
+        "\\toprule",
+        " & "
+        + " & ".join(f"\\multicolumn{{{len(METRICS)}}}{{c}}{{{t.upper()}}}" for t in tasks)
+        + " \\\\",
+        "Method & " + " & ".join(name for _ in tasks for _, name in METRICS) + " \\\\",
+        "\\midrule",
+    ]
+    for row in rows:
+        cells = [row["label"].replace("_", "\\_")]
+        for task in tasks:
+            for key, _ in METRICS:
+                cell = row.get(f"{task}_{key}", aggregate([]))
+                cells.append(
+                    cell.text(3 if key == "min_clearance_p5" else 2).replace("±", "$\\pm$")
+                )
+        lines.append(" & ".join(cells) + " \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
+    return "\n".join(lines)
+
+
+def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
+    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX."""
+    rows, tasks = simulation_table(root, preset)
+    if not rows:
+        from distgprl.errors import UserInputError
+
+        raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
+    out_dir = Path(out_dir)
+    stem = f"table1_{preset}"
+    written = [
+        atomic_write_text(out_dir / f"{stem}.csv", _csv_text(rows, tasks)),
+        atomic_write_text(out_dir / f"{stem}.md", _markdown(rows, tasks, preset)),
+        atomic_write_text(out_dir / f"{stem}.tex", _latex(rows, tasks, preset)),
+    ]
+    hardware = hardware_table(root)
+    if hardware:
+        lines = ["| Method | Trials | Success | Collision | MinCl (m) |", "|---|---|---|---|---|"]
+        for row in hardware:
+            lines.append(
+                f"| {row['label']} | {row['trials']} | {row['success_rate']:.2f} | "
+                f"{row['collision_rate']:.2f} | {row['min_clearance_p5']:.3f} |"
+            )
+        written.append(atomic_write_text(out_dir / "table2_hardware.md", "\n".join(lines) + "\n"))
+    return written
