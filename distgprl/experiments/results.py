@@ -24,12 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from distgprl import __version__
+from distgprl.errors import UserInputError
 
 SCHEMA_VERSION = 1
 _LIBRARIES = ("numpy", "scipy", "torch", "pybullet", "stable_baselines3", "gymnasium")
 
 
-class SchemaVersionError(ValueError):
+class SchemaVersionError(UserInputError, ValueError):
     """A result file was written with a schema version this code cannot read."""
 
 

@@ -74,7 +74,8 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
                 ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, lw=0)
                 ax.set_title(f"{task.upper()}: {label}")
                 ax.set_xlabel("training steps")
-        axes[row, 0].legend(fontsize=7)
+        if axes[row, 0].get_legend_handles_labels()[0]:
+            axes[row, 0].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
     return fig, drawn

@@ -1,0 +1,102 @@
+"""Sweeps: skip finished runs, survive SIGKILL, record failures; reports are pure."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from distgprl.errors import UserInputError
+from distgprl.experiments import sweep
+from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.runner import run_dir
+from distgprl.report.curves import write_curves
+from distgprl.report.tables import write_tables
+
+
+def test_plan_validates_names_and_runs_demo_once_per_task():
+    jobs = sweep.plan_jobs("ci", ["demo", "dist-gprl"], ["dcp"], [0, 1, 2])
+    assert [j.name for j in jobs] == [
+        "dcp/demo/seed0",
+        "dcp/dist-gprl/seed0",
+        "dcp/dist-gprl/seed1",
+        "dcp/dist-gprl/seed2",
+    ]
+    with pytest.raises(UserInputError, match="valid methods"):
+        sweep.plan_jobs("ci", ["bogus"], ["dcp"])
+    with pytest.raises(UserInputError, match="valid tasks"):
+        sweep.plan_jobs("ci", ["demo"], ["bogus"])
+
+
+def test_failing_run_is_recorded_and_does_not_stop_the_others(tmp_path, monkeypatch):
+    jobs = sweep.plan_jobs("ci", ["demo", "gprl-d"], ["dcp"], [0], root=tmp_path)
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(sweep, "train_run", boom)
+    results = sweep.run_sweep(jobs)
+    status = {r.job.method: r.status for r in results}
+    assert status == {"demo": "done", "gprl-d": "failed"}
+    error = read_json(run_dir(tmp_path, "ci", "dcp", "gprl-d", 0) / "error.json")
+    assert "simulated failure" in error["error"]
+    again = sweep.run_sweep(sweep.plan_jobs("ci", ["demo"], ["dcp"], [0], root=tmp_path))
+    assert again[0].status == "skipped"
+
+
+def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_path):
+    command = [
+        sys.executable,
+        "-m",
+        "distgprl.cli",
+        "sweep",
+        "--preset",
+        "ci",
+        "--tasks",
+        "dcp",
+        "--methods",
+        "demo,gprl-d",
+        "--seeds",
+        "0,1",
+        "--root",
+        str(tmp_path),
+    ]
+    env = {**os.environ, "DISTGPRL_CHECKPOINT_ROOT": ""}
+    process = subprocess.Popen(
+        command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    first = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    deadline = time.time() + 300
+    # Kill mid-run: after the first trained run's first checkpoint, before it finishes.
+    while time.time() < deadline and not (first / "checkpoints" / "state.pkl").exists():
+        time.sleep(0.2)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    assert not (run_dir(tmp_path, "ci", "dcp", "gprl-d", 1) / "done.json").exists()
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "3/3 runs complete" in result.stdout
+    for seed in (0, 1):
+        folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", seed)
+        assert read_json(folder / "done.json")["steps"] == 240
+        _, progress = read_csv(folder / "progress.csv")
+        steps = [int(r["step"]) for r in progress]
+        assert steps == sorted(set(steps)) == [0, 120, 240]
+        _, rows = read_csv(folder / "evaluation.csv")
+        assert len(rows) == 6
+    leftovers = [p for p in tmp_path.rglob("*.tmp*")]
+    assert leftovers == []
+    # Tables and curves are pure functions of the result files.
+    out_a, out_b = tmp_path / "fig_a", tmp_path / "fig_b"
+    files_a = write_tables(tmp_path, "ci", out_a) + write_curves(tmp_path, "ci", out_a)
+    files_b = write_tables(tmp_path, "ci", out_b) + write_curves(tmp_path, "ci", out_b)
+    assert [p.name for p in files_a] == [p.name for p in files_b]
+    for a, b in zip(files_a, files_b, strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    table = (out_a / "table1_ci.md").read_text()
+    assert "GPRL-D" in table and "Demo (no adaptation)" in table
+    assert "[2]" in table

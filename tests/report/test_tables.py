@@ -1,0 +1,55 @@
+"""Table aggregation: mean, std and 95 % interval over seeds; schema errors are clear."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from distgprl.experiments.results import SchemaVersionError, write_json
+from distgprl.report.tables import aggregate, simulation_table, write_tables
+
+
+def test_aggregate_mean_std_and_t_interval():
+    cell = aggregate([0.2, 0.4, 0.6])
+    assert cell.mean == pytest.approx(0.4)
+    assert cell.std == pytest.approx(0.2)
+    half = 4.302652729911275 * 0.2 / np.sqrt(3)  # t_{0.975, 2}
+    assert cell.ci_low == pytest.approx(0.4 - half)
+    assert cell.ci_high == pytest.approx(0.4 + half)
+    assert aggregate([0.5]).text() == "0.50"
+    assert aggregate([]).text() == "–"
+
+
+def summary(success, collision, clearance):
+    return {
+        "summary": {
+            "success_rate": success,
+            "collision_rate": collision,
+            "min_clearance_p5": clearance,
+            "mean_kinematic_retention": 0.9,
+        }
+    }
+
+
+def test_rows_follow_the_paper_order_with_the_demo_last(tmp_path):
+    for method, seeds in (("demo", [0]), ("dist-gprl", [0, 1]), ("gprl", [0])):
+        for seed in seeds:
+            write_json(
+                tmp_path / "p" / "dcp" / method / f"seed{seed}" / "summary.json",
+                summary(0.5 + 0.1 * seed, 0.1, 0.01),
+            )
+    rows, tasks = simulation_table(tmp_path, "p")
+    assert tasks == ["dcp"]
+    assert [r["method"] for r in rows] == ["gprl", "dist-gprl", "demo"]
+    assert rows[1]["dcp_success_rate"].mean == pytest.approx(0.55)
+    assert rows[1]["dcp_seeds"] == 2
+
+
+def test_unknown_schema_version_is_a_clear_error(tmp_path):
+    path = tmp_path / "p" / "dcp" / "demo" / "seed0" / "summary.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"meta": {"schema_version": 99}, "summary": {}}))
+    with pytest.raises(SchemaVersionError, match="schema_version 99 is not supported"):
+        write_tables(tmp_path, "p", tmp_path / "out")
