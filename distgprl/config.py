@@ -82,6 +82,10 @@ class SACConfig:
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
         anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
             from start to end over the run.
+        ent_coef_init: initial value of SAC's automatically tuned entropy coefficient
+            (SB3 ``ent_coef="auto_<init>"``). SB3's default 1.0 makes the entropy bonus of a
+            30-D action dwarf this task's rewards for the first ~15k steps; 0.1 keeps the
+            automatic tuning of Haarnoja et al. but starts at the scale of the rewards.
     """
 
     learning_rate: float = 3e-4
@@ -103,6 +107,7 @@ class SACConfig:
     hap_n_query: int = 20
     anneal_start: float = 0.2
     anneal_end: float = 0.002
+    ent_coef_init: float = 0.1
 
 
 @dataclass(frozen=True)

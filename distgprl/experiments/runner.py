@@ -166,7 +166,7 @@ def make_agent(env, run: RunSpec):
         learning_starts=sac.learning_starts,
         train_freq=sac.train_freq,
         gradient_steps=sac.gradient_steps,
-        ent_coef=sac.anneal_start if anneal else "auto",
+        ent_coef=sac.anneal_start if anneal else f"auto_{sac.ent_coef_init}",
         policy_kwargs={
             "features_extractor_class": StateOnlyExtractor,
             "net_arch": list(sac.net_arch),
