@@ -11,7 +11,7 @@ $(BIN)/python:
 setup: $(BIN)/python
 	# torch first and pinned: an unpinned torch would pull a multi-GB CUDA build
 	$(BIN)/pip install -q -c constraints.txt torch==2.13.0
-	$(BIN)/pip install -q -c constraints.txt -e ".[dev]"
+	$(BIN)/pip install -q -c constraints.txt -e ".[dev,ray]"
 
 test:
 	$(BIN)/python -m pytest -q

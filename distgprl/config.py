@@ -52,8 +52,8 @@ class EnvConfig:
     window_size: int = 5
     n_windows: int = 3
     correlation_lambda: float = 1e-2
-    position_action_scale: float = 0.08
-    rotation_action_scale: float = 0.15
+    position_action_scale: float = 0.03
+    rotation_action_scale: float = 0.05
     lambda_ga: float = 0.2
     progress_weight: float = 10.0
     success_bonus: float = 10.0

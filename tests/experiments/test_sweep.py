@@ -100,3 +100,20 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
     table = (out_a / "table1_ci.md").read_text()
     assert "GPRL-D" in table and "Demo (no adaptation)" in table
     assert "[2]" in table
+
+
+def test_ray_executor_runs_the_same_jobs_on_a_local_ray_instance(tmp_path):
+    import ray  # installed by `make setup` (extra `distgprl[ray]`)
+
+    jobs = sweep.plan_jobs("ci", ["demo"], ["dcp", "dbm"], [0], root=tmp_path)
+    results = sweep.run_sweep(jobs, workers=2, executor="ray")
+    assert not ray.is_initialized()
+    assert sorted((r.job.name, r.status) for r in results) == [
+        ("dbm/demo/seed0", "done"),
+        ("dcp/demo/seed0", "done"),
+    ]
+    for job in jobs:
+        folder = run_dir(tmp_path, "ci", job.task, job.method, job.seed)
+        assert read_json(folder / "summary.json")["summary"]["episodes"] == 6
+    again = sweep.run_sweep(jobs, executor="ray")
+    assert {r.status for r in again} == {"skipped"}
