@@ -66,6 +66,50 @@ def fit(
     )
 
 
+@app.command()
+@_user_errors
+def hardware(
+    trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
+    method: Annotated[str, typer.Option(help="Trained method whose policy adapts.")] = "dist-gprl",
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    backend: Annotated[
+        str | None, typer.Option(help="twin | ur (default: ur if --robot-ip, else twin).")
+    ] = None,
+    robot_ip: Annotated[
+        str | None, typer.Option(help="UR controller address (ur backend).")
+    ] = None,
+    camera: Annotated[str | None, typer.Option(help="Camera index or URL (ur backend).")] = None,
+    calibration: Annotated[Path | None, typer.Option(help="Calibration YAML/JSON.")] = None,
+    dry_run: Annotated[bool, typer.Option(help="Perceive, adapt and check; never move.")] = False,
+    judge: Annotated[str, typer.Option(help="auto | operator.")] = "auto",
+    force: Annotated[
+        bool, typer.Option(help="Execute plans that fail the pre-flight check.")
+    ] = False,
+    preset: Annotated[str, typer.Option(help="Preset of the trained run.")] = "paper",
+    model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+) -> None:
+    """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
+    from distgprl.hardware.trials import run_trials
+
+    report = run_trials(
+        trials=trials,
+        method=method,
+        seed=seed,
+        backend=backend or ("ur" if robot_ip else "twin"),
+        robot_ip=robot_ip,
+        camera=camera,
+        calibration=calibration,
+        dry_run=dry_run,
+        judge=judge,
+        force=force,
+        root=root,
+        preset=preset,
+        model_path=model,
+    )
+    typer.echo(f"{report.path}: {report.summary}")
+
+
 def _split(text: str | None) -> list[str] | None:
     return [item.strip() for item in text.split(",") if item.strip()] if text else None
 

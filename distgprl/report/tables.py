@@ -90,27 +90,30 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
 
 
 def hardware_table(root: str | Path) -> list[dict]:
-    """Rows of Table II from ``<root>/hardware/<method>/*.csv`` trial files (if any)."""
+    """Rows of Table II from ``<root>/hardware/<method>/*.csv`` trial files, one per
+    (method, backend): trials on the real robot (``ur``) and on the digital twin are never
+    mixed. Refused trials count as failures without collision."""
     rows = []
     base = Path(root) / "hardware"
     for method in TABLE_ORDER:
         files = sorted((base / method).glob("*.csv")) if (base / method).exists() else []
         trials = [r for f in files for r in read_csv(f)[1]]
-        if not trials:
-            continue
-        success = [float(r["success"]) for r in trials]
-        collision = [float(r["collision"]) for r in trials]
-        clearance = [float(r["min_clearance"]) for r in trials]
-        rows.append(
-            {
-                "method": method,
-                "label": METHODS[method].label,
-                "trials": len(trials),
-                "success_rate": float(np.mean(success)),
-                "collision_rate": float(np.mean(collision)),
-                "min_clearance_p5": float(np.percentile(clearance, 5)),
-            }
-        )
+        for backend in sorted({r.get("backend", "unknown") for r in trials}):
+            subset = [r for r in trials if r.get("backend", "unknown") == backend]
+            clearance = [
+                float(r["min_clearance"]) for r in subset if r["min_clearance"] not in ("", "nan")
+            ]
+            rows.append(
+                {
+                    "method": method,
+                    "label": METHODS[method].label,
+                    "backend": backend,
+                    "trials": len(subset),
+                    "success_rate": float(np.mean([float(r["success"]) for r in subset])),
+                    "collision_rate": float(np.mean([float(r["collision"]) for r in subset])),
+                    "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
+                }
+            )
     return rows
 
 
@@ -200,11 +203,15 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     ]
     hardware = hardware_table(root)
     if hardware:
-        lines = ["| Method | Trials | Success | Collision | MinCl (m) |", "|---|---|---|---|---|"]
+        lines = [
+            "| Method | Backend | Trials | Success | Collision | MinCl (m) |",
+            "|---|---|---|---|---|---|",
+        ]
         for row in hardware:
             lines.append(
-                f"| {row['label']} | {row['trials']} | {row['success_rate']:.2f} | "
-                f"{row['collision_rate']:.2f} | {row['min_clearance_p5']:.3f} |"
+                f"| {row['label']} | {row['backend']} | {row['trials']} | "
+                f"{row['success_rate']:.2f} | {row['collision_rate']:.2f} | "
+                f"{row['min_clearance_p5']:.3f} |"
             )
         written.append(atomic_write_text(out_dir / "table2_hardware.md", "\n".join(lines) + "\n"))
     return written

@@ -1,0 +1,217 @@
+"""Online window-by-window adaptation from perceived poses (the policy side of a trial).
+
+:class:`PerceivedAdaptation` reuses :class:`~distgprl.envs.adaptation.AdaptationEnv` for
+everything but the world: its skill, action layout, TC conditioning, segment maps (control
+rate), continuity blending and observation builder are used unchanged. The env's
+simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
+what the observation reads from the world (TCP pose, object position, goal, obstacles)
+comes from a :class:`PerceivedScene` filled by the perception and the robot backend.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.hardware.perception import OBJECTS, Percept
+from distgprl.safety.shapes import Box, Shape
+from distgprl.sim.tasks.base import TaskConfig
+from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
+from distgprl.skill.rotations import nearest_equivalent_rotvec
+
+
+def bar_shapes(
+    scene: DBMScene, transform: np.ndarray, prefix: str, dynamic: bool
+) -> tuple[Box, ...]:
+    """The four boxes of a bar at a perceived pose (4, 4) (tilt and yaw included)."""
+    centre = np.asarray(transform[:3, 3], dtype=float)
+    rotation = np.asarray(transform[:3, :3], dtype=float)
+    level = bar_boxes(scene, np.zeros(3), prefix, dynamic)
+    return tuple(
+        Box(b.name, centre + rotation @ b.position, rotation, b.half_extents, dynamic)
+        for b in level
+    )
+
+
+@dataclass
+class TrackedObject:
+    """Latest estimate of a conveyed object.
+
+    Attributes:
+        transform: robot-base-from-object (4, 4) at ``stamp``.
+        stamp: time (s, backend clock) the estimate refers to.
+        frames_since_seen: images since the object was last detected (0 = this one).
+    """
+
+    transform: np.ndarray
+    stamp: float
+    frames_since_seen: int = 0
+
+
+class PerceivedScene:
+    """The world as perceived: object tracks, obstacle shapes and the robot's TCP.
+
+    Implements the part of the task-simulation interface that
+    :meth:`AdaptationEnv._observation` reads (``tcp_pose``, ``object_position``,
+    ``goal_position``), from perception instead of simulation state.
+
+    Args:
+        static_shapes: the cell's fixed obstacles (rollers, rails), robot base frame.
+        conveyor_velocity: belt velocity (3,), m/s: a bar on the belt at time t0 is predicted
+            at ``p + v (t - t0)``; a lifted bar (more than 2 cm above rest) is not predicted.
+        scene: DBM geometry (bar size, resting height, lift height).
+    """
+
+    def __init__(
+        self,
+        static_shapes: tuple[Shape, ...],
+        conveyor_velocity: np.ndarray,
+        scene: DBMScene = SCENE,
+    ) -> None:
+        self.static_shapes = tuple(static_shapes)
+        self.velocity = np.asarray(conveyor_velocity, dtype=float)
+        self.scene = scene
+        self.tracks: dict[str, TrackedObject] = {}
+        self.now = 0.0
+        self._tcp = np.zeros(6)
+
+    # -- updates ---------------------------------------------------------------------------
+    def update(self, percept: Percept) -> None:
+        """Fold in one image's detections; undetected objects keep their last track."""
+        for name in OBJECTS:
+            pose = percept.objects.get(name)
+            if pose is not None:
+                self.tracks[name] = TrackedObject(pose.transform.copy(), percept.stamp, 0)
+            elif name in self.tracks:
+                self.tracks[name].frames_since_seen += 1
+
+    def set_robot(self, tcp_pose: np.ndarray, now: float) -> None:
+        """The robot's actual TCP pose (6,) and the current time (s)."""
+        self._tcp = np.asarray(tcp_pose, dtype=float).copy()
+        self.now = float(now)
+
+    # -- predictions -----------------------------------------------------------------------
+    def _on_belt(self, transform: np.ndarray) -> bool:
+        return bool(transform[2, 3] < self.scene.bar_centre_z + 0.02)
+
+    def object_transform(self, name: str, time: float | None = None) -> np.ndarray:
+        """Predicted pose (4, 4) of a tracked object at ``time`` (default: now)."""
+        track = self.tracks[name]
+        transform = track.transform.copy()
+        if self._on_belt(transform):
+            elapsed = (self.now if time is None else time) - track.stamp
+            transform[:3, 3] += self.velocity * elapsed
+        return transform
+
+    def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """Static cell geometry + the other bar predicted at ``time`` (default now)."""
+        other = bar_shapes(self.scene, self.object_transform("other_bar", time), "other_bar", True)
+        return (*self.static_shapes, *other)
+
+    # -- the TaskSim subset the observation reads ------------------------------------------
+    def tcp_pose(self) -> np.ndarray:
+        return self._tcp.copy()
+
+    def object_position(self) -> np.ndarray:
+        return self.object_transform("target_bar")[:3, 3].copy()
+
+    def goal_position(self) -> np.ndarray:
+        position = self.object_position()
+        return np.array(
+            [position[0], position[1], self.scene.bar_centre_z + self.scene.lift_height]
+        )
+
+    def close(self) -> None:
+        """Nothing to release (the env's close() calls it)."""
+
+
+class PerceivedAdaptation(AdaptationEnv):
+    """:class:`AdaptationEnv` whose world is a :class:`PerceivedScene` (DBM only).
+
+    Use: :meth:`begin` (conditions the skill on the perceived target bar), then per window
+    :meth:`observe` -> policy -> :meth:`adapt` (returns the segment's poses to check and
+    execute) -> :meth:`executed`.
+
+    Attributes:
+        model: the kinematic model (a ``DBMSim``: IK, tool points, static obstacles).
+        world: the :class:`PerceivedScene`.
+    """
+
+    def __init__(self, method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
+        super().__init__("dbm", method, config)
+        self.model = self.sim
+        static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
+        self.world = PerceivedScene(static, np.asarray(conveyor_velocity, dtype=float))
+        self.sim = self.world  # the observation now reads the perceived world
+
+    @property
+    def control_dt(self) -> float:
+        return float(self.model.control_dt)
+
+    def perceived_tc(self, start_time: float) -> TaskConfig:
+        """TC from the perceived bars predicted at the trial's start time (s)."""
+        scene = self.world.scene
+        target = self.world.object_transform("target_bar", start_time)[:3, 3]
+        other = self.world.object_transform("other_bar", start_time)[:3, 3]
+        return TaskConfig(
+            object_offset=(
+                float(target[0] - scene.conveyor_x),
+                float(target[1] - scene.target_start_y),
+            ),
+            obstacle_offset=(
+                float(other[0] - scene.conveyor_x),
+                float(other[1] - scene.other_start_y),
+            ),
+        )
+
+    def begin(self, tcp_pose: np.ndarray, start_time: float) -> TaskConfig:
+        """Start an episode at the robot's TCP pose (6,); returns the perceived TC."""
+        self.world.set_robot(tcp_pose, start_time)
+        tc = self.perceived_tc(start_time)
+        self.tc = tc
+        start = np.asarray(tcp_pose, dtype=float).copy()
+        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
+        self._start_pose = start
+        self.gamma = self.conditioned_via_points(tc)
+        self.gamma_initial = self.gamma.copy()
+        self.step_index = 0
+        self._last_commanded = start.copy()
+        self._last_tau = 0.0
+        self.field.update(self.world.obstacle_shapes())
+        return tc
+
+    def observe(self) -> dict[str, np.ndarray]:
+        """The policy's observation from the perceived world (same layout as in training)."""
+        self.field.update(self.world.obstacle_shapes())
+        return self._observation()
+
+    def adapt(self, action: np.ndarray | None) -> np.ndarray:
+        """Apply the (raw) action to the current window; return the segment's poses (m, 6).
+
+        ``None`` (or the ``demo`` method) keeps the conditioned demonstration.
+        """
+        step = self.step_index
+        indices = self.layout.indices[step]
+        raw = np.zeros(self.action_space.shape) if action is None else np.asarray(action, float)
+        if self.method.action_mode == "none":
+            raw = np.zeros_like(raw)
+        self.gamma[indices] += self.layout.delta(step, np.clip(raw, -1.0, 1.0))
+        return self._segment_poses(step)
+
+    def segment_times(self, step: int) -> np.ndarray:
+        """Trial times (s from the trial start) of the control instants of segment ``step``."""
+        tau = self._segment_maps[step][0]
+        return tau * self.skill.duration
+
+    def executed(self, poses: np.ndarray) -> None:
+        """Record that ``poses`` (the segment of the current step) were commanded."""
+        step = self.step_index
+        if len(poses):
+            self._last_commanded = np.asarray(poses[-1], dtype=float).copy()
+            self._last_tau = float(self._segment_maps[step][0][-1])
+        self.step_index += 1
+
+    def close(self) -> None:
+        self.model.close()

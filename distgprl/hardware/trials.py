@@ -1,0 +1,477 @@
+"""Hardware trials (paper §V-A, Table II): perceive, condition, adapt online, execute, judge.
+
+One trial on the DBM cell:
+
+1. the cell is set up (twin: a TC drawn from the trial generator; real robot: the operator
+   places the bars and the robot goes to the start configuration);
+2. an image is taken; ArUco perception gives the bars in the robot base frame; the skill is
+   conditioned on the perceived target bar (its pose predicted along the belt to now);
+3. for each of the 3 windows: a fresh image updates the bar tracks and the distance field
+   (static cell geometry + perceived other bar), the trained policy adapts the window from
+   the observation built exactly as in training, the segment's poses are checked by the
+   safety layer (refused below the limits unless ``force``), then streamed to the robot;
+4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
+   perceived lift and the controller's protective stops with ``judge="auto"``).
+
+A row per trial is written (atomically, after every trial) to
+``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; ``dry_run`` writes plans to
+``<root>/hardware/dry-run/<method>/`` instead (not read by the tables) and never moves.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from distgprl.errors import UserInputError
+from distgprl.hardware.perception import (
+    OBJECTS,
+    CellCalibration,
+    MarkerPerception,
+    load_calibration,
+    pose_error,
+)
+from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
+
+TRIAL_FIELDS = (
+    "trial",
+    "backend",
+    "status",
+    "success",
+    "collision",
+    "min_clearance",
+    "clearance_source",
+    "planned_min_clearance",
+    "stop_reason",
+    "refused_limits",
+    "object_offset_y",
+    "obstacle_offset_y",
+    "true_object_offset_y",
+    "true_obstacle_offset_y",
+    "perception_error_mm",
+    "perception_error_deg",
+    "images",
+    "perception_ms",
+    "policy_ms",
+    "check_ms",
+    "execution_s",
+    "trial_s",
+)
+"""Columns of a trial CSV (``success``/``collision`` 0/1; clearances m; errors max over
+the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image)."""
+
+
+@dataclass(frozen=True)
+class TrialReport:
+    """Result of :func:`run_trials`: the rows, the CSV written and a summary."""
+
+    rows: list[dict[str, Any]]
+    path: Path
+    summary: dict[str, float]
+
+
+def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
+    from distgprl.experiments.runner import deterministic_policy, run_dir
+
+    if env.method.action_mode == "none":
+        return None
+    path = (
+        Path(model_path) if model_path else run_dir(root, preset, "dbm", method, seed) / "model.zip"
+    )
+    if not path.exists():
+        raise UserInputError(
+            f"{path}: no trained model; run `distgprl train --method {method} --task dbm "
+            f"--seed {seed} --preset {preset}` first (or pass --model)"
+        )
+    from distgprl.agents.sac import RegularisedSAC
+
+    try:
+        model = RegularisedSAC.load(
+            path, device="cpu", custom_objects={"regulariser": None, "entropy_schedule": None}
+        )
+    except Exception as exc:  # an unreadable zip is the user's input problem
+        raise UserInputError(f"{path}: cannot load model ({type(exc).__name__}: {exc})") from None
+    if model.observation_space != env.observation_space or model.action_space != env.action_space:
+        raise UserInputError(f"{path}: model spaces do not match the dbm/{method} environment")
+    return deterministic_policy(model)
+
+
+def _yes_no(ask: Callable[[str], str], question: str) -> int:
+    while True:
+        answer = ask(f"{question} [y/n] ").strip().lower()
+        if answer in ("y", "yes", "1"):
+            return 1
+        if answer in ("n", "no", "0"):
+            return 0
+
+
+def _clearance_function(adapter, now: float, dt: float, chunk: int = 5):
+    """``(points, steps) -> distance`` with the other bar predicted at each step's time."""
+    field = adapter.field
+    world = adapter.world
+
+    def clearance_at(points: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        out = np.empty(len(points))
+        groups = steps // chunk
+        for group in np.unique(groups):
+            mask = groups == group
+            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            out[mask] = field.clearance(points[mask])
+        field.update(world.obstacle_shapes(now))
+        return out
+
+    return clearance_at
+
+
+def run_trials(
+    trials: int = 10,
+    method: str = "dist-gprl",
+    seed: int = 0,
+    backend: str = "twin",
+    robot_ip: str | None = None,
+    camera: str | Any | None = None,
+    calibration: str | Path | None = None,
+    dry_run: bool = False,
+    judge: str = "auto",
+    force: bool = False,
+    root: str | Path = "results",
+    preset: str = "paper",
+    model_path: str | Path | None = None,
+    twin_config=None,
+    limits: SafetyLimits | None = None,
+    ask: Callable[[str], str] = input,
+    echo: Callable[[str], None] = print,
+    rtde_factory: Callable | None = None,
+) -> TrialReport:
+    """Run hardware trials of a trained DBM policy (see the module docstring).
+
+    Args:
+        trials: number of trials (>= 1).
+        method: a via-point method (``dist-gprl``, ``gprl-d``, ..., or ``demo`` for the
+            unadapted conditioned demonstration).
+        seed: training seed of the policy; also seeds the twin's TCs and sensor noise.
+        backend: ``twin`` (digital twin) or ``ur`` (UR5e via ur_rtde).
+        robot_ip: controller address (``ur``).
+        camera: camera device index or URL (``ur``), or an object with
+            ``capture() -> (image, stamp)`` on the robot backend's clock.
+        calibration: calibration file (YAML/JSON); the twin defaults to its exact one.
+        dry_run: perceive, adapt and check every window without moving the robot.
+        judge: ``auto`` (twin: simulation; ur: perceived lift + protective stops) or
+            ``operator`` (ask success/collision after each trial).
+        force: execute plans that violate a safety limit (violations still recorded).
+        root: results root; preset: the policy's training preset.
+        model_path: policy zip (default ``<root>/<preset>/dbm/<method>/seed<k>/model.zip``).
+        twin_config: :class:`~distgprl.hardware.twin.TwinConfig` (camera, noise, latency).
+        limits: safety limits (default :class:`SafetyLimits`).
+        ask: prompt function (operator judge, bar placement); echo: progress output.
+        rtde_factory: ``ip -> (control, receive)`` for the ur backend (tests inject a fake).
+
+    Returns:
+        The rows, the CSV path and a summary (success/collision rates, MinCl).
+
+    Raises:
+        UserInputError: bad arguments, missing model, bad calibration, unreachable robot.
+        KeyboardInterrupt: re-raised after stopping the robot and saving finished rows.
+    """
+    from distgprl.agents.methods import get_method
+    from distgprl.config import load_config
+    from distgprl.experiments.results import write_csv
+    from distgprl.hardware.adapter import PerceivedAdaptation
+
+    if trials < 1:
+        raise UserInputError("trials must be at least 1")
+    if backend not in ("twin", "ur"):
+        raise UserInputError(f"backend must be 'twin' or 'ur', got {backend!r}")
+    if judge not in ("auto", "operator"):
+        raise UserInputError(f"judge must be 'auto' or 'operator', got {judge!r}")
+    spec = get_method(method)
+    if spec.action_mode not in ("window", "global", "none"):
+        raise UserInputError(
+            f"method {method!r} does not adapt via-points; hardware trials need one"
+        )
+    limits = limits or SafetyLimits()
+    config = load_config(preset, task="dbm")
+    rng = np.random.default_rng(seed)
+
+    # -- calibration, backend -------------------------------------------------------------
+    cal: CellCalibration
+    robot: Any
+    if backend == "twin":
+        from distgprl.hardware.backends import TwinBackend
+        from distgprl.hardware.twin import TwinConfig, twin_calibration
+
+        twin_config = twin_config or TwinConfig()
+        cal = load_calibration(calibration) if calibration else twin_calibration(twin_config)
+    else:
+        if calibration is None:
+            raise UserInputError("the ur backend needs --calibration FILE (camera + markers)")
+        cal = load_calibration(calibration)
+        if camera is None:
+            raise UserInputError("the ur backend needs --camera INDEX|URL")
+    adapter = PerceivedAdaptation(method, config.env, cal.conveyor_velocity)
+    try:
+        policy = _load_policy(method, seed, preset, root, model_path, adapter)
+        if backend == "twin":
+            robot = TwinBackend(twin_config, rng=np.random.default_rng([seed, 1]))
+        else:
+            from distgprl.hardware.backends import OpenCVCamera, URBackend
+
+            robot = URBackend(robot_ip or "", limits, rtde_factory=rtde_factory)
+            if hasattr(camera, "capture"):
+                robot.camera = camera
+            else:
+                robot.camera = OpenCVCamera(camera, robot.now, (cal.width, cal.height))
+    except BaseException:
+        adapter.close()
+        raise
+    perception = MarkerPerception(cal)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
+    prefix = "plans" if dry_run else "trials"
+    path = folder / f"{prefix}_{backend}_seed{seed}_{stamp}.csv"
+    meta = {
+        "kind": "hardware-trials",
+        "method": method,
+        "seed": seed,
+        "backend": backend,
+        "preset": preset,
+        "dry_run": dry_run,
+        "judge": judge,
+        "force": force,
+        "limits": {k: v for k, v in limits.__dict__.items()},
+    }
+    rows: list[dict[str, Any]] = []
+    dt = adapter.control_dt
+    tcs = [adapter.spec_task.sample_tc(rng) for _ in range(trials)]
+
+    def save() -> None:
+        if rows:
+            write_csv(path, rows, TRIAL_FIELDS, **meta)
+
+    try:
+        for index in range(trials):
+            row = _one_trial(
+                index,
+                tcs[index],
+                robot,
+                perception,
+                adapter,
+                policy,
+                limits,
+                dt,
+                dry_run,
+                judge,
+                force,
+                ask,
+                echo,
+            )
+            row["backend"] = backend
+            rows.append(row)
+            save()
+            echo(
+                f"trial {index + 1}/{trials}: {row['status']} success={row['success']} "
+                f"collision={row['collision']} min_clearance={row['min_clearance']}"
+            )
+    except KeyboardInterrupt:
+        robot.stop()
+        echo(f"interrupted: robot stopped; {len(rows)} finished trial(s) saved to {path}")
+        save()
+        raise
+    finally:
+        robot.close()
+        adapter.close()
+    return TrialReport(rows, path, summarise_trials(rows))
+
+
+def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Success rate, collision rate, MinCl (5th percentile of min clearance), counts."""
+    executed = [r for r in rows if r["success"] != ""]
+    if not executed:
+        return {"trials": len(rows), "executed": 0}
+    clearance = np.array([float(r["min_clearance"]) for r in executed])
+    return {
+        "trials": len(rows),
+        "executed": len(executed),
+        "success_rate": float(np.mean([float(r["success"]) for r in executed])),
+        "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
+        "min_clearance_p5": float(np.percentile(clearance, 5)),
+        "mean_trial_s": float(np.mean([float(r["trial_s"]) for r in rows])),
+    }
+
+
+def _one_trial(
+    index, tc, robot, perception, adapter, policy, limits, dt, dry_run, judge, force, ask, echo
+) -> dict[str, Any]:
+    trial_start = time.perf_counter()
+    twin = robot.name == "twin"
+    row: dict[str, Any] = dict.fromkeys(TRIAL_FIELDS, "")
+    row.update(trial=index, status="ok", images=0)
+    timings = {"perception": [], "policy": 0.0, "check": 0.0, "execution": 0.0}
+    errors: list[tuple[float, float]] = []
+    planned = np.inf
+
+    perception.reset_tracks()
+    adapter.world.tracks.clear()
+    if twin:
+        robot.start_trial(tc)
+        row["true_object_offset_y"] = tc.object_offset[1]
+        row["true_obstacle_offset_y"] = tc.obstacle_offset[1]
+    elif not dry_run:  # a dry run plans from wherever the robot is and never moves it
+        ask(f"trial {index + 1}: place both bars on the conveyor, then press Enter ")
+        q_home = adapter.model.start_joint_positions
+        path = np.linspace(robot.joint_positions(), q_home, 50)
+        poses = np.array([_fk_pose(adapter.model.robot, q) for q in path])
+        check_plan(poses, path[0], adapter.model.robot, limits, dt * 4, force=force)
+        result = robot.move_joints(q_home)
+        if result.stopped:
+            row.update(status="stopped", stop_reason=result.stop_reason)
+            return _finish(row, trial_start, timings, errors, planned, judge_skip=True)
+
+    def perceive() -> bool:
+        image, stamp = robot.capture()
+        percept = perception.perceive(image, stamp)
+        timings["perception"].append(percept.detection_ms)
+        row["images"] += 1
+        adapter.world.update(percept)
+        adapter.world.set_robot(robot.tcp_pose(), robot.now())
+        if twin:
+            truth = robot.sim.object_transforms()
+            # the image was taken at `stamp`; compare with the truth predicted back to it
+            for name, pose in percept.objects.items():
+                true = truth[name].copy()
+                if adapter.world._on_belt(true):
+                    true[:3, 3] -= adapter.world.velocity * (robot.now() - stamp)
+                errors.append(pose_error(pose.transform, true))
+        return all(name in adapter.world.tracks for name in OBJECTS)
+
+    if not perceive():
+        row.update(status="not_perceived", stop_reason="a bar was not detected at the start")
+        return _finish(row, trial_start, timings, errors, planned, judge_skip=True)
+    now = robot.now()
+    perceived_tc = adapter.begin(robot.tcp_pose(), now)
+    row["object_offset_y"] = round(perceived_tc.object_offset[1], 5)
+    row["obstacle_offset_y"] = round(perceived_tc.obstacle_offset[1], 5)
+    q = robot.joint_positions()
+    velocity = np.zeros(6)
+    clock = now  # predicted time in dry-run (nothing moves)
+    for step in range(adapter.layout.n_steps):
+        if step > 0 and not dry_run:
+            perceive()
+        elif step > 0:
+            adapter.world.set_robot(adapter._last_commanded, clock)
+        start = time.perf_counter()
+        observation = adapter.observe()
+        action = None if policy is None else policy(observation)
+        timings["policy"] += time.perf_counter() - start
+        poses = adapter.adapt(action)
+        reference = clock if dry_run else robot.now()
+        try:
+            check = check_plan(
+                poses,
+                q,
+                adapter.model.robot,
+                limits,
+                dt,
+                _clearance_function(adapter, reference, dt),
+                force=force,
+                v_start=velocity,
+            )
+        except UnsafePlanError as refused:
+            echo(f"trial {index + 1}, window {step + 1}: {refused}")
+            row.update(
+                status="refused",
+                refused_limits=",".join(dict.fromkeys(v.limit for v in refused.violations)),
+                stop_reason=str(refused),
+            )
+            break
+        timings["check"] += check.check_ms / 1000.0
+        planned = min(planned, check.min_clearance)
+        if check.violations:
+            row["refused_limits"] = ",".join(dict.fromkeys(v.limit for v in check.violations))
+        if dry_run:
+            adapter.executed(poses)
+            clock += len(poses) * dt
+            if len(check.joints):
+                velocity = (check.joints[-1] - (check.joints[-2] if len(poses) > 1 else q)) / dt
+                q = check.joints[-1]
+            continue
+        result = robot.execute(check.joints, poses)
+        timings["execution"] += result.wall_s
+        adapter.executed(poses[: result.steps])
+        if result.steps:
+            q = check.joints[result.steps - 1]
+            previous = check.joints[result.steps - 2] if result.steps > 1 else q
+            velocity = (q - previous) / dt
+        if result.stopped:
+            row.update(status="stopped", stop_reason=result.stop_reason)
+            if result.protective_stop:
+                row["collision"] = 1
+            break
+        if not twin:
+            q = robot.joint_positions()
+
+    # -- judge ---------------------------------------------------------------------------
+    if dry_run:
+        if row["status"] == "ok":
+            row["status"] = "planned"
+        return _finish(row, trial_start, timings, errors, planned)
+    if twin:
+        row["min_clearance"] = float(robot.min_clearance)
+        row["clearance_source"] = "sim"
+    else:
+        row["min_clearance"] = _edf_clearance(adapter, robot)
+        row["clearance_source"] = "edf"
+    if twin and judge == "auto":
+        row["success"] = int(robot.success())
+        row["collision"] = int(bool(robot.collision))
+    elif judge == "operator":
+        row["success"] = _yes_no(ask, f"trial {index + 1}: was the target bar lifted off?")
+        row["collision"] = _yes_no(
+            ask, f"trial {index + 1}: did the robot or tool touch a roller, rail or the other bar?"
+        )
+    else:  # real robot, automatic: perceived lift; collision = a protective stop
+        perceive()
+        track = adapter.world.tracks["target_bar"].transform
+        lifted = track[2, 3] - adapter.world.scene.bar_centre_z
+        row["success"] = int(lifted >= adapter.world.scene.lift_height and row["status"] == "ok")
+        row["collision"] = int(row["collision"] == 1)
+    return _finish(row, trial_start, timings, errors, planned)
+
+
+def _fk_pose(robot, q: np.ndarray) -> np.ndarray:
+    from distgprl.sim.transforms import matrix_to_pose
+
+    return matrix_to_pose(robot.fk(q))
+
+
+def _edf_clearance(adapter, robot) -> float:
+    """Min distance (m) of the tool/flange at the actual joints to the perceived obstacles."""
+    points = tool_check_points(adapter.model.robot, robot.joint_positions())
+    adapter.field.update(adapter.world.obstacle_shapes())
+    return float(adapter.field.clearance(points).min())
+
+
+def _finish(row, trial_start, timings, errors, planned, judge_skip: bool = False):
+    """Fill the bookkeeping columns; trials that never moved count as failures."""
+    if judge_skip:  # stopped or not perceived before any motion
+        row["success"] = 0
+        row["collision"] = int(row["collision"] == 1)
+        row["min_clearance"] = np.inf
+    row["planned_min_clearance"] = float(planned)
+    if errors:
+        array = np.array(errors)
+        row["perception_error_mm"] = round(1000.0 * float(array[:, 0].max()), 3)
+        row["perception_error_deg"] = round(float(array[:, 1].max()), 3)
+    if timings["perception"]:
+        row["perception_ms"] = round(float(np.mean(timings["perception"])), 2)
+    row["policy_ms"] = round(1000.0 * timings["policy"], 3)
+    row["check_ms"] = round(1000.0 * timings["check"], 3)
+    row["execution_s"] = round(timings["execution"], 3)
+    row["trial_s"] = round(time.perf_counter() - trial_start, 3)
+    return row

@@ -1,0 +1,262 @@
+"""Digital twin of the DBM cell: the simulation plus a camera that sees ArUco markers.
+
+:class:`TwinSim` is :class:`~distgprl.sim.tasks.dbm.DBMSim` (same physics, robot, conveyor,
+bars, success criterion) with printed ArUco markers on the bars and on the robot's mounting
+plate (layout in :mod:`distgprl.hardware.markers`) and a static pinhole camera rendered with
+PyBullet's TinyRenderer. The markers are visual-only bodies (no collision shape) textured
+with images from ``cv2.aruco.generateImageMarker``; the bar markers follow their bar before
+every render. Images get configurable Gaussian pixel noise; the latency model lives in
+:class:`~distgprl.hardware.backends.TwinBackend` (the world keeps moving while an image is
+processed).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pybullet
+
+from distgprl.hardware.markers import (
+    BAR_PLATE_SIDE,
+    BASE_MARKERS,
+    BASE_PLATE_SIDE,
+    CELLS_WITH_BORDER,
+    CELLS_WITH_MARGIN,
+    DICTIONARY,
+    OTHER_BAR_MARKERS,
+    TARGET_BAR_MARKERS,
+    MarkerSpec,
+)
+from distgprl.hardware.perception import CellCalibration
+from distgprl.sim.tasks.dbm import SCENE, DBMScene, DBMSim
+from distgprl.sim.transforms import (
+    make_transform,
+    matrix_to_quaternion,
+    pose_to_matrix,
+    quaternion_to_matrix,
+)
+
+SHIPPED_CALIBRATION = Path(__file__).with_name("twin_calibration.yaml")
+"""The calibration file of the default twin (:func:`twin_calibration` of ``TwinConfig()``)."""
+
+
+@dataclass(frozen=True)
+class TwinConfig:
+    """Camera and sensor settings of the twin.
+
+    Attributes:
+        width, height: image size, px.
+        fov_deg: vertical field of view, degrees.
+        camera_eye: camera centre (3,), m, robot base frame.
+        camera_target: point the optical axis goes through (3,), m.
+        pixel_noise_std: std of additive Gaussian noise per pixel and channel (0..255 scale).
+        latency_s: time (s) between taking an image and its perception being available;
+            the world keeps moving meanwhile (the robot holds still).
+        texture_pixels_per_cell: marker texture resolution.
+        supersample: the image is rendered this many times larger per side and averaged
+            down, which integrates light over each pixel's area like a real sensor
+            (TinyRenderer samples one point per pixel: hard, aliased edges bias corners).
+    """
+
+    width: int = 1920
+    height: int = 1440
+    fov_deg: float = 45.0
+    camera_eye: tuple[float, float, float] = (0.5, 0.45, 0.85)
+    camera_target: tuple[float, float, float] = (0.45, -0.12, 0.05)
+    pixel_noise_std: float = 2.0
+    latency_s: float = 0.0
+    texture_pixels_per_cell: int = 64
+    supersample: int = 1
+
+    def intrinsics(self) -> np.ndarray:
+        """OpenCV camera matrix (3, 3), px (pixel centres at integer coordinates)."""
+        fy = 0.5 * self.height / math.tan(math.radians(self.fov_deg) / 2.0)
+        return np.array(
+            [[fy, 0.0, self.width / 2.0 - 0.5], [0.0, fy, self.height / 2.0 - 0.5], [0, 0, 1.0]]
+        )
+
+    def base_from_camera(self) -> np.ndarray:
+        """Camera pose (4, 4) in the robot base frame, OpenCV axes (x right, y down, z ahead)."""
+        eye = np.asarray(self.camera_eye, dtype=float)
+        forward = np.asarray(self.camera_target, dtype=float) - eye
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        down = np.cross(forward, right)
+        return make_transform(np.stack([right, down, forward], axis=1), eye)
+
+
+def twin_calibration(config: TwinConfig = TwinConfig(), scene: DBMScene = SCENE) -> CellCalibration:
+    """The exact calibration of a twin camera (what a perfect real calibration would give)."""
+    return CellCalibration(
+        width=config.width,
+        height=config.height,
+        camera_matrix=config.intrinsics(),
+        distortion=np.zeros(5),
+        dictionary=DICTIONARY,
+        base_markers=BASE_MARKERS,
+        object_markers={"target_bar": TARGET_BAR_MARKERS, "other_bar": OTHER_BAR_MARKERS},
+        conveyor_velocity=(0.0, float(scene.belt_speed), 0.0),
+    )
+
+
+@lru_cache(maxsize=64)
+def marker_texture(marker_id: int, pixels_per_cell: int, dictionary: str = DICTIONARY) -> str:
+    """PNG path of a marker with a one-cell white margin (written once per process)."""
+    import cv2
+
+    aruco = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+    side = CELLS_WITH_BORDER * pixels_per_cell
+    marker = cv2.aruco.generateImageMarker(aruco, int(marker_id), side)
+    margin = (CELLS_WITH_MARGIN - CELLS_WITH_BORDER) // 2 * pixels_per_cell
+    plate = np.full((side + 2 * margin, side + 2 * margin), 255, dtype=np.uint8)
+    plate[margin : margin + side, margin : margin + side] = marker
+    folder = Path(tempfile.gettempdir()) / f"distgprl-aruco-{os.getuid()}"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{dictionary}_{marker_id}_{pixels_per_cell}.png"
+    if not path.exists():
+        tmp = path.with_suffix(f".{os.getpid()}.png")
+        cv2.imwrite(str(tmp), cv2.cvtColor(plate, cv2.COLOR_GRAY2BGR))
+        os.replace(tmp, path)
+    return str(path)
+
+
+class TwinSim(DBMSim):
+    """DBM simulation with ArUco markers and a camera (see the module docstring).
+
+    Args:
+        twin: camera and sensor settings.
+        scene: DBM geometry.
+        **kwargs: forwarded to :class:`~distgprl.sim.tasks.base.TaskSim`.
+    """
+
+    def __init__(self, twin: TwinConfig = TwinConfig(), scene: DBMScene = SCENE, **kwargs) -> None:
+        self.twin = twin
+        super().__init__(scene=scene, **kwargs)
+
+    # -- scene ---------------------------------------------------------------------------------
+    def _plate_body(self, spec: MarkerSpec, plate_side: float, world: np.ndarray) -> int:
+        client = self.client
+        # A grid with one vertex per marker cell corner: TinyRenderer interpolates texture
+        # coordinates affinely per triangle, so only vertices land exactly where they should;
+        # with the grid, every corner of the black border is a vertex.
+        cells = CELLS_WITH_MARGIN
+        grid = np.linspace(0.0, 1.0, cells + 1)
+        u, v = np.meshgrid(grid, grid, indexing="xy")
+        vertices = np.stack(
+            [(u.ravel() - 0.5) * plate_side, (v.ravel() - 0.5) * plate_side, 0.0 * u.ravel()], 1
+        )
+        # TinyRenderer samples texture row 0 at v = 1: v grows with marker +y
+        uvs = np.stack([u.ravel(), v.ravel()], axis=1)
+        indices = []
+        for row in range(cells):
+            for col in range(cells):
+                a = row * (cells + 1) + col
+                b, c, d = a + 1, a + cells + 2, a + cells + 1
+                indices += [a, b, c, a, c, d]
+        visual = client.createVisualShape(
+            pybullet.GEOM_MESH,
+            vertices=vertices.tolist(),
+            indices=indices,
+            uvs=uvs.tolist(),
+            normals=[[0.0, 0.0, 1.0]] * len(vertices),
+            rgbaColor=[1.0, 1.0, 1.0, 1.0],
+        )
+        body = client.createMultiBody(
+            baseMass=0.0,
+            baseCollisionShapeIndex=-1,
+            baseVisualShapeIndex=visual,
+            basePosition=world[:3, 3].tolist(),
+            baseOrientation=matrix_to_quaternion(world[:3, :3]).tolist(),
+        )
+        texture = client.loadTexture(
+            marker_texture(spec.marker_id, self.twin.texture_pixels_per_cell)
+        )
+        client.changeVisualShape(body, -1, textureUniqueId=texture, rgbaColor=[1, 1, 1, 1])
+        return body
+
+    def _build_scene(self) -> None:
+        super()._build_scene()
+        self.marker_bodies: dict[int, int] = {}
+        for spec in BASE_MARKERS:
+            world = pose_to_matrix(np.asarray(spec.pose))
+            self.marker_bodies[spec.marker_id] = self._plate_body(spec, BASE_PLATE_SIDE, world)
+        self._bar_markers = (
+            (self.object_body, TARGET_BAR_MARKERS),
+            (self.other_bar_body, OTHER_BAR_MARKERS),
+        )
+        for body, specs in self._bar_markers:
+            bar = self._body_transform(body)
+            for spec in specs:
+                world = bar @ pose_to_matrix(np.asarray(spec.pose))
+                self.marker_bodies[spec.marker_id] = self._plate_body(spec, BAR_PLATE_SIDE, world)
+
+    def _body_transform(self, body: int) -> np.ndarray:
+        position, quaternion = self.client.getBasePositionAndOrientation(body)
+        return make_transform(quaternion_to_matrix(quaternion), position)
+
+    def _sync_markers(self) -> None:
+        for body, specs in self._bar_markers:
+            bar = self._body_transform(body)
+            for spec in specs:
+                world = bar @ pose_to_matrix(np.asarray(spec.pose))
+                self.client.resetBasePositionAndOrientation(
+                    self.marker_bodies[spec.marker_id],
+                    world[:3, 3].tolist(),
+                    matrix_to_quaternion(world[:3, :3]).tolist(),
+                )
+
+    # -- ground truth ----------------------------------------------------------------------------
+    def object_transforms(self) -> dict[str, np.ndarray]:
+        """True robot-base-from-bar transforms (4, 4), m, of ``target_bar`` and ``other_bar``."""
+        return {
+            "target_bar": self._body_transform(self.object_body),
+            "other_bar": self._body_transform(self.other_bar_body),
+        }
+
+    def marker_transform(self, marker_id: int) -> np.ndarray:
+        """True robot-base-from-marker transform (4, 4) of a marker (after a render sync)."""
+        self._sync_markers()
+        return self._body_transform(self.marker_bodies[marker_id])
+
+    # -- camera ----------------------------------------------------------------------------------
+    def capture(self, rng: np.random.Generator | None = None) -> np.ndarray:
+        """A camera image (height, width, 3) uint8 of the current state.
+
+        Args:
+            rng: generator for the pixel noise (``pixel_noise_std``); None = no noise.
+        """
+        self._sync_markers()
+        twin = self.twin
+        client = self.client
+        view = client.computeViewMatrix(
+            cameraEyePosition=list(twin.camera_eye),
+            cameraTargetPosition=list(twin.camera_target),
+            cameraUpVector=[0.0, 0.0, 1.0],
+        )
+        projection = client.computeProjectionMatrixFOV(
+            fov=twin.fov_deg, aspect=twin.width / twin.height, nearVal=0.05, farVal=5.0
+        )
+        factor = max(1, int(twin.supersample))
+        width, height = twin.width * factor, twin.height * factor
+        image = client.getCameraImage(
+            width,
+            height,
+            view,
+            projection,
+            renderer=pybullet.ER_TINY_RENDERER,
+            shadow=0,
+            lightDirection=[0.3, -0.2, 1.0],
+        )
+        rgba = np.asarray(image[2], dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
+        rgb = rgba.reshape(twin.height, factor, twin.width, factor, 3).mean(axis=(1, 3))
+        if rng is not None and twin.pixel_noise_std > 0:
+            noisy = rgb + rng.normal(0.0, twin.pixel_noise_std, size=rgb.shape)
+            rgb = noisy
+        return np.ascontiguousarray(np.clip(np.rint(rgb), 0, 255).astype(np.uint8))
