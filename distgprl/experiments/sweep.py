@@ -58,7 +58,8 @@ def plan_jobs(
     seeds: Sequence[int] = (0, 1, 2),
     root: str | Path = "results",
 ) -> list[Job]:
-    """All jobs of a sweep in table order (validates every name first)."""
+    """All jobs of a sweep (validates every name first): seed by seed, methods in the given
+    order (default: table order), tasks innermost. The `demo` reference runs once (seed 0)."""
     methods = list(methods or TABLE_ORDER)
     tasks = list(tasks or TASK_NAMES)
     for method in methods:
@@ -68,11 +69,22 @@ def plan_jobs(
     if not seeds:
         raise UserInputError("no seeds given")
     jobs = []
-    for task in tasks:
+    # Seeds outermost, then methods, then tasks: an interrupted sweep has one seed of every
+    # method on every task before it starts on the next seed.
+    for seed in seeds:
         for method in methods:
-            method_seeds = [0] if not get_method(method).trainable else list(seeds)
-            for seed in method_seeds:
-                jobs.append(Job(task, method, int(seed), preset, str(root)))
+            if not get_method(method).trainable and seed != seeds[0]:
+                continue
+            for task in tasks:
+                jobs.append(
+                    Job(
+                        task,
+                        method,
+                        0 if not get_method(method).trainable else int(seed),
+                        preset,
+                        str(root),
+                    )
+                )
     return jobs
 
 
