@@ -110,6 +110,20 @@ def hardware(
     typer.echo(f"{report.path}: {report.summary}")
 
 
+@app.command()
+@_user_errors
+def bench(
+    quick: Annotated[bool, typer.Option(help="Fewer repeats and smaller sweeps (~1 min).")] = False,
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/bench"),
+) -> None:
+    """Adaptation latency, simulation and training throughput, scaling; JSON + figure."""
+    from distgprl.experiments.bench import load_results, markdown_table, run_benchmarks
+
+    path = run_benchmarks(quick, out_dir, progress=typer.echo)
+    typer.echo(markdown_table(load_results(path)))
+    typer.echo(f"wrote {path}")
+
+
 def _split(text: str | None) -> list[str] | None:
     return [item.strip() for item in text.split(",") if item.strip()] if text else None
 

@@ -22,10 +22,33 @@ def make_task_sim(task: str):
     return spec, spec.make_sim()
 
 
+def cache_root() -> Path:
+    """``$DISTGPRL_CACHE_DIR`` or ``~/.cache/distgprl``: derived artefacts, safe to delete."""
+    root = os.environ.get("DISTGPRL_CACHE_DIR")
+    return Path(root) if root else Path.home() / ".cache" / "distgprl"
+
+
 @lru_cache(maxsize=8)
 def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
+    """Fit once per (demo file hash, fit settings); the result is also cached on disk, since
+    the marginal-likelihood fit costs seconds in every process that builds an env."""
+    import json
+    from dataclasses import asdict
+
+    from distgprl.experiments.results import atomic_write_text, config_hash
+
+    config = FitConfig(n_via_points=n_via_points)
+    key = config_hash({"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 1})
+    path = cache_root() / "skills" / f"{task}_{key}.json"
+    if path.exists():
+        try:
+            return GPSkill.from_dict(json.loads(path.read_text()))
+        except (ValueError, KeyError, TypeError):
+            pass  # unreadable cache entry: refit and overwrite it
     demo = load_demonstration(demo_path(task), min_rows=n_via_points)
-    return fit_skill(demo, FitConfig(n_via_points=n_via_points))
+    skill = fit_skill(demo, config)
+    atomic_write_text(path, json.dumps(skill.to_dict()))
+    return skill
 
 
 def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
@@ -37,9 +60,8 @@ def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
 
 
 def hap_cache_dir() -> Path:
-    """Where HAP subspaces are cached: ``$DISTGPRL_CACHE_DIR/hap`` or ``~/.cache/distgprl/hap``."""
-    root = os.environ.get("DISTGPRL_CACHE_DIR")
-    return (Path(root) if root else Path.home() / ".cache" / "distgprl") / "hap"
+    """Where HAP subspaces are cached: ``<cache_root()>/hap``."""
+    return cache_root() / "hap"
 
 
 def task_hap_config(task: str, n_via_points: int = 15) -> HapConfig:

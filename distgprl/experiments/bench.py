@@ -21,9 +21,11 @@ before and after, because other processes sharing the cores inflate every figure
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import platform
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -31,6 +33,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from distgprl.agents.sac import NumpyActor
 
 # The paper's per-window figures (ms, i7-1185G7) and its per-episode total.
 PAPER_MS_PER_WINDOW = {"edf": 4.0, "gp_conditioning": 2.0, "policy": 0.5}
@@ -205,12 +209,12 @@ QUICK_SIZES = BenchSizes(
     inner=5,
     naive_repeats=8,
     in_env_episodes=5,
-    sim_episodes=3,
+    sim_episodes=2,
     tasks=("dcp", "dbm"),
     sac_repeats=12,
-    learning_starts=30,
-    training_steps=120,
-    worker_steps=60,
+    learning_starts=20,
+    training_steps=60,
+    worker_steps=45,
     workers=(1, 2),
     via_points=(15, 60),
     obstacles=(1, 8, 32),
@@ -324,11 +328,12 @@ class AdaptationPipeline:
     """The adaptation compute of one episode, isolated from the simulation.
 
     Per window k (as `AdaptationEnv.step` does, plus policy inference): the actor maps the
-    observation to a raw action (policy); the EDF is refreshed from the obstacle shapes and
-    queried at the window via-points and the tool points (EDF); the window's via-points are
-    updated with Delta Gamma = S_W a and the segment to execute is re-evaluated from the GP's
-    precomputed map (GP conditioning). The obstacle shapes and tool points are read from the
-    simulator once (state reads are not compute; the env's own timer includes them).
+    observation to a raw action (policy: the SAC actor's weights run by `NumpyActor`); the EDF
+    is refreshed from the obstacle shapes and queried at the window via-points and the tool
+    points (EDF); the window's via-points are updated with Delta Gamma = S_W a and the segment
+    to execute is re-evaluated from the GP's precomputed map (GP conditioning). The obstacle
+    shapes and tool points are read from the simulator once (state reads are not compute; the
+    env's own timer includes them).
 
     Args:
         env: an `AdaptationEnv` after `reset` (its layout, skill, segment maps and field).
@@ -342,6 +347,7 @@ class AdaptationPipeline:
 
         self.env = env
         self.actor = actor
+        self.numpy_actor = NumpyActor(actor)
         self.field = field if field is not None else env.field
         self.shapes = tuple(shapes) if shapes is not None else tuple(env.sim.obstacle_shapes())
         self.tool_points = np.asarray(env.sim.tool_points())
@@ -367,9 +373,13 @@ class AdaptationPipeline:
         return env._segment_poses(step)
 
     def policy(self) -> np.ndarray:
-        """Deterministic actor output for the current observation, (A,)."""
+        """Deterministic action for the current observation, (A,) (`NumpyActor`)."""
+        return self.numpy_actor(self.state)
+
+    def policy_torch(self) -> np.ndarray:
+        """The same action from the torch actor (``inference_mode``), (A,)."""
         torch = self._torch
-        with torch.no_grad():
+        with torch.inference_mode():
             state = torch.as_tensor(self.state).unsqueeze(0)
             return self.actor({"state": state}, deterministic=True)[0].numpy()
 
@@ -454,12 +464,13 @@ def bench_adaptation(env, model, sizes: BenchSizes) -> dict[str, Any]:
             name: measure(func, sizes.repeats, warmup=10, inner=sizes.inner)
             for name, func in fast.items()
         }
-        episode = measure(pipeline.episode, sizes.repeats, warmup=10, inner=sizes.inner)
+        episode = measure(pipeline.episode, 3 * sizes.repeats, warmup=10, inner=1)  # short samples
         naive = measure_interleaved(
             {
                 "edf_pybullet": lambda: naive_edf(step),
                 "gp_resolve": theirs_gp,
                 "policy_sb3_predict": naive_policy,
+                "policy_torch_actor": pipeline.policy_torch,
             },
             sizes.naive_repeats,
         )
@@ -493,6 +504,9 @@ def bench_adaptation(env, model, sizes: BenchSizes) -> dict[str, Any]:
         "method": env.method.name,
         "n_windows": n_windows,
         "points_queried": int(len(points)),
+        "policy_numpy_vs_torch_max_abs_difference": float(
+            np.max(np.abs(pipeline.policy() - pipeline.policy_torch()))
+        ),
         "observation_size": int(pipeline.state.shape[0]),
         "action_size": int(env.action_space.shape[0]),
         "per_window": {name: t.to_dict() for name, t in window.items()},
@@ -740,8 +754,19 @@ def bench_training(sizes: BenchSizes, task: str = BENCH_TASK) -> dict[str, Any]:
     }
 
 
-def _training_worker(task: str, learning_starts: int, steps: int, barrier, queue) -> None:
-    """One independent short training in its own process; reports its timed steps/s."""
+WORKER_READY = "DISTGPRL-BENCH-READY"
+WORKER_RATE = "DISTGPRL-BENCH-RATE"
+
+
+def training_worker(task: str, learning_starts: int, steps: int) -> None:
+    """One independent short training (run in its own process by `bench_workers`).
+
+    Sets up, runs the untimed random-action phase, prints `WORKER_READY`, waits for a line on
+    stdin (the start signal, so that concurrent workers overlap), then prints `WORKER_RATE`
+    and its timed steps per second.
+    """
+    import sys
+
     import torch
 
     from distgprl.experiments.runner import make_agent, make_env
@@ -752,46 +777,69 @@ def _training_worker(task: str, learning_starts: int, steps: int, barrier, queue
     model = make_agent(env, run)
     env.reset(seed=0)
     model.learn(total_timesteps=learning_starts + 3, progress_bar=False)
-    barrier.wait()
+    print(WORKER_READY, flush=True)
+    sys.stdin.readline()
     start = time.perf_counter()
     model.learn(total_timesteps=steps, reset_num_timesteps=False, progress_bar=False)
-    queue.put(steps / (time.perf_counter() - start))
+    print(f"{WORKER_RATE} {steps / (time.perf_counter() - start)!r}", flush=True)
     env.close()
 
 
-def bench_workers(sizes: BenchSizes, task: str = BENCH_TASK) -> list[dict[str, Any]]:
-    """Section 5c: aggregate training throughput of 1, 2, ... independent processes.
+def _read_marker(process: subprocess.Popen, marker: str) -> str:
+    """The rest of the first stdout line of ``process`` that starts with ``marker``."""
+    assert process.stdout is not None
+    for line in process.stdout:
+        if line.startswith(marker):
+            return line[len(marker) :].strip()
+    raise RuntimeError(f"benchmark worker exited (code {process.wait()}) before {marker}")
 
-    Workers start together after their setup (a barrier), so their timed parts overlap.
+
+def bench_workers(sizes: BenchSizes, single: float, task: str = BENCH_TASK) -> list[dict[str, Any]]:
+    """Section 5c: aggregate training throughput of independent training processes.
+
+    One process is the in-process run of `bench_training` (``single`` steps/s, same code path);
+    for N >= 2, N fresh Python processes set up, wait until all are ready, then train
+    ``sizes.worker_steps`` steps at the same time; their rates are summed.
     """
-    context = multiprocessing.get_context("spawn")
-    out = []
-    for count in sizes.workers:
-        barrier = context.Barrier(count)
-        queue = context.Queue()
-        processes = [
-            context.Process(
-                target=_training_worker,
-                args=(task, sizes.learning_starts, sizes.worker_steps, barrier, queue),
-            )
-            for _ in range(count)
-        ]
-        for process in processes:
-            process.start()
-        rates = [queue.get(timeout=900) for _ in processes]
-        for process in processes:
-            process.join(timeout=60)
+    out = [{"workers": 1, "steps_per_s_each": [single], "aggregate_steps_per_s": single}]
+    for count in (c for c in sizes.workers if c > 1):
+        command = [sys.executable, "-m", "distgprl.experiments.bench", "--worker", task]
+        command += [str(sizes.learning_starts), str(sizes.worker_steps)]
+        with tempfile.TemporaryFile("w+") as errors:
+            processes = [
+                subprocess.Popen(
+                    command,
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=errors,
+                    text=True,
+                )
+                for _ in range(count)
+            ]
+            try:
+                for process in processes:
+                    _read_marker(process, WORKER_READY)
+                for process in processes:
+                    assert process.stdin is not None
+                    process.stdin.write("go\n")
+                    process.stdin.flush()
+                rates = [float(_read_marker(process, WORKER_RATE)) for process in processes]
+                for process in processes:
+                    process.wait(timeout=120)
+            except BaseException as exc:
+                for process in processes:
+                    process.kill()
+                errors.seek(0)
+                raise RuntimeError(f"{exc}; worker stderr tail:\n{errors.read()[-2000:]}") from exc
         out.append(
             {
                 "workers": count,
                 "steps_per_s_each": rates,
                 "aggregate_steps_per_s": float(sum(rates)),
-                "load_average_after": list(os.getloadavg()),
             }
         )
-    base = out[0]["aggregate_steps_per_s"]
     for row in out:
-        row["speedup_vs_first"] = row["aggregate_steps_per_s"] / base
+        row["speedup_vs_one"] = row["aggregate_steps_per_s"] / single
     return out
 
 
@@ -837,7 +885,7 @@ def bench_via_point_scaling(sizes: BenchSizes, task: str = BENCH_TASK) -> list[d
                 pipeline.gp_conditioning(step, action)
 
             timings = {
-                "episode": measure(pipeline.episode, sizes.scaling_repeats, 3, sizes.inner),
+                "episode": measure(pipeline.episode, 3 * sizes.scaling_repeats, 3, 1),
                 "edf_window": measure(lambda p=pipeline: p.edf(1), sizes.scaling_repeats, 3),
                 "gp_window": measure(gp, sizes.scaling_repeats, 3, sizes.inner),
                 "policy_window": measure(pipeline.policy, sizes.scaling_repeats, 3, sizes.inner),
@@ -897,7 +945,7 @@ def bench_obstacle_scaling(env, model, sizes: BenchSizes) -> list[dict[str, Any]
                 },
                 sizes.scaling_repeats,
             )
-            episode = measure(pipeline.episode, sizes.scaling_repeats, 3, sizes.inner)
+            episode = measure(pipeline.episode, 3 * sizes.scaling_repeats, 3, 1)
         finally:
             bullet.close()
             pipeline.restart()
@@ -945,7 +993,7 @@ def markdown_table(document: dict[str, Any]) -> str:
     labels = {
         "edf": f"EDF query ({a['points_queried']} points), per window",
         "gp_conditioning": "GP conditioning (S_W update + segment), per window",
-        "policy": f"policy inference (SAC actor, {a['observation_size']}-D obs), per window",
+        "policy": f"policy (SAC actor in NumPy, {a['observation_size']}-D obs), per window",
         "total": "total, per window",
     }
     for name, label in labels.items():
@@ -953,6 +1001,8 @@ def markdown_table(document: dict[str, Any]) -> str:
         if name in naive_names:
             key, what = naive_names[name]
             naive = f"{_fmt_ms(a['naive_per_window'][key])} {what}"
+            if name == "policy":
+                naive += f"; {_fmt_ms(a['naive_per_window']['policy_torch_actor'])} torch actor"
         lines.append(
             f"| {label} | {_fmt_ms(a['per_window'][name])} | "
             f"{a['paper_ms_per_window'][name]:g} | {naive} |"
@@ -1130,7 +1180,7 @@ def run_benchmarks(
     say("training throughput and breakdown")
     training = bench_training(sizes)
     say("training throughput vs workers")
-    workers = bench_workers(sizes)
+    workers = bench_workers(sizes, training["steps_per_s"])
     document = {
         "quick": bool(quick),
         "sizes": asdict(sizes),
@@ -1158,15 +1208,26 @@ def load_results(path: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m distgprl.experiments.bench [--quick] [--out DIR]``: run and print the table."""
+    """``python -m distgprl.experiments.bench [--quick] [--out DIR]``: run and print the table.
+
+    ``--worker TASK LEARNING_STARTS STEPS`` is the internal entry of `bench_workers`.
+    """
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="~1 minute instead of ~10")
     parser.add_argument("--out", type=Path, default=Path("results/bench"))
+    parser.add_argument("--worker", nargs=3, metavar=("TASK", "LEARNING_STARTS", "STEPS"))
     args = parser.parse_args(argv)
+    if args.worker:
+        task, learning_starts, steps = args.worker
+        training_worker(task, int(learning_starts), int(steps))
+        return
+    start = time.perf_counter()
     path = run_benchmarks(
-        args.quick, args.out, progress=lambda m: print(f"[bench] {m}", flush=True)
+        args.quick,
+        args.out,
+        progress=lambda m: print(f"[bench {time.perf_counter() - start:5.1f} s] {m}", flush=True),
     )
     print(markdown_table(load_results(path)))
     print(f"wrote {path} and {path.with_suffix('.png')}")
@@ -1183,6 +1244,7 @@ __all__ = [
     "AdaptationPipeline",
     "BenchSizes",
     "BulletDistance",
+    "NumpyActor",
     "SectionTimers",
     "Timing",
     "bench_gp",
