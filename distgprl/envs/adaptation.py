@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v0`` and ``DistGPRL-DBM-v0`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v1`` and ``DistGPRL-DBM-v1`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ from distgprl.config import EnvConfig
 from distgprl.safety.edf import DistanceField
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.rotations import nearest_equivalent_rotvec
+
+#: Minimum per-axis scale (m, m, m, rad, rad, rad) used to standardise observed via-points.
+OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
@@ -120,7 +123,8 @@ class AdaptationEnv(gym.Env):
     ``state`` slice           size      meaning (units)
     ========================  ========  ==================================================
     Gamma_W                   L x 6     window via-points, standardised per axis by the
-                                        demonstration via-points' mean/std (dimensionless)
+                                        demonstration via-points' mean and std, the std
+                                        floored at 0.05 m / 0.2 rad (dimensionless)
     c                         L         EDF clearance at the window via-point positions,
                                         clipped to [-clip, clip] (m)
     e_o                       3         object position - TCP position (m)
@@ -172,7 +176,10 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v0 — first release.
+    **Versions**: v1 — observed via-points are standardised with a floored scale (v0 used
+    a 1e-3 floor, so axes the demonstration keeps constant, such as the tool orientation,
+    turned millimetre adaptations into inputs of magnitude ~50 and saturated the policy).
+    v0 — first release.
     """
 
     metadata = {"render_modes": ["rgb_array"]}
@@ -203,7 +210,10 @@ class AdaptationEnv(gym.Env):
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
         self._via_mean = self.skill.via_points.mean(axis=0)
-        self._via_std = np.maximum(self.skill.via_points.std(axis=0), 1e-3)
+        # Standardisation scale per axis: the demonstration's spread, floored at a physical
+        # scale (OBSERVATION_SCALE_FLOOR) so that an axis the demonstration keeps constant
+        # (e.g. the tool orientation) does not blow small adaptations up to huge inputs.
+        self._via_std = np.maximum(self.skill.via_points.std(axis=0), OBSERVATION_SCALE_FLOOR)
         self._segment_maps = self._build_segment_maps()
         mean = self.skill.prior_mean
         self._gp_bases = [

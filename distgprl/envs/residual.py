@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v0`` and ``ProMPRRL-DBM-v0``.
+Env ids: ``ProMPRRL-DCP-v1`` and ``ProMPRRL-DBM-v1``.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v0 — first release.
+    **Versions**: v1 — floored observation scale (see `AdaptationEnv`). v0 — first release.
     """
 
     def __init__(self, task: str, config: EnvConfig | None = None, render_mode=None) -> None:

@@ -28,7 +28,7 @@ def rollout(env, tc, actions):
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v0", method="dist-gprl").unwrapped
+    env = gym.make("DistGPRL-DCP-v1", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
     env.close()
 
@@ -135,4 +135,17 @@ def test_dbm_env_runs_an_episode():
     env = AdaptationEnv("dbm", "dist-gprl")
     records = rollout(env, env.spec_task.evaluation_tcs(1)[0], np.zeros((3, 30)))
     assert records[-1][2]
+    env.close()
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_observations_stay_well_scaled_under_saturated_actions(task):
+    """Standardised inputs stay O(1) even when actions change axes the demo keeps constant."""
+    env = AdaptationEnv(task, "dist-gprl")
+    rng = np.random.default_rng(0)
+    for tc in env.spec_task.evaluation_tcs(3):
+        obs, _ = env.reset(options={"tc": tc})
+        for _ in range(3):
+            assert np.abs(obs["state"]).max() < 10.0
+            obs, *_ = env.step(rng.choice([-1.0, 1.0], size=30))
     env.close()
