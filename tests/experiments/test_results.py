@@ -52,6 +52,11 @@ def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["f.txt"]
 
 
+def test_written_files_are_world_readable(tmp_path):
+    path = results.atomic_write_text(tmp_path / "r.txt", "x")
+    assert path.stat().st_mode & 0o777 == 0o644
+
+
 def test_config_hash_is_order_independent():
     assert results.config_hash({"a": 1, "b": 2}) == results.config_hash({"b": 2, "a": 1})
     assert results.config_hash({"a": 1}) != results.config_hash({"a": 2})
