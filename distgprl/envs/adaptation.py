@@ -361,8 +361,8 @@ class AdaptationEnv(gym.Env):
             raise RuntimeError("episode is over; call reset()")
         config, step = self.config, self.step_index
         start = time.perf_counter()
-        # Read obstacles -> update EDF (Alg. 1).
-        self.field.update(self.sim.obstacle_shapes())
+        # Alg. 1 "update EDF using current obstacle state": already done at the end of the
+        # previous step (or in reset), and the obstacles have not moved since.
         indices = self.layout.indices[step]
         raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
         if self.method.action_mode == "none":  # the `demo` reference executes Gamma_0
