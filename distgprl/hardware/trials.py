@@ -291,13 +291,14 @@ def run_trials(
 
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
     """Success rate, collision rate, MinCl (5th percentile of min clearance), counts."""
-    executed = [r for r in rows if r["success"] != ""]
+    executed = [r for r in rows if r["success"] != ""]  # judged: ran, stopped or refused
     if not executed:
-        return {"trials": len(rows), "executed": 0}
+        return {"trials": len(rows), "judged": 0}
     clearance = np.array([float(r["min_clearance"]) for r in executed])
     return {
         "trials": len(rows),
-        "executed": len(executed),
+        "judged": len(executed),
+        "refused": sum(1 for r in rows if r["status"] == "refused"),
         "success_rate": float(np.mean([float(r["success"]) for r in executed])),
         "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
         "min_clearance_p5": float(np.percentile(clearance, 5)),

@@ -73,7 +73,7 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
     table = hardware_table(tmp_path)
     assert table[0]["method"] == "dist-gprl" and table[0]["trials"] == 2
-    assert report.summary["executed"] == 2
+    assert report.summary["judged"] == 2
 
 
 def test_operator_judge_and_forced_plans(tmp_path):
