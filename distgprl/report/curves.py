@@ -27,8 +27,13 @@ FIGURES = {
 
 
 def load_curves(root: str | Path, preset: str, task: str, method: str):
-    """(steps (k,), {metric: (seeds, k)}) over the seeds of a run, on their common steps."""
-    files = sorted((Path(root) / preset / task / method).glob("seed*/progress.csv"))
+    """(steps (k,), {metric: (seeds, k)}) over the finished seeds (with ``done.json``) of a
+    run, on their common steps. Runs still in progress are left out."""
+    files = sorted(
+        path
+        for path in (Path(root) / preset / task / method).glob("seed*/progress.csv")
+        if (path.parent / "done.json").exists()
+    )
     series = []
     for path in files:
         _, rows = read_csv(path)
