@@ -1,53 +1,13 @@
-"""Wall time of one full simulated episode per task (the whole demonstration, with dynamics,
-contact and clearance checks), median and spread over 20 episodes on evaluation TCs.
+"""Wall time of one full simulated episode per task: `python benchmarks/bench_sim.py`.
 
-Run: ``python benchmarks/bench_sim.py [--episodes 20]``. Reset time is reported separately.
+The TC-conditioned demonstration is executed in three segments, as the RL env does, with
+dynamics and contact/clearance checks; medians over the evaluation TCs. The measurement
+itself is `distgprl.experiments.bench.bench_simulation` (section 2 of `distgprl bench`).
 """
 
-from __future__ import annotations
-
 import argparse
-import time
 
-import numpy as np
-
-from distgprl.sim.tasks import get_task
-from distgprl.sim.tasks.base import condition_by_translation, resample_to_control
-from distgprl.skill.demos import load_demonstration
-
-
-def bench(task_name: str, episodes: int) -> tuple[np.ndarray, np.ndarray, int]:
-    spec = get_task(task_name)
-    demo = load_demonstration(spec.demo_path)
-    sim = spec.make_sim()
-    episode_times, reset_times = [], []
-    try:
-        tcs = spec.evaluation_tcs(episodes)
-        trajectories = [
-            resample_to_control(
-                demo.times,
-                condition_by_translation(
-                    demo.times, demo.poses, np.asarray(tc.object_offset), spec.interaction_time
-                ),
-                sim.control_dt,
-            )
-            for tc in tcs
-        ]
-        sim.reset(tcs[0])
-        sim.execute(trajectories[0])  # warm-up
-        for tc, poses in zip(tcs, trajectories, strict=True):
-            start = time.perf_counter()
-            sim.reset(tc)
-            middle = time.perf_counter()
-            for chunk in np.array_split(poses, 3):  # as the RL env does: 3 segments
-                sim.execute(chunk)
-            end = time.perf_counter()
-            reset_times.append(middle - start)
-            episode_times.append(end - middle)
-        steps = trajectories[0].shape[0]
-    finally:
-        sim.close()
-    return np.array(episode_times), np.array(reset_times), steps
+from distgprl.experiments.bench import bench_simulation
 
 
 def main() -> None:
@@ -55,12 +15,13 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=20)
     args = parser.parse_args()
     for name in ("dcp", "dbm"):
-        episode, reset, steps = bench(name, args.episodes)
-        q25, median, q75 = np.percentile(episode * 1000, [25, 50, 75])
+        result = bench_simulation(name, args.episodes)
+        episode = result["episode"]
         print(
-            f"{name}: episode ({steps} control steps) median {median:.1f} ms "
-            f"[IQR {q25:.1f}-{q75:.1f}, min {episode.min() * 1000:.1f}, "
-            f"max {episode.max() * 1000:.1f}] ms; reset median {np.median(reset) * 1000:.2f} ms"
+            f"{name}: episode ({result['control_steps']} control steps) median "
+            f"{episode['median_us'] / 1000:.1f} ms [p10 {episode['p10_us'] / 1000:.1f}, "
+            f"p90 {episode['p90_us'] / 1000:.1f}]; reset median "
+            f"{result['reset']['median_us'] / 1000:.2f} ms"
         )
 
 
