@@ -193,11 +193,12 @@ def curves(
         typer.echo(f"wrote {path}")
 
 
-def main() -> None:  # pragma: no cover - console entry for `python -m distgprl.cli`
+def main() -> None:
+    """Console entry for `python -m distgprl.cli`."""
     app(prog_name="distgprl")
 
 
-if __name__ == "__main__":  # pragma: no cover
+if __name__ == "__main__":
     sys.exit(main())
 
 

@@ -58,3 +58,11 @@ def test_moving_obstacle_is_ignored_unless_requested(dcp_sim):
     in_static = dcp_sim.configuration_in_collision(q)
     in_any = dcp_sim.configuration_in_collision(q, include_dynamic=True)
     assert in_any and not in_static
+
+
+def test_registry_and_lightweight_task_names_agree():
+    """`distgprl.data.TASK_NAMES` (used without importing pybullet) lists exactly the tasks."""
+    from distgprl.data import TASK_NAMES
+    from distgprl.sim.tasks import TASKS
+
+    assert tuple(TASKS) == TASK_NAMES

@@ -15,7 +15,7 @@ def test_registry_and_unknown_name():
     """Both tasks are registered; an unknown name raises UserInputError listing valid names."""
     assert set(TASKS) == {"dcp", "dbm"}
     assert get_task("dcp").name == "dcp"
-    with pytest.raises(UserInputError, match="dbm, dcp"):
+    with pytest.raises(UserInputError, match="dcp, dbm"):
         get_task("cube")
 
 

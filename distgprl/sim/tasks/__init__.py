@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from distgprl.errors import UserInputError
+from distgprl.data import check_task_name
 from distgprl.sim.tasks.base import (
     DEMO_DIR,
     EVALUATION_SEED,
@@ -46,12 +46,7 @@ TASKS: dict[str, TaskSpec] = {
 
 def get_task(name: str) -> TaskSpec:
     """The task called ``name``; raises :class:`UserInputError` listing the valid names."""
-    try:
-        return TASKS[name]
-    except KeyError:
-        raise UserInputError(
-            f"unknown task {name!r}; valid tasks: {', '.join(sorted(TASKS))}"
-        ) from None
+    return TASKS[check_task_name(name)]
 
 
 __all__ = [

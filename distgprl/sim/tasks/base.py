@@ -33,7 +33,8 @@ EVALUATION_SEED = 7_130_911
 TRAINING_CURVE_SEED = 5_204_377
 """Seed of the fixed TC set used for evaluations during training (learning curves)."""
 
-DEMO_DIR = Path(__file__).resolve().parents[2] / "data" / "demos"
+from distgprl.data import DEMO_DIR  # noqa: E402  (one definition of the shipped-data folder)
+
 """Folder of the shipped demonstrations."""
 
 
