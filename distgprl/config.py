@@ -43,6 +43,11 @@ class EnvConfig:
             pose and the re-planned trajectory (caused by updating the overlap
             via-point) is blended out with a minimum-jerk weight.
         clearance_clip: observed EDF clearances are clipped to this value, m.
+        clearance_timing: when the obstacles are taken for the window via-points' EDF
+            clearances and gradients (state ``c`` and r_ga): ``"predicted"`` (default,
+            env v2) at the time the trajectory reaches each via-point, along the moving
+            obstacles' known paths; ``"current"`` (env v1, the paper read literally) at
+            the observation instant.
         signature_weight: GPRL's signature-similarity reward weight.
         signature_depth: truncation level of the path signature (GPRL).
         signature_scale: distance scale of the signature similarity (GPRL).
@@ -64,6 +69,7 @@ class EnvConfig:
     sd_samples_per_segment: int = 4
     blend_fraction: float = 0.3
     clearance_clip: float = 0.3
+    clearance_timing: str = "predicted"
     signature_weight: float = 1.0
     signature_depth: int = 3
     signature_scale: float = 0.05

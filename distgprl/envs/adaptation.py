@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v1`` and ``DistGPRL-DBM-v1`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v2`` and ``DistGPRL-DBM-v2`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -126,7 +126,10 @@ class AdaptationEnv(gym.Env):
                                         demonstration via-points' mean and std, the std
                                         floored at 0.05 m / 0.2 rad (dimensionless)
     c                         L         EDF clearance at the window via-point positions,
-                                        clipped to [-clip, clip] (m)
+                                        each against the obstacles where they will be
+                                        when the trajectory reaches that via-point
+                                        (``clearance_timing``), clipped to
+                                        [-clip, clip] (m)
     e_o                       3         object position - TCP position (m)
     e_g                       3         goal position - TCP position (m)
     phi                       1         phase t_s / n_windows in [0, 1)
@@ -159,7 +162,8 @@ class AdaptationEnv(gym.Env):
       ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward; 0 if the
       method has no distance rewards);
     - ``r_ga`` = lambda_ga * mean_j cos(Delta Gamma_j[xyz], grad d(v_j)) over the window
-      via-points (Eq. grad_alignment_reward; 0 without distance rewards);
+      via-points, grad d from the same time-indexed field as ``c`` (Eq.
+      grad_alignment_reward; 0 without distance rewards);
     - ``r_signature`` = signature_weight * signature similarity between the executed
       segment's planned path and the demonstration's (GPRL only).
 
@@ -176,7 +180,14 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v1 — observed via-points are standardised with a floored scale (v0 used
+    **Versions**: v2 — the window via-points' clearances ``c`` and the r_ga gradients are
+    taken against the obstacles predicted at each via-point's time along their known
+    paths (``clearance_timing="predicted"``). v1 took them at the observation instant:
+    with obstacles moving 4 cm/s (DBM belt) or oscillating with a 15 cm amplitude (DCP),
+    a via-point reached 2 s later was scored against an obstacle 8 cm (or a half period)
+    away from where it would be, so the state could not tell a safe window from one that
+    would sweep through the other bar (every DBM collision). ``"current"`` keeps v1.
+    v1 — observed via-points are standardised with a floored scale (v0 used
     a 1e-3 floor, so axes the demonstration keeps constant, such as the tool orientation,
     turned millimetre adaptations into inputs of magnitude ~50 and saturated the policy).
     v0 — first release.
@@ -206,6 +217,14 @@ class AdaptationEnv(gym.Env):
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
         self.field = DistanceField(self.sim.obstacle_shapes())
+        if self.config.clearance_timing not in ("predicted", "current"):
+            raise ValueError(
+                f"clearance_timing must be 'predicted' or 'current', "
+                f"got {self.config.clearance_timing!r}"
+            )
+        # Field moved to each via-point's time for the time-indexed clearances (v2).
+        self._timed_field = DistanceField(self.sim.obstacle_shapes())
+        self._episode_start_time = 0.0
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -290,10 +309,30 @@ class AdaptationEnv(gym.Env):
         gamma[0] = self._start_pose
         return gamma
 
+    def window_distance(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """EDF distance (L,), m, and unit gradient (L, 3) at the window's poses.
+
+        With ``clearance_timing == "predicted"`` pose j is checked against the obstacles
+        where they will be when the trajectory reaches it (episode time via_time_j * T);
+        with ``"current"``, against the obstacles now.
+        """
+        points = self._window_poses(indices)[:, :3]
+        if self.config.clearance_timing == "current":
+            return self.field.distance(points)
+        times = self._episode_start_time + self.skill.via_times[indices] * self.skill.duration
+        distance = np.empty(len(points))
+        gradient = np.empty((len(points), 3))
+        field = self._timed_field
+        for j, when in enumerate(times):
+            field.update([s for s in self.sim.obstacle_shapes(float(when)) if s.dynamic])
+            d, g = field.distance(points[j : j + 1])
+            distance[j], gradient[j] = d[0], g[0]
+        return distance, gradient
+
     def _observation(self) -> dict[str, np.ndarray]:
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
         window = self._window_poses(indices)
-        clearance, _ = self.field.distance(window[:, :3])
+        clearance, _ = self.window_distance(indices)
         clip = self.config.clearance_clip
         tcp = self.sim.tcp_pose()[:3]
         state = np.concatenate(
@@ -341,6 +380,7 @@ class AdaptationEnv(gym.Env):
             tc = self.spec_task.sample_tc(self._rng)
         self.tc = tc
         self.sim.reset(tc)
+        self._episode_start_time = float(self.sim.time)
         start = self.sim.tcp_pose()
         start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
         self._start_pose = start
@@ -371,7 +411,7 @@ class AdaptationEnv(gym.Env):
         self.gamma[indices] += delta  # Eq. updated_via_points
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
-            _, gradient = self.field.distance(self._window_poses(indices)[:, :3])
+            _, gradient = self.window_distance(indices)
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
         poses = self._segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)

@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v1`` and ``ProMPRRL-DBM-v1``.
+Env ids: ``ProMPRRL-DCP-v2`` and ``ProMPRRL-DBM-v2``.
 """
 
 from __future__ import annotations

@@ -174,6 +174,7 @@ class PerceivedAdaptation(AdaptationEnv):
         start = np.asarray(tcp_pose, dtype=float).copy()
         start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
         self._start_pose = start
+        self._episode_start_time = float(start_time)
         self.gamma = self.conditioned_via_points(tc)
         self.gamma_initial = self.gamma.copy()
         self.step_index = 0

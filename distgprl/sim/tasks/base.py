@@ -214,8 +214,9 @@ class TaskSim:
         """Put the kinematically moved obstacles at their poses for ``time`` (s)."""
         raise NotImplementedError
 
-    def obstacle_shapes(self) -> tuple[Shape, ...]:
-        """Every obstacle (static and moving) at its current pose."""
+    def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """Every obstacle (static and moving) at its current pose (``time`` None), or
+        predicted at episode time ``time`` (s) along the moving obstacles' known paths."""
         raise NotImplementedError
 
     def task_progress(self) -> float:

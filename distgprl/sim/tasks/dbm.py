@@ -240,9 +240,14 @@ class DBMSim(TaskSim):
         self._other_position = position
         self._reset_base_pose(self.other_bar_body, position, (0.0, 0.0, 0.0, 1.0))
 
-    def obstacle_shapes(self) -> tuple[Shape, ...]:
-        """Rollers, rails and the other bar (current pose), as EDF primitives."""
-        other = bar_boxes(self.scene, np.asarray(self._other_position), "other_bar", True)
+    def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """Rollers, rails and the other bar, as EDF primitives.
+
+        The other bar is at its current pose, or where the belt carries it at episode time
+        ``time`` (s).
+        """
+        position = self._other_position if time is None else self.other_bar_position_at(time)
+        other = bar_boxes(self.scene, np.asarray(position, dtype=float), "other_bar", True)
         return (*self._rollers, *self._rails, *other)
 
     def goal_position(self) -> np.ndarray:

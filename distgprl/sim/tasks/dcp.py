@@ -184,11 +184,15 @@ class DCPSim(TaskSim):
             self.obstacle_body, self._obstacle_position.tolist(), (0.0, 0.0, 0.0, 1.0)
         )
 
-    def obstacle_shapes(self) -> tuple[Shape, ...]:
-        """Table (box), wall and obstacle cube (current pose), as EDF primitives."""
+    def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """Table (box), wall and obstacle cube, as EDF primitives.
+
+        The cube is at its current pose, or on its known path at episode time ``time`` (s).
+        """
+        position = self._obstacle_position if time is None else self.obstacle_position_at(time)
         obstacle = Box(
             "obstacle_cube",
-            self._obstacle_position.copy(),
+            np.array(position, dtype=float),
             IDENTITY,
             np.full(3, self.scene.obstacle_half),
             dynamic=True,
