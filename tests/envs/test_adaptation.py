@@ -8,7 +8,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
+from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
+from distgprl.safety.edf import DistanceField
+from distgprl.sim.tasks import TaskConfig
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +106,7 @@ def test_distance_terms_only_for_methods_with_distance_rewards():
 def test_gradient_alignment_reward_is_positive_for_moves_along_the_gradient(dcp_env):
     dcp_env.reset(options={"tc": dcp_env.spec_task.nominal_tc})
     window = dcp_env.layout.indices[0]
-    _, gradient = dcp_env.field.distance(dcp_env.gamma[window, :3])
+    _, gradient = dcp_env.window_distance(window)
     # Raw action whose S_W-transformed position part points along the EDF gradient.
     target = np.zeros((5, 6))
     target[:, :3] = gradient * 0.02
@@ -149,3 +152,38 @@ def test_observations_stay_well_scaled_under_saturated_actions(task):
             assert np.abs(obs["state"]).max() < 10.0
             obs, *_ = env.step(rng.choice([-1.0, 1.0], size=30))
     env.close()
+
+
+@pytest.mark.parametrize("timing", ["predicted", "current"])
+def test_window_clearances_use_obstacles_at_the_via_points_time(timing):
+    """v2: clearance j is against the obstacles when the trajectory reaches via-point j."""
+    env = AdaptationEnv("dcp", "dist-gprl", EnvConfig(clearance_timing=timing))
+    obs, _ = env.reset(options={"tc": env.spec_task.evaluation_tcs(1)[0]})
+    window = env.layout.indices[0]
+    points = env.gamma[window, :3]
+    expected = []
+    for j, index in enumerate(window):
+        when = env.skill.via_times[index] * env.skill.duration if timing == "predicted" else None
+        expected.append(DistanceField(env.sim.obstacle_shapes(when)).distance(points[j : j + 1])[0])
+    clip = env.config.clearance_clip
+    observed = obs["state"][30:35]
+    np.testing.assert_allclose(observed, np.clip(np.concatenate(expected), -clip, clip), atol=1e-6)
+    env.close()
+
+
+def test_predicted_and_current_clearances_differ_while_the_obstacle_moves():
+    # DBM: the other bar 11 cm behind the target; the belt carries it under the approach.
+    tc = TaskConfig(object_offset=(0.0, 0.0), obstacle_offset=(0.0, 0.05))
+    observed = {}
+    for timing in ("predicted", "current"):
+        env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(clearance_timing=timing))
+        observed[timing] = env.reset(options={"tc": tc})[0]["state"][30:35]
+        env.close()
+    assert not np.allclose(observed["predicted"], observed["current"], atol=1e-2)
+    # The approach via-points come closer to the bar that will be there.
+    assert observed["predicted"][2:].sum() < observed["current"][2:].sum()
+
+
+def test_unknown_clearance_timing_is_rejected():
+    with pytest.raises(ValueError, match="clearance_timing"):
+        AdaptationEnv("dcp", "dist-gprl", EnvConfig(clearance_timing="later"))

@@ -237,3 +237,22 @@ def test_render_gives_a_non_empty_image(dcp_sim):
     image = dcp_sim.render_rgb(64, 48)
     assert image.shape == (48, 64, 3) and image.dtype == np.uint8
     assert image.std() > 5.0
+
+
+@pytest.mark.parametrize("sim_name", ["dcp_sim", "dbm_sim"])
+def test_predicted_obstacles_match_the_simulated_ones_at_that_time(sim_name, request):
+    """obstacle_shapes(t) is where the moving obstacles actually are once the episode is at t."""
+    sim = request.getfixturevalue(sim_name)
+    sim.reset(get_task(sim_name.removesuffix("_sim")).evaluation_tcs(1)[0])
+    steps = 30
+    when = steps * sim.control_dt
+    predicted = {s.name: s for s in sim.obstacle_shapes(when) if s.dynamic}
+    assert predicted, "the scene has moving obstacles"
+    hold = np.tile(sim.tcp_pose(), (steps, 1))
+    sim.execute(hold)
+    assert sim.time == pytest.approx(when)
+    for shape in sim.obstacle_shapes():
+        if shape.dynamic:
+            np.testing.assert_allclose(predicted[shape.name].position, shape.position, atol=1e-9)
+    moved = [s for s in sim.obstacle_shapes(0.0) if s.dynamic]
+    assert any(not np.allclose(s.position, predicted[s.name].position) for s in moved)
