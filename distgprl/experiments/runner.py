@@ -347,6 +347,18 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
 
 
 # -- train ----------------------------------------------------------------------------------
+def _BarCallback(bar):  # noqa: N802  (a class factory: SB3 is imported lazily)
+    """An SB3 callback that advances ``bar`` by one per environment step."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class BarCallback(BaseCallback):
+        def _on_step(self) -> bool:
+            bar.update(1)
+            return True
+
+    return BarCallback()
+
+
 def train_run(
     task: str,
     method: str,
@@ -454,14 +466,12 @@ def train_run(
             (model.num_timesteps // eval_every + 1) * eval_every,
             (model.num_timesteps // ckpt_every + 1) * ckpt_every,
         )
-        before = model.num_timesteps
         model.learn(
             total_timesteps=next_stop - model.num_timesteps,
             reset_num_timesteps=False,
             progress_bar=False,
+            callback=None if bar is None else _BarCallback(bar),
         )
-        if bar is not None:
-            bar.update(model.num_timesteps - before)
         if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
             record_curve()
         if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
