@@ -17,12 +17,12 @@ test:
 	$(BIN)/python -m pytest -q
 
 lint:
-	$(BIN)/ruff check distgprl tests
-	$(BIN)/ruff format --check distgprl tests
+	$(BIN)/ruff check distgprl tests scripts benchmarks
+	$(BIN)/ruff format --check distgprl tests scripts benchmarks
 
 format:
-	$(BIN)/ruff check --fix distgprl tests
-	$(BIN)/ruff format distgprl tests
+	$(BIN)/ruff check --fix distgprl tests scripts benchmarks
+	$(BIN)/ruff format distgprl tests scripts benchmarks
 
 tables:
 	$(BIN)/distgprl tables --preset paper

@@ -1,0 +1,104 @@
+"""DBM diagnostics: where collisions happen, and how much any via-point policy could avoid.
+
+    python scripts/dbm_probe.py gap results/paper/dbm/demo/seed0/evaluation.csv [...]
+    python scripts/dbm_probe.py oracle 0.03 0.06 0.1
+
+``gap`` bins an evaluation file's episodes by the free space between the two bars (the
+target's rear face to the other bar's front face, m; constant during an episode since
+both ride the same belt) and prints success and collision per bin.
+
+``oracle`` runs a scripted, TC-aware adaptation through the same env (windows, S_W,
+clipping to [-1, 1]) with ``position_action_scale`` set to each value: window
+via-points 4-5 follow the target's offset like the conditioned ones, and the
+pre-insertion via-points 4-7 move towards the handle so that the hook's 6 cm behind
+the TCP stays in front of the other bar's handle. It is a crude hand-made policy, not
+an optimum: it shows how much of the collision rate via-point corrections of a given
+size can remove at all.
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+
+import numpy as np
+
+from distgprl.sim.tasks.dbm import SCENE
+
+
+def bar_gap(object_offset_y: np.ndarray, obstacle_offset_y: np.ndarray) -> np.ndarray:
+    """Free space (m) between the target's rear face and the other bar's front face."""
+    length = 2.0 * SCENE.bar_half_extents[1]
+    target = SCENE.target_start_y + np.asarray(object_offset_y)
+    other = SCENE.other_start_y + np.asarray(obstacle_offset_y)
+    return target - other - length
+
+
+BINS = (0.0, 0.05, 0.10, 0.15, 0.20, 0.25, 1.0)
+
+
+def gap_table(path: str) -> None:
+    with open(path) as handle:
+        rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
+    gap = bar_gap(
+        np.array([float(r["object_offset_y"]) for r in rows]),
+        np.array([float(r["obstacle_offset_y"]) for r in rows]),
+    )
+    success = np.array([float(r["success"]) for r in rows])
+    collision = np.array([float(r["collision"]) for r in rows])
+    print(f"{path}: success {success.mean():.2f}, collision {collision.mean():.2f}")
+    print("| bar gap (m) | episodes | success | collision |\n|---|---|---|---|")
+    for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
+        m = (gap >= lo) & (gap < hi)
+        if m.any():
+            print(
+                f"| {lo:.2f}-{hi:.2f} | {m.sum()} | {success[m].mean():.2f} | "
+                f"{collision[m].mean():.2f} |"
+            )
+
+
+def oracle(scale: float, episodes: int = 100) -> None:
+    from distgprl.config import EnvConfig
+    from distgprl.envs.adaptation import AdaptationEnv
+
+    env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(position_action_scale=scale))
+    results = []
+    for tc in env.spec_task.evaluation_tcs(episodes):
+        env.reset(options={"tc": tc})
+        dy = tc.object_offset[1]
+        gap = float(bar_gap(dy, tc.obstacle_offset[1]))
+        wanted = np.zeros((env.config.n_via_points, 6))
+        wanted[[4, 5], 1] += dy
+        behind = np.clip(gap - 0.06, 0.02, 0.095)  # TCP distance behind the target's rear face
+        wanted[[4, 5, 6, 7], 1] += 0.095 - behind
+        remaining = wanted.copy()
+        for step in range(env.layout.n_steps):
+            indices = env.layout.indices[step]
+            operator = env.layout.operators[step]
+            raw = np.linalg.solve(operator, remaining[indices]) / env.layout.scale
+            raw = np.clip(raw, -1.0, 1.0)
+            remaining[indices] -= operator @ (raw * env.layout.scale)
+            *_, info = env.step(raw.ravel())
+        results.append((info["success"], info["collision"], gap))
+    env.close()
+    r = np.array(results, dtype=float)
+    near = r[:, 2] < 0.2
+    print(
+        f"position_action_scale {scale}: success {r[:, 0].mean():.2f}, collision "
+        f"{r[:, 1].mean():.2f} (bars < 0.2 m apart: collision {r[near, 1].mean():.2f}, "
+        f"n = {int(near.sum())})",
+        flush=True,
+    )
+
+
+if __name__ == "__main__":
+    command, *arguments = sys.argv[1:] or ["help"]
+    if command == "gap":
+        for argument in arguments:
+            gap_table(argument)
+    elif command == "oracle":
+        for argument in arguments or ["0.03"]:
+            oracle(float(argument))
+    else:
+        print(__doc__)
+        sys.exit(2)
