@@ -43,6 +43,8 @@ class EnvConfig:
             pose and the re-planned trajectory (caused by updating the overlap
             via-point) is blended out with a minimum-jerk weight.
         clearance_clip: observed EDF clearances are clipped to this value, m.
+        clearance_scale: observed clearances are divided by this, m (env v2).
+        relative_position_scale: observed e_o and e_g are divided by this, m (env v2).
         clearance_timing: when the obstacles are taken for the window via-points' EDF
             clearances and gradients (state ``c`` and r_ga): ``"predicted"`` (default,
             env v2) at the time the trajectory reaches each via-point, along the moving
@@ -69,6 +71,8 @@ class EnvConfig:
     sd_samples_per_segment: int = 4
     blend_fraction: float = 0.3
     clearance_clip: float = 0.3
+    clearance_scale: float = 0.05
+    relative_position_scale: float = 0.1
     clearance_timing: str = "predicted"
     signature_weight: float = 1.0
     signature_depth: int = 3

@@ -21,6 +21,10 @@ from distgprl.skill.rotations import nearest_equivalent_rotvec
 #: Minimum per-axis scale (m, m, m, rad, rad, rad) used to standardise observed via-points.
 OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
+#: Observed e_o and e_g are clipped to +-this per axis (m) before scaling (a knocked-off
+#: object must not blow the inputs up).
+RELATIVE_POSITION_CLIP = 0.8
+
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
 
@@ -129,9 +133,12 @@ class AdaptationEnv(gym.Env):
                                         each against the obstacles where they will be
                                         when the trajectory reaches that via-point
                                         (``clearance_timing``), clipped to
-                                        [-clip, clip] (m)
-    e_o                       3         object position - TCP position (m)
-    e_g                       3         goal position - TCP position (m)
+                                        [-clip, clip] m, in units of
+                                        ``clearance_scale`` (dimensionless)
+    e_o                       3         object position - TCP position, clipped to
+                                        +-0.8 m, in units of
+                                        ``relative_position_scale`` (dimensionless)
+    e_g                       3         goal position - TCP position, likewise
     phi                       1         phase t_s / n_windows in [0, 1)
     ========================  ========  ==================================================
 
@@ -180,13 +187,15 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v2 — the window via-points' clearances ``c`` and the r_ga gradients are
-    taken against the obstacles predicted at each via-point's time along their known
-    paths (``clearance_timing="predicted"``). v1 took them at the observation instant:
-    with obstacles moving 4 cm/s (DBM belt) or oscillating with a 15 cm amplitude (DCP),
-    a via-point reached 2 s later was scored against an obstacle 8 cm (or a half period)
-    away from where it would be, so the state could not tell a safe window from one that
-    would sweep through the other bar (every DBM collision). ``"current"`` keeps v1.
+    **Versions**: v2 — (a) the window via-points' clearances ``c`` and the r_ga gradients
+    are taken against the obstacles predicted at each via-point's time along their known
+    paths (``clearance_timing="predicted"``; ``"current"`` keeps v1's observation
+    instant, at which, with obstacles moving 4 cm/s (DBM belt) or oscillating with a
+    15 cm amplitude (DCP), a via-point reached 2 s later was scored against an obstacle
+    8 cm or half a period away from where it would be); (b) every state input is O(1):
+    ``c`` is divided by ``clearance_scale`` (5 cm) and e_o, e_g by
+    ``relative_position_scale`` (10 cm) — in v1 they were raw metres, so the centimetre
+    differences that decide a collision or a missed handle moved the inputs by ~0.01.
     v1 — observed via-points are standardised with a floored scale (v0 used
     a 1e-3 floor, so axes the demonstration keeps constant, such as the tool orientation,
     turned millimetre adaptations into inputs of magnitude ~50 and saturated the policy).
@@ -329,18 +338,24 @@ class AdaptationEnv(gym.Env):
             distance[j], gradient[j] = d[0], g[0]
         return distance, gradient
 
+    def _relative(self, vector: np.ndarray) -> np.ndarray:
+        """A relative position (3,), m, clipped and in units of relative_position_scale."""
+        clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
+        return clipped / self.config.relative_position_scale
+
     def _observation(self) -> dict[str, np.ndarray]:
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
         window = self._window_poses(indices)
         clearance, _ = self.window_distance(indices)
-        clip = self.config.clearance_clip
+        config = self.config
+        clip = config.clearance_clip
         tcp = self.sim.tcp_pose()[:3]
         state = np.concatenate(
             [
                 ((window - self._via_mean) / self._via_std).ravel(),
-                np.clip(clearance, -clip, clip),
-                self.sim.object_position() - tcp,
-                self.sim.goal_position() - tcp,
+                np.clip(clearance, -clip, clip) / config.clearance_scale,
+                self._relative(self.sim.object_position() - tcp),
+                self._relative(self.sim.goal_position() - tcp),
                 [self.step_index / self.layout.n_steps],
             ]
         ).astype(np.float32)

@@ -166,7 +166,7 @@ def test_window_clearances_use_obstacles_at_the_via_points_time(timing):
         when = env.skill.via_times[index] * env.skill.duration if timing == "predicted" else None
         expected.append(DistanceField(env.sim.obstacle_shapes(when)).distance(points[j : j + 1])[0])
     clip = env.config.clearance_clip
-    observed = obs["state"][30:35]
+    observed = obs["state"][30:35] * env.config.clearance_scale
     np.testing.assert_allclose(observed, np.clip(np.concatenate(expected), -clip, clip), atol=1e-6)
     env.close()
 
@@ -187,3 +187,15 @@ def test_predicted_and_current_clearances_differ_while_the_obstacle_moves():
 def test_unknown_clearance_timing_is_rejected():
     with pytest.raises(ValueError, match="clearance_timing"):
         AdaptationEnv("dcp", "dist-gprl", EnvConfig(clearance_timing="later"))
+
+
+def test_relative_positions_are_observed_in_units_of_their_scale(dcp_env):
+    obs, _ = dcp_env.reset(options={"tc": dcp_env.spec_task.nominal_tc})
+    tcp = dcp_env.sim.tcp_pose()[:3]
+    scale = dcp_env.config.relative_position_scale
+    np.testing.assert_allclose(
+        obs["state"][35:38], (dcp_env.sim.object_position() - tcp) / scale, atol=1e-5
+    )
+    np.testing.assert_allclose(
+        obs["state"][38:41], (dcp_env.sim.goal_position() - tcp) / scale, atol=1e-5
+    )
