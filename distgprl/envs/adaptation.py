@@ -231,8 +231,11 @@ class AdaptationEnv(gym.Env):
                 f"clearance_timing must be 'predicted' or 'current', "
                 f"got {self.config.clearance_timing!r}"
             )
-        # Field moved to each via-point's time for the time-indexed clearances (v2).
-        self._timed_field = DistanceField(self.sim.obstacle_shapes())
+        # Time-indexed clearances (v2): the static obstacles once for all window points, the
+        # (few) moving ones in a small field moved to each via-point's time.
+        shapes = self.sim.obstacle_shapes()
+        self._static_field = DistanceField([s for s in shapes if not s.dynamic])
+        self._moving_field = DistanceField([s for s in shapes if s.dynamic])
         self._episode_start_time = 0.0
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
@@ -329,13 +332,13 @@ class AdaptationEnv(gym.Env):
         if self.config.clearance_timing == "current":
             return self.field.distance(points)
         times = self._episode_start_time + self.skill.via_times[indices] * self.skill.duration
-        distance = np.empty(len(points))
-        gradient = np.empty((len(points), 3))
-        field = self._timed_field
+        distance, gradient = self._static_field.distance(points)
+        field = self._moving_field
         for j, when in enumerate(times):
-            field.update([s for s in self.sim.obstacle_shapes(float(when)) if s.dynamic])
+            field.update(self.sim.moving_obstacle_shapes(float(when)))
             d, g = field.distance(points[j : j + 1])
-            distance[j], gradient[j] = d[0], g[0]
+            if d[0] < distance[j]:
+                distance[j], gradient[j] = d[0], g[0]
         return distance, gradient
 
     def _relative(self, vector: np.ndarray) -> np.ndarray:
@@ -378,7 +381,7 @@ class AdaptationEnv(gym.Env):
 
     def _refresh_field(self) -> None:
         """Move the EDF's moving obstacles to their current poses (static ones never move)."""
-        self.field.update([s for s in self.sim.obstacle_shapes() if s.dynamic])
+        self.field.update(self.sim.moving_obstacle_shapes())
 
     def _clearance_penalty(self) -> float:
         """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""

@@ -107,8 +107,11 @@ class PerceivedScene:
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Static cell geometry + the other bar predicted at ``time`` (default now)."""
-        other = bar_shapes(self.scene, self.object_transform("other_bar", time), "other_bar", True)
-        return (*self.static_shapes, *other)
+        return (*self.static_shapes, *self.moving_obstacle_shapes(time))
+
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """The other bar predicted at ``time`` (default now)."""
+        return bar_shapes(self.scene, self.object_transform("other_bar", time), "other_bar", True)
 
     # -- the TaskSim subset the observation reads ------------------------------------------
     def tcp_pose(self) -> np.ndarray:

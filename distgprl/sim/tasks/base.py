@@ -219,6 +219,10 @@ class TaskSim:
         predicted at episode time ``time`` (s) along the moving obstacles' known paths."""
         raise NotImplementedError
 
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """The moving (``dynamic``) obstacles of :meth:`obstacle_shapes` (same ``time``)."""
+        return tuple(s for s in self.obstacle_shapes(time) if s.dynamic)
+
     def task_progress(self) -> float:
         """Dense task progress in [0, 1]."""
         raise NotImplementedError

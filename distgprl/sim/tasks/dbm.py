@@ -246,9 +246,12 @@ class DBMSim(TaskSim):
         The other bar is at its current pose, or where the belt carries it at episode time
         ``time`` (s).
         """
+        return (*self._rollers, *self._rails, *self.moving_obstacle_shapes(time))
+
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """The other bar's four boxes, now or at episode time ``time`` (s)."""
         position = self._other_position if time is None else self.other_bar_position_at(time)
-        other = bar_boxes(self.scene, np.asarray(position, dtype=float), "other_bar", True)
-        return (*self._rollers, *self._rails, *other)
+        return bar_boxes(self.scene, np.asarray(position, dtype=float), "other_bar", True)
 
     def goal_position(self) -> np.ndarray:
         """The target bar's current xy at its resting height raised by ``lift_height`` (3,), m."""

@@ -189,15 +189,13 @@ class DCPSim(TaskSim):
 
         The cube is at its current pose, or on its known path at episode time ``time`` (s).
         """
+        return (self._table, self._wall, *self.moving_obstacle_shapes(time))
+
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """The obstacle cube, now or at episode time ``time`` (s)."""
         position = self._obstacle_position if time is None else self.obstacle_position_at(time)
-        obstacle = Box(
-            "obstacle_cube",
-            np.array(position, dtype=float),
-            IDENTITY,
-            np.full(3, self.scene.obstacle_half),
-            dynamic=True,
-        )
-        return (self._table, self._wall, obstacle)
+        half = np.full(3, self.scene.obstacle_half)
+        return (Box("obstacle_cube", np.array(position, dtype=float), IDENTITY, half, True),)
 
     def goal_position(self) -> np.ndarray:
         """Centre of the goal region at cube-centre height (3,), m."""
