@@ -19,6 +19,12 @@ PANELS = (
     ("collision_rate", "collision rate"),
     ("mean_return", "episode return"),
 )
+#: Figure titles (the paper's captions, shortened).
+TITLES = {
+    "hap_effect": "Effect of the HAP subspace prior",
+    "covariance_effect": "Effect of the covariance-based action transform",
+    "all_methods": "All methods",
+}
 FIGURES = {
     "hap_effect": ("dist-gprl", "gprl-d"),
     "covariance_effect": ("dist-gprl", "dist-gprl-nocov"),
@@ -75,7 +81,9 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
                 mean, std = values[key].mean(axis=0), values[key].std(axis=0)
                 color = f"C{index}"
                 seeds = values[key].shape[0]
-                ax.plot(steps, mean, color=color, label=f"{METHODS[method].label} ({seeds} seeds)")
+                plural = "s" if seeds != 1 else ""
+                label_text = f"{METHODS[method].label} ({seeds} seed{plural})"
+                ax.plot(steps, mean, color=color, label=label_text)
                 ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, lw=0)
                 ax.set_title(f"{task.upper()}: {label}")
                 ax.set_xlabel("training steps")
@@ -95,9 +103,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     tasks = [t for t in TASK_NAMES if (Path(root) / preset / t).is_dir()]
     written = []
     for name, methods in FIGURES.items():
-        fig, drawn = plot_figure(
-            root, preset, tasks, methods, f"{name.replace('_', ' ')} ({preset} preset)"
-        )
+        fig, drawn = plot_figure(root, preset, tasks, methods, f"{TITLES[name]} ({preset} preset)")
         if drawn:
             for suffix in ("png", "pdf"):
                 buffer = io.BytesIO()
