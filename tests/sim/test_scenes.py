@@ -256,3 +256,16 @@ def test_predicted_obstacles_match_the_simulated_ones_at_that_time(sim_name, req
             np.testing.assert_allclose(predicted[shape.name].position, shape.position, atol=1e-9)
     moved = [s for s in sim.obstacle_shapes(0.0) if s.dynamic]
     assert any(not np.allclose(s.position, predicted[s.name].position) for s in moved)
+
+
+@pytest.mark.parametrize("sim_name", ["dcp_sim", "dbm_sim"])
+@pytest.mark.parametrize("when", [None, 0.0, 1.7])
+def test_moving_obstacles_are_the_dynamic_part_of_the_obstacles(sim_name, when, request):
+    sim = request.getfixturevalue(sim_name)
+    sim.reset(get_task(sim_name.removesuffix("_sim")).evaluation_tcs(2)[1])
+    expected = [s for s in sim.obstacle_shapes(when) if s.dynamic]
+    moving = sim.moving_obstacle_shapes(when)
+    assert [s.name for s in moving] == [s.name for s in expected]
+    for a, b in zip(moving, expected, strict=True):
+        assert a.dynamic
+        np.testing.assert_array_equal(a.position, b.position)
