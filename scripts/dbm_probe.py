@@ -18,11 +18,11 @@ size can remove at all.
 
 from __future__ import annotations
 
-import csv
 import sys
 
 import numpy as np
 
+from distgprl.experiments.results import read_csv
 from distgprl.sim.tasks.dbm import SCENE
 
 
@@ -38,8 +38,7 @@ BINS = (0.0, 0.05, 0.10, 0.15, 0.20, 0.25, 1.0)
 
 
 def gap_table(path: str) -> None:
-    with open(path) as handle:
-        rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
+    _, rows = read_csv(path)
     gap = bar_gap(
         np.array([float(r["object_offset_y"]) for r in rows]),
         np.array([float(r["obstacle_offset_y"]) for r in rows]),

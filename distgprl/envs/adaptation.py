@@ -225,7 +225,8 @@ class AdaptationEnv(gym.Env):
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
-        self.field = DistanceField(self.sim.obstacle_shapes())
+        shapes = self.sim.obstacle_shapes()
+        self.field = DistanceField(shapes)
         if self.config.clearance_timing not in ("predicted", "current"):
             raise ValueError(
                 f"clearance_timing must be 'predicted' or 'current', "
@@ -233,7 +234,6 @@ class AdaptationEnv(gym.Env):
             )
         # Time-indexed clearances (v2): the static obstacles once for all window points, the
         # (few) moving ones in a small field moved to each via-point's time.
-        shapes = self.sim.obstacle_shapes()
         self._static_field = DistanceField([s for s in shapes if not s.dynamic])
         self._moving_field = DistanceField([s for s in shapes if s.dynamic])
         self._episode_start_time = 0.0

@@ -59,7 +59,8 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v1 — floored observation scale (see `AdaptationEnv`). v0 — first release.
+    **Versions**: v2 — time-indexed clearances and O(1) observation units (see
+    `AdaptationEnv`). v1 — floored observation scale. v0 — first release.
     """
 
     def __init__(self, task: str, config: EnvConfig | None = None, render_mode=None) -> None:

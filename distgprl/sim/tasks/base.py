@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pybullet
 
+from distgprl.data import DEMO_DIR
 from distgprl.errors import UserInputError
 from distgprl.safety.shapes import Shape
 from distgprl.sim.bullet import PhysicsConfig, make_client
@@ -32,10 +33,6 @@ EVALUATION_SEED = 7_130_911
 
 TRAINING_CURVE_SEED = 5_204_377
 """Seed of the fixed TC set used for evaluations during training (learning curves)."""
-
-from distgprl.data import DEMO_DIR  # noqa: E402  (one definition of the shipped-data folder)
-
-"""Folder of the shipped demonstrations."""
 
 
 def _as_xy(value: object, name: str) -> tuple[float, float]:
