@@ -17,11 +17,14 @@ the new one, never half of one.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import pickle
 import shutil
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -370,13 +373,52 @@ def train_run(
     show_progress: bool = True,
     evaluate_after: bool = True,
 ) -> Path:
-    """Train one run (resumable) and, by default, evaluate it. Returns the run folder."""
-    import torch
+    """Train one run (resumable) and, by default, evaluate it. Returns the run folder.
 
+    The run folder is locked while it trains (see `run_lock`).
+    """
     run = resolve_run(task, method, seed, preset, steps)
     if not run.method.trainable:
         raise UserInputError(f"method {method!r} does not train; use `distgprl evaluate`")
     folder = run_dir(root, preset, task, method, seed)
+    with run_lock(folder):
+        return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
+
+
+@contextmanager
+def run_lock(folder: Path) -> Iterator[None]:
+    """Hold an exclusive lock on a run folder (``.lock``) while one process trains it.
+
+    A second process (say, a restarted sweep while a worker of the old one still runs)
+    gets a clear error instead of writing the same checkpoints and CSVs concurrently.
+    The OS releases the lock when the holder exits, however it dies.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise UserInputError(
+                f"{folder}: another process is training this run (lock {folder / '.lock'})"
+            ) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _train_locked(
+    run: RunSpec,
+    folder: Path,
+    preset: str,
+    resume: bool,
+    root: str | Path,
+    show_progress: bool,
+    evaluate_after: bool,
+) -> Path:
+    import torch
+
+    task, method, seed = run.task, run.method.name, run.seed
     torch.set_num_threads(run.config.run.torch_threads)
     config_path = folder / "config.json"
     paths = _checkpoint_paths(folder)

@@ -3,6 +3,8 @@
 - A job whose run folder has ``done.json`` with the same config hash is skipped.
 - A job whose run folder has a checkpoint resumes from it; one with only a config starts
   over (its partial files are replaced atomically).
+- Worker processes exit when the sweep process dies, and a run folder is locked while it
+  trains, so a restarted sweep never trains the same run twice at once.
 - A failing job writes ``error.json`` (type, message, traceback) into its run folder and
   the sweep goes on; the next sweep retries it.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
@@ -13,6 +15,8 @@ function submitted to a Ray cluster; optional extra ``distgprl[ray]``).
 
 from __future__ import annotations
 
+import os
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
@@ -140,12 +144,31 @@ def run_job(job: Job) -> JobResult:
     return JobResult(job, "done", time.perf_counter() - start)
 
 
+def _exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
+    """Worker initializer: end this worker as soon as the sweep process that started it is
+    gone (a SIGKILLed parent cannot stop its pool, and an orphaned worker would go on
+    training a run that a restarted sweep is about to resume)."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
     if workers <= 1:
         for job in jobs:
             yield run_job(job)
         return
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=get_context("spawn"),
+        initializer=_exit_with_parent,
+        initargs=(os.getpid(),),
+    ) as pool:
         pending = {pool.submit(run_job, job) for job in jobs}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)

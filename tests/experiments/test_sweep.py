@@ -7,13 +7,14 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
 from distgprl.errors import UserInputError
 from distgprl.experiments import sweep
 from distgprl.experiments.results import read_csv, read_json
-from distgprl.experiments.runner import run_dir
+from distgprl.experiments.runner import run_dir, run_lock
 from distgprl.report.curves import write_curves
 from distgprl.report.tables import write_tables
 
@@ -48,6 +49,37 @@ def test_failing_run_is_recorded_and_does_not_stop_the_others(tmp_path, monkeypa
     assert again[0].status == "skipped"
 
 
+def _children(pid: int) -> list[int]:
+    """Process ids whose parent is ``pid`` (from /proc)."""
+    children = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            children.append(int(stat.parent.name))
+    return children
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_run_lock_refuses_a_second_trainer_of_the_same_run(tmp_path):
+    folder = tmp_path / "run"
+    with run_lock(folder):
+        with pytest.raises(UserInputError, match="another process is training"):
+            with run_lock(folder):
+                pass
+    with run_lock(folder):  # released when the holder is done
+        pass
+
+
 def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_path):
     command = [
         sys.executable,
@@ -64,6 +96,8 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
         "0,1",
         "--root",
         str(tmp_path),
+        "--workers",
+        "2",
     ]
     env = {**os.environ, "DISTGPRL_CHECKPOINT_ROOT": ""}
     process = subprocess.Popen(
@@ -74,8 +108,15 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
     # Kill mid-run: after the first trained run's first checkpoint, before it finishes.
     while time.time() < deadline and not (first / "checkpoints" / "state.pkl").exists():
         time.sleep(0.2)
+    workers = _children(process.pid)
+    assert workers, "the sweep runs its jobs in worker processes"
     process.send_signal(signal.SIGKILL)
     process.wait()
+    # Its workers notice and exit too, instead of training on as orphans.
+    deadline = time.time() + 30
+    while time.time() < deadline and any(_alive(pid) for pid in workers):
+        time.sleep(0.2)
+    assert not any(_alive(pid) for pid in workers)
     assert not (run_dir(tmp_path, "ci", "dcp", "gprl-d", 1) / "done.json").exists()
     result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
