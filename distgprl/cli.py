@@ -198,10 +198,6 @@ def main() -> None:
     app(prog_name="distgprl")
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
-
 @app.command()
 @_user_errors
 def train(
@@ -287,3 +283,7 @@ def hap(
         f"({stats.n_mapped}/{stats.n_reachable} reachable poses mapped), "
         f"build {stats.build_seconds:.1f} s{' (cached)' if loaded else ''} -> {out}"
     )
+
+
+if __name__ == "__main__":
+    sys.exit(main())
