@@ -220,8 +220,16 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
     }
 
 
+def safe_success_rate(rows: list[dict[str, Any]]) -> float:
+    """Share of episodes that succeeded without any collision (not a metric of the paper,
+    whose success ignores collisions: in simulation a colliding robot pushes on through
+    kinematic obstacles, where a real arm would stop or knock them away)."""
+    return float(np.mean([int(r["success"]) == 1 and int(r["collision"]) == 0 for r in rows]))
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance."""
+    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance,
+    safe success (success without collision) and means of the per-episode columns."""
     if not rows:
         raise ValueError("no episodes to summarise")
 
@@ -235,6 +243,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "episodes": len(rows),
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
+        "safe_success_rate": safe_success_rate(rows),
         "min_clearance_p5": float(np.percentile(column("min_clearance"), 5)),
         "mean_min_clearance": float(column("min_clearance").mean()),
         "mean_return": float(column("return").mean()),

@@ -17,13 +17,17 @@ from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
+from distgprl.experiments.runner import safe_success_rate
 
 METRICS = (
     ("success_rate", "Success"),
     ("collision_rate", "Collision"),
     ("min_clearance_p5", "MinCl (m)"),
     ("mean_kinematic_retention", "KinRet"),
+    ("safe_success_rate", "SafeSucc"),
 )
+"""Columns per task: the paper's three, then two it does not tabulate (kinematic retention
+and safe success = success without collision)."""
 
 
 @dataclass(frozen=True)
@@ -64,7 +68,12 @@ def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dic
     base = Path(root) / preset
     for path in sorted(base.glob("*/*/seed*/summary.json")):
         task, method = path.parts[-4], path.parts[-3]
-        out.setdefault((task, method), []).append(read_json(path)["summary"])
+        summary = read_json(path)["summary"]
+        evaluation = path.parent / "evaluation.csv"
+        if "safe_success_rate" not in summary and evaluation.exists():
+            # Summaries written before the column existed: from the per-episode file.
+            summary = {**summary, "safe_success_rate": safe_success_rate(read_csv(evaluation)[1])}
+        out.setdefault((task, method), []).append(summary)
     return out
 
 
@@ -84,7 +93,7 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
             seeds = summaries.get((task, method), [])
             row[f"{task}_seeds"] = len(seeds)
             for key, _ in METRICS:
-                row[f"{task}_{key}"] = aggregate([s[key] for s in seeds])
+                row[f"{task}_{key}"] = aggregate([s[key] for s in seeds if key in s])
         rows.append(row)
     return rows, tasks
 

@@ -53,3 +53,43 @@ def test_unknown_schema_version_is_a_clear_error(tmp_path):
     path.write_text(json.dumps({"meta": {"schema_version": 99}, "summary": {}}))
     with pytest.raises(SchemaVersionError, match="schema_version 99 is not supported"):
         write_tables(tmp_path, "p", tmp_path / "out")
+
+
+def episodes(pairs):
+    """Minimal per-episode rows from (success, collision) pairs."""
+    return [{"episode": i, "success": s, "collision": c} for i, (s, c) in enumerate(pairs)]
+
+
+def test_safe_success_counts_only_successes_without_collision():
+    from distgprl.experiments.runner import safe_success_rate
+
+    rows = episodes([(1, 0), (1, 1), (0, 0), (0, 1)])
+    assert safe_success_rate(rows) == pytest.approx(0.25)
+
+
+def test_summaries_without_safe_success_fall_back_to_the_episode_file(tmp_path):
+    from distgprl.experiments.results import write_csv
+
+    folder = tmp_path / "p" / "dbm" / "dist-gprl" / "seed0"
+    write_json(folder / "summary.json", summary(0.75, 0.5, 0.01))  # no safe_success_rate
+    write_csv(
+        folder / "evaluation.csv",
+        episodes([(1, 0), (1, 1), (1, 1), (0, 0)]),
+        ("episode", "success", "collision"),
+    )
+    rows, _ = simulation_table(tmp_path, "p")
+    assert rows[0]["dbm_safe_success_rate"].mean == pytest.approx(0.25)
+
+
+def test_check_flags_safe_success_above_success(tmp_path):
+    from distgprl.report.check import check_table
+
+    for method in ("demo", "dist-gprl"):
+        document = summary(0.5, 0.2, 0.01)
+        document["summary"]["safe_success_rate"] = 0.4 if method == "demo" else 0.6
+        write_json(tmp_path / "p" / "dcp" / method / "seed0" / "summary.json", document)
+    out = tmp_path / "out"
+    write_tables(tmp_path, "p", out)
+    problems = check_table(out / "table1_p.csv", ["dcp"])
+    assert "dist-gprl dcp safe success not in [0, success]: 0.6" in problems
+    assert not any(p.startswith("demo dcp") for p in problems)
