@@ -2,8 +2,8 @@
 
 Registered ids (``gymnasium.make(id, method=...)``):
 
-- ``DistGPRL-DCP-v2``, ``DistGPRL-DBM-v2``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v2``, ``ProMPRRL-DBM-v2``: `distgprl.envs.residual.ResidualEnv`.
+- ``DistGPRL-DCP-v3``, ``DistGPRL-DBM-v3``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v3``, ``ProMPRRL-DBM-v3``: `distgprl.envs.residual.ResidualEnv`.
 """
 
 from gymnasium.envs.registration import register, registry
@@ -13,6 +13,6 @@ for _task in ("dcp", "dbm"):
         ("DistGPRL", "distgprl.envs.adaptation:AdaptationEnv"),
         ("ProMPRRL", "distgprl.envs.residual:ResidualEnv"),
     ):
-        _id = f"{_prefix}-{_task.upper()}-v2"
+        _id = f"{_prefix}-{_task.upper()}-v3"
         if _id not in registry:
             register(id=_id, entry_point=_entry, kwargs={"task": _task})

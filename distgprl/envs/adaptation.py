@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v2`` and ``DistGPRL-DBM-v2`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v3`` and ``DistGPRL-DBM-v3`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -187,7 +187,12 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v2 — (a) the window via-points' clearances ``c`` and the r_ga gradients
+    **Versions**: v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m): with
+    3 cm a windowed via-point could move at most 3 cm (6 cm for an overlap point), while the
+    TCs shift the objects by up to 20 cm and the approach via-points before the interaction
+    via-point stay where the demonstration had them; DBM collisions had a floor the policy
+    could not get under (a scripted TC-aware correction: collision 0.28 at 3 cm, 0.16 at
+    10 cm). v2 — (a) the window via-points' clearances ``c`` and the r_ga gradients
     are taken against the obstacles predicted at each via-point's time along their known
     paths (``clearance_timing="predicted"``; ``"current"`` keeps v1's observation
     instant, at which, with obstacles moving 4 cm/s (DBM belt) or oscillating with a

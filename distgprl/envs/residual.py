@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v2`` and ``ProMPRRL-DBM-v2``.
+Env ids: ``ProMPRRL-DCP-v3`` and ``ProMPRRL-DBM-v3``.
 """
 
 from __future__ import annotations
@@ -59,8 +59,9 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v2 — time-indexed clearances and O(1) observation units (see
-    `AdaptationEnv`). v1 — floored observation scale. v0 — first release.
+    **Versions**: v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
+    clearances and O(1) observation units (see `AdaptationEnv`). v1 — floored observation
+    scale. v0 — first release.
     """
 
     def __init__(self, task: str, config: EnvConfig | None = None, render_mode=None) -> None:

@@ -31,7 +31,7 @@ def rollout(env, tc, actions):
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v2", method="dist-gprl").unwrapped
+    env = gym.make("DistGPRL-DCP-v3", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
     env.close()
 
