@@ -34,6 +34,11 @@ class MethodSpec:
         signature_reward: add GPRL's signature-similarity reward.
         entropy: ``auto`` (SAC's automatic temperature) or ``anneal`` (GPRL schedule).
         trainable: whether the method trains a policy.
+        episode_range: a global action's per-step scale is the configured one divided by
+            the number of RL steps, so that over an episode a via-point can move as far as
+            a windowed method's (DESIGN §3: windowing and correlation are the only
+            difference). Without it a global action, added to every via-point at each of
+            the 3 steps, reaches three times the windowed range.
     """
 
     name: str
@@ -47,9 +52,21 @@ class MethodSpec:
     signature_reward: bool = False
     entropy: EntropyMode = "auto"
     trainable: bool = True
+    episode_range: bool = False
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The spec as a dict (hashed into every run's config hash). Fields added after
+        results were committed appear only when they differ from the default that
+        reproduces the old behaviour, so that those runs keep their hash."""
+        data = asdict(self)
+        for field, default in HASH_STABLE_DEFAULTS.items():
+            if data[field] == default:
+                del data[field]
+        return data
+
+
+#: Fields added to `MethodSpec` after committed results, with their old-behaviour default.
+HASH_STABLE_DEFAULTS: dict[str, object] = {"episode_range": False}
 
 
 METHODS: dict[str, MethodSpec] = {
@@ -62,6 +79,7 @@ METHODS: dict[str, MethodSpec] = {
             hold_tc_via_point=True,
             signature_reward=True,
             entropy="anneal",
+            episode_range=True,
         ),
         MethodSpec("promp-rrl", "ProMP-RRL", "residual"),
         MethodSpec(
@@ -71,6 +89,7 @@ METHODS: dict[str, MethodSpec] = {
             distance_rewards=True,
             hap_prior=True,
             similarity_loss=True,
+            episode_range=True,
         ),
         MethodSpec(
             "gprl-d",

@@ -70,7 +70,8 @@ def build_action_layout(
     """Windows W_k = {1 + k (L - 1), ..., 1 + k (L - 1) + L - 1} (one-point overlap).
 
     Windowed methods adapt W_k at step k; global methods adapt all interior via-points
-    1..N-2 at every step. Segment k runs from the first via-point of W_k (0 for k = 0)
+    1..N-2 at every step (with ``episode_range``: at 1/steps of the scale, the same total
+    range per episode). Segment k runs from the first via-point of W_k (0 for k = 0)
     to the first via-point of W_{k+1} (1 for the last).
     """
     n, length, steps = config.n_via_points, config.window_size, config.n_windows
@@ -94,6 +95,8 @@ def build_action_layout(
         else:
             operators = np.tile(np.eye(length), (steps, 1, 1))
     scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
+    if method.action_mode == "global" and method.episode_range:
+        scale = scale / steps  # the same per-episode range as a windowed via-point
     return ActionLayout(indices, operators, bounds, scale, tuple(frozen))
 
 
@@ -146,7 +149,8 @@ class AdaptationEnv(gym.Env):
     current via-points Gamma (N x 6, m and rad, flattened) and a one-hot of the step.
 
     **Action**: raw a in [-1, 1]^(L x 6), row-major (via-point, axis). It is scaled per
-    axis (``position_action_scale`` m, ``rotation_action_scale`` rad), then correlated
+    axis (``position_action_scale`` m, ``rotation_action_scale`` rad; a third of that per
+    step for the global methods, which set ``episode_range``), then correlated
     Delta Gamma = S_W a (Eq. transformed_action; identity for ``dist-gprl-nocov`` and
     global methods) and added to the window's via-points (Eq. updated_via_points).
     Via-points 0 (start) and N-1 (end) never change; GPRL also freezes the TC via-point.
@@ -187,7 +191,8 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m): with
+    **Versions**: v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m; global
+    methods with ``episode_range`` — GPRL, Dist-GPRL-Global — 0.1 / 3 m per step): with
     3 cm a windowed via-point could move at most 3 cm (6 cm for an overlap point), while the
     TCs shift the objects by up to 20 cm and the approach via-points before the interaction
     via-point stay where the demonstration had them; DBM collisions had a floor the policy

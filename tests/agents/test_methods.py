@@ -41,3 +41,23 @@ def test_table_order_covers_every_method_once():
 def test_unknown_method_lists_valid_names():
     with pytest.raises(UserInputError, match="valid methods: gprl, promp-rrl"):
         get_method("sac")
+
+
+def test_global_methods_get_the_windowed_per_episode_range():
+    assert {name for name, spec in METHODS.items() if spec.episode_range} == {
+        "gprl",
+        "dist-gprl-global",
+    }
+
+
+def test_fields_added_later_leave_old_method_hashes_unchanged():
+    """A field at its old-behaviour default is not part of the hashed dict: the windowed
+    methods' config hashes (and so their committed runs) survive its introduction."""
+    from dataclasses import asdict
+
+    windowed = METHODS["dist-gprl"].to_dict()
+    assert "episode_range" not in windowed
+    assert windowed == {
+        k: v for k, v in asdict(METHODS["dist-gprl"]).items() if k != "episode_range"
+    }
+    assert METHODS["gprl"].to_dict()["episode_range"] is True

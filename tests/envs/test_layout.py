@@ -51,3 +51,13 @@ def test_action_is_scaled_per_axis():
 def test_min_jerk_blend_endpoints():
     u = np.array([-1.0, 0.0, 0.5, 1.0, 2.0])
     np.testing.assert_allclose(min_jerk(u), [0, 0, 0.5, 1, 1])
+
+
+def test_global_action_moves_a_via_point_as_far_per_episode_as_a_window():
+    config = EnvConfig(position_action_scale=0.1, rotation_action_scale=0.2)
+    windowed = build_action_layout(skill(), config, get_method("dist-gprl-nocov"))
+    for name in ("gprl", "dist-gprl-global"):
+        layout = build_action_layout(skill(), config, get_method(name))
+        total = sum(layout.delta(step, np.ones(78)) for step in range(layout.n_steps))
+        per_window = windowed.delta(0, np.ones(30))[0]  # a non-overlap via-point: (6,)
+        np.testing.assert_allclose(total, np.broadcast_to(per_window, total.shape))
