@@ -203,7 +203,7 @@ class RegularisedSAC(SAC):
 
             # distgprl: the actor loss needs dQ/da only; with the critic's parameters frozen
             # its backward skips their weight gradients (which the next critic update zeroes
-            # anyway), so the update is numerically unchanged and ~10 % cheaper.
+            # anyway), so the update is numerically unchanged and cheaper.
             self.critic.requires_grad_(False)
             q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
             self.critic.requires_grad_(True)

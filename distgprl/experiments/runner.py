@@ -400,7 +400,7 @@ def run_lock(folder: Path) -> Iterator[None]:
 
     A second process (say, a restarted sweep while a worker of the old one still runs)
     gets a clear error instead of writing the same checkpoints and CSVs concurrently.
-    The OS releases the lock when the holder exits, however it dies.
+    Closing the file (or the holder's exit, however it dies) releases the lock.
     """
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / ".lock", "w") as handle:
@@ -410,10 +410,7 @@ def run_lock(folder: Path) -> Iterator[None]:
             raise UserInputError(
                 f"{folder}: another process is training this run (lock {folder / '.lock'})"
             ) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+        yield
 
 
 def _train_locked(
