@@ -128,6 +128,13 @@ def _split(text: str | None) -> list[str] | None:
     return [item.strip() for item in text.split(",") if item.strip()] if text else None
 
 
+def _seeds(text: str) -> list[int]:
+    try:
+        return [int(s) for s in _split(text) or []]
+    except ValueError:
+        raise UserInputError(f"--seeds must be comma-separated integers, got {text!r}") from None
+
+
 @app.command()
 @_user_errors
 def sweep(
@@ -141,15 +148,16 @@ def sweep(
     executor: Annotated[str, typer.Option(help="local | ray.")] = "local",
     address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
     root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    heartbeat: Annotated[
+        float,
+        typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
+    ] = 5.0,
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped."""
+    from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import plan_jobs, run_sweep
 
-    try:
-        seed_list = [int(s) for s in _split(seeds) or []]
-    except ValueError:
-        raise UserInputError(f"--seeds must be comma-separated integers, got {seeds!r}") from None
-    jobs = plan_jobs(preset, _split(methods), _split(tasks), seed_list, root)
+    jobs = plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root)
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
@@ -158,11 +166,45 @@ def sweep(
             f"in {result.seconds:.0f} s{extra}"
         )
 
-    results = run_sweep(jobs, workers, executor, address, on_result=report)
+    def progress(unfinished):
+        for status in sweep_status(unfinished):
+            if status.state == "running":
+                typer.echo(f"  {status.describe()}")
+
+    results = run_sweep(
+        jobs,
+        workers,
+        executor,
+        address,
+        on_result=report,
+        on_tick=progress if heartbeat > 0 else None,
+        tick_s=heartbeat * 60.0,
+    )
     failed = [r for r in results if r.status == "failed"]
     typer.echo(f"sweep: {len(results) - len(failed)}/{len(results)} runs complete")
     if failed:
         raise typer.Exit(code=1)
+
+
+@app.command()
+@_user_errors
+def status(
+    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    methods: Annotated[
+        str | None, typer.Option(help="Comma-separated methods (default all).")
+    ] = None,
+    tasks: Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")] = None,
+    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+) -> None:
+    """Where every run of a sweep stands (done, running, partial, ...), from its run folder."""
+    from distgprl.experiments.status import count_states, sweep_status
+    from distgprl.experiments.sweep import plan_jobs
+
+    statuses = sweep_status(plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root))
+    for entry in statuses:
+        typer.echo(entry.describe())
+    typer.echo(count_states(statuses))
 
 
 @app.command()

@@ -413,6 +413,22 @@ def run_lock(folder: Path) -> Iterator[None]:
         yield
 
 
+def is_locked(folder: Path) -> bool:
+    """True if a process holds ``folder``'s run lock (is training it) right now."""
+    path = Path(folder) / ".lock"
+    try:
+        descriptor = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(descriptor)  # closing releases the probe's lock if it got one
+    return False
+
+
 def _train_locked(
     run: RunSpec,
     folder: Path,

@@ -207,8 +207,12 @@ def run_sweep(
     executor: str = "local",
     address: str | None = None,
     on_result: Callable[[JobResult, int, int], None] | None = None,
+    on_tick: Callable[[list[Job]], None] | None = None,
+    tick_s: float = 300.0,
 ) -> list[JobResult]:
-    """Run every job; ``on_result(result, finished, total)`` reports live progress."""
+    """Run every job; ``on_result(result, finished, total)`` reports each finished job and
+    ``on_tick(unfinished_jobs)`` is called every ``tick_s`` seconds while jobs run (from a
+    background thread), e.g. to report the running jobs' progress from their run folders."""
     if executor not in ("local", "ray"):
         raise UserInputError(f"unknown executor {executor!r}; valid: local, ray")
     todo = [job for job in jobs if not is_complete(job)]
@@ -217,9 +221,22 @@ def run_sweep(
     for result in results:
         if on_result:
             on_result(result, len(results), total)
+    finished: set[Job] = set()
+    stop = threading.Event()
+    if on_tick is not None and todo:
+
+        def tick() -> None:
+            while not stop.wait(tick_s):
+                on_tick([job for job in todo if job not in finished])
+
+        threading.Thread(target=tick, name="sweep-heartbeat", daemon=True).start()
     stream = _run_local(todo, workers) if executor == "local" else _run_ray(todo, workers, address)
-    for result in stream:
-        results.append(result)
-        if on_result:
-            on_result(result, len(results), total)
+    try:
+        for result in stream:
+            finished.add(result.job)
+            results.append(result)
+            if on_result:
+                on_result(result, len(results), total)
+    finally:
+        stop.set()
     return results

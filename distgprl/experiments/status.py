@@ -1,0 +1,126 @@
+"""`distgprl status`: where every run of a sweep stands, read from its run folder alone.
+
+A run's state, from the files its trainer writes (see `distgprl.experiments.runner`):
+
+| state     | meaning                                                                   |
+|-----------|---------------------------------------------------------------------------|
+| `done`    | ``done.json`` (``summary.json`` for `demo`) with the current config hash   |
+| `stale`   | finished, but with another configuration (a sweep would retrain it)        |
+| `running` | a process holds the run folder's lock (``.lock``)                          |
+| `failed`  | ``error.json`` from the last attempt, nobody training it now               |
+| `partial` | started (``config.json``), not finished, nobody training it: a sweep resumes it |
+| `missing` | nothing yet                                                                |
+
+For started runs the last learning-curve row of ``progress.csv`` gives the step reached,
+the curve success and collision rates and the training wall time so far, from which an
+ETA is extrapolated (wall time per step so far times the steps left).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from distgprl.agents.methods import get_method
+from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.runner import is_locked, resolve_run, run_dir
+from distgprl.experiments.sweep import Job, is_complete
+
+STATES = ("done", "running", "partial", "failed", "stale", "missing")
+
+
+@dataclass(frozen=True)
+class RunStatus:
+    """Where one run stands. Rates are the last learning-curve evaluation's (fractions)."""
+
+    job: Job
+    state: str
+    step: int = 0
+    total_steps: int = 0
+    success_rate: float | None = None
+    collision_rate: float | None = None
+    wall_time_s: float | None = None
+    error: str = ""
+
+    @property
+    def eta_s(self) -> float | None:
+        """Seconds of training left at the pace so far (None if unknown or finished)."""
+        if self.state in ("done", "stale", "missing") or not self.wall_time_s or self.step <= 0:
+            return None
+        return self.wall_time_s / self.step * max(self.total_steps - self.step, 0)
+
+    def describe(self) -> str:
+        """One line: name, state, step, last curve rates, ETA, error."""
+        parts = [f"{self.job.name:<28} {self.state:<8}"]
+        if self.total_steps:
+            parts.append(f"{self.step:>6}/{self.total_steps:<6}")
+        if self.success_rate is not None:
+            parts.append(
+                f"curve success {self.success_rate:.2f} collision {self.collision_rate:.2f}"
+            )
+        if self.eta_s is not None:
+            parts.append(f"ETA {self.eta_s / 60:.0f} min")
+        if self.error:
+            parts.append(self.error)
+        return "  ".join(parts)
+
+
+def _last_curve_row(folder) -> dict[str, str] | None:
+    path = folder / "progress.csv"
+    if not path.exists():
+        return None
+    try:
+        _, rows = read_csv(path)
+    except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
+        return None
+    return rows[-1] if rows else None
+
+
+def run_status(job: Job) -> RunStatus:
+    """The state of one job's run folder (never trains, never writes)."""
+    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    trainable = get_method(job.method).trainable
+    total = resolve_run(job.task, job.method, job.seed, job.preset).config.run.total_steps
+    total = total if trainable else 0
+    if is_complete(job):
+        return RunStatus(job, "done", total, total)
+    marker = folder / ("done.json" if trainable else "summary.json")
+    if marker.exists():
+        return RunStatus(job, "stale", 0, total)
+    if not folder.exists():
+        return RunStatus(job, "missing", 0, total)
+    row = _last_curve_row(folder)
+    fields: dict = {}
+    if row is not None:
+        fields = {
+            "step": int(row["step"]),
+            "success_rate": float(row["success_rate"]),
+            "collision_rate": float(row["collision_rate"]),
+            "wall_time_s": float(row["wall_time_s"]),
+        }
+    if is_locked(folder):
+        return RunStatus(job, "running", total_steps=total, **fields)
+    if (folder / "error.json").exists():
+        try:
+            error = str(read_json(folder / "error.json").get("error", ""))
+        except Exception:  # noqa: BLE001
+            error = "unreadable error.json"
+        return RunStatus(job, "failed", total_steps=total, error=error, **fields)
+    if (folder / "config.json").exists():
+        return RunStatus(job, "partial", total_steps=total, **fields)
+    return RunStatus(job, "missing", 0, total)
+
+
+def sweep_status(jobs: Iterable[Job]) -> list[RunStatus]:
+    """`run_status` of every job, in the given order."""
+    return [run_status(job) for job in jobs]
+
+
+def count_states(statuses: Iterable[RunStatus]) -> str:
+    """e.g. ``"12/42 done, 2 running, 1 partial, 27 missing"`` (states present only)."""
+    statuses = list(statuses)
+    counts = Counter(s.state for s in statuses)
+    done = f"{counts.pop('done', 0)}/{len(statuses)} done"
+    rest = [f"{counts[state]} {state}" for state in STATES if counts.get(state)]
+    return ", ".join([done, *rest])

@@ -1,0 +1,114 @@
+"""Sweep status: each run's state is read correctly from its folder; the sweep reports
+running jobs while they run."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from typer.testing import CliRunner
+
+from distgprl.cli import app
+from distgprl.experiments import sweep
+from distgprl.experiments.results import write_csv, write_json
+from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
+from distgprl.experiments.status import count_states, run_status, sweep_status
+
+
+def _job(tmp_path, method="gprl-d", seed=0):
+    return sweep.plan_jobs("ci", [method], ["dcp"], [seed], root=tmp_path)[0]
+
+
+def _progress(folder, step, wall_time_s, success=0.4, collision=0.1):
+    row = dict.fromkeys(PROGRESS_FIELDS, "")
+    row.update(
+        step=step,
+        episodes=step // 3,
+        success_rate=success,
+        collision_rate=collision,
+        mean_return=1.0,
+        min_clearance_p5=0.01,
+        wall_time_s=wall_time_s,
+    )
+    write_csv(folder / "progress.csv", [row], PROGRESS_FIELDS)
+
+
+def test_each_state_is_read_from_the_run_folder(tmp_path):
+    job = _job(tmp_path)
+    folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    run = resolve_run("dcp", "gprl-d", 0, "ci")
+    total = run.config.run.total_steps
+    assert run_status(job).state == "missing"
+
+    write_json(folder / "config.json", {"config_hash": run.hash}, kind="config")
+    status = run_status(job)
+    assert (status.state, status.step, status.eta_s) == ("partial", 0, None)
+
+    step = total // 4
+    _progress(folder, step, wall_time_s=60.0, success=0.35, collision=0.05)
+    status = run_status(job)
+    assert (status.state, status.step, status.total_steps) == ("partial", step, total)
+    assert (status.success_rate, status.collision_rate) == (0.35, 0.05)
+    assert status.eta_s == pytest.approx(60.0 / step * (total - step))
+
+    with run_lock(folder):
+        assert is_locked(folder)
+        assert run_status(job).state == "running"
+    assert not is_locked(folder)
+
+    write_json(folder / "error.json", {"error": "RuntimeError: boom"}, kind="error")
+    status = run_status(job)
+    assert status.state == "failed" and "boom" in status.describe()
+
+    write_json(folder / "done.json", {"steps": total}, kind="done", config_hash=run.hash)
+    assert run_status(job).state == "done" and run_status(job).eta_s is None
+    write_json(folder / "done.json", {"steps": total}, kind="done", config_hash="0" * 16)
+    assert run_status(job).state == "stale"
+
+
+def test_count_states_lists_done_out_of_all_then_the_others(tmp_path):
+    jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0, 1], root=tmp_path)
+    folder = run_dir(tmp_path, "ci", "dbm", "gprl-d", 1)
+    write_json(folder / "config.json", {}, kind="config")
+    assert count_states(sweep_status(jobs)) == "0/4 done, 1 partial, 3 missing"
+
+
+def test_sweep_reports_unfinished_jobs_while_they_run(tmp_path, monkeypatch):
+    jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0], root=tmp_path)
+
+    def slow_job(job):
+        time.sleep(0.3)
+        return sweep.JobResult(job, "done", 0.3)
+
+    monkeypatch.setattr(sweep, "run_job", slow_job)
+    ticks: list[list[str]] = []
+    sweep.run_sweep(jobs, on_tick=lambda todo: ticks.append([j.name for j in todo]), tick_s=0.05)
+    assert ticks, "no progress report while the jobs ran"
+    assert ticks[0] == [j.name for j in jobs]  # nothing finished at the first report
+    assert all(len(t) in (1, 2) for t in ticks)  # finished jobs drop out, the report stops
+    count = len(ticks)
+    time.sleep(0.2)
+    assert len(ticks) == count
+
+
+def test_status_command_prints_every_run_and_the_counts(tmp_path):
+    result = CliRunner().invoke(
+        app,
+        [
+            "status",
+            "--preset",
+            "ci",
+            "--methods",
+            "demo,gprl-d",
+            "--seeds",
+            "0,1",
+            "--root",
+            str(tmp_path),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    lines = result.output.strip().splitlines()
+    assert any(line.startswith("dcp/gprl-d/seed1") and "missing" in line for line in lines)
+    assert lines[-1] == "0/6 done, 6 missing"
+    bad = CliRunner().invoke(app, ["status", "--seeds", "x", "--root", str(tmp_path)])
+    assert bad.exit_code == 2
