@@ -62,19 +62,75 @@ def aggregate(values: list[float]) -> Cell:
     return Cell(mean, std, mean - half, mean + half, n)
 
 
+def _summary_paths(root: Path, preset: str) -> list[Path]:
+    return sorted((Path(root) / preset).glob("*/*/seed*/summary.json"))
+
+
+def _load_summary(path: Path) -> dict:
+    summary = read_json(path)["summary"]
+    evaluation = path.parent / "evaluation.csv"
+    if "safe_success_rate" not in summary and evaluation.exists():
+        # Summaries written before the column existed: from the per-episode file.
+        summary = {**summary, "safe_success_rate": safe_success_rate(read_csv(evaluation)[1])}
+    return summary
+
+
 def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
     """{(task, method): [summary per seed]} from ``<root>/<preset>/<task>/<method>/seed*/``."""
     out: dict[tuple[str, str], list[dict]] = {}
-    base = Path(root) / preset
-    for path in sorted(base.glob("*/*/seed*/summary.json")):
+    for path in _summary_paths(root, preset):
         task, method = path.parts[-4], path.parts[-3]
-        summary = read_json(path)["summary"]
-        evaluation = path.parent / "evaluation.csv"
-        if "safe_success_rate" not in summary and evaluation.exists():
-            # Summaries written before the column existed: from the per-episode file.
-            summary = {**summary, "safe_success_rate": safe_success_rate(read_csv(evaluation)[1])}
-        out.setdefault((task, method), []).append(summary)
+        out.setdefault((task, method), []).append(_load_summary(path))
     return out
+
+
+def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
+    """One row per run: task, method, seed, the Table I metrics, the training wall time
+    (min, from ``done.json``; empty for `demo`) and the config hash. Task, table order, seed."""
+    rows = []
+    for path in _summary_paths(Path(root), preset):
+        task, method, seed = path.parts[-4], path.parts[-3], path.parts[-2]
+        if method not in METHODS:
+            continue
+        summary = _load_summary(path)
+        done = path.parent / "done.json"
+        wall = read_json(done).get("train_wall_time_s") if done.exists() else None
+        row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
+        row.update({key: summary.get(key, "") for key, _ in METRICS})
+        row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
+        row["config_hash"] = read_json(path)["meta"].get("config_hash", "")
+        rows.append(row)
+    task_order = {"dcp": 0, "dbm": 1}
+    rows.sort(
+        key=lambda r: (task_order.get(r["task"], 9), TABLE_ORDER.index(r["method"]), r["seed"])
+    )
+    return rows
+
+
+def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
+    """(CSV, Markdown) of `per_seed_rows`."""
+    fields = ["task", "method", "seed", *(key for key, _ in METRICS), "train_wall_min"]
+    fields.append("config_hash")
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    header = ["Task", "Method", "Seed", *(label for _, label in METRICS), "Train wall (min)"]
+    lines = [
+        f"Table I per run ({preset} preset)",
+        "",
+        "| " + " | ".join(header) + " |",
+        "|" + "---|" * len(header),
+    ]
+    for row in rows:
+        cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
+        for key, _ in METRICS:
+            value = row[key]
+            digits = 3 if key == "min_clearance_p5" else 2
+            cells.append("–" if value == "" else f"{float(value):.{digits}f}")
+        cells.append("–" if row["train_wall_min"] == "" else f"{row['train_wall_min']:.1f}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return buffer.getvalue(), "\n".join(lines) + "\n"
 
 
 def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
@@ -197,7 +253,8 @@ def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
 
 
 def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX."""
+    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX, and
+    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         from distgprl.errors import UserInputError
@@ -210,6 +267,9 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         atomic_write_text(out_dir / f"{stem}.md", _markdown(rows, tasks, preset)),
         atomic_write_text(out_dir / f"{stem}.tex", _latex(rows, tasks, preset)),
     ]
+    per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)
+    written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
+    written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     hardware = hardware_table(root)
     if hardware:
         lines = [

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from distgprl.experiments.results import SchemaVersionError, write_json
-from distgprl.report.tables import aggregate, simulation_table, write_tables
+from distgprl.report.tables import aggregate, per_seed_rows, simulation_table, write_tables
 
 
 def test_aggregate_mean_std_and_t_interval():
@@ -93,3 +93,29 @@ def test_check_flags_safe_success_above_success(tmp_path):
     problems = check_table(out / "table1_p.csv", ["dcp"])
     assert "dist-gprl dcp safe success not in [0, success]: 0.6" in problems
     assert not any(p.startswith("demo dcp") for p in problems)
+
+
+def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
+    for method, seeds in (("demo", [0]), ("dist-gprl", [1, 0]), ("gprl", [0])):
+        for seed in seeds:
+            folder = tmp_path / "p" / "dbm" / method / f"seed{seed}"
+            write_json(
+                folder / "summary.json",
+                summary(0.5 + 0.1 * seed, 0.1, 0.01),
+                config_hash=f"h{seed}",
+            )
+            if method != "demo":
+                write_json(folder / "done.json", {"train_wall_time_s": 600.0 * (seed + 1)})
+    rows = per_seed_rows(tmp_path, "p")
+    assert [(r["method"], r["seed"]) for r in rows] == [
+        ("gprl", 0),
+        ("dist-gprl", 0),
+        ("dist-gprl", 1),
+        ("demo", 0),
+    ]
+    assert rows[2]["success_rate"] == pytest.approx(0.6)
+    assert rows[2]["train_wall_min"] == 20.0 and rows[2]["config_hash"] == "h1"
+    assert rows[3]["train_wall_min"] == ""
+    write_tables(tmp_path, "p", tmp_path / "out")
+    markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
+    assert "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | 20.0 |" in markdown
