@@ -112,3 +112,38 @@ def test_status_command_prints_every_run_and_the_counts(tmp_path):
     assert lines[-1] == "0/6 done, 6 missing"
     bad = CliRunner().invoke(app, ["status", "--seeds", "x", "--root", str(tmp_path)])
     assert bad.exit_code == 2
+
+
+def test_sweep_command_prints_running_jobs_progress(tmp_path, monkeypatch):
+    folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    run = resolve_run("dcp", "gprl-d", 0, "ci")
+    write_json(folder / "config.json", {"config_hash": run.hash}, kind="config")
+    _progress(folder, 30, wall_time_s=3.0, success=0.25, collision=0.5)
+
+    def job_holding_the_lock(job):
+        with run_lock(run_dir(job.root, job.preset, job.task, job.method, job.seed)):
+            time.sleep(0.5)
+        return sweep.JobResult(job, "done", 0.5)
+
+    monkeypatch.setattr(sweep, "run_job", job_holding_the_lock)
+    result = CliRunner().invoke(
+        app,
+        [
+            "sweep",
+            "--preset",
+            "ci",
+            "--methods",
+            "gprl-d",
+            "--tasks",
+            "dcp",
+            "--seeds",
+            "0",
+            "--root",
+            str(tmp_path),
+            "--heartbeat",
+            "0.002",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "dcp/gprl-d/seed0" in result.output and "running" in result.output
+    assert "curve success 0.25 collision 0.50" in result.output
