@@ -185,8 +185,10 @@ class AdaptationEnv(gym.Env):
 
     **End**: ``terminated`` after ``n_windows`` steps (no early termination; collisions
     are penalised and recorded, and execution continues). ``info`` at the end carries
-    ``success``, ``collision``, ``min_clearance`` (m), ``kinematic_retention`` (mean
-    velocity cosine to the demonstration) and ``adaptation_time_s`` per step.
+    ``success``, ``collision``, ``min_clearance`` (m), ``peak_joint_speed`` (rad/s, the
+    largest commanded joint speed of the episode; not part of the MDP, recorded because
+    the hardware safety layer bounds it), ``kinematic_retention`` (mean velocity cosine to
+    the demonstration) and ``adaptation_time_s`` per step.
 
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
@@ -423,6 +425,7 @@ class AdaptationEnv(gym.Env):
         self._progress = self.sim.task_progress()
         self._collision = False
         self._min_clearance = np.inf
+        self._peak_joint_speed = 0.0
         self._adaptation_times: list[float] = []
         self._last_commanded = start.copy()
         self._last_tau = 0.0
@@ -457,6 +460,7 @@ class AdaptationEnv(gym.Env):
             result = self.sim.execute(poses[chunk])
             segment_collision |= result.collision
             self._min_clearance = min(self._min_clearance, result.min_clearance)
+            self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
             if self.method.distance_rewards:
                 terms["r_sd"] += self._clearance_penalty()
         if len(poses):
@@ -488,6 +492,7 @@ class AdaptationEnv(gym.Env):
                 success=success,
                 collision=bool(self._collision),
                 min_clearance=float(self._min_clearance),
+                peak_joint_speed=float(self._peak_joint_speed),
                 kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
                 adaptation_time_s=list(self._adaptation_times),
                 final_parameters=self.gamma.copy(),

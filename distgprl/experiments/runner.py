@@ -71,6 +71,7 @@ EVALUATION_FIELDS = (
     "adaptation_ms_w2",
     "adaptation_ms_w3",
     "policy_ms",
+    "peak_joint_speed",
 )
 
 
@@ -217,6 +218,7 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
         "adaptation_ms_w2": adaptation[1],
         "adaptation_ms_w3": adaptation[2],
         "policy_ms": 1000 * policy_time,
+        "peak_joint_speed": float(info["peak_joint_speed"]),
     }
 
 
@@ -229,7 +231,9 @@ def safe_success_rate(rows: list[dict[str, Any]]) -> float:
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
     """Success rate, collision rate, MinCl = 5th percentile of episode min clearance,
-    safe success (success without collision) and means of the per-episode columns."""
+    safe success (success without collision), means of the per-episode columns and, for
+    rows that record it, the 95th percentile of the episodes' peak joint speed (rad/s) and
+    the share of episodes above the hardware safety layer's joint speed limit."""
     if not rows:
         raise ValueError("no episodes to summarise")
 
@@ -239,7 +243,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
     adaptation = np.nansum(
         np.stack([column(f"adaptation_ms_w{k}") for k in (1, 2, 3)], axis=1), axis=1
     )
-    return {
+    summary = {
         "episodes": len(rows),
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
@@ -251,6 +255,16 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
+    if all(r.get("peak_joint_speed", "") != "" for r in rows):
+        from distgprl.hardware.safety import SafetyLimits
+
+        peak = column("peak_joint_speed")
+        summary["peak_joint_speed_p95"] = float(np.percentile(peak, 95))
+        # Episodes the hardware safety layer would refuse for their joint speed alone.
+        summary["joint_speed_over_limit_rate"] = float(
+            np.mean(peak > SafetyLimits().max_joint_speed)
+        )
+    return summary
 
 
 def evaluate_policy(env, tcs, policy=None, progress: bool = False) -> list[dict[str, Any]]:

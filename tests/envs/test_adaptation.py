@@ -47,6 +47,8 @@ def test_episode_is_three_steps_and_reward_terms_sum_to_reward(dcp_env):
     final = records[-1][3]
     for key in ("success", "collision", "min_clearance", "kinematic_retention"):
         assert key in final
+    # The episode's peak commanded joint speed is the largest of its executed chunks'.
+    assert final["peak_joint_speed"] > 0
     assert len(final["adaptation_time_s"]) == 3
 
 

@@ -8,6 +8,7 @@ import pytest
 from distgprl.errors import UserInputError
 from distgprl.experiments import runner
 from distgprl.experiments.results import read_csv, read_json
+from distgprl.hardware.safety import SafetyLimits
 
 STEPS = 120  # the `ci` preset shortened further; still past learning_starts
 
@@ -123,6 +124,11 @@ def test_evaluate_demo_reference_writes_summary(tmp_path):
     meta, rows = read_csv(folder / "evaluation.csv")
     assert meta["method"] == "demo" and len(rows) == 4
     assert np.isfinite(float(rows[0]["min_clearance"]))
+    peaks = np.array([float(r["peak_joint_speed"]) for r in rows])
+    assert np.all(peaks > 0)
+    assert summary["peak_joint_speed_p95"] == pytest.approx(np.percentile(peaks, 95))
+    limit = SafetyLimits().max_joint_speed
+    assert summary["joint_speed_over_limit_rate"] == pytest.approx(np.mean(peaks > limit))
 
 
 def test_missing_model_and_bad_names_are_clear_errors(tmp_path):

@@ -269,3 +269,37 @@ def test_moving_obstacles_are_the_dynamic_part_of_the_obstacles(sim_name, when, 
     for a, b in zip(moving, expected, strict=True):
         assert a.dynamic
         np.testing.assert_array_equal(a.position, b.position)
+
+
+def test_peak_joint_speed_is_the_largest_joint_target_finite_difference(dbm_sim):
+    """As the hardware safety layer computes it: IK targets (nearest branch) differenced at
+    the control period, starting from the previous target; maximum over joints and poses."""
+    from distgprl.hardware.safety import SafetyLimits, check_plan
+    from distgprl.sim.transforms import pose_to_matrix
+
+    spec = get_task("dbm")
+    demo = load_demonstration(spec.demo_path)
+    poses = resample_to_control(demo.times, demo.poses, dbm_sim.control_dt)[:40]
+    dbm_sim.reset(spec.nominal_tc)
+    q = np.array(dbm_sim.start_joint_positions, dtype=float)
+    joints = []
+    for pose in poses:
+        q = dbm_sim.robot.ik_nearest(pose_to_matrix(pose), q)
+        joints.append(q)
+    expected = np.abs(np.diff(np.vstack([dbm_sim.start_joint_positions, joints]), axis=0)).max()
+    expected /= dbm_sim.control_dt
+    result = dbm_sim.execute(poses)
+    assert result.peak_joint_speed == pytest.approx(expected, rel=1e-12)
+    assert 0.0 < result.peak_joint_speed
+    # The hardware safety layer flags the same plan exactly above/below this speed.
+    for factor, flagged in ((0.999, True), (1.001, False)):
+        limits = SafetyLimits(max_joint_speed=factor * result.peak_joint_speed)
+        check = check_plan(
+            poses,
+            dbm_sim.start_joint_positions,
+            dbm_sim.robot,
+            limits,
+            dbm_sim.control_dt,
+            force=True,
+        )
+        assert any(v.limit == "joint_speed" for v in check.violations) == flagged

@@ -87,12 +87,17 @@ class SegmentResult:
         ik_failures: poses with no IK solution within the joint limits (the previous joint
             target is then held).
         steps: poses executed (control periods).
+        peak_joint_speed: largest commanded joint speed (rad/s) in the segment: the joint
+            targets' finite differences at the control period (the first from the previous
+            target), maximum over joints and periods; the quantity the hardware safety
+            layer bounds (`distgprl.hardware.safety.SafetyLimits.max_joint_speed`).
     """
 
     collision: bool
     min_clearance: float
     ik_failures: int
     steps: int
+    peak_joint_speed: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -336,6 +341,7 @@ class TaskSim:
         collision = False
         min_clearance = self.clearance_cutoff
         failures = 0
+        peak_speed = 0.0
         fractions = [(s + 1) / substeps for s in range(substeps)]
         inverse_dt = 1.0 / self.control_dt
         for pose in poses:
@@ -346,6 +352,9 @@ class TaskSim:
             q_previous = self._q_command
             delta = q_target - q_previous
             velocity = delta * inverse_dt
+            speed = float(np.abs(velocity).max())
+            if speed > peak_speed:
+                peak_speed = speed
             for step, fraction in enumerate(fractions):
                 robot.command(q_previous + fraction * delta, velocity)
                 time = self.time + (step + 1) * dt
@@ -373,6 +382,7 @@ class TaskSim:
             min_clearance=float(min_clearance),
             ik_failures=failures,
             steps=int(poses.shape[0]),
+            peak_joint_speed=peak_speed,
         )
 
     def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
