@@ -96,7 +96,7 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         done = path.parent / "done.json"
         wall = read_json(done).get("train_wall_time_s") if done.exists() else None
         row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
-        row.update({key: summary.get(key, "") for key, _ in METRICS})
+        row.update({key: summary.get(key, "") for key, _ in (*METRICS, *PER_SEED_EXTRA)})
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["config_hash"] = read_json(path)["meta"].get("config_hash", "")
         rows.append(row)
@@ -107,15 +107,25 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
     return rows
 
 
+PER_SEED_EXTRA = (
+    ("peak_joint_speed_p95", "PeakJS p95 (rad/s)"),
+    ("joint_speed_over_limit_rate", "JS > limit"),
+)
+"""Per-run columns beyond Table I: the 95th percentile of the episodes' peak commanded joint
+speed and the share of episodes above the hardware safety layer's joint speed limit (empty
+for evaluations written before they were recorded)."""
+
+
 def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows`."""
-    fields = ["task", "method", "seed", *(key for key, _ in METRICS), "train_wall_min"]
+    columns = (*METRICS, *PER_SEED_EXTRA)
+    fields = ["task", "method", "seed", *(key for key, _ in columns), "train_wall_min"]
     fields.append("config_hash")
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    header = ["Task", "Method", "Seed", *(label for _, label in METRICS), "Train wall (min)"]
+    header = ["Task", "Method", "Seed", *(label for _, label in columns), "Train wall (min)"]
     lines = [
         f"Table I per run ({preset} preset)",
         "",
@@ -124,7 +134,7 @@ def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     ]
     for row in rows:
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
-        for key, _ in METRICS:
+        for key, _ in columns:
             value = row[key]
             digits = 3 if key == "min_clearance_p5" else 2
             cells.append("–" if value == "" else f"{float(value):.{digits}f}")
@@ -157,7 +167,8 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
 def hardware_table(root: str | Path) -> list[dict]:
     """Rows of Table II from ``<root>/hardware/<method>/*.csv`` trial files, one per
     (method, backend): trials on the real robot (``ur``) and on the digital twin are never
-    mixed. Refused trials count as failures without collision."""
+    mixed. Refused trials (the safety layer's pre-flight check stopped them before any
+    motion) count as failures without collision and are also counted on their own."""
     rows = []
     base = Path(root) / "hardware"
     for method in TABLE_ORDER:
@@ -174,6 +185,7 @@ def hardware_table(root: str | Path) -> list[dict]:
                     "label": METHODS[method].label,
                     "backend": backend,
                     "trials": len(subset),
+                    "refused": sum(r.get("status") == "refused" for r in subset),
                     "success_rate": float(np.mean([float(r["success"]) for r in subset])),
                     "collision_rate": float(np.mean([float(r["collision"]) for r in subset])),
                     "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
@@ -273,12 +285,12 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     hardware = hardware_table(root)
     if hardware:
         lines = [
-            "| Method | Backend | Trials | Success | Collision | MinCl (m) |",
-            "|---|---|---|---|---|---|",
+            "| Method | Backend | Trials | Refused | Success | Collision | MinCl (m) |",
+            "|---|---|---|---|---|---|---|",
         ]
         for row in hardware:
             lines.append(
-                f"| {row['label']} | {row['backend']} | {row['trials']} | "
+                f"| {row['label']} | {row['backend']} | {row['trials']} | {row['refused']} | "
                 f"{row['success_rate']:.2f} | {row['collision_rate']:.2f} | "
                 f"{row['min_clearance_p5']:.3f} |"
             )

@@ -73,6 +73,7 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
     table = hardware_table(tmp_path)
     assert table[0]["method"] == "dist-gprl" and table[0]["trials"] == 2
+    assert table[0]["refused"] == sum(row["status"] == "refused" for row in rows)
     assert report.summary["judged"] == 2
 
 

@@ -118,4 +118,6 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
     assert rows[3]["train_wall_min"] == ""
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
-    assert "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | 20.0 |" in markdown
+    assert (
+        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | – | – | 20.0 |" in markdown
+    )
