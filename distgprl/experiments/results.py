@@ -34,16 +34,27 @@ class SchemaVersionError(UserInputError, ValueError):
     """A result file was written with a schema version this code cannot read."""
 
 
+SOURCE_PATHS = ("distgprl", "pyproject.toml", "constraints.txt")
+"""What `source_commit` checks for local changes (relative to the repository root)."""
+
+
 @lru_cache(maxsize=1)
 def git_commit() -> str:
-    """The commit of the package source tree, with ``+dirty`` if it has local changes."""
-    root = Path(__file__).resolve().parents[2]
+    """`source_commit` of this package's repository (once per process)."""
+    return source_commit(Path(__file__).resolve().parents[2])
+
+
+def source_commit(root: str | Path) -> str:
+    """The commit checked out at ``root``, with ``+dirty`` if the package source or its
+    dependency pins have local changes (result files and other untracked files do not
+    count: re-evaluating a committed run must not mark its own files dirty); ``unknown``
+    outside a git work tree."""
     try:
         commit = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
         ).stdout.strip()
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", *SOURCE_PATHS],
             cwd=root,
             capture_output=True,
             text=True,

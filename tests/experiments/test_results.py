@@ -60,3 +60,28 @@ def test_written_files_are_world_readable(tmp_path):
 def test_config_hash_is_order_independent():
     assert results.config_hash({"a": 1, "b": 2}) == results.config_hash({"b": 2, "a": 1})
     assert results.config_hash({"a": 1}) != results.config_hash({"a": 2})
+
+
+def test_git_commit_is_dirty_for_source_changes_only(tmp_path):
+    import subprocess
+
+    from distgprl.experiments.results import source_commit
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    (tmp_path / "distgprl").mkdir()
+    (tmp_path / "results").mkdir()
+    (tmp_path / "distgprl" / "x.py").write_text("a = 1\n")
+    (tmp_path / "results" / "r.csv").write_text("1\n")
+    assert source_commit(tmp_path) == "unknown"  # not a git work tree yet
+    git("init", "-q")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "init")
+    clean = source_commit(tmp_path)
+    assert len(clean) == 40
+    (tmp_path / "results" / "r.csv").write_text("2\n")  # a re-written result file
+    (tmp_path / "results" / "new.csv").write_text("3\n")  # an untracked one
+    assert source_commit(tmp_path) == clean
+    (tmp_path / "distgprl" / "x.py").write_text("a = 2\n")
+    assert source_commit(tmp_path) == clean + "+dirty"
