@@ -66,13 +66,28 @@ def _summary_paths(root: Path, preset: str) -> list[Path]:
     return sorted((Path(root) / preset).glob("*/*/seed*/summary.json"))
 
 
+def _task_key(task: str) -> int:
+    """Tasks in the paper's order (DCP, DBM), others after."""
+    return ("dcp", "dbm").index(task) if task in ("dcp", "dbm") else 9
+
+
 def _load_summary(path: Path) -> dict:
-    summary = read_json(path)["summary"]
+    """A ``summary.json`` document; its ``summary`` gains ``safe_success_rate`` from the
+    per-episode file if it was written before that column existed."""
+    document = read_json(path)
+    summary = document["summary"]
     evaluation = path.parent / "evaluation.csv"
     if "safe_success_rate" not in summary and evaluation.exists():
-        # Summaries written before the column existed: from the per-episode file.
         summary = {**summary, "safe_success_rate": safe_success_rate(read_csv(evaluation)[1])}
-    return summary
+    return {**document, "summary": summary}
+
+
+def _markdown_table(title: str | None, header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown pipe table, under ``title`` and a blank line if given."""
+    lines = [] if title is None else [title, ""]
+    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cells) + " |" for cells in rows]
+    return "\n".join(lines) + "\n"
 
 
 def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
@@ -80,7 +95,7 @@ def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dic
     out: dict[tuple[str, str], list[dict]] = {}
     for path in _summary_paths(root, preset):
         task, method = path.parts[-4], path.parts[-3]
-        out.setdefault((task, method), []).append(_load_summary(path))
+        out.setdefault((task, method), []).append(_load_summary(path)["summary"])
     return out
 
 
@@ -92,18 +107,16 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         task, method, seed = path.parts[-4], path.parts[-3], path.parts[-2]
         if method not in METHODS:
             continue
-        summary = _load_summary(path)
+        document = _load_summary(path)
+        summary = document["summary"]
         done = path.parent / "done.json"
         wall = read_json(done).get("train_wall_time_s") if done.exists() else None
         row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
         row.update({key: summary.get(key, "") for key, _ in (*METRICS, *PER_SEED_EXTRA)})
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
-        row["config_hash"] = read_json(path)["meta"].get("config_hash", "")
+        row["config_hash"] = document["meta"].get("config_hash", "")
         rows.append(row)
-    task_order = {"dcp": 0, "dbm": 1}
-    rows.sort(
-        key=lambda r: (task_order.get(r["task"], 9), TABLE_ORDER.index(r["method"]), r["seed"])
-    )
+    rows.sort(key=lambda r: (_task_key(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
     return rows
 
 
@@ -126,12 +139,7 @@ def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     writer.writeheader()
     writer.writerows(rows)
     header = ["Task", "Method", "Seed", *(label for _, label in columns), "Train wall (min)"]
-    lines = [
-        f"Table I per run ({preset} preset)",
-        "",
-        "| " + " | ".join(header) + " |",
-        "|" + "---|" * len(header),
-    ]
+    table = []
     for row in rows:
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
         for key, _ in columns:
@@ -139,17 +147,14 @@ def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
             digits = 3 if key == "min_clearance_p5" else 2
             cells.append("–" if value == "" else f"{float(value):.{digits}f}")
         cells.append("–" if row["train_wall_min"] == "" else f"{row['train_wall_min']:.1f}")
-        lines.append("| " + " | ".join(cells) + " |")
-    return buffer.getvalue(), "\n".join(lines) + "\n"
+        table.append(cells)
+    return buffer.getvalue(), _markdown_table(f"Table I per run ({preset} preset)", header, table)
 
 
 def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
     """Rows of Table I: one per (method), columns per task and metric."""
     summaries = collect_summaries(Path(root), preset)
-    tasks = sorted(
-        {task for task, _ in summaries},
-        key=lambda t: ("dcp", "dbm").index(t) if t in ("dcp", "dbm") else 9,
-    )
+    tasks = sorted({task for task, _ in summaries}, key=_task_key)
     rows = []
     for method in TABLE_ORDER:
         if not any((task, method) in summaries for task in tasks):
@@ -218,12 +223,7 @@ def _csv_text(rows: list[dict], tasks: list[str]) -> str:
 
 def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
     header = ["Method"] + [f"{t.upper()} {name}" for t in tasks for _, name in METRICS]
-    lines = [
-        f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets)",
-        "",
-        "| " + " | ".join(header) + " |",
-        "|" + "---|" * len(header),
-    ]
+    table = []
     for row in rows:
         cells = [row["label"]]
         for task in tasks:
@@ -232,8 +232,9 @@ def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
                 cell = row.get(f"{task}_{key}", aggregate([]))
                 text = cell.text(3 if key == "min_clearance_p5" else 2)
                 cells.append(f"{text} [{n}]" if index == 0 and n else text)
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        table.append(cells)
+    title = f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets)"
+    return _markdown_table(title, header, table)
 
 
 def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
@@ -284,15 +285,19 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     hardware = hardware_table(root)
     if hardware:
-        lines = [
-            "| Method | Backend | Trials | Refused | Success | Collision | MinCl (m) |",
-            "|---|---|---|---|---|---|---|",
+        header = ["Method", "Backend", "Trials", "Refused", "Success", "Collision", "MinCl (m)"]
+        table = [
+            [
+                row["label"],
+                row["backend"],
+                str(row["trials"]),
+                str(row["refused"]),
+                f"{row['success_rate']:.2f}",
+                f"{row['collision_rate']:.2f}",
+                f"{row['min_clearance_p5']:.3f}",
+            ]
+            for row in hardware
         ]
-        for row in hardware:
-            lines.append(
-                f"| {row['label']} | {row['backend']} | {row['trials']} | {row['refused']} | "
-                f"{row['success_rate']:.2f} | {row['collision_rate']:.2f} | "
-                f"{row['min_clearance_p5']:.3f} |"
-            )
-        written.append(atomic_write_text(out_dir / "table2_hardware.md", "\n".join(lines) + "\n"))
+        text = _markdown_table(None, header, table)
+        written.append(atomic_write_text(out_dir / "table2_hardware.md", text))
     return written
