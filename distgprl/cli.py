@@ -40,6 +40,14 @@ def _user_errors(func):
     return wrapper
 
 
+# Options several commands share.
+RootOption = Annotated[Path, typer.Option(help="Results root folder.")]
+PresetOption = Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")]
+MethodsOption = Annotated[str | None, typer.Option(help="Comma-separated methods (default all).")]
+TasksOption = Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")]
+SeedsOption = Annotated[str, typer.Option(help="Comma-separated seeds.")]
+
+
 @app.command()
 @_user_errors
 def fit(
@@ -87,7 +95,7 @@ def hardware(
     ] = False,
     preset: Annotated[str, typer.Option(help="Preset of the trained run.")] = "paper",
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
 ) -> None:
     """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
     from distgprl.hardware.trials import run_trials
@@ -138,16 +146,14 @@ def _seeds(text: str) -> list[int]:
 @app.command()
 @_user_errors
 def sweep(
-    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
-    methods: Annotated[
-        str | None, typer.Option(help="Comma-separated methods (default all).")
-    ] = None,
-    tasks: Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")] = None,
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
+    preset: PresetOption = "paper",
+    methods: MethodsOption = None,
+    tasks: TasksOption = None,
+    seeds: SeedsOption = "0,1,2",
     workers: Annotated[int, typer.Option(min=1, help="Parallel jobs.")] = 1,
     executor: Annotated[str, typer.Option(help="local | ray.")] = "local",
     address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
     heartbeat: Annotated[
         float,
         typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
@@ -189,13 +195,11 @@ def sweep(
 @app.command()
 @_user_errors
 def status(
-    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
-    methods: Annotated[
-        str | None, typer.Option(help="Comma-separated methods (default all).")
-    ] = None,
-    tasks: Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")] = None,
-    seeds: Annotated[str, typer.Option(help="Comma-separated seeds.")] = "0,1,2",
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    preset: PresetOption = "paper",
+    methods: MethodsOption = None,
+    tasks: TasksOption = None,
+    seeds: SeedsOption = "0,1,2",
+    root: RootOption = Path("results"),
 ) -> None:
     """Where every run of a sweep stands (done, running, partial, ...), from its run folder."""
     from distgprl.experiments.status import count_states, sweep_status
@@ -211,7 +215,7 @@ def status(
 @_user_errors
 def tables(
     preset: Annotated[str, typer.Option(help="Preset whose results to tabulate.")] = "paper",
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
 ) -> None:
     """Table I (and Table II if hardware trials exist) as CSV, Markdown and LaTeX."""
@@ -225,7 +229,7 @@ def tables(
 @_user_errors
 def curves(
     preset: Annotated[str, typer.Option(help="Preset whose results to plot.")] = "paper",
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
 ) -> None:
     """Learning-curve figures (HAP effect, covariance effect, all methods), PNG and PDF."""
@@ -246,12 +250,12 @@ def train(
     method: Annotated[str, typer.Option(help="Method name (see the methods table).")],
     task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
-    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    preset: PresetOption = "paper",
     steps: Annotated[int | None, typer.Option(min=3, help="Override total RL steps.")] = None,
     resume: Annotated[
         bool, typer.Option(help="Continue a killed run from its checkpoint.")
     ] = False,
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
     evaluate: Annotated[bool, typer.Option(help="Evaluate after training.")] = True,
 ) -> None:
     """Train one method on one task and seed (resumable); then evaluate it."""
@@ -267,11 +271,11 @@ def evaluate(
     method: Annotated[str, typer.Option(help="Method name, or `demo` for the reference.")],
     task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
     seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
-    preset: Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")] = "paper",
+    preset: PresetOption = "paper",
     episodes: Annotated[
         int | None, typer.Option(min=1, help="Evaluation TCs (default: preset).")
     ] = None,
-    root: Annotated[Path, typer.Option(help="Results root folder.")] = Path("results"),
+    root: RootOption = Path("results"),
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.runner import describe, evaluate_run
