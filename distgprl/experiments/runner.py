@@ -296,11 +296,14 @@ def deterministic_policy(model):
 # -- checkpoints --------------------------------------------------------------------------------
 def checkpoint_dir(folder: Path) -> Path:
     """Checkpoints of a run: ``<folder>/checkpoints``, or, when ``DISTGPRL_CHECKPOINT_ROOT``
-    is set, the same relative path under that root (e.g. a disk that outlives the work tree)."""
+    is set, the run folder's absolute path mirrored under that root (e.g. a disk that
+    outlives the work tree): ``$DISTGPRL_CHECKPOINT_ROOT/<absolute run folder>/checkpoints``.
+    Runs of the same preset, task, method and seed under different results roots therefore
+    never share (or overwrite) a checkpoint."""
     root = os.environ.get("DISTGPRL_CHECKPOINT_ROOT")
     if not root:
         return folder / "checkpoints"
-    return Path(root) / Path(*folder.resolve().parts[-4:]) / "checkpoints"
+    return Path(root) / folder.resolve().relative_to(folder.resolve().anchor) / "checkpoints"
 
 
 def _checkpoint_paths(folder: Path) -> dict[str, Path]:

@@ -98,6 +98,20 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
 
+def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeypatch):
+    first = runner.run_dir(tmp_path / "results", "paper", "dbm", "dist-gprl", 1)
+    second = runner.run_dir(tmp_path / "exploration" / "longer", "paper", "dbm", "dist-gprl", 1)
+    monkeypatch.delenv("DISTGPRL_CHECKPOINT_ROOT", raising=False)
+    assert runner.checkpoint_dir(first) == first / "checkpoints"
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", str(cache))
+    paths = runner.checkpoint_dir(first), runner.checkpoint_dir(second)
+    assert paths[0] != paths[1]
+    for folder, path in zip((first, second), paths, strict=True):
+        assert path.is_relative_to(cache)
+        assert path.parent.parts[-4:] == folder.parts[-4:]  # preset/task/method/seed readable
+
+
 def test_corrupt_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
     original = runner.save_checkpoint
 
