@@ -30,7 +30,9 @@ from distgprl.experiments.runner import checkpoint_dir, resolve_run, run_dir, tr
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("source", type=Path, help="finished run folder <root>/<preset>/<task>/<method>/seed<k>")
+    parser.add_argument(
+        "source", type=Path, help="finished run folder <root>/<preset>/<task>/<method>/seed<k>"
+    )
     parser.add_argument("dest_root", type=Path, help="results root of the extended run")
     parser.add_argument("--steps", type=int, required=True, help="new total RL steps")
     args = parser.parse_args()
