@@ -1,6 +1,7 @@
 """Online window-by-window adaptation from perceived poses (the policy side of a trial).
 
-:class:`PerceivedAdaptation` reuses :class:`~distgprl.envs.adaptation.AdaptationEnv` for
+:class:`PerceivedAdaptation` reuses :class:`~distgprl.envs.adaptation.AdaptationEnv` (and
+:class:`PerceivedResidual` ProMP-RRL's :class:`~distgprl.envs.residual.ResidualEnv`) for
 everything but the world: its skill, action layout, TC conditioning, segment maps (control
 rate), continuity blending and observation builder are used unchanged. The env's
 simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
@@ -14,7 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from distgprl.agents.methods import get_method
 from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.residual import ResidualEnv
 from distgprl.hardware.perception import OBJECTS, Percept
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.tasks.base import TaskConfig
@@ -130,20 +133,15 @@ class PerceivedScene:
         """Nothing to release (the env's close() calls it)."""
 
 
-class PerceivedAdaptation(AdaptationEnv):
-    """:class:`AdaptationEnv` whose world is a :class:`PerceivedScene` (DBM only).
+class _PerceivedWorld:
+    """The perceived-world half of a trial adapter, shared by the two environment kinds.
 
-    Use: :meth:`begin` (conditions the skill on the perceived target bar), then per window
-    :meth:`observe` -> policy -> :meth:`adapt` (returns the segment's poses to check and
-    execute) -> :meth:`executed`.
-
-    Attributes:
-        model: the kinematic model (a ``DBMSim``: IK, tool points, static obstacles).
-        world: the :class:`PerceivedScene`.
+    Mixed into an environment class (:class:`AdaptationEnv` or its residual subclass) after
+    that environment is built: :meth:`_attach_world` keeps its simulation as the kinematic
+    model and makes the observation read the perceived world instead.
     """
 
-    def __init__(self, method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
-        super().__init__("dbm", method, config)
+    def _attach_world(self, conveyor_velocity) -> None:
         self.model = self.sim
         static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
         self.world = PerceivedScene(static, np.asarray(conveyor_velocity, dtype=float))
@@ -178,7 +176,9 @@ class PerceivedAdaptation(AdaptationEnv):
         start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
         self._start_pose = start
         self._episode_start_time = float(start_time)
-        self.gamma = self.conditioned_via_points(tc)
+        # The environment's own initial parameters: the TC-conditioned via-points (GP
+        # methods) or zero residual weights on the ProMP nominal (ProMP-RRL).
+        self.gamma = self._initial_parameters(tc)
         self.gamma_initial = self.gamma.copy()
         self.step_index = 0
         self._last_commanded = start.copy()
@@ -193,6 +193,9 @@ class PerceivedAdaptation(AdaptationEnv):
 
     def adapt(self, action: np.ndarray | None) -> np.ndarray:
         """Apply the (raw) action to the current window; return the segment's poses (m, 6).
+
+        The action updates what the environment adapts: the window's via-points (GP methods)
+        or its residual weights (ProMP-RRL), exactly as in training.
 
         ``None`` (or the ``demo`` method) keeps the conditioned demonstration.
         """
@@ -219,3 +222,42 @@ class PerceivedAdaptation(AdaptationEnv):
 
     def close(self) -> None:
         self.model.close()
+
+
+class PerceivedAdaptation(_PerceivedWorld, AdaptationEnv):
+    """:class:`AdaptationEnv` whose world is a :class:`PerceivedScene` (DBM only).
+
+    Use: :meth:`begin` (conditions the skill on the perceived target bar), then per window
+    :meth:`observe` -> policy -> :meth:`adapt` (returns the segment's poses to check and
+    execute) -> :meth:`executed`.
+
+    Attributes:
+        model: the kinematic model (a ``DBMSim``: IK, tool points, static obstacles).
+        world: the :class:`PerceivedScene`.
+    """
+
+    def __init__(self, method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
+        AdaptationEnv.__init__(self, "dbm", method, config)
+        self._attach_world(conveyor_velocity)
+
+
+class PerceivedResidual(_PerceivedWorld, ResidualEnv):
+    """ProMP-RRL's :class:`ResidualEnv` whose world is a :class:`PerceivedScene` (DBM only).
+
+    The nominal trajectory is the object-centric ProMP's mean for the *perceived* target
+    bar, conditioned on the robot's TCP pose; the policy sets residual weights window by
+    window. Same use as :class:`PerceivedAdaptation`.
+    """
+
+    def __init__(self, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
+        ResidualEnv.__init__(self, "dbm", config)
+        self._attach_world(conveyor_velocity)
+
+
+def perceived_env(
+    method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)
+) -> PerceivedAdaptation | PerceivedResidual:
+    """The trial adapter for ``method``: residual for ProMP-RRL, via-points otherwise."""
+    if get_method(method).action_mode == "residual":
+        return PerceivedResidual(config, conveyor_velocity)
+    return PerceivedAdaptation(method, config, conveyor_velocity)

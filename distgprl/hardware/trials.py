@@ -182,7 +182,7 @@ def run_trials(
     from distgprl.agents.methods import get_method
     from distgprl.config import load_config
     from distgprl.experiments.results import write_csv
-    from distgprl.hardware.adapter import PerceivedAdaptation
+    from distgprl.hardware.adapter import perceived_env
 
     if trials < 1:
         raise UserInputError("trials must be at least 1")
@@ -190,11 +190,7 @@ def run_trials(
         raise UserInputError(f"backend must be 'twin' or 'ur', got {backend!r}")
     if judge not in ("auto", "operator"):
         raise UserInputError(f"judge must be 'auto' or 'operator', got {judge!r}")
-    spec = get_method(method)
-    if spec.action_mode not in ("window", "global", "none"):
-        raise UserInputError(
-            f"method {method!r} does not adapt via-points; hardware trials need one"
-        )
+    get_method(method)  # an unknown name is a clear error before any hardware is touched
     limits = limits or SafetyLimits()
     config = load_config(preset, task="dbm")
     rng = np.random.default_rng(seed)
@@ -214,7 +210,7 @@ def run_trials(
         cal = load_calibration(calibration)
         if camera is None:
             raise UserInputError("the ur backend needs --camera INDEX|URL")
-    adapter = PerceivedAdaptation(method, config.env, cal.conveyor_velocity)
+    adapter = perceived_env(method, config.env, cal.conveyor_velocity)
     try:
         policy = _load_policy(method, seed, preset, root, model_path, adapter)
         if backend == "twin":

@@ -13,9 +13,8 @@ from distgprl.hardware.twin import TwinConfig, TwinSim, twin_calibration
 SMALL = TwinConfig(width=640, height=480)
 
 
-@pytest.fixture(scope="module")
-def policy_zip(tmp_path_factory):
-    """A freshly constructed dist-gprl actor (untrained) saved like a trained run's model.
+def _untrained_policy(tmp_path_factory, method: str):
+    """A freshly constructed actor (untrained) of ``method`` saved like a trained run's model.
 
     Built without the regulariser (only the actor is used at trial time), so the test does
     not need the HAP subspace.
@@ -23,7 +22,7 @@ def policy_zip(tmp_path_factory):
     from distgprl.agents.sac import RegularisedSAC, StateOnlyExtractor
     from distgprl.experiments.runner import make_env, resolve_run
 
-    run = resolve_run("dbm", "dist-gprl", 0, preset="ci")
+    run = resolve_run("dbm", method, 0, preset="ci")
     env = make_env(run)
     try:
         agent = RegularisedSAC(
@@ -43,6 +42,11 @@ def policy_zip(tmp_path_factory):
     finally:
         env.close()
     return path
+
+
+@pytest.fixture(scope="module")
+def policy_zip(tmp_path_factory):
+    return _untrained_policy(tmp_path_factory, "dist-gprl")
 
 
 def test_twin_trials_end_to_end(tmp_path, policy_zip):
@@ -75,6 +79,23 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
     assert table[0]["method"] == "dist-gprl" and table[0]["trials"] == 2
     assert table[0]["refused"] == sum(row["status"] == "refused" for row in rows)
     assert report.summary["judged"] == 2
+
+
+def test_promp_rrl_runs_twin_trials_on_its_residual_plan(tmp_path, tmp_path_factory):
+    report = run_trials(
+        trials=1,
+        method="promp-rrl",
+        seed=0,
+        root=tmp_path,
+        preset="ci",
+        model_path=_untrained_policy(tmp_path_factory, "promp-rrl"),
+        twin_config=SMALL,
+        echo=lambda _: None,
+    )
+    meta, rows = read_csv(report.path)
+    assert meta["method"] == "promp-rrl" and len(rows) == 1
+    assert rows[0]["status"] in ("ok", "refused", "stopped")
+    assert np.isfinite(float(rows[0]["min_clearance"]))
 
 
 def test_operator_judge_and_forced_plans(tmp_path):
@@ -164,8 +185,8 @@ def test_clear_errors(tmp_path):
         run_trials(trials=1, method="demo", backend="ur", robot_ip="10.0.0.2", root=tmp_path)
     with pytest.raises(UserInputError, match="not found"):
         run_trials(trials=1, method="demo", calibration=tmp_path / "x.yaml", root=tmp_path)
-    with pytest.raises(UserInputError, match="does not adapt via-points"):
-        run_trials(trials=1, method="promp-rrl", root=tmp_path)
+    with pytest.raises(UserInputError, match="unknown method"):
+        run_trials(trials=1, method="dmp", root=tmp_path)
     with pytest.raises(UserInputError, match="backend"):
         run_trials(trials=1, method="demo", backend="kuka", root=tmp_path)
 
