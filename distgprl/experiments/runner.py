@@ -21,6 +21,7 @@ import fcntl
 import json
 import os
 import pickle
+import random
 import shutil
 import time
 from collections.abc import Iterator
@@ -317,14 +318,24 @@ def _checkpoint_paths(folder: Path) -> dict[str, Path]:
 
 
 def _rng_state(model, env) -> dict[str, Any]:
+    """Everything random a resumed run needs to continue exactly where the run stopped.
+
+    Checkpoints are taken between episodes: SB3 has already reset the environment for the
+    next episode, so its TC (``pending_tc``) is stored and that episode is reset again on
+    resume instead of drawing a new one. NumPy's global generator is SB3's replay-buffer
+    sampler; the torch generator drives the policy's sampled actions.
+    """
     import torch
 
     return {
         "num_timesteps": int(model.num_timesteps),
         "episode_count": int(getattr(model, "_episode_num", 0)),
         "torch": torch.get_rng_state(),
+        "numpy_global": np.random.get_state(),  # noqa: NPY002  (SB3 samples with it)
+        "python_random": random.getstate(),
         "env_rng": env._rng.bit_generator.state,
         "action_space": model.action_space.np_random.bit_generator.state,
+        "pending_tc": env.tc,
     }
 
 
@@ -369,6 +380,15 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
     model.regulariser = fresh.regulariser
     model.entropy_schedule = fresh.entropy_schedule
     model.total_training_steps = fresh.total_training_steps
+    if "pending_tc" in state:  # checkpoints before this field resume with a fresh episode
+        # The episode SB3 had reset when the checkpoint was taken, reset again on its TC
+        # (no random draw), so SB3 does not reset the environment with a new one. Loading
+        # re-seeded the vectorised env, whose next reset would also re-seed the env's TC
+        # generator: reset first, restore every generator after.
+        model.env.set_options({"tc": state["pending_tc"]})
+        model._last_obs = model.env.reset()
+        np.random.set_state(state["numpy_global"])  # noqa: NPY002
+        random.setstate(state["python_random"])
     torch.set_rng_state(state["torch"])
     env._rng.bit_generator.state = state["env_rng"]
     model.action_space.np_random.bit_generator.state = state["action_space"]

@@ -98,6 +98,41 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
 
+def _actor_parameters(folder):
+    from distgprl.agents.sac import RegularisedSAC
+
+    model = RegularisedSAC.load(
+        folder / "model.zip",
+        device="cpu",
+        custom_objects={"regulariser": None, "entropy_schedule": None},
+    )
+    return [p.detach().numpy().copy() for p in model.actor.parameters()]
+
+
+def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeypatch):
+    """Same seed, same result, however often the run was killed and resumed."""
+    whole = train(tmp_path / "whole", "dist-gprl", steps=240, evaluate_after=False)
+    original = runner.save_checkpoint
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):  # killed at the checkpoint of step 120
+        train(tmp_path / "killed", "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    resumed = train(tmp_path / "killed", "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    _, rows_whole = read_csv(whole / "progress.csv")
+    _, rows_resumed = read_csv(resumed / "progress.csv")
+    assert [r["step"] for r in rows_resumed] == ["0", "120", "240"]
+    for a, b in zip(rows_whole, rows_resumed, strict=True):
+        a.pop("wall_time_s"), b.pop("wall_time_s")
+        assert a == b
+    for a, b in zip(_actor_parameters(whole), _actor_parameters(resumed), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeypatch):
     first = runner.run_dir(tmp_path / "results", "paper", "dbm", "dist-gprl", 1)
     second = runner.run_dir(tmp_path / "exploration" / "longer", "paper", "dbm", "dist-gprl", 1)
