@@ -9,7 +9,8 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``model.zip``       the final policy (never committed);
 - ``evaluation.csv``  one row per evaluation episode;
 - ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
-- ``done.json``       marker written last: the run is complete (with wall times).
+- ``done.json``       marker written last: the run is complete (steps, training wall
+                      time, and the steps it was resumed at, each marked exact or not).
 
 Every file is written atomically, so a killed run leaves either the previous file or
 the new one, never half of one.
@@ -505,9 +506,16 @@ def _train_locked(
     curve_tcs = spec.training_curve_tcs(run.config.run.curve_episodes)
     progress_rows: list[dict[str, Any]] = []
     wall_offset = 0.0
+    # Where the run was resumed, and whether exactly (older checkpoints lack the pending TC
+    # and NumPy's generator: their resumes restart the TC sequence); recorded in done.json.
+    resumes: list[dict[str, Any]] = []
     if resume and paths["state"].exists():
         model, state = load_checkpoint(folder, env, run)
         wall_offset = state.get("wall_time_s", 0.0)
+        resumes = [
+            *state.get("resumes", []),
+            {"step": int(state["num_timesteps"]), "exact": "pending_tc" in state},
+        ]
         if (folder / "progress.csv").exists():
             _, progress_rows = read_csv(folder / "progress.csv")
             progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
@@ -577,7 +585,10 @@ def _train_locked(
             record_curve()
         if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
             save_checkpoint(
-                folder, model, env, {"wall_time_s": wall_offset + time.perf_counter() - start_wall}
+                folder,
+                model,
+                env,
+                {"wall_time_s": wall_offset + time.perf_counter() - start_wall, "resumes": resumes},
             )
     if bar is not None:
         bar.close()
@@ -591,7 +602,7 @@ def _train_locked(
         evaluate_run(task, method, seed, preset, root=root, show_progress=show_progress)
     write_json(
         folder / "done.json",
-        {"steps": total, "train_wall_time_s": train_wall},
+        {"steps": total, "train_wall_time_s": train_wall, "resumes": resumes},
         kind="done",
         config_hash=run.hash,
         seed=seed,

@@ -131,6 +131,8 @@ def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeyp
         assert a == b
     for a, b in zip(_actor_parameters(whole), _actor_parameters(resumed), strict=True):
         np.testing.assert_array_equal(a, b)
+    assert read_json(whole / "done.json")["resumes"] == []
+    assert read_json(resumed / "done.json")["resumes"] == [{"step": 120, "exact": True}]
 
 
 def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeypatch):
