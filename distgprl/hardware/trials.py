@@ -77,10 +77,13 @@ class TrialReport:
 
 
 def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
+    """(policy or None, provenance): the deterministic policy of the trained run and which
+    model it is (path, SHA-256, the config hash of the run folder it sits in, if any)."""
+    from distgprl.experiments.results import file_sha256, read_json
     from distgprl.experiments.runner import deterministic_policy, run_dir
 
     if env.method.action_mode == "none":
-        return None
+        return None, {}
     path = (
         Path(model_path) if model_path else run_dir(root, preset, "dbm", method, seed) / "model.zip"
     )
@@ -99,7 +102,11 @@ def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
         raise UserInputError(f"{path}: cannot load model ({type(exc).__name__}: {exc})") from None
     if model.observation_space != env.observation_space or model.action_space != env.action_space:
         raise UserInputError(f"{path}: model spaces do not match the dbm/{method} environment")
-    return deterministic_policy(model)
+    provenance = {"model": str(path), "model_sha256": file_sha256(path)}
+    config_path = path.parent / "config.json"
+    if config_path.exists():
+        provenance["run_config_hash"] = read_json(config_path).get("config_hash")
+    return deterministic_policy(model), provenance
 
 
 def _yes_no(ask: Callable[[str], str], question: str) -> int:
@@ -212,7 +219,7 @@ def run_trials(
             raise UserInputError("the ur backend needs --camera INDEX|URL")
     adapter = perceived_env(method, config.env, cal.conveyor_velocity)
     try:
-        policy = _load_policy(method, seed, preset, root, model_path, adapter)
+        policy, provenance = _load_policy(method, seed, preset, root, model_path, adapter)
         if backend == "twin":
             robot = TwinBackend(twin_config, rng=np.random.default_rng([seed, 1]))
         else:
@@ -241,6 +248,7 @@ def run_trials(
         "judge": judge,
         "force": force,
         "limits": {k: v for k, v in limits.__dict__.items()},
+        "policy": provenance,  # which trained model ran (empty for the unadapted demo)
     }
     rows: list[dict[str, Any]] = []
     dt = adapter.control_dt

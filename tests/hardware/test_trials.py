@@ -65,6 +65,9 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
     assert report.path.parent == tmp_path / "hardware" / "dist-gprl"
     meta, rows = read_csv(report.path)
     assert meta["backend"] == "twin" and meta["method"] == "dist-gprl"
+    from distgprl.experiments.results import file_sha256
+
+    assert meta["policy"]["model_sha256"] == file_sha256(policy_zip)
     assert list(rows[0]) == list(TRIAL_FIELDS) and len(rows) == 2
     for row in rows:
         assert row["status"] in ("ok", "refused", "stopped")
