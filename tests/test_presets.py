@@ -1,0 +1,24 @@
+"""The shipped presets: one SAC configuration and one MDP for every task; only budgets differ."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from distgprl.config import load_config
+
+
+@pytest.mark.parametrize("preset", ["paper", "ci"])
+def test_tasks_share_the_mdp_and_sac_configuration(preset):
+    dcp, dbm = load_config(preset, task="dcp"), load_config(preset, task="dbm")
+    assert dcp.env == dbm.env
+    assert dcp.sac == dbm.sac
+    # Only the step budget may differ between tasks.
+    assert replace(dcp.run, total_steps=dbm.run.total_steps) == dbm.run
+
+
+def test_paper_preset_budgets():
+    assert load_config("paper", task="dcp").run.total_steps == 30_000
+    assert load_config("paper", task="dbm").run.total_steps == 45_000
+    assert load_config("paper", task="dbm").run.eval_episodes == 100
