@@ -26,6 +26,15 @@ def train(tmp_path, method, task="dcp", seed=0, steps=STEPS, **kwargs):
     )
 
 
+def _load_model(path):
+    """A saved `RegularisedSAC` (its regulariser and schedule are rebuilt, never pickled)."""
+    from distgprl.agents.sac import RegularisedSAC
+
+    return RegularisedSAC.load(
+        path, device="cpu", custom_objects={"regulariser": None, "entropy_schedule": None}
+    )
+
+
 @pytest.mark.parametrize(
     "method",
     ["dist-gprl", "gprl-d", "gprl-h", "dist-gprl-global", "dist-gprl-nocov", "gprl", "promp-rrl"],
@@ -84,13 +93,7 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     monkeypatch.setattr(runner, "save_checkpoint", original)
     train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     assert read_json(folder / "done.json")["steps"] == 240
-    from distgprl.agents.sac import RegularisedSAC
-
-    model = RegularisedSAC.load(
-        runner.checkpoint_dir(folder) / "model.zip",
-        device="cpu",
-        custom_objects={"regulariser": None, "entropy_schedule": None},
-    )
+    model = _load_model(runner.checkpoint_dir(folder) / "model.zip")
     model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
     assert model.num_timesteps == 240
     assert model.replay_buffer.size() == 240
@@ -99,13 +102,7 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
 
 
 def _actor_parameters(folder):
-    from distgprl.agents.sac import RegularisedSAC
-
-    model = RegularisedSAC.load(
-        folder / "model.zip",
-        device="cpu",
-        custom_objects={"regulariser": None, "entropy_schedule": None},
-    )
+    model = _load_model(folder / "model.zip")
     return [p.detach().numpy().copy() for p in model.actor.parameters()]
 
 

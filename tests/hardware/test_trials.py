@@ -44,17 +44,14 @@ def _untrained_policy(tmp_path_factory, method: str):
     return path
 
 
-@pytest.fixture(scope="module")
-def policy_zip(tmp_path_factory):
-    return _untrained_policy(tmp_path_factory, "dist-gprl")
-
-
-def test_twin_trials_end_to_end(tmp_path, policy_zip):
+@pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl"])  # via-points; residual ProMP
+def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
     from distgprl.report.tables import hardware_table
 
+    policy_zip = _untrained_policy(tmp_path_factory, method)
     report = run_trials(
         trials=2,
-        method="dist-gprl",
+        method=method,
         seed=0,
         root=tmp_path,
         preset="ci",
@@ -62,9 +59,9 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
         twin_config=SMALL,
         echo=lambda _: None,
     )
-    assert report.path.parent == tmp_path / "hardware" / "dist-gprl"
+    assert report.path.parent == tmp_path / "hardware" / method
     meta, rows = read_csv(report.path)
-    assert meta["backend"] == "twin" and meta["method"] == "dist-gprl"
+    assert meta["backend"] == "twin" and meta["method"] == method
     from distgprl.experiments.results import file_sha256
 
     assert meta["policy"]["model_sha256"] == file_sha256(policy_zip)
@@ -79,26 +76,9 @@ def test_twin_trials_end_to_end(tmp_path, policy_zip):
         # the perceived TC agrees with the true one to within the perception error
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
     table = hardware_table(tmp_path)
-    assert table[0]["method"] == "dist-gprl" and table[0]["trials"] == 2
+    assert table[0]["method"] == method and table[0]["trials"] == 2
     assert table[0]["refused"] == sum(row["status"] == "refused" for row in rows)
     assert report.summary["judged"] == 2
-
-
-def test_promp_rrl_runs_twin_trials_on_its_residual_plan(tmp_path, tmp_path_factory):
-    report = run_trials(
-        trials=1,
-        method="promp-rrl",
-        seed=0,
-        root=tmp_path,
-        preset="ci",
-        model_path=_untrained_policy(tmp_path_factory, "promp-rrl"),
-        twin_config=SMALL,
-        echo=lambda _: None,
-    )
-    meta, rows = read_csv(report.path)
-    assert meta["method"] == "promp-rrl" and len(rows) == 1
-    assert rows[0]["status"] in ("ok", "refused", "stopped")
-    assert np.isfinite(float(rows[0]["min_clearance"]))
 
 
 def test_operator_judge_and_forced_plans(tmp_path):
