@@ -177,15 +177,23 @@ def sweep(
             if status.state == "running":
                 typer.echo(f"  {status.describe()}")
 
-    results = run_sweep(
-        jobs,
-        workers,
-        executor,
-        address,
-        on_result=report,
-        on_tick=progress if heartbeat > 0 else None,
-        tick_s=heartbeat * 60.0,
-    )
+    try:
+        results = run_sweep(
+            jobs,
+            workers,
+            executor,
+            address,
+            on_result=report,
+            on_tick=progress if heartbeat > 0 else None,
+            tick_s=heartbeat * 60.0,
+        )
+    except KeyboardInterrupt:
+        typer.echo(
+            "sweep interrupted: queued runs were not started and running ones stopped at "
+            "their last checkpoint; re-run the same command to resume.",
+            err=True,
+        )
+        raise typer.Exit(code=130) from None
     failed = [r for r in results if r.status == "failed"]
     typer.echo(f"sweep: {len(results) - len(failed)}/{len(results)} runs complete")
     if failed:

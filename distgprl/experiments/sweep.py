@@ -5,6 +5,8 @@
   over (its partial files are replaced atomically).
 - Worker processes exit when the sweep process dies, and a run folder is locked while it
   trains, so a restarted sweep never trains the same run twice at once.
+- Interrupting the sweep (Ctrl-C, SIGINT to the sweep process) starts no further job and
+  stops the running ones as a kill would (their last checkpoints stay, to resume from).
 - A failing job writes ``error.json`` (type, message, traceback) into its run folder and
   the sweep goes on; the next sweep retries it.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
@@ -15,6 +17,7 @@ function submitted to a Ray cluster; optional extra ``distgprl[ray]``).
 
 from __future__ import annotations
 
+import _thread
 import os
 import threading
 import time
@@ -144,18 +147,44 @@ def run_job(job: Job) -> JobResult:
     return JobResult(job, "done", time.perf_counter() - start)
 
 
-def _exit_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
-    """Worker initializer: end this worker as soon as the sweep process that started it is
-    gone (a SIGKILLed parent cannot stop its pool, and an orphaned worker would go on
-    training a run that a restarted sweep is about to resume)."""
+_job_running = threading.Event()  # in a pool worker: set while a job runs
+_sweep_stopped = None  # in a pool worker: the sweep's stop event (set by `_watch_sweep`)
+
+
+def _run_job_in_worker(job: Job) -> JobResult:
+    """`run_job` in a pool worker; a job handed over after the sweep stopped never starts."""
+    if _sweep_stopped is not None and _sweep_stopped.is_set():
+        raise KeyboardInterrupt
+    _job_running.set()
+    try:
+        return run_job(job)
+    finally:
+        _job_running.clear()
+
+
+def _watch_sweep(parent_pid: int, stop, poll_s: float = 0.5) -> None:
+    """Worker initializer: a thread that ends this worker's work with the sweep's.
+
+    - The sweep process is gone (SIGKILL cannot stop its pool): exit at once, since an
+      orphaned worker would go on training a run that a restarted sweep will resume.
+    - The sweep was interrupted (``stop``, a multiprocessing Event, is set): raise
+      KeyboardInterrupt in the running job, as Ctrl-C does, so it stops where a kill would;
+      its last checkpoint stays.
+    """
+    global _sweep_stopped
+    _sweep_stopped = stop
 
     def watch() -> None:
         while True:
             time.sleep(poll_s)
             if os.getppid() != parent_pid:
                 os._exit(1)
+            if stop.is_set() and _job_running.is_set():
+                _thread.interrupt_main()
+                while _job_running.is_set():  # one interrupt per job: let it unwind
+                    time.sleep(poll_s)
 
-    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+    threading.Thread(target=watch, name="watch-sweep", daemon=True).start()
 
 
 def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
@@ -163,17 +192,27 @@ def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
         for job in jobs:
             yield run_job(job)
         return
-    with ProcessPoolExecutor(
+    context = get_context("spawn")
+    stop = context.Event()
+    pool = ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=get_context("spawn"),
-        initializer=_exit_with_parent,
-        initargs=(os.getpid(),),
-    ) as pool:
-        pending = {pool.submit(run_job, job) for job in jobs}
+        mp_context=context,
+        initializer=_watch_sweep,
+        initargs=(os.getpid(), stop),
+    )
+    try:
+        pending = {pool.submit(_run_job_in_worker, job) for job in jobs}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
                 yield future.result()
+    except BaseException:
+        # Interrupted (Ctrl-C, or the consumer stopped): start nothing new and stop the
+        # running jobs. Without this the pool's shutdown would run every queued job first.
+        stop.set()
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[JobResult]:
@@ -192,10 +231,15 @@ def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[Job
     try:
         remote = ray.remote(num_cpus=1)(run_job)
         pending = [remote.remote(job) for job in jobs]
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for ref in done:
-                yield ray.get(ref)
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                for ref in done:
+                    yield ray.get(ref)
+        except BaseException:
+            for ref in pending:  # queued: dropped; running: KeyboardInterrupt, as locally
+                ray.cancel(ref)
+            raise
     finally:
         if started_here:
             ray.shutdown()
@@ -239,4 +283,5 @@ def run_sweep(
                 on_result(result, len(results), total)
     finally:
         stop.set()
+        stream.close()  # interrupted: the executor stops its running and queued jobs now
     return results

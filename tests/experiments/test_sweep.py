@@ -1,4 +1,4 @@
-"""Sweeps: skip finished runs, survive SIGKILL, record failures; reports are pure."""
+"""Sweeps: skip finished runs, survive SIGKILL and Ctrl-C, record failures; reports are pure."""
 
 from __future__ import annotations
 
@@ -80,7 +80,17 @@ def test_run_lock_refuses_a_second_trainer_of_the_same_run(tmp_path):
         pass
 
 
-def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_path):
+def _interrupt(process: subprocess.Popen, how: str) -> None:
+    if how == "SIGKILL":
+        process.send_signal(signal.SIGKILL)
+    elif how == "Ctrl-C":  # the terminal signals the whole foreground process group
+        os.killpg(process.pid, signal.SIGINT)
+    else:  # "SIGINT": the sweep process alone; its workers must be stopped by it
+        process.send_signal(signal.SIGINT)
+
+
+@pytest.mark.parametrize("how", ["SIGKILL", "Ctrl-C", "SIGINT"])
+def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_path, how):
     command = [
         sys.executable,
         "-m",
@@ -93,7 +103,7 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
         "--methods",
         "demo,gprl-d",
         "--seeds",
-        "0,1",
+        "0,1,2",
         "--root",
         str(tmp_path),
         "--workers",
@@ -101,27 +111,38 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
     ]
     env = {**os.environ, "DISTGPRL_CHECKPOINT_ROOT": ""}
     process = subprocess.Popen(
-        command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        command,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
     )
     first = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     deadline = time.time() + 300
-    # Kill mid-run: after the first trained run's first checkpoint, before it finishes.
+    # Interrupt mid-run: after the first trained run's first checkpoint, before it
+    # finishes; seed 2 is still queued (two workers: demo then seed 1, and seed 0).
     while time.time() < deadline and not (first / "checkpoints" / "state.pkl").exists():
         time.sleep(0.2)
     workers = _children(process.pid)
     assert workers, "the sweep runs its jobs in worker processes"
-    process.send_signal(signal.SIGKILL)
-    process.wait()
-    # Its workers notice and exit too, instead of training on as orphans.
+    _interrupt(process, how)
+    _, stderr = process.communicate(timeout=60)
+    if how != "SIGKILL":  # an orderly stop: exit code 130 and a line saying how to resume
+        assert process.returncode == 130
+        assert "sweep interrupted" in stderr and "re-run the same command" in stderr
+    # Its workers exit too, instead of training on (or starting queued runs) as orphans.
     deadline = time.time() + 30
     while time.time() < deadline and any(_alive(pid) for pid in workers):
         time.sleep(0.2)
     assert not any(_alive(pid) for pid in workers)
-    assert not (run_dir(tmp_path, "ci", "dcp", "gprl-d", 1) / "done.json").exists()
+    for seed in (0, 1):  # the running runs were stopped, not finished
+        assert not (run_dir(tmp_path, "ci", "dcp", "gprl-d", seed) / "done.json").exists()
+    assert not (run_dir(tmp_path, "ci", "dcp", "gprl-d", 2) / "config.json").exists()
     result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
-    assert "3/3 runs complete" in result.stdout
-    for seed in (0, 1):
+    assert "4/4 runs complete" in result.stdout
+    for seed in (0, 1, 2):
         folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", seed)
         assert read_json(folder / "done.json")["steps"] == 240
         _, progress = read_csv(folder / "progress.csv")
@@ -140,7 +161,7 @@ def test_sigkilled_sweep_completes_on_restart_without_lost_or_duplicated_runs(tm
         assert a.read_bytes() == b.read_bytes(), a.name
     table = (out_a / "table1_ci.md").read_text()
     assert "GPRL-D" in table and "Demo (no adaptation)" in table
-    assert "[2]" in table
+    assert "[3]" in table
 
 
 def test_ray_executor_runs_the_same_jobs_on_a_local_ray_instance(tmp_path):
