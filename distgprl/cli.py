@@ -150,7 +150,10 @@ def sweep(
     methods: MethodsOption = None,
     tasks: TasksOption = None,
     seeds: SeedsOption = "0,1,2",
-    workers: Annotated[int, typer.Option(min=1, help="Parallel jobs.")] = 1,
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
+    ] = None,
     executor: Annotated[str, typer.Option(help="local | ray.")] = "local",
     address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
     root: RootOption = Path("results"),
@@ -161,9 +164,12 @@ def sweep(
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped."""
     from distgprl.experiments.status import sweep_status
-    from distgprl.experiments.sweep import plan_jobs, run_sweep
+    from distgprl.experiments.sweep import default_workers, plan_jobs, run_sweep
 
     jobs = plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root)
+    if workers is None:
+        workers = default_workers()
+    typer.echo(f"sweep: {len(jobs)} runs ({preset} preset), {workers} parallel job(s)")
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""

@@ -95,6 +95,14 @@ def plan_jobs(
     return jobs
 
 
+def default_workers() -> int:
+    """One job per CPU core this process may run on (each job trains on one torch thread)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # not on Linux
+        return max(os.cpu_count() or 1, 1)
+
+
 def is_complete(job: Job) -> bool:
     """True if the job's run folder holds a finished run of the same configuration."""
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)

@@ -33,6 +33,11 @@ def test_plan_validates_names_and_runs_demo_once_per_task():
         sweep.plan_jobs("ci", ["demo"], ["bogus"])
 
 
+def test_default_workers_is_one_per_usable_core(monkeypatch):
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 2, 5}, raising=False)
+    assert sweep.default_workers() == 3
+
+
 def test_failing_run_is_recorded_and_does_not_stop_the_others(tmp_path, monkeypatch):
     jobs = sweep.plan_jobs("ci", ["demo", "gprl-d"], ["dcp"], [0], root=tmp_path)
 
