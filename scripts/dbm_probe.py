@@ -1,11 +1,16 @@
 """DBM diagnostics: where collisions happen, and how much any via-point policy could avoid.
 
     python scripts/dbm_probe.py gap results/paper/dbm/demo/seed0/evaluation.csv [...]
+    python scripts/dbm_probe.py failures results/paper/dbm/dist-gprl/seed*/evaluation.csv
     python scripts/dbm_probe.py oracle 0.03 0.06 0.1
 
 ``gap`` bins an evaluation file's episodes by the free space between the two bars (the
 target's rear face to the other bar's front face, m; constant during an episode since
 both ride the same belt) and prints success and collision per bin.
+
+``failures`` lists every evaluation TC that at least one of the files fails, with its
+bar gap and, per file, F (failed), C (collided) or FC (both): TCs failed by every policy
+point at the task (near-infeasible without touching), TCs failed by one at that policy.
 
 ``oracle`` runs a scripted, TC-aware adaptation through the same env (windows, S_W,
 clipping to [-1, 1]) with ``position_action_scale`` set to each value: window
@@ -56,6 +61,39 @@ def gap_table(path: str) -> None:
             )
 
 
+def failures(paths: list[str]) -> None:
+    table = []
+    for path in paths:
+        _, rows = read_csv(path)
+        table.append(rows)
+    first = table[0]
+    print("| TC | target dy (m) | other dy (m) | gap (m) | " + " | ".join(paths) + " |")
+    print("|---" * (4 + len(paths)) + "|")
+    failed_by_all = 0
+    for index, row in enumerate(first):
+        marks = []
+        for rows in table:
+            other = rows[index]
+            if (other["object_offset_y"], other["obstacle_offset_y"]) != (
+                row["object_offset_y"],
+                row["obstacle_offset_y"],
+            ):
+                raise SystemExit(f"{path}: episode {index} is a different TC; same TCs needed")
+            mark = ("F" if other["success"] == "0" else "") + (
+                "C" if other["collision"] == "1" else ""
+            )
+            marks.append(mark or ".")
+        if any("F" in m for m in marks):
+            failed_by_all += all("F" in m for m in marks)
+            dy, oy = float(row["object_offset_y"]), float(row["obstacle_offset_y"])
+            print(
+                f"| {index} | {dy:+.3f} | {oy:+.3f} | {float(bar_gap(dy, oy)):.3f} | "
+                + " | ".join(marks)
+                + " |"
+            )
+    print(f"failed by every file: {failed_by_all}")
+
+
 def oracle(scale: float, episodes: int = 100) -> None:
     from distgprl.config import EnvConfig
     from distgprl.envs.adaptation import AdaptationEnv
@@ -95,6 +133,8 @@ if __name__ == "__main__":
     if command == "gap":
         for argument in arguments:
             gap_table(argument)
+    elif command == "failures":
+        failures(arguments)
     elif command == "oracle":
         for argument in arguments or ["0.03"]:
             oracle(float(argument))
