@@ -62,11 +62,12 @@ def gap_table(path: str) -> None:
 
 
 def failures(paths: list[str]) -> None:
-    table = []
-    for path in paths:
-        _, rows = read_csv(path)
-        table.append(rows)
+    table = [read_csv(path)[1] for path in paths]
     first = table[0]
+    for path, rows in zip(paths, table, strict=True):
+        tcs = [(r["object_offset_y"], r["obstacle_offset_y"]) for r in rows]
+        if tcs != [(r["object_offset_y"], r["obstacle_offset_y"]) for r in first]:
+            raise SystemExit(f"{path}: not the TCs of {paths[0]}; compare one TC set")
     print("| TC | target dy (m) | other dy (m) | gap (m) | " + " | ".join(paths) + " |")
     print("|---" * (4 + len(paths)) + "|")
     failed_by_all = 0
@@ -74,11 +75,6 @@ def failures(paths: list[str]) -> None:
         marks = []
         for rows in table:
             other = rows[index]
-            if (other["object_offset_y"], other["obstacle_offset_y"]) != (
-                row["object_offset_y"],
-                row["obstacle_offset_y"],
-            ):
-                raise SystemExit(f"{path}: episode {index} is a different TC; same TCs needed")
             mark = ("F" if other["success"] == "0" else "") + (
                 "C" if other["collision"] == "1" else ""
             )
