@@ -250,3 +250,14 @@ class RegularisedSAC(SAC):
     def _excluded_save_params(self) -> list[str]:
         # The regulariser is rebuilt from the task and config, never pickled.
         return [*super()._excluded_save_params(), "regulariser", "entropy_schedule"]
+
+    @classmethod
+    def load_saved(cls, path, env=None) -> RegularisedSAC:
+        """A saved model on the CPU; its regulariser and entropy schedule, never pickled, are
+        left unset (attach them again to train on, e.g. as `runner` does)."""
+        return cls.load(
+            path,
+            env=env,
+            device="cpu",
+            custom_objects={"regulariser": None, "entropy_schedule": None},
+        )

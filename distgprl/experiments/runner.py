@@ -363,12 +363,7 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
     paths = _checkpoint_paths(folder)
     try:
         state = pickle.loads(paths["state"].read_bytes())
-        model = RegularisedSAC.load(
-            paths["model"],
-            env=env,
-            device="cpu",
-            custom_objects={"regulariser": None, "entropy_schedule": None},
-        )
+        model = RegularisedSAC.load_saved(paths["model"], env=env)
         model.load_replay_buffer(paths["buffer"])
     except Exception as exc:  # any unreadable piece makes the checkpoint unusable
         raise UserInputError(
@@ -639,11 +634,7 @@ def evaluate_run(
         from distgprl.agents.sac import RegularisedSAC
 
         try:
-            model = RegularisedSAC.load(
-                model_path,
-                device="cpu",
-                custom_objects={"regulariser": None, "entropy_schedule": None},
-            )
+            model = RegularisedSAC.load_saved(model_path)
         except Exception as exc:
             raise UserInputError(
                 f"{model_path}: cannot load model ({type(exc).__name__}: {exc})"

@@ -95,9 +95,7 @@ def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
     from distgprl.agents.sac import RegularisedSAC
 
     try:
-        model = RegularisedSAC.load(
-            path, device="cpu", custom_objects={"regulariser": None, "entropy_schedule": None}
-        )
+        model = RegularisedSAC.load_saved(path)
     except Exception as exc:  # an unreadable zip is the user's input problem
         raise UserInputError(f"{path}: cannot load model ({type(exc).__name__}: {exc})") from None
     if model.observation_space != env.observation_space or model.action_space != env.action_space:

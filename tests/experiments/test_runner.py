@@ -30,9 +30,7 @@ def _load_model(path):
     """A saved `RegularisedSAC` (its regulariser and schedule are rebuilt, never pickled)."""
     from distgprl.agents.sac import RegularisedSAC
 
-    return RegularisedSAC.load(
-        path, device="cpu", custom_objects={"regulariser": None, "entropy_schedule": None}
-    )
+    return RegularisedSAC.load_saved(path)
 
 
 @pytest.mark.parametrize(
