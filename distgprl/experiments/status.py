@@ -12,8 +12,10 @@ A run's state, from the files its trainer writes (see `distgprl.experiments.runn
 | `missing` | nothing yet                                                                |
 
 For started runs the last learning-curve row of ``progress.csv`` gives the step reached,
-the curve success and collision rates and the training wall time so far, from which an
-ETA is extrapolated (wall time per step so far times the steps left).
+the curve success and collision rates and the training wall time so far. The ETA is the
+steps left times the pace of the latest curve interval (the wall time between the last two
+rows over their steps; the first interval is mostly gradient-free warm-up, so the pace since
+step 0 would promise far too early a finish), or the pace since step 0 with one row.
 """
 
 from __future__ import annotations
@@ -41,14 +43,15 @@ class RunStatus:
     success_rate: float | None = None
     collision_rate: float | None = None
     wall_time_s: float | None = None
+    seconds_per_step: float | None = None
     error: str = ""
 
     @property
     def eta_s(self) -> float | None:
         """Seconds of training left at the pace so far (None if unknown or finished)."""
-        if self.state in ("done", "stale", "missing") or not self.wall_time_s or self.step <= 0:
+        if self.state in ("done", "stale", "missing") or not self.seconds_per_step:
             return None
-        return self.wall_time_s / self.step * max(self.total_steps - self.step, 0)
+        return self.seconds_per_step * max(self.total_steps - self.step, 0)
 
     def describe(self) -> str:
         """One line: name, state, step, last curve rates, ETA, error."""
@@ -66,15 +69,26 @@ class RunStatus:
         return "  ".join(parts)
 
 
-def _last_curve_row(folder) -> dict[str, str] | None:
+def _curve_rows(folder) -> list[dict[str, str]]:
     path = folder / "progress.csv"
     if not path.exists():
-        return None
+        return []
     try:
         _, rows = read_csv(path)
     except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
+        return []
+    return rows
+
+
+def _seconds_per_step(rows: list[dict[str, str]]) -> float | None:
+    """Training wall time per step over the latest curve interval (None if unknown)."""
+    if not rows:
         return None
-    return rows[-1] if rows else None
+    last = rows[-1]
+    previous = rows[-2] if len(rows) > 1 else {"step": "0", "wall_time_s": "0"}
+    steps = int(last["step"]) - int(previous["step"])
+    seconds = float(last["wall_time_s"]) - float(previous["wall_time_s"])
+    return seconds / steps if steps > 0 and seconds > 0 else None
 
 
 def run_status(job: Job) -> RunStatus:
@@ -90,14 +104,16 @@ def run_status(job: Job) -> RunStatus:
         return RunStatus(job, "stale", 0, total)
     if not folder.exists():
         return RunStatus(job, "missing", 0, total)
-    row = _last_curve_row(folder)
+    rows = _curve_rows(folder)
     fields: dict = {}
-    if row is not None:
+    if rows:
+        row = rows[-1]
         fields = {
             "step": int(row["step"]),
             "success_rate": float(row["success_rate"]),
             "collision_rate": float(row["collision_rate"]),
             "wall_time_s": float(row["wall_time_s"]),
+            "seconds_per_step": _seconds_per_step(rows),
         }
     if is_locked(folder):
         return RunStatus(job, "running", total_steps=total, **fields)

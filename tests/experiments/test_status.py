@@ -19,18 +19,22 @@ def _job(tmp_path, method="gprl-d", seed=0):
     return sweep.plan_jobs("ci", [method], ["dcp"], [seed], root=tmp_path)[0]
 
 
-def _progress(folder, step, wall_time_s, success=0.4, collision=0.1):
-    row = dict.fromkeys(PROGRESS_FIELDS, "")
-    row.update(
-        step=step,
-        episodes=step // 3,
-        success_rate=success,
-        collision_rate=collision,
-        mean_return=1.0,
-        min_clearance_p5=0.01,
-        wall_time_s=wall_time_s,
-    )
-    write_csv(folder / "progress.csv", [row], PROGRESS_FIELDS)
+def _progress(folder, step, wall_time_s, success=0.4, collision=0.1, earlier=()):
+    """progress.csv with rows at the (step, wall_time_s) pairs ``earlier``, then this one."""
+    rows = []
+    for row_step, row_wall in [*earlier, (step, wall_time_s)]:
+        row = dict.fromkeys(PROGRESS_FIELDS, "")
+        row.update(
+            step=row_step,
+            episodes=row_step // 3,
+            success_rate=success,
+            collision_rate=collision,
+            mean_return=1.0,
+            min_clearance_p5=0.01,
+            wall_time_s=row_wall,
+        )
+        rows.append(row)
+    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS)
 
 
 def test_each_state_is_read_from_the_run_folder(tmp_path):
@@ -50,6 +54,12 @@ def test_each_state_is_read_from_the_run_folder(tmp_path):
     assert (status.state, status.step, status.total_steps) == ("partial", step, total)
     assert (status.success_rate, status.collision_rate) == (0.35, 0.05)
     assert status.eta_s == pytest.approx(60.0 / step * (total - step))
+
+    # The ETA follows the pace of the latest interval, not the warm-up-heavy pace since step 0.
+    _progress(folder, 2 * step, wall_time_s=160.0, earlier=[(0, 1.0), (step, 60.0)])
+    status = run_status(job)
+    assert status.step == 2 * step
+    assert status.eta_s == pytest.approx(100.0 / step * (total - 2 * step))
 
     with run_lock(folder):
         assert is_locked(folder)
