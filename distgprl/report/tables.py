@@ -113,6 +113,7 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         wall = read_json(done).get("train_wall_time_s") if done.exists() else None
         row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
         row.update({key: summary.get(key, "") for key, _ in (*METRICS, *PER_SEED_EXTRA)})
+        row.update(late_curve(path.parent / "progress.csv"))
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["config_hash"] = document["meta"].get("config_hash", "")
         rows.append(row)
@@ -129,9 +130,37 @@ speed and the share of episodes above the hardware safety layer's joint speed li
 for evaluations written before they were recorded)."""
 
 
+LATE_CURVE_POINTS = 5
+"""How many of the last learning-curve evaluations `late_curve` averages."""
+
+LATE_CURVE = (
+    ("late_curve_success", "Late curve succ"),
+    ("late_curve_success_range", "Late curve range"),
+)
+"""Per-run columns from ``progress.csv``: the mean learning-curve success over the last
+`LATE_CURVE_POINTS` evaluations (20 fixed TCs each, deterministic policy of that
+step) and their max - min. Next to the final 100-TC success they show how much the final policy's
+number depends on where training stopped (empty for `demo`, which has no curve)."""
+
+
+def late_curve(path: Path) -> dict[str, float | str]:
+    """`LATE_CURVE` values of one run's ``progress.csv`` (empty strings if it has none)."""
+    empty: dict[str, float | str] = {key: "" for key, _ in LATE_CURVE}
+    if not path.exists():
+        return empty
+    _, rows = read_csv(path)
+    success = [float(r["success_rate"]) for r in rows[-LATE_CURVE_POINTS:] if r["step"] != "0"]
+    if not success:
+        return empty
+    return {
+        "late_curve_success": float(np.mean(success)),
+        "late_curve_success_range": float(max(success) - min(success)),
+    }
+
+
 def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows`."""
-    columns = (*METRICS, *PER_SEED_EXTRA)
+    columns = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
     fields = ["task", "method", "seed", *(key for key, _ in columns), "train_wall_min"]
     fields.append("config_hash")
     buffer = io.StringIO()

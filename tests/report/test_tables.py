@@ -7,8 +7,16 @@ import json
 import numpy as np
 import pytest
 
-from distgprl.experiments.results import SchemaVersionError, write_json
-from distgprl.report.tables import aggregate, per_seed_rows, simulation_table, write_tables
+from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
+from distgprl.experiments.runner import PROGRESS_FIELDS
+from distgprl.report.tables import (
+    LATE_CURVE_POINTS,
+    aggregate,
+    late_curve,
+    per_seed_rows,
+    simulation_table,
+    write_tables,
+)
 
 
 def test_aggregate_mean_std_and_t_interval():
@@ -119,5 +127,40 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert (
-        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | – | – | 20.0 |" in markdown
+        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | – | – | – | – | 20.0 |"
+        in markdown
     )
+
+
+def _curve(path, successes):
+    rows = []
+    for index, success in enumerate(successes):
+        row = dict.fromkeys(PROGRESS_FIELDS, "")
+        row.update(step=1500 * index, success_rate=success, collision_rate=0.0)
+        rows.append(row)
+    write_csv(path, rows, PROGRESS_FIELDS)
+
+
+def test_late_curve_averages_the_last_curve_points_only(tmp_path):
+    path = tmp_path / "progress.csv"
+    assert late_curve(path) == {"late_curve_success": "", "late_curve_success_range": ""}
+    early = [0.9, 0.0, 0.1, 0.2]  # step 0 (untrained) and early training are left out
+    late = [0.8, 0.6, 0.9, 0.7, 0.5]
+    assert len(late) == LATE_CURVE_POINTS
+    _curve(path, early + late)
+    assert late_curve(path) == {
+        "late_curve_success": pytest.approx(0.7),
+        "late_curve_success_range": pytest.approx(0.4),
+    }
+    _curve(path, [0.9])  # only the untrained step-0 point: nothing to report
+    assert late_curve(path)["late_curve_success"] == ""
+
+
+def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path):
+    folder = tmp_path / "p" / "dcp" / "dist-gprl" / "seed0"
+    write_json(folder / "summary.json", summary(0.74, 0.06, 0.0))
+    _curve(folder / "progress.csv", [0.9, 0.1, 0.8, 0.9, 0.7, 0.8, 0.9])
+    write_tables(tmp_path, "p", tmp_path / "out")
+    markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
+    assert "Late curve succ | Late curve range |" in markdown
+    assert "| 0.74 | 0.06 | 0.000 |" in markdown and "| 0.82 | 0.20 |" in markdown
