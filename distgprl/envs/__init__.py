@@ -8,7 +8,9 @@ Registered ids (``gymnasium.make(id, method=...)``):
 
 from gymnasium.envs.registration import register, registry
 
-for _task in ("dcp", "dbm"):
+from distgprl.data import TASK_NAMES
+
+for _task in TASK_NAMES:
     for _prefix, _entry in (
         ("DistGPRL", "distgprl.envs.adaptation:AdaptationEnv"),
         ("ProMPRRL", "distgprl.envs.residual:ResidualEnv"),

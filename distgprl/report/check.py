@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from distgprl.agents.methods import TABLE_ORDER
+from distgprl.data import TASK_NAMES
 
 
 def check_table(path: str | Path, tasks: list[str]) -> list[str]:
@@ -43,7 +44,7 @@ def main(argv: list[str]) -> int:
     if not argv:
         print("usage: python -m distgprl.report.check TABLE.csv [--tasks dcp,dbm]")
         return 2
-    tasks = ["dcp", "dbm"]
+    tasks = list(TASK_NAMES)
     if "--tasks" in argv:
         tasks = argv[argv.index("--tasks") + 1].split(",")
     problems = check_table(argv[0], tasks)

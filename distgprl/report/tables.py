@@ -16,6 +16,7 @@ import numpy as np
 from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
+from distgprl.data import TASK_NAMES
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 
@@ -67,8 +68,8 @@ def _summary_paths(root: Path, preset: str) -> list[Path]:
 
 
 def _task_key(task: str) -> int:
-    """Tasks in the paper's order (DCP, DBM), others after."""
-    return ("dcp", "dbm").index(task) if task in ("dcp", "dbm") else 9
+    """Tasks in the registry's order (the paper's: DCP, DBM), unknown ones after."""
+    return TASK_NAMES.index(task) if task in TASK_NAMES else len(TASK_NAMES)
 
 
 def _load_summary(path: Path) -> dict:

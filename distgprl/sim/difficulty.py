@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from distgprl.data import TASK_NAMES
 from distgprl.sim.tasks import get_task
 from distgprl.sim.tasks.base import TaskConfig, condition_by_translation, resample_to_control
 from distgprl.skill.demos import load_demonstration
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
     args = parser.parse_args(argv)
-    for name in ("dcp", "dbm"):
+    for name in TASK_NAMES:
         summary = summarise(demo_outcomes(name, args.episodes))
         print(name, " ".join(f"{k}={v:.3f}" for k, v in summary.items()))
 

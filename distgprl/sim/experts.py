@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from distgprl.data import TASK_NAMES
 from distgprl.sim.tasks.base import DEMO_DIR, TaskConfig, TaskSim, resample_to_control
 from distgprl.skill.demos import save_demonstration
 
@@ -155,9 +156,9 @@ def main(argv: list[str] | None = None) -> None:
     """Command-line entry: regenerate all shipped demonstrations."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=DEMO_DIR, help="output folder")
-    parser.add_argument("--task", choices=("dcp", "dbm"), action="append", help="task(s)")
+    parser.add_argument("--task", choices=TASK_NAMES, action="append", help="task(s)")
     args = parser.parse_args(argv)
-    for name in args.task or ("dcp", "dbm"):
+    for name in args.task or TASK_NAMES:
         tcs = generate(name, args.out)
         print(f"{name}: nominal + {len(tcs)} varied demonstrations in {args.out}")
 
