@@ -3,6 +3,7 @@
     python scripts/dbm_probe.py gap results/paper/dbm/demo/seed0/evaluation.csv [...]
     python scripts/dbm_probe.py failures results/paper/dbm/dist-gprl/seed*/evaluation.csv
     python scripts/dbm_probe.py oracle 0.03 0.06 0.1
+    python scripts/dbm_probe.py adaptation results/paper/dbm/dist-gprl/seed{0,1,2}
 
 ``gap`` bins an evaluation file's episodes by the free space between the two bars (the
 target's rear face to the other bar's front face, m; constant during an episode since
@@ -19,6 +20,12 @@ pre-insertion via-points 4-7 move towards the handle so that the hook's 6 cm beh
 the TCP stays in front of the other bar's handle. It is a crude hand-made policy, not
 an optimum: it shows how much of the collision rate via-point corrections of a given
 size can remove at all.
+
+``adaptation`` re-runs a trained run's deterministic policy (its ``model.zip``) on the 100
+evaluation TCs and prints, for the TCs where the bars are more than 20 cm apart (no
+obstacle near the hook), the mean final adaptation of each adapted via-point, Gamma -
+Gamma_0 (m, per axis, along the belt = y), separately for the TCs it succeeds and fails:
+what a policy that misses the handle does differently with the hook.
 """
 
 from __future__ import annotations
@@ -124,6 +131,49 @@ def oracle(scale: float, episodes: int = 100) -> None:
     )
 
 
+def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
+    from pathlib import Path
+
+    from distgprl.agents.sac import RegularisedSAC
+    from distgprl.experiments.runner import deterministic_policy, make_env, resolve_run
+
+    folder = Path(run_folder)
+    config = read_csv(folder / "evaluation.csv")[0]
+    run = resolve_run("dbm", config["method"], int(config["seed"]), config["preset"])
+    env = make_env(run)
+    policy = deterministic_policy(RegularisedSAC.load_saved(folder / "model.zip"))
+    adapted = np.unique(env.layout.indices)
+    displacement = {True: [], False: []}
+    for tc in env.spec_task.evaluation_tcs(100):
+        observation, _ = env.reset(options={"tc": tc})
+        done = False
+        while not done:
+            observation, _, done, _, info = env.step(policy(observation))
+        if bar_gap(tc.object_offset[1], tc.obstacle_offset[1]) > wide_gap:
+            delta = info["final_parameters"] - env.gamma_initial
+            displacement[bool(info["success"])].append(delta[adapted, :3])
+    env.close()
+    print(f"{run_folder}: TCs with the bars > {wide_gap} m apart, mean Gamma - Gamma_0 (cm)")
+    print(
+        "| via-point | "
+        + " | ".join(
+            f"{'success' if ok else 'failure'} (n={len(displacement[ok])}) x, y, z"
+            for ok in (True, False)
+        )
+        + " |"
+    )
+    print("|---|---|---|")
+    for row, index in enumerate(adapted):
+        cells = []
+        for ok in (True, False):
+            if displacement[ok]:
+                mean = 100.0 * np.mean(displacement[ok], axis=0)[row]
+                cells.append(", ".join(f"{v:+.1f}" for v in mean))
+            else:
+                cells.append("–")
+        print(f"| {index} | " + " | ".join(cells) + " |")
+
+
 if __name__ == "__main__":
     command, *arguments = sys.argv[1:] or ["help"]
     if command == "gap":
@@ -131,6 +181,9 @@ if __name__ == "__main__":
             gap_table(argument)
     elif command == "failures":
         failures(arguments)
+    elif command == "adaptation":
+        for argument in arguments:
+            adaptation(argument)
     elif command == "oracle":
         for argument in arguments or ["0.03"]:
             oracle(float(argument))
