@@ -8,9 +8,13 @@ export MPLBACKEND := Agg
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
+# Where torch comes from: empty = the configured pip index. Plain PyPI serves the CUDA build
+# on Linux; set TORCH_INDEX=https://download.pytorch.org/whl/cpu there for the CPU build.
+TORCH_INDEX ?=
+
 setup: $(BIN)/python
 	# torch first and pinned: an unpinned torch would pull a multi-GB CUDA build
-	$(BIN)/pip install -q -c constraints.txt torch==2.13.0
+	$(BIN)/pip install -q -c constraints.txt $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) torch==2.13.0
 	$(BIN)/pip install -q -c constraints.txt -e ".[dev,ray]"
 
 test:

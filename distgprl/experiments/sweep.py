@@ -228,7 +228,7 @@ def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[Job
         import ray
     except ImportError:
         raise UserInputError(
-            "the ray executor needs the optional extra: pip install 'distgprl[ray]'"
+            "the ray executor needs the optional extra: pip install -e '.[ray]' (in the project)"
         ) from None
     started_here = not ray.is_initialized()
     if started_here:

@@ -295,6 +295,56 @@ def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
     return "\n".join(lines)
 
 
+HARDWARE_COLUMNS = (
+    ("trials", "Trials"),
+    ("refused", "Refused"),
+    ("success_rate", "Success"),
+    ("collision_rate", "Collision"),
+    ("min_clearance_p5", "MinCl (m)"),
+)
+"""Table II columns after method and backend (MinCl: 5th percentile of the trials' minimum
+clearance, m)."""
+
+
+def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
+    """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
+    buffer = io.StringIO()
+    fields = ["method", "backend", *(key for key, _ in HARDWARE_COLUMNS)]
+    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+
+    def cells(row: dict) -> list[str]:
+        return [
+            row["label"],
+            row["backend"],
+            str(row["trials"]),
+            str(row["refused"]),
+            f"{row['success_rate']:.2f}",
+            f"{row['collision_rate']:.2f}",
+            f"{row['min_clearance_p5']:.3f}",
+        ]
+
+    header = ["Method", "Backend", *(label for _, label in HARDWARE_COLUMNS)]
+    markdown = _markdown_table(None, header, [cells(row) for row in rows])
+    lines = [
+        "\\begin{table}[htb]",
+        "\\centering",
+        "\\caption{Hardware trials (DBM); refused trials count as failures}",
+        "\\label{tab:hardware_results}",
+        "\\begin{tabular}{ll" + "c" * len(HARDWARE_COLUMNS) + "}",
+        "\\toprule",
+        " & ".join(header) + " \\\\",
+        "\\midrule",
+        *(" & ".join(cells(row)) + " \\\\" for row in rows),
+        "\\bottomrule",
+        "\\end{tabular}",
+        "\\end{table}",
+        "",
+    ]
+    return buffer.getvalue(), markdown, "\n".join(lines)
+
+
 def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX, and
     Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time)."""
@@ -315,19 +365,6 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     hardware = hardware_table(root)
     if hardware:
-        header = ["Method", "Backend", "Trials", "Refused", "Success", "Collision", "MinCl (m)"]
-        table = [
-            [
-                row["label"],
-                row["backend"],
-                str(row["trials"]),
-                str(row["refused"]),
-                f"{row['success_rate']:.2f}",
-                f"{row['collision_rate']:.2f}",
-                f"{row['min_clearance_p5']:.3f}",
-            ]
-            for row in hardware
-        ]
-        text = _markdown_table(None, header, table)
-        written.append(atomic_write_text(out_dir / "table2_hardware.md", text))
+        for suffix, text in zip((".csv", ".md", ".tex"), _hardware_texts(hardware), strict=True):
+            written.append(atomic_write_text(out_dir / f"table2_hardware{suffix}", text))
     return written

@@ -164,3 +164,34 @@ def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path)
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert "Late curve succ | Late curve range |" in markdown
     assert "| 0.74 | 0.06 | 0.000 |" in markdown and "| 0.82 | 0.20 |" in markdown
+
+
+def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp_path):
+    write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    trials = {
+        "twin": [("ok", 1, 0, 0.02), ("refused", 0, 0, 0.05), ("ok", 1, 1, -0.01)],
+        "ur": [("ok", 0, 0, 0.03)],
+    }
+    for backend, outcomes in trials.items():
+        rows = [
+            dict(zip(fields, (k, backend, *outcome), strict=True))
+            for k, outcome in enumerate(outcomes)
+        ]
+        write_csv(tmp_path / "hardware" / "dist-gprl" / f"trials_{backend}.csv", rows, fields)
+    written = {path.name for path in write_tables(tmp_path, "p", tmp_path / "out")}
+    assert {"table2_hardware.csv", "table2_hardware.md", "table2_hardware.tex"} <= written
+    out = tmp_path / "out"
+    lines = (out / "table2_hardware.csv").read_text().splitlines()
+    assert lines[0] == "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5"
+    twin = lines[1].split(",")
+    assert twin[:4] == ["dist-gprl", "twin", "3", "1"]
+    assert float(twin[4]) == pytest.approx(2 / 3) and float(twin[5]) == pytest.approx(1 / 3)
+    assert float(twin[6]) == pytest.approx(np.percentile([0.02, 0.05, -0.01], 5))
+    assert lines[2].split(",")[:4] == ["dist-gprl", "ur", "1", "0"]
+    markdown = (out / "table2_hardware.md").read_text()
+    assert "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 | 0.33 |" in markdown
+    assert "| Dist-GPRL (ours) | ur | 1 | 0 | 0.00 | 0.00 | 0.030 |" in markdown
+    latex = (out / "table2_hardware.tex").read_text()
+    assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 & 0.33 &" in latex
+    assert latex.count("\\\\") == 3  # header and two rows
