@@ -39,6 +39,7 @@ from distgprl.data import check_task_name
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import (
     atomic_write_bytes,
+    atomic_write_text,
     config_hash,
     read_csv,
     read_json,
@@ -315,7 +316,46 @@ def _checkpoint_paths(folder: Path) -> dict[str, Path]:
         "model": ckpt / "model.zip",
         "buffer": ckpt / "replay_buffer.pkl",
         "state": ckpt / "state.pkl",
+        "commit": ckpt / "commit.json",
     }
+
+
+#: The checkpoint's pieces and the temporary names they are written under first.
+_CHECKPOINT_PIECES = (
+    ("model", ".model.tmp.zip"),
+    ("buffer", ".buffer.tmp.pkl"),
+    ("state", ".state.tmp.pkl"),
+)
+
+
+def _install_checkpoint(paths: dict[str, Path]) -> None:
+    """Move every written piece into place, then drop the commit marker (idempotent)."""
+    for piece, temporary in _CHECKPOINT_PIECES:
+        staged = paths["dir"] / temporary
+        if staged.exists():
+            staged.replace(paths[piece])
+    paths["commit"].unlink(missing_ok=True)
+
+
+def _settle_checkpoint(paths: dict[str, Path]) -> None:
+    """Leave one consistent checkpoint after a kill at any point of `save_checkpoint`.
+
+    With the commit marker, every new piece was completely written before the kill: finish
+    moving them into place (roll forward). Without it the new pieces may be incomplete:
+    drop them and keep the previous checkpoint, which was never touched (roll back)."""
+    if paths["commit"].exists():
+        _install_checkpoint(paths)
+        return
+    for _, temporary in _CHECKPOINT_PIECES:
+        (paths["dir"] / temporary).unlink(missing_ok=True)
+
+
+def has_checkpoint(folder: Path) -> bool:
+    """Whether the run has a checkpoint to resume from (settling an interrupted save)."""
+    paths = _checkpoint_paths(folder)
+    if paths["dir"].exists():
+        _settle_checkpoint(paths)
+    return paths["state"].exists()
 
 
 def _rng_state(model, env) -> dict[str, Any]:
@@ -341,17 +381,21 @@ def _rng_state(model, env) -> dict[str, Any]:
 
 
 def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
-    """Model, replay buffer and RNG state, each written atomically; state last."""
+    """Model, replay buffer and RNG state, replaced together: a kill at any point leaves
+    either the previous checkpoint or this one, never a mix of the two (`has_checkpoint`).
+
+    The three pieces are written under temporary names, then a commit marker is written
+    atomically, then the pieces are moved into place and the marker removed."""
     paths = _checkpoint_paths(folder)
     paths["dir"].mkdir(parents=True, exist_ok=True)
-    tmp_model = paths["dir"] / ".model.tmp.zip"
-    model.save(tmp_model)
-    tmp_model.replace(paths["model"])
-    tmp_buffer = paths["dir"] / ".buffer.tmp.pkl"
-    model.save_replay_buffer(tmp_buffer)
-    tmp_buffer.replace(paths["buffer"])
+    _settle_checkpoint(paths)
+    staged = {piece: paths["dir"] / temporary for piece, temporary in _CHECKPOINT_PIECES}
+    model.save(staged["model"])
+    model.save_replay_buffer(staged["buffer"])
     state = {**_rng_state(model, env), **extra}
-    atomic_write_bytes(paths["state"], pickle.dumps(state))
+    atomic_write_bytes(staged["state"], pickle.dumps(state))
+    atomic_write_text(paths["commit"], json.dumps({"num_timesteps": int(model.num_timesteps)}))
+    _install_checkpoint(paths)
 
 
 def load_checkpoint(folder: Path, env, run: RunSpec):
@@ -370,6 +414,12 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
             f"{paths['dir']}: corrupt or incompatible checkpoint ({type(exc).__name__}: {exc}); "
             "delete the run folder to start over"
         ) from None
+    if model.num_timesteps != state["num_timesteps"]:
+        raise UserInputError(
+            f"{paths['dir']}: model (step {model.num_timesteps}) and state "
+            f"(step {state['num_timesteps']}) are from different checkpoints; "
+            "delete the run folder to start over"
+        )
     if model.replay_buffer.size() < min(state["num_timesteps"], model.buffer_size):
         raise UserInputError(f"{paths['buffer']}: replay buffer is shorter than the checkpoint")
     fresh = make_agent(env, run)  # rebuild the non-pickled parts from the task and config
@@ -504,7 +554,7 @@ def _train_locked(
     # Where the run was resumed, and whether exactly (older checkpoints lack the pending TC
     # and NumPy's generator: their resumes restart the TC sequence); recorded in done.json.
     resumes: list[dict[str, Any]] = []
-    if resume and paths["state"].exists():
+    if resume and has_checkpoint(folder):
         model, state = load_checkpoint(folder, env, run)
         wall_offset = state.get("wall_time_s", 0.0)
         resumes = [

@@ -130,6 +130,84 @@ def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeyp
     assert read_json(resumed / "done.json")["resumes"] == [{"step": 120, "exact": True}]
 
 
+@pytest.fixture(scope="module")
+def uninterrupted_run(tmp_path_factory):
+    """A 240-step dist-gprl run that was never killed (checkpoints at 120 and 240)."""
+    return train(tmp_path_factory.mktemp("whole"), "dist-gprl", steps=240, evaluate_after=False)
+
+
+@pytest.mark.parametrize("kill_point", ["writing the buffer", "moving the pieces into place"])
+def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
+    tmp_path, monkeypatch, uninterrupted_run, kill_point
+):
+    """Killed while the step-240 checkpoint is half written: the resume uses the step-120
+    checkpoint (roll back) or the complete step-240 one (roll forward), never a model of one
+    step with the buffer and generators of another, and ends equal to the uninterrupted run."""
+    from distgprl.agents.sac import RegularisedSAC
+
+    calls = {"save": 0}
+    if kill_point == "writing the buffer":
+        original_save = RegularisedSAC.save_replay_buffer
+
+        def die_in_second_save(self, path):
+            calls["save"] += 1
+            if calls["save"] == 2:
+                original_save(self, path)  # a complete file under its temporary name...
+                raise KeyboardInterrupt  # ...but the kill comes before the commit marker
+            original_save(self, path)
+
+        monkeypatch.setattr(RegularisedSAC, "save_replay_buffer", die_in_second_save)
+        resumed_at = 120
+    else:
+        original_install = runner._install_checkpoint
+
+        def die_after_moving_the_model(paths):
+            calls["save"] += 1
+            if calls["save"] == 2:
+                (paths["dir"] / ".model.tmp.zip").replace(paths["model"])
+                raise KeyboardInterrupt
+            original_install(paths)
+
+        monkeypatch.setattr(runner, "_install_checkpoint", die_after_moving_the_model)
+        resumed_at = 240
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.undo()
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    resumed = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    assert read_json(folder / "done.json")["resumes"] == [{"step": resumed_at, "exact": True}]
+    assert sorted(p.name for p in runner.checkpoint_dir(folder).iterdir()) == [
+        "model.zip",
+        "replay_buffer.pkl",
+        "state.pkl",
+    ]
+    model = _load_model(runner.checkpoint_dir(folder) / "model.zip")
+    model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
+    assert model.replay_buffer.size() == 240
+    for a, b in zip(_actor_parameters(uninterrupted_run), _actor_parameters(resumed), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_checkpoint_pieces_from_different_steps_are_a_clear_error(tmp_path, monkeypatch):
+    original = runner.save_checkpoint
+    saved = {}
+
+    def save_and_keep(folder, model, env, extra):
+        original(folder, model, env, extra)
+        saved[model.num_timesteps] = (runner.checkpoint_dir(folder) / "model.zip").read_bytes()
+        if model.num_timesteps == 240:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_and_keep)
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, "gprl-d", steps=360, evaluate_after=False)
+    monkeypatch.undo()
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    (runner.checkpoint_dir(folder) / "model.zip").write_bytes(saved[120])  # a stale model
+    with pytest.raises(UserInputError, match="from different checkpoints"):
+        train(tmp_path, "gprl-d", steps=360, evaluate_after=False, resume=True)
+
+
 def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeypatch):
     first = runner.run_dir(tmp_path / "results", "paper", "dbm", "dist-gprl", 1)
     second = runner.run_dir(tmp_path / "exploration" / "longer", "paper", "dbm", "dist-gprl", 1)
