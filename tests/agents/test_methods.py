@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import pytest
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER, get_method
 from distgprl.errors import UserInputError
+from distgprl.experiments.results import read_json
+from distgprl.experiments.runner import resolve_run
 
 
 def test_registry_matches_the_design_table():
@@ -61,3 +66,48 @@ def test_fields_added_later_leave_old_method_hashes_unchanged():
         k: v for k, v in asdict(METHODS["dist-gprl"]).items() if k != "episode_range"
     }
     assert METHODS["gprl"].to_dict()["episode_range"] is True
+
+
+PAPER_RESULTS = Path(__file__).resolve().parents[2] / "results" / "paper"
+
+
+def _finished_paper_runs() -> list[Path]:
+    """Run folders ``<task>/<method>/seed<k>`` under results/paper that are complete:
+    ``done.json`` for trained methods, ``summary.json`` for the untrained demo."""
+    runs = []
+    for folder in sorted(PAPER_RESULTS.glob("*/*/seed*")):
+        marker = "done.json" if get_method(folder.parent.name).trainable else "summary.json"
+        if (folder / marker).exists():
+            runs.append(folder)
+    return runs
+
+
+def test_committed_paper_runs_keep_their_config_hash():
+    """Every finished committed paper run still resolves to the config hash recorded in its
+    config.json (and in its completion marker): a code or preset change that alters the
+    hash would orphan the committed results (they would be re-run or mis-attributed)."""
+    if not PAPER_RESULTS.is_dir():
+        pytest.skip(f"{PAPER_RESULTS} does not exist (no committed paper results here)")
+    runs = _finished_paper_runs()
+    assert runs, f"{PAPER_RESULTS} holds no finished run"
+    mismatches = []
+    for folder in runs:
+        task, method, seed = folder.parent.parent.name, folder.parent.name, int(folder.name[4:])
+        recorded = read_json(folder / "config.json")
+        marker = "done.json" if get_method(method).trainable else "summary.json"
+        assert read_json(folder / marker)["meta"]["config_hash"] == recorded["config_hash"]
+        assert recorded["meta"]["config_hash"] == recorded["config_hash"]
+        current = resolve_run(task, method, seed, "paper")
+        if current.hash != recorded["config_hash"]:
+            now = json.loads(json.dumps(current.to_dict(), default=str))
+            changed = sorted(
+                f"{part}.{key}"
+                for part in ("method", "config")
+                for key in {*now[part], *recorded["run"][part]}
+                if now[part].get(key) != recorded["run"][part].get(key)
+            )
+            mismatches.append(
+                f"{folder.relative_to(PAPER_RESULTS)}: recorded {recorded['config_hash']}, "
+                f"now {current.hash} (changed: {', '.join(changed) or 'task/seed'})"
+            )
+    assert not mismatches, "\n".join(mismatches)

@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from distgprl.errors import UserInputError
 from distgprl.experiments import results
 
 
@@ -36,6 +37,49 @@ def test_csv_round_trip_and_version_check(tmp_path):
     path.write_text("a,b\n1,2\n")
     with pytest.raises(results.SchemaVersionError, match="missing '# meta:'"):
         results.read_csv(path)
+
+
+def test_csv_with_unknown_schema_version_names_the_file_and_version(tmp_path):
+    """A CSV whose `# meta:` line has schema_version 999 is refused, not guessed at: the
+    SchemaVersionError names the file and the unsupported version."""
+    path = results.write_csv(tmp_path / "r.csv", [{"a": 1}], ["a"])
+    header, body = path.read_text().split("\n", 1)
+    meta = json.loads(header[len("# meta: ") :])
+    assert meta["schema_version"] == results.SCHEMA_VERSION  # only the version changes
+    path.write_text("# meta: " + json.dumps({**meta, "schema_version": 999}) + "\n" + body)
+    with pytest.raises(results.SchemaVersionError) as caught:
+        results.read_csv(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: ")
+    assert "schema_version 999 is not supported" in message
+    assert f"this is schema {results.SCHEMA_VERSION}" in message
+    assert isinstance(caught.value, UserInputError)  # the CLI's clean-exit path
+
+
+def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_path):
+    """`distgprl tables` over a results tree holding a summary.json of schema_version 999
+    exits with code 2 and one `error:` line naming the file; no table is written."""
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+
+    root, out = tmp_path / "results", tmp_path / "tables"
+    summary = root / "p" / "dcp" / "dist-gprl" / "seed0" / "summary.json"
+    summary.parent.mkdir(parents=True)
+    summary.write_text(
+        json.dumps({"meta": {"schema_version": 999}, "summary": {"success_rate": 1.0}})
+    )
+    result = CliRunner().invoke(
+        app, ["tables", "--root", str(root), "--preset", "p", "--out-dir", str(out)]
+    )
+    assert result.exit_code == 2, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    assert lines[0].startswith(f"error: {summary}: ")
+    assert "schema_version 999 is not supported" in lines[0]
+    assert result.stdout == ""  # the error goes to stderr only
+    assert not out.exists()
 
 
 def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
