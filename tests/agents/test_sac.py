@@ -48,9 +48,9 @@ class QuadraticPrior(torch.nn.Module):
         return ((x - self.target) ** 2).sum(-1).mean()
 
 
-def regulariser(method="dist-gprl", lambda_sim=0.5, lambda_hap=0.2):
+def regulariser(method="dist-gprl", lambda_sim=0.5, lambda_hap=0.2, frozen=()):
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method(method))
+    layout = build_action_layout(skill, EnvConfig(), get_method(method), frozen=frozen)
     weights = RegulariserWeights(lambda_sim=lambda_sim, lambda_hap=lambda_hap)
     prior = QuadraticPrior() if lambda_hap > 0 else None
     return skill, layout, ActorRegulariser(skill, layout, weights, hap_prior=prior)
@@ -63,16 +63,44 @@ def aux_batch(skill, layout, batch=4, step=1):
     return torch.as_tensor(np.concatenate([gamma, one_hot], 1), dtype=torch.float32)
 
 
-def test_adapted_via_points_match_the_environment_update():
-    skill, layout, reg = regulariser()
-    rng = np.random.default_rng(0)
+@pytest.mark.parametrize("step", [0, 1, 2])
+@pytest.mark.parametrize(
+    ("method", "frozen"),
+    [("dist-gprl", ()), ("dist-gprl-global", ()), ("dist-gprl-nocov", ()), ("gprl", (6,))],
+)
+def test_adapted_via_points_match_the_environment_update(method, frozen, step):
+    """The regulariser's Gamma + S_W (scale * a) equals the environment's update (layout.delta)
+    and an independent computation with the skill's own S_W (identity without the covariance
+    transform; frozen via-points unchanged), at every step, for windowed and global layouts."""
+    skill, layout, reg = regulariser(method, frozen=frozen)
+    spec = get_method(method)
+    rng = np.random.default_rng(step)
     action = rng.uniform(-1, 1, size=(1, layout.points_per_step * 6))
-    adapted = reg.adapted_via_points(
-        aux_batch(skill, layout, 1, step=1), torch.as_tensor(action, dtype=torch.float32)
-    )
-    expected = skill.via_points.copy()
-    expected[layout.indices[1]] += layout.delta(1, action[0])
+    gamma = skill.via_points + 0.01 * rng.normal(size=skill.via_points.shape)
+    aux = aux_batch(skill, layout, 1, step=step)
+    aux[:, : gamma.size] = torch.as_tensor(gamma.ravel(), dtype=torch.float32)
+    adapted = reg.adapted_via_points(aux, torch.as_tensor(action, dtype=torch.float32))
+
+    indices = layout.indices[step]
+    scaled = action[0].reshape(-1, 6) * layout.scale
+    if spec.covariance_transform:
+        operator = skill.window_operator(indices, EnvConfig().correlation_lambda)
+        assert not np.allclose(operator, np.eye(len(indices)), atol=1e-3)
+    else:
+        operator = np.eye(len(indices))
+    delta = operator @ scaled
+    delta[np.isin(indices, frozen)] = 0.0
+    expected = gamma.copy()
+    expected[indices] += delta
     np.testing.assert_allclose(adapted[0].numpy(), expected, atol=1e-5)
+
+    environment = gamma.copy()
+    environment[indices] += layout.delta(step, action[0])
+    np.testing.assert_allclose(adapted[0].numpy(), environment, atol=1e-5)
+    untouched = np.setdiff1d(np.arange(skill.n_via_points), np.setdiff1d(indices, frozen))
+    np.testing.assert_allclose(adapted[0].numpy()[untouched], gamma[untouched], atol=1e-6)
+    if spec.covariance_transform:  # the check can tell S_W from the identity
+        assert np.abs(scaled - delta).max() > 1e-3
 
 
 def test_similarity_loss_is_zero_for_the_demonstration_and_grows_with_deviation():
@@ -95,6 +123,88 @@ def test_regulariser_gradient_reaches_actions_only_when_weighted(lambda_sim, lam
     assert actions.grad.abs().sum() > 0
     assert ("l_sim" in terms) == (lambda_sim > 0)
     assert ("l_hap" in terms) == (lambda_hap > 0)
+
+
+def separate_term_gradients(skill, reg, aux, actions, n_hap_queries=20):
+    """(L_sim, grad L_sim, L_hap, grad L_hap) w.r.t. the actions, each term computed on its
+    own (L_hap from the skill's position map and the stand-in prior, not from forward)."""
+    leaf = actions.detach().clone().requires_grad_(True)
+    centered = reg.adapted_via_points(aux, leaf) - reg.prior_mean
+    l_sim = reg.similarity_loss(centered).mean()
+    (g_sim,) = torch.autograd.grad(l_sim, leaf)
+    leaf = actions.detach().clone().requires_grad_(True)
+    centered = reg.adapted_via_points(aux, leaf) - reg.prior_mean
+    hap_map = torch.as_tensor(
+        skill.position_map(np.linspace(0.0, 1.0, n_hap_queries)), dtype=torch.float32
+    )
+    prior_mean = torch.as_tensor(skill.prior_mean, dtype=torch.float32)
+    positions = (torch.matmul(hap_map, centered) + prior_mean)[..., :3]
+    l_hap = QuadraticPrior().loss(positions)
+    (g_hap,) = torch.autograd.grad(l_hap, leaf)
+    return l_sim.item(), g_sim, l_hap.item(), g_hap
+
+
+def mixed_step_batch(skill, layout, seed=0):
+    """Four observations' aux (steps 0, 1, 2, 1) and random actions in [-1, 1]."""
+    rng = np.random.default_rng(seed)
+    aux = torch.cat([aux_batch(skill, layout, 1, step=s) for s in (0, 1, 2, 1)])
+    actions = torch.as_tensor(
+        rng.uniform(-1, 1, size=(4, layout.points_per_step * 6)), dtype=torch.float32
+    )
+    return aux, actions
+
+
+def total_and_gradient(reg, aux, actions):
+    leaf = actions.detach().clone().requires_grad_(True)
+    total, terms = reg(aux, leaf)
+    (gradient,) = torch.autograd.grad(total, leaf)
+    return total.item(), terms, gradient
+
+
+@pytest.mark.parametrize(
+    ("lambda_sim", "lambda_hap"), [(0.5, 0.0), (0.0, 0.2), (0.5, 0.2), (1.7, 0.3)]
+)
+def test_regulariser_gradient_is_the_lambda_weighted_sum_of_the_term_gradients(
+    lambda_sim, lambda_hap
+):
+    """d total / d a = lambda_sim dL_sim/da + lambda_hap dL_hap/da (and the same for the
+    values), with each term computed separately, so a dropped or misplaced lambda fails."""
+    skill, layout, reg = regulariser(lambda_sim=lambda_sim, lambda_hap=lambda_hap)
+    aux, actions = mixed_step_batch(skill, layout)
+    l_sim, g_sim, l_hap, g_hap = separate_term_gradients(skill, reg, aux, actions)
+    assert g_sim.abs().max() > 1e-4 and g_hap.abs().max() > 1e-4
+    assert not torch.allclose(g_sim, g_hap, rtol=0.1)  # the two terms are distinguishable
+
+    total, terms, gradient = total_and_gradient(reg, aux, actions)
+    expected = lambda_sim * g_sim + lambda_hap * g_hap
+    scale = expected.abs().max().item()
+    torch.testing.assert_close(gradient, expected, rtol=1e-4, atol=1e-5 * scale)
+    assert total == pytest.approx(lambda_sim * l_sim + lambda_hap * l_hap, rel=1e-5)
+    if lambda_sim > 0:
+        assert terms["l_sim"] == pytest.approx(l_sim, rel=1e-5)
+    if lambda_hap > 0:
+        assert terms["l_hap"] == pytest.approx(l_hap, rel=1e-5)
+
+
+@pytest.mark.parametrize("doubled", ["lambda_sim", "lambda_hap"])
+def test_doubling_a_lambda_doubles_its_contribution(doubled):
+    """With lambda_x doubled, total and gradient grow by exactly lambda_x L_x and
+    lambda_x dL_x/da; the other term's contribution is unchanged."""
+    weights = {"lambda_sim": 0.5, "lambda_hap": 0.2}
+    skill, layout, base = regulariser(**weights)
+    _, _, twice = regulariser(**{**weights, doubled: 2 * weights[doubled]})
+    aux, actions = mixed_step_batch(skill, layout, seed=1)
+    l_sim, g_sim, l_hap, g_hap = separate_term_gradients(skill, base, aux, actions)
+    term, gradient_term = (l_sim, g_sim) if doubled == "lambda_sim" else (l_hap, g_hap)
+
+    total_1, _, gradient_1 = total_and_gradient(base, aux, actions)
+    total_2, _, gradient_2 = total_and_gradient(twice, aux, actions)
+    added = weights[doubled] * gradient_term
+    torch.testing.assert_close(
+        gradient_2 - gradient_1, added, rtol=1e-4, atol=1e-5 * gradient_2.abs().max().item()
+    )
+    assert total_2 - total_1 == pytest.approx(weights[doubled] * term, rel=1e-4)
+    assert not torch.allclose(gradient_2, gradient_1, rtol=1e-3)
 
 
 def test_zero_weights_give_zero_loss_and_no_gradient():
@@ -144,3 +254,110 @@ def test_critic_frozen_in_the_actor_loss_leaves_the_update_unchanged():
     frozen, original = trained(True), trained(False)
     assert torch.equal(frozen, original)
     assert frozen.abs().sum() > 0
+
+
+# -- the real agent ------------------------------------------------------------------------
+def real_observations(env, episodes=2):
+    """Observations at every step (0, 1, 2) of a few random-action episodes, batched."""
+    rng = np.random.default_rng(0)
+    observations = []
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=episode)
+        for _ in range(env.layout.n_steps):
+            observations.append(obs)
+            obs, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+    return {
+        key: torch.as_tensor(np.stack([o[key] for o in observations]), dtype=torch.float32)
+        for key in observations[0]
+    }
+
+
+@pytest.fixture(scope="module")
+def dist_gprl_agent():
+    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+
+    torch.manual_seed(0)
+    run = resolve_run("dcp", "dist-gprl", 0, "ci")
+    env = make_env(run)
+    model = make_agent(env, run)
+    return env, model, real_observations(env)
+
+
+@pytest.mark.parametrize("terms_used", ["both", "l_sim", "l_hap"])
+def test_real_agent_regulariser_gradient_reaches_every_actor_parameter(dist_gprl_agent, terms_used):
+    """Dist-GPRL (ci preset): backpropagating only the regulariser of actions_pi sampled by
+    the actor on real observations gives every actor parameter (latent_pi, mu, log_std) a
+    non-zero gradient, for L_sim and the task's real L_hap alone and together; the critic
+    gets none."""
+    env, model, obs = dist_gprl_agent
+    steps = obs["aux"][:, -env.layout.n_steps :].argmax(dim=1)
+    assert set(steps.tolist()) == set(range(env.layout.n_steps))
+    reg = model.regulariser
+    assert isinstance(reg, ActorRegulariser)
+    assert reg.weights.lambda_sim > 0 and reg.weights.lambda_hap > 0
+    assert reg.hap_prior is not None
+    if terms_used != "both":
+        weights = RegulariserWeights(
+            lambda_sim=reg.weights.lambda_sim if terms_used == "l_sim" else 0.0,
+            lambda_hap=reg.weights.lambda_hap if terms_used == "l_hap" else 0.0,
+            lambda_velocity=reg.weights.lambda_velocity,
+            lambda_acceleration=reg.weights.lambda_acceleration,
+        )
+        reg = ActorRegulariser(
+            env.skill,
+            env.layout,
+            weights,
+            hap_prior=reg.hap_prior,
+            n_similarity_samples=model.regulariser.velocity_map.shape[0],
+            n_hap_queries=model.regulariser.hap_map.shape[0],
+        )
+
+    model.actor.zero_grad(set_to_none=True)
+    model.critic.zero_grad(set_to_none=True)
+    actions_pi, _ = model.actor.action_log_prob(obs)
+    total, terms = reg(obs["aux"], actions_pi)
+    expected_terms = {"l_sim", "l_hap"} if terms_used == "both" else {terms_used}
+    assert set(terms) == expected_terms
+    assert total.requires_grad and total.item() != 0.0
+    total.backward()
+
+    names = [name for name, _ in model.actor.named_parameters()]
+    assert any(n.startswith("latent_pi.") for n in names) and "mu.weight" in names
+    for name, parameter in model.actor.named_parameters():
+        assert parameter.grad is not None, name
+        assert parameter.grad.abs().sum() > 0, name
+        assert torch.isfinite(parameter.grad).all(), name
+    assert all(p.grad is None for p in model.critic.parameters())
+
+
+@pytest.mark.parametrize(
+    ("method", "expected"),
+    [("gprl", None), ("promp-rrl", None), ("gprl-d", {"l_sim"}), ("gprl-h", {"l_sim", "l_hap"})],
+)
+def test_real_agent_regulariser_only_has_the_terms_the_method_weights(method, expected):
+    """build_regulariser / make_agent: GPRL and ProMP-RRL (no L_sim, no L_hap) get no
+    regulariser; GPRL-D (no HAP) gets lambda_hap = 0, no prior and total = lambda_sim L_sim;
+    GPRL-H keeps both terms."""
+    from distgprl.experiments.runner import build_regulariser, make_agent, make_env, resolve_run
+
+    torch.manual_seed(0)
+    run = resolve_run("dcp", method, 0, "ci")
+    env = make_env(run)
+    assert (build_regulariser(env, run) is None) == (expected is None)
+    model = make_agent(env, run)
+    if expected is None:
+        assert model.regulariser is None
+        return
+    reg = model.regulariser
+    assert (reg.weights.lambda_hap > 0) == ("l_hap" in expected)
+    assert (reg.hap_prior is not None) == ("l_hap" in expected)
+    assert reg.weights.lambda_sim > 0
+    obs = real_observations(env, episodes=1)
+    model.actor.zero_grad(set_to_none=True)
+    actions_pi, _ = model.actor.action_log_prob(obs)
+    total, terms = reg(obs["aux"], actions_pi)
+    assert set(terms) == expected
+    if expected == {"l_sim"}:
+        assert total.item() == pytest.approx(reg.weights.lambda_sim * terms["l_sim"], rel=1e-5)
+    total.backward()
+    assert model.actor.mu.weight.grad.abs().sum() > 0

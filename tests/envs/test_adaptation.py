@@ -52,6 +52,119 @@ def test_episode_is_three_steps_and_reward_terms_sum_to_reward(dcp_env):
     assert len(final["adaptation_time_s"]) == 3
 
 
+REWARD_METHODS = ["dist-gprl", "gprl", "gprl-h", "dist-gprl-nocov", "dist-gprl-global", "demo"]
+
+
+def clearance_penalty(sim, config: EnvConfig) -> float:
+    """Eq. safety_reward recomputed from public pieces: -beta sum_{d_i < d_min} 1/(d_i+eps)
+    over the tool points, d from a fresh field of the obstacles where they are now."""
+    d, _ = DistanceField(sim.obstacle_shapes()).distance(sim.tool_points())
+    close = d < config.sd_d_min
+    return -config.sd_beta * float(np.sum(1.0 / (np.maximum(d[close], 0.0) + config.sd_epsilon)))
+
+
+def spy_on_segments(env, monkeypatch) -> list[tuple[bool, float]]:
+    """Wrap ``env.sim.execute``: per executed chunk, its collision flag and the clearance
+    penalty recomputed independently right after it."""
+    chunks: list[tuple[bool, float]] = []
+    execute = env.sim.execute
+
+    def spy(poses):
+        result = execute(poses)
+        chunks.append((bool(result.collision), clearance_penalty(env.sim, env.config)))
+        return result
+
+    monkeypatch.setattr(env.sim, "execute", spy)
+    return chunks
+
+
+@pytest.mark.parametrize("method", REWARD_METHODS)
+def test_reward_terms_have_their_specified_values(method, monkeypatch):
+    """Each term of ``info`` has the value the env docstring specifies and they sum to the
+    reward, on three DCP episodes: the unadapted nominal episode (succeeds, the shovel skims
+    the table), every via-point pushed down (into the table: collisions) and random
+    actions on an evaluation TC. r_progress is the weighted progress change; r_success is
+    the bonus at the last step iff success; r_collision is -penalty iff that step's segment
+    collided; r_sd <= 0 is the clearance penalty summed over the step's chunks (0 without
+    distance rewards); |r_ga| <= lambda_ga (0 without distance rewards); r_signature in
+    (0, weight] for GPRL only."""
+    env = AdaptationEnv("dcp", method)
+    config, spec = env.config, env.method
+    chunks = spy_on_segments(env, monkeypatch)
+    n = env.action_space.shape[0]
+    down = np.zeros((n // 6, 6))
+    down[:, 2] = -1.0
+    episodes = {
+        "nominal": (env.spec_task.nominal_tc, np.zeros((3, n))),
+        "down": (env.spec_task.nominal_tc, np.tile(down.ravel(), (3, 1))),
+        "random": (
+            env.spec_task.evaluation_tcs(3)[1],
+            np.random.default_rng(0).uniform(-1, 1, size=(3, n)),
+        ),
+    }
+    seen = {"success": [], "collision": [], "r_sd": [], "r_ga": []}
+    for name, (tc, actions) in episodes.items():
+        env.reset(options={"tc": tc})
+        progress = env.sim.task_progress()
+        step_collisions = []
+        for k, action in enumerate(actions):
+            first_chunk = len(chunks)
+            _, reward, terminated, _, info = env.step(action)
+            step_chunks = chunks[first_chunk:]
+            where = f"{method} {name} step {k}"
+            assert reward == pytest.approx(sum(info[t] for t in REWARD_TERMS), abs=1e-9), where
+            now = env.sim.task_progress()
+            assert info["r_progress"] == pytest.approx(
+                config.progress_weight * (now - progress), abs=1e-12
+            ), where
+            progress = now
+            expected_success = config.success_bonus * info["success"] if terminated else 0.0
+            assert info["r_success"] == expected_success, where
+            collided = any(c for c, _ in step_chunks)
+            step_collisions.append(collided)
+            assert info["r_collision"] == (-config.collision_penalty if collided else 0.0), where
+            assert info["r_sd"] <= 0.0, where
+            if spec.distance_rewards:
+                expected_sd = sum(p for _, p in step_chunks)
+                assert info["r_sd"] == pytest.approx(expected_sd, rel=1e-9, abs=1e-12), where
+                assert abs(info["r_ga"]) <= config.lambda_ga + 1e-9, where
+            else:
+                assert info["r_sd"] == 0.0 and info["r_ga"] == 0.0, where
+            if spec.signature_reward:
+                assert 0.0 < info["r_signature"] <= config.signature_weight + 1e-12, where
+            else:
+                assert info["r_signature"] == 0.0, where
+            seen["r_sd"].append(info["r_sd"])
+            seen["r_ga"].append(info["r_ga"])
+        assert terminated
+        assert info["collision"] == any(step_collisions), f"{method} {name}"
+        seen["success"].append(info["success"])
+        seen["collision"].append(info["collision"])
+    env.close()
+    # The episodes exercise both branches of the indicator terms.
+    assert any(seen["success"]) and not all(seen["success"]), seen["success"]
+    assert any(seen["collision"]) and not all(seen["collision"]), seen["collision"]
+    if spec.distance_rewards:  # the shovel passes within d_min of the table, the actions move
+        assert min(seen["r_sd"]) < 0.0 and any(g != 0.0 for g in seen["r_ga"]), seen
+
+
+def test_safety_reward_matches_an_independent_recomputation_after_the_segment():
+    """With one r_sd sample per segment, r_sd is exactly Eq. safety_reward for the tool
+    points and obstacles after the step, recomputed from sim.obstacle_shapes() and
+    sim.tool_points(); the nominal DCP episode brings the shovel within d_min."""
+    config = EnvConfig(sd_samples_per_segment=1)
+    env = AdaptationEnv("dcp", "dist-gprl", config)
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    values = []
+    for _ in range(3):
+        _, _, _, _, info = env.step(np.zeros(30))
+        expected = clearance_penalty(env.sim, config)
+        assert info["r_sd"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        values.append(info["r_sd"])
+    env.close()
+    assert min(values) < 0.0, values  # not only the trivial 0 == 0
+
+
 def test_window_update_applies_the_covariance_transform(dcp_env):
     tc = dcp_env.spec_task.nominal_tc
     dcp_env.reset(options={"tc": tc})

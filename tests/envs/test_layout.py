@@ -61,3 +61,30 @@ def test_global_action_moves_a_via_point_as_far_per_episode_as_a_window():
         total = sum(layout.delta(step, np.ones(78)) for step in range(layout.n_steps))
         per_window = windowed.delta(0, np.ones(30))[0]  # a non-overlap via-point: (6,)
         np.testing.assert_allclose(total, np.broadcast_to(per_window, total.shape))
+
+
+def independent_correlation_operator(via_times, length_scale, correlation_lambda):
+    """S = K (K + lambda I)^-1 from scratch, K the SE kernel's correlation matrix (unit
+    signal variance, gp.py Eq. global_S) at the via-point times."""
+    diff = via_times[:, None] - via_times[None, :]
+    k = np.exp(-0.5 * (diff / length_scale) ** 2)
+    return k @ np.linalg.inv(k + correlation_lambda * np.eye(len(via_times)))
+
+
+def test_configured_correlation_lambda_reaches_the_layout_operators():
+    """build_action_layout's S_W equal the window blocks of an independently computed
+    K (K + lambda I)^-1 for the configured lambda (0.1 and the default 1e-2), and the two
+    lambdas give different operators; K ignores the signal variance (lambda is scale-free)."""
+    tau = np.linspace(0, 1, 15)
+    s = GPSkill(KernelParams(0.12, 1.7, 1e-6), tau, np.zeros((15, 6)), np.zeros(6), 4.0)
+    operators = {}
+    for correlation_lambda in (0.1, EnvConfig().correlation_lambda):
+        config = EnvConfig(correlation_lambda=correlation_lambda)
+        layout = build_action_layout(s, config, get_method("dist-gprl"))
+        full = independent_correlation_operator(tau, 0.12, correlation_lambda)
+        assert layout.operators.shape == (3, 5, 5)
+        for window, operator in zip(layout.indices, layout.operators, strict=True):
+            np.testing.assert_allclose(operator, full[np.ix_(window, window)], atol=1e-10)
+        operators[correlation_lambda] = layout.operators
+    assert EnvConfig().correlation_lambda == 1e-2
+    assert np.abs(operators[0.1] - operators[1e-2]).max() > 1e-2

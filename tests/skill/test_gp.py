@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 
@@ -135,11 +138,25 @@ def test_condition_on_offset_shifts_only_interaction_and_successors():
 
 
 def test_serialisation_round_trip_preserves_trajectory():
-    skill = make_skill()
-    copy = GPSkill.from_dict(skill.to_dict())
+    """to_dict -> JSON -> from_dict keeps every field (via-points, duration, kernel, times,
+    prior mean, name), and the copy's own trajectory and velocity / acceleration maps
+    equal the original's."""
+    skill = dataclasses.replace(make_skill(duration=3.7), name="pick")
+    copy = GPSkill.from_dict(json.loads(json.dumps(skill.to_dict())))
+    np.testing.assert_array_equal(copy.via_points, skill.via_points)
+    np.testing.assert_array_equal(copy.via_times, skill.via_times)
+    np.testing.assert_array_equal(copy.prior_mean, skill.prior_mean)
+    assert copy.duration == skill.duration == 3.7
+    assert copy.kernel == skill.kernel
+    assert copy.name == "pick"
     tau = np.linspace(0, 1, 50)
     np.testing.assert_allclose(
-        copy.position(skill.via_points, tau), skill.position(skill.via_points, tau)
+        copy.position(copy.via_points, tau), skill.position(skill.via_points, tau)
+    )
+    np.testing.assert_allclose(copy.velocity_map(tau), skill.velocity_map(tau))
+    np.testing.assert_allclose(copy.acceleration_map(tau), skill.acceleration_map(tau))
+    np.testing.assert_allclose(
+        copy.velocity(copy.via_points, tau), skill.velocity(skill.via_points, tau)
     )
 
 
