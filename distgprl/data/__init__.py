@@ -15,6 +15,17 @@ DATA_DIR = Path(__file__).resolve().parent
 DEMO_DIR = DATA_DIR / "demos"
 TASK_NAMES: tuple[str, ...] = ("dcp", "dbm")
 
+SCENE_REVISIONS: dict[str, int] = {"dcp": 0, "dbm": 1}
+"""Per task, the revision of its simulated scene. A non-zero revision enters every run's
+config hash, so runs made in an earlier scene are stale (a sweep re-runs them); revision 0
+adds nothing, keeping the hashes of runs made before revisions were recorded.
+
+- dbm 1: all 31 conveyor rollers are in PyBullet. In revision 0 the roller body held only
+  the first 16 (PyBullet silently drops shapes beyond 16 per shape array): the physical
+  conveyor ended at y = 0.015 m while the distance field saw rollers up to 0.615 m, so
+  robot contact with the missing rollers was neither a collision nor in the clearance.
+"""
+
 
 def check_task_name(task: str) -> str:
     """Return ``task`` if it is a known task name, else raise a `UserInputError`."""

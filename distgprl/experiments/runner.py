@@ -35,7 +35,7 @@ import numpy as np
 
 from distgprl.agents.methods import MethodSpec, get_method
 from distgprl.config import Config, load_config
-from distgprl.data import check_task_name
+from distgprl.data import SCENE_REVISIONS, check_task_name
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import (
     atomic_write_bytes,
@@ -93,12 +93,15 @@ class RunSpec:
     config: Config
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        data: dict[str, Any] = {
             "task": self.task,
             "method": self.method.to_dict(),
             "seed": self.seed,
             "config": self.config.to_dict(),
         }
+        if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
+            data["scene_revision"] = SCENE_REVISIONS[self.task]
+        return data
 
     @property
     def hash(self) -> str:

@@ -119,20 +119,16 @@ def create_shape_body(
     return body
 
 
-def create_compound_body(
-    client: BulletClient,
-    shapes: tuple[Box | Cylinder, ...],
-    rgba: tuple[float, float, float, float],
-    origin: np.ndarray,
-    mass: float = 0.0,
-    lateral_friction: float = 0.5,
-) -> int:
-    """One body made of several boxes/cylinders (poses relative to ``origin`` (3,), m).
+#: PyBullet keeps at most this many children of one ``createCollisionShapeArray`` and
+#: silently drops the rest (``MAX_COMPOUND_COLLISION_SHAPES`` in its shared-memory API).
+MAX_SHAPES_PER_ARRAY = 16
 
-    The shapes' ``position``/``rotation`` are given in the world frame for the body at
-    ``origin`` with identity orientation. Returns the body id.
-    """
-    origin = np.asarray(origin, dtype=float)
+
+def _shape_arrays(
+    client: BulletClient, shapes: tuple[Box | Cylinder, ...], origin: np.ndarray
+) -> tuple[int, int]:
+    """(collision, visual) shape-array ids of up to `MAX_SHAPES_PER_ARRAY` shapes, posed
+    relative to ``origin``."""
     kwargs: dict[str, list] = {
         "shapeTypes": [],
         "radii": [],
@@ -164,24 +160,72 @@ def create_compound_body(
             target["lengths"].append(length)
             target[f"{frame}FramePositions"].append(position)
             target[f"{frame}FrameOrientations"].append(quaternion)
-    collision = client.createCollisionShapeArray(**kwargs)
-    visual = client.createVisualShapeArray(**visual_kwargs)
+    return client.createCollisionShapeArray(**kwargs), client.createVisualShapeArray(
+        **visual_kwargs
+    )
+
+
+def create_compound_body(
+    client: BulletClient,
+    shapes: tuple[Box | Cylinder, ...],
+    rgba: tuple[float, float, float, float],
+    origin: np.ndarray,
+    mass: float = 0.0,
+    lateral_friction: float = 0.5,
+) -> int:
+    """One body made of several boxes/cylinders (poses relative to ``origin`` (3,), m).
+
+    The shapes' ``position``/``rotation`` are given in the world frame for the body at
+    ``origin`` with identity orientation. Returns the body id. A static body (``mass`` 0)
+    of more than `MAX_SHAPES_PER_ARRAY` shapes carries the rest on fixed massless links
+    (PyBullet would silently drop them from one shape array); a dynamic one must fit in
+    one array.
+    """
+    origin = np.asarray(origin, dtype=float)
+    groups = [
+        shapes[start : start + MAX_SHAPES_PER_ARRAY]
+        for start in range(0, len(shapes), MAX_SHAPES_PER_ARRAY)
+    ]
+    if len(groups) > 1 and mass > 0.0:
+        raise ValueError(
+            f"a dynamic compound body holds at most {MAX_SHAPES_PER_ARRAY} shapes, "
+            f"got {len(shapes)}"
+        )
+    collision, visual = _shape_arrays(client, groups[0], origin)
+    links = [_shape_arrays(client, group, origin) for group in groups[1:]]
+    link_kwargs: dict[str, list] = {}
+    if links:  # only then: bodies of one array are created exactly as before
+        n = len(links)
+        link_kwargs = {
+            "linkMasses": [0.0] * n,
+            "linkCollisionShapeIndices": [c for c, _ in links],
+            "linkVisualShapeIndices": [v for _, v in links],
+            "linkPositions": [[0.0, 0.0, 0.0]] * n,
+            "linkOrientations": [[0.0, 0.0, 0.0, 1.0]] * n,
+            "linkInertialFramePositions": [[0.0, 0.0, 0.0]] * n,
+            "linkInertialFrameOrientations": [[0.0, 0.0, 0.0, 1.0]] * n,
+            "linkParentIndices": [0] * n,
+            "linkJointTypes": [pybullet.JOINT_FIXED] * n,
+            "linkJointAxis": [[0.0, 0.0, 1.0]] * n,
+        }
     body = client.createMultiBody(
         baseMass=mass,
         baseCollisionShapeIndex=collision,
         baseVisualShapeIndex=visual,
         basePosition=origin.tolist(),
+        **link_kwargs,
     )
-    # colour after creation: createVisualShapeArray's rgbaColors crashes PyBullet 3.2.7
-    client.changeVisualShape(body, -1, rgbaColor=list(rgba))
-    client.changeDynamics(
-        body,
-        -1,
-        lateralFriction=lateral_friction,
-        linearDamping=0.0,
-        angularDamping=0.0,
-        restitution=0.0,
-    )
+    for link in range(-1, len(links)):
+        # colour after creation: createVisualShapeArray's rgbaColors crashes PyBullet 3.2.7
+        client.changeVisualShape(body, link, rgbaColor=list(rgba))
+        client.changeDynamics(
+            body,
+            link,
+            lateralFriction=lateral_friction,
+            linearDamping=0.0,
+            angularDamping=0.0,
+            restitution=0.0,
+        )
     return body
 
 
