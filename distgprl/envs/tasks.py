@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.data import check_task_name, demo_path
+from distgprl.data import SCENE_REVISIONS, check_task_name, demo_path
 from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
@@ -92,6 +92,14 @@ def task_hap_config(task: str, n_via_points: int = 15) -> HapConfig:
     )
 
 
+def _hap_robot_id(tool: str, task: str) -> str:
+    """The collision model's identity in the HAP cache key: the scene's PyBullet bodies are
+    what the collision checks see, so a new scene revision builds a new subspace (revision
+    0 adds nothing: caches made before revisions stay valid)."""
+    revision = SCENE_REVISIONS[task]
+    return f"ur5e+{tool}/{task}/hap-wiring-v1" + (f"/scene-r{revision}" if revision else "")
+
+
 def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
     """The task's HAP safe subspace against its static obstacles (built once, then cached)."""
     from distgprl.sim.tasks import get_task
@@ -105,7 +113,7 @@ def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
             sim.robot.ik_all,
             sim.configuration_in_collision,
             obstacles=static,
-            robot_id=f"ur5e+{sim.tool.name}/{task}/hap-wiring-v1",
+            robot_id=_hap_robot_id(sim.tool.name, task),
             cache_dir=hap_cache_dir(),
             joint_lower=sim.robot.lower_limits,
             joint_upper=sim.robot.upper_limits,
