@@ -364,7 +364,9 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     hardware = hardware_table(root)
-    if hardware:
-        for suffix, text in zip((".csv", ".md", ".tex"), _hardware_texts(hardware), strict=True):
+    for suffix, text in zip((".csv", ".md", ".tex"), _hardware_texts(hardware), strict=True):
+        if hardware:
             written.append(atomic_write_text(out_dir / f"table2_hardware{suffix}", text))
+        else:  # no trial files (any more): no Table II, not a stale one from earlier files
+            (out_dir / f"table2_hardware{suffix}").unlink(missing_ok=True)
     return written

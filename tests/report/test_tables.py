@@ -195,3 +195,16 @@ def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp
     latex = (out / "table2_hardware.tex").read_text()
     assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 & 0.33 &" in latex
     assert latex.count("\\\\") == 3  # header and two rows
+
+
+def test_table2_disappears_with_its_trial_files(tmp_path):
+    write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    trials = tmp_path / "hardware" / "demo" / "trials_twin.csv"
+    write_csv(trials, [dict(zip(fields, (0, "twin", "ok", 1, 0, 0.02), strict=True))], fields)
+    write_tables(tmp_path, "p", tmp_path / "out")
+    assert (tmp_path / "out" / "table2_hardware.md").exists()
+    trials.unlink()  # e.g. moved to results/exploration/ when its scene changed
+    written = write_tables(tmp_path, "p", tmp_path / "out")
+    assert not any(path.name.startswith("table2") for path in written)
+    assert not list((tmp_path / "out").glob("table2_hardware.*"))
