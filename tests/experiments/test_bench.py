@@ -66,6 +66,8 @@ def test_run_benchmarks_tiny(tmp_path):
     breakdown = document["training"]["breakdown"]
     assert sum(part["fraction"] for part in breakdown.values()) == pytest.approx(1.0)
     agreements = ("edf_pybullet_max_abs_difference_m", "policy_numpy_vs_torch_max_abs_difference")
+    names = {where.rsplit(".", 1)[-1] for where, _ in _numbers(document)}
+    assert set(agreements) <= names  # the agreement checks below are not skipped silently
     for where, value in _numbers({k: v for k, v in document.items() if k != "meta"}):
         assert math.isfinite(value), where
         if where.rsplit(".", 1)[-1] in agreements:
