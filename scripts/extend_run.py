@@ -25,7 +25,13 @@ import shutil
 from pathlib import Path
 
 from distgprl.experiments.results import read_json, write_json
-from distgprl.experiments.runner import checkpoint_dir, resolve_run, run_dir, train_run
+from distgprl.experiments.runner import (
+    checkpoint_dir,
+    has_checkpoint,
+    resolve_run,
+    run_dir,
+    train_run,
+)
 
 
 def main() -> None:
@@ -51,7 +57,7 @@ def main() -> None:
     if args.steps <= done_steps:
         raise SystemExit(f"--steps {args.steps} must exceed the source's {done_steps}")
     source_checkpoints = checkpoint_dir(source)
-    if not (source_checkpoints / "state.pkl").exists():
+    if not has_checkpoint(source):
         raise SystemExit(f"{source_checkpoints}: no final checkpoint to continue from")
 
     run = resolve_run(task, method, seed, preset, args.steps)
