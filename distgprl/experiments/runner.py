@@ -391,7 +391,6 @@ def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
     atomically, then the pieces are moved into place and the marker removed."""
     paths = _checkpoint_paths(folder)
     paths["dir"].mkdir(parents=True, exist_ok=True)
-    _settle_checkpoint(paths)
     staged = {piece: paths["dir"] / temporary for piece, temporary in _CHECKPOINT_PIECES}
     model.save(staged["model"])
     model.save_replay_buffer(staged["buffer"])

@@ -364,9 +364,11 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     hardware = hardware_table(root)
-    for suffix, text in zip((".csv", ".md", ".tex"), _hardware_texts(hardware), strict=True):
-        if hardware:
-            written.append(atomic_write_text(out_dir / f"table2_hardware{suffix}", text))
-        else:  # no trial files (any more): no Table II, not a stale one from earlier files
-            (out_dir / f"table2_hardware{suffix}").unlink(missing_ok=True)
+    table2 = [out_dir / f"table2_hardware{suffix}" for suffix in (".csv", ".md", ".tex")]
+    if hardware:
+        for path, text in zip(table2, _hardware_texts(hardware), strict=True):
+            written.append(atomic_write_text(path, text))
+    else:  # no trial files (any more): no Table II, not a stale one from earlier files
+        for path in table2:
+            path.unlink(missing_ok=True)
     return written

@@ -86,8 +86,7 @@ def test_committed_paper_runs_keep_their_config_hash():
     """Every finished committed paper run still resolves to the config hash recorded in its
     config.json (and in its completion marker): a code or preset change that alters the
     hash would orphan the committed results (they would be re-run or mis-attributed)."""
-    if not PAPER_RESULTS.is_dir():
-        pytest.skip(f"{PAPER_RESULTS} does not exist (no committed paper results here)")
+    assert PAPER_RESULTS.is_dir(), f"{PAPER_RESULTS}: the committed paper results are missing"
     runs = _finished_paper_runs()
     assert runs, f"{PAPER_RESULTS} holds no finished run"
     mismatches = []
