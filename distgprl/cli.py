@@ -164,7 +164,12 @@ def sweep(
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped."""
     from distgprl.experiments.status import sweep_status
-    from distgprl.experiments.sweep import default_workers, plan_jobs, run_sweep
+    from distgprl.experiments.sweep import (
+        default_workers,
+        plan_jobs,
+        run_sweep,
+        stop_on_interrupt_signals,
+    )
 
     jobs = plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root)
     if workers is None:
@@ -183,6 +188,7 @@ def sweep(
             if status.state == "running":
                 typer.echo(f"  {status.describe()}")
 
+    stop_on_interrupt_signals()
     try:
         results = run_sweep(
             jobs,

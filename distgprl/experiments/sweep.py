@@ -5,8 +5,10 @@
   over (its partial files are replaced atomically).
 - Worker processes exit when the sweep process dies, and a run folder is locked while it
   trains, so a restarted sweep never trains the same run twice at once.
-- Interrupting the sweep (Ctrl-C, SIGINT to the sweep process) starts no further job and
-  stops the running ones as a kill would (their last checkpoints stay, to resume from).
+- Interrupting the sweep (Ctrl-C, SIGINT or SIGTERM to the sweep process) starts no
+  further job and stops the running ones as a kill would (their last checkpoints stay, to
+  resume from); this holds for a sweep started in the background too
+  (`stop_on_interrupt_signals`).
 - A failing job writes ``error.json`` (type, message, traceback) into its run folder and
   the sweep goes on; the next sweep retries it.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import _thread
 import os
+import signal
 import threading
 import time
 import traceback
@@ -155,6 +158,22 @@ def run_job(job: Job) -> JobResult:
     return JobResult(job, "done", time.perf_counter() - start)
 
 
+def _raise_keyboard_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def stop_on_interrupt_signals() -> None:
+    """Make SIGINT and SIGTERM raise KeyboardInterrupt in this process (main thread only).
+
+    A process started in the background by a non-interactive shell (``nohup distgprl sweep
+    ... &``) inherits SIGINT *ignored*, and Python then never raises KeyboardInterrupt (nor
+    does ``_thread.interrupt_main``); SIGTERM ends a process without unwinding. With this,
+    both stop a sweep, and each of its workers, the orderly way wherever it was started.
+    """
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+
+
 _job_running = threading.Event()  # in a pool worker: set while a job runs
 _sweep_stopped = None  # in a pool worker: the sweep's stop event (set by `_watch_sweep`)
 
@@ -181,6 +200,7 @@ def _watch_sweep(parent_pid: int, stop, poll_s: float = 0.5) -> None:
     """
     global _sweep_stopped
     _sweep_stopped = stop
+    stop_on_interrupt_signals()  # `interrupt_main` does nothing while SIGINT is ignored
 
     def watch() -> None:
         while True:

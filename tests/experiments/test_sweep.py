@@ -90,11 +90,29 @@ def _interrupt(process: subprocess.Popen, how: str) -> None:
         process.send_signal(signal.SIGKILL)
     elif how == "Ctrl-C":  # the terminal signals the whole foreground process group
         os.killpg(process.pid, signal.SIGINT)
+    elif how == "SIGTERM":  # e.g. `kill PID`: the sweep process alone
+        process.send_signal(signal.SIGTERM)
     else:  # "SIGINT": the sweep process alone; its workers must be stopped by it
         process.send_signal(signal.SIGINT)
 
 
-@pytest.mark.parametrize("how", ["SIGKILL", "Ctrl-C", "SIGINT"])
+def _start_dispositions(how: str):
+    """The signal dispositions the sweep starts with, whatever pytest was started with.
+
+    "SIGINT" is sent to a sweep started in the background by a script (``nohup distgprl
+    sweep ... &``): such a process inherits SIGINT *ignored*, its workers too. The others
+    start as from a terminal, with the default dispositions.
+    """
+    ignored = signal.SIG_IGN if how == "SIGINT" else signal.SIG_DFL
+
+    def set_dispositions() -> None:
+        signal.signal(signal.SIGINT, ignored)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    return set_dispositions
+
+
+@pytest.mark.parametrize("how", ["SIGKILL", "Ctrl-C", "SIGINT", "SIGTERM"])
 def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_path, how):
     command = [
         sys.executable,
@@ -122,6 +140,7 @@ def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_p
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=_start_dispositions(how),
     )
     first = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     deadline = time.time() + 300
