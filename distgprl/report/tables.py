@@ -1,5 +1,8 @@
 """Table I (simulation) and Table II (hardware) from result files only.
 
+`write_tables` also writes Table I per run and each run's paired comparison with the
+unadapted reference (`distgprl.report.paired`).
+
 Each cell is the mean ± standard deviation over seeds with a 95 % confidence interval
 (Student t over seeds; a single seed has no interval). Rows follow the paper's order,
 then the ablation and the `demo` reference. Pure functions of the files they read.
@@ -19,6 +22,7 @@ from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import TASK_NAMES
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
+from distgprl.report.paired import paired_rows, paired_texts
 
 METRICS = (
     ("success_rate", "Success"),
@@ -346,8 +350,10 @@ def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
 
 
 def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX, and
-    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time)."""
+    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
+    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and,
+    for tasks with a `demo` evaluation, every run paired with it TC by TC
+    (``paired_vs_demo_<preset>``, CSV and Markdown)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         from distgprl.errors import UserInputError
@@ -363,6 +369,14 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
+    paired = [out_dir / f"paired_vs_demo_{preset}{suffix}" for suffix in (".csv", ".md")]
+    pairs = paired_rows(root, preset)
+    if pairs:
+        for path, text in zip(paired, paired_texts(pairs, preset), strict=True):
+            written.append(atomic_write_text(path, text))
+    else:  # no run with a reference to pair with: no table, not a stale one
+        for path in paired:
+            path.unlink(missing_ok=True)
     hardware = hardware_table(root)
     table2 = [out_dir / f"table2_hardware{suffix}" for suffix in (".csv", ".md", ".tex")]
     if hardware:

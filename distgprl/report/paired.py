@@ -1,0 +1,176 @@
+"""Each run against the unadapted reference, TC by TC (exact McNemar tests).
+
+Every run of a preset is evaluated on the same fixed evaluation TCs as the task's `demo`
+reference (the same episode index is the same object and obstacle offsets), so a run's
+outcome and the reference's outcome on one TC form a pair. Table I compares rates; this
+table says whether a difference between a run and the reference is more than the luck of
+100 TCs. Per run and outcome (success, collision, safe success = success without
+collision) it counts the discordant TCs — where only the run has the outcome
+(``only_run``) and where only the reference has it (``only_reference``) — and gives the
+exact two-sided McNemar p-value: a binomial test of ``only_run`` out of
+``only_run + only_reference`` against 1/2 (1 when there is no discordant TC). Seeds are
+tested one by one; they share the TCs, so their counts are not independent and are not
+pooled. A pure function of the evaluation files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+from scipy import stats
+
+from distgprl.agents.methods import METHODS, TABLE_ORDER
+from distgprl.data import TASK_NAMES
+from distgprl.experiments.results import read_csv
+from distgprl.experiments.runner import EVALUATION_FIELDS
+
+REFERENCE = "demo"
+"""The method every run is paired with (evaluated once per task, at seed 0)."""
+
+TC_FIELDS = EVALUATION_FIELDS[:5]
+"""The columns that identify an evaluation TC: episode index and the four offsets (m)."""
+
+OUTCOMES = (
+    ("success", "Success"),
+    ("collision", "Collision"),
+    ("safe_success", "SafeSucc"),
+)
+"""Per-episode outcomes compared (each 0 or 1)."""
+
+FIELDS = (
+    "task",
+    "method",
+    "seed",
+    "outcome",
+    "tcs",
+    "run_rate",
+    "reference_rate",
+    "only_run",
+    "only_reference",
+    "p_value",
+)
+"""Columns of ``paired_vs_demo_<preset>.csv``: one row per (run, outcome)."""
+
+
+def mcnemar_exact(only_run: int, only_reference: int) -> float:
+    """Exact two-sided McNemar p-value from the two discordant counts (1 if both are 0)."""
+    discordant = only_run + only_reference
+    if discordant == 0:
+        return 1.0
+    return float(stats.binomtest(only_run, discordant, 0.5).pvalue)
+
+
+def _outcomes(rows: list[dict[str, str]]) -> dict[str, list[int]]:
+    success = [int(r["success"]) for r in rows]
+    collision = [int(r["collision"]) for r in rows]
+    safe = [int(s == 1 and c == 0) for s, c in zip(success, collision, strict=True)]
+    return {"success": success, "collision": collision, "safe_success": safe}
+
+
+def _check_same_tcs(run: Path, reference: Path, run_rows: list, reference_rows: list) -> None:
+    """Raise ValueError unless both files hold the same TCs in the same order."""
+    if len(run_rows) != len(reference_rows):
+        raise ValueError(
+            f"{run}: {len(run_rows)} evaluation TCs, the reference {reference} has "
+            f"{len(reference_rows)}; re-evaluate one of them on the preset's TCs"
+        )
+    for a, b in zip(run_rows, reference_rows, strict=True):
+        if any(float(a[field]) != float(b[field]) for field in TC_FIELDS):
+            raise ValueError(
+                f"{run}: evaluation TC {a['episode']} differs from the reference's "
+                f"({reference}); the pairs would compare different TCs"
+            )
+
+
+def paired_rows(root: str | Path, preset: str) -> list[dict]:
+    """`FIELDS` rows for every run under ``<root>/<preset>`` whose task has a reference
+    evaluation; in task, table and seed order, outcomes in `OUTCOMES` order.
+
+    Raises:
+        ValueError: a run's evaluation TCs differ from its reference's.
+    """
+    base = Path(root) / preset
+    rows = []
+    for task_folder in sorted(p for p in base.glob("*") if p.is_dir()):
+        task = task_folder.name
+        reference_file = task_folder / REFERENCE / "seed0" / "evaluation.csv"
+        if not reference_file.exists():
+            continue
+        _, reference_rows = read_csv(reference_file)
+        reference = _outcomes(reference_rows)
+        for run_file in sorted(task_folder.glob("*/seed*/evaluation.csv")):
+            method, seed = run_file.parts[-3], int(run_file.parts[-2].removeprefix("seed"))
+            if method == REFERENCE or method not in METHODS:
+                continue
+            _, run_rows = read_csv(run_file)
+            _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
+            outcomes = _outcomes(run_rows)
+            n = len(run_rows)
+            for outcome, _ in OUTCOMES:
+                mine, theirs = outcomes[outcome], reference[outcome]
+                only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
+                only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
+                rows.append(
+                    {
+                        "task": task,
+                        "method": method,
+                        "seed": seed,
+                        "outcome": outcome,
+                        "tcs": n,
+                        "run_rate": sum(mine) / n,
+                        "reference_rate": sum(theirs) / n,
+                        "only_run": only_run,
+                        "only_reference": only_reference,
+                        "p_value": mcnemar_exact(only_run, only_reference),
+                    }
+                )
+    task_key = {task: i for i, task in enumerate(TASK_NAMES)}
+    outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
+    rows.sort(
+        key=lambda r: (
+            task_key.get(r["task"], len(task_key)),
+            r["task"],
+            TABLE_ORDER.index(r["method"]),
+            r["seed"],
+            outcome_key[r["outcome"]],
+        )
+    )
+    return rows
+
+
+def paired_texts(rows: list[dict], preset: str) -> tuple[str, str]:
+    """(CSV, Markdown) of `paired_rows`; the Markdown has one line per run."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    header = ["Task", "Method", "Seed", "TCs"]
+    for _, label in OUTCOMES:
+        header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
+    lines = [
+        f"Each run against the unadapted reference on the same evaluation TCs ({preset} preset)",
+        "",
+        "Rates of the run and of the reference; discordant TCs (only the run / only the "
+        "reference has the outcome); exact two-sided McNemar p-value.",
+        "",
+        "| " + " | ".join(header) + " |",
+        "|" + "---|" * len(header),
+    ]
+    for start in range(0, len(rows), len(OUTCOMES)):
+        run = rows[start : start + len(OUTCOMES)]
+        cells = [run[0]["task"].upper(), METHODS[run[0]["method"]].label, str(run[0]["seed"])]
+        cells.append(str(run[0]["tcs"]))
+        for row in run:
+            cells += [
+                f"{row['run_rate']:.2f} / {row['reference_rate']:.2f}",
+                f"{row['only_run']} / {row['only_reference']}",
+                _p_text(row["p_value"]),
+            ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return buffer.getvalue(), "\n".join(lines) + "\n"
+
+
+def _p_text(p: float) -> str:
+    return "< 0.001" if p < 0.001 else f"{p:.3f}"

@@ -1,0 +1,123 @@
+"""Paired comparison with the reference: discordant TCs counted, exact McNemar p-values,
+mismatched TCs refused, no stale table."""
+
+from __future__ import annotations
+
+import pytest
+
+from distgprl.experiments.results import write_csv, write_json
+from distgprl.report.paired import (
+    OUTCOMES,
+    mcnemar_exact,
+    paired_rows,
+    paired_texts,
+)
+from distgprl.report.tables import write_tables
+
+FIELDS = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
+FIELDS += ("obstacle_offset_y", "success", "collision")
+
+
+def write_evaluation(root, task, method, seed, outcomes, shift=0.0):
+    """An ``evaluation.csv`` with TC k at offsets (0.01 k + shift, ...) and the given
+    (success, collision) per TC, and its ``summary.json``."""
+    folder = root / "p" / task / method / f"seed{seed}"
+    rows = [
+        {
+            "episode": k,
+            "object_offset_x": 0.01 * k + shift,
+            "object_offset_y": -0.02 * k,
+            "obstacle_offset_x": 0.0,
+            "obstacle_offset_y": 0.03 * k,
+            "success": s,
+            "collision": c,
+        }
+        for k, (s, c) in enumerate(outcomes)
+    ]
+    write_csv(folder / "evaluation.csv", rows, FIELDS)
+    n = len(outcomes)
+    summary = {
+        "success_rate": sum(s for s, _ in outcomes) / n,
+        "collision_rate": sum(c for _, c in outcomes) / n,
+        "min_clearance_p5": 0.0,
+        "mean_kinematic_retention": 0.5,
+    }
+    write_json(folder / "summary.json", {"summary": summary})
+
+
+def by_outcome(rows, method, seed):
+    return {r["outcome"]: r for r in rows if r["method"] == method and r["seed"] == seed}
+
+
+def test_exact_mcnemar_matches_the_binomial_by_hand():
+    # Only one side discordant, 6 TCs: 2 * 0.5**6.
+    assert mcnemar_exact(0, 6) == pytest.approx(2 * 0.5**6)
+    assert mcnemar_exact(6, 0) == pytest.approx(2 * 0.5**6)
+    # 1 of 5: 2 * (C(5,0) + C(5,1)) / 2**5 = 12 / 32.
+    assert mcnemar_exact(1, 4) == pytest.approx(12 / 32)
+    assert mcnemar_exact(3, 3) == pytest.approx(1.0)
+    assert mcnemar_exact(0, 0) == 1.0
+
+
+def test_discordant_tcs_are_counted_per_outcome(tmp_path):
+    reference = [(1, 1), (1, 0), (0, 1), (0, 0), (1, 0), (1, 1)]
+    run = [(1, 0), (0, 0), (1, 0), (0, 0), (1, 0), (1, 1)]
+    write_evaluation(tmp_path, "dcp", "demo", 0, reference)
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, run)
+    rows = paired_rows(tmp_path, "p")
+    assert [r["outcome"] for r in rows] == [outcome for outcome, _ in OUTCOMES]
+    pairs = by_outcome(rows, "dist-gprl", 0)
+    # success: run only TC 2, reference only TC 1
+    assert (pairs["success"]["only_run"], pairs["success"]["only_reference"]) == (1, 1)
+    # collision: the reference collides in TCs 0 and 2, the run never
+    assert (pairs["collision"]["only_run"], pairs["collision"]["only_reference"]) == (0, 2)
+    # safe success: run TCs 0, 2, 4; reference TCs 1, 4
+    assert (pairs["safe_success"]["only_run"], pairs["safe_success"]["only_reference"]) == (
+        2,
+        1,
+    )
+    assert pairs["success"]["run_rate"] == pytest.approx(4 / 6)
+    assert pairs["success"]["reference_rate"] == pytest.approx(4 / 6)
+    assert pairs["collision"]["p_value"] == pytest.approx(mcnemar_exact(0, 2))
+    assert all(r["tcs"] == 6 for r in rows)
+
+
+def test_runs_in_table_order_and_only_tasks_with_a_reference(tmp_path):
+    outcomes = [(1, 0), (0, 1), (1, 0)]
+    write_evaluation(tmp_path, "dbm", "demo", 0, outcomes)
+    for method, seed in (("dist-gprl", 1), ("gprl", 0), ("dist-gprl", 0)):
+        write_evaluation(tmp_path, "dbm", method, seed, outcomes)
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, outcomes)  # no DCP reference
+    rows = paired_rows(tmp_path, "p")
+    runs = [(r["task"], r["method"], r["seed"]) for r in rows[:: len(OUTCOMES)]]
+    assert runs == [("dbm", "gprl", 0), ("dbm", "dist-gprl", 0), ("dbm", "dist-gprl", 1)]
+    # Identical outcomes: nothing discordant, p = 1.
+    assert {(r["only_run"], r["only_reference"], r["p_value"]) for r in rows} == {(0, 0, 1.0)}
+    _, markdown = paired_texts(rows, "p")
+    assert markdown.count("| DBM |") == 3
+
+
+def test_a_run_evaluated_on_other_tcs_is_refused(tmp_path):
+    write_evaluation(tmp_path, "dcp", "demo", 0, [(1, 0), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "gprl-d", 0, [(1, 0), (0, 0)], shift=0.001)
+    with pytest.raises(ValueError, match="gprl-d/seed0/evaluation.csv: evaluation TC 0 differs"):
+        paired_rows(tmp_path, "p")
+    write_evaluation(tmp_path, "dcp", "gprl-d", 0, [(1, 0)])
+    with pytest.raises(ValueError, match="1 evaluation TCs, the reference"):
+        paired_rows(tmp_path, "p")
+
+
+def test_write_tables_writes_the_pairs_and_removes_a_stale_table(tmp_path):
+    write_evaluation(tmp_path, "dcp", "demo", 0, [(1, 1), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (1, 0)])
+    out = tmp_path / "out"
+    written = {p.name for p in write_tables(tmp_path, "p", out)}
+    assert {"paired_vs_demo_p.csv", "paired_vs_demo_p.md"} <= written
+    assert (
+        "| DCP | Dist-GPRL (ours) | 0 | 2 | 1.00 / 0.50 | 1 / 0 |"
+        in (out / "paired_vs_demo_p.md").read_text()
+    )
+    (tmp_path / "p" / "dcp" / "demo" / "seed0" / "evaluation.csv").unlink()
+    written = {p.name for p in write_tables(tmp_path, "p", out)}
+    assert not any(name.startswith("paired_vs_demo") for name in written)
+    assert not (out / "paired_vs_demo_p.md").exists()
