@@ -44,7 +44,7 @@ import os
 import tempfile
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from dataclasses import field as dataclass_field
 from pathlib import Path
 
@@ -550,17 +550,7 @@ def build_or_load(
         joint_upper=joint_upper,
         progress=progress,
     )
-    stats = HapBuildStats(**{**asdict(subspace.stats), "cache_key": key})
-    subspace = SafeSubspace(
-        positions=subspace.positions,
-        rotations=subspace.rotations,
-        configurations=subspace.configurations,
-        costs=subspace.costs,
-        parents=subspace.parents,
-        pose_indices=subspace.pose_indices,
-        config=subspace.config,
-        stats=stats,
-    )
+    subspace = replace(subspace, stats=replace(subspace.stats, cache_key=key))
     save_subspace(subspace, path)
     return subspace, False
 
