@@ -1,16 +1,17 @@
-"""Each run against the unadapted reference, TC by TC (exact McNemar tests).
+"""Each run against a reference, TC by TC (exact McNemar tests).
 
-Every run of a preset is evaluated on the same fixed evaluation TCs as the task's `demo`
-reference (the same episode index is the same object and obstacle offsets), so a run's
-outcome and the reference's outcome on one TC form a pair. Table I compares rates; this
-table says whether a difference between a run and the reference is more than the luck of
-100 TCs. Per run and outcome (success, collision, safe success = success without
-collision) it counts the discordant TCs — where only the run has the outcome
+Every run of a preset is evaluated on the same fixed evaluation TCs (the same episode index
+is the same object and obstacle offsets), so two runs' outcomes on one TC form a pair.
+Table I compares rates; these tables say whether a difference is more than the luck of 100
+TCs. Two references: the unadapted `demo` (evaluated once per task, paired with every run)
+and the full method `dist-gprl` (paired with every other method's run of the same seed: the
+baselines and ablations). Per run and outcome (success, collision, safe success = success
+without collision) the table counts the discordant TCs — where only the run has the outcome
 (``only_run``) and where only the reference has it (``only_reference``) — and gives the
 exact two-sided McNemar p-value: a binomial test of ``only_run`` out of
 ``only_run + only_reference`` against 1/2 (1 when there is no discordant TC). Seeds are
 tested one by one; they share the TCs, so their counts are not independent and are not
-pooled. A pure function of the evaluation files.
+pooled. Pure functions of the evaluation files.
 """
 
 from __future__ import annotations
@@ -26,8 +27,11 @@ from distgprl.data import TASK_NAMES
 from distgprl.experiments.results import read_csv
 from distgprl.experiments.runner import EVALUATION_FIELDS
 
-REFERENCE = "demo"
-"""The method every run is paired with (evaluated once per task, at seed 0)."""
+UNADAPTED = "demo"
+"""The unadapted reference: evaluated once per task (seed 0), paired with every seed."""
+
+REFERENCES = (UNADAPTED, "dist-gprl")
+"""The methods `write_tables` pairs runs with (``paired_vs_<reference>_<preset>``)."""
 
 TC_FIELDS = EVALUATION_FIELDS[:5]
 """The columns that identify an evaluation TC: episode index and the four offsets (m)."""
@@ -84,48 +88,53 @@ def _check_same_tcs(run: Path, reference: Path, run_rows: list, reference_rows: 
             )
 
 
-def paired_rows(root: str | Path, preset: str) -> list[dict]:
-    """`FIELDS` rows for every run under ``<root>/<preset>`` whose task has a reference
-    evaluation; in task, table and seed order, outcomes in `OUTCOMES` order.
+def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> list[dict]:
+    """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
+    on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
+    run has been evaluated; the reference's own runs and `UNADAPTED` are not rows. In task,
+    table and seed order, outcomes in `OUTCOMES` order.
 
     Raises:
-        ValueError: a run's evaluation TCs differ from its reference's.
+        ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its
+            reference's.
     """
+    if reference not in METHODS:
+        raise ValueError(f"unknown reference method {reference!r}")
     base = Path(root) / preset
     rows = []
-    for task_folder in sorted(p for p in base.glob("*") if p.is_dir()):
-        task = task_folder.name
-        reference_file = task_folder / REFERENCE / "seed0" / "evaluation.csv"
+    for run_file in sorted(base.glob("*/*/seed*/evaluation.csv")):
+        task, method = run_file.parts[-4], run_file.parts[-3]
+        seed = int(run_file.parts[-2].removeprefix("seed"))
+        if method in (reference, UNADAPTED) or method not in METHODS:
+            continue
+        reference_seed = 0 if reference == UNADAPTED else seed
+        reference_file = base / task / reference / f"seed{reference_seed}" / "evaluation.csv"
         if not reference_file.exists():
             continue
         _, reference_rows = read_csv(reference_file)
-        reference = _outcomes(reference_rows)
-        for run_file in sorted(task_folder.glob("*/seed*/evaluation.csv")):
-            method, seed = run_file.parts[-3], int(run_file.parts[-2].removeprefix("seed"))
-            if method == REFERENCE or method not in METHODS:
-                continue
-            _, run_rows = read_csv(run_file)
-            _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
-            outcomes = _outcomes(run_rows)
-            n = len(run_rows)
-            for outcome, _ in OUTCOMES:
-                mine, theirs = outcomes[outcome], reference[outcome]
-                only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
-                only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
-                rows.append(
-                    {
-                        "task": task,
-                        "method": method,
-                        "seed": seed,
-                        "outcome": outcome,
-                        "tcs": n,
-                        "run_rate": sum(mine) / n,
-                        "reference_rate": sum(theirs) / n,
-                        "only_run": only_run,
-                        "only_reference": only_reference,
-                        "p_value": mcnemar_exact(only_run, only_reference),
-                    }
-                )
+        reference_outcomes = _outcomes(reference_rows)
+        _, run_rows = read_csv(run_file)
+        _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
+        outcomes = _outcomes(run_rows)
+        n = len(run_rows)
+        for outcome, _ in OUTCOMES:
+            mine, theirs = outcomes[outcome], reference_outcomes[outcome]
+            only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
+            only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
+            rows.append(
+                {
+                    "task": task,
+                    "method": method,
+                    "seed": seed,
+                    "outcome": outcome,
+                    "tcs": n,
+                    "run_rate": sum(mine) / n,
+                    "reference_rate": sum(theirs) / n,
+                    "only_run": only_run,
+                    "only_reference": only_reference,
+                    "p_value": mcnemar_exact(only_run, only_reference),
+                }
+            )
     task_key = {task: i for i, task in enumerate(TASK_NAMES)}
     outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
     rows.sort(
@@ -140,8 +149,9 @@ def paired_rows(root: str | Path, preset: str) -> list[dict]:
     return rows
 
 
-def paired_texts(rows: list[dict], preset: str) -> tuple[str, str]:
-    """(CSV, Markdown) of `paired_rows`; the Markdown has one line per run."""
+def paired_texts(rows: list[dict], preset: str, reference: str = UNADAPTED) -> tuple[str, str]:
+    """(CSV, Markdown) of `paired_rows` against ``reference``; the Markdown has one line
+    per run."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -150,7 +160,8 @@ def paired_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     for _, label in OUTCOMES:
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
     lines = [
-        f"Each run against the unadapted reference on the same evaluation TCs ({preset} preset)",
+        f"Each run against {_reference_text(reference)} on the same evaluation TCs "
+        f"({preset} preset)",
         "",
         "Rates of the run and of the reference; discordant TCs (only the run / only the "
         "reference has the outcome); exact two-sided McNemar p-value.",
@@ -170,6 +181,12 @@ def paired_texts(rows: list[dict], preset: str) -> tuple[str, str]:
             ]
         lines.append("| " + " | ".join(cells) + " |")
     return buffer.getvalue(), "\n".join(lines) + "\n"
+
+
+def _reference_text(reference: str) -> str:
+    if reference == UNADAPTED:
+        return "the unadapted reference"
+    return f"{METHODS[reference].label} of the same seed"
 
 
 def _p_text(p: float) -> str:

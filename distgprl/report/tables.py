@@ -22,7 +22,7 @@ from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import TASK_NAMES
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
-from distgprl.report.paired import paired_rows, paired_texts
+from distgprl.report.paired import REFERENCES, paired_rows, paired_texts
 
 METRICS = (
     ("success_rate", "Success"),
@@ -352,8 +352,8 @@ def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
 def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
     Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and,
-    for tasks with a `demo` evaluation, every run paired with it TC by TC
-    (``paired_vs_demo_<preset>``, CSV and Markdown)."""
+    every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
+    seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         from distgprl.errors import UserInputError
@@ -369,14 +369,17 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
-    paired = [out_dir / f"paired_vs_demo_{preset}{suffix}" for suffix in (".csv", ".md")]
-    pairs = paired_rows(root, preset)
-    if pairs:
-        for path, text in zip(paired, paired_texts(pairs, preset), strict=True):
-            written.append(atomic_write_text(path, text))
-    else:  # no run with a reference to pair with: no table, not a stale one
-        for path in paired:
-            path.unlink(missing_ok=True)
+    for reference in REFERENCES:
+        stem_pairs = f"paired_vs_{reference}_{preset}"
+        paired = [out_dir / f"{stem_pairs}{suffix}" for suffix in (".csv", ".md")]
+        pairs = paired_rows(root, preset, reference)
+        if pairs:
+            texts = paired_texts(pairs, preset, reference)
+            for path, text in zip(paired, texts, strict=True):
+                written.append(atomic_write_text(path, text))
+        else:  # no run with this reference to pair with: no table, not a stale one
+            for path in paired:
+                path.unlink(missing_ok=True)
     hardware = hardware_table(root)
     table2 = [out_dir / f"table2_hardware{suffix}" for suffix in (".csv", ".md", ".tex")]
     if hardware:

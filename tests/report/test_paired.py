@@ -1,5 +1,5 @@
-"""Paired comparison with the reference: discordant TCs counted, exact McNemar p-values,
-mismatched TCs refused, no stale table."""
+"""Paired comparison with a reference run: discordant TCs counted, exact McNemar p-values,
+mismatched TCs refused, method references paired seed by seed, no stale table."""
 
 from __future__ import annotations
 
@@ -117,7 +117,39 @@ def test_write_tables_writes_the_pairs_and_removes_a_stale_table(tmp_path):
         "| DCP | Dist-GPRL (ours) | 0 | 2 | 1.00 / 0.50 | 1 / 0 |"
         in (out / "paired_vs_demo_p.md").read_text()
     )
-    (tmp_path / "p" / "dcp" / "demo" / "seed0" / "evaluation.csv").unlink()
+    assert not (out / "paired_vs_dist-gprl_p.md").exists()  # nothing to pair with it yet
+    write_evaluation(tmp_path, "dcp", "gprl-d", 0, [(0, 0), (1, 0)])
     written = {p.name for p in write_tables(tmp_path, "p", out)}
-    assert not any(name.startswith("paired_vs_demo") for name in written)
-    assert not (out / "paired_vs_demo_p.md").exists()
+    assert {"paired_vs_dist-gprl_p.csv", "paired_vs_dist-gprl_p.md"} <= written
+    assert (
+        "| DCP | GPRL-D | 0 | 2 | 0.50 / 1.00 | 0 / 1 |"
+        in (out / "paired_vs_dist-gprl_p.md").read_text()
+    )
+    for method in ("demo", "dist-gprl"):
+        (tmp_path / "p" / "dcp" / method / "seed0" / "evaluation.csv").unlink()
+    written = {p.name for p in write_tables(tmp_path, "p", out)}
+    assert not any(name.startswith("paired_vs") for name in written)
+    assert not list(out.glob("paired_vs*"))
+
+
+def test_a_method_reference_is_paired_seed_by_seed(tmp_path):
+    write_evaluation(tmp_path, "dcp", "demo", 0, [(0, 1), (0, 1), (0, 1)])
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (1, 0), (1, 0)])
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 1, [(0, 0), (0, 0), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "gprl-d", 0, [(1, 0), (0, 0), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "gprl-d", 1, [(1, 0), (0, 0), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "gprl-d", 2, [(1, 0), (0, 0), (0, 0)])  # no seed-2 ref
+    rows = paired_rows(tmp_path, "p", reference="dist-gprl")
+    # Neither the reference's own runs nor the unadapted demo are rows.
+    assert [(r["method"], r["seed"]) for r in rows[:: len(OUTCOMES)]] == [
+        ("gprl-d", 0),
+        ("gprl-d", 1),
+    ]
+    seed0, seed1 = by_outcome(rows, "gprl-d", 0), by_outcome(rows, "gprl-d", 1)
+    assert (seed0["success"]["only_run"], seed0["success"]["only_reference"]) == (0, 2)
+    assert (seed1["success"]["only_run"], seed1["success"]["only_reference"]) == (1, 0)
+    assert seed1["success"]["reference_rate"] == 0.0
+    _, markdown = paired_texts(rows, "p", "dist-gprl")
+    assert "against Dist-GPRL (ours) of the same seed" in markdown
+    with pytest.raises(ValueError, match="unknown reference method"):
+        paired_rows(tmp_path, "p", reference="bogus")
