@@ -11,7 +11,8 @@ without collision) the table counts the discordant TCs — where only the run ha
 exact two-sided McNemar p-value: a binomial test of ``only_run`` out of
 ``only_run + only_reference`` against 1/2 (1 when there is no discordant TC). Seeds are
 tested one by one; they share the TCs, so their counts are not independent and are not
-pooled. Pure functions of the evaluation files.
+pooled. p-values are per comparison, not corrected for the number of comparisons in a
+table. Pure functions of the evaluation files.
 """
 
 from __future__ import annotations
@@ -164,7 +165,8 @@ def paired_texts(rows: list[dict], preset: str, reference: str = UNADAPTED) -> t
         f"({preset} preset)",
         "",
         "Rates of the run and of the reference; discordant TCs (only the run / only the "
-        "reference has the outcome); exact two-sided McNemar p-value.",
+        "reference has the outcome); exact two-sided McNemar p-value, per comparison "
+        "(not corrected for multiple comparisons).",
         "",
         "| " + " | ".join(header) + " |",
         "|" + "---|" * len(header),
