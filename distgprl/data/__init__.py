@@ -27,6 +27,11 @@ adds nothing, keeping the hashes of runs made before revisions were recorded.
 """
 
 
+def task_order(task: str) -> int:
+    """Sort key: tasks in `TASK_NAMES` order (the paper's: DCP, DBM), unknown ones after."""
+    return TASK_NAMES.index(task) if task in TASK_NAMES else len(TASK_NAMES)
+
+
 def check_task_name(task: str) -> str:
     """Return ``task`` if it is a known task name, else raise a `UserInputError`."""
     if task not in TASK_NAMES:

@@ -228,11 +228,16 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
     }
 
 
+def is_safe_success(row: dict[str, Any]) -> bool:
+    """Whether an episode row succeeded without any collision."""
+    return int(row["success"]) == 1 and int(row["collision"]) == 0
+
+
 def safe_success_rate(rows: list[dict[str, Any]]) -> float:
     """Share of episodes that succeeded without any collision (not a metric of the paper,
     whose success ignores collisions: in simulation a colliding robot pushes on through
     kinematic obstacles, where a real arm would stop or knock them away)."""
-    return float(np.mean([int(r["success"]) == 1 and int(r["collision"]) == 0 for r in rows]))
+    return float(np.mean([is_safe_success(r) for r in rows]))
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:

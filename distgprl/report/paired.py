@@ -24,9 +24,9 @@ from pathlib import Path
 from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
-from distgprl.data import TASK_NAMES
+from distgprl.data import task_order
 from distgprl.experiments.results import read_csv
-from distgprl.experiments.runner import EVALUATION_FIELDS
+from distgprl.experiments.runner import EVALUATION_FIELDS, is_safe_success
 
 UNADAPTED = "demo"
 """The unadapted reference: evaluated once per task (seed 0), paired with every seed."""
@@ -56,7 +56,7 @@ FIELDS = (
     "only_reference",
     "p_value",
 )
-"""Columns of ``paired_vs_demo_<preset>.csv``: one row per (run, outcome)."""
+"""Columns of ``paired_vs_<reference>_<preset>.csv``: one row per (run, outcome)."""
 
 
 def mcnemar_exact(only_run: int, only_reference: int) -> float:
@@ -68,10 +68,11 @@ def mcnemar_exact(only_run: int, only_reference: int) -> float:
 
 
 def _outcomes(rows: list[dict[str, str]]) -> dict[str, list[int]]:
-    success = [int(r["success"]) for r in rows]
-    collision = [int(r["collision"]) for r in rows]
-    safe = [int(s == 1 and c == 0) for s, c in zip(success, collision, strict=True)]
-    return {"success": success, "collision": collision, "safe_success": safe}
+    return {
+        "success": [int(r["success"]) for r in rows],
+        "collision": [int(r["collision"]) for r in rows],
+        "safe_success": [int(is_safe_success(r)) for r in rows],
+    }
 
 
 def _check_same_tcs(run: Path, reference: Path, run_rows: list, reference_rows: list) -> None:
@@ -102,6 +103,7 @@ def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> li
     if reference not in METHODS:
         raise ValueError(f"unknown reference method {reference!r}")
     base = Path(root) / preset
+    references: dict[Path, tuple[list, dict[str, list[int]]]] = {}  # read once each
     rows = []
     for run_file in sorted(base.glob("*/*/seed*/evaluation.csv")):
         task, method = run_file.parts[-4], run_file.parts[-3]
@@ -112,8 +114,10 @@ def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> li
         reference_file = base / task / reference / f"seed{reference_seed}" / "evaluation.csv"
         if not reference_file.exists():
             continue
-        _, reference_rows = read_csv(reference_file)
-        reference_outcomes = _outcomes(reference_rows)
+        if reference_file not in references:
+            reference_rows = read_csv(reference_file)[1]
+            references[reference_file] = (reference_rows, _outcomes(reference_rows))
+        reference_rows, reference_outcomes = references[reference_file]
         _, run_rows = read_csv(run_file)
         _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
         outcomes = _outcomes(run_rows)
@@ -136,11 +140,10 @@ def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> li
                     "p_value": mcnemar_exact(only_run, only_reference),
                 }
             )
-    task_key = {task: i for i, task in enumerate(TASK_NAMES)}
     outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
     rows.sort(
         key=lambda r: (
-            task_key.get(r["task"], len(task_key)),
+            task_order(r["task"]),
             r["task"],
             TABLE_ORDER.index(r["method"]),
             r["seed"],

@@ -1,7 +1,7 @@
 """Table I (simulation) and Table II (hardware) from result files only.
 
-`write_tables` also writes Table I per run and each run's paired comparison with the
-unadapted reference (`distgprl.report.paired`).
+`write_tables` also writes Table I per run and each run's paired comparisons, TC by TC,
+with the `demo` reference and with `dist-gprl` (`distgprl.report.paired`).
 
 Each cell is the mean ± standard deviation over seeds with a 95 % confidence interval
 (Student t over seeds; a single seed has no interval). Rows follow the paper's order,
@@ -19,7 +19,7 @@ import numpy as np
 from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
-from distgprl.data import TASK_NAMES
+from distgprl.data import task_order
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 from distgprl.report.paired import REFERENCES, paired_rows, paired_texts
@@ -71,11 +71,6 @@ def _summary_paths(root: Path, preset: str) -> list[Path]:
     return sorted((Path(root) / preset).glob("*/*/seed*/summary.json"))
 
 
-def _task_key(task: str) -> int:
-    """Tasks in the registry's order (the paper's: DCP, DBM), unknown ones after."""
-    return TASK_NAMES.index(task) if task in TASK_NAMES else len(TASK_NAMES)
-
-
 def _load_summary(path: Path) -> dict:
     """A ``summary.json`` document; its ``summary`` gains ``safe_success_rate`` from the
     per-episode file if it was written before that column existed."""
@@ -122,7 +117,7 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["config_hash"] = document["meta"].get("config_hash", "")
         rows.append(row)
-    rows.sort(key=lambda r: (_task_key(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
+    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
     return rows
 
 
@@ -188,7 +183,7 @@ def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
 def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
     """Rows of Table I: one per (method), columns per task and metric."""
     summaries = collect_summaries(Path(root), preset)
-    tasks = sorted({task for task, _ in summaries}, key=_task_key)
+    tasks = sorted({task for task, _ in summaries}, key=task_order)
     rows = []
     for method in TABLE_ORDER:
         if not any((task, method) in summaries for task in tasks):
@@ -351,7 +346,7 @@ def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
 
 def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
-    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and,
+    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
     seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown)."""
     rows, tasks = simulation_table(root, preset)
@@ -370,22 +365,30 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
     for reference in REFERENCES:
-        stem_pairs = f"paired_vs_{reference}_{preset}"
-        paired = [out_dir / f"{stem_pairs}{suffix}" for suffix in (".csv", ".md")]
         pairs = paired_rows(root, preset, reference)
-        if pairs:
-            texts = paired_texts(pairs, preset, reference)
-            for path, text in zip(paired, texts, strict=True):
-                written.append(atomic_write_text(path, text))
-        else:  # no run with this reference to pair with: no table, not a stale one
-            for path in paired:
-                path.unlink(missing_ok=True)
+        written += _write_or_remove(
+            out_dir / f"paired_vs_{reference}_{preset}",
+            (".csv", ".md"),
+            paired_texts(pairs, preset, reference) if pairs else None,
+        )
     hardware = hardware_table(root)
-    table2 = [out_dir / f"table2_hardware{suffix}" for suffix in (".csv", ".md", ".tex")]
-    if hardware:
-        for path, text in zip(table2, _hardware_texts(hardware), strict=True):
-            written.append(atomic_write_text(path, text))
-    else:  # no trial files (any more): no Table II, not a stale one from earlier files
-        for path in table2:
-            path.unlink(missing_ok=True)
+    written += _write_or_remove(
+        out_dir / "table2_hardware",
+        (".csv", ".md", ".tex"),
+        _hardware_texts(hardware) if hardware else None,
+    )
     return written
+
+
+def _write_or_remove(
+    stem: Path, suffixes: tuple[str, ...], texts: tuple[str, ...] | None
+) -> list[Path]:
+    """Write ``texts`` (one per suffix) to ``stem`` + suffix; with ``texts`` None
+    (nothing to tabulate, e.g. no trial files any more) remove those files instead, so no
+    stale table from earlier results is left behind."""
+    paths = [Path(f"{stem}{suffix}") for suffix in suffixes]
+    if texts is None:
+        for path in paths:
+            path.unlink(missing_ok=True)
+        return []
+    return [atomic_write_text(p, t) for p, t in zip(paths, texts, strict=True)]
