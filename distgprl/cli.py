@@ -293,7 +293,13 @@ def evaluate(
     seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
     preset: PresetOption = "paper",
     episodes: Annotated[
-        int | None, typer.Option(min=1, help="Evaluation TCs (default: preset).")
+        int | None,
+        typer.Option(
+            min=1,
+            help="Evaluation TCs (default: preset). Another number writes a supplementary "
+            "evaluation_n<N>.csv / summary_n<N>.json (first N TCs of the same stream) "
+            "beside the preset's.",
+        ),
     ] = None,
     root: RootOption = Path("results"),
 ) -> None:

@@ -9,6 +9,8 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``model.zip``       the final policy (never committed);
 - ``evaluation.csv``  one row per evaluation episode;
 - ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
+- ``evaluation_n<N>.csv``, ``summary_n<N>.json``  optional supplementary evaluation on the
+                      first N evaluation TCs (``distgprl evaluate --episodes N``);
 - ``done.json``       marker written last: the run is complete (steps, training wall
                       time, and the steps it was resumed at, each marked exact or not).
 
@@ -663,6 +665,19 @@ def _train_locked(
 
 
 # -- evaluate -------------------------------------------------------------------------------
+def evaluation_file_names(episodes: int | None = None) -> tuple[str, str]:
+    """(per-episode CSV, summary JSON) file names of an evaluation in a run folder.
+
+    ``None``: the preset's evaluation (``evaluation.csv``, ``summary.json``), the one Table I
+    reads. An integer: a supplementary evaluation on the first ``episodes`` TCs of the same
+    evaluation stream (``evaluation_n<episodes>.csv``, ``summary_n<episodes>.json``), kept
+    beside the preset's and never replacing it.
+    """
+    if episodes is None:
+        return "evaluation.csv", "summary.json"
+    return f"evaluation_n{episodes}.csv", f"summary_n{episodes}.json"
+
+
 def evaluate_run(
     task: str,
     method: str,
@@ -674,10 +689,17 @@ def evaluate_run(
 ) -> dict[str, Any]:
     """Evaluate a trained run (or the `demo` reference) on the evaluation TCs.
 
-    Writes ``evaluation.csv`` and ``summary.json`` into the run folder; returns the summary.
+    Writes ``evaluation.csv`` and ``summary.json`` into the run folder; with ``episodes``
+    other than the preset's, a supplementary evaluation under the names of
+    `evaluation_file_names` instead (the first ``episodes`` TCs of the same stream, so the
+    preset's TCs are a prefix); returns the summary.
     """
     run = resolve_run(task, method, seed, preset)
-    episodes = episodes or run.config.run.eval_episodes
+    preset_episodes = run.config.run.eval_episodes
+    episodes = episodes or preset_episodes
+    csv_name, summary_name = evaluation_file_names(
+        None if episodes == preset_episodes else episodes
+    )
     folder = run_dir(root, preset, task, method, seed)
     env = make_env(run)
     policy = None
@@ -718,8 +740,8 @@ def evaluate_run(
     env.close()
     summary = {**summarise(rows), "evaluation_wall_time_s": wall}
     meta = {"config_hash": run.hash, "seed": seed, "task": task, "method": method, "preset": preset}
-    write_csv(folder / "evaluation.csv", rows, EVALUATION_FIELDS, **meta)
-    write_json(folder / "summary.json", {"summary": summary}, kind="summary", **meta)
+    write_csv(folder / csv_name, rows, EVALUATION_FIELDS, **meta)
+    write_json(folder / summary_name, {"summary": summary}, kind="summary", **meta)
     return summary
 
 

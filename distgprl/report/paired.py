@@ -13,6 +13,10 @@ exact two-sided McNemar p-value: a binomial test of ``only_run`` out of
 tested one by one; they share the TCs, so their counts are not independent and are not
 pooled. p-values are per comparison, not corrected for the number of comparisons in a
 table. Pure functions of the evaluation files.
+
+The same tables pair supplementary evaluations on more TCs (``evaluation_n<N>.csv``,
+``distgprl evaluate --episodes N``): runs and reference evaluated on the same first N TCs
+of the evaluation stream (`supplementary_sizes` lists the N present).
 """
 
 from __future__ import annotations
@@ -26,7 +30,11 @@ from scipy import stats
 from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.experiments.results import read_csv
-from distgprl.experiments.runner import EVALUATION_FIELDS, is_safe_success
+from distgprl.experiments.runner import (
+    EVALUATION_FIELDS,
+    evaluation_file_names,
+    is_safe_success,
+)
 
 UNADAPTED = "demo"
 """The unadapted reference: evaluated once per task (seed 0), paired with every seed."""
@@ -90,11 +98,25 @@ def _check_same_tcs(run: Path, reference: Path, run_rows: list, reference_rows: 
             )
 
 
-def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> list[dict]:
+def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
+    """The N of the supplementary evaluations (``evaluation_n<N>.csv``) under
+    ``<root>/<preset>``, ascending."""
+    sizes = set()
+    for path in (Path(root) / preset).glob("*/*/seed*/evaluation_n*.csv"):
+        digits = path.stem.removeprefix("evaluation_n")
+        if digits.isdigit():
+            sizes.add(int(digits))
+    return sorted(sizes)
+
+
+def paired_rows(
+    root: str | Path, preset: str, reference: str = UNADAPTED, episodes: int | None = None
+) -> list[dict]:
     """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
     on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
     run has been evaluated; the reference's own runs and `UNADAPTED` are not rows. In task,
-    table and seed order, outcomes in `OUTCOMES` order.
+    table and seed order, outcomes in `OUTCOMES` order. ``episodes``: None pairs the
+    preset's evaluations; N pairs the supplementary evaluations on N TCs.
 
     Raises:
         ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its
@@ -103,15 +125,16 @@ def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> li
     if reference not in METHODS:
         raise ValueError(f"unknown reference method {reference!r}")
     base = Path(root) / preset
+    file_name = evaluation_file_names(episodes)[0]
     references: dict[Path, tuple[list, dict[str, list[int]]]] = {}  # read once each
     rows = []
-    for run_file in sorted(base.glob("*/*/seed*/evaluation.csv")):
+    for run_file in sorted(base.glob(f"*/*/seed*/{file_name}")):
         task, method = run_file.parts[-4], run_file.parts[-3]
         seed = int(run_file.parts[-2].removeprefix("seed"))
         if method in (reference, UNADAPTED) or method not in METHODS:
             continue
         reference_seed = 0 if reference == UNADAPTED else seed
-        reference_file = base / task / reference / f"seed{reference_seed}" / "evaluation.csv"
+        reference_file = base / task / reference / f"seed{reference_seed}" / file_name
         if not reference_file.exists():
             continue
         if reference_file not in references:
@@ -153,9 +176,11 @@ def paired_rows(root: str | Path, preset: str, reference: str = UNADAPTED) -> li
     return rows
 
 
-def paired_texts(rows: list[dict], preset: str, reference: str = UNADAPTED) -> tuple[str, str]:
-    """(CSV, Markdown) of `paired_rows` against ``reference``; the Markdown has one line
-    per run."""
+def paired_texts(
+    rows: list[dict], preset: str, reference: str = UNADAPTED, episodes: int | None = None
+) -> tuple[str, str]:
+    """(CSV, Markdown) of `paired_rows` against ``reference`` (``episodes`` as there); the
+    Markdown has one line per run."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -165,7 +190,8 @@ def paired_texts(rows: list[dict], preset: str, reference: str = UNADAPTED) -> t
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
     lines = [
         f"Each run against {_reference_text(reference)} on the same evaluation TCs "
-        f"({preset} preset)",
+        f"({preset} preset"
+        + (f"; supplementary evaluation on the first {episodes} TCs)" if episodes else ")"),
         "",
         "Rates of the run and of the reference; discordant TCs (only the run / only the "
         "reference has the outcome); exact two-sided McNemar p-value, per comparison "

@@ -22,7 +22,7 @@ from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
-from distgprl.report.paired import REFERENCES, paired_rows, paired_texts
+from distgprl.report.paired import REFERENCES, paired_rows, paired_texts, supplementary_sizes
 
 METRICS = (
     ("success_rate", "Success"),
@@ -348,7 +348,8 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
     Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
-    seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown)."""
+    seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
+    ``..._n<N>`` for supplementary evaluations on N TCs)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         from distgprl.errors import UserInputError
@@ -364,13 +365,18 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
     written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
+    sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:
-        pairs = paired_rows(root, preset, reference)
-        written += _write_or_remove(
-            out_dir / f"paired_vs_{reference}_{preset}",
-            (".csv", ".md"),
-            paired_texts(pairs, preset, reference) if pairs else None,
-        )
+        for episodes in (None, *sizes):
+            pairs = paired_rows(root, preset, reference, episodes)
+            written += _write_or_remove(
+                out_dir / f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}",
+                (".csv", ".md"),
+                paired_texts(pairs, preset, reference, episodes) if pairs else None,
+            )
+    for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
+        if stale not in written:
+            stale.unlink()
     hardware = hardware_table(root)
     written += _write_or_remove(
         out_dir / "table2_hardware",

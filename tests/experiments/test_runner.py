@@ -240,19 +240,41 @@ def test_corrupt_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
 
 
 def test_evaluate_demo_reference_writes_summary(tmp_path):
-    summary = runner.evaluate_run(
-        "dcp", "demo", 0, "ci", episodes=4, root=tmp_path, show_progress=False
-    )
-    assert summary["episodes"] == 4
+    summary = runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    episodes = runner.resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
+    assert summary["episodes"] == episodes
     folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
     meta, rows = read_csv(folder / "evaluation.csv")
-    assert meta["method"] == "demo" and len(rows) == 4
+    assert meta["method"] == "demo" and len(rows) == episodes
     assert np.isfinite(float(rows[0]["min_clearance"]))
     peaks = np.array([float(r["peak_joint_speed"]) for r in rows])
     assert np.all(peaks > 0)
     assert summary["peak_joint_speed_p95"] == pytest.approx(np.percentile(peaks, 95))
     limit = SafetyLimits().max_joint_speed
     assert summary["joint_speed_over_limit_rate"] == pytest.approx(np.mean(peaks > limit))
+
+
+def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp_path):
+    """``--episodes N`` other than the preset's writes ``evaluation_n<N>.csv`` whose first
+    TCs are the preset's (same outcomes), and leaves the preset's evaluation untouched."""
+    runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    preset_text = (folder / "evaluation.csv").read_text()
+    _, preset_rows = read_csv(folder / "evaluation.csv")
+    n = len(preset_rows) + 2
+    summary = runner.evaluate_run(
+        "dcp", "demo", 0, "ci", episodes=n, root=tmp_path, show_progress=False
+    )
+    assert summary["episodes"] == n
+    assert (folder / "evaluation.csv").read_text() == preset_text
+    assert read_json(folder / "summary.json")["summary"]["episodes"] == len(preset_rows)
+    _, rows = read_csv(folder / f"evaluation_n{n}.csv")
+    assert read_json(folder / f"summary_n{n}.json")["summary"]["episodes"] == n
+    skip = ("adaptation_ms", "policy_ms")  # wall-clock times, the only fields that may differ
+    for extended, original in zip(rows, preset_rows, strict=False):
+        assert {k: v for k, v in extended.items() if not k.startswith(skip)} == {
+            k: v for k, v in original.items() if not k.startswith(skip)
+        }
 
 
 def test_missing_model_and_bad_names_are_clear_errors(tmp_path):

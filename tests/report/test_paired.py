@@ -1,16 +1,19 @@
 """Paired comparison with a reference run: discordant TCs counted, exact McNemar p-values,
-mismatched TCs refused, method references paired seed by seed, no stale table."""
+mismatched TCs refused, method references paired seed by seed, supplementary evaluations
+paired apart from the preset's, no stale table."""
 
 from __future__ import annotations
 
 import pytest
 
 from distgprl.experiments.results import write_csv, write_json
+from distgprl.experiments.runner import evaluation_file_names
 from distgprl.report.paired import (
     OUTCOMES,
     mcnemar_exact,
     paired_rows,
     paired_texts,
+    supplementary_sizes,
 )
 from distgprl.report.tables import write_tables
 
@@ -18,9 +21,10 @@ FIELDS = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 FIELDS += ("obstacle_offset_y", "success", "collision")
 
 
-def write_evaluation(root, task, method, seed, outcomes, shift=0.0):
+def write_evaluation(root, task, method, seed, outcomes, shift=0.0, supplementary=False):
     """An ``evaluation.csv`` with TC k at offsets (0.01 k + shift, ...) and the given
-    (success, collision) per TC, and its ``summary.json``."""
+    (success, collision) per TC, and its ``summary.json`` (``supplementary``: as
+    ``evaluation_n<len(outcomes)>.csv`` and ``summary_n<...>.json``)."""
     folder = root / "p" / task / method / f"seed{seed}"
     rows = [
         {
@@ -34,15 +38,16 @@ def write_evaluation(root, task, method, seed, outcomes, shift=0.0):
         }
         for k, (s, c) in enumerate(outcomes)
     ]
-    write_csv(folder / "evaluation.csv", rows, FIELDS)
     n = len(outcomes)
+    csv_name, summary_name = evaluation_file_names(n if supplementary else None)
+    write_csv(folder / csv_name, rows, FIELDS)
     summary = {
         "success_rate": sum(s for s, _ in outcomes) / n,
         "collision_rate": sum(c for _, c in outcomes) / n,
         "min_clearance_p5": 0.0,
         "mean_kinematic_retention": 0.5,
     }
-    write_json(folder / "summary.json", {"summary": summary})
+    write_json(folder / summary_name, {"summary": summary})
 
 
 def by_outcome(rows, method, seed):
@@ -153,3 +158,40 @@ def test_a_method_reference_is_paired_seed_by_seed(tmp_path):
     assert "against Dist-GPRL (ours) of the same seed" in markdown
     with pytest.raises(ValueError, match="unknown reference method"):
         paired_rows(tmp_path, "p", reference="bogus")
+
+
+def test_supplementary_evaluations_are_paired_apart_from_the_presets(tmp_path):
+    # Preset evaluation on 2 TCs: a tie. Supplementary on 8 TCs: the run wins 6 / 0.
+    write_evaluation(tmp_path, "dbm", "demo", 0, [(1, 0), (0, 0)])
+    write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(0, 0), (1, 0)])
+    write_evaluation(tmp_path, "dbm", "demo", 0, [(0, 0)] * 6 + [(1, 0)] * 2, supplementary=True)
+    write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(1, 0)] * 8, supplementary=True)
+    # A run with only the preset's evaluation has no supplementary pair.
+    write_evaluation(tmp_path, "dbm", "gprl", 0, [(1, 1), (1, 1)])
+    assert supplementary_sizes(tmp_path, "p") == [8]
+    preset = by_outcome(paired_rows(tmp_path, "p"), "dist-gprl", 0)["success"]
+    assert (preset["tcs"], preset["only_run"], preset["only_reference"]) == (2, 1, 1)
+    rows = paired_rows(tmp_path, "p", episodes=8)
+    assert {r["method"] for r in rows} == {"dist-gprl"}
+    success = by_outcome(rows, "dist-gprl", 0)["success"]
+    assert (success["tcs"], success["only_run"], success["only_reference"]) == (8, 6, 0)
+    assert success["p_value"] == pytest.approx(2 * 0.5**6)
+    assert "first 8 TCs" in paired_texts(rows, "p", episodes=8)[1]
+
+
+def test_write_tables_writes_supplementary_pairs_and_removes_them_when_gone(tmp_path):
+    write_evaluation(tmp_path, "dbm", "demo", 0, [(1, 0), (0, 0)])
+    write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(0, 0), (1, 0)])
+    write_evaluation(tmp_path, "dbm", "demo", 0, [(0, 0)] * 3, supplementary=True)
+    write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(1, 0)] * 3, supplementary=True)
+    out = tmp_path / "figures"
+    write_tables(tmp_path, "p", out)
+    supplementary = out / "paired_vs_demo_p_n3.md"
+    assert supplementary.exists() and (out / "paired_vs_demo_p.md").exists()
+    assert "| 3 |" in supplementary.read_text()
+    for name in ("evaluation_n3.csv", "summary_n3.json"):
+        for method in ("demo", "dist-gprl"):
+            (tmp_path / "p" / "dbm" / method / "seed0" / name).unlink()
+    write_tables(tmp_path, "p", out)
+    assert not list(out.glob("paired_vs_*_n3.*"))
+    assert (out / "paired_vs_demo_p.md").exists()
