@@ -725,7 +725,9 @@ def evaluate_run(
                 f"{model_path}: model spaces do not match the {task}/{method} environment"
             )
         policy = deterministic_policy(model)
-    else:
+    elif csv_name == "evaluation.csv" or not (folder / "config.json").exists():
+        # the reference's config is written with its preset evaluation; a supplementary
+        # evaluation leaves an existing one untouched (its own files carry their meta)
         write_json(
             folder / "config.json",
             {"run": run.to_dict(), "config_hash": run.hash},

@@ -256,10 +256,12 @@ def test_evaluate_demo_reference_writes_summary(tmp_path):
 
 def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp_path):
     """``--episodes N`` other than the preset's writes ``evaluation_n<N>.csv`` whose first
-    TCs are the preset's (same outcomes), and leaves the preset's evaluation untouched."""
+    TCs are the preset's (same outcomes), and leaves the preset's evaluation and the
+    config untouched."""
     runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
     preset_text = (folder / "evaluation.csv").read_text()
+    config_text = (folder / "config.json").read_text()
     _, preset_rows = read_csv(folder / "evaluation.csv")
     n = len(preset_rows) + 2
     summary = runner.evaluate_run(
@@ -267,6 +269,7 @@ def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp
     )
     assert summary["episodes"] == n
     assert (folder / "evaluation.csv").read_text() == preset_text
+    assert (folder / "config.json").read_text() == config_text
     assert read_json(folder / "summary.json")["summary"]["episodes"] == len(preset_rows)
     _, rows = read_csv(folder / f"evaluation_n{n}.csv")
     assert read_json(folder / f"summary_n{n}.json")["summary"]["episodes"] == n
