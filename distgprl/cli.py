@@ -220,15 +220,23 @@ def status(
     tasks: TasksOption = None,
     seeds: SeedsOption = "0,1,2",
     root: RootOption = Path("results"),
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            min=1, help="Parallel jobs to estimate the time left for (default: as `sweep`)."
+        ),
+    ] = None,
 ) -> None:
-    """Where every run of a sweep stands (done, running, partial, ...), from its run folder."""
-    from distgprl.experiments.status import count_states, sweep_status
-    from distgprl.experiments.sweep import plan_jobs
+    """Where every run of a sweep stands (done, running, partial, ...), from its run folder,
+    and the training time left."""
+    from distgprl.experiments.status import count_states, sweep_status, training_left
+    from distgprl.experiments.sweep import default_workers, plan_jobs
 
     statuses = sweep_status(plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root))
     for entry in statuses:
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
+    typer.echo(training_left(statuses).describe(workers or default_workers()))
 
 
 @app.command()

@@ -4,6 +4,7 @@
     python scripts/dbm_probe.py failures results/paper/dbm/dist-gprl/seed*/evaluation.csv
     python scripts/dbm_probe.py oracle 0.03 0.06 0.1
     python scripts/dbm_probe.py adaptation results/paper/dbm/dist-gprl/seed{0,1,2}
+    python scripts/dbm_probe.py shrink results/paper/dbm/dist-gprl/seed{0,1,2}
 
 ``gap`` bins an evaluation file's episodes by the free space between the two bars (the
 target's rear face to the other bar's front face, m; constant during an episode since
@@ -26,6 +27,13 @@ evaluation TCs and prints, for the TCs where the bars are more than 20 cm apart 
 obstacle near the hook), the mean final adaptation of each adapted via-point, Gamma -
 Gamma_0 (m, per axis, along the belt = y), separately for the TCs it succeeds and fails:
 what a policy that misses the handle does differently with the hook.
+
+``shrink`` re-runs a trained run's deterministic policy (its ``model.zip``) closed loop with
+every action multiplied by a factor (1, 0.75, 0.5, 0.25; 0 is the unadapted reference) on the
+first 1 000 evaluation TCs where the bars are < 10 cm or >= 25 cm apart, and prints success,
+collision and kinematic retention per factor and gap class: whether the precision misses
+where nothing is near come from the size of the adaptation, and what shrinking it costs
+where the bars are close.
 """
 
 from __future__ import annotations
@@ -174,6 +182,42 @@ def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
         print(f"| {index} | " + " | ".join(cells) + " |")
 
 
+def shrink(run_folder: str, factors=(1.0, 0.75, 0.5, 0.25), episodes: int = 1000) -> None:
+    from pathlib import Path
+
+    from distgprl.agents.sac import RegularisedSAC
+    from distgprl.experiments.runner import deterministic_policy, make_env, resolve_run
+
+    folder = Path(run_folder)
+    config = read_csv(folder / "evaluation.csv")[0]
+    run = resolve_run("dbm", config["method"], int(config["seed"]), config["preset"])
+    env = make_env(run)
+    policy = deterministic_policy(RegularisedSAC.load_saved(folder / "model.zip"))
+    tcs = env.spec_task.evaluation_tcs(episodes)
+    gaps = np.array([float(bar_gap(tc.object_offset[1], tc.obstacle_offset[1])) for tc in tcs])
+    classes = {"bars < 10 cm apart": gaps < 0.10, "bars >= 25 cm apart": gaps >= 0.25}
+    print(f"{run_folder}: policy actions x factor, first {episodes} evaluation TCs")
+    print("| factor | TCs | success | collision | safe success | kinematic retention |")
+    print("|---|---|---|---|---|---|")
+    for factor in factors:
+        outcome = {}
+        for index in np.flatnonzero(gaps < 0.10).tolist() + np.flatnonzero(gaps >= 0.25).tolist():
+            observation, _ = env.reset(options={"tc": tcs[index]})
+            done = False
+            while not done:
+                observation, _, done, _, info = env.step(factor * policy(observation))
+            outcome[index] = (info["success"], info["collision"], info["kinematic_retention"])
+        for label, mask in classes.items():
+            r = np.array([outcome[i] for i in np.flatnonzero(mask)], dtype=float)
+            safe = np.mean(r[:, 0] * (1.0 - r[:, 1]))
+            print(
+                f"| {factor:g} | {label} (n = {len(r)}) | {r[:, 0].mean():.3f} | "
+                f"{r[:, 1].mean():.3f} | {safe:.3f} | {r[:, 2].mean():.2f} |",
+                flush=True,
+            )
+    env.close()
+
+
 if __name__ == "__main__":
     command, *arguments = sys.argv[1:] or ["help"]
     if command == "gap":
@@ -184,6 +228,9 @@ if __name__ == "__main__":
     elif command == "adaptation":
         for argument in arguments:
             adaptation(argument)
+    elif command == "shrink":
+        for argument in arguments:
+            shrink(argument)
     elif command == "oracle":
         for argument in arguments or ["0.03"]:
             oracle(float(argument))

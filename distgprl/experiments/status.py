@@ -16,10 +16,14 @@ the curve success and collision rates and the training wall time so far. The ETA
 steps left times the pace of the latest curve interval (the wall time between the last two
 rows over their steps; the first interval is mostly gradient-free warm-up, so the pace since
 step 0 would promise far too early a finish), or the pace since step 0 with one row.
+`training_left` adds up the whole sweep's remaining training: each unfinished run's steps
+left at its own pace, or, for runs not started, at the median pace of the task's finished
+runs (``done.json``: training wall time over steps).
 """
 
 from __future__ import annotations
 
+import statistics
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -98,7 +102,14 @@ def run_status(job: Job) -> RunStatus:
     total = resolve_run(job.task, job.method, job.seed, job.preset).config.run.total_steps
     total = total if trainable else 0
     if is_complete(job):
-        return RunStatus(job, "done", total, total)
+        pace = None
+        if trainable:
+            try:
+                done = read_json(folder / "done.json")
+                pace = float(done["train_wall_time_s"]) / int(done["steps"])
+            except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
+                pace = None
+        return RunStatus(job, "done", total, total, seconds_per_step=pace)
     marker = folder / ("done.json" if trainable else "summary.json")
     if marker.exists():
         return RunStatus(job, "stale", 0, total)
@@ -140,3 +151,49 @@ def count_states(statuses: Iterable[RunStatus]) -> str:
     done = f"{counts.pop('done', 0)}/{len(statuses)} done"
     rest = [f"{counts[state]} {state}" for state in STATES if counts.get(state)]
     return ", ".join([done, *rest])
+
+
+@dataclass(frozen=True)
+class TrainingLeft:
+    """The sweep's remaining training, in seconds of one worker."""
+
+    seconds: float
+    runs: int
+    unestimated: int
+
+    def describe(self, workers: int = 1) -> str:
+        """e.g. ``"training left: 9 runs, 6.1 h of one worker (3.1 h with 2 workers)"``."""
+        if not self.runs:
+            return "training left: none"
+        hours = self.seconds / 3600.0
+        text = f"training left: {self.runs} runs, {hours:.1f} h of one worker"
+        if workers > 1:
+            text += f" ({hours / workers:.1f} h with {workers} workers)"
+        if self.unestimated:
+            text += f"; {self.unestimated} without an estimate (no finished run of the task)"
+        return text
+
+
+def training_left(statuses: Iterable[RunStatus]) -> TrainingLeft:
+    """Training time left in the sweep (trainable runs not done), at each started run's
+    own pace (`RunStatus.seconds_per_step`), else at the median pace of the finished runs
+    of its task. The finished runs' pace includes whatever shared the machine with them
+    (another worker), so this is an estimate at the same load."""
+    statuses = list(statuses)
+    paces: dict[str, list[float]] = {}
+    for status in statuses:
+        if status.state == "done" and status.seconds_per_step:
+            paces.setdefault(status.job.task, []).append(status.seconds_per_step)
+    median = {task: statistics.median(values) for task, values in paces.items()}
+    seconds, runs, unestimated = 0.0, 0, 0
+    for status in statuses:
+        if status.state == "done" or not status.total_steps:
+            continue
+        runs += 1
+        pace = status.seconds_per_step or median.get(status.job.task)
+        step = status.step if status.state != "stale" else 0
+        if pace is None:
+            unestimated += 1
+            continue
+        seconds += pace * max(status.total_steps - step, 0)
+    return TrainingLeft(seconds, runs, unestimated)

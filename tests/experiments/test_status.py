@@ -1,4 +1,5 @@
-"""Sweep status: each run's state is read correctly from its folder; the sweep reports
+"""Sweep status: each run's state is read correctly from its folder; the training time
+left adds each run's steps left at its own or its task's finished pace; the sweep reports
 running jobs while they run."""
 
 from __future__ import annotations
@@ -12,7 +13,13 @@ from distgprl.cli import app
 from distgprl.experiments import sweep
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
-from distgprl.experiments.status import count_states, run_status, sweep_status
+from distgprl.experiments.status import (
+    RunStatus,
+    count_states,
+    run_status,
+    sweep_status,
+    training_left,
+)
 
 
 def _job(tmp_path, method="gprl-d", seed=0):
@@ -76,6 +83,45 @@ def test_each_state_is_read_from_the_run_folder(tmp_path):
     assert run_status(job).state == "stale"
 
 
+def test_a_finished_run_reports_its_training_pace(tmp_path):
+    job = _job(tmp_path)
+    folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    run = resolve_run("dcp", "gprl-d", 0, "ci")
+    done = {"steps": 300, "train_wall_time_s": 60.0}
+    write_json(folder / "done.json", done, kind="done", config_hash=run.hash)
+    assert run_status(job).seconds_per_step == pytest.approx(0.2)
+
+
+def test_training_left_uses_own_pace_else_the_tasks_finished_median(tmp_path):
+    jobs = {
+        (task, seed): sweep.plan_jobs("ci", ["gprl-d"], [task], [seed], root=tmp_path)[0]
+        for task in ("dcp", "dbm")
+        for seed in range(4)
+    }
+    statuses = [
+        RunStatus(jobs["dcp", 0], "done", 1000, 1000, seconds_per_step=0.1),
+        RunStatus(jobs["dcp", 1], "done", 1000, 1000, seconds_per_step=0.3),
+        RunStatus(jobs["dcp", 2], "done", 1000, 1000, seconds_per_step=5.0),
+        # started: its own pace, 600 steps left
+        RunStatus(jobs["dcp", 3], "partial", 400, 1000, seconds_per_step=0.5),
+        # not started: the median finished dcp pace (0.3 s) for all 1000 steps
+        RunStatus(jobs["dbm", 0], "missing", 0, 1000),
+    ]
+    left = training_left(statuses)
+    assert (left.runs, left.unestimated) == (2, 1)  # dbm has no finished run
+    assert left.seconds == pytest.approx(600 * 0.5)
+    statuses[-1] = RunStatus(jobs["dcp", 3], "missing", 0, 1000)
+    statuses[-2] = RunStatus(jobs["dbm", 1], "running", 100, 1000, seconds_per_step=2.0)
+    left = training_left(statuses)
+    assert (left.runs, left.unestimated) == (2, 0)
+    assert left.seconds == pytest.approx(1000 * 0.3 + 900 * 2.0)
+    assert left.describe(2) == (
+        f"training left: 2 runs, {2100 / 3600:.1f} h of one worker "
+        f"({2100 / 7200:.1f} h with 2 workers)"
+    )
+    assert training_left(statuses[:3]).describe() == "training left: none"
+
+
 def test_count_states_lists_done_out_of_all_then_the_others(tmp_path):
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0, 1], root=tmp_path)
     folder = run_dir(tmp_path, "ci", "dbm", "gprl-d", 1)
@@ -119,7 +165,10 @@ def test_status_command_prints_every_run_and_the_counts(tmp_path):
     assert result.exit_code == 0, result.output
     lines = result.output.strip().splitlines()
     assert any(line.startswith("dcp/gprl-d/seed1") and "missing" in line for line in lines)
-    assert lines[-1] == "0/6 done, 6 missing"
+    assert lines[-2] == "0/6 done, 6 missing"
+    # 4 trainable runs (demo trains nothing), no finished run to estimate their pace from
+    assert lines[-1].startswith("training left: 4 runs, 0.0 h of one worker")
+    assert lines[-1].endswith("4 without an estimate (no finished run of the task)")
     bad = CliRunner().invoke(app, ["status", "--seeds", "x", "--root", str(tmp_path)])
     assert bad.exit_code == 2
 
