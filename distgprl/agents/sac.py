@@ -11,6 +11,10 @@ changes, each marked ``# distgprl:``, are
 
 Networks see only the ``state`` key of the Dict observation (`StateOnlyExtractor`); the
 ``aux`` key (current via-points, step one-hot) feeds the regulariser.
+
+Outside the copy, `RegularisedSAC._setup_learn` gives a silent model (``verbose=0``, no
+tensorboard) an in-memory logger: SB3's default makes an empty ``SB3-<time>`` folder in the
+temporary directory at every ``learn`` call (every run, resume and test).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
@@ -246,6 +251,13 @@ class RegularisedSAC(SAC):
             critic_loss=float(np.mean(critic_losses)),
             ent_coef=float(np.mean(ent_coefs)),
         )
+
+    def _setup_learn(self, *args, **kwargs):
+        # distgprl: SB3's default logger for verbose=0 without tensorboard still creates an
+        # empty tempdir/SB3-<time> folder per learn(); record in memory only instead.
+        if not self._custom_logger and self.verbose == 0 and self.tensorboard_log is None:
+            self.set_logger(Logger(folder=None, output_formats=[]))
+        return super()._setup_learn(*args, **kwargs)
 
     def _excluded_save_params(self) -> list[str]:
         # The regulariser is rebuilt from the task and config, never pickled.

@@ -361,3 +361,20 @@ def test_real_agent_regulariser_only_has_the_terms_the_method_weights(method, ex
         assert total.item() == pytest.approx(reg.weights.lambda_sim * terms["l_sim"], rel=1e-5)
     total.backward()
     assert model.actor.mu.weight.grad.abs().sum() > 0
+
+
+def test_learning_leaves_no_logger_folder_in_the_temp_dir(tmp_path, monkeypatch):
+    """A silent model records its training terms in memory: SB3's default logger would make
+    an empty SB3-<time> folder in the temporary directory at every learn() call."""
+    import tempfile
+
+    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    run = resolve_run("dcp", "dist-gprl", 0, "ci")
+    model = make_agent(make_env(run), run)
+    model.learning_starts = 6
+    model.learn(9)
+    model.learn(3, reset_num_timesteps=False)  # as a resumed run does
+    assert not list(tmp_path.glob("SB3-*"))
+    assert model.logger.name_to_value or model.last_regulariser_terms  # terms still recorded
