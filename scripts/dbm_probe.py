@@ -139,7 +139,8 @@ def oracle(scale: float, episodes: int = 100) -> None:
     )
 
 
-def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
+def trained_policy(run_folder: str):
+    """(env, deterministic policy) of a trained DBM run folder (its ``model.zip``)."""
     from pathlib import Path
 
     from distgprl.agents.sac import RegularisedSAC
@@ -148,8 +149,11 @@ def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
     folder = Path(run_folder)
     config = read_csv(folder / "evaluation.csv")[0]
     run = resolve_run("dbm", config["method"], int(config["seed"]), config["preset"])
-    env = make_env(run)
-    policy = deterministic_policy(RegularisedSAC.load_saved(folder / "model.zip"))
+    return make_env(run), deterministic_policy(RegularisedSAC.load_saved(folder / "model.zip"))
+
+
+def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
+    env, policy = trained_policy(run_folder)
     adapted = np.unique(env.layout.indices)
     displacement = {True: [], False: []}
     for tc in env.spec_task.evaluation_tcs(100):
@@ -183,16 +187,7 @@ def adaptation(run_folder: str, wide_gap: float = 0.2) -> None:
 
 
 def shrink(run_folder: str, factors=(1.0, 0.75, 0.5, 0.25), episodes: int = 1000) -> None:
-    from pathlib import Path
-
-    from distgprl.agents.sac import RegularisedSAC
-    from distgprl.experiments.runner import deterministic_policy, make_env, resolve_run
-
-    folder = Path(run_folder)
-    config = read_csv(folder / "evaluation.csv")[0]
-    run = resolve_run("dbm", config["method"], int(config["seed"]), config["preset"])
-    env = make_env(run)
-    policy = deterministic_policy(RegularisedSAC.load_saved(folder / "model.zip"))
+    env, policy = trained_policy(run_folder)
     tcs = env.spec_task.evaluation_tcs(episodes)
     gaps = np.array([float(bar_gap(tc.object_offset[1], tc.obstacle_offset[1])) for tc in tcs])
     classes = {"bars < 10 cm apart": gaps < 0.10, "bars >= 25 cm apart": gaps >= 0.25}
@@ -201,7 +196,7 @@ def shrink(run_folder: str, factors=(1.0, 0.75, 0.5, 0.25), episodes: int = 1000
     print("|---|---|---|---|---|---|")
     for factor in factors:
         outcome = {}
-        for index in np.flatnonzero(gaps < 0.10).tolist() + np.flatnonzero(gaps >= 0.25).tolist():
+        for index in np.flatnonzero((gaps < 0.10) | (gaps >= 0.25)):
             observation, _ = env.reset(options={"tc": tcs[index]})
             done = False
             while not done:
