@@ -695,11 +695,9 @@ def evaluate_run(
     preset's TCs are a prefix); returns the summary.
     """
     run = resolve_run(task, method, seed, preset)
-    preset_episodes = run.config.run.eval_episodes
-    episodes = episodes or preset_episodes
-    csv_name, summary_name = evaluation_file_names(
-        None if episodes == preset_episodes else episodes
-    )
+    episodes = episodes or run.config.run.eval_episodes
+    supplementary = episodes != run.config.run.eval_episodes
+    csv_name, summary_name = evaluation_file_names(episodes if supplementary else None)
     folder = run_dir(root, preset, task, method, seed)
     env = make_env(run)
     policy = None
@@ -725,7 +723,7 @@ def evaluate_run(
                 f"{model_path}: model spaces do not match the {task}/{method} environment"
             )
         policy = deterministic_policy(model)
-    elif csv_name == "evaluation.csv" or not (folder / "config.json").exists():
+    elif not supplementary or not (folder / "config.json").exists():
         # the reference's config is written with its preset evaluation; a supplementary
         # evaluation leaves an existing one untouched (its own files carry their meta)
         write_json(

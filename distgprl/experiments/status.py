@@ -191,9 +191,8 @@ def training_left(statuses: Iterable[RunStatus]) -> TrainingLeft:
             continue
         runs += 1
         pace = status.seconds_per_step or median.get(status.job.task)
-        step = status.step if status.state != "stale" else 0
         if pace is None:
             unestimated += 1
             continue
-        seconds += pace * max(status.total_steps - step, 0)
+        seconds += pace * max(status.total_steps - status.step, 0)  # stale runs: step 0
     return TrainingLeft(seconds, runs, unestimated)
