@@ -14,6 +14,7 @@ import torch
 from torch import nn
 
 from distgprl.envs.adaptation import ActionLayout
+from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.skill.gp import GPSkill
 
 
@@ -34,9 +35,13 @@ class ActorRegulariser(nn.Module):
         skill: the task's GP skill (maps and demonstration via-points).
         layout: the environment's `ActionLayout` (indices, operators, scale, frozen rows).
         weights: the four weights; a zero weight skips its term entirely.
-        hap_prior: a module with ``loss(x (B, Nq, 3)) -> scalar`` (Eq. hap_compact), or None.
+        hap_prior: a `HapPrior` (Eq. hap_compact), or None.
         n_similarity_samples: T, trajectory samples of Eq. sim_compact.
         n_hap_queries: N_q, positions sampled along the trajectory for L_hap.
+        moving_filter: the environment's `MovingObstacleFilter` (``moving_obstacle_filter()``);
+            with it, ``aux`` must end with the moving obstacles' anchors at the N via-point
+            times (N x 3), and each query x_q uses C_safe without the points the obstacles
+            block at x_q's time (anchor interpolated linearly between via-point times).
     """
 
     def __init__(
@@ -47,6 +52,7 @@ class ActorRegulariser(nn.Module):
         hap_prior: nn.Module | None = None,
         n_similarity_samples: int = 50,
         n_hap_queries: int = 20,
+        moving_filter: MovingObstacleFilter | None = None,
     ) -> None:
         super().__init__()
         self.weights = weights
@@ -74,7 +80,18 @@ class ActorRegulariser(nn.Module):
         buffer("acceleration_map", skill.acceleration_map(tau))
         buffer("demo_velocity", skill.velocity_map(tau) @ demo_centered)
         buffer("demo_acceleration", skill.acceleration_map(tau) @ demo_centered)
-        buffer("hap_map", skill.position_map(np.linspace(0.0, 1.0, n_hap_queries)))
+        hap_tau = np.linspace(0.0, 1.0, n_hap_queries)
+        buffer("hap_map", skill.position_map(hap_tau))
+        self.moving_filter = moving_filter if self.hap_prior is not None else None
+        # Linear interpolation (N_q, N) of the anchors at the via-point times to the queries.
+        via_times = np.asarray(skill.via_times, dtype=float)
+        identity = np.eye(len(via_times))
+        buffer(
+            "anchor_map",
+            np.stack(
+                [np.interp(hap_tau, via_times, identity[j]) for j in range(len(via_times))], 1
+            ),
+        )
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
@@ -112,7 +129,18 @@ class ActorRegulariser(nn.Module):
             terms["l_sim"] = float(l_sim.detach())
         if self.hap_prior is not None:
             positions = (torch.matmul(self.hap_map, centered) + self.prior_mean)[..., :3]
-            l_hap = self.hap_prior.loss(positions)
+            if self.moving_filter is None:
+                l_hap = self.hap_prior.loss(positions)
+            else:
+                n = self.n_via_points
+                start = n * 6 + self.n_steps
+                if aux.shape[1] != start + n * 3:
+                    raise ValueError(
+                        f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
+                        f"{start + n * 3} (Gamma, step one-hot, anchors)"
+                    )
+                anchors = torch.matmul(self.anchor_map, aux[:, start:].reshape(-1, n, 3))
+                l_hap = self.hap_prior.loss(positions, anchors, self.moving_filter)
             total = total + self.weights.lambda_hap * l_hap
             terms["l_hap"] = float(l_hap.detach())
         return total, terms

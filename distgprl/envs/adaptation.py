@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v3`` and ``DistGPRL-DBM-v3`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v4`` and ``DistGPRL-DBM-v4`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from gymnasium import spaces
 from distgprl.agents.methods import MethodSpec, get_method
 from distgprl.config import EnvConfig
 from distgprl.safety.edf import DistanceField
+from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
+from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.rotations import nearest_equivalent_rotvec
 
@@ -142,11 +144,14 @@ class AdaptationEnv(gym.Env):
                                         +-0.8 m, in units of
                                         ``relative_position_scale`` (dimensionless)
     e_g                       3         goal position - TCP position, likewise
-    phi                       1         phase t_s / n_windows in [0, 1)
+    phi                       1         phase t_s / n_windows in [0, 1] (1 only in the
+                                        terminal observation)
     ========================  ========  ==================================================
 
     ``aux`` (not seen by the networks; used by the regularised actor loss): the full
-    current via-points Gamma (N x 6, m and rad, flattened) and a one-hot of the step.
+    current via-points Gamma (N x 6, m and rad, flattened), a one-hot of the step and, for
+    methods with the HAP prior, the moving obstacles' anchor position at every via-point's
+    time (N x 3, m; `moving_obstacle_anchors`), from which L_hap filters C_safe.
 
     **Action**: raw a in [-1, 1]^(L x 6), row-major (via-point, axis). It is scaled per
     axis (``position_action_scale`` m, ``rotation_action_scale`` rad; a third of that per
@@ -173,8 +178,9 @@ class AdaptationEnv(gym.Env):
       ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward; 0 if the
       method has no distance rewards);
     - ``r_ga`` = lambda_ga * mean_j cos(Delta Gamma_j[xyz], grad d(v_j)) over the window
-      via-points, grad d from the same time-indexed field as ``c`` (Eq.
-      grad_alignment_reward; 0 without distance rewards);
+      via-points v_j *before* this step's update (the points ``c`` was observed at), grad d
+      from the same time-indexed field as ``c`` (Eq. grad_alignment_reward; 0 without
+      distance rewards). ``info["r_ga"]`` already includes lambda_ga;
     - ``r_signature`` = signature_weight * signature similarity between the executed
       segment's planned path and the demonstration's (GPRL only).
 
@@ -193,7 +199,14 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m; global
+    **Versions**: v4 — (a) r_ga takes grad d at the window's via-points before the step's
+    update, as Eq. grad_alignment_reward defines v_j (v3 used the updated via-points, so a
+    move across an obstacle's medial axis could be scored against the gradient on the far
+    side); (b) for methods with the HAP prior, ``aux`` carries the moving obstacles'
+    anchors, with which L_hap leaves out the C_safe points the moving obstacles block
+    (v3's L_hap used the static C_safe only). Methods without distance rewards or HAP
+    prior (GPRL, the ``demo`` reference) behave exactly as in v3.
+    v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m; global
     methods with ``episode_range`` — GPRL, Dist-GPRL-Global — 0.1 / 3 m per step): with
     3 cm a windowed via-point could move at most 3 cm (6 cm for an overlap point), while the
     TCs shift the objects by up to 20 cm and the approach via-points before the interaction
@@ -269,10 +282,13 @@ class AdaptationEnv(gym.Env):
         n_points = self.layout.points_per_step
         state_dim = n_points * 6 + n_points + 3 + 3 + 1
         n = self.config.n_via_points
+        # aux: Gamma, the step's one-hot and, for L_hap's moving-obstacle filter (v4), the
+        # moving obstacles' anchor at every via-point time.
+        aux_dim = n * 6 + self.layout.n_steps + (n * 3 if self.method.hap_prior else 0)
         self.observation_space = spaces.Dict(
             {
                 "state": spaces.Box(-np.inf, np.inf, (state_dim,), np.float32),
-                "aux": spaces.Box(-np.inf, np.inf, (n * 6 + self.layout.n_steps,), np.float32),
+                "aux": spaces.Box(-np.inf, np.inf, (aux_dim,), np.float32),
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, (n_points * 6,), np.float32)
@@ -353,6 +369,39 @@ class AdaptationEnv(gym.Env):
                 distance[j], gradient[j] = d[0], g[0]
         return distance, gradient
 
+    def moving_obstacle_anchors(self) -> np.ndarray:
+        """The moving obstacles' anchor at every via-point time, shape (N, 3), m.
+
+        As for ``c``: with ``clearance_timing == "predicted"`` where the obstacles will be
+        when the trajectory reaches via-point j, with ``"current"`` where they are now.
+        """
+        if self.config.clearance_timing == "current":
+            anchor = MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes())
+            return np.tile(anchor, (self.config.n_via_points, 1))
+        times = self._episode_start_time + self.skill.via_times * self.skill.duration
+        return np.stack(
+            [
+                MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes(float(when)))
+                for when in times
+            ]
+        )
+
+    def moving_obstacle_filter(self) -> MovingObstacleFilter:
+        """Which C_safe points the moving obstacles block, given their anchor (L_hap, v4).
+
+        The tool is bounded by a box around the TCP covering its surface points at every
+        demonstration via-point orientation; a C_safe point is blocked when that box would
+        come within ``sd_d_min`` (the d_min of r_sd) of a moving obstacle.
+        """
+        tcp = self.sim.robot.tcp_transform()
+        tool = self.sim.robot.tool_points()
+        in_tcp = (tool - tcp[:3, 3]) @ tcp[:3, :3]  # the tool points in the TCP frame
+        rotations = np.stack([rotvec_to_matrix(v[3:]) for v in self.skill.via_points])
+        offset, half_extents = tool_bounds(in_tcp, rotations)
+        return MovingObstacleFilter(
+            self.sim.moving_obstacle_shapes(), offset, half_extents, self.config.sd_d_min
+        )
+
     def _relative(self, vector: np.ndarray) -> np.ndarray:
         """A relative position (3,), m, clipped and in units of relative_position_scale."""
         clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
@@ -376,8 +425,10 @@ class AdaptationEnv(gym.Env):
         ).astype(np.float32)
         one_hot = np.zeros(self.layout.n_steps)
         one_hot[min(self.step_index, self.layout.n_steps - 1)] = 1.0
-        aux = np.concatenate([self.gamma.ravel(), one_hot]).astype(np.float32)
-        return {"state": state, "aux": aux}
+        parts = [self.gamma.ravel(), one_hot]
+        if self.method.hap_prior:
+            parts.append(self.moving_obstacle_anchors().ravel())
+        return {"state": state, "aux": np.concatenate(parts).astype(np.float32)}
 
     def _segment_poses(self, step: int) -> np.ndarray:
         """The poses to execute for ``step`` (with continuity blending), shape (m, 6)."""
@@ -443,11 +494,13 @@ class AdaptationEnv(gym.Env):
         if self.method.action_mode == "none":  # the `demo` reference executes Gamma_0
             raw = np.zeros_like(raw)
         delta = self.layout.delta(step, raw)  # Eq. transformed_action
-        self.gamma[indices] += delta  # Eq. updated_via_points
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
+            # Eq. grad_alignment_reward: grad d at the window's via-points *before* the update
+            # (v_j in Gamma_{t_s}^W, not the updated ones; v4).
             _, gradient = self.window_distance(indices)
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
+        self.gamma[indices] += delta  # Eq. updated_via_points
         poses = self._segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
 

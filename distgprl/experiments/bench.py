@@ -586,14 +586,16 @@ def _fill_replay_buffer(model, env, n: int, seed: int = 0) -> None:
     n_via, n_steps = env.skill.n_via_points, env.layout.n_steps
     state_dim = env.observation_space["state"].shape[0]
     action_dim = env.action_space.shape[0]
+    env.reset(seed=seed)
+    # Methods with the HAP prior: the moving obstacles' anchors of a real episode start.
+    anchors = env.moving_obstacle_anchors().ravel() if env.method.hap_prior else np.zeros(0)
     for i in range(n):
         one_hot = np.zeros(n_steps)
         one_hot[i % n_steps] = 1.0
+        via_points = env.skill.via_points + rng.normal(0, 0.02, (n_via, 6))
         obs = {
             "state": rng.normal(size=(1, state_dim)).astype(np.float32),
-            "aux": np.concatenate(
-                [(env.skill.via_points + rng.normal(0, 0.02, (n_via, 6))).ravel(), one_hot]
-            )[None].astype(np.float32),
+            "aux": np.concatenate([via_points.ravel(), one_hot, anchors])[None].astype(np.float32),
         }
         action = rng.uniform(-1, 1, (1, action_dim)).astype(np.float32)
         model.replay_buffer.add(obs, obs, action, rng.normal(size=1), np.zeros(1), [{}])

@@ -80,6 +80,22 @@ EVALUATION_FIELDS = (
 )
 
 
+def method_revisions(method: MethodSpec) -> dict[str, int]:
+    """Revisions of the method's parts, for the config hash (environment v4).
+
+    Only the parts a method uses appear, so fixing one part leaves the hashes (and committed
+    results) of methods without it valid: ``r_ga`` 1 — the gradient-alignment reward at the
+    via-points before the update (Eq. grad_alignment_reward); ``l_hap`` 1 — L_hap over C_safe
+    without the points the moving obstacles block.
+    """
+    revisions = {}
+    if method.distance_rewards:
+        revisions["r_ga"] = 1
+    if method.hap_prior:
+        revisions["l_hap"] = 1
+    return revisions
+
+
 def run_dir(root: str | Path, preset: str, task: str, method: str, seed: int) -> Path:
     """``<root>/<preset>/<task>/<method>/seed<k>``."""
     return Path(root) / preset / task / method / f"seed{seed}"
@@ -103,6 +119,9 @@ class RunSpec:
         }
         if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
             data["scene_revision"] = SCENE_REVISIONS[self.task]
+        revisions = method_revisions(self.method)
+        if revisions:
+            data["method_revisions"] = revisions
         return data
 
     @property
@@ -158,6 +177,7 @@ def build_regulariser(env, run: RunSpec):
         hap_prior=hap_prior,
         n_similarity_samples=sac.n_similarity_samples,
         n_hap_queries=sac.hap_n_query,
+        moving_filter=env.moving_obstacle_filter() if method.hap_prior else None,
     )
 
 

@@ -29,7 +29,8 @@ function of the geometry only (2 pi-periodic per joint), as any FK-based checker
 The subspace is expensive: :func:`build_or_load` caches it as a small ``.npz`` keyed by a hash of
 every input (config, obstacles, robot id, joint limits). The static scene is baked in; moving
 obstacles are handled by :func:`filter_with_edf`, which drops C_safe points whose clearance under
-the current distance field is below a margin instead of rebuilding.
+the current distance field is below a margin instead of rebuilding, and, per replay sample in the
+actor loss, by :class:`MovingObstacleFilter`.
 
 Numerics only (numpy/scipy/matplotlib): IK and collision checking are callables supplied by the
 caller (e.g. the simulator's robot and a PyBullet checker).
@@ -62,9 +63,11 @@ __all__ = [
     "SafeSubspace",
     "build_or_load",
     "build_subspace",
+    "MovingObstacleFilter",
     "filter_with_edf",
     "plot_subspace",
     "safe_mask",
+    "tool_bounds",
     "subspace_cache_key",
 ]
 
@@ -590,6 +593,111 @@ def filter_with_edf(
     positions = subspace.unique_positions if isinstance(subspace, SafeSubspace) else subspace
     positions = np.asarray(positions, dtype=float).reshape(-1, 3)
     return positions[safe_mask(positions, field, margin, dynamic_only=dynamic_only)]
+
+
+class MovingObstacleFilter:
+    """Which C_safe points a translating moving obstacle blocks (DESIGN §4, per sample).
+
+    :func:`filter_with_edf` filters C_safe once for the obstacles' current poses; the actor loss
+    needs the filter per replay sample, each with the obstacles elsewhere. The moving obstacles
+    of both tasks only translate, so they are described once by a *template* (their boxes with
+    the anchor, the first box's centre, at the origin) and per sample by the anchor position.
+
+    A C_safe position p (a TCP position) is blocked when the tool held at p would come within
+    ``margin`` of a moving box. The tool is bounded by an axis-aligned box around the TCP
+    (``tool_offset`` centre, ``tool_half_extents``; e.g. :func:`tool_bounds` over the
+    demonstration's orientations), so the test is an EDF query of the template with every box
+    grown by the tool's extent (Minkowski sum; for a rotated box the tool box's extent along
+    the box axes, which is conservative): clearance(p - anchor - tool_offset) < margin.
+
+    Args:
+        shapes: the moving obstacles at some instant; boxes only (the tasks' obstacles).
+        tool_offset: centre of the tool's bounding box relative to the TCP, shape (3,), m.
+        tool_half_extents: its half extents, shape (3,), m (zeros: the TCP point only).
+        margin: required clearance, m (e.g. d_min of Eq. safety_reward).
+    """
+
+    def __init__(
+        self,
+        shapes: Sequence[Shape],
+        tool_offset: np.ndarray,
+        tool_half_extents: np.ndarray,
+        margin: float,
+    ) -> None:
+        if not shapes:
+            raise ValueError("a moving-obstacle filter needs at least one moving shape")
+        if margin <= 0:
+            raise ValueError(f"margin must be positive, got {margin}")
+        offset = np.asarray(tool_offset, dtype=float).reshape(3)
+        grow = np.asarray(tool_half_extents, dtype=float).reshape(3)
+        if np.any(grow < 0):
+            raise ValueError("tool_half_extents must be non-negative")
+        anchor = np.asarray(shapes[0].position, dtype=float)
+        template = []
+        for shape in shapes:
+            if not isinstance(shape, Box):
+                raise TypeError(f"moving obstacle {shape.name!r}: only boxes are supported")
+            rotation = np.asarray(shape.rotation, dtype=float)
+            template.append(
+                replace(
+                    shape,
+                    position=np.asarray(shape.position, dtype=float) - anchor - offset,
+                    rotation=rotation,
+                    half_extents=np.asarray(shape.half_extents, dtype=float)
+                    + np.abs(rotation.T) @ grow,
+                )
+            )
+        self.template = tuple(template)
+        self.margin = float(margin)
+        # Points further than this from the anchor cannot be blocked (a cheap first cut).
+        self._reach = (
+            max(
+                float(np.linalg.norm(b.position) + np.linalg.norm(b.half_extents)) for b in template
+            )
+            + self.margin
+        )
+
+    @staticmethod
+    def anchor(shapes: Sequence[Shape]) -> np.ndarray:
+        """The anchor position (3,), m, of moving obstacles given as ``shapes``."""
+        return np.asarray(shapes[0].position, dtype=float).copy()
+
+    def blocked(self, points: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+        """Boolean mask, shape ``points.shape[:-1]``: the point is blocked.
+
+        Equal to ``DistanceField(template).clearance(points - anchor) < margin``, computed
+        directly for boxes: outside a box its distance is |max(|R^T (p - c)| - h, 0)|.
+
+        Args:
+            points: C_safe positions, shape (..., c, 3), m.
+            anchors: the obstacles' anchor per row, shape (..., 3), m.
+        """
+        points = np.asarray(points, dtype=float)
+        relative = (points - np.asarray(anchors, dtype=float)[..., None, :]).reshape(-1, 3)
+        out = np.zeros(len(relative), dtype=bool)
+        near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self._reach**2)
+        if near.size:
+            candidates = relative[near]
+            hit = np.zeros(len(near), dtype=bool)
+            for box in self.template:
+                local = np.abs((candidates - box.position) @ box.rotation) - box.half_extents
+                np.maximum(local, 0.0, out=local)
+                hit |= np.einsum("ij,ij->i", local, local) < self.margin**2
+            out[near] = hit
+        return out.reshape(points.shape[:-1])
+
+
+def tool_bounds(tool_points: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned box (centre, half extents), each (3,), m, around the TCP containing the tool.
+
+    Args:
+        tool_points: tool points in the TCP frame, shape (m, 3), m.
+        rotations: world-from-TCP rotations the box must cover, shape (r, 3, 3).
+    """
+    world = np.einsum("rij,mj->rmi", np.asarray(rotations, dtype=float), tool_points)
+    lower = world.reshape(-1, 3).min(axis=0)
+    upper = world.reshape(-1, 3).max(axis=0)
+    return (lower + upper) / 2.0, (upper - lower) / 2.0
 
 
 # ---------------------------------------------------------------------------- figure

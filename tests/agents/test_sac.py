@@ -11,6 +11,9 @@ from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.agents.sac import exponential_anneal
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import build_action_layout
+from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_loss import HapPrior
+from distgprl.safety.shapes import Box
 from distgprl.skill.gp import GPSkill, KernelParams
 
 
@@ -290,12 +293,13 @@ def test_real_agent_regulariser_gradient_reaches_every_actor_parameter(dist_gprl
     non-zero gradient, for L_sim and the task's real L_hap alone and together; the critic
     gets none."""
     env, model, obs = dist_gprl_agent
-    steps = obs["aux"][:, -env.layout.n_steps :].argmax(dim=1)
+    n = env.config.n_via_points
+    steps = obs["aux"][:, n * 6 : n * 6 + env.layout.n_steps].argmax(dim=1)
     assert set(steps.tolist()) == set(range(env.layout.n_steps))
     reg = model.regulariser
     assert isinstance(reg, ActorRegulariser)
     assert reg.weights.lambda_sim > 0 and reg.weights.lambda_hap > 0
-    assert reg.hap_prior is not None
+    assert reg.hap_prior is not None and reg.moving_filter is not None
     if terms_used != "both":
         weights = RegulariserWeights(
             lambda_sim=reg.weights.lambda_sim if terms_used == "l_sim" else 0.0,
@@ -310,6 +314,7 @@ def test_real_agent_regulariser_gradient_reaches_every_actor_parameter(dist_gprl
             hap_prior=reg.hap_prior,
             n_similarity_samples=model.regulariser.velocity_map.shape[0],
             n_hap_queries=model.regulariser.hap_map.shape[0],
+            moving_filter=model.regulariser.moving_filter,
         )
 
     model.actor.zero_grad(set_to_none=True)
@@ -378,3 +383,35 @@ def test_learning_leaves_no_logger_folder_in_the_temp_dir(tmp_path, monkeypatch)
     model.learn(3, reset_num_timesteps=False)  # as a resumed run does
     assert not list(tmp_path.glob("SB3-*"))
     assert model.logger.name_to_value or model.last_regulariser_terms  # terms still recorded
+
+
+def test_l_hap_filters_c_safe_with_the_moving_obstacles_anchors_from_aux():
+    """With a moving-obstacle filter, L_hap reads the obstacles' anchors (at the via-point
+    times) from the end of aux: an obstacle parked on the trajectory's nearest C_safe points
+    raises L_hap, one far away leaves it as without the filter; the gradient still reaches the
+    actions; an aux without anchors is a clear error."""
+    skill = small_skill()
+    layout = build_action_layout(skill, EnvConfig(), get_method("dist-gprl"))
+    axes = [np.arange(0.3, 0.71, 0.1), np.arange(-0.3, 0.31, 0.1), np.arange(0.1, 0.41, 0.1)]
+    c_safe = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    prior = HapPrior(c_safe)
+    obstacle = (Box("cube", np.zeros(3), np.eye(3), np.full(3, 0.05), True),)
+    moving = MovingObstacleFilter(obstacle, np.zeros(3), np.full(3, 0.02), margin=0.03)
+    weights = RegulariserWeights(lambda_sim=0.0, lambda_hap=1.0)
+    filtered = ActorRegulariser(skill, layout, weights, hap_prior=prior, moving_filter=moving)
+    plain = ActorRegulariser(skill, layout, weights, hap_prior=prior)
+    base = aux_batch(skill, layout, batch=2)
+    n = skill.n_via_points
+    on_path = np.tile(skill.via_points[:, :3], (1, 1)).ravel()  # the obstacle follows the path
+    far = np.tile([5.0, 5.0, 5.0], n)
+    aux = torch.cat([base, torch.as_tensor(np.stack([on_path, far]), dtype=torch.float32)], 1)
+    actions = torch.zeros(2, layout.points_per_step * 6, requires_grad=True)
+    per_sample = [filtered(aux[i : i + 1], actions[i : i + 1])[1]["l_hap"] for i in range(2)]
+    reference = plain(base[:1], actions[:1])[1]["l_hap"]
+    assert per_sample[0] > reference + 0.01
+    assert per_sample[1] == pytest.approx(reference, abs=1e-6)
+    total, _ = filtered(aux, actions + 0.1)
+    total.backward()
+    assert actions.grad is not None and actions.grad.abs().sum() > 0
+    with pytest.raises(ValueError, match="moving-obstacle filter needs"):
+        filtered(base, actions)

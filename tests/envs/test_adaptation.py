@@ -11,7 +11,9 @@ import distgprl.envs  # noqa: F401  (registers the env ids)
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
+from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.tasks import TaskConfig
+from distgprl.sim.transforms import rotvec_to_matrix
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +33,7 @@ def rollout(env, tc, actions):
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v3", method="dist-gprl").unwrapped
+    env = gym.make("DistGPRL-DCP-v4", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
     env.close()
 
@@ -314,3 +316,79 @@ def test_relative_positions_are_observed_in_units_of_their_scale(dcp_env):
     np.testing.assert_allclose(
         obs["state"][38:41], (dcp_env.sim.goal_position() - tcp) / scale, atol=1e-5
     )
+
+
+@pytest.mark.parametrize("step", [0, 1])
+def test_r_ga_uses_the_gradient_at_the_via_points_before_the_update(step, monkeypatch):
+    """Eq. grad_alignment_reward: r_ga = lambda_ga mean_j cos(Delta Gamma_j, grad d(v_j)) with
+    v_j the window's via-points *before* the step's update (v4). The field is replaced by one
+    whose gradient turns with position (radial about a point below the window), so the
+    gradients at the updated via-points differ and the test tells the two apart."""
+    env = AdaptationEnv("dcp", "dist-gprl")
+    rng = np.random.default_rng(3)
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    for _ in range(step):
+        env.step(rng.uniform(-1, 1, env.action_space.shape))
+    window = env.layout.indices[step]
+    centre = env.gamma[window, :3].mean(axis=0) - np.array([0.0, 0.0, 0.05])
+
+    def radial_field(indices):
+        offset = env.gamma[indices, :3] - centre
+        norm = np.linalg.norm(offset, axis=1)
+        return norm, offset / norm[:, None]
+
+    monkeypatch.setattr(env, "window_distance", radial_field)
+    before = radial_field(window)[1]
+    raw = rng.uniform(-1, 1, env.action_space.shape)
+    delta = env.layout.delta(step, raw)
+    _, _, _, _, info = env.step(raw)
+    after = radial_field(window)[1]
+    cosines = np.sum(delta[:, :3] * before, axis=1) / (
+        np.linalg.norm(delta[:, :3], axis=1) * np.linalg.norm(before, axis=1)
+    )
+    assert info["r_ga"] == pytest.approx(env.config.lambda_ga * cosines.mean(), abs=1e-12)
+    stale = np.sum(delta[:, :3] * after, axis=1) / np.linalg.norm(delta[:, :3], axis=1)
+    assert abs(env.config.lambda_ga * stale.mean() - info["r_ga"]) > 1e-3
+    env.close()
+
+
+@pytest.mark.parametrize("timing", ["predicted", "current"])
+def test_aux_carries_the_moving_obstacles_anchor_at_each_via_point_time(timing):
+    """With the HAP prior, aux ends with the moving obstacles' anchor (their first box's
+    centre) at every via-point time (``predicted``) or now (``current``); without it, aux is
+    Gamma and the one-hot only."""
+    env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(clearance_timing=timing))
+    observation, _ = env.reset(options={"tc": env.spec_task.nominal_tc})
+    n = env.config.n_via_points
+    anchors = observation["aux"][n * 6 + env.layout.n_steps :].reshape(n, 3)
+    sim = env.sim
+    if timing == "predicted":
+        times = env._episode_start_time + env.skill.via_times * env.skill.duration
+        expected = [sim.moving_obstacle_shapes(float(t))[0].position for t in times]
+    else:
+        expected = [sim.moving_obstacle_shapes()[0].position] * n
+    np.testing.assert_allclose(anchors, np.array(expected), atol=1e-6)
+    if timing == "predicted":  # the belt moves the other bar between via-point times
+        assert np.ptp(anchors[:, :2], axis=0).max() > 0.01
+    env.close()
+    plain = AdaptationEnv("dbm", "gprl-d")
+    assert plain.observation_space["aux"].shape == (n * 6 + plain.layout.n_steps,)
+    plain.close()
+
+
+def test_moving_obstacle_filter_blocks_poses_whose_tool_would_touch_the_obstacle(dcp_env):
+    """A TCP position right at the moving cube is blocked, one far away is not, and the tool
+    box covers every tool point at the current pose."""
+    dcp_env.reset(options={"tc": dcp_env.spec_task.nominal_tc})
+    moving = dcp_env.moving_obstacle_filter()
+    anchor = MovingObstacleFilter.anchor(dcp_env.sim.moving_obstacle_shapes())
+    assert moving.blocked(anchor[None, None], anchor[None])[0, 0]
+    far = anchor + np.array([0.0, 0.0, 1.0])
+    assert not moving.blocked(far[None, None], anchor[None])[0, 0]
+    # The tool itself, at the current pose, lies inside the tool box the filter grew by.
+    tcp = dcp_env.sim.robot.tcp_transform()
+    in_tcp = (dcp_env.sim.robot.tool_points() - tcp[:3, 3]) @ tcp[:3, :3]
+    rotations = np.stack([rotvec_to_matrix(v[3:]) for v in dcp_env.skill.via_points])
+    centre, half = tool_bounds(in_tcp, rotations)
+    world = in_tcp @ tcp[:3, :3].T
+    assert np.all(np.abs(world - centre) <= half + 0.02)  # current orientation ~ the demo's

@@ -8,18 +8,21 @@ import numpy as np
 import pytest
 import ur_analytic_ik
 from conftest import SphereRobotChecker, ur5e_ik_all
+from scipy.spatial.transform import Rotation
 
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import (
     HapConfig,
+    MovingObstacleFilter,
     build_or_load,
     build_subspace,
     filter_with_edf,
     plot_subspace,
     safe_mask,
     subspace_cache_key,
+    tool_bounds,
 )
-from distgprl.safety.shapes import Box, with_pose
+from distgprl.safety.shapes import Box, Cylinder, with_pose
 
 
 @pytest.fixture(scope="module")
@@ -179,3 +182,76 @@ def test_unreachable_workspace_gives_an_empty_subspace():
     subspace = build_subspace(config, ur5e_ik_all, SphereRobotChecker(DistanceField([])))
     assert len(subspace) == 0 and subspace.stats.n_reachable == 0
     assert subspace.edges.shape == (0, 2)
+
+
+def _box_box_distance(centre_a, half_a, centre_b, half_b):
+    """Euclidean distance between two axis-aligned boxes (0 when they overlap)."""
+    gap = np.maximum(np.abs(centre_a - centre_b) - (half_a + half_b), 0.0)
+    return np.linalg.norm(gap, axis=-1)
+
+
+def test_moving_filter_blocks_exactly_where_the_tool_box_comes_within_margin():
+    """blocked(p, a) <=> the tool box at p comes within the margin of a moving box anchored at
+    a (independent box-to-box distance, two boxes, random anchors and points)."""
+    rng = np.random.default_rng(0)
+    shapes = (
+        Box("base", np.array([0.4, 0.1, 0.05]), np.eye(3), np.array([0.1, 0.02, 0.02]), True),
+        Box("post", np.array([0.45, 0.1, 0.12]), np.eye(3), np.array([0.01, 0.02, 0.05]), True),
+    )
+    offset, half = np.array([0.0, 0.01, 0.06]), np.array([0.03, 0.02, 0.07])
+    moving = MovingObstacleFilter(shapes, offset, half, margin=0.03)
+    anchors = rng.uniform([0.3, -0.1, 0.0], [0.5, 0.2, 0.1], (200, 3))
+    points = anchors[:, None, :] + rng.uniform(-0.2, 0.2, (200, 16, 3))
+    blocked = moving.blocked(points, anchors)
+    expected = np.zeros(blocked.shape, dtype=bool)
+    for shape in shapes:
+        centre = anchors[:, None, :] + (shape.position - shapes[0].position)
+        expected |= _box_box_distance(points + offset, half, centre, shape.half_extents) < 0.03
+    np.testing.assert_array_equal(blocked, expected)
+    assert 0.05 < blocked.mean() < 0.95  # both outcomes occur
+
+
+def test_moving_filter_matches_the_distance_field_of_its_template_for_rotated_boxes():
+    """blocked == clearance of the grown template (DistanceField) below the margin, also for a
+    rotated box (whose growth by the tool box is conservative)."""
+    rng = np.random.default_rng(1)
+    rotation = Rotation.from_rotvec([0.2, -0.4, 0.7]).as_matrix()
+    shapes = (Box("bar", np.array([0.5, 0.0, 0.1]), rotation, np.array([0.15, 0.02, 0.03]), True),)
+    moving = MovingObstacleFilter(shapes, np.zeros(3), np.array([0.02, 0.02, 0.05]), 0.02)
+    anchors = rng.uniform(-0.1, 0.1, (50, 3)) + shapes[0].position
+    points = anchors[:, None, :] + rng.uniform(-0.3, 0.3, (50, 40, 3))
+    field = DistanceField(moving.template)
+    expected = field.clearance((points - anchors[:, None, :]).reshape(-1, 3)) < 0.02
+    np.testing.assert_array_equal(moving.blocked(points, anchors).ravel(), expected)
+    # Conservative: every point the plain (ungrown) box is within the margin of is blocked.
+    plain = DistanceField(shapes)
+    for anchor, rows in zip(anchors[:5], points[:5], strict=True):
+        moved = DistanceField([with_pose(shapes[0], anchor)])
+        near = moved.clearance(rows) < 0.02
+        assert np.all(moving.blocked(rows[None], anchor[None])[0][near])
+    assert plain.clearance(shapes[0].position[None])[0] < 0  # sanity: the centre is inside
+
+
+def test_moving_filter_rejects_what_it_cannot_represent():
+    box = Box("b", np.zeros(3), np.eye(3), np.full(3, 0.1), True)
+    cylinder = Cylinder("c", np.zeros(3), np.eye(3), 0.05, 0.1, True)
+    with pytest.raises(TypeError, match="only boxes"):
+        MovingObstacleFilter((cylinder,), np.zeros(3), np.zeros(3), 0.03)
+    with pytest.raises(ValueError, match="at least one"):
+        MovingObstacleFilter((), np.zeros(3), np.zeros(3), 0.03)
+    with pytest.raises(ValueError, match="positive"):
+        MovingObstacleFilter((box,), np.zeros(3), np.zeros(3), 0.0)
+
+
+def test_tool_bounds_contain_the_tool_at_every_given_rotation():
+    rng = np.random.default_rng(2)
+    tool = rng.uniform(-0.05, 0.2, (50, 3))
+    rotations = Rotation.from_rotvec(rng.normal(0, 0.5, (6, 3))).as_matrix()
+    centre, half = tool_bounds(tool, rotations)
+    for rotation in rotations:
+        world = tool @ rotation.T
+        assert np.all(np.abs(world - centre) <= half + 1e-12)
+    # Tight: each face touches some rotated tool point.
+    every = np.concatenate([tool @ r.T for r in rotations])
+    np.testing.assert_allclose(every.max(axis=0), centre + half)
+    np.testing.assert_allclose(every.min(axis=0), centre - half)
