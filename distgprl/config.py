@@ -2,7 +2,10 @@
 
 A preset (``experiments/<name>.yaml``) has one mapping per section (``env``, ``sac``,
 ``run``) and optional per-task overrides under ``tasks: {dcp: {env: {...}}}``. Unknown
-keys are an error, so a typo in a preset never silently falls back to a default.
+keys (sections, fields, task names under ``tasks``) are an error, so a typo in a preset
+never silently falls back to a default; so is a value that does not convert to its field's
+type, or a ``clearance_timing`` other than ``"predicted"`` / ``"current"``. Every such error
+is one `UserInputError` line naming the file, the key, the value and what was expected.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from typing import Any
 
 import yaml
 
+from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 
 PRESET_DIR = Path(__file__).resolve().parents[1] / "experiments"
@@ -162,25 +166,64 @@ class Config:
 _SECTIONS = {"env": EnvConfig, "sac": SACConfig, "run": RunConfig}
 
 
-def _apply(section_cls, current, overrides: dict[str, Any], where: str):
+CHOICES: dict[str, tuple[str, ...]] = {"clearance_timing": ("predicted", "current")}
+"""Fields that take one of a few strings; checked when a configuration is loaded."""
+
+
+def _convert(key: str, value: Any, default: Any, where: str) -> Any:
+    """``value`` converted to the type of the field's ``default``, or a `UserInputError`
+    naming the key, the value and the expected type."""
+
+    def bad(expected: str) -> UserInputError:
+        return UserInputError(f"{where}: {key} must be {expected}, got {value!r}")
+
+    if isinstance(default, tuple):
+        if isinstance(value, str | bytes) or not isinstance(value, list | tuple):
+            raise bad("a list")
+        kinds = {type(item) for item in default}
+        if kinds <= {int} and not all(_is_int(item) for item in value):
+            raise bad("a list of integers")
+        return tuple(value)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        return value
+    if isinstance(default, int):
+        if not _is_int(value):
+            raise bad("an integer")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool):
+            raise bad("a number")
+        try:
+            return float(value)
+        except (TypeError, ValueError):
+            raise bad("a number") from None
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise bad("a string")
+        if key in CHOICES and value not in CHOICES[key]:
+            raise bad(" or ".join(repr(choice) for choice in CHOICES[key]))
+        return value
+    return value
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _apply(section_cls, current, overrides: Any, where: str):
+    if not isinstance(overrides, dict):
+        raise UserInputError(f"{where}: a section must be a mapping of keys, got {overrides!r}")
     names = {f.name: f for f in fields(section_cls)}
-    unknown = sorted(set(overrides) - set(names))
+    unknown = sorted(set(overrides) - set(names), key=str)
     if unknown:
         raise UserInputError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(names)}"
+            f"{where}: unknown key(s) {', '.join(map(str, unknown))}; valid: {', '.join(names)}"
         )
-    values = {}
-    for key, value in overrides.items():
-        default = getattr(current, key)
-        if isinstance(default, tuple):
-            value = tuple(value)
-        elif isinstance(default, bool) or not isinstance(default, int | float):
-            pass
-        elif isinstance(default, int) and not isinstance(value, int):
-            raise UserInputError(f"{where}: {key} must be an integer, got {value!r}")
-        elif isinstance(default, float):
-            value = float(value)
-        values[key] = value
+    values = {
+        key: _convert(key, value, getattr(current, key), where) for key, value in overrides.items()
+    }
     return replace(current, **values)
 
 
@@ -195,16 +238,29 @@ def load_config(
         valid = sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
         raise UserInputError(f"unknown preset {preset!r}; valid presets: {', '.join(valid)}")
     data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: a preset must be a mapping of sections, got {data!r}")
+    tasks = data.get("tasks") or {}
+    if not isinstance(tasks, dict):
+        raise UserInputError(f"{path}: tasks must be a mapping of task names, got {tasks!r}")
+    unknown_tasks = sorted(set(tasks) - set(TASK_NAMES), key=str)
+    if unknown_tasks:
+        raise UserInputError(
+            f"{path}: unknown task(s) {', '.join(map(str, unknown_tasks))} under tasks; "
+            f"valid: {', '.join(TASK_NAMES)}"
+        )
     config = Config(preset=preset)
-    layers = [(data, str(path))]
-    if task is not None and task in (data.get("tasks") or {}):
-        layers.append((data["tasks"][task], f"{path}: tasks.{task}"))
+    layers = [(data, str(path), {"tasks"})]
+    if task is not None and task in tasks:
+        layers.append((tasks[task] or {}, f"{path}: tasks.{task}", set()))
     if overrides:
-        layers.append((overrides, "overrides"))
-    for layer, where in layers:
-        unknown = sorted(set(layer) - set(_SECTIONS) - {"tasks"})
+        layers.append((overrides, "overrides", set()))
+    for layer, where, extra in layers:
+        if not isinstance(layer, dict):
+            raise UserInputError(f"{where}: must be a mapping of sections, got {layer!r}")
+        unknown = sorted(set(layer) - set(_SECTIONS) - extra, key=str)
         if unknown:
-            raise UserInputError(f"{where}: unknown section(s) {', '.join(unknown)}")
+            raise UserInputError(f"{where}: unknown section(s) {', '.join(map(str, unknown))}")
         for section, cls in _SECTIONS.items():
             if layer.get(section):
                 updated = _apply(cls, getattr(config, section), layer[section], where)

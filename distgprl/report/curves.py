@@ -1,7 +1,9 @@
 """Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
 
 Each panel shows the mean over seeds and a ± std band of success rate, collision rate and
-episode return against training steps. Seeds are aligned on their common steps.
+episode return against training steps. The band is the sample standard deviation over seeds
+(ddof = 1, as in Table I); a single seed has no band. Seeds are aligned on their common
+steps.
 """
 
 from __future__ import annotations
@@ -61,6 +63,15 @@ def load_curves(root: str | Path, preset: str, task: str, method: str):
     return np.array(common), out
 
 
+def mean_and_band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(mean, sample std with ddof = 1) over seeds (axis 0) of a (seeds, k) array; the std
+    is None (no band) for a single seed."""
+    mean = values.mean(axis=0)
+    if values.shape[0] < 2:
+        return mean, None
+    return mean, values.std(axis=0, ddof=1)
+
+
 def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], title: str):
     import matplotlib
 
@@ -78,13 +89,14 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
             drawn += 1
             for col, (key, label) in enumerate(PANELS):
                 ax = axes[row, col]
-                mean, std = values[key].mean(axis=0), values[key].std(axis=0)
+                mean, std = mean_and_band(values[key])
                 color = f"C{index}"
                 seeds = values[key].shape[0]
                 plural = "s" if seeds != 1 else ""
                 label_text = f"{METHODS[method].label} ({seeds} seed{plural})"
                 ax.plot(steps, mean, color=color, label=label_text)
-                ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, lw=0)
+                if std is not None:
+                    ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, lw=0)
                 ax.set_title(f"{task.upper()}: {label}")
                 ax.set_xlabel("training steps")
         if axes[row, 0].get_legend_handles_labels()[0]:
@@ -95,12 +107,22 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF."""
+    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF.
+
+    Raises:
+        UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
+    """
     import matplotlib.pyplot as plt
 
     from distgprl.data import TASK_NAMES
+    from distgprl.errors import UserInputError
 
-    tasks = [t for t in TASK_NAMES if (Path(root) / preset / t).is_dir()]
+    folder = Path(root) / preset
+    tasks = [t for t in TASK_NAMES if (folder / t).is_dir()]
+    if not tasks:
+        raise UserInputError(
+            f"{folder}: no results of any task ({', '.join(TASK_NAMES)}); run a sweep first"
+        )
     written = []
     for name, methods in FIGURES.items():
         fig, drawn = plot_figure(root, preset, tasks, methods, f"{TITLES[name]} ({preset} preset)")

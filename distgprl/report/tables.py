@@ -3,9 +3,19 @@
 `write_tables` also writes Table I per run and each run's paired comparisons, TC by TC,
 with the `demo` reference and with `dist-gprl` (`distgprl.report.paired`).
 
-Each cell is the mean ± standard deviation over seeds with a 95 % confidence interval
-(Student t over seeds; a single seed has no interval). Rows follow the paper's order,
-then the ablation and the `demo` reference. Pure functions of the files they read.
+Each cell is the mean ± sample standard deviation (ddof = 1) over seeds with a 95 %
+confidence interval (Student t over seeds; a single seed has neither). The CSV has all four
+numbers of every cell. The Markdown and LaTeX tables show the interval, as
+``0.88 ± 0.06 [0.73, 1.00]``, on the Success and Collision columns only (the table is
+copied into the README, and ten columns of intervals would make it unreadable); their
+caption says so. Those displayed intervals are clipped to [0, 1], the range of a rate (the
+CSV keeps the unclipped t-interval); cells of a single seed stay ``mean`` and the seed count
+follows the Success cell in brackets, e.g. ``[3]``. Rows follow the paper's order, then the
+ablation and the `demo` reference. Pure functions of the files they read.
+
+Table II (hardware) rates are over all trials (a refused trial is a failure without
+collision); its MinCl is over the trials that moved the robot only (`moved_robot`), and
+says over how many when that is fewer than the trials.
 """
 
 from __future__ import annotations
@@ -34,6 +44,16 @@ METRICS = (
 """Columns per task: the paper's three, then two it does not tabulate (kinematic retention
 and safe success = success without collision)."""
 
+INTERVAL_METRICS = ("success_rate", "collision_rate")
+"""Metrics whose Markdown and LaTeX cells also show the 95 % interval (clipped to [0, 1])."""
+
+
+def _cell_text(cell: Cell, key: str) -> str:
+    """A Table I cell as the Markdown and LaTeX tables show it."""
+    if key in INTERVAL_METRICS:
+        return cell.text(2, interval=True, bounds=(0.0, 1.0))
+    return cell.text(3 if key == "min_clearance_p5" else 2)
+
 
 @dataclass(frozen=True)
 class Cell:
@@ -45,12 +65,23 @@ class Cell:
     ci_high: float
     n: int
 
-    def text(self, digits: int = 2) -> str:
+    def text(
+        self, digits: int = 2, interval: bool = False, bounds: tuple[float, float] | None = None
+    ) -> str:
+        """``mean ± std`` (``mean`` for one seed, ``–`` for none); with ``interval`` and at
+        least two seeds followed by the 95 % interval ``[low, high]``, clipped to ``bounds``
+        if given."""
         if self.n == 0:
             return "–"
         if self.n == 1:
             return f"{self.mean:.{digits}f}"
-        return f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
+        text = f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
+        if interval:
+            low, high = self.ci_low, self.ci_high
+            if bounds is not None:
+                low, high = max(low, bounds[0]), min(high, bounds[1])
+            text += f" [{low:.{digits}f}, {high:.{digits}f}]"
+        return text
 
 
 def aggregate(values: list[float]) -> Cell:
@@ -198,11 +229,26 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
     return rows, tasks
 
 
+def moved_robot(trial: dict) -> bool:
+    """Whether a hardware trial moved the robot: it finished (status ``ok``) or spent
+    execution time (``execution_s`` > 0; e.g. refused or stopped in a later window after
+    executing the earlier ones). A trial refused in its first window, or stopped or not
+    perceived before any motion, did not move; its recorded clearance is that of the start
+    pose (or infinite), not of a motion."""
+    if trial.get("status") == "ok":
+        return True
+    execution = trial.get("execution_s", "")
+    return execution not in ("", None) and float(execution) > 0.0
+
+
 def hardware_table(root: str | Path) -> list[dict]:
     """Rows of Table II from ``<root>/hardware/<method>/*.csv`` trial files, one per
     (method, backend): trials on the real robot (``ur``) and on the digital twin are never
-    mixed. Refused trials (the safety layer's pre-flight check stopped them before any
-    motion) count as failures without collision and are also counted on their own."""
+    mixed. Refused trials (the safety layer's pre-flight check refused a window's plan)
+    count as failures without collision and are also counted on their own. Success and
+    collision rates are over all trials; MinCl, the 5th percentile of the trials' minimum
+    clearance, only over the ``executed`` trials that moved the robot (`moved_robot`;
+    NaN if none did)."""
     rows = []
     base = Path(root) / "hardware"
     for method in TABLE_ORDER:
@@ -210,8 +256,11 @@ def hardware_table(root: str | Path) -> list[dict]:
         trials = [r for f in files for r in read_csv(f)[1]]
         for backend in sorted({r.get("backend", "unknown") for r in trials}):
             subset = [r for r in trials if r.get("backend", "unknown") == backend]
+            executed = [r for r in subset if moved_robot(r)]
             clearance = [
-                float(r["min_clearance"]) for r in subset if r["min_clearance"] not in ("", "nan")
+                float(r["min_clearance"])
+                for r in executed
+                if r["min_clearance"] not in ("", "nan") and np.isfinite(float(r["min_clearance"]))
             ]
             rows.append(
                 {
@@ -223,6 +272,7 @@ def hardware_table(root: str | Path) -> list[dict]:
                     "success_rate": float(np.mean([float(r["success"]) for r in subset])),
                     "collision_rate": float(np.mean([float(r["collision"]) for r in subset])),
                     "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
+                    "executed": len(executed),
                 }
             )
     return rows
@@ -258,11 +308,14 @@ def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
         for task in tasks:
             n = row.get(f"{task}_seeds", 0)
             for index, (key, _) in enumerate(METRICS):
-                cell = row.get(f"{task}_{key}", aggregate([]))
-                text = cell.text(3 if key == "min_clearance_p5" else 2)
+                text = _cell_text(row.get(f"{task}_{key}", aggregate([])), key)
                 cells.append(f"{text} [{n}]" if index == 0 and n else text)
         table.append(cells)
-    title = f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets)"
+    title = (
+        f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets after "
+        "Success); Success and Collision also give the 95 % t-interval over seeds, "
+        "[low, high] clipped to [0, 1], where there are two or more seeds"
+    )
     return _markdown_table(title, header, table)
 
 
@@ -271,7 +324,9 @@ def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
     lines = [
         "\\begin{table}[htb]",
         "\\centering",
-        f"\\caption{{Simulation results ({preset} preset), mean $\\pm$ std over seeds}}",
+        f"\\caption{{Simulation results ({preset} preset), mean $\\pm$ std over seeds; "
+        "Success and Collision also give the 95\\,\\% t-interval over seeds [low, high], "
+        "clipped to [0, 1], where there are two or more seeds}",
         "\\label{tab:sim_results}",
         f"\\begin{{tabular}}{{{columns}}}",
         "\\toprule",
@@ -285,10 +340,8 @@ def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
         cells = [row["label"].replace("_", "\\_")]
         for task in tasks:
             for key, _ in METRICS:
-                cell = row.get(f"{task}_{key}", aggregate([]))
-                cells.append(
-                    cell.text(3 if key == "min_clearance_p5" else 2).replace("±", "$\\pm$")
-                )
+                text = _cell_text(row.get(f"{task}_{key}", aggregate([])), key)
+                cells.append(text.replace("±", "$\\pm$"))
         lines.append(" & ".join(cells) + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
     return "\n".join(lines)
@@ -301,17 +354,34 @@ HARDWARE_COLUMNS = (
     ("collision_rate", "Collision"),
     ("min_clearance_p5", "MinCl (m)"),
 )
-"""Table II columns after method and backend (MinCl: 5th percentile of the trials' minimum
-clearance, m)."""
+"""Table II columns after method and backend (MinCl: 5th percentile of the minimum
+clearance of the trials that moved the robot, m). The CSV adds ``executed``, the number of
+those trials."""
+
+HARDWARE_CAPTION = (
+    "Hardware trials (DBM); refused trials count as failures; MinCl is over the trials that "
+    "moved the robot (n = their number where fewer than the trials; – if none did)"
+)
+
+
+def _hardware_min_clearance(row: dict) -> str:
+    """The MinCl cell: the value, ``(n=k)`` if only k of the trials moved the robot."""
+    value = row["min_clearance_p5"]
+    text = "–" if np.isnan(value) else f"{value:.3f}"
+    if row["executed"] != row["trials"]:
+        text += f" (n={row['executed']})"
+    return text
 
 
 def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
     buffer = io.StringIO()
-    fields = ["method", "backend", *(key for key, _ in HARDWARE_COLUMNS)]
+    fields = ["method", "backend", *(key for key, _ in HARDWARE_COLUMNS), "executed"]
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
-    writer.writerows(rows)
+    for row in rows:
+        value = row["min_clearance_p5"]
+        writer.writerow({**row, "min_clearance_p5": "" if np.isnan(value) else value})
 
     def cells(row: dict) -> list[str]:
         return [
@@ -321,21 +391,23 @@ def _hardware_texts(rows: list[dict]) -> tuple[str, str, str]:
             str(row["refused"]),
             f"{row['success_rate']:.2f}",
             f"{row['collision_rate']:.2f}",
-            f"{row['min_clearance_p5']:.3f}",
+            _hardware_min_clearance(row),
         ]
 
     header = ["Method", "Backend", *(label for _, label in HARDWARE_COLUMNS)]
-    markdown = _markdown_table(None, header, [cells(row) for row in rows])
+    markdown = _markdown_table(
+        f"Table II: {HARDWARE_CAPTION}", header, [cells(row) for row in rows]
+    )
     lines = [
         "\\begin{table}[htb]",
         "\\centering",
-        "\\caption{Hardware trials (DBM); refused trials count as failures}",
+        f"\\caption{{{HARDWARE_CAPTION.replace('–', '--')}}}",
         "\\label{tab:hardware_results}",
         "\\begin{tabular}{ll" + "c" * len(HARDWARE_COLUMNS) + "}",
         "\\toprule",
         " & ".join(header) + " \\\\",
         "\\midrule",
-        *(" & ".join(cells(row)) + " \\\\" for row in rows),
+        *(" & ".join(cells(row)).replace("–", "--") + " \\\\" for row in rows),
         "\\bottomrule",
         "\\end{tabular}",
         "\\end{table}",

@@ -12,7 +12,7 @@ import pytest
 
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
-from distgprl.report.curves import load_curves
+from distgprl.report.curves import load_curves, mean_and_band, plot_figure
 
 
 def _run(root, method, seed, steps, success, finished=True, task="dcp"):
@@ -98,3 +98,59 @@ def test_tables_and_figures_are_byte_identical_from_another_process(tmp_path, re
     assert list(first) == list(second)
     for name, content in first.items():
         assert content == second[name], name
+
+
+def test_curve_band_is_the_sample_std_over_seeds_and_absent_for_one_seed():
+    """The ± band is the sample standard deviation over seeds (ddof = 1, as Table I), not
+    the population std; a single seed gives the mean and no band."""
+    values = np.array([[0.0, 0.2, 0.6], [0.1, 0.5, 0.9], [0.2, 0.2, 0.3]])
+    mean, std = mean_and_band(values)
+    np.testing.assert_allclose(mean, [0.1, 0.3, 0.6])
+    deviations = values - mean
+    sample_std = np.sqrt((deviations**2).sum(axis=0) / (len(values) - 1))
+    np.testing.assert_allclose(std, sample_std)
+    assert not np.allclose(std, values.std(axis=0))  # the population std differs
+    mean, std = mean_and_band(values[:1])
+    np.testing.assert_array_equal(mean, values[0])
+    assert std is None
+
+
+def test_figure_band_spans_the_sample_std_and_a_single_seed_has_no_band(tmp_path):
+    """The filled band drawn around the mean curve reaches mean ± sample std (ddof = 1);
+    a method with one seed has a curve but no band."""
+    _run(tmp_path, "dist-gprl", 0, [0, 100], [0.2, 0.4])
+    _run(tmp_path, "dist-gprl", 1, [0, 100], [0.4, 0.8])
+    _run(tmp_path, "gprl-d", 0, [0, 100], [0.1, 0.3])
+    fig, drawn = plot_figure(tmp_path, "p", ["dcp"], ("dist-gprl", "gprl-d"), "t")
+    assert drawn == 2
+    success = fig.axes[0]
+    assert len(success.lines) == 2 and len(success.collections) == 1  # gprl-d: no band
+    vertices = success.collections[0].get_paths()[0].vertices
+    sample_std = np.std([[0.2, 0.4], [0.4, 0.8]], axis=0, ddof=1)  # [0.141, 0.283]
+    assert vertices[:, 1].max() == pytest.approx(0.6 + sample_std[1])
+    assert vertices[:, 1].min() == pytest.approx(0.3 - sample_std[0])
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("preset", ["p", "nonexistent"])
+def test_curves_without_results_is_a_clear_user_error_naming_the_folder(tmp_path, preset):
+    """No results under <root>/<preset> (wrong --preset or --root) is a UserInputError
+    naming the folder searched, not matplotlib's "Number of rows must be a positive
+    integer"; the CLI prints it as one line with exit code 2."""
+    from distgprl.errors import UserInputError
+    from distgprl.report.curves import write_curves
+
+    (tmp_path / "p").mkdir()  # the preset folder exists but holds no task
+    with pytest.raises(UserInputError, match=f"{tmp_path / preset}: no results"):
+        write_curves(tmp_path, preset, tmp_path / "out")
+    result = subprocess.run(
+        [sys.executable, "-m", "distgprl.cli", "curves", "--preset", preset]
+        + ["--root", str(tmp_path), "--out-dir", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr and str(tmp_path / preset) in result.stderr

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 
 import numpy as np
@@ -12,7 +13,9 @@ from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.tables import (
     LATE_CURVE_POINTS,
     aggregate,
+    hardware_table,
     late_curve,
+    moved_robot,
     per_seed_rows,
     simulation_table,
     write_tables,
@@ -169,9 +172,10 @@ def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path)
 def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp_path):
     write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
     fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    fields.append("execution_s")
     trials = {
-        "twin": [("ok", 1, 0, 0.02), ("refused", 0, 0, 0.05), ("ok", 1, 1, -0.01)],
-        "ur": [("ok", 0, 0, 0.03)],
+        "twin": [("ok", 1, 0, 0.02, 0.2), ("refused", 0, 0, 0.05, 0.0), ("ok", 1, 1, -0.01, 0.3)],
+        "ur": [("ok", 0, 0, 0.03, 0.2)],
     }
     for backend, outcomes in trials.items():
         rows = [
@@ -183,14 +187,17 @@ def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp
     assert {"table2_hardware.csv", "table2_hardware.md", "table2_hardware.tex"} <= written
     out = tmp_path / "out"
     lines = (out / "table2_hardware.csv").read_text().splitlines()
-    assert lines[0] == "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5"
+    assert lines[0] == (
+        "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5,executed"
+    )
     twin = lines[1].split(",")
     assert twin[:4] == ["dist-gprl", "twin", "3", "1"]
     assert float(twin[4]) == pytest.approx(2 / 3) and float(twin[5]) == pytest.approx(1 / 3)
-    assert float(twin[6]) == pytest.approx(np.percentile([0.02, 0.05, -0.01], 5))
+    assert float(twin[6]) == pytest.approx(np.percentile([0.02, -0.01], 5))  # moved only
+    assert twin[7] == "2"
     assert lines[2].split(",")[:4] == ["dist-gprl", "ur", "1", "0"]
     markdown = (out / "table2_hardware.md").read_text()
-    assert "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 | 0.33 |" in markdown
+    assert "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 | 0.33 | -0.009 (n=2) |" in markdown
     assert "| Dist-GPRL (ours) | ur | 1 | 0 | 0.00 | 0.00 | 0.030 |" in markdown
     latex = (out / "table2_hardware.tex").read_text()
     assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 & 0.33 &" in latex
@@ -208,3 +215,89 @@ def test_table2_disappears_with_its_trial_files(tmp_path):
     written = write_tables(tmp_path, "p", tmp_path / "out")
     assert not any(path.name.startswith("table2") for path in written)
     assert not list((tmp_path / "out").glob("table2_hardware.*"))
+
+
+def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_collision(
+    tmp_path,
+):
+    """With >= 2 seeds the Markdown and LaTeX Success and Collision cells read
+    ``mean ± std [low, high]`` with the Student-t 95 % interval (clipped to [0, 1]), the
+    other columns stay ``mean ± std``, single-seed cells stay ``mean`` with the seed count,
+    the caption says so, and the CSV keeps the unclipped interval."""
+    seeds = {
+        0: summary(0.80, 0.10, 0.010),
+        1: summary(0.90, 0.20, 0.020),
+        2: summary(1.00, 0.30, 0.030),
+    }
+    for seed, document in seeds.items():
+        write_json(tmp_path / "p" / "dcp" / "dist-gprl" / f"seed{seed}" / "summary.json", document)
+    write_json(tmp_path / "p" / "dcp" / "demo" / "seed0" / "summary.json", summary(0.5, 0.4, 0.0))
+    write_tables(tmp_path, "p", tmp_path / "out")
+    half = 4.302652729911275 * 0.1 / np.sqrt(3)  # t_{0.975, 2}; both rates' sample std 0.1
+    assert (0.9 - half, 0.2 + half) == pytest.approx((0.6516, 0.4484), abs=1e-4)
+    success = "0.90 ± 0.10 [0.65, 1.00]"  # t-interval [0.65, 1.15], clipped to the rate's range
+    collision = "0.20 ± 0.10 [0.00, 0.45]"  # t-interval [-0.05, 0.45]
+    markdown = (tmp_path / "out" / "table1_p.md").read_text()
+    assert f"| Dist-GPRL (ours) | {success} [3] | {collision} | 0.020 ± 0.010 | 0.90 ± 0.00 |" in (
+        markdown
+    )
+    assert "| Demo (no adaptation) | 0.50 [1] | 0.40 | 0.000 | 0.90 |" in markdown
+    assert "95 % t-interval" in markdown.splitlines()[0]
+    latex = (tmp_path / "out" / "table1_p.tex").read_text()
+    pm = "$\\pm$"
+    assert (
+        f"Dist-GPRL (ours) & 0.90 {pm} 0.10 [0.65, 1.00] & 0.20 {pm} 0.10 [0.00, 0.45] &" in latex
+    )
+    assert f"[0.00, 0.45] & 0.020 {pm} 0.010 & 0.90 {pm} 0.00 &" in latex
+    assert "Demo (no adaptation) & 0.50 & 0.40 & 0.000 &" in latex
+    assert "95\\,\\% t-interval" in latex
+    with open(tmp_path / "out" / "table1_p.csv", newline="") as handle:
+        ours = {row["method"]: row for row in csv.DictReader(handle)}["dist-gprl"]
+    assert float(ours["dcp_success_rate_ci_high"]) == pytest.approx(0.9 + half, rel=1e-5)
+    assert float(ours["dcp_collision_rate_ci_low"]) == pytest.approx(0.2 - half, rel=1e-5)
+
+
+def test_table2_min_clearance_is_over_trials_that_moved_the_robot_only(tmp_path):
+    """A trial refused in its first window never moved (execution_s 0; its clearance is
+    the start pose's): it counts in the rates but not in MinCl, and the table says over how
+    many trials MinCl is. A trial refused after executing earlier windows did move and
+    counts. With no trial that moved, MinCl is empty / "–", not a number."""
+    write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    fields.append("execution_s")
+    moved = [("ok", 1, 0, 0.012, 0.2), ("ok", 1, 0, 0.004, 0.2), ("refused", 0, 0, 0.008, 0.05)]
+    unmoved = [("refused", 0, 0, 0.1, 0.0), ("refused", 0, 0, 0.1, 0.0)]
+    rows = [dict(zip(fields, (k, "twin", *t), strict=True)) for k, t in enumerate(moved + unmoved)]
+    write_csv(tmp_path / "hardware" / "dist-gprl" / "trials_twin.csv", rows, fields)
+    never = [dict(zip(fields, (k, "twin", *t), strict=True)) for k, t in enumerate(unmoved)]
+    write_csv(tmp_path / "hardware" / "gprl" / "trials_twin.csv", never, fields)
+    table = {row["method"]: row for row in hardware_table(tmp_path)}
+    ours = table["dist-gprl"]
+    assert (ours["trials"], ours["refused"], ours["executed"]) == (5, 3, 3)
+    assert ours["success_rate"] == pytest.approx(2 / 5)  # rates: over all trials
+    ordered = sorted([0.012, 0.004, 0.008])
+    position = 0.05 * (len(ordered) - 1)  # numpy's default (linear) percentile
+    expected = ordered[0] + (position - int(position)) * (ordered[1] - ordered[0])
+    assert ours["min_clearance_p5"] == pytest.approx(expected)
+    assert np.isnan(table["gprl"]["min_clearance_p5"]) and table["gprl"]["executed"] == 0
+    write_tables(tmp_path, "p", tmp_path / "out")
+    out = tmp_path / "out"
+    markdown = (out / "table2_hardware.md").read_text()
+    assert f"| Dist-GPRL (ours) | twin | 5 | 3 | 0.40 | 0.00 | {expected:.3f} (n=3) |" in markdown
+    assert "| GPRL | twin | 2 | 2 | 0.00 | 0.00 | – (n=0) |" in markdown
+    assert "MinCl is over the trials that moved the robot" in markdown.splitlines()[0]
+    latex = (out / "table2_hardware.tex").read_text()
+    assert f"& {expected:.3f} (n=3) \\\\" in latex and "& -- (n=0) \\\\" in latex
+    lines = (out / "table2_hardware.csv").read_text().splitlines()
+    assert lines[1].split(",")[-2:] == ["", "0"]  # gprl first (table order): empty MinCl
+
+
+def test_moved_robot_reads_status_and_execution_time():
+    """``ok`` trials and any with execution time moved; refused-before-motion, stopped
+    before motion and not-perceived trials did not."""
+    assert moved_robot({"status": "ok", "execution_s": ""})
+    assert moved_robot({"status": "refused", "execution_s": "0.069"})
+    assert moved_robot({"status": "stopped", "execution_s": "0.1"})
+    assert not moved_robot({"status": "refused", "execution_s": "0.0"})
+    assert not moved_robot({"status": "not_perceived", "execution_s": "0.0"})
+    assert not moved_robot({"status": "refused"})

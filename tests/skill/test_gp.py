@@ -61,21 +61,51 @@ def test_velocity_and_acceleration_maps_match_finite_differences(length_scale):
     assert rel < 1e-4
 
 
-def test_correlation_operator_symmetric_with_eigenvalues_in_open_unit_interval():
+def independent_kernel(via_times, length_scale):
+    """K, the SE kernel's correlation matrix exp(-(a - b)^2 / (2 l^2)) (unit signal
+    variance) at the via-point times, built element by element."""
+    return np.array(
+        [[np.exp(-((a - b) ** 2) / (2 * length_scale**2)) for b in via_times] for a in via_times]
+    )
+
+
+def independent_correlation_operator(via_times, length_scale, correlation_lambda):
+    """S = K (K + lambda I)^-1 from scratch, without symmetrisation."""
+    k = independent_kernel(via_times, length_scale)
+    return k @ np.linalg.inv(k + correlation_lambda * np.eye(len(via_times)))
+
+
+@pytest.mark.parametrize("correlation_lambda", [1e-1, 1e-2, 1e-3])
+def test_correlation_operator_equals_k_times_inverse_of_k_plus_lambda(correlation_lambda):
+    """`correlation_operator` equals K (K + lambda I)^-1 computed independently from the
+    kernel; that product (never symmetrised) is symmetric, since K and (K + lambda I)^-1
+    commute, with eigenvalues mu / (mu + lambda) in (0, 1) for the eigenvalues mu of K."""
     skill = make_skill()
-    s = skill.correlation_operator(1e-2)
-    np.testing.assert_allclose(s, s.T, atol=1e-12)
-    eigenvalues = np.linalg.eigvalsh(s)
+    reference = independent_correlation_operator(skill.via_times, 0.12, correlation_lambda)
+    np.testing.assert_allclose(
+        skill.correlation_operator(correlation_lambda), reference, atol=1e-10
+    )
+    np.testing.assert_allclose(reference, reference.T, atol=1e-10)
+    eigenvalues = np.sort(np.linalg.eigvals(reference).real)
+    mu = np.linalg.eigvalsh(independent_kernel(skill.via_times, 0.12))
+    np.testing.assert_allclose(eigenvalues, np.sort(mu / (mu + correlation_lambda)), atol=1e-8)
     assert eigenvalues.min() > 0.0 and eigenvalues.max() < 1.0
 
 
-def test_window_sub_block_is_principal_and_contractive():
+def test_window_operator_is_the_principal_block_of_the_independent_global_operator():
+    """S_W of a window is the principal sub-block, at the window's via-point indices, of
+    the global S = K (K + lambda I)^-1 computed independently (Eq. transformed_action,
+    DESIGN §2); it is not the window's own K_W (K_W + lambda I)^-1, and it is contractive
+    (eigenvalues in (0, 1))."""
     skill = make_skill()
-    window = [5, 6, 7, 8, 9]
-    s_w = skill.window_operator(window)
-    np.testing.assert_array_equal(s_w, skill.correlation_operator()[5:10, 5:10])
-    eigenvalues = np.linalg.eigvalsh(s_w)
-    assert eigenvalues.min() > 0.0 and eigenvalues.max() < 1.0
+    full = independent_correlation_operator(skill.via_times, 0.12, 1e-2)
+    for window in ([0, 1, 2, 3, 4], [4, 5, 6, 7, 8], [10, 11, 12, 13, 14]):
+        s_w = skill.window_operator(window)
+        np.testing.assert_allclose(s_w, full[np.ix_(window, window)], atol=1e-10)
+        local = independent_correlation_operator(skill.via_times[window], 0.12, 1e-2)
+        assert np.abs(s_w - local).max() > 1e-3
+        eigenvalues = np.linalg.eigvals(full[np.ix_(window, window)]).real
+        assert eigenvalues.min() > 0.0 and eigenvalues.max() < 1.0
 
 
 def test_correlation_operator_tends_to_identity_as_lambda_vanishes():

@@ -1,0 +1,123 @@
+"""`distgprl.experiments.runner.summarise`: the Table I numbers of one run from its
+per-episode rows, checked against expectations computed here by hand (no numpy
+statistics), on rows as `evaluate_policy` returns them and as the CSV gives them back."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from distgprl.experiments.runner import EVALUATION_FIELDS, summarise
+from distgprl.hardware.safety import SafetyLimits
+
+# success, collision, min_clearance (m), return, kinematic retention, w1, w2, w3, policy (ms),
+# peak joint speed (rad/s)
+EPISODES = [
+    (1, 0, 0.031, 12.0, 0.90, 1.0, 2.0, 3.0, 0.5, 1.2),
+    (1, 1, -0.004, 4.0, 0.80, 1.5, 2.5, float("nan"), 0.5, 2.4),
+    (0, 0, 0.012, -3.0, 0.70, 1.0, 1.0, 1.0, 0.2, 0.9),
+    (0, 1, -0.020, -9.0, 0.60, 2.0, 2.0, 2.0, 0.3, 2.1),
+    (1, 0, 0.025, 11.0, 0.95, 1.0, 1.0, 1.0, 0.4, 1.8),
+    (1, 0, 0.008, 10.0, 0.85, 3.0, 3.0, 3.0, 0.6, 1.1),
+    (0, 0, 0.040, 1.0, 0.75, 0.5, 0.5, 0.5, 0.1, 0.8),
+    (1, 1, 0.001, 5.0, 0.65, 1.0, 1.0, 1.0, 0.2, 3.0),
+    (1, 0, 0.017, 9.0, 0.88, 1.0, 2.0, 1.0, 0.3, 1.5),
+    (0, 0, 0.022, 0.0, 0.92, 2.0, 1.0, 1.0, 0.7, 1.9),
+]
+COLUMNS = (
+    "success",
+    "collision",
+    "min_clearance",
+    "return",
+    "kinematic_retention",
+    "adaptation_ms_w1",
+    "adaptation_ms_w2",
+    "adaptation_ms_w3",
+    "policy_ms",
+    "peak_joint_speed",
+)
+
+
+def rows(as_text: bool = False) -> list[dict]:
+    out = []
+    for index, values in enumerate(EPISODES):
+        row = dict.fromkeys(EVALUATION_FIELDS, 0.0)
+        row["episode"] = index
+        row.update(zip(COLUMNS, values, strict=True))
+        out.append({k: str(v) for k, v in row.items()} if as_text else row)
+    return out
+
+
+def percentile_by_hand(values: list[float], q: float) -> float:
+    """Linear interpolation between order statistics (numpy's default method), written out."""
+    ordered = sorted(values)
+    position = q / 100 * (len(ordered) - 1)
+    low = math.floor(position)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (position - low) * (ordered[high] - ordered[low])
+
+
+def median_by_hand(values: list[float]) -> float:
+    ordered, n = sorted(values), len(values)
+    return ordered[n // 2] if n % 2 else (ordered[n // 2 - 1] + ordered[n // 2]) / 2
+
+
+@pytest.mark.parametrize("as_text", [False, True], ids=["numbers", "csv-strings"])
+def test_summarise_gives_rates_mincl_means_and_safe_success_of_the_episodes(as_text):
+    """success / collision rate = share of episodes; safe success = share with success and
+    no collision; MinCl = 5th percentile (linear interpolation) of the episodes' minimum
+    clearance; means of clearance, return and kinematic retention; medians of adaptation
+    time (three windows, a missing window skipped, plus policy time) and policy time; the
+    95th percentile of the peak joint speed and the share above the 2 rad/s safety limit."""
+    summary = summarise(rows(as_text))
+    success = [e[0] for e in EPISODES]
+    collision = [e[1] for e in EPISODES]
+    clearance = [e[2] for e in EPISODES]
+    assert summary["episodes"] == 10
+    assert summary["success_rate"] == pytest.approx(6 / 10)
+    assert summary["collision_rate"] == pytest.approx(3 / 10)
+    assert sum(success) == 6 and sum(collision) == 3
+    # successes without collision: episodes 0, 4, 5, 8 (1 and 7 collided)
+    assert summary["safe_success_rate"] == pytest.approx(4 / 10)
+    # sorted clearances: -0.020, -0.004, 0.001, ...; position 0.05 * 9 = 0.45
+    expected_p5 = -0.020 + 0.45 * (-0.004 - -0.020)
+    assert percentile_by_hand(clearance, 5) == pytest.approx(expected_p5)
+    assert summary["min_clearance_p5"] == pytest.approx(expected_p5)  # -0.0128
+    assert summary["mean_min_clearance"] == pytest.approx(sum(clearance) / 10)
+    assert summary["mean_return"] == pytest.approx(sum(e[3] for e in EPISODES) / 10)  # 4.0
+    assert summary["mean_kinematic_retention"] == pytest.approx(sum(e[4] for e in EPISODES) / 10)
+    per_episode = [
+        sum(w for w in e[5:8] if not math.isnan(w)) + e[8]  # ms per episode
+        for e in EPISODES
+    ]
+    assert summary["median_adaptation_ms_per_episode"] == pytest.approx(median_by_hand(per_episode))
+    assert summary["median_policy_ms_per_episode"] == pytest.approx(
+        median_by_hand([e[8] for e in EPISODES])
+    )
+    peak = [e[9] for e in EPISODES]
+    assert summary["peak_joint_speed_p95"] == pytest.approx(percentile_by_hand(peak, 95))
+    assert SafetyLimits().max_joint_speed == 2.0
+    assert summary["joint_speed_over_limit_rate"] == pytest.approx(3 / 10)  # 2.4, 2.1, 3.0
+
+
+def test_summarise_leaves_out_joint_speed_when_episodes_do_not_record_it():
+    episodes = rows()
+    episodes[3]["peak_joint_speed"] = ""  # written before the column existed
+    summary = summarise(episodes)
+    assert "peak_joint_speed_p95" not in summary
+    assert "joint_speed_over_limit_rate" not in summary
+    assert summary["success_rate"] == pytest.approx(0.6)
+
+
+def test_summarise_of_a_single_episode_is_that_episode():
+    """One episode: every rate is 0 or 1 and MinCl is its own minimum clearance."""
+    summary = summarise(rows()[1:2])  # success with collision
+    assert (summary["success_rate"], summary["collision_rate"]) == (1.0, 1.0)
+    assert summary["safe_success_rate"] == 0.0
+    assert summary["min_clearance_p5"] == pytest.approx(-0.004)
+
+
+def test_summarise_refuses_an_empty_evaluation():
+    with pytest.raises(ValueError, match="no episodes"):
+        summarise([])

@@ -1,0 +1,106 @@
+"""Preset validation (distgprl/config.py): every mistake in a preset is one clear
+`UserInputError` line naming the key, the value and what was expected, never a silent
+fallback to a default or a raw Python traceback."""
+
+from __future__ import annotations
+
+import pytest
+
+from distgprl import config as config_module
+from distgprl.config import Config, EnvConfig, load_config
+from distgprl.errors import UserInputError
+
+
+@pytest.fixture
+def preset_dir(tmp_path, monkeypatch):
+    """A preset folder of its own; `write(text)` writes ``experiments/t.yaml``."""
+    monkeypatch.setattr(config_module, "PRESET_DIR", tmp_path)
+
+    def write(text: str) -> str:
+        (tmp_path / "t.yaml").write_text(text)
+        return "t"
+
+    return write
+
+
+def test_unknown_task_under_tasks_is_an_error_not_silently_ignored(preset_dir):
+    """A misspelt task (``dmb`` for ``dbm``) under ``tasks:`` is rejected whichever task is
+    loaded, instead of the override silently never applying."""
+    preset = preset_dir("tasks:\n  dmb:\n    run:\n      total_steps: 45000\n")
+    for task in (None, "dcp", "dbm"):
+        with pytest.raises(UserInputError, match=r"unknown task\(s\) dmb under tasks; valid: dcp"):
+            load_config(preset, task=task)
+
+
+def test_known_task_overrides_still_apply(preset_dir):
+    preset = preset_dir("tasks:\n  dbm:\n    run:\n      total_steps: 45000\n  dcp:\n")
+    assert load_config(preset, task="dbm").run.total_steps == 45_000
+    assert load_config(preset, task="dcp").run == Config().run
+
+
+@pytest.mark.parametrize(
+    ("section", "line", "message"),
+    [
+        ("env", "correlation_lambda: abc", "correlation_lambda must be a number, got 'abc'"),
+        ("env", "lambda_ga: [1, 2]", r"lambda_ga must be a number, got \[1, 2\]"),
+        ("sac", "net_arch: 256", "net_arch must be a list, got 256"),
+        ("sac", "net_arch: abc", "net_arch must be a list, got 'abc'"),
+        (
+            "sac",
+            "net_arch: [256, wide]",
+            r"net_arch must be a list of integers, got \[256, 'wide'\]",
+        ),
+        ("run", "total_steps: 30000.5", "total_steps must be an integer, got 30000.5"),
+        ("run", "eval_every: true", "eval_every must be an integer, got True"),
+        ("env", "clearance_timing: 3", "clearance_timing must be a string, got 3"),
+    ],
+)
+def test_a_value_of_the_wrong_type_is_one_line_naming_key_value_and_type(
+    preset_dir, section, line, message
+):
+    """``float("abc")`` / ``tuple(256)`` no longer escape as a raw ValueError / TypeError."""
+    preset = preset_dir(f"{section}:\n  {line}\n")
+    with pytest.raises(UserInputError, match=message) as caught:
+        load_config(preset)
+    assert "\n" not in str(caught.value) and "t.yaml" in str(caught.value)
+
+
+def test_clearance_timing_is_checked_when_the_preset_is_loaded(preset_dir):
+    """Only "predicted" and "current" load; anything else fails at load time (not first
+    when an environment is built)."""
+    preset = preset_dir("env:\n  clearance_timing: predicetd\n")
+    with pytest.raises(
+        UserInputError, match="clearance_timing must be 'predicted' or 'current', got 'predicetd'"
+    ):
+        load_config(preset)
+    with pytest.raises(UserInputError, match="clearance_timing must be"):
+        load_config(preset_dir(""), overrides={"env": {"clearance_timing": "now"}})
+    for timing in ("predicted", "current"):
+        preset = preset_dir(f"env:\n  clearance_timing: {timing}\n")
+        assert load_config(preset).env.clearance_timing == timing
+
+
+def test_valid_values_convert_as_before(preset_dir):
+    """Integers (and YAML 1.1's unsigned exponents like ``1e-2``, which PyYAML reads as
+    strings) for float fields become floats and lists become tuples, so a preset
+    spelling a default value gives exactly the default configuration (and its hash)."""
+    preset = preset_dir(
+        "env:\n  correlation_lambda: 1e-2\n  sd_beta: 2.0e-4\n  progress_weight: 10\n"
+        "sac:\n  net_arch: [256, 256]\n"
+    )
+    config = load_config(preset)
+    assert config.env == EnvConfig() and config.sac == Config().sac
+    assert isinstance(config.env.progress_weight, float)
+    assert config.to_dict() == {**Config().to_dict(), "preset": "t"}
+
+
+def test_sections_and_task_entries_must_be_mappings(preset_dir):
+    for text, message in [
+        ("env: 5\n", "a section must be a mapping of keys, got 5"),
+        ("tasks: [dcp]\n", r"tasks must be a mapping of task names, got \['dcp'\]"),
+        ("tasks:\n  dbm: 7\n", "tasks.dbm: must be a mapping of sections, got 7"),
+        ("- env\n", "a preset must be a mapping of sections"),
+    ]:
+        preset = preset_dir(text)
+        with pytest.raises(UserInputError, match=message):
+            load_config(preset, task="dbm")
