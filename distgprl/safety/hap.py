@@ -649,8 +649,15 @@ class MovingObstacleFilter:
             )
         self.template = tuple(template)
         self.margin = float(margin)
+        self._centres = np.stack([b.position for b in template])
+        self._rotations = np.stack([b.rotation for b in template])
+        self._half_extents = np.stack([b.half_extents for b in template])
+        self._axis_aligned = bool(np.allclose(self._rotations, np.eye(3)))
+        lower = (self._centres - self._half_extents).min(axis=0) - self.margin
+        upper = (self._centres + self._half_extents).max(axis=0) + self.margin
+        self._middle, self._span = (lower + upper) / 2.0, (upper - lower) / 2.0
         # Points further than this from the anchor cannot be blocked (a cheap first cut).
-        self._reach = (
+        self.reach = (
             max(
                 float(np.linalg.norm(b.position) + np.linalg.norm(b.half_extents)) for b in template
             )
@@ -675,15 +682,19 @@ class MovingObstacleFilter:
         points = np.asarray(points, dtype=float)
         relative = (points - np.asarray(anchors, dtype=float)[..., None, :]).reshape(-1, 3)
         out = np.zeros(len(relative), dtype=bool)
-        near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self._reach**2)
+        if self._axis_aligned:  # inside the grown boxes' common bounding box
+            excess = np.abs(relative - self._middle) - self._span
+            near = np.flatnonzero((excess[:, 0] < 0) & (excess[:, 1] < 0) & (excess[:, 2] < 0))
+        else:
+            near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self.reach**2)
         if near.size:
-            candidates = relative[near]
-            hit = np.zeros(len(near), dtype=bool)
-            for box in self.template:
-                local = np.abs((candidates - box.position) @ box.rotation) - box.half_extents
-                np.maximum(local, 0.0, out=local)
-                hit |= np.einsum("ij,ij->i", local, local) < self.margin**2
-            out[near] = hit
+            local = relative[near][:, None, :] - self._centres  # (m, boxes, 3)
+            if not self._axis_aligned:
+                local = np.einsum("mbi,bij->mbj", local, self._rotations)
+            local = np.abs(local, out=local) - self._half_extents
+            np.maximum(local, 0.0, out=local)
+            squared = np.einsum("mbi,mbi->mb", local, local)
+            out[near] = (squared < self.margin**2).any(axis=1)
         return out.reshape(points.shape[:-1])
 
 

@@ -162,6 +162,10 @@ class HapPrior:
         centres = self._lower + self.resolution * (cells + 0.5)
         _, index = self._tree.query(centres, k=count, workers=-1)
         self._table = np.ascontiguousarray(np.asarray(index, dtype=np.int64).reshape(-1, count))
+        self._cell_centres = centres
+        self._wide_table: np.ndarray | None = None
+        # Largest distance from each cell centre to its candidates.
+        self._cell_radius = np.linalg.norm(points[self._table] - centres[:, None, :], axis=2).max(1)
         self._strides = np.array([self._shape[1] * self._shape[2], self._shape[2], 1])
 
     def _exact(self, positions: np.ndarray) -> torch.Tensor:
@@ -180,6 +184,36 @@ class HapPrior:
         cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
         np.clip(cell, 0, self._shape - 1, out=cell)
         return torch.from_numpy(self._table[cell @ self._strides])
+
+    def _wide_neighbours(self, positions: np.ndarray) -> np.ndarray:
+        """The ``fallback_candidates`` nearest C_safe indices (n, c) of positions (n, 3).
+
+        ``"grid"``: a second lookup table of the cell centres' nearest points (built on first
+        use); ``"kdtree"``: exact.
+        """
+        count = min(self.fallback_candidates, len(self.points_numpy))
+        if self.neighbour_search == "kdtree":
+            _, wide = self._tree.query(positions, k=count)
+            return np.asarray(wide, dtype=np.int64).reshape(len(positions), count)
+        if self._wide_table is None:
+            _, wide = self._tree.query(self._cell_centres, k=count, workers=-1)
+            self._wide_table = np.ascontiguousarray(
+                np.asarray(wide, dtype=np.int64).reshape(-1, count)
+            )
+        cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
+        np.clip(cell, 0, self._shape - 1, out=cell)
+        return self._wide_table[cell @ self._strides]
+
+    def _candidate_radius(self, positions: np.ndarray, index: torch.Tensor) -> np.ndarray:
+        """An upper bound (n,), m, on the distance from each query to its candidates."""
+        if self.neighbour_search == "grid":
+            cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
+            np.clip(cell, 0, self._shape - 1, out=cell)
+            flat = cell @ self._strides
+            centre = self._lower + self.resolution * (cell + 0.5)
+            return np.linalg.norm(positions - centre, axis=1) + self._cell_radius[flat]
+        candidates = self.points_numpy[index.numpy()]
+        return np.linalg.norm(candidates - positions[:, None, :], axis=2).max(axis=1)
 
     def _softmin(
         self, x: torch.Tensor, index: torch.Tensor, blocked: np.ndarray | None = None
@@ -232,7 +266,16 @@ class HapPrior:
         anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
         if len(anchors) != len(positions):
             raise ValueError(f"{len(anchors)} anchors for {len(positions)} query positions")
-        blocked = moving.blocked(self.points_numpy[index.numpy()], anchors)
+        # Only rows whose candidates can reach the obstacles need the test (a cheap bound:
+        # candidate-to-query distance <= the row's candidate radius).
+        blocked = np.zeros(index.shape, dtype=bool)
+        near = np.flatnonzero(
+            np.linalg.norm(positions - anchors, axis=1)
+            < moving.reach + self._candidate_radius(positions, index)
+        )
+        if near.size:
+            rows_index = index.numpy()[near]
+            blocked[near] = moving.blocked(self.points_numpy[rows_index], anchors[near])
         short = (~blocked).sum(axis=1) < self.k
         values = flat.new_zeros(len(flat))
         rows = np.flatnonzero(~short)
@@ -242,9 +285,7 @@ class HapPrior:
         empty = 0
         if short.any():
             rows = np.flatnonzero(short)
-            count = min(self.fallback_candidates, len(self.points_numpy))
-            _, wide = self._tree.query(positions[rows], k=count)
-            wide = np.asarray(wide, dtype=np.int64).reshape(len(rows), count)
+            wide = self._wide_neighbours(positions[rows])
             wide_blocked = moving.blocked(self.points_numpy[wide], anchors[rows])
             has_free = ~wide_blocked.all(axis=1)
             empty = int((~has_free).sum())
