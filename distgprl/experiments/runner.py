@@ -26,6 +26,7 @@ import os
 import pickle
 import random
 import shutil
+import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -135,6 +136,13 @@ def resolve_run(
     """Validate names and resolve the configuration of a run."""
     check_task_name(task)
     spec = get_method(method)
+    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED
+
+    if int(seed) in (EVALUATION_SEED, TRAINING_CURVE_SEED):
+        raise UserInputError(
+            f"seed {seed} is reserved: it draws the evaluation / learning-curve TCs, which no "
+            f"run may train on"
+        )
     overrides = {"run": {"total_steps": steps}} if steps is not None else None
     config = load_config(preset, task=task, overrides=overrides)
     return RunSpec(task, spec, int(seed), config)
@@ -380,6 +388,17 @@ def _settle_checkpoint(paths: dict[str, Path]) -> None:
         (paths["dir"] / temporary).unlink(missing_ok=True)
 
 
+def _trained_steps(progress: Path) -> int:
+    """The last step a run's ``progress.csv`` recorded (0 if absent or empty)."""
+    if not progress.exists():
+        return 0
+    try:
+        _, rows = read_csv(progress)
+    except (OSError, ValueError):
+        return 0
+    return max((int(row["step"]) for row in rows), default=0)
+
+
 def has_checkpoint(folder: Path) -> bool:
     """Whether the run has a checkpoint to resume from (settling an interrupted save)."""
     paths = _checkpoint_paths(folder)
@@ -594,6 +613,16 @@ def _train_locked(
             _, progress_rows = read_csv(folder / "progress.csv")
             progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
     else:
+        lost = _trained_steps(folder / "progress.csv") if resume else 0
+        if lost:
+            # Nothing to resume from although the run had trained (checkpoints are not kept
+            # with the results, e.g. a new machine): it restarts, visibly and on record.
+            print(
+                f"warning: {folder}: no checkpoint in {paths['dir']}; the run had reached step "
+                f"{lost} and restarts from step 0",
+                file=sys.stderr,
+            )
+            resumes = [{"step": 0, "exact": False, "restarted_after_step": lost}]
         for stale in (folder / "progress.csv", paths["dir"]):
             if stale.is_dir():
                 shutil.rmtree(stale)

@@ -249,9 +249,9 @@ class HapPrior:
         query), the soft-min runs over C_safe without the points the moving obstacles block at
         that query's anchor (DESIGN §4): blocked candidates are left out; a query with fewer
         than k free candidates searches the ``fallback_candidates`` nearest C_safe points
-        exactly; a query with no free point among those (it lies deep inside the obstacles'
-        blocked zone) gets 0, i.e. no pull (:attr:`last_moving_counts` counts such queries).
-        In ``"grid"`` mode the free candidates approximate the filtered kNN (they are the
+        (`_wide_neighbours`); a query with no free point among those (it lies deep inside the
+        obstacles' blocked zone) gets 0, i.e. no pull (:attr:`last_moving_counts` counts such
+        queries). In ``"grid"`` mode the free candidates approximate the filtered kNN (they are the
         cell centre's nearest points): the soft-min is within ~2.5 mm of the exact one.
         """
         flat = x.reshape(-1, 3)

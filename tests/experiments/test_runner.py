@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+
 import numpy as np
 import pytest
 
@@ -102,6 +104,33 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
 def _actor_parameters(folder):
     model = _load_model(folder / "model.zip")
     return [p.detach().numpy().copy() for p in model.actor.parameters()]
+
+
+def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
+    tmp_path, monkeypatch, capsys
+):
+    """A killed run whose checkpoint is gone (checkpoints stay on the machine that trained)
+    restarts from step 0 with a warning naming the lost step, and done.json records it."""
+    original = runner.save_checkpoint
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):  # killed at the checkpoint of step 120
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    shutil.rmtree(runner.checkpoint_dir(folder))
+    capsys.readouterr()
+    train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    assert "reached step 120 and restarts from step 0" in capsys.readouterr().err
+    assert read_json(folder / "done.json")["resumes"] == [
+        {"step": 0, "exact": False, "restarted_after_step": 120}
+    ]
+    _, progress = read_csv(folder / "progress.csv")
+    assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
 
 def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeypatch):
@@ -297,3 +326,14 @@ def test_incompatible_model_file_is_a_clear_error(tmp_path):
     (folder / "model.zip").write_bytes(b"junk")
     with pytest.raises(UserInputError, match="cannot load model"):
         runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+
+
+def test_the_evaluation_and_curve_seeds_are_reserved():
+    """No run may use the seeds that draw the evaluation or learning-curve TCs (training
+    on them would train on the test set)."""
+    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED
+
+    for seed in (EVALUATION_SEED, TRAINING_CURVE_SEED):
+        with pytest.raises(UserInputError, match="reserved"):
+            runner.resolve_run("dcp", "dist-gprl", seed, "ci")
+    assert runner.resolve_run("dcp", "dist-gprl", 3, "ci").seed == 3
