@@ -291,21 +291,38 @@ def run_trials(
     return TrialReport(rows, path, summarise_trials(rows))
 
 
+def moved_robot(trial: dict[str, Any]) -> bool:
+    """Whether a hardware trial moved the robot: it finished (status ``ok``) or spent
+    execution time (``execution_s`` > 0; e.g. refused or stopped in a later window after
+    executing the earlier ones). A trial refused in its first window, or stopped or not
+    perceived before any motion, did not move; its recorded clearance is that of the start
+    pose (or infinite), not of a motion."""
+    if trial.get("status") == "ok":
+        return True
+    execution = trial.get("execution_s", "")
+    return execution not in ("", None) and float(execution) > 0.0
+
+
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate, MinCl (5th percentile of min clearance), counts."""
+    """Success rate, collision rate (over judged trials), MinCl (5th percentile of min
+    clearance, over the trials that moved the robot, `moved_robot`; as Table II), counts."""
     executed = [r for r in rows if r["success"] != ""]  # judged: ran, stopped or refused
     if not executed:
         return {"trials": len(rows), "judged": 0}
-    clearance = np.array([float(r["min_clearance"]) for r in executed])
-    return {
+    moved = [r for r in executed if moved_robot(r)]
+    summary = {
         "trials": len(rows),
         "judged": len(executed),
+        "moved": len(moved),
         "refused": sum(1 for r in rows if r["status"] == "refused"),
         "success_rate": float(np.mean([float(r["success"]) for r in executed])),
         "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
-        "min_clearance_p5": float(np.percentile(clearance, 5)),
         "mean_trial_s": float(np.mean([float(r["trial_s"]) for r in rows])),
     }
+    if moved:
+        clearance = [float(r["min_clearance"]) for r in moved]
+        summary["min_clearance_p5"] = float(np.percentile(clearance, 5))
+    return summary
 
 
 def _one_trial(

@@ -32,6 +32,7 @@ from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
+from distgprl.hardware.trials import moved_robot
 from distgprl.report.paired import REFERENCES, paired_rows, paired_texts, supplementary_sizes
 
 METRICS = (
@@ -227,18 +228,6 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
                 row[f"{task}_{key}"] = aggregate([s[key] for s in seeds if key in s])
         rows.append(row)
     return rows, tasks
-
-
-def moved_robot(trial: dict) -> bool:
-    """Whether a hardware trial moved the robot: it finished (status ``ok``) or spent
-    execution time (``execution_s`` > 0; e.g. refused or stopped in a later window after
-    executing the earlier ones). A trial refused in its first window, or stopped or not
-    perceived before any motion, did not move; its recorded clearance is that of the start
-    pose (or infinite), not of a motion."""
-    if trial.get("status") == "ok":
-        return True
-    execution = trial.get("execution_s", "")
-    return execution not in ("", None) and float(execution) > 0.0
 
 
 def hardware_table(root: str | Path) -> list[dict]:

@@ -195,3 +195,31 @@ def test_unreachable_robot_is_a_user_error(tmp_path):
             root=tmp_path,
             rtde_factory=unreachable,
         )
+
+
+def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
+    """The CLI's trial summary uses Table II's MinCl: the 5th percentile over trials that
+    moved the robot only (a refusal before any motion keeps the start pose's clearance)."""
+    from distgprl.hardware.trials import summarise_trials
+
+    def row(status, execution, clearance, success="0", collision="0"):
+        return {
+            "status": status,
+            "execution_s": execution,
+            "min_clearance": clearance,
+            "success": success,
+            "collision": collision,
+            "trial_s": "1.0",
+        }
+
+    rows = [
+        row("ok", "2.0", "0.010", success="1"),
+        row("refused", "0.0", "0.060"),  # refused before moving: start-pose clearance
+        row("refused", "0.7", "-0.002"),  # refused in a later window, after moving
+    ]
+    summary = summarise_trials(rows)
+    assert summary["judged"] == 3 and summary["moved"] == 2 and summary["refused"] == 2
+    assert summary["min_clearance_p5"] == pytest.approx(np.percentile([0.010, -0.002], 5))
+    assert summary["success_rate"] == pytest.approx(1 / 3)
+    only_refused = summarise_trials([row("refused", "0.0", "0.060")])
+    assert only_refused["moved"] == 0 and "min_clearance_p5" not in only_refused
