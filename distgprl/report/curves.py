@@ -109,6 +109,9 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF.
 
+    A figure none of whose methods has a finished run is not drawn, and an earlier file of
+    it is removed (figures are functions of the current results only).
+
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
     """
@@ -141,5 +144,8 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
                         Path(out_dir) / f"{name}_{preset}.{suffix}", buffer.getvalue()
                     )
                 )
+        else:  # nothing to draw: an earlier figure would no longer match the results
+            for suffix in ("png", "pdf"):
+                (Path(out_dir) / f"{name}_{preset}.{suffix}").unlink(missing_ok=True)
         plt.close(fig)
     return written

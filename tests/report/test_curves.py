@@ -154,3 +154,18 @@ def test_curves_without_results_is_a_clear_user_error_naming_the_folder(tmp_path
     )
     assert result.returncode == 2
     assert "Traceback" not in result.stderr and str(tmp_path / preset) in result.stderr
+
+
+def test_a_figure_without_any_finished_run_is_removed_not_left_stale(tmp_path):
+    """When no method of a figure has a finished run any more (say, its runs were archived
+    for a re-run), `write_curves` removes the figure's earlier files instead of leaving them."""
+    from distgprl.report.curves import write_curves
+
+    _run(tmp_path, "gprl", 0, [0, 100], [0.1, 0.3])
+    out = tmp_path / "figures"
+    out.mkdir()
+    for suffix in ("png", "pdf"):
+        (out / f"hap_effect_p.{suffix}").write_bytes(b"an old figure")
+    written = write_curves(tmp_path, "p", out)
+    assert not (out / "hap_effect_p.png").exists() and not (out / "hap_effect_p.pdf").exists()
+    assert out / "all_methods_p.png" in written
