@@ -106,11 +106,9 @@ def _actor_parameters(folder):
     return [p.detach().numpy().copy() for p in model.actor.parameters()]
 
 
-def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
-    tmp_path, monkeypatch, capsys
-):
-    """A killed run whose checkpoint is gone (checkpoints stay on the machine that trained)
-    restarts from step 0 with a warning naming the lost step, and done.json records it."""
+def _kill_at_the_first_checkpoint(root, monkeypatch) -> None:
+    """Train a 240-step dist-gprl run under ``root`` and kill it right after its step-120
+    checkpoint is written."""
     original = runner.save_checkpoint
 
     def save_then_die(folder, model, env, extra):
@@ -118,9 +116,17 @@ def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):  # killed at the checkpoint of step 120
-        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    with pytest.raises(KeyboardInterrupt):
+        train(root, "dist-gprl", steps=240, evaluate_after=False)
     monkeypatch.setattr(runner, "save_checkpoint", original)
+
+
+def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
+    tmp_path, monkeypatch, capsys
+):
+    """A killed run whose checkpoint is gone (checkpoints stay on the machine that trained)
+    restarts from step 0 with a warning naming the lost step, and done.json records it."""
+    _kill_at_the_first_checkpoint(tmp_path, monkeypatch)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     shutil.rmtree(runner.checkpoint_dir(folder))
     capsys.readouterr()
@@ -136,16 +142,7 @@ def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
 def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeypatch):
     """Same seed, same result, however often the run was killed and resumed."""
     whole = train(tmp_path / "whole", "dist-gprl", steps=240, evaluate_after=False)
-    original = runner.save_checkpoint
-
-    def save_then_die(folder, model, env, extra):
-        original(folder, model, env, extra)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):  # killed at the checkpoint of step 120
-        train(tmp_path / "killed", "dist-gprl", steps=240, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
+    _kill_at_the_first_checkpoint(tmp_path / "killed", monkeypatch)
     resumed = train(tmp_path / "killed", "dist-gprl", steps=240, evaluate_after=False, resume=True)
     _, rows_whole = read_csv(whole / "progress.csv")
     _, rows_resumed = read_csv(resumed / "progress.csv")
