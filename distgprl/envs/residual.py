@@ -48,9 +48,10 @@ class ResidualEnv(AdaptationEnv):
     with N = 15 Gaussian radial basis functions phi_j centred at the via-point times
     (width = their spacing) and residual weights w (N x 6, m and rad), all zero at the
     start of an episode (a zero action executes the nominal trajectory exactly). RL step
-    k sets the weights of the same windows as Dist-GPRL (W_k, L = 5, one-point overlap)
+    k adds to the weights of the same windows as Dist-GPRL (W_k, L = 5, one-point overlap)
     from a raw action a in [-1, 1]^(L x 6) scaled per axis — no covariance transform —
-    and the same segments are executed with the same blending.
+    and the same segments are executed with the same blending (the overlap via-point's
+    weight accumulates both windows' updates).
 
     **Observation** (``state``): the residual-corrected poses at the window's basis
     centres (L x 6, standardised as in `AdaptationEnv`), the EDF clearance at them (L),
