@@ -15,6 +15,7 @@ import numpy as np
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.experiments.results import atomic_write_bytes, read_csv
+from distgprl.report.runs import select_runs
 
 PANELS = (
     ("success_rate", "success rate"),
@@ -35,12 +36,14 @@ FIGURES = {
 
 
 def load_curves(root: str | Path, preset: str, task: str, method: str):
-    """(steps (k,), {metric: (seeds, k)}) over the finished seeds (with ``done.json``) of a
-    run, on their common steps. Runs still in progress are left out."""
+    """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
+    configuration (`select_runs`), on their common steps. Runs still in progress are left
+    out."""
+    current = select_runs(root, preset, marker="done.json").current
     files = sorted(
         path
         for path in (Path(root) / preset / task / method).glob("seed*/progress.csv")
-        if (path.parent / "done.json").exists()
+        if path.parent in current
     )
     series = []
     for path in files:

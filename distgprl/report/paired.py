@@ -35,6 +35,7 @@ from distgprl.experiments.runner import (
     evaluation_file_names,
     is_safe_success,
 )
+from distgprl.report.runs import select_runs
 
 UNADAPTED = "demo"
 """The unadapted reference: evaluated once per task (seed 0), paired with every seed."""
@@ -114,7 +115,8 @@ def paired_rows(
 ) -> list[dict]:
     """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
     on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
-    run has been evaluated; the reference's own runs and `UNADAPTED` are not rows. In task,
+    run has been evaluated (both among the runs that count, `select_runs`); the reference's
+    own runs and `UNADAPTED` are not rows. In task,
     table and seed order, outcomes in `OUTCOMES` order. ``episodes``: None pairs the
     preset's evaluations; N pairs the supplementary evaluations on N TCs.
 
@@ -127,6 +129,7 @@ def paired_rows(
     base = Path(root) / preset
     file_name = evaluation_file_names(episodes)[0]
     references: dict[Path, tuple[list, dict[str, list[int]]]] = {}  # read once each
+    current = select_runs(root, preset).current
     rows = []
     for run_file in sorted(base.glob(f"*/*/seed*/{file_name}")):
         task, method = run_file.parts[-4], run_file.parts[-3]
@@ -135,7 +138,7 @@ def paired_rows(
             continue
         reference_seed = 0 if reference == UNADAPTED else seed
         reference_file = base / task / reference / f"seed{reference_seed}" / file_name
-        if not reference_file.exists():
+        if not reference_file.exists() or not {run_file.parent, reference_file.parent} <= current:
             continue
         if reference_file not in references:
             reference_rows = read_csv(reference_file)[1]

@@ -34,6 +34,7 @@ from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 from distgprl.hardware.trials import moved_robot
 from distgprl.report.paired import REFERENCES, paired_rows, paired_texts, supplementary_sizes
+from distgprl.report.runs import select_runs
 
 METRICS = (
     ("success_rate", "Success"),
@@ -100,7 +101,13 @@ def aggregate(values: list[float]) -> Cell:
 
 
 def _summary_paths(root: Path, preset: str) -> list[Path]:
-    return sorted((Path(root) / preset).glob("*/*/seed*/summary.json"))
+    """The ``summary.json`` files of the runs that count (`select_runs`)."""
+    current = select_runs(root, preset).current
+    return sorted(
+        path
+        for path in (Path(root) / preset).glob("*/*/seed*/summary.json")
+        if path.parent in current
+    )
 
 
 def _load_summary(path: Path) -> dict:
@@ -289,7 +296,7 @@ def _csv_text(rows: list[dict], tasks: list[str]) -> str:
     return buffer.getvalue()
 
 
-def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
+def _markdown(rows: list[dict], tasks: list[str], preset: str, note: str = "") -> str:
     header = ["Method"] + [f"{t.upper()} {name}" for t in tasks for _, name in METRICS]
     table = []
     for row in rows:
@@ -305,7 +312,7 @@ def _markdown(rows: list[dict], tasks: list[str], preset: str) -> str:
         "Success); Success and Collision also give the 95 % t-interval over seeds, "
         "[low, high] clipped to [0, 1], where there are two or more seeds"
     )
-    return _markdown_table(title, header, table)
+    return _markdown_table(title, header, table) + (f"\n{note}.\n" if note else "")
 
 
 def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
@@ -418,9 +425,10 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
     out_dir = Path(out_dir)
     stem = f"table1_{preset}"
+    note = select_runs(root, preset).note()
     written = [
         atomic_write_text(out_dir / f"{stem}.csv", _csv_text(rows, tasks)),
-        atomic_write_text(out_dir / f"{stem}.md", _markdown(rows, tasks, preset)),
+        atomic_write_text(out_dir / f"{stem}.md", _markdown(rows, tasks, preset, note)),
         atomic_write_text(out_dir / f"{stem}.tex", _latex(rows, tasks, preset)),
     ]
     per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)

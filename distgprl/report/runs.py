@@ -1,0 +1,82 @@
+"""Which run folders the tables, paired analyses and curves may use.
+
+A run counts when it has the result file a report reads — ``summary.json`` (evaluated) for the
+tables and paired analyses, ``done.json`` (trained) for the learning curves — and the config
+hash recorded there is the one the code resolves for it now: a run of an older configuration
+(say, before a fix to a part of the method, which changes the hash of the methods using it)
+is left out, and listed, instead of being averaged with the current ones. `distgprl status`
+calls such runs "stale".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from distgprl.agents.methods import METHODS
+from distgprl.errors import UserInputError
+from distgprl.experiments.results import SchemaVersionError, read_json
+
+
+@dataclass(frozen=True)
+class RunSelection:
+    """Run folders (``<root>/<preset>/<task>/<method>/seed<k>``) that count, and why others
+    do not.
+
+    Attributes:
+        current: the runs (with the marker file) of the current configuration.
+        excluded: one line per left-out run: its ``task/method/seed<k>`` and the reason.
+        checked: False if the preset is not one of this checkout's (``experiments/``), so
+            the config hashes could not be checked (only "finished" was).
+    """
+
+    current: frozenset[Path]
+    excluded: tuple[str, ...]
+    checked: bool
+
+    def note(self) -> str:
+        """A sentence for the tables: what was left out (empty if nothing)."""
+        parts = []
+        if self.excluded:
+            parts.append(f"Not tabulated ({len(self.excluded)}): " + "; ".join(self.excluded))
+        if not self.checked:
+            parts.append("Config hashes not checked: the preset is not in experiments/")
+        return ". ".join(parts)
+
+
+def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> RunSelection:
+    """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
+    ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
+    current configuration (module docstring)."""
+    from distgprl.experiments.runner import resolve_run
+
+    base = Path(root) / preset
+    folders = sorted(p for p in base.glob("*/*/seed*") if p.is_dir())
+    checked = True
+    try:
+        from distgprl.config import load_config
+
+        load_config(preset)
+    except UserInputError:
+        checked = False
+    current, excluded = set(), []
+    for folder in folders:
+        task, method = folder.parent.parent.name, folder.parent.name
+        if method not in METHODS:
+            continue
+        name = f"{task}/{method}/{folder.name}"
+        path = folder / (marker if METHODS[method].trainable else "summary.json")
+        if not path.exists():
+            continue
+        if checked:
+            try:
+                recorded = read_json(path)["meta"].get("config_hash")
+            except SchemaVersionError as error:
+                excluded.append(f"{name} ({error})")
+                continue
+            seed = int(folder.name.removeprefix("seed"))
+            if recorded != resolve_run(task, method, seed, preset).hash:
+                excluded.append(f"{name} (configuration changed since; `distgprl status`: stale)")
+                continue
+        current.add(folder)
+    return RunSelection(frozenset(current), tuple(excluded), checked)

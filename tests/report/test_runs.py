@@ -1,0 +1,57 @@
+"""Which runs the reports use: those of the current configuration only (a run of an older
+configuration is listed, not averaged in)."""
+
+from __future__ import annotations
+
+from distgprl.experiments.results import write_csv, write_json
+from distgprl.experiments.runner import PROGRESS_FIELDS, resolve_run
+from distgprl.report.curves import load_curves
+from distgprl.report.runs import select_runs
+from distgprl.report.tables import simulation_table, write_tables
+
+SUMMARY = {
+    "success_rate": 0.5,
+    "collision_rate": 0.1,
+    "min_clearance_p5": 0.01,
+    "mean_kinematic_retention": 0.5,
+    "safe_success_rate": 0.45,
+}
+
+
+def _run(root, method, seed, config_hash, success=0.5):
+    folder = root / "ci" / "dcp" / method / f"seed{seed}"
+    summary = {**SUMMARY, "success_rate": success}
+    write_json(folder / "summary.json", {"summary": summary}, config_hash=config_hash)
+    write_json(folder / "done.json", {"steps": 120}, config_hash=config_hash)
+    row = dict.fromkeys(PROGRESS_FIELDS, "")
+    row.update(step=0, episodes=0, success_rate=success, collision_rate=0.1, mean_return=1.0)
+    row.update(min_clearance_p5=0.0, wall_time_s=1.0)
+    write_csv(folder / "progress.csv", [row], PROGRESS_FIELDS)
+    return folder
+
+
+def test_a_run_of_an_older_configuration_is_left_out_and_listed(tmp_path):
+    """Seed 0 carries the hash the code resolves now, seed 1 an old one: Table I, the curves
+    and the selection use seed 0 only, and the Markdown table names seed 1 as left out."""
+    current = _run(tmp_path, "gprl", 0, resolve_run("dcp", "gprl", 0, "ci").hash, 0.2)
+    _run(tmp_path, "gprl", 1, "0123456789abcdef", 0.9)
+    selection = select_runs(tmp_path, "ci")
+    assert selection.checked and selection.current == {current}
+    assert selection.excluded == (
+        "dcp/gprl/seed1 (configuration changed since; `distgprl status`: stale)",
+    )
+    rows, _ = simulation_table(tmp_path, "ci")
+    (row,) = rows
+    assert row["dcp_seeds"] == 1 and row["dcp_success_rate"].mean == 0.2
+    steps, values = load_curves(tmp_path, "ci", "dcp", "gprl")
+    assert values["success_rate"].tolist() == [[0.2]]
+    write_tables(tmp_path, "ci", tmp_path / "out")
+    assert "Not tabulated (1): dcp/gprl/seed1" in (tmp_path / "out" / "table1_ci.md").read_text()
+
+
+def test_a_tree_of_an_unknown_preset_is_used_but_says_its_hashes_were_not_checked(tmp_path):
+    folder = tmp_path / "elsewhere" / "dcp" / "gprl" / "seed0"
+    write_json(folder / "summary.json", {"summary": SUMMARY}, config_hash="anything")
+    selection = select_runs(tmp_path, "elsewhere")
+    assert not selection.checked and selection.current == {folder}
+    assert "Config hashes not checked" in selection.note()
