@@ -162,8 +162,6 @@ class HapPrior:
         centres = self._lower + self.resolution * (cells + 0.5)
         _, index = self._tree.query(centres, k=count, workers=-1)
         self._table = np.ascontiguousarray(np.asarray(index, dtype=np.int64).reshape(-1, count))
-        self._cell_centres = centres
-        self._wide_table: np.ndarray | None = None
         # Largest distance from each cell centre to its candidates.
         self._cell_radius = np.linalg.norm(points[self._table] - centres[:, None, :], axis=2).max(1)
         self._strides = np.array([self._shape[1] * self._shape[2], self._shape[2], 1])
@@ -186,23 +184,15 @@ class HapPrior:
         return torch.from_numpy(self._table[cell @ self._strides])
 
     def _wide_neighbours(self, positions: np.ndarray) -> np.ndarray:
-        """The ``fallback_candidates`` nearest C_safe indices (n, c) of positions (n, 3).
+        """The ``fallback_candidates`` nearest C_safe indices (n, c) of positions (n, 3), exact.
 
-        ``"grid"``: a second lookup table of the cell centres' nearest points (built on first
-        use); ``"kdtree"``: exact.
+        (Not a lookup table of the cell centres' nearest points: for the few queries that need
+        it, the exact search decides which free points enter the soft-min; a table's
+        approximation changed the trained policies' numbers.)
         """
         count = min(self.fallback_candidates, len(self.points_numpy))
-        if self.neighbour_search == "kdtree":
-            _, wide = self._tree.query(positions, k=count)
-            return np.asarray(wide, dtype=np.int64).reshape(len(positions), count)
-        if self._wide_table is None:
-            _, wide = self._tree.query(self._cell_centres, k=count, workers=-1)
-            self._wide_table = np.ascontiguousarray(
-                np.asarray(wide, dtype=np.int64).reshape(-1, count)
-            )
-        cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
-        np.clip(cell, 0, self._shape - 1, out=cell)
-        return self._wide_table[cell @ self._strides]
+        _, wide = self._tree.query(positions, k=count)
+        return np.asarray(wide, dtype=np.int64).reshape(len(positions), count)
 
     def _candidate_radius(self, positions: np.ndarray, index: torch.Tensor) -> np.ndarray:
         """An upper bound (n,), m, on the distance from each query to its candidates."""
