@@ -741,7 +741,9 @@ def evaluate_run(
     Writes ``evaluation.csv`` and ``summary.json`` into the run folder; with ``episodes``
     other than the preset's, a supplementary evaluation under the names of
     `evaluation_file_names` instead (the first ``episodes`` TCs of the same stream, so the
-    preset's TCs are a prefix); returns the summary.
+    preset's TCs are a prefix); returns the summary. A trained run is evaluated under the
+    configuration it was trained with (its ``total_steps`` included), which must still be
+    what the code resolves: a model of an older configuration is refused.
     """
     run = resolve_run(task, method, seed, preset)
     episodes = episodes or run.config.run.eval_episodes
@@ -756,6 +758,16 @@ def evaluate_run(
             raise UserInputError(
                 f"{model_path}: no trained model; run `distgprl train --method {method} "
                 f"--task {task} --seed {seed} --preset {preset}` first"
+            )
+        trained = read_json(folder / "config.json") if (folder / "config.json").exists() else {}
+        steps = trained.get("run", {}).get("config", {}).get("run", {}).get("total_steps")
+        if steps is not None and steps != run.config.run.total_steps:  # trained with --steps
+            run = resolve_run(task, method, seed, preset, steps)
+        recorded = trained.get("config_hash")
+        if recorded != run.hash:
+            raise UserInputError(
+                f"{model_path}: trained with configuration {recorded}, the code now resolves "
+                f"{run.hash} for this run; re-train it (evaluating would mislabel the model)"
             )
         from distgprl.agents.sac import RegularisedSAC
 

@@ -10,7 +10,7 @@ import pytest
 from distgprl.agents.methods import METHODS
 from distgprl.errors import UserInputError
 from distgprl.experiments import runner
-from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.results import read_csv, read_json, write_json
 from distgprl.hardware.safety import SafetyLimits
 
 STEPS = 120  # the `ci` preset shortened further; still past learning_starts
@@ -317,11 +317,26 @@ def test_missing_model_and_bad_names_are_clear_errors(tmp_path):
         runner.train_run("dcp", "demo", 0, "ci", root=tmp_path)
 
 
-def test_incompatible_model_file_is_a_clear_error(tmp_path):
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+def _model_folder(root, config_hash):
+    """A dist-gprl run folder with a junk model and a config.json recording ``config_hash``."""
+    folder = runner.run_dir(root, "ci", "dcp", "dist-gprl", 0)
     folder.mkdir(parents=True)
     (folder / "model.zip").write_bytes(b"junk")
+    write_json(folder / "config.json", {"config_hash": config_hash}, config_hash=config_hash)
+    return folder
+
+
+def test_incompatible_model_file_is_a_clear_error(tmp_path):
+    _model_folder(tmp_path, runner.resolve_run("dcp", "dist-gprl", 0, "ci").hash)
     with pytest.raises(UserInputError, match="cannot load model"):
+        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+
+
+def test_a_model_of_another_configuration_is_not_evaluated_under_the_current_one(tmp_path):
+    """A model trained before the configuration changed (its config.json records another
+    hash) is refused: evaluating it would stamp the current hash on an old model."""
+    _model_folder(tmp_path, "0123456789abcdef")
+    with pytest.raises(UserInputError, match="trained with configuration 0123456789abcdef"):
         runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
 
 
