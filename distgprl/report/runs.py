@@ -11,6 +11,7 @@ calls such runs "stale".
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 from distgprl.agents.methods import METHODS
@@ -44,21 +45,34 @@ class RunSelection:
         return ". ".join(parts)
 
 
+@cache
+def _known_preset(preset: str) -> bool:
+    """Whether ``preset`` is one of this checkout's (so its runs' hashes can be resolved)."""
+    from distgprl.config import load_config
+
+    try:
+        load_config(preset)
+    except UserInputError:
+        return False
+    return True
+
+
+@cache
+def _current_hash(task: str, method: str, seed: int, preset: str) -> str:
+    """The config hash the code resolves for a run (fixed while the process runs; the reports
+    ask for the same runs once per table, figure and method)."""
+    from distgprl.experiments.runner import resolve_run
+
+    return resolve_run(task, method, seed, preset).hash
+
+
 def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> RunSelection:
     """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
     ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
     current configuration (module docstring)."""
-    from distgprl.experiments.runner import resolve_run
-
     base = Path(root) / preset
     folders = sorted(p for p in base.glob("*/*/seed*") if p.is_dir())
-    checked = True
-    try:
-        from distgprl.config import load_config
-
-        load_config(preset)
-    except UserInputError:
-        checked = False
+    checked = _known_preset(preset)
     current, excluded = set(), []
     for folder in folders:
         task, method = folder.parent.parent.name, folder.parent.name
@@ -75,7 +89,7 @@ def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> 
                 excluded.append(f"{name} ({error})")
                 continue
             seed = int(folder.name.removeprefix("seed"))
-            if recorded != resolve_run(task, method, seed, preset).hash:
+            if recorded != _current_hash(task, method, seed, preset):
                 excluded.append(f"{name} (configuration changed since; `distgprl status`: stale)")
                 continue
         current.add(folder)
