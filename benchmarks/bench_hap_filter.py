@@ -17,8 +17,6 @@ import numpy as np
 import torch
 
 from distgprl.experiments.runner import build_regulariser, make_env, resolve_run
-from distgprl.safety.hap import tool_bounds
-from distgprl.sim.transforms import rotvec_to_matrix
 
 
 def main(task: str) -> None:
@@ -27,10 +25,7 @@ def main(task: str) -> None:
     env = make_env(run)
     regulariser = build_regulariser(env, run)
     moving = env.moving_obstacle_filter()
-    tcp = env.sim.robot.tcp_transform()
-    in_tcp = (env.sim.robot.tool_points() - tcp[:3, 3]) @ tcp[:3, :3]
-    rotations = np.stack([rotvec_to_matrix(v[3:]) for v in env.skill.via_points])
-    offset, half = tool_bounds(in_tcp, rotations)
+    offset, half = env.tool_box()
     print(f"{task}: tool box centre {offset.round(3)} m, half extents {half.round(3)} m")
     rng = np.random.default_rng(0)
     aux = []

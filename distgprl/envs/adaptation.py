@@ -386,18 +386,22 @@ class AdaptationEnv(gym.Env):
             ]
         )
 
-    def moving_obstacle_filter(self) -> MovingObstacleFilter:
-        """Which C_safe points the moving obstacles block, given their anchor (L_hap, v4).
-
-        The tool is bounded by a box around the TCP covering its surface points at every
-        demonstration via-point orientation; a C_safe point is blocked when that box would
-        come within ``sd_d_min`` (the d_min of r_sd) of a moving obstacle.
-        """
+    def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
+        holds the tool's surface points at every demonstration via-point orientation."""
         tcp = self.sim.robot.tcp_transform()
         tool = self.sim.robot.tool_points()
         in_tcp = (tool - tcp[:3, 3]) @ tcp[:3, :3]  # the tool points in the TCP frame
         rotations = np.stack([rotvec_to_matrix(v[3:]) for v in self.skill.via_points])
-        offset, half_extents = tool_bounds(in_tcp, rotations)
+        return tool_bounds(in_tcp, rotations)
+
+    def moving_obstacle_filter(self) -> MovingObstacleFilter:
+        """Which C_safe points the moving obstacles block, given their anchor (L_hap, v4).
+
+        A C_safe point is blocked when the `tool_box` held there would come within
+        ``sd_d_min`` (the d_min of r_sd) of a moving obstacle.
+        """
+        offset, half_extents = self.tool_box()
         return MovingObstacleFilter(
             self.sim.moving_obstacle_shapes(), offset, half_extents, self.config.sd_d_min
         )

@@ -11,9 +11,8 @@ import distgprl.envs  # noqa: F401  (registers the env ids)
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
+from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.sim.tasks import TaskConfig
-from distgprl.sim.transforms import rotvec_to_matrix
 
 
 @pytest.fixture(scope="module")
@@ -387,8 +386,6 @@ def test_moving_obstacle_filter_blocks_poses_whose_tool_would_touch_the_obstacle
     assert not moving.blocked(far[None, None], anchor[None])[0, 0]
     # The tool itself, at the current pose, lies inside the tool box the filter grew by.
     tcp = dcp_env.sim.robot.tcp_transform()
-    in_tcp = (dcp_env.sim.robot.tool_points() - tcp[:3, 3]) @ tcp[:3, :3]
-    rotations = np.stack([rotvec_to_matrix(v[3:]) for v in dcp_env.skill.via_points])
-    centre, half = tool_bounds(in_tcp, rotations)
-    world = in_tcp @ tcp[:3, :3].T
+    centre, half = dcp_env.tool_box()
+    world = dcp_env.sim.robot.tool_points() - tcp[:3, 3]
     assert np.all(np.abs(world - centre) <= half + 0.02)  # current orientation ~ the demo's
