@@ -56,14 +56,6 @@ def test_committed_demo_evaluation_reproduces_tc_by_tc(task, tmp_path):
     assert min(close.values()) >= 95, close
 
 
-def _committed_trained(method: str, task: str) -> Path:
-    committed = PAPER_RESULTS / task / method / "seed0" / "progress.csv"
-    if method == "dist-gprl" and not committed.exists():
-        pytest.skip(f"{committed}: the full method's environment-v4 runs are not committed yet")
-    assert committed.exists(), f"{committed}: the committed run is missing"
-    return committed
-
-
 @pytest.mark.parametrize("method", ["promp-rrl", "dist-gprl"])
 @pytest.mark.parametrize("task", TASK_NAMES)
 def test_committed_run_reproduces_its_first_curve_point(method, task, tmp_path, monkeypatch):
@@ -73,7 +65,9 @@ def test_committed_run_reproduces_its_first_curve_point(method, task, tmp_path, 
     the run's total steps, which a shortened run changes):
     success and collision within one of the 20 curve TCs, return, clearance, L_sim, L_hap and
     the entropy coefficient within 5 % (see the module docstring for why not to 1e-9)."""
-    _, expected = read_csv(_committed_trained(method, task))
+    committed = PAPER_RESULTS / task / method / "seed0" / "progress.csv"
+    assert committed.exists(), f"{committed}: the committed run is missing"
+    _, expected = read_csv(committed)
     steps = int(expected[1]["step"])
     monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", "")
     train_run(
