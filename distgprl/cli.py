@@ -207,7 +207,11 @@ def sweep(
         )
         raise typer.Exit(code=130) from None
     failed = [r for r in results if r.status == "failed"]
-    typer.echo(f"sweep: {len(results) - len(failed)}/{len(results)} runs complete")
+    busy = [r for r in results if r.status == "busy"]
+    typer.echo(
+        f"sweep: {len(results) - len(failed) - len(busy)}/{len(results)} runs complete"
+        + (f", {len(busy)} left to the other process training them" if busy else "")
+    )
     if failed:
         raise typer.Exit(code=1)
 

@@ -39,7 +39,7 @@ import numpy as np
 from distgprl.agents.methods import MethodSpec, get_method
 from distgprl.config import Config, load_config
 from distgprl.data import SCENE_REVISIONS, check_task_name
-from distgprl.errors import UserInputError
+from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.results import (
     atomic_write_bytes,
     atomic_write_text,
@@ -538,7 +538,7 @@ def run_lock(folder: Path) -> Iterator[None]:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise UserInputError(
+            raise RunBusyError(
                 f"{folder}: another process is training this run (lock {folder / '.lock'})"
             ) from None
         yield

@@ -11,6 +11,10 @@
   (`stop_on_interrupt_signals`).
 - A failing job writes ``error.json`` (type, message, traceback) into its run folder and
   the sweep goes on; the next sweep retries it.
+- A job whose run another process is training (its folder is locked) is reported ``busy``
+  and left to that process; nothing is written. So two sweeps of overlapping jobs can run
+  side by side (e.g. one per CPU core, in different orders), each training what the other
+  is not.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
 
 Executors: ``local`` (worker processes on this machine) and ``ray`` (the same job
@@ -33,9 +37,9 @@ from pathlib import Path
 
 from distgprl.agents.methods import TABLE_ORDER, get_method
 from distgprl.data import TASK_NAMES, check_task_name
-from distgprl.errors import UserInputError
+from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.results import read_json, write_json
-from distgprl.experiments.runner import evaluate_run, resolve_run, run_dir, train_run
+from distgprl.experiments.runner import evaluate_run, is_locked, resolve_run, run_dir, train_run
 
 
 @dataclass(frozen=True)
@@ -56,7 +60,7 @@ class Job:
 @dataclass(frozen=True)
 class JobResult:
     job: Job
-    status: str  # "done", "skipped", "failed"
+    status: str  # "done", "skipped", "busy" (another process trains it), "failed"
     seconds: float
     error: str = ""
 
@@ -128,6 +132,9 @@ def run_job(job: Job) -> JobResult:
     if is_complete(job):
         return JobResult(job, "skipped", 0.0)
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    busy = JobResult(job, "busy", 0.0, "another process is training this run")
+    if is_locked(folder):
+        return busy
     try:
         if get_method(job.method).trainable:
             resume = (folder / "config.json").exists()
@@ -144,6 +151,8 @@ def run_job(job: Job) -> JobResult:
             evaluate_run(
                 job.task, job.method, job.seed, job.preset, root=job.root, show_progress=False
             )
+    except RunBusyError:  # locked between the check above and train_run's lock
+        return busy
     except Exception as exc:  # recorded, the sweep goes on
         message = f"{type(exc).__name__}: {exc}"
         write_json(

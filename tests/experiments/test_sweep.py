@@ -85,6 +85,40 @@ def test_run_lock_refuses_a_second_trainer_of_the_same_run(tmp_path):
         pass
 
 
+@pytest.mark.parametrize("locked_when", ["before the job starts", "after the job's check"])
+def test_a_run_another_process_trains_is_reported_busy_and_left_alone(
+    tmp_path, monkeypatch, locked_when
+):
+    job = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0], root=tmp_path)[0]
+    folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    folder.mkdir(parents=True)
+    (folder / "progress.csv").write_text("the other process's file\n")
+    holder = subprocess.Popen(  # another process holding the run's lock, as a trainer does
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from distgprl.experiments.runner import run_lock\n"
+            "with run_lock(__import__('pathlib').Path(sys.argv[1])):\n"
+            "    print('locked', flush=True); time.sleep(60)",
+            str(folder),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        if locked_when == "after the job's check":  # the lock is taken in between
+            monkeypatch.setattr(sweep, "is_locked", lambda folder: False)
+        before = {path.name: path.read_bytes() for path in folder.iterdir()}
+        result = sweep.run_job(job)
+        assert (result.status, result.error) == ("busy", "another process is training this run")
+        assert {path.name: path.read_bytes() for path in folder.iterdir()} == before
+    finally:
+        holder.kill()
+        holder.wait()
+
+
 def _interrupt(process: subprocess.Popen, how: str) -> None:
     if how == "SIGKILL":
         process.send_signal(signal.SIGKILL)
