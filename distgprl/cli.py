@@ -162,7 +162,11 @@ def sweep(
         typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
     ] = 5.0,
 ) -> None:
-    """Train and evaluate every (method, task, seed); finished runs are skipped."""
+    """Train and evaluate every (method, task, seed); finished runs are skipped.
+
+    Exit code 0: every run is complete; 1: a run failed (its error.json says why); 3: no
+    failure, but runs were left to another process training them (busy); 130: interrupted.
+    """
     from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import (
         default_workers,
@@ -214,6 +218,8 @@ def sweep(
     )
     if failed:
         raise typer.Exit(code=1)
+    if busy:  # not complete yet: `make reproduce` must not go on to the tables as if it were
+        raise typer.Exit(code=3)
 
 
 @app.command()

@@ -141,7 +141,10 @@ def read_json(path: str | Path) -> dict[str, Any]:
         raise SchemaVersionError(
             f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})"
         ) from None
-    version = document.get("meta", {}).get("schema_version")
+    meta = document.get("meta") if isinstance(document, dict) else None
+    if not isinstance(meta, dict):
+        raise SchemaVersionError(f"{path}: no 'meta' object; not a distgprl result")
+    version = meta.get("schema_version")
     if version != SCHEMA_VERSION:
         raise SchemaVersionError(
             f"{path}: schema_version {version!r} is not supported (this is schema "
@@ -172,7 +175,14 @@ def read_csv(path: str | Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
     lines = path.read_text().splitlines()
     if not lines or not lines[0].startswith("# meta: "):
         raise SchemaVersionError(f"{path}: missing '# meta:' header line; not a distgprl result")
-    meta = json.loads(lines[0][len("# meta: ") :])
+    try:
+        meta = json.loads(lines[0][len("# meta: ") :])
+    except json.JSONDecodeError as exc:
+        raise SchemaVersionError(
+            f"{path}: '# meta:' line is not valid JSON ({exc.msg}); not a distgprl result"
+        ) from None
+    if not isinstance(meta, dict):
+        raise SchemaVersionError(f"{path}: '# meta:' line is not an object; not a distgprl result")
     if meta.get("schema_version") != SCHEMA_VERSION:
         raise SchemaVersionError(
             f"{path}: schema_version {meta.get('schema_version')!r} is not supported "

@@ -429,6 +429,15 @@ def _rng_state(model, env) -> dict[str, Any]:
     }
 
 
+def _fsync_file(path: Path) -> None:
+    """Flush a written file's data to the disk."""
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
 def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
     """Model, replay buffer and RNG state, replaced together: a kill at any point leaves
     either the previous checkpoint or this one, never a mix of the two (`has_checkpoint`).
@@ -440,6 +449,8 @@ def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
     staged = {piece: paths["dir"] / temporary for piece, temporary in _CHECKPOINT_PIECES}
     model.save(staged["model"])
     model.save_replay_buffer(staged["buffer"])
+    for piece in ("model", "buffer"):  # on disk before the marker commits them (power loss)
+        _fsync_file(staged[piece])
     state = {**_rng_state(model, env), **extra}
     atomic_write_bytes(staged["state"], pickle.dumps(state))
     atomic_write_text(paths["commit"], json.dumps({"num_timesteps": int(model.num_timesteps)}))

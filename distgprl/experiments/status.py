@@ -2,14 +2,15 @@
 
 A run's state, from the files its trainer writes (see `distgprl.experiments.runner`):
 
-| state     | meaning                                                                   |
-|-----------|---------------------------------------------------------------------------|
-| `done`    | ``done.json`` (``summary.json`` for `demo`) with the current config hash   |
-| `stale`   | finished, but with another configuration (a sweep would retrain it)        |
-| `running` | a process holds the run folder's lock (``.lock``)                          |
-| `failed`  | ``error.json`` from the last attempt, nobody training it now               |
-| `partial` | started (``config.json``), not finished, nobody training it: a sweep resumes it |
-| `missing` | nothing yet                                                                |
+| state        | meaning                                                                  |
+|--------------|--------------------------------------------------------------------------|
+| `done`       | ``done.json`` (``summary.json`` for `demo`) with the current config hash |
+| `stale`      | finished, but with another configuration (a sweep would retrain it)      |
+| `unreadable` | a finish marker not of this schema (reported; never retrained over)      |
+| `running`    | a process holds the run folder's lock (``.lock``)                        |
+| `failed`     | ``error.json`` from the last attempt, nobody training it now             |
+| `partial`    | started (``config.json``), not finished, nobody training it: resumed     |
+| `missing`    | nothing yet                                                              |
 
 For started runs the last learning-curve row of ``progress.csv`` gives the step reached,
 the curve success and collision rates and the training wall time so far. The ETA is the
@@ -29,11 +30,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from distgprl.agents.methods import get_method
-from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.results import SchemaVersionError, read_csv, read_json
 from distgprl.experiments.runner import is_locked, resolve_run, run_dir
 from distgprl.experiments.sweep import Job, is_complete
 
-STATES = ("done", "running", "partial", "failed", "stale", "missing")
+STATES = ("done", "running", "partial", "failed", "stale", "unreadable", "missing")
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ class RunStatus:
     @property
     def eta_s(self) -> float | None:
         """Seconds of training left at the pace so far (None if unknown or finished)."""
-        if self.state in ("done", "stale", "missing") or not self.seconds_per_step:
+        if self.state in ("done", "stale", "unreadable", "missing") or not self.seconds_per_step:
             return None
         return self.seconds_per_step * max(self.total_steps - self.step, 0)
 
@@ -101,7 +102,11 @@ def run_status(job: Job) -> RunStatus:
     trainable = get_method(job.method).trainable
     total = resolve_run(job.task, job.method, job.seed, job.preset).config.run.total_steps
     total = total if trainable else 0
-    if is_complete(job):
+    try:
+        complete = is_complete(job)
+    except SchemaVersionError as error:
+        return RunStatus(job, "unreadable", 0, total, error=str(error))
+    if complete:
         pace = None
         if trainable:
             try:

@@ -10,7 +10,13 @@
   resume from); this holds for a sweep started in the background too
   (`stop_on_interrupt_signals`).
 - A failing job writes ``error.json`` (type, message, traceback) into its run folder and
-  the sweep goes on; the next sweep retries it.
+  the sweep goes on; the next sweep retries it. With ``workers > 1`` each job runs in a
+  process of its own, so a worker that dies (a crash in native code, the OOM killer, a
+  signal) fails its own job only: the sweep writes that job's ``error.json`` (exit code or
+  signal) and goes on with the others. On Ray, a crashed or lost task is recorded the same
+  way.
+- A finished run whose marker file is unreadable (not a result of this schema) is reported
+  failed and left alone, never retrained over.
 - A job whose run another process is training (its folder is locked) is reported ``busy``
   and left to that process; nothing is written. So two sweeps of overlapping jobs can run
   side by side (e.g. one per CPU core, in different orders), each training what the other
@@ -26,19 +32,20 @@ from __future__ import annotations
 import _thread
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from multiprocessing import get_context
+from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
 
 from distgprl.agents.methods import TABLE_ORDER, get_method
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
-from distgprl.experiments.results import read_json, write_json
+from distgprl.experiments.results import SchemaVersionError, read_json, write_json
 from distgprl.experiments.runner import evaluate_run, is_locked, resolve_run, run_dir, train_run
 
 
@@ -82,6 +89,7 @@ def plan_jobs(
         check_task_name(task)
     if not seeds:
         raise UserInputError("no seeds given")
+    seeds = list(dict.fromkeys(int(seed) for seed in seeds))  # a repeated seed: one job
     jobs = []
     # Seeds outermost, then methods, then tasks: an interrupted sweep has one seed of every
     # method on every task before it starts on the next seed.
@@ -111,15 +119,19 @@ def default_workers() -> int:
 
 
 def is_complete(job: Job) -> bool:
-    """True if the job's run folder holds a finished run of the same configuration."""
+    """True if the job's run folder holds a finished run of the same configuration.
+
+    Raises:
+        SchemaVersionError: the finish marker (``done.json``, or ``summary.json`` for the
+            untrained `demo`) exists but is not readable as a result of this schema. Such a
+            run is reported, never retrained over (that would discard a finished run whose
+            checkpoints are gone, e.g. a committed one on a fresh clone).
+    """
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
     marker = folder / ("done.json" if get_method(job.method).trainable else "summary.json")
     if not marker.exists():
         return False
-    try:
-        recorded = read_json(marker)["meta"].get("config_hash")
-    except Exception:
-        return False
+    recorded = read_json(marker)["meta"].get("config_hash")
     return recorded == resolve_run(job.task, job.method, job.seed, job.preset).hash
 
 
@@ -129,9 +141,13 @@ def run_job(job: Job) -> JobResult:
 
     torch.set_num_threads(1)
     start = time.perf_counter()
-    if is_complete(job):
-        return JobResult(job, "skipped", 0.0)
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    try:
+        complete = is_complete(job)
+    except SchemaVersionError as error:  # a finished run's marker: reported, not retrained
+        return JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}")
+    if complete:
+        return JobResult(job, "skipped", 0.0)
     busy = JobResult(job, "busy", 0.0, "another process is training this run")
     if is_locked(folder):
         return busy
@@ -155,16 +171,33 @@ def run_job(job: Job) -> JobResult:
         return busy
     except Exception as exc:  # recorded, the sweep goes on
         message = f"{type(exc).__name__}: {exc}"
-        write_json(
-            folder / "error.json",
-            {"job": asdict(job), "error": message, "traceback": traceback.format_exc()},
-            kind="error",
-        )
-        return JobResult(job, "failed", time.perf_counter() - start, message)
+        return record_failure(job, message, traceback.format_exc(), time.perf_counter() - start)
     error_file = folder / "error.json"
     if error_file.exists():
         error_file.unlink()
     return JobResult(job, "done", time.perf_counter() - start)
+
+
+def record_failure(job: Job, message: str, details: str, seconds: float) -> JobResult:
+    """Write the job's ``error.json`` (its error and the traceback or other details) and
+    return its "failed" result; the run folder's other files are left as they are."""
+    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    write_json(
+        folder / "error.json",
+        {"job": asdict(job), "error": message, "traceback": details},
+        kind="error",
+    )
+    return JobResult(job, "failed", seconds, message)
+
+
+def describe_exit(exitcode: int | None) -> str:
+    """``"exit code 3"``, ``"killed by signal SIGKILL"`` (a negative exit code)."""
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"killed by signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exit code {exitcode}"
 
 
 def _raise_keyboard_interrupt(signum, frame) -> None:
@@ -224,32 +257,65 @@ def _watch_sweep(parent_pid: int, stop, poll_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="watch-sweep", daemon=True).start()
 
 
+def _job_process(job: Job, parent_pid: int, stop, connection) -> None:
+    """Body of a job's own process: run it and send its `JobResult` to the sweep."""
+    _watch_sweep(parent_pid, stop)
+    try:
+        result = _run_job_in_worker(job)
+    except KeyboardInterrupt:  # the sweep was interrupted: stop quietly, as a kill would
+        sys.exit(130)
+    connection.send(result)
+    connection.close()
+
+
 def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
+    """Run ``jobs`` here: in this process one after the other (``workers <= 1``), else each
+    in a spawned process of its own, at most ``workers`` at a time. A process that ends
+    without sending a result (it crashed or was killed) fails its job only."""
     if workers <= 1:
         for job in jobs:
             yield run_job(job)
         return
     context = get_context("spawn")
     stop = context.Event()
-    pool = ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=context,
-        initializer=_watch_sweep,
-        initargs=(os.getpid(), stop),
-    )
+    queue = list(jobs)
+    running: dict[int, tuple] = {}  # sentinel -> (process, receiving end, job, start time)
     try:
-        pending = {pool.submit(_run_job_in_worker, job) for job in jobs}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                yield future.result()
+        while queue or running:
+            while queue and len(running) < workers:
+                job = queue.pop(0)
+                receiver, sender = context.Pipe(duplex=False)
+                process = context.Process(
+                    target=_job_process,
+                    args=(job, os.getpid(), stop, sender),
+                    name=f"sweep {job.name}",
+                )
+                process.start()
+                sender.close()  # the child's copy stays open: EOF once it ends
+                running[process.sentinel] = (process, receiver, job, time.perf_counter())
+            for sentinel in wait_for_any(list(running)):
+                process, receiver, job, started = running.pop(sentinel)
+                result = receiver.recv() if receiver.poll() else None
+                process.join()
+                receiver.close()
+                if result is None:
+                    how = describe_exit(process.exitcode)
+                    result = record_failure(
+                        job,
+                        f"WorkerDied: the job's process ended without a result ({how}); "
+                        "its last checkpoint stays for the next sweep to resume",
+                        f"process {process.pid} {how}",
+                        time.perf_counter() - started,
+                    )
+                yield result
     except BaseException:
         # Interrupted (Ctrl-C, or the consumer stopped): start nothing new and stop the
-        # running jobs. Without this the pool's shutdown would run every queued job first.
+        # running jobs where a kill would (their watch threads raise KeyboardInterrupt).
         stop.set()
-        pool.shutdown(wait=True, cancel_futures=True)
+        for process, receiver, _, _ in running.values():
+            process.join()
+            receiver.close()
         raise
-    pool.shutdown(wait=True)
 
 
 def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[JobResult]:
@@ -266,13 +332,25 @@ def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[Job
         else:
             ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(num_cpus=1)(run_job)
-        pending = [remote.remote(job) for job in jobs]
+        remote = ray.remote(num_cpus=1, max_retries=0)(run_job)
+        # Workers resolve the results root on their own machines: pass it absolute (a
+        # cluster's nodes must share this path, e.g. a network file system).
+        submitted = {
+            remote.remote(replace(job, root=str(Path(job.root).resolve()))): job for job in jobs
+        }
+        pending = list(submitted)
         try:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
                 for ref in done:
-                    yield ray.get(ref)
+                    job = submitted[ref]
+                    try:
+                        result = ray.get(ref)
+                    except ray.exceptions.RayError as error:  # the task crashed or was lost
+                        message = f"{type(error).__name__}: {str(error).splitlines()[0]}"
+                        yield record_failure(job, message, str(error), 0.0)
+                        continue
+                    yield replace(result, job=job)
         except BaseException:
             for ref in pending:  # queued: dropped; running: KeyboardInterrupt, as locally
                 ray.cancel(ref)
@@ -296,8 +374,17 @@ def run_sweep(
     background thread), e.g. to report the running jobs' progress from their run folders."""
     if executor not in ("local", "ray"):
         raise UserInputError(f"unknown executor {executor!r}; valid: local, ray")
-    todo = [job for job in jobs if not is_complete(job)]
-    results = [JobResult(job, "skipped", 0.0) for job in jobs if job not in todo]
+    todo, results = [], []
+    for job in jobs:
+        try:
+            complete = is_complete(job)
+        except SchemaVersionError as error:  # a finished run's marker: reported, not retrained
+            results.append(JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}"))
+            continue
+        if complete:
+            results.append(JobResult(job, "skipped", 0.0))
+        else:
+            todo.append(job)
     total = len(jobs)
     for result in results:
         if on_result:

@@ -5,7 +5,12 @@ tables and paired analyses, ``done.json`` (trained) for the learning curves — 
 hash recorded there is the one the code resolves for it now: a run of an older configuration
 (say, before a fix to a part of the method, which changes the hash of the methods using it)
 is left out, and listed, instead of being averaged with the current ones. `distgprl status`
-calls such runs "stale".
+calls such runs "stale". A marker file of an unknown schema version is an error
+(:class:`~distgprl.experiments.results.SchemaVersionError`), never a run quietly left out.
+
+So a report is a function of the result files and, for this checkout's presets, of the
+configuration the code resolves for them (presets and method revisions): a change to a
+preset or to a part of the method changes which runs count, not their figures.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from pathlib import Path
 
 from distgprl.agents.methods import METHODS
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import SchemaVersionError, read_json
+from distgprl.experiments.results import read_json
 
 
 @dataclass(frozen=True)
@@ -46,7 +51,7 @@ class RunSelection:
 
 
 @cache
-def _known_preset(preset: str) -> bool:
+def known_preset(preset: str) -> bool:
     """Whether ``preset`` is one of this checkout's (so its runs' hashes can be resolved)."""
     from distgprl.config import load_config
 
@@ -58,7 +63,7 @@ def _known_preset(preset: str) -> bool:
 
 
 @cache
-def _current_hash(task: str, method: str, seed: int, preset: str) -> str:
+def current_hash(task: str, method: str, seed: int, preset: str) -> str:
     """The config hash the code resolves for a run (fixed while the process runs; the reports
     ask for the same runs once per table, figure and method)."""
     from distgprl.experiments.runner import resolve_run
@@ -72,7 +77,7 @@ def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> 
     current configuration (module docstring)."""
     base = Path(root) / preset
     folders = sorted(p for p in base.glob("*/*/seed*") if p.is_dir())
-    checked = _known_preset(preset)
+    checked = known_preset(preset)
     current, excluded = set(), []
     for folder in folders:
         task, method = folder.parent.parent.name, folder.parent.name
@@ -82,14 +87,12 @@ def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> 
         path = folder / (marker if METHODS[method].trainable else "summary.json")
         if not path.exists():
             continue
+        # A file of an unknown schema version (or not a result at all) is an error that
+        # stops the report, never a run silently left out (SchemaVersionError, exit 2).
+        recorded = read_json(path)["meta"].get("config_hash")
         if checked:
-            try:
-                recorded = read_json(path)["meta"].get("config_hash")
-            except SchemaVersionError as error:
-                excluded.append(f"{name} ({error})")
-                continue
             seed = int(folder.name.removeprefix("seed"))
-            if recorded != _current_hash(task, method, seed, preset):
+            if recorded != current_hash(task, method, seed, preset):
                 excluded.append(f"{name} (configuration changed since; `distgprl status`: stale)")
                 continue
         current.add(folder)

@@ -56,21 +56,31 @@ def test_csv_with_unknown_schema_version_names_the_file_and_version(tmp_path):
     assert isinstance(caught.value, UserInputError)  # the CLI's clean-exit path
 
 
-def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_path):
+@pytest.mark.parametrize("preset", ["ci", "p"])  # a preset of this checkout, and another
+def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_path, preset):
     """`distgprl tables` over a results tree holding a summary.json of schema_version 999
-    exits with code 2 and one `error:` line naming the file; no table is written."""
+    exits with code 2 and one `error:` line naming the file; no table is written. For a
+    preset of this checkout (whose config hashes the report checks) as for any other."""
     from typer.testing import CliRunner
 
     from distgprl.cli import app
 
     root, out = tmp_path / "results", tmp_path / "tables"
-    summary = root / "p" / "dcp" / "dist-gprl" / "seed0" / "summary.json"
+    if preset == "ci":  # beside a valid run of the current configuration
+        from distgprl.experiments.runner import resolve_run
+
+        results.write_json(
+            root / "ci" / "dcp" / "demo" / "seed0" / "summary.json",
+            {"summary": {"success_rate": 0.5}},
+            config_hash=resolve_run("dcp", "demo", 0, "ci").hash,
+        )
+    summary = root / preset / "dcp" / "dist-gprl" / "seed0" / "summary.json"
     summary.parent.mkdir(parents=True)
     summary.write_text(
         json.dumps({"meta": {"schema_version": 999}, "summary": {"success_rate": 1.0}})
     )
     result = CliRunner().invoke(
-        app, ["tables", "--root", str(root), "--preset", "p", "--out-dir", str(out)]
+        app, ["tables", "--root", str(root), "--preset", preset, "--out-dir", str(out)]
     )
     assert result.exit_code == 2, result.output
     assert result.exception is None or isinstance(result.exception, SystemExit)
@@ -129,3 +139,21 @@ def test_git_commit_is_dirty_for_source_changes_only(tmp_path):
     assert source_commit(tmp_path) == clean
     (tmp_path / "distgprl" / "x.py").write_text("a = 2\n")
     assert source_commit(tmp_path) == clean + "+dirty"
+
+
+@pytest.mark.parametrize("content", ["[1, 2]", "3.5", '{"summary": {}}', '{"meta": "x"}'])
+def test_json_that_is_not_a_result_is_a_clear_error(tmp_path, content):
+    """Valid JSON without a ``meta`` object (a list, a number, no meta) is refused with a
+    SchemaVersionError naming the file, not an AttributeError."""
+    path = tmp_path / "summary.json"
+    path.write_text(content)
+    with pytest.raises(results.SchemaVersionError, match="no 'meta' object"):
+        results.read_json(path)
+
+
+@pytest.mark.parametrize("meta_line", ["# meta: {not json", "# meta: [1]"])
+def test_csv_with_a_garbled_meta_line_is_a_clear_error(tmp_path, meta_line):
+    path = tmp_path / "evaluation.csv"
+    path.write_text(meta_line + "\na,b\n1,2\n")
+    with pytest.raises(results.SchemaVersionError, match=r"'# meta:' line is not"):
+        results.read_csv(path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -349,3 +350,36 @@ def test_the_evaluation_and_curve_seeds_are_reserved():
         with pytest.raises(UserInputError, match="reserved"):
             runner.resolve_run("dcp", "dist-gprl", seed, "ci")
     assert runner.resolve_run("dcp", "dist-gprl", 3, "ci").seed == 3
+
+
+def test_checkpoint_pieces_reach_the_disk_before_the_commit_marker(tmp_path, monkeypatch):
+    """The model and replay buffer SB3 writes are fsynced before the commit marker is
+    written, so after a power loss the marker never commits a piece still in the page cache."""
+    import os
+
+    import gymnasium
+
+    class Model:
+        num_timesteps, _episode_num = 7, 2
+        action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,))
+
+        def save(self, path):
+            Path(path).write_bytes(b"model")
+
+        def save_replay_buffer(self, path):
+            Path(path).write_bytes(b"buffer")
+
+    class Env:
+        _rng, tc = np.random.default_rng(0), None
+
+    synced, real_fsync = [], os.fsync
+
+    def fsync(descriptor):
+        synced.append(Path(os.readlink(f"/proc/self/fd/{descriptor}")).name)
+        real_fsync(descriptor)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    runner.save_checkpoint(tmp_path, Model(), Env(), {})
+    commit = next(i for i, name in enumerate(synced) if name.startswith(".commit.json."))
+    assert {".model.tmp.zip", ".buffer.tmp.pkl"} <= set(synced[:commit])
+    assert runner.has_checkpoint(tmp_path)

@@ -33,6 +33,11 @@ def test_plan_validates_names_and_runs_demo_once_per_task():
         sweep.plan_jobs("ci", ["demo"], ["bogus"])
 
 
+def test_a_repeated_seed_plans_one_job():
+    jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0, 0, 1])
+    assert [j.name for j in jobs] == ["dcp/gprl-d/seed0", "dcp/gprl-d/seed1"]
+
+
 def test_default_workers_is_one_per_usable_core(monkeypatch):
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 2, 5}, raising=False)
     assert sweep.default_workers() == 3
@@ -52,6 +57,77 @@ def test_failing_run_is_recorded_and_does_not_stop_the_others(tmp_path, monkeypa
     assert "simulated failure" in error["error"]
     again = sweep.run_sweep(sweep.plan_jobs("ci", ["demo"], ["dcp"], [0], root=tmp_path))
     assert again[0].status == "skipped"
+
+
+CRASH_HELPER = """
+import os, signal
+from distgprl.experiments import sweep
+
+def job_process(job, parent_pid, stop, connection):
+    if job.task == "dcp" and job.root.endswith("crash"):  # dies as a segfault or OOM kill would
+        os.kill(os.getpid(), signal.SIGKILL)
+    sweep._job_process(job, parent_pid, stop, connection)
+"""
+
+
+def test_a_worker_that_dies_fails_its_own_job_only(tmp_path, monkeypatch):
+    """Two workers, three jobs; the process of the first is killed (SIGKILL) mid-job. That
+    job is recorded as failed, with the signal in its error.json; the job running beside it
+    and the one queued after it still finish, and the sweep itself does not raise."""
+    (tmp_path / "crash_helper.py").write_text(CRASH_HELPER)
+    monkeypatch.syspath_prepend(str(tmp_path))  # spawned workers get this sys.path
+    import crash_helper
+
+    monkeypatch.setattr(sweep, "_job_process", crash_helper.job_process)
+    crash, other = str(tmp_path / "crash"), str(tmp_path / "other")
+    jobs = [
+        sweep.Job("dcp", "demo", 0, "ci", crash),
+        sweep.Job("dbm", "demo", 0, "ci", crash),
+        sweep.Job("dcp", "demo", 0, "ci", other),
+    ]
+    results = sweep.run_sweep(jobs, workers=2)
+    status = {(r.job.root, r.job.task): r for r in results}
+    died = status[(crash, "dcp")]
+    assert died.status == "failed" and "killed by signal SIGKILL" in died.error
+    error = read_json(run_dir(crash, "ci", "dcp", "demo", 0) / "error.json")
+    assert error["error"].startswith("WorkerDied: ") and error["job"]["task"] == "dcp"
+    for key in ((crash, "dbm"), (other, "dcp")):
+        assert status[key].status == "done"
+        folder = run_dir(key[0], "ci", key[1], "demo", 0)
+        assert read_json(folder / "summary.json")["summary"]["episodes"] == 6
+        assert not (folder / "error.json").exists()
+
+
+def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_path):
+    """A done.json that is not a result (say, damaged by hand) makes the job fail with the
+    reason, from the sweep's first check and from `run_job` alike; the run folder is left
+    byte for byte as it was (no retraining over a finished run that has no checkpoint)."""
+    job = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0], root=tmp_path)[0]
+    folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    folder.mkdir(parents=True)
+    (folder / "done.json").write_text('{"steps": 240')
+    (folder / "progress.csv").write_text("the finished run's curve\n")
+    before = {path.name: path.read_bytes() for path in folder.iterdir()}
+    for result in (sweep.run_sweep([job])[0], sweep.run_job(job)):
+        assert result.status == "failed" and "not valid JSON" in result.error
+        assert {path.name: path.read_bytes() for path in folder.iterdir()} == before
+
+
+def test_sweep_command_exits_3_when_runs_were_left_to_another_process(tmp_path, monkeypatch):
+    """Busy runs are not complete: the sweep says so and exits 3 (not 0), so `make
+    reproduce` does not go on to the tables as if the sweep had finished."""
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+
+    monkeypatch.setattr(
+        sweep, "run_job", lambda job: sweep.JobResult(job, "busy", 0.0, "another process")
+    )
+    arguments = ["sweep", "--preset", "ci", "--methods", "gprl-d", "--tasks", "dcp"]
+    arguments += ["--seeds", "0", "--root", str(tmp_path), "--workers", "1", "--heartbeat", "0"]
+    result = CliRunner().invoke(app, arguments)
+    assert result.exit_code == 3, result.output
+    assert "0/1 runs complete, 1 left to the other process training them" in result.output
 
 
 def _children(pid: int) -> list[int]:
@@ -227,18 +303,41 @@ def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_p
     assert "[3]" in table
 
 
-def test_ray_executor_runs_the_same_jobs_on_a_local_ray_instance(tmp_path):
+def test_ray_executor_runs_the_same_jobs_on_a_local_ray_instance(tmp_path, monkeypatch):
+    """On a local Ray instance: an evaluation job and a training job finish as locally
+    (the results root is passed on absolute: here a relative one), a task whose worker
+    dies is recorded as failed with its error.json and stops nothing else, and a second
+    sweep skips the finished runs."""
     import ray  # installed by `make setup` (extra `distgprl[ray]`)
 
-    jobs = sweep.plan_jobs("ci", ["demo"], ["dcp", "dbm"], [0], root=tmp_path)
+    def run_job(job):  # pickled by value: the Ray worker's own `sweep.run_job` is the real one
+        import os
+
+        from distgprl.experiments import sweep as worker_sweep
+
+        if job.task == "dbm":
+            os._exit(9)  # the worker process dies, as on a crash or an OOM kill
+        return worker_sweep.run_job(job)
+
+    real_run_job = sweep.run_job
+    monkeypatch.setattr(sweep, "run_job", run_job)
+    monkeypatch.chdir(tmp_path)
+    jobs = sweep.plan_jobs("ci", ["demo", "gprl-d"], ["dcp", "dbm"], [0], root="results")
     results = sweep.run_sweep(jobs, workers=2, executor="ray")
     assert not ray.is_initialized()
     assert sorted((r.job.name, r.status) for r in results) == [
-        ("dbm/demo/seed0", "done"),
+        ("dbm/demo/seed0", "failed"),
+        ("dbm/gprl-d/seed0", "failed"),
         ("dcp/demo/seed0", "done"),
+        ("dcp/gprl-d/seed0", "done"),
     ]
-    for job in jobs:
-        folder = run_dir(tmp_path, "ci", job.task, job.method, job.seed)
+    assert {r.job.root for r in results} == {"results"}  # the jobs as planned
+    for method in ("demo", "gprl-d"):
+        folder = run_dir("results", "ci", "dcp", method, 0)
         assert read_json(folder / "summary.json")["summary"]["episodes"] == 6
-    again = sweep.run_sweep(jobs, executor="ray")
+        error = read_json(run_dir("results", "ci", "dbm", method, 0) / "error.json")
+        assert "Worker" in error["error"] or "Crash" in error["error"], error["error"]
+    assert read_json(run_dir("results", "ci", "dcp", "gprl-d", 0) / "done.json")["steps"] == 240
+    monkeypatch.setattr(sweep, "run_job", real_run_job)
+    again = sweep.run_sweep(sweep.plan_jobs("ci", ["demo", "gprl-d"], ["dcp"], [0], "results"))
     assert {r.status for r in again} == {"skipped"}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_csv
+from distgprl.experiments.results import read_csv, write_json
 from distgprl.hardware.trials import TRIAL_FIELDS, run_trials
 from distgprl.hardware.twin import TwinConfig, TwinSim, twin_calibration
 
@@ -39,6 +39,8 @@ def _untrained_policy(tmp_path_factory, method: str):
         )
         path = tmp_path_factory.mktemp("model") / "model.zip"
         agent.save(path)
+        # beside it, as in a run folder: the run's config (its hash goes into the trials)
+        write_json(path.parent / "config.json", {"config_hash": run.hash}, kind="config")
     finally:
         env.close()
     return path
@@ -75,7 +77,7 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         assert int(row["images"]) >= 1 and float(row["trial_s"]) > 0
         # the perceived TC agrees with the true one to within the perception error
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
-    table = hardware_table(tmp_path)
+    table = hardware_table(tmp_path, "ci")
     assert table[0]["method"] == method and table[0]["trials"] == 2
     assert table[0]["refused"] == sum(row["status"] == "refused" for row in rows)
     assert report.summary["judged"] == 2

@@ -55,3 +55,45 @@ def test_a_tree_of_an_unknown_preset_is_used_but_says_its_hashes_were_not_checke
     selection = select_runs(tmp_path, "elsewhere")
     assert not selection.checked and selection.current == {folder}
     assert "Config hashes not checked" in selection.note()
+
+
+def test_a_result_file_of_an_unknown_schema_stops_the_reports_of_a_checked_preset(tmp_path):
+    """In a preset of this checkout, a summary.json or done.json of an unknown schema is an
+    error for the tables and the curves (SchemaVersionError, the CLI's exit 2), never a run
+    quietly left out of them."""
+    import json
+
+    import pytest
+
+    from distgprl.experiments.results import SchemaVersionError
+
+    _run(tmp_path, "gprl", 0, resolve_run("dcp", "gprl", 0, "ci").hash)
+    odd = _run(tmp_path, "gprl", 1, resolve_run("dcp", "gprl", 1, "ci").hash)
+    for name in ("summary.json", "done.json"):
+        document = json.loads((odd / name).read_text())
+        document["meta"]["schema_version"] = 999
+        (odd / name).write_text(json.dumps(document))
+    with pytest.raises(SchemaVersionError, match="schema_version 999"):
+        select_runs(tmp_path, "ci")
+    with pytest.raises(SchemaVersionError, match="schema_version 999"):
+        write_tables(tmp_path, "ci", tmp_path / "out")
+    with pytest.raises(SchemaVersionError, match="schema_version 999"):
+        load_curves(tmp_path, "ci", "dcp", "gprl")
+
+
+def test_tables_of_a_tree_moved_to_another_root_are_byte_identical(tmp_path):
+    """The same result files under another root give the same bytes, including the list of
+    runs left out (named by task/method/seed, not by their path)."""
+    import shutil
+
+    first = tmp_path / "a" / "results"
+    _run(first, "gprl", 0, resolve_run("dcp", "gprl", 0, "ci").hash, 0.2)
+    _run(first, "gprl", 1, "0123456789abcdef", 0.9)
+    second = tmp_path / "b" / "elsewhere"
+    shutil.copytree(first, second)
+    written_a = write_tables(first, "ci", tmp_path / "out_a")
+    written_b = write_tables(second, "ci", tmp_path / "out_b")
+    assert [p.name for p in written_a] == [p.name for p in written_b]
+    for a, b in zip(written_a, written_b, strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    assert "Not tabulated (1): dcp/gprl/seed1" in (tmp_path / "out_a" / "table1_ci.md").read_text()

@@ -13,10 +13,12 @@ from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.tables import (
     LATE_CURVE_POINTS,
     aggregate,
+    binomial_interval,
     hardware_table,
     late_curve,
     moved_robot,
     per_seed_rows,
+    select_trial_files,
     simulation_table,
     write_tables,
 )
@@ -182,25 +184,34 @@ def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp
             dict(zip(fields, (k, backend, *outcome), strict=True))
             for k, outcome in enumerate(outcomes)
         ]
-        write_csv(tmp_path / "hardware" / "dist-gprl" / f"trials_{backend}.csv", rows, fields)
+        write_csv(
+            tmp_path / "hardware" / "dist-gprl" / f"trials_{backend}.csv", rows, fields, preset="p"
+        )
     written = {path.name for path in write_tables(tmp_path, "p", tmp_path / "out")}
-    assert {"table2_hardware.csv", "table2_hardware.md", "table2_hardware.tex"} <= written
+    assert {"table2_p.csv", "table2_p.md", "table2_p.tex"} <= written
     out = tmp_path / "out"
-    lines = (out / "table2_hardware.csv").read_text().splitlines()
+    lines = (out / "table2_p.csv").read_text().splitlines()
     assert lines[0] == (
-        "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5,executed"
+        "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5,executed,"
+        "success_rate_ci_low,success_rate_ci_high,collision_rate_ci_low,collision_rate_ci_high"
     )
     twin = lines[1].split(",")
     assert twin[:4] == ["dist-gprl", "twin", "3", "1"]
     assert float(twin[4]) == pytest.approx(2 / 3) and float(twin[5]) == pytest.approx(1 / 3)
     assert float(twin[6]) == pytest.approx(np.percentile([0.02, -0.01], 5))  # moved only
     assert twin[7] == "2"
+    # Clopper-Pearson 95 %: 2 of 3 [0.0943, 0.9916], 1 of 3 [0.0084, 0.9057] (beta quantiles)
+    assert [float(x) for x in twin[8:]] == pytest.approx([0.0943, 0.9916, 0.0084, 0.9057], abs=1e-4)
     assert lines[2].split(",")[:4] == ["dist-gprl", "ur", "1", "0"]
-    markdown = (out / "table2_hardware.md").read_text()
-    assert "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 | 0.33 | -0.009 (n=2) |" in markdown
-    assert "| Dist-GPRL (ours) | ur | 1 | 0 | 0.00 | 0.00 | 0.030 |" in markdown
-    latex = (out / "table2_hardware.tex").read_text()
-    assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 & 0.33 &" in latex
+    markdown = (out / "table2_p.md").read_text()
+    assert (
+        "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 [0.09, 0.99] | 0.33 [0.01, 0.91] | -0.009 (n=2) |"
+    ) in markdown
+    assert (
+        "| Dist-GPRL (ours) | ur | 1 | 0 | 0.00 [0.00, 0.97] | 0.00 [0.00, 0.97] | 0.030 |"
+    ) in markdown
+    latex = (out / "table2_p.tex").read_text()
+    assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 [0.09, 0.99] & 0.33 [0.01, 0.91] &" in latex
     assert latex.count("\\\\") == 3  # header and two rows
 
 
@@ -208,13 +219,15 @@ def test_table2_disappears_with_its_trial_files(tmp_path):
     write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
     fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
     trials = tmp_path / "hardware" / "demo" / "trials_twin.csv"
-    write_csv(trials, [dict(zip(fields, (0, "twin", "ok", 1, 0, 0.02), strict=True))], fields)
+    write_csv(
+        trials, [dict(zip(fields, (0, "twin", "ok", 1, 0, 0.02), strict=True))], fields, preset="p"
+    )
     write_tables(tmp_path, "p", tmp_path / "out")
-    assert (tmp_path / "out" / "table2_hardware.md").exists()
+    assert (tmp_path / "out" / "table2_p.md").exists()
     trials.unlink()  # e.g. moved to results/exploration/ when its scene changed
     written = write_tables(tmp_path, "p", tmp_path / "out")
     assert not any(path.name.startswith("table2") for path in written)
-    assert not list((tmp_path / "out").glob("table2_hardware.*"))
+    assert not list((tmp_path / "out").glob("table2_p.*"))
 
 
 def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_collision(
@@ -268,10 +281,10 @@ def test_table2_min_clearance_is_over_trials_that_moved_the_robot_only(tmp_path)
     moved = [("ok", 1, 0, 0.012, 0.2), ("ok", 1, 0, 0.004, 0.2), ("refused", 0, 0, 0.008, 0.05)]
     unmoved = [("refused", 0, 0, 0.1, 0.0), ("refused", 0, 0, 0.1, 0.0)]
     rows = [dict(zip(fields, (k, "twin", *t), strict=True)) for k, t in enumerate(moved + unmoved)]
-    write_csv(tmp_path / "hardware" / "dist-gprl" / "trials_twin.csv", rows, fields)
+    write_csv(tmp_path / "hardware" / "dist-gprl" / "trials_twin.csv", rows, fields, preset="p")
     never = [dict(zip(fields, (k, "twin", *t), strict=True)) for k, t in enumerate(unmoved)]
-    write_csv(tmp_path / "hardware" / "gprl" / "trials_twin.csv", never, fields)
-    table = {row["method"]: row for row in hardware_table(tmp_path)}
+    write_csv(tmp_path / "hardware" / "gprl" / "trials_twin.csv", never, fields, preset="p")
+    table = {row["method"]: row for row in hardware_table(tmp_path, "p")}
     ours = table["dist-gprl"]
     assert (ours["trials"], ours["refused"], ours["executed"]) == (5, 3, 3)
     assert ours["success_rate"] == pytest.approx(2 / 5)  # rates: over all trials
@@ -282,14 +295,16 @@ def test_table2_min_clearance_is_over_trials_that_moved_the_robot_only(tmp_path)
     assert np.isnan(table["gprl"]["min_clearance_p5"]) and table["gprl"]["executed"] == 0
     write_tables(tmp_path, "p", tmp_path / "out")
     out = tmp_path / "out"
-    markdown = (out / "table2_hardware.md").read_text()
-    assert f"| Dist-GPRL (ours) | twin | 5 | 3 | 0.40 | 0.00 | {expected:.3f} (n=3) |" in markdown
-    assert "| GPRL | twin | 2 | 2 | 0.00 | 0.00 | – (n=0) |" in markdown
+    markdown = (out / "table2_p.md").read_text()
+    ours_cells = f"| 5 | 3 | 0.40 [0.05, 0.85] | 0.00 [0.00, 0.52] | {expected:.3f} (n=3) |"
+    assert f"| Dist-GPRL (ours) | twin {ours_cells}" in markdown
+    assert "| GPRL | twin | 2 | 2 | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | – (n=0) |" in markdown
     assert "MinCl is over the trials that moved the robot" in markdown.splitlines()[0]
-    latex = (out / "table2_hardware.tex").read_text()
+    latex = (out / "table2_p.tex").read_text()
     assert f"& {expected:.3f} (n=3) \\\\" in latex and "& -- (n=0) \\\\" in latex
-    lines = (out / "table2_hardware.csv").read_text().splitlines()
-    assert lines[1].split(",")[-2:] == ["", "0"]  # gprl first (table order): empty MinCl
+    lines = (out / "table2_p.csv").read_text().splitlines()
+    gprl = dict(zip(lines[0].split(","), lines[1].split(","), strict=True))
+    assert (gprl["method"], gprl["min_clearance_p5"], gprl["executed"]) == ("gprl", "", "0")
 
 
 def test_moved_robot_reads_status_and_execution_time():
@@ -301,3 +316,56 @@ def test_moved_robot_reads_status_and_execution_time():
     assert not moved_robot({"status": "refused", "execution_s": "0.0"})
     assert not moved_robot({"status": "not_perceived", "execution_s": "0.0"})
     assert not moved_robot({"status": "refused"})
+
+
+@pytest.mark.parametrize(
+    ("successes", "trials", "expected"),
+    [(0, 10, (0.0, 0.3085)), (10, 10, (0.6915, 1.0)), (7, 10, (0.3475, 0.9333))],
+)
+def test_binomial_interval_is_the_exact_clopper_pearson_interval(successes, trials, expected):
+    """Against the published exact 95 % intervals for 0, 7 and 10 successes in 10 trials."""
+    assert binomial_interval(successes, trials) == pytest.approx(expected, abs=1e-4)
+
+
+def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):
+    """Table II of the `ci` preset counts the trials of ci policies of the current
+    configuration; trials run with the pre-flight check overridden (--force) or with a
+    policy of another configuration are listed under it, not counted; another preset's
+    trials are not this table's, and its Table II file is left alone."""
+    from distgprl.experiments.runner import resolve_run
+
+    write_json(
+        tmp_path / "ci" / "dbm" / "demo" / "seed0" / "summary.json",
+        summary(0.9, 0.3, 0.0),
+        config_hash=resolve_run("dbm", "demo", 0, "ci").hash,
+    )
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    current = resolve_run("dbm", "dist-gprl", 0, "ci").hash
+
+    def trials(name, outcomes, **meta):
+        rows = [dict(zip(fields, (k, "twin", *o), strict=True)) for k, o in enumerate(outcomes)]
+        write_csv(tmp_path / "hardware" / "dist-gprl" / name, rows, fields, **meta)
+
+    policy = {"run_config_hash": current}
+    trials("a.csv", [("ok", 1, 0, 0.02)] * 2, preset="ci", seed=0, policy=policy)
+    trials("b.csv", [("ok", 0, 1, -0.01)], preset="ci", seed=0, policy=policy, force=True)
+    old = {"run_config_hash": "0123456789abcdef"}
+    trials("c.csv", [("ok", 0, 1, -0.01)], preset="ci", seed=0, policy=old)
+    trials("d.csv", [("ok", 0, 1, -0.01)], preset="paper", seed=0, policy=old)
+    selection = select_trial_files(tmp_path, "ci")
+    assert [(method, len(rows)) for method, rows in selection.counted] == [("dist-gprl", 2)]
+    assert selection.excluded == (
+        "dist-gprl/b.csv (pre-flight check overridden, --force)",
+        "dist-gprl/c.csv (policy config hash 0123456789abcdef, not the current one)",
+    )
+    (row,) = hardware_table(tmp_path, "ci")
+    assert (row["trials"], row["success_rate"], row["collision_rate"]) == (2, 1.0, 0.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "table2_paper.md").write_text("the paper preset's Table II")
+    write_tables(tmp_path, "ci", out)
+    markdown = (out / "table2_ci.md").read_text()
+    assert "Not tabulated (2): dist-gprl/b.csv" in markdown and "dist-gprl/d.csv" not in markdown
+    assert (out / "table2_paper.md").read_text() == "the paper preset's Table II"
+    latex = (out / "table2_ci.tex").read_text()
+    assert "95\\,\\% binomial interval" in latex and " % " not in latex
