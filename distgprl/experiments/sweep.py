@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import _thread
 import os
+import pickle
 import signal
 import sys
 import threading
@@ -257,13 +258,18 @@ def _watch_sweep(parent_pid: int, stop, poll_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="watch-sweep", daemon=True).start()
 
 
+INTERRUPTED_EXIT = 130
+"""Exit code of a job's process stopped by KeyboardInterrupt (SIGINT, or the sweep's stop):
+the sweep treats it as an interrupt of the whole sweep, as Ctrl-C, not as a failed job."""
+
+
 def _job_process(job: Job, parent_pid: int, stop, connection) -> None:
     """Body of a job's own process: run it and send its `JobResult` to the sweep."""
     _watch_sweep(parent_pid, stop)
     try:
         result = _run_job_in_worker(job)
     except KeyboardInterrupt:  # the sweep was interrupted: stop quietly, as a kill would
-        sys.exit(130)
+        sys.exit(INTERRUPTED_EXIT)
     connection.send(result)
     connection.close()
 
@@ -295,9 +301,16 @@ def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
                 running[process.sentinel] = (process, receiver, job, time.perf_counter())
             for sentinel in wait_for_any(list(running)):
                 process, receiver, job, started = running.pop(sentinel)
-                result = receiver.recv() if receiver.poll() else None
+                result = None
+                try:
+                    if receiver.poll():
+                        result = receiver.recv()
+                except (EOFError, OSError, pickle.UnpicklingError):  # died while sending it
+                    result = None
                 process.join()
                 receiver.close()
+                if result is None and process.exitcode == INTERRUPTED_EXIT:
+                    raise KeyboardInterrupt  # Ctrl-C reached the job before this process
                 if result is None:
                     how = describe_exit(process.exitcode)
                     result = record_failure(

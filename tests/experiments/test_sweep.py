@@ -66,6 +66,9 @@ from distgprl.experiments import sweep
 def job_process(job, parent_pid, stop, connection):
     if job.task == "dcp" and job.root.endswith("crash"):  # dies as a segfault or OOM kill would
         os.kill(os.getpid(), signal.SIGKILL)
+    if job.task == "dcp" and job.root.endswith("interrupt"):  # Ctrl-C reaches it mid-job
+        import threading
+        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
     sweep._job_process(job, parent_pid, stop, connection)
 """
 
@@ -96,6 +99,22 @@ def test_a_worker_that_dies_fails_its_own_job_only(tmp_path, monkeypatch):
         folder = run_dir(key[0], "ci", key[1], "demo", 0)
         assert read_json(folder / "summary.json")["summary"]["episodes"] == 6
         assert not (folder / "error.json").exists()
+
+
+def test_a_job_interrupted_before_the_sweep_interrupts_the_sweep(tmp_path, monkeypatch):
+    """A job's process stopped by SIGINT (a terminal's Ctrl-C reaches the whole process
+    group, and may reach a job first) stops the sweep as Ctrl-C does: KeyboardInterrupt,
+    and no error.json, since nothing failed."""
+    (tmp_path / "crash_helper.py").write_text(CRASH_HELPER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import crash_helper
+
+    monkeypatch.setattr(sweep, "_job_process", crash_helper.job_process)
+    root = str(tmp_path / "interrupt")
+    jobs = [sweep.Job("dcp", "demo", 0, "ci", root), sweep.Job("dbm", "demo", 0, "ci", root)]
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(jobs, workers=2)
+    assert not list(Path(root).rglob("error.json"))
 
 
 def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_path):
