@@ -136,19 +136,27 @@ def is_complete(job: Job) -> bool:
     return recorded == resolve_run(job.task, job.method, job.seed, job.preset).hash
 
 
+def finished_result(job: Job) -> JobResult | None:
+    """The job's result if there is nothing to run: "skipped" (finished, same
+    configuration) or "failed" (its finish marker is unreadable: reported, never retrained
+    over); None if it has to run."""
+    try:
+        complete = is_complete(job)
+    except SchemaVersionError as error:
+        return JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}")
+    return JobResult(job, "skipped", 0.0) if complete else None
+
+
 def run_job(job: Job) -> JobResult:
     """Run one job to completion (resuming if possible); never raises for a run failure."""
     import torch
 
     torch.set_num_threads(1)
     start = time.perf_counter()
+    finished = finished_result(job)
+    if finished is not None:
+        return finished
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
-    try:
-        complete = is_complete(job)
-    except SchemaVersionError as error:  # a finished run's marker: reported, not retrained
-        return JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}")
-    if complete:
-        return JobResult(job, "skipped", 0.0)
     busy = JobResult(job, "busy", 0.0, "another process is training this run")
     if is_locked(folder):
         return busy
@@ -360,7 +368,8 @@ def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[Job
                     try:
                         result = ray.get(ref)
                     except ray.exceptions.RayError as error:  # the task crashed or was lost
-                        message = f"{type(error).__name__}: {str(error).splitlines()[0]}"
+                        first_line = (str(error).splitlines() or [""])[0]
+                        message = f"{type(error).__name__}: {first_line}"
                         yield record_failure(job, message, str(error), 0.0)
                         continue
                     yield replace(result, job=job)
@@ -389,15 +398,11 @@ def run_sweep(
         raise UserInputError(f"unknown executor {executor!r}; valid: local, ray")
     todo, results = [], []
     for job in jobs:
-        try:
-            complete = is_complete(job)
-        except SchemaVersionError as error:  # a finished run's marker: reported, not retrained
-            results.append(JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}"))
-            continue
-        if complete:
-            results.append(JobResult(job, "skipped", 0.0))
-        else:
+        finished = finished_result(job)
+        if finished is None:
             todo.append(job)
+        else:
+            results.append(finished)
     total = len(jobs)
     for result in results:
         if on_result:

@@ -306,7 +306,12 @@ def binomial_interval(successes: int, trials: int, level: float = 0.95) -> tuple
 
 
 def hardware_table(root: str | Path, preset: str) -> list[dict]:
-    """Rows of Table II from the trial files `select_trial_files` counts, one per (method,
+    """Rows of Table II from the trial files `select_trial_files` counts (`hardware_rows`)."""
+    return hardware_rows(select_trial_files(root, preset))
+
+
+def hardware_rows(files: TrialFiles) -> list[dict]:
+    """Rows of Table II from the trial files ``files`` counts, one per (method,
     backend): trials on the real robot (``ur``) and on the digital twin are never mixed.
     Refused trials (the safety layer's pre-flight check refused a window's plan) count as
     failures without collision and are also counted on their own. Success and collision
@@ -314,10 +319,11 @@ def hardware_table(root: str | Path, preset: str) -> list[dict]:
     (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of the trials'
     minimum clearance, only over the ``executed`` trials that moved the robot
     (`moved_robot`; NaN if none did)."""
+    by_method: dict[str, list[dict]] = {}
+    for method, trial_rows in files.counted:
+        by_method.setdefault(method, []).extend(trial_rows)
     rows = []
-    files = select_trial_files(root, preset).counted
-    for method in TABLE_ORDER:
-        trials = [row for name, rows_ in files if name == method for row in rows_]
+    for method, trials in by_method.items():  # counted in table order
         for backend in sorted({r.get("backend", "unknown") for r in trials}):
             subset = [r for r in trials if r.get("backend", "unknown") == backend]
             executed = [r for r in subset if moved_robot(r)]
@@ -521,13 +527,12 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
             stale.unlink()
-    hardware = hardware_table(root, preset)
+    trial_files = select_trial_files(root, preset)
+    hardware = hardware_rows(trial_files)
     written += _write_or_remove(
         out_dir / f"table2_{preset}",
         (".csv", ".md", ".tex"),
-        _hardware_texts(hardware, preset, select_trial_files(root, preset).note())
-        if hardware
-        else None,
+        _hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
     )
     return written
 
