@@ -72,6 +72,15 @@ def fit(
         f"fitted {output.skill.name}: length scale {output.skill.kernel.length_scale:.4f}, "
         f"max position RMSE {worst * 1000:.3f} mm -> {output.json_path}, {output.figure_path}"
     )
+    correlation = output.correlation
+    windows = correlation["windows"]
+    typer.echo(
+        f"covariance transform (lambda {correlation['correlation_lambda']:g}): neighbouring "
+        f"via-points correlate {correlation['neighbour_correlation']:.2f} in the kernel; S_W "
+        f"eigenvalues {min(w['eigenvalue_min'] for w in windows):.3f}-"
+        f"{max(w['eigenvalue_max'] for w in windows):.3f}, largest off-diagonal "
+        f"{max(w['max_off_diagonal'] for w in windows):.3f}"
+    )
 
 
 @app.command()

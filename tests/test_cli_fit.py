@@ -21,6 +21,10 @@ def test_fit_demo_writes_json_and_figure(tmp_path, smooth_demo_file):
     assert max(document["rmse"]["position"]) < 1e-3
     assert document["skill"]["kernel"]["length_scale"] > 0
     assert (out / "synthetic.png").stat().st_size > 10_000
+    correlation = document["correlation_operator"]
+    assert correlation["correlation_lambda"] == 0.01
+    assert [w["via_points"][0] for w in correlation["windows"]] == [1, 5, 9]
+    assert "covariance transform (lambda 0.01)" in result.output
 
 
 @pytest.mark.parametrize(

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from distgprl.config import EnvConfig
 from distgprl.experiments.results import read_json, write_json
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
@@ -22,6 +23,52 @@ class FitOutput:
     json_path: Path
     figure_path: Path
     rmse: dict[str, list[float]]
+    correlation: dict
+
+
+def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> dict:
+    """How strongly the covariance transform acts on this skill's windows.
+
+    Builds the windows' S_W exactly as the adaptation env does (Eq. transformed_action,
+    ``build_action_layout`` for ``dist-gprl``) and reports, per window: the eigenvalue range of
+    S_W (its shrink of a raw action along its eigenvectors; 1 = unchanged) and the largest
+    off-diagonal entry (how much a via-point's raw action moves its neighbours). Also the
+    kernel's correlation between neighbouring via-points, k(spacing) / k(0). When every
+    eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the identity: the
+    transform then barely correlates the update (see docs/FINDINGS.md).
+
+    Returns:
+        A JSON-ready dict: ``correlation_lambda``, ``length_scale`` and ``via_point_spacing``
+        (normalised time), ``neighbour_correlation``, and ``windows``: one dict per window
+        with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max`` and
+        ``max_off_diagonal``.
+    """
+    from distgprl.agents.methods import get_method
+    from distgprl.envs.adaptation import build_action_layout
+
+    env_config = env_config or EnvConfig()
+    layout = build_action_layout(skill, env_config, get_method("dist-gprl"))
+    spacing = float(np.min(np.diff(skill.via_times)))
+    length_scale = float(skill.kernel.length_scale)
+    windows = []
+    for indices, operator in zip(layout.indices, layout.operators, strict=True):
+        eigenvalues = np.linalg.eigvalsh(0.5 * (operator + operator.T))
+        off_diagonal = operator - np.diag(np.diag(operator))
+        windows.append(
+            {
+                "via_points": [int(i) for i in indices],
+                "eigenvalue_min": float(eigenvalues.min()),
+                "eigenvalue_max": float(eigenvalues.max()),
+                "max_off_diagonal": float(np.abs(off_diagonal).max()),
+            }
+        )
+    return {
+        "correlation_lambda": float(env_config.correlation_lambda),
+        "length_scale": length_scale,
+        "via_point_spacing": spacing,
+        "neighbour_correlation": float(np.exp(-(spacing**2) / (2 * length_scale**2))),
+        "windows": windows,
+    }
 
 
 def fit_demonstration(
@@ -47,6 +94,7 @@ def fit_demonstration(
         name=name,
     )
     rmse = reconstruction_error(skill, demo)
+    correlation = correlation_summary(skill)
     out_dir = Path(out_dir)
     figure_path = plot_fit(skill, demo, out_dir / f"{name}.png")
     json_path = write_json(
@@ -59,12 +107,13 @@ def fit_demonstration(
                 "samples": int(demo.times.shape[0]),
             },
             "rmse": {"axes": list(AXES), **rmse},
+            "correlation_operator": correlation,
             "figure": figure_path.name,
         },
         kind="skill",
         fit_config=config.__dict__,
     )
-    return FitOutput(skill, json_path, figure_path, rmse)
+    return FitOutput(skill, json_path, figure_path, rmse, correlation)
 
 
 def load_skill(path: str | Path) -> GPSkill:
