@@ -95,8 +95,10 @@ class SACConfig:
     Attributes:
         lambda_sim: weight of L_sim (paper: 0.5).
         lambda_hap: weight of L_hap (paper: 0.2).
-        lambda_velocity: lambda_v of Eq. sim_compact.
-        lambda_acceleration: lambda_a of Eq. sim_compact (per m/s^2 of L1 error).
+        lambda_velocity: lambda_v of Eq. sim_compact (the paper does not give it; set once,
+            never tuned).
+        lambda_acceleration: lambda_a of Eq. sim_compact (per m/s^2 of L1 error; the paper
+            does not give it; set once, never tuned).
         n_similarity_samples: T, trajectory samples for L_sim.
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
         anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially

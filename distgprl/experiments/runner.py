@@ -6,7 +6,8 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``progress.csv``    learning-curve evaluations (success, collision, return) every
                       ``eval_every`` steps on the fixed learning-curve TCs;
 - ``checkpoints/``    latest model, replay buffer and RNG state (never committed);
-- ``model.zip``       the final policy (never committed);
+- ``model.zip``       the final policy, the one evaluated (Algorithm 1 says "best"; no
+                      checkpoint is selected, docs/FINDINGS.md; never committed);
 - ``evaluation.csv``  one row per evaluation episode;
 - ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
 - ``evaluation_n<N>.csv``, ``summary_n<N>.json``  optional supplementary evaluation on the
