@@ -31,6 +31,12 @@ class EnvConfig:
         window_size: L (paper: 5); windows overlap by one via-point.
         n_windows: RL steps per episode (paper: 3).
         correlation_lambda: lambda of S = K (K + lambda I)^-1 (paper: 1e-2).
+        correlation_length_scale: length scale (normalised time) of the kernel matrix K in
+            S only; 0 (default) = the kernel fitted to the demonstration, as in every
+            `paper` run. The paper gives no K beyond Eq. global_S; with the fitted length
+            scales (just under the via-point spacing) S_W is nearly the identity
+            (docs/FINDINGS.md, "Covariance transform"), so this lets a run use a K that
+            does correlate neighbouring via-points. The trajectory GP is unchanged.
         position_action_scale: m of via-point change per unit raw action (the paper does
             not give it). 0.1 m (env v3; v0-v2: 0.03 m): the tasks' TCs move the objects by
             up to 20 cm, and the approach via-points that conditioning leaves in place must
@@ -68,6 +74,7 @@ class EnvConfig:
     window_size: int = 5
     n_windows: int = 3
     correlation_lambda: float = 1e-2
+    correlation_length_scale: float = 0.0
     position_action_scale: float = 0.1
     rotation_action_scale: float = 0.05
     lambda_ga: float = 0.2
@@ -162,7 +169,18 @@ class Config:
     run: RunConfig = field(default_factory=RunConfig)
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The configuration as a dict (what `config.json` records and the run's config hash
+        covers). Fields added after results were committed appear only when they differ from
+        the default that reproduces the old behaviour, so that those runs keep their hash."""
+        data = asdict(self)
+        for (section, key), default in HASH_STABLE_DEFAULTS.items():
+            if data[section][key] == default:
+                del data[section][key]
+        return data
+
+
+#: Fields added to the configuration after committed results, with their old-behaviour default.
+HASH_STABLE_DEFAULTS: dict[tuple[str, str], Any] = {("env", "correlation_length_scale"): 0.0}
 
 
 _SECTIONS = {"env": EnvConfig, "sac": SACConfig, "run": RunConfig}
@@ -267,6 +285,11 @@ def load_config(
             if layer.get(section):
                 updated = _apply(cls, getattr(config, section), layer[section], where)
                 config = replace(config, **{section: updated})
+    if config.env.correlation_length_scale < 0:
+        raise UserInputError(
+            f"env.correlation_length_scale = {config.env.correlation_length_scale} must be > 0 "
+            "(normalised time), or 0 for the kernel fitted to the demonstration"
+        )
     episode = config.env.n_windows
     for key in ("total_steps", "eval_every", "checkpoint_every"):
         if getattr(config.run, key) % episode:

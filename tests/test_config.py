@@ -104,3 +104,22 @@ def test_sections_and_task_entries_must_be_mappings(preset_dir):
         preset = preset_dir(text)
         with pytest.raises(UserInputError, match=message):
             load_config(preset, task="dbm")
+
+
+def test_correlation_length_scale_is_hashed_only_when_set(preset_dir):
+    """The option added after the paper runs (0 = the fitted kernel) leaves the recorded
+    configuration, and so every committed run's config hash, as it was; a set value is
+    recorded."""
+    default = load_config(preset_dir("")).to_dict()
+    assert "correlation_length_scale" not in default["env"]
+    assert default["env"]["correlation_lambda"] == 0.01
+    changed = load_config(preset_dir("env:\n  correlation_length_scale: 0.1\n")).to_dict()
+    assert changed["env"]["correlation_length_scale"] == 0.1
+    assert {k: v for k, v in changed["env"].items() if k != "correlation_length_scale"} == (
+        default["env"]
+    )
+
+
+def test_a_negative_correlation_length_scale_is_refused_at_load_time(preset_dir):
+    with pytest.raises(UserInputError, match="correlation_length_scale = -0.1 must be > 0"):
+        load_config(preset_dir("env:\n  correlation_length_scale: -0.1\n"))

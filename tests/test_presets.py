@@ -22,3 +22,13 @@ def test_paper_preset_budgets():
     assert load_config("paper", task="dcp").run.total_steps == 30_000
     assert load_config("paper", task="dbm").run.total_steps == 45_000
     assert load_config("paper", task="dbm").run.eval_episodes == 100
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_correlated_preset_is_the_paper_preset_but_for_the_correlation_length_scale(task):
+    """The exploration preset changes one thing (K's length scale in S), so its runs compare
+    with the paper runs of the same method and seed."""
+    paper, correlated = load_config("paper", task=task), load_config("correlated", task=task)
+    assert correlated.env.correlation_length_scale == pytest.approx(1 / 7)
+    assert replace(correlated.env, correlation_length_scale=0.0) == paper.env
+    assert (correlated.sac, correlated.run) == (paper.sac, paper.run)

@@ -91,8 +91,9 @@ def build_action_layout(
     else:
         indices = windows
         if method.covariance_transform:
+            length_scale = config.correlation_length_scale or None  # 0: the fitted one
             operators = np.stack(
-                [skill.window_operator(w, config.correlation_lambda) for w in windows]
+                [skill.window_operator(w, config.correlation_lambda, length_scale) for w in windows]
             )
         else:
             operators = np.tile(np.eye(length), (steps, 1, 1))

@@ -38,7 +38,8 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     transform then barely correlates the update (see docs/FINDINGS.md).
 
     Returns:
-        A JSON-ready dict: ``correlation_lambda``, ``length_scale`` and ``via_point_spacing``
+        A JSON-ready dict: ``correlation_lambda``, ``length_scale`` (of K: the fitted one
+        unless ``env_config.correlation_length_scale`` sets it) and ``via_point_spacing``
         (normalised time), ``neighbour_correlation``, and ``windows``: one dict per window
         with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max`` and
         ``max_off_diagonal``.
@@ -49,7 +50,7 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     env_config = env_config or EnvConfig()
     layout = build_action_layout(skill, env_config, get_method("dist-gprl"))
     spacing = float(np.min(np.diff(skill.via_times)))
-    length_scale = float(skill.kernel.length_scale)
+    length_scale = float(env_config.correlation_length_scale or skill.kernel.length_scale)
     windows = []
     for indices, operator in zip(layout.indices, layout.operators, strict=True):
         eigenvalues = np.linalg.eigvalsh(0.5 * (operator + operator.T))

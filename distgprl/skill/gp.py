@@ -256,17 +256,25 @@ class GPSkill:
         return self.acceleration_map(tau) @ (via_points - self.prior_mean)
 
     # -- correlation operator ---------------------------------------------------------------
-    def correlation_operator(self, correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA):
+    def correlation_operator(
+        self,
+        correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA,
+        length_scale: float | None = None,
+    ):
         """S = K (K + lambda I)^{-1}, shape (N, N) (Eq. global_S).
 
         K is the kernel's correlation matrix (unit variance) at the via-point times, so
-        S is symmetric with eigenvalues mu / (mu + lambda) in (0, 1).
+        S is symmetric with eigenvalues mu / (mu + lambda) in (0, 1). ``length_scale``
+        (normalised time) replaces the fitted one in K only; None = the fitted one.
         """
-        key = ("S", float(correlation_lambda))
+        length_scale = self.kernel.length_scale if length_scale is None else length_scale
+        key = ("S", float(correlation_lambda), float(length_scale))
         if key not in self._cache:
             if correlation_lambda <= 0:
                 raise ValueError("correlation_lambda must be > 0")
-            corr = se_kernel(self.via_times, self.via_times, self.kernel.length_scale, 1.0)
+            if length_scale <= 0:
+                raise ValueError("length_scale must be > 0")
+            corr = se_kernel(self.via_times, self.via_times, length_scale, 1.0)
             n = self.n_via_points
             # K (K + lambda I)^{-1} = I - lambda (K + lambda I)^{-1}; symmetrise rounding.
             s = np.eye(n) - correlation_lambda * np.linalg.inv(
@@ -276,11 +284,16 @@ class GPSkill:
         return self._cache[key]
 
     def window_operator(
-        self, indices: Sequence[int], correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA
+        self,
+        indices: Sequence[int],
+        correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA,
+        length_scale: float | None = None,
     ) -> np.ndarray:
-        """Principal sub-block S_W, shape (L, L), for the via-point indices of a window."""
+        """Principal sub-block S_W, shape (L, L), for the via-point indices of a window
+        (``length_scale``: as in `correlation_operator`)."""
         idx = np.asarray(indices, dtype=int)
-        return self.correlation_operator(correlation_lambda)[np.ix_(idx, idx)].copy()
+        operator = self.correlation_operator(correlation_lambda, length_scale)
+        return operator[np.ix_(idx, idx)].copy()
 
     # -- task conditioning -----------------------------------------------------------------
     def nearest_via_index(self, tau: float) -> int:

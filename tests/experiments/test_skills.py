@@ -90,3 +90,22 @@ def test_summary_follows_the_env_window_size():
         [7, 8, 9, 10],
         [10, 11, 12, 13],
     ]
+
+
+def test_a_configured_length_scale_replaces_the_fitted_one_in_s_only():
+    """`correlation_length_scale` builds S_W from K with that length scale (checked against
+    the independent operator); the skill's own kernel, and so its trajectory, is unchanged."""
+    skill = make_skill(0.06)
+    config = EnvConfig(correlation_length_scale=0.1)
+    summary = correlation_summary(skill, config)
+    assert summary["length_scale"] == 0.1
+    for window, reported in zip(PAPER_WINDOWS, summary["windows"], strict=True):
+        s_w = independent_window_operator(0.1, 1e-2, window)
+        off = np.abs(s_w - np.diag(np.diag(s_w))).max()
+        assert reported["max_off_diagonal"] == pytest.approx(off, abs=1e-8)
+    assert skill.kernel.length_scale == 0.06
+    fitted = correlation_summary(skill, EnvConfig())
+    assert fitted["length_scale"] == 0.06
+    assert max(w["max_off_diagonal"] for w in summary["windows"]) > 5 * max(
+        w["max_off_diagonal"] for w in fitted["windows"]
+    )
