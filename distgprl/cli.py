@@ -329,11 +329,19 @@ def evaluate(
         ),
     ] = None,
     root: RootOption = Path("results"),
+    policy: Annotated[
+        str,
+        typer.Option(
+            help="`final` (the trained policy, what Table I evaluates) or `best` (Algorithm "
+            "1's best policy: the best learning-curve point, by curve success, then collision, "
+            "then return), which writes evaluation_best*.csv / summary_best*.json.",
+        ),
+    ] = "final",
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.runner import describe, evaluate_run
 
-    summary = evaluate_run(task, method, seed, preset, episodes, root)
+    summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
     typer.echo(describe(summary))
 
 

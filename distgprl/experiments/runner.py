@@ -6,12 +6,17 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``progress.csv``    learning-curve evaluations (success, collision, return) every
                       ``eval_every`` steps on the fixed learning-curve TCs;
 - ``checkpoints/``    latest model, replay buffer and RNG state (never committed);
-- ``model.zip``       the final policy, the one evaluated (Algorithm 1 says "best"; no
-                      checkpoint is selected, docs/FINDINGS.md; never committed);
+- ``checkpoints/curve_policies/step<k>.pt``  the actor at each learning-curve point that
+                      beat every earlier one (`curve_rank`), for ``--policy best`` (never
+                      committed);
+- ``model.zip``       the final policy, the one Table I evaluates (never committed);
 - ``evaluation.csv``  one row per evaluation episode;
 - ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
 - ``evaluation_n<N>.csv``, ``summary_n<N>.json``  optional supplementary evaluation on the
                       first N evaluation TCs (``distgprl evaluate --episodes N``);
+- ``evaluation_best[_n<N>].csv``, ``summary_best[_n<N>].json``  optional evaluation of the
+                      best learning-curve policy, Algorithm 1's "best policy"
+                      (``distgprl evaluate --policy best``, `best_curve_row`);
 - ``done.json``       marker written last: the run is complete (steps, training wall
                       time, and the steps it was resumed at, each marked exact or not).
 
@@ -22,6 +27,7 @@ the new one, never half of one.
 from __future__ import annotations
 
 import fcntl
+import io
 import json
 import os
 import pickle
@@ -501,6 +507,85 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
     return model, state
 
 
+# -- learning-curve policies (Algorithm 1's "best policy") --------------------------------
+#: Policies that can be evaluated: the final one (Table I) or the best learning-curve one.
+POLICY_CHOICES = ("final", "best")
+
+
+def curve_policy_dir(folder: Path) -> Path:
+    """Where a run keeps the actors of its best-so-far learning-curve points (checkpoints)."""
+    return checkpoint_dir(folder) / "curve_policies"
+
+
+def curve_policy_path(folder: Path, step: int) -> Path:
+    """The kept actor of the learning-curve point at ``step``."""
+    return curve_policy_dir(folder) / f"step{int(step)}.pt"
+
+
+def curve_rank(row: dict[str, Any]) -> tuple[float, float, float]:
+    """How learning-curve points are ordered when Algorithm 1's "best policy" is selected:
+    higher success rate on the learning-curve TCs, then lower collision rate, then higher
+    mean return. The curve TCs are drawn from their own stream, never the evaluation TCs, so
+    selecting on them and evaluating on the evaluation TCs is an honest model selection."""
+    return (
+        float(row["success_rate"]),
+        -float(row["collision_rate"]),
+        float(row["mean_return"]),
+    )
+
+
+def best_curve_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The best learning-curve point (`curve_rank`; the earliest of equal ones)."""
+    if not rows:
+        raise UserInputError("no learning-curve points to select the best policy from")
+    best = rows[0]
+    for row in rows[1:]:
+        if curve_rank(row) > curve_rank(best):
+            best = row
+    return best
+
+
+def save_curve_policy(folder: Path, model) -> None:
+    """Keep the model's actor (weights only) as the learning-curve policy of its step."""
+    import torch
+
+    buffer = io.BytesIO()
+    torch.save(model.actor.state_dict(), buffer)
+    path = curve_policy_path(folder, model.num_timesteps)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buffer.getvalue())
+
+
+def drop_curve_policies_after(folder: Path, step: int) -> None:
+    """Delete kept curve policies of points after ``step`` (a resume discards those points)."""
+    directory = curve_policy_dir(folder)
+    if not directory.is_dir():
+        return
+    for path in directory.glob("step*.pt"):
+        if int(path.stem.removeprefix("step")) > step:
+            path.unlink()
+
+
+def load_curve_policy(folder: Path, model, step: int) -> None:
+    """Replace the model's actor by the kept learning-curve actor of ``step``."""
+    import torch
+
+    path = curve_policy_path(folder, step)
+    if not path.exists():
+        raise UserInputError(
+            f"{path}: the best learning-curve point (step {step}) has no kept policy; only "
+            "points reached by training with distgprl 0.1 after curve policies were kept have "
+            "one (their checkpoint folder must be on this machine)"
+        )
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        model.actor.load_state_dict(state)
+    except Exception as exc:
+        raise UserInputError(
+            f"{path}: cannot load the curve policy ({type(exc).__name__}: {exc})"
+        ) from None
+
+
 # -- train ----------------------------------------------------------------------------------
 def _BarCallback(bar):  # noqa: N802  (a class factory: SB3 is imported lazily)
     """An SB3 callback that advances ``bar`` by one per environment step."""
@@ -624,6 +709,7 @@ def _train_locked(
         if (folder / "progress.csv").exists():
             _, progress_rows = read_csv(folder / "progress.csv")
             progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
+        drop_curve_policies_after(folder, model.num_timesteps)
     else:
         lost = _trained_steps(folder / "progress.csv") if resume else 0
         if lost:
@@ -658,6 +744,7 @@ def _train_locked(
         rows = evaluate_policy(eval_env, curve_tcs, deterministic_policy(model))
         summary = summarise(rows)
         terms = model.last_regulariser_terms
+        best_before = max((curve_rank(row) for row in progress_rows), default=None)
         progress_rows.append(
             {
                 "step": model.num_timesteps,
@@ -672,6 +759,8 @@ def _train_locked(
                 "ent_coef": terms.get("ent_coef", model.current_entropy_coefficient()),
             }
         )
+        if best_before is None or curve_rank(progress_rows[-1]) > best_before:
+            save_curve_policy(folder, model)  # before the row: a kill never leaves it unkept
         write_csv(
             folder / "progress.csv",
             progress_rows,
@@ -726,17 +815,21 @@ def _train_locked(
 
 
 # -- evaluate -------------------------------------------------------------------------------
-def evaluation_file_names(episodes: int | None = None) -> tuple[str, str]:
+def evaluation_file_names(episodes: int | None = None, policy: str = "final") -> tuple[str, str]:
     """(per-episode CSV, summary JSON) file names of an evaluation in a run folder.
 
     ``None``: the preset's evaluation (``evaluation.csv``, ``summary.json``), the one Table I
     reads. An integer: a supplementary evaluation on the first ``episodes`` TCs of the same
     evaluation stream (``evaluation_n<episodes>.csv``, ``summary_n<episodes>.json``), kept
-    beside the preset's and never replacing it.
+    beside the preset's and never replacing it. ``policy="best"``: the same for the best
+    learning-curve policy, with ``_best`` after the stem (``evaluation_best.csv``,
+    ``summary_best_n1000.json``).
     """
-    if episodes is None:
-        return "evaluation.csv", "summary.json"
-    return f"evaluation_n{episodes}.csv", f"summary_n{episodes}.json"
+    if policy not in POLICY_CHOICES:
+        raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
+    tag = "" if policy == "final" else f"_{policy}"
+    suffix = "" if episodes is None else f"_n{episodes}"
+    return f"evaluation{tag}{suffix}.csv", f"summary{tag}{suffix}.json"
 
 
 def evaluate_run(
@@ -747,6 +840,7 @@ def evaluate_run(
     episodes: int | None = None,
     root: str | Path = "results",
     show_progress: bool = True,
+    policy: str = "final",
 ) -> dict[str, Any]:
     """Evaluate a trained run (or the `demo` reference) on the evaluation TCs.
 
@@ -756,14 +850,22 @@ def evaluate_run(
     preset's TCs are a prefix); returns the summary. A trained run is evaluated under the
     configuration it was trained with (its ``total_steps`` included), which must still be
     what the code resolves: a model of an older configuration is refused.
+
+    ``policy="best"`` evaluates, instead of the final policy, the best learning-curve policy
+    (Algorithm 1's "best policy": `best_curve_row` of ``progress.csv``, its actor kept by
+    training) and writes the ``_best`` files of `evaluation_file_names`; the summary records
+    the selected step and its curve figures. Only trained runs have one.
     """
     run = resolve_run(task, method, seed, preset)
     episodes = episodes or run.config.run.eval_episodes
     supplementary = episodes != run.config.run.eval_episodes
-    csv_name, summary_name = evaluation_file_names(episodes if supplementary else None)
+    csv_name, summary_name = evaluation_file_names(episodes if supplementary else None, policy)
     folder = run_dir(root, preset, task, method, seed)
+    if policy == "best" and not run.method.trainable:
+        raise UserInputError(f"{method} is not trained: it has no learning curve to select from")
     env = make_env(run)
-    policy = None
+    actor = None
+    selected: dict[str, Any] = {}
     if run.method.trainable:
         model_path = folder / "model.zip"
         if not model_path.exists():
@@ -795,7 +897,18 @@ def evaluate_run(
             raise UserInputError(
                 f"{model_path}: model spaces do not match the {task}/{method} environment"
             )
-        policy = deterministic_policy(model)
+        if policy == "best":
+            _, curve = read_csv(folder / "progress.csv")
+            best = best_curve_row(curve)
+            load_curve_policy(folder, model, int(best["step"]))
+            selected = {
+                "policy": "best",
+                "policy_step": int(best["step"]),
+                "curve_success_rate": float(best["success_rate"]),
+                "curve_collision_rate": float(best["collision_rate"]),
+                "curve_mean_return": float(best["mean_return"]),
+            }
+        actor = deterministic_policy(model)
     elif not supplementary or not (folder / "config.json").exists():
         # the reference's config is written with its preset evaluation; a supplementary
         # evaluation leaves an existing one untouched (its own files carry their meta)
@@ -808,10 +921,10 @@ def evaluate_run(
         )
     tcs = env.spec_task.evaluation_tcs(episodes)
     start = time.perf_counter()
-    rows = evaluate_policy(env, tcs, policy, progress=show_progress)
+    rows = evaluate_policy(env, tcs, actor, progress=show_progress)
     wall = time.perf_counter() - start
     env.close()
-    summary = {**summarise(rows), "evaluation_wall_time_s": wall}
+    summary = {**summarise(rows), "evaluation_wall_time_s": wall, **selected}
     meta = {"config_hash": run.hash, "seed": seed, "task": task, "method": method, "preset": preset}
     write_csv(folder / csv_name, rows, EVALUATION_FIELDS, **meta)
     write_json(folder / summary_name, {"summary": summary}, kind="summary", **meta)

@@ -43,6 +43,9 @@ UNADAPTED = "demo"
 REFERENCES = (UNADAPTED, "dist-gprl")
 """The methods `write_tables` pairs runs with (``paired_vs_<reference>_<preset>``)."""
 
+FINAL_POLICY = "final"
+"""`paired_texts`' reference for `best_vs_final_rows`: each run's own final policy."""
+
 TC_FIELDS = EVALUATION_FIELDS[:5]
 """The columns that identify an evaluation TC: episode index and the four offsets (m)."""
 
@@ -146,26 +149,71 @@ def paired_rows(
         reference_rows, reference_outcomes = references[reference_file]
         _, run_rows = read_csv(run_file)
         _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
-        outcomes = _outcomes(run_rows)
-        n = len(run_rows)
-        for outcome, _ in OUTCOMES:
-            mine, theirs = outcomes[outcome], reference_outcomes[outcome]
-            only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
-            only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
-            rows.append(
-                {
-                    "task": task,
-                    "method": method,
-                    "seed": seed,
-                    "outcome": outcome,
-                    "tcs": n,
-                    "run_rate": sum(mine) / n,
-                    "reference_rate": sum(theirs) / n,
-                    "only_run": only_run,
-                    "only_reference": only_reference,
-                    "p_value": mcnemar_exact(only_run, only_reference),
-                }
-            )
+        rows += _pair(task, method, seed, run_rows, reference_outcomes)
+    return _sorted(rows)
+
+
+def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
+    """`FIELDS` rows pairing, per run that has one, the evaluation of its best
+    learning-curve policy (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the
+    "run" columns) with its own final policy's on the same TCs (``evaluation.csv``; the
+    "reference" columns), among the runs that count (`select_runs`).
+
+    Raises:
+        ValueError: the two evaluations of a run hold different TCs.
+    """
+    base = Path(root) / preset
+    best_name = evaluation_file_names(None, "best")[0]
+    final_name = evaluation_file_names()[0]
+    current = select_runs(root, preset).current
+    rows = []
+    for best_file in sorted(base.glob(f"*/*/seed*/{best_name}")):
+        task, method = best_file.parts[-4], best_file.parts[-3]
+        final_file = best_file.parent / final_name
+        if method not in METHODS or best_file.parent not in current or not final_file.exists():
+            continue
+        _, best_rows = read_csv(best_file)
+        _, final_rows = read_csv(final_file)
+        _check_same_tcs(best_file, final_file, best_rows, final_rows)
+        seed = int(best_file.parts[-2].removeprefix("seed"))
+        rows += _pair(task, method, seed, best_rows, _outcomes(final_rows))
+    return _sorted(rows)
+
+
+def _pair(
+    task: str,
+    method: str,
+    seed: int,
+    run_rows: list[dict[str, str]],
+    reference_outcomes: dict[str, list[int]],
+) -> list[dict]:
+    """One `FIELDS` row per outcome: a run's episodes against the reference's, TC by TC."""
+    outcomes = _outcomes(run_rows)
+    n = len(run_rows)
+    rows = []
+    for outcome, _ in OUTCOMES:
+        mine, theirs = outcomes[outcome], reference_outcomes[outcome]
+        only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
+        only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
+        rows.append(
+            {
+                "task": task,
+                "method": method,
+                "seed": seed,
+                "outcome": outcome,
+                "tcs": n,
+                "run_rate": sum(mine) / n,
+                "reference_rate": sum(theirs) / n,
+                "only_run": only_run,
+                "only_reference": only_reference,
+                "p_value": mcnemar_exact(only_run, only_reference),
+            }
+        )
+    return rows
+
+
+def _sorted(rows: list[dict]) -> list[dict]:
+    """Rows in task, table and seed order, outcomes in `OUTCOMES` order."""
     outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
     rows.sort(
         key=lambda r: (
@@ -218,6 +266,11 @@ def paired_texts(
 
 
 def _reference_text(reference: str) -> str:
+    if reference == FINAL_POLICY:
+        return (
+            "its own final policy (run: its best learning-curve policy, "
+            "`distgprl evaluate --policy best`; reference: the final policy Table I evaluates)"
+        )
     if reference == UNADAPTED:
         return "the unadapted reference"
     return f"{METHODS[reference].label} of the same seed"

@@ -36,7 +36,14 @@ from distgprl.data import task_order
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 from distgprl.hardware.trials import moved_robot
-from distgprl.report.paired import REFERENCES, paired_rows, paired_texts, supplementary_sizes
+from distgprl.report.paired import (
+    FINAL_POLICY,
+    REFERENCES,
+    best_vs_final_rows,
+    paired_rows,
+    paired_texts,
+    supplementary_sizes,
+)
 from distgprl.report.runs import current_hash, known_preset, select_runs
 
 METRICS = (
@@ -498,7 +505,9 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
     seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
-    ``..._n<N>`` for supplementary evaluations on N TCs)."""
+    ``..._n<N>`` for supplementary evaluations on N TCs), and, for runs whose best
+    learning-curve policy was evaluated, that policy paired with the run's final one
+    (``paired_best_vs_final_<preset>``)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         from distgprl.errors import UserInputError
@@ -527,6 +536,12 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
             stale.unlink()
+    best = best_vs_final_rows(root, preset)
+    written += _write_or_remove(
+        out_dir / f"paired_best_vs_final_{preset}",
+        (".csv", ".md"),
+        paired_texts(best, preset, FINAL_POLICY) if best else None,
+    )
     trial_files = select_trial_files(root, preset)
     hardware = hardware_rows(trial_files)
     written += _write_or_remove(

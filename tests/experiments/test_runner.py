@@ -204,6 +204,7 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
     resumed = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     assert read_json(folder / "done.json")["resumes"] == [{"step": resumed_at, "exact": True}]
     assert sorted(p.name for p in runner.checkpoint_dir(folder).iterdir()) == [
+        "curve_policies",  # the best-so-far learning-curve actors (`--policy best`)
         "model.zip",
         "replay_buffer.pkl",
         "state.pkl",

@@ -9,7 +9,9 @@ import pytest
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import evaluation_file_names
 from distgprl.report.paired import (
+    FINAL_POLICY,
     OUTCOMES,
+    best_vs_final_rows,
     mcnemar_exact,
     paired_rows,
     paired_texts,
@@ -21,10 +23,13 @@ FIELDS = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 FIELDS += ("obstacle_offset_y", "success", "collision")
 
 
-def write_evaluation(root, task, method, seed, outcomes, shift=0.0, supplementary=False):
+def write_evaluation(
+    root, task, method, seed, outcomes, shift=0.0, supplementary=False, policy="final"
+):
     """An ``evaluation.csv`` with TC k at offsets (0.01 k + shift, ...) and the given
     (success, collision) per TC, and its ``summary.json`` (``supplementary``: as
-    ``evaluation_n<len(outcomes)>.csv`` and ``summary_n<...>.json``)."""
+    ``evaluation_n<len(outcomes)>.csv`` and ``summary_n<...>.json``; ``policy="best"``: the
+    ``_best`` files of a best learning-curve policy's evaluation)."""
     folder = root / "p" / task / method / f"seed{seed}"
     rows = [
         {
@@ -39,7 +44,7 @@ def write_evaluation(root, task, method, seed, outcomes, shift=0.0, supplementar
         for k, (s, c) in enumerate(outcomes)
     ]
     n = len(outcomes)
-    csv_name, summary_name = evaluation_file_names(n if supplementary else None)
+    csv_name, summary_name = evaluation_file_names(n if supplementary else None, policy)
     write_csv(folder / csv_name, rows, FIELDS)
     summary = {
         "success_rate": sum(s for s, _ in outcomes) / n,
@@ -197,3 +202,55 @@ def test_write_tables_writes_supplementary_pairs_and_removes_them_when_gone(tmp_
     write_tables(tmp_path, "p", out)
     assert not list(out.glob("paired_vs_*_n3.*"))
     assert (out / "paired_vs_demo_p.md").exists()
+
+
+def test_a_best_policy_is_paired_with_its_own_runs_final_policy(tmp_path):
+    """Each run with a best-policy evaluation against its own final one (not Dist-GPRL's
+    or another seed's); runs without one are not rows; table order."""
+    final = [(1, 0), (0, 1), (0, 0), (1, 1)]
+    best = [(1, 0), (1, 0), (1, 0), (0, 0)]
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 1, final)
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 1, best, policy="best")
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(0, 1)] * 4)  # its final only
+    write_evaluation(tmp_path, "dcp", "gprl", 0, best)
+    write_evaluation(tmp_path, "dcp", "gprl", 0, best, policy="best")
+    rows = best_vs_final_rows(tmp_path, "p")
+    runs = [(r["method"], r["seed"]) for r in rows[:: len(OUTCOMES)]]
+    assert runs == [("gprl", 0), ("dist-gprl", 1)]
+    pairs = by_outcome(rows, "dist-gprl", 1)
+    # success: best only TCs 1, 2; final only TC 3
+    assert (pairs["success"]["only_run"], pairs["success"]["only_reference"]) == (2, 1)
+    # collision: final only TCs 1, 3
+    assert (pairs["collision"]["only_run"], pairs["collision"]["only_reference"]) == (0, 2)
+    # safe success: best TCs 0, 1, 2; final TC 0
+    assert (pairs["safe_success"]["only_run"], pairs["safe_success"]["only_reference"]) == (2, 0)
+    assert {(r["only_run"], r["only_reference"]) for r in by_outcome(rows, "gprl", 0).values()} == {
+        (0, 0)
+    }
+    _, markdown = paired_texts(rows, "p", FINAL_POLICY)
+    assert "its own final policy" in markdown and markdown.count("| DCP |") == 2
+
+
+def test_a_best_policy_evaluated_on_other_tcs_is_refused(tmp_path):
+    write_evaluation(tmp_path, "dbm", "gprl-h", 2, [(1, 0), (0, 0)])
+    write_evaluation(tmp_path, "dbm", "gprl-h", 2, [(1, 0), (0, 0)], shift=0.5, policy="best")
+    with pytest.raises(ValueError, match="evaluation_best.csv: evaluation TC 0 differs"):
+        best_vs_final_rows(tmp_path, "p")
+
+
+def test_write_tables_writes_best_vs_final_pairs_and_removes_them_when_gone(tmp_path):
+    write_evaluation(tmp_path, "dcp", "demo", 0, [(1, 1), (0, 0)])
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (0, 0)])
+    out = tmp_path / "out"
+    write_tables(tmp_path, "p", out)
+    assert not (out / "paired_best_vs_final_p.md").exists()
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (1, 0)], policy="best")
+    written = write_tables(tmp_path, "p", out)
+    assert out / "paired_best_vs_final_p.md" in written
+    assert (
+        "| DCP | Dist-GPRL (ours) | 0 | 2 | 1.00 / 0.50 | 1 / 0 |"
+        in (out / "paired_best_vs_final_p.md").read_text()
+    )
+    (tmp_path / "p" / "dcp" / "dist-gprl" / "seed0" / "evaluation_best.csv").unlink()
+    write_tables(tmp_path, "p", out)
+    assert not (out / "paired_best_vs_final_p.md").exists()

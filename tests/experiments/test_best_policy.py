@@ -1,0 +1,225 @@
+"""Algorithm 1's "best policy": curve policies kept in training, selected, evaluated."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from distgprl.cli import app
+from distgprl.errors import UserInputError
+from distgprl.experiments import runner
+from distgprl.experiments.results import read_csv, read_json
+
+STEPS = 240  # the `ci` preset shortened: curve points at 0, 120, 240
+
+
+def train(root, steps=STEPS, **kwargs):
+    return runner.train_run(
+        "dcp", "dist-gprl", 0, preset="ci", steps=steps, root=root, show_progress=False, **kwargs
+    )
+
+
+def kept_steps(folder) -> list[int]:
+    directory = runner.curve_policy_dir(folder)
+    return sorted(int(p.stem.removeprefix("step")) for p in directory.glob("step*.pt"))
+
+
+def kept_actor(folder, step):
+    import torch
+
+    state = torch.load(runner.curve_policy_path(folder, step), weights_only=True)
+    return [value.numpy() for value in state.values()]
+
+
+def final_actor(folder):
+    from distgprl.agents.sac import RegularisedSAC
+
+    model = RegularisedSAC.load_saved(folder / "model.zip")
+    return [value.numpy() for value in model.actor.state_dict().values()]
+
+
+def row(success, collision, ret, step=0):
+    return {"step": step, "success_rate": success, "collision_rate": collision, "mean_return": ret}
+
+
+def test_best_point_ranks_success_then_collision_then_return_earliest_first():
+    rows = [
+        row(0.5, 0.0, 9.0, 0),
+        row(0.8, 0.4, 1.0, 1),
+        row(0.8, 0.2, 0.0, 2),
+        row(0.8, 0.2, 5.0, 3),
+        row(0.8, 0.2, 5.0, 4),
+        row(0.7, 0.0, 99.0, 5),
+    ]
+    assert runner.best_curve_row(rows)["step"] == 3
+    as_read = [{k: str(v) for k, v in r.items()} for r in rows]  # progress.csv gives strings
+    assert runner.best_curve_row(as_read)["step"] == "3"
+    with pytest.raises(UserInputError, match="no learning-curve points"):
+        runner.best_curve_row([])
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A 240-step dist-gprl run (curve points and checkpoints at 0/120/240 and 120/240)."""
+    return train(tmp_path_factory.mktemp("run"), evaluate_after=False)
+
+
+def test_a_curve_policy_is_kept_exactly_where_a_point_beats_every_earlier_one(trained):
+    _, progress = read_csv(trained / "progress.csv")
+    expected, best = [], None
+    for r in progress:
+        if best is None or runner.curve_rank(r) > best:
+            expected.append(int(r["step"]))
+            best = runner.curve_rank(r)
+    assert kept_steps(trained) == expected
+    assert expected[0] == 0
+
+
+@pytest.fixture(scope="module")
+def ranked_by_step(tmp_path_factory):
+    """A 240-step run (evaluated) whose curve ranking always improves (later is better)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runner, "curve_rank", lambda r: (float(r["step"]),))
+        root = tmp_path_factory.mktemp("ranked")
+        folder = train(root)
+    return root, folder
+
+
+def test_every_kept_actor_is_the_actor_of_its_step(ranked_by_step):
+    """With a ranking that always improves, every point is kept: the last one is the final
+    model's actor, the first one the untrained actor, and they differ."""
+    _, folder = ranked_by_step
+    assert kept_steps(folder) == [0, 120, 240]
+    for kept, final in zip(kept_actor(folder, 240), final_actor(folder), strict=True):
+        np.testing.assert_array_equal(kept, final)
+    assert any(
+        not np.array_equal(a, b)
+        for a, b in zip(kept_actor(folder, 0), kept_actor(folder, 240), strict=True)
+    )
+
+
+def test_a_killed_and_resumed_run_keeps_the_same_curve_policies(tmp_path, monkeypatch, trained):
+    """Killed after its step-120 checkpoint; a curve policy of a later point that the resume
+    discards (left by a kill between that point and the next checkpoint) is dropped, and the
+    resumed run ends with the same kept policies, bit for bit, as the uninterrupted one."""
+    original = runner.save_checkpoint
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    stale = runner.curve_policy_path(folder, 180)
+    stale.write_bytes(b"a point the resume discards")
+    resumed = train(tmp_path, evaluate_after=False, resume=True)
+    assert not stale.exists()
+    assert kept_steps(resumed) == kept_steps(trained)
+    for step in kept_steps(trained):
+        for a, b in zip(kept_actor(resumed, step), kept_actor(trained, step), strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_best_policy_evaluation_writes_its_own_files_and_records_the_selection(
+    ranked_by_step, monkeypatch
+):
+    """The best point here is the last (ranking by step): its evaluation equals the final
+    policy's episode by episode, under the ``_best`` names, with the selection recorded."""
+    root, folder = ranked_by_step
+    monkeypatch.setattr(runner, "curve_rank", lambda r: (float(r["step"]),))
+    final_text = (folder / "evaluation.csv").read_text()
+    summary = runner.evaluate_run(
+        "dcp", "dist-gprl", 0, "ci", root=root, show_progress=False, policy="best"
+    )
+    assert (folder / "evaluation.csv").read_text() == final_text
+    assert summary["policy"] == "best" and summary["policy_step"] == 240
+    assert read_json(folder / "summary_best.json")["summary"]["policy_step"] == 240
+    _, best_rows = read_csv(folder / "evaluation_best.csv")
+    _, final_rows = read_csv(folder / "evaluation.csv")
+    compared = ("success", "collision", "min_clearance", "return")
+    assert [[r[k] for k in compared] for r in best_rows] == [
+        [r[k] for k in compared] for r in final_rows
+    ]
+
+
+def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkeypatch):
+    """Ranking earliest first selects the untrained step-0 actor: the evaluated policy is
+    that actor (its returns differ from the final policy's), not the final one."""
+    monkeypatch.setattr(runner, "curve_rank", lambda r: (-float(r["step"]),))
+    folder = train(tmp_path)
+    loaded = {}
+    original = runner.load_curve_policy
+
+    def spy(folder_, model, step):
+        original(folder_, model, step)
+        loaded["step"] = step
+        loaded["actor"] = [v.numpy().copy() for v in model.actor.state_dict().values()]
+
+    monkeypatch.setattr(runner, "load_curve_policy", spy)
+    summary = runner.evaluate_run(
+        "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
+    )
+    assert loaded["step"] == 0 and summary["policy_step"] == 0
+    for a, b in zip(loaded["actor"], kept_actor(folder, 0), strict=True):
+        np.testing.assert_array_equal(a, b)
+    _, best_rows = read_csv(folder / "evaluation_best.csv")
+    _, final_rows = read_csv(folder / "evaluation.csv")
+    assert [r["return"] for r in best_rows] != [r["return"] for r in final_rows]
+
+
+def test_a_best_point_without_its_kept_policy_is_a_clear_error(tmp_path):
+    """Runs trained before curve policies were kept (or on another machine) are refused."""
+    folder = train(tmp_path, steps=120, evaluate_after=False)
+    for path in runner.curve_policy_dir(folder).glob("*.pt"):
+        path.unlink()
+    with pytest.raises(UserInputError, match=r"has no kept policy"):
+        runner.evaluate_run(
+            "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
+        )
+
+
+def test_bad_policy_choices_are_clear_errors(tmp_path):
+    with pytest.raises(UserInputError, match="not trained"):
+        runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="best")
+    with pytest.raises(UserInputError, match="unknown policy 'worst'"):
+        runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="worst")
+
+
+def test_file_names_keep_the_final_policys_and_tag_the_best():
+    assert runner.evaluation_file_names() == ("evaluation.csv", "summary.json")
+    assert runner.evaluation_file_names(1000) == ("evaluation_n1000.csv", "summary_n1000.json")
+    assert runner.evaluation_file_names(None, "best") == (
+        "evaluation_best.csv",
+        "summary_best.json",
+    )
+    assert runner.evaluation_file_names(1000, "best") == (
+        "evaluation_best_n1000.csv",
+        "summary_best_n1000.json",
+    )
+
+
+def test_cli_evaluates_the_best_policy(trained):
+    root = trained.parents[3]
+    result = CliRunner().invoke(
+        app,
+        [
+            "evaluate",
+            "--method",
+            "dist-gprl",
+            "--task",
+            "dcp",
+            "--preset",
+            "ci",
+            "--root",
+            str(root),
+            "--policy",
+            "best",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert '"policy": "best"' in result.output
+    assert (trained / "summary_best.json").exists()
