@@ -99,20 +99,13 @@ def test_every_kept_actor_is_the_actor_of_its_step(ranked_by_step):
     )
 
 
-def test_a_killed_and_resumed_run_keeps_the_same_curve_policies(tmp_path, monkeypatch, trained):
+def test_a_killed_and_resumed_run_keeps_the_same_curve_policies(
+    tmp_path, kill_at_the_first_checkpoint, trained
+):
     """Killed after its step-120 checkpoint; a curve policy of a later point that the resume
     discards (left by a kill between that point and the next checkpoint) is dropped, and the
     resumed run ends with the same kept policies, bit for bit, as the uninterrupted one."""
-    original = runner.save_checkpoint
-
-    def save_then_die(folder, model, env, extra):
-        original(folder, model, env, extra)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train(tmp_path, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
+    kill_at_the_first_checkpoint(tmp_path)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     stale = runner.curve_policy_path(folder, 180)
     stale.write_bytes(b"a point the resume discards")

@@ -107,27 +107,12 @@ def _actor_parameters(folder):
     return [p.detach().numpy().copy() for p in model.actor.parameters()]
 
 
-def _kill_at_the_first_checkpoint(root, monkeypatch) -> None:
-    """Train a 240-step dist-gprl run under ``root`` and kill it right after its step-120
-    checkpoint is written."""
-    original = runner.save_checkpoint
-
-    def save_then_die(folder, model, env, extra):
-        original(folder, model, env, extra)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train(root, "dist-gprl", steps=240, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
-
-
 def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
-    tmp_path, monkeypatch, capsys
+    tmp_path, kill_at_the_first_checkpoint, capsys
 ):
     """A killed run whose checkpoint is gone (checkpoints stay on the machine that trained)
     restarts from step 0 with a warning naming the lost step, and done.json records it."""
-    _kill_at_the_first_checkpoint(tmp_path, monkeypatch)
+    kill_at_the_first_checkpoint(tmp_path)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     shutil.rmtree(runner.checkpoint_dir(folder))
     capsys.readouterr()
@@ -140,10 +125,12 @@ def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
     assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
 
-def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(tmp_path, monkeypatch):
+def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(
+    tmp_path, kill_at_the_first_checkpoint
+):
     """Same seed, same result, however often the run was killed and resumed."""
     whole = train(tmp_path / "whole", "dist-gprl", steps=240, evaluate_after=False)
-    _kill_at_the_first_checkpoint(tmp_path / "killed", monkeypatch)
+    kill_at_the_first_checkpoint(tmp_path / "killed")
     resumed = train(tmp_path / "killed", "dist-gprl", steps=240, evaluate_after=False, resume=True)
     _, rows_whole = read_csv(whole / "progress.csv")
     _, rows_resumed = read_csv(resumed / "progress.csv")
@@ -250,17 +237,8 @@ def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeyp
         assert path.parent.parts[-4:] == folder.parts[-4:]  # preset/task/method/seed readable
 
 
-def test_corrupt_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
-    original = runner.save_checkpoint
-
-    def save_then_die(folder, model, env, extra):
-        original(folder, model, env, extra)
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train(tmp_path, "gprl-d", steps=240, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
+def test_corrupt_checkpoint_is_a_clear_error(tmp_path, kill_at_the_first_checkpoint):
+    kill_at_the_first_checkpoint(tmp_path, "gprl-d")
     folder = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     (runner.checkpoint_dir(folder) / "model.zip").write_bytes(b"not a zip")
     with pytest.raises(UserInputError, match="corrupt or incompatible checkpoint"):
