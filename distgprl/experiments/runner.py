@@ -573,9 +573,9 @@ def load_curve_policy(folder: Path, model, step: int) -> None:
     path = curve_policy_path(folder, step)
     if not path.exists():
         raise UserInputError(
-            f"{path}: the best learning-curve point (step {step}) has no kept policy; only "
-            "points reached by training with distgprl 0.1 after curve policies were kept have "
-            "one (their checkpoint folder must be on this machine)"
+            f"{path}: the best learning-curve point (step {step}) has no kept policy: it was "
+            "trained before training kept curve policies, or on another machine (they stay "
+            "in the checkpoint folder of the machine that trained the run)"
         )
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
