@@ -566,6 +566,18 @@ def drop_curve_policies_after(folder: Path, step: int) -> None:
             path.unlink()
 
 
+def best_curve_policy_step(folder: Path) -> int | None:
+    """The step of the run's best learning-curve point if its actor was kept, else None."""
+    progress = folder / "progress.csv"
+    if not progress.exists():
+        return None
+    _, rows = read_csv(progress)
+    if not rows:
+        return None
+    step = int(best_curve_row(rows)["step"])
+    return step if curve_policy_path(folder, step).exists() else None
+
+
 def load_curve_policy(folder: Path, model, step: int) -> None:
     """Replace the model's actor by the kept learning-curve actor of ``step``."""
     import torch
@@ -610,7 +622,9 @@ def train_run(
     show_progress: bool = True,
     evaluate_after: bool = True,
 ) -> Path:
-    """Train one run (resumable) and, by default, evaluate it. Returns the run folder.
+    """Train one run (resumable) and, by default, evaluate it: its final policy (Table I)
+    and its best learning-curve policy (``policy="best"`` of `evaluate_run`; skipped, with a
+    note, when that point's actor was not kept). Returns the run folder.
 
     The run folder is locked while it trains (see `run_lock`).
     """
@@ -804,6 +818,16 @@ def _train_locked(
     eval_env.close()
     if evaluate_after:
         evaluate_run(task, method, seed, preset, root=root, show_progress=show_progress)
+        if best_curve_policy_step(folder) is not None:
+            evaluate_run(
+                task, method, seed, preset, root=root, show_progress=show_progress, policy="best"
+            )
+        else:  # trained (in part) before curve policies were kept
+            print(
+                f"note: {folder}: its best learning-curve point has no kept policy; "
+                "the best-policy evaluation is skipped",
+                file=sys.stderr,
+            )
     write_json(
         folder / "done.json",
         {"steps": total, "train_wall_time_s": train_wall, "resumes": resumes},

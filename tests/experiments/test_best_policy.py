@@ -164,6 +164,25 @@ def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkey
     assert [r["return"] for r in best_rows] != [r["return"] for r in final_rows]
 
 
+def test_training_evaluates_the_best_policy_beside_the_final_one(ranked_by_step):
+    _, folder = ranked_by_step
+    summary = read_json(folder / "summary_best.json")["summary"]
+    assert summary["policy_step"] == 240
+    assert len(read_csv(folder / "evaluation_best.csv")[1]) == summary["episodes"]
+
+
+def test_training_skips_the_best_policy_evaluation_it_cannot_do_and_says_so(
+    tmp_path, monkeypatch, capsys
+):
+    """A run whose best point has no kept actor (trained before they were kept) still
+    finishes and is evaluated; only the best-policy evaluation is skipped, with a note."""
+    monkeypatch.setattr(runner, "save_curve_policy", lambda folder, model: None)
+    folder = train(tmp_path, steps=120)
+    assert (folder / "done.json").exists() and (folder / "summary.json").exists()
+    assert not (folder / "summary_best.json").exists()
+    assert "best-policy evaluation is skipped" in capsys.readouterr().err
+
+
 def test_a_best_point_without_its_kept_policy_is_a_clear_error(tmp_path):
     """Runs trained before curve policies were kept (or on another machine) are refused."""
     folder = train(tmp_path, steps=120, evaluate_after=False)

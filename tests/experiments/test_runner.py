@@ -47,6 +47,8 @@ def test_every_method_trains_and_evaluates(tmp_path, method):
         "progress.csv",
         "evaluation.csv",
         "summary.json",
+        "evaluation_best.csv",  # Algorithm 1's best policy, evaluated beside the final one
+        "summary_best.json",
         "done.json",
         "model.zip",
     ):
