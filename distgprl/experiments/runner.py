@@ -538,11 +538,7 @@ def best_curve_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """The best learning-curve point (`curve_rank`; the earliest of equal ones)."""
     if not rows:
         raise UserInputError("no learning-curve points to select the best policy from")
-    best = rows[0]
-    for row in rows[1:]:
-        if curve_rank(row) > curve_rank(best):
-            best = row
-    return best
+    return max(rows, key=curve_rank)  # max keeps the first of equal ones
 
 
 def save_curve_policy(folder: Path, model) -> None:
@@ -564,18 +560,6 @@ def drop_curve_policies_after(folder: Path, step: int) -> None:
     for path in directory.glob("step*.pt"):
         if int(path.stem.removeprefix("step")) > step:
             path.unlink()
-
-
-def best_curve_policy_step(folder: Path) -> int | None:
-    """The step of the run's best learning-curve point if its actor was kept, else None."""
-    progress = folder / "progress.csv"
-    if not progress.exists():
-        return None
-    _, rows = read_csv(progress)
-    if not rows:
-        return None
-    step = int(best_curve_row(rows)["step"])
-    return step if curve_policy_path(folder, step).exists() else None
 
 
 def load_curve_policy(folder: Path, model, step: int) -> None:
@@ -818,7 +802,8 @@ def _train_locked(
     eval_env.close()
     if evaluate_after:
         evaluate_run(task, method, seed, preset, root=root, show_progress=show_progress)
-        if best_curve_policy_step(folder) is not None:
+        best_step = int(best_curve_row(progress_rows)["step"])
+        if curve_policy_path(folder, best_step).exists():
             evaluate_run(
                 task, method, seed, preset, root=root, show_progress=show_progress, policy="best"
             )
