@@ -264,11 +264,15 @@ def tables(
     preset: Annotated[str, typer.Option(help="Preset whose results to tabulate.")] = "paper",
     root: RootOption = Path("results"),
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+    against: Annotated[
+        str | None,
+        typer.Option(help="Also pair every run TC by TC with the same run of this preset."),
+    ] = None,
 ) -> None:
     """Table I (and Table II if hardware trials exist) as CSV, Markdown and LaTeX."""
     from distgprl.report.tables import write_tables
 
-    for path in write_tables(root, preset, out_dir):
+    for path in write_tables(root, preset, out_dir, against):
         typer.echo(f"wrote {path}")
 
 

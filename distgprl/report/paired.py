@@ -14,6 +14,10 @@ tested one by one; they share the TCs, so their counts are not independent and a
 pooled. p-values are per comparison, not corrected for the number of comparisons in a
 table. Pure functions of the evaluation files.
 
+An exploration preset is paired with the configuration it varies (`cross_preset_rows`,
+``distgprl tables --preset correlated --against paper``): each of its runs against the run of
+the same task, method and seed in the other preset, on the same TCs.
+
 The same tables pair supplementary evaluations on more TCs (``evaluation_n<N>.csv``,
 ``distgprl evaluate --episodes N``): runs and reference evaluated on the same first N TCs
 of the evaluation stream (`supplementary_sizes` lists the N present).
@@ -29,6 +33,7 @@ from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
+from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_csv
 from distgprl.experiments.runner import (
     EVALUATION_FIELDS,
@@ -153,6 +158,43 @@ def paired_rows(
     return _sorted(rows)
 
 
+def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict]:
+    """`FIELDS` rows pairing every run of ``preset`` (the "run" columns) with the run of the
+    same task, method and seed in ``base_preset`` (the "reference" columns), both among the
+    runs that count (`select_runs`), on the preset's evaluation TCs: an exploration preset
+    against the configuration it varies (``correlated`` against ``paper``). Runs without a
+    counterpart and the `demo` reference are not rows.
+
+    Raises:
+        UserInputError: the two presets are the same; a pair's evaluation TCs differ (the
+            presets evaluate on different TCs, e.g. ``ci`` against ``paper``).
+    """
+    if preset == base_preset:
+        raise UserInputError(f"--against {base_preset}: pair a preset with another preset")
+    file_name = evaluation_file_names()[0]
+    current = select_runs(root, preset).current
+    base_current = select_runs(root, base_preset).current
+    rows = []
+    for run_file in sorted((Path(root) / preset).glob(f"*/*/seed*/{file_name}")):
+        task, method, folder = run_file.parts[-4], run_file.parts[-3], run_file.parts[-2]
+        base_file = Path(root) / base_preset / task / method / folder / file_name
+        if method == UNADAPTED or method not in METHODS or run_file.parent not in current:
+            continue
+        if base_file.parent not in base_current or not base_file.exists():
+            continue
+        _, run_rows = read_csv(run_file)
+        _, base_rows = read_csv(base_file)
+        try:
+            _check_same_tcs(run_file, base_file, run_rows, base_rows)
+        except ValueError as exc:
+            raise UserInputError(
+                f"{exc}; presets {preset} and {base_preset} do not evaluate on the same TCs"
+            ) from None
+        seed = int(folder.removeprefix("seed"))
+        rows += _pair(task, method, seed, run_rows, _outcomes(base_rows))
+    return _sorted(rows)
+
+
 def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
     """`FIELDS` rows pairing, per run that has one, the evaluation of its best
     learning-curve policy (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the
@@ -228,10 +270,15 @@ def _sorted(rows: list[dict]) -> list[dict]:
 
 
 def paired_texts(
-    rows: list[dict], preset: str, reference: str = UNADAPTED, episodes: int | None = None
+    rows: list[dict],
+    preset: str,
+    reference: str = UNADAPTED,
+    episodes: int | None = None,
+    base_preset: str | None = None,
 ) -> tuple[str, str]:
-    """(CSV, Markdown) of `paired_rows` against ``reference`` (``episodes`` as there); the
-    Markdown has one line per run."""
+    """(CSV, Markdown) of `paired_rows` against ``reference`` (``episodes`` as there), or,
+    with ``base_preset``, of `cross_preset_rows` against that preset; the Markdown has one
+    line per run."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -240,7 +287,13 @@ def paired_texts(
     for _, label in OUTCOMES:
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
     lines = [
-        f"Each run against {_reference_text(reference)} on the same evaluation TCs "
+        "Each run against "
+        + (
+            f"the run of the same task, method and seed in the {base_preset} preset"
+            if base_preset
+            else _reference_text(reference)
+        )
+        + " on the same evaluation TCs "
         f"({preset} preset"
         + (f"; supplementary evaluation on the first {episodes} TCs)" if episodes else ")"),
         "",

@@ -33,6 +33,7 @@ from scipy import stats
 
 from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
+from distgprl.errors import UserInputError
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 from distgprl.hardware.trials import moved_robot
@@ -40,6 +41,7 @@ from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,
     best_vs_final_rows,
+    cross_preset_rows,
     paired_rows,
     paired_texts,
     supplementary_sizes,
@@ -500,19 +502,29 @@ def _hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str,
     return buffer.getvalue(), markdown, "\n".join(lines)
 
 
-def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
+def write_tables(
+    root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
+) -> list[Path]:
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
     Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
     seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
     ``..._n<N>`` for supplementary evaluations on N TCs), and, for runs whose best
     learning-curve policy was evaluated, that policy paired with the run's final one
-    (``paired_best_vs_final_<preset>``)."""
+    (``paired_best_vs_final_<preset>``). With ``against`` (another preset), also every run
+    paired with the same run of that preset (``paired_<preset>_vs_<against>``, CSV and
+    Markdown; `cross_preset_rows`)."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
-        from distgprl.errors import UserInputError
-
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
+    cross = None  # computed first: a refused pairing writes nothing
+    if against is not None:
+        cross = cross_preset_rows(root, preset, against)
+        if not cross:
+            raise UserInputError(
+                f"--against {against}: no run of {Path(root) / preset} has a finished "
+                f"counterpart (same task, method and seed) under {Path(root) / against}"
+            )
     out_dir = Path(out_dir)
     stem = f"table1_{preset}"
     note = select_runs(root, preset).note()
@@ -542,6 +554,12 @@ def write_tables(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         (".csv", ".md"),
         paired_texts(best, preset, FINAL_POLICY) if best else None,
     )
+    if cross is not None:
+        written += _write_or_remove(
+            out_dir / f"paired_{preset}_vs_{against}",
+            (".csv", ".md"),
+            paired_texts(cross, preset, base_preset=against),
+        )
     trial_files = select_trial_files(root, preset)
     hardware = hardware_rows(trial_files)
     written += _write_or_remove(

@@ -1,17 +1,20 @@
 """Paired comparison with a reference run: discordant TCs counted, exact McNemar p-values,
 mismatched TCs refused, method references paired seed by seed, supplementary evaluations
-paired apart from the preset's, no stale table."""
+paired apart from the preset's, no stale table, an exploration preset paired run by run with
+the preset it varies."""
 
 from __future__ import annotations
 
 import pytest
 
+from distgprl.errors import UserInputError
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import evaluation_file_names
 from distgprl.report.paired import (
     FINAL_POLICY,
     OUTCOMES,
     best_vs_final_rows,
+    cross_preset_rows,
     mcnemar_exact,
     paired_rows,
     paired_texts,
@@ -24,13 +27,21 @@ FIELDS += ("obstacle_offset_y", "success", "collision")
 
 
 def write_evaluation(
-    root, task, method, seed, outcomes, shift=0.0, supplementary=False, policy="final"
+    root,
+    task,
+    method,
+    seed,
+    outcomes,
+    shift=0.0,
+    supplementary=False,
+    policy="final",
+    preset="p",
 ):
     """An ``evaluation.csv`` with TC k at offsets (0.01 k + shift, ...) and the given
     (success, collision) per TC, and its ``summary.json`` (``supplementary``: as
     ``evaluation_n<len(outcomes)>.csv`` and ``summary_n<...>.json``; ``policy="best"``: the
-    ``_best`` files of a best learning-curve policy's evaluation)."""
-    folder = root / "p" / task / method / f"seed{seed}"
+    ``_best`` files of a best learning-curve policy's evaluation), under preset ``preset``."""
+    folder = root / preset / task / method / f"seed{seed}"
     rows = [
         {
             "episode": k,
@@ -254,3 +265,71 @@ def test_write_tables_writes_best_vs_final_pairs_and_removes_them_when_gone(tmp_
     (tmp_path / "p" / "dcp" / "dist-gprl" / "seed0" / "evaluation_best.csv").unlink()
     write_tables(tmp_path, "p", out)
     assert not (out / "paired_best_vs_final_p.md").exists()
+
+
+def test_a_preset_is_paired_run_by_run_with_the_same_run_of_another_preset(tmp_path):
+    base = [(1, 0), (0, 1), (1, 1), (0, 0)]
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, base, preset="base")
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 1, [(0, 0)] * 4, preset="base")
+    # variant run: success on TCs 0, 1, 3 and no collision, against the base run's seed 0
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (1, 0), (0, 0), (1, 0)])
+    write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(1, 0)] * 4)  # no counterpart
+    write_evaluation(tmp_path, "dcp", "demo", 0, base)  # the reference is not a row
+    write_evaluation(tmp_path, "dcp", "demo", 0, base, preset="base")
+    rows = cross_preset_rows(tmp_path, "p", "base")
+    assert {(r["task"], r["method"], r["seed"]) for r in rows} == {("dcp", "dist-gprl", 0)}
+    pairs = by_outcome(rows, "dist-gprl", 0)
+    assert (pairs["success"]["only_run"], pairs["success"]["only_reference"]) == (2, 1)
+    assert (pairs["collision"]["only_run"], pairs["collision"]["only_reference"]) == (0, 2)
+    assert (pairs["safe_success"]["only_run"], pairs["safe_success"]["only_reference"]) == (
+        2,
+        0,
+    )
+    assert pairs["success"]["reference_rate"] == pytest.approx(0.5)
+    _, markdown = paired_texts(rows, "p", base_preset="base")
+    assert "same task, method and seed in the base preset" in markdown
+    assert "| DCP | Dist-GPRL (ours) | 0 | 4 | 0.75 / 0.50 | 2 / 1 |" in markdown
+
+
+def test_presets_evaluated_on_other_tcs_or_the_same_preset_are_refused(tmp_path):
+    write_evaluation(tmp_path, "dcp", "gprl", 0, [(1, 0), (0, 0)], preset="base")
+    write_evaluation(tmp_path, "dcp", "gprl", 0, [(1, 0)])
+    with pytest.raises(UserInputError, match="presets p and base do not evaluate on the same"):
+        cross_preset_rows(tmp_path, "p", "base")
+    with pytest.raises(UserInputError, match="pair a preset with another preset"):
+        cross_preset_rows(tmp_path, "p", "p")
+
+
+def test_write_tables_against_a_preset_writes_its_pairs_or_says_there_are_none(tmp_path):
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(1, 0), (0, 0)])
+    out = tmp_path / "out"
+    with pytest.raises(UserInputError, match="no run of .* has a finished counterpart"):
+        write_tables(tmp_path, "p", out, against="base")
+    assert not out.exists()  # a refused pairing writes nothing, not even Table I
+    write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(0, 0), (0, 1)], preset="base")
+    written = write_tables(tmp_path, "p", out, against="base")
+    assert {out / "paired_p_vs_base.csv", out / "paired_p_vs_base.md"} <= set(written)
+    assert (
+        "| DCP | Dist-GPRL (ours) | 0 | 2 | 0.50 / 0.00 | 1 / 0 |"
+        in (out / "paired_p_vs_base.md").read_text()
+    )
+    assert "paired_p_vs_base.md" not in {p.name for p in write_tables(tmp_path, "p", out)}
+
+
+def test_cli_tables_against_a_preset_writes_the_pairs_and_refuses_other_tcs_in_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+
+    write_evaluation(tmp_path, "dbm", "gprl", 2, [(1, 0), (0, 0)], preset="base")
+    write_evaluation(tmp_path, "dbm", "gprl", 2, [(1, 0), (1, 0)])
+    out = tmp_path / "out"
+    command = ["tables", "--root", str(tmp_path), "--preset", "p", "--out-dir", str(out)]
+    result = CliRunner().invoke(app, [*command, "--against", "base"])
+    assert result.exit_code == 0, result.output
+    assert f"wrote {out / 'paired_p_vs_base.md'}" in result.output
+    write_evaluation(tmp_path, "dbm", "gprl", 2, [(1, 0)], preset="base")
+    result = CliRunner().invoke(app, [*command, "--against", "base"])
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().startswith("error: ")
+    assert "presets p and base do not evaluate on the same TCs" in result.output
