@@ -136,26 +136,17 @@ def paired_rows(
         raise ValueError(f"unknown reference method {reference!r}")
     base = Path(root) / preset
     file_name = evaluation_file_names(episodes)[0]
-    references: dict[Path, tuple[list, dict[str, list[int]]]] = {}  # read once each
     current = select_runs(root, preset).current
-    rows = []
+    pairs = []
     for run_file in sorted(base.glob(f"*/*/seed*/{file_name}")):
-        task, method = run_file.parts[-4], run_file.parts[-3]
-        seed = int(run_file.parts[-2].removeprefix("seed"))
+        task, method, folder = run_file.parts[-4:-1]
         if method in (reference, UNADAPTED) or method not in METHODS:
             continue
-        reference_seed = 0 if reference == UNADAPTED else seed
-        reference_file = base / task / reference / f"seed{reference_seed}" / file_name
-        if not reference_file.exists() or not {run_file.parent, reference_file.parent} <= current:
-            continue
-        if reference_file not in references:
-            reference_rows = read_csv(reference_file)[1]
-            references[reference_file] = (reference_rows, _outcomes(reference_rows))
-        reference_rows, reference_outcomes = references[reference_file]
-        _, run_rows = read_csv(run_file)
-        _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
-        rows += _pair(task, method, seed, run_rows, reference_outcomes)
-    return _sorted(rows)
+        reference_folder = "seed0" if reference == UNADAPTED else folder
+        reference_file = base / task / reference / reference_folder / file_name
+        if reference_file.exists() and {run_file.parent, reference_file.parent} <= current:
+            pairs.append((run_file, reference_file))
+    return _paired_files(pairs)
 
 
 def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict]:
@@ -174,25 +165,20 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
     file_name = evaluation_file_names()[0]
     current = select_runs(root, preset).current
     base_current = select_runs(root, base_preset).current
-    rows = []
+    pairs = []
     for run_file in sorted((Path(root) / preset).glob(f"*/*/seed*/{file_name}")):
-        task, method, folder = run_file.parts[-4], run_file.parts[-3], run_file.parts[-2]
+        task, method, folder = run_file.parts[-4:-1]
         base_file = Path(root) / base_preset / task / method / folder / file_name
         if method == UNADAPTED or method not in METHODS or run_file.parent not in current:
             continue
-        if base_file.parent not in base_current or not base_file.exists():
-            continue
-        _, run_rows = read_csv(run_file)
-        _, base_rows = read_csv(base_file)
-        try:
-            _check_same_tcs(run_file, base_file, run_rows, base_rows)
-        except ValueError as exc:
-            raise UserInputError(
-                f"{exc}; presets {preset} and {base_preset} do not evaluate on the same TCs"
-            ) from None
-        seed = int(folder.removeprefix("seed"))
-        rows += _pair(task, method, seed, run_rows, _outcomes(base_rows))
-    return _sorted(rows)
+        if base_file.parent in base_current and base_file.exists():
+            pairs.append((run_file, base_file))
+    try:
+        return _paired_files(pairs)
+    except ValueError as exc:
+        raise UserInputError(
+            f"{exc}; presets {preset} and {base_preset} do not evaluate on the same TCs"
+        ) from None
 
 
 def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
@@ -208,17 +194,34 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
     best_name = evaluation_file_names(None, "best")[0]
     final_name = evaluation_file_names()[0]
     current = select_runs(root, preset).current
-    rows = []
+    pairs = []
     for best_file in sorted(base.glob(f"*/*/seed*/{best_name}")):
-        task, method = best_file.parts[-4], best_file.parts[-3]
         final_file = best_file.parent / final_name
-        if method not in METHODS or best_file.parent not in current or not final_file.exists():
-            continue
-        _, best_rows = read_csv(best_file)
-        _, final_rows = read_csv(final_file)
-        _check_same_tcs(best_file, final_file, best_rows, final_rows)
-        seed = int(best_file.parts[-2].removeprefix("seed"))
-        rows += _pair(task, method, seed, best_rows, _outcomes(final_rows))
+        if best_file.parts[-3] in METHODS and best_file.parent in current and final_file.exists():
+            pairs.append((best_file, final_file))
+    return _paired_files(pairs)
+
+
+def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict]:
+    """`FIELDS` rows (`_sorted`) of each (run, reference) pair of evaluation files of runs
+    ``.../<task>/<method>/seed<k>/``, TC by TC; a reference shared by several runs is read
+    once.
+
+    Raises:
+        ValueError: the two files of a pair hold different TCs.
+    """
+    references: dict[Path, tuple[list, dict[str, list[int]]]] = {}
+    rows = []
+    for run_file, reference_file in pairs:
+        if reference_file not in references:
+            reference_rows = read_csv(reference_file)[1]
+            references[reference_file] = (reference_rows, _outcomes(reference_rows))
+        reference_rows, reference_outcomes = references[reference_file]
+        _, run_rows = read_csv(run_file)
+        _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
+        task, method, folder = run_file.parts[-4:-1]
+        seed = int(folder.removeprefix("seed"))
+        rows += _pair(task, method, seed, run_rows, reference_outcomes)
     return _sorted(rows)
 
 
