@@ -32,14 +32,19 @@ from distgprl.experiments.results import read_csv
 from distgprl.experiments.runner import evaluate_run, resolve_run, train_run
 
 PAPER_RESULTS = Path(__file__).resolve().parents[2] / "results" / "paper"
-EXACT_COLUMNS = ("episode", "success", "collision")
+OUTCOME_COLUMNS = ("success", "collision")
+OUTCOME_FLIPS = 2
+"""TCs of 100 whose outcome may differ from the committed reference on another CPU or BLAS
+kernel; a change of the task, the skill or the conditioning moves far more."""
 RATE_COLUMNS = {"success_rate", "collision_rate"}
 
 
 @pytest.mark.parametrize("task", TASK_NAMES)
 def test_committed_demo_evaluation_reproduces_tc_by_tc(task, tmp_path):
-    """Every evaluation TC's success and collision equal the committed reference's; the
-    clearance and joint-speed columns agree to a millimetre / 0.01 rad/s in at least 95 TCs."""
+    """The evaluation TCs' success and collision equal the committed reference's on all but
+    at most OUTCOME_FLIPS TCs (a contact decided by ulps: with `OPENBLAS_CORETYPE=Haswell`
+    on an AVX-512 machine one DCP TC of 100 flips its success); the clearance and
+    joint-speed columns agree to a millimetre / 0.01 rad/s in at least 95 TCs."""
     committed = PAPER_RESULTS / task / "demo" / "seed0" / "evaluation.csv"
     assert committed.exists(), f"{committed}: the committed reference evaluation is missing"
     meta, expected = read_csv(committed)
@@ -49,15 +54,19 @@ def test_committed_demo_evaluation_reproduces_tc_by_tc(task, tmp_path):
     assert len(rows) == len(expected) == 100
     assert rows[0].keys() == expected[0].keys()
     close = {"min_clearance": 0, "peak_joint_speed": 0}
+    flips = []
     for row, old in zip(rows, expected, strict=True):
-        for column in EXACT_COLUMNS:
-            assert row[column] == old[column], (row["episode"], column)
+        assert row["episode"] == old["episode"]
+        for column in OUTCOME_COLUMNS:
+            if row[column] != old[column]:
+                flips.append((row["episode"], column, old[column], row[column]))
         close["min_clearance"] += (
             abs(float(row["min_clearance"]) - float(old["min_clearance"])) < 1e-3
         )
         close["peak_joint_speed"] += (
             abs(float(row["peak_joint_speed"]) - float(old["peak_joint_speed"])) < 1e-2
         )
+    assert len({episode for episode, *_ in flips}) <= OUTCOME_FLIPS, flips
     assert min(close.values()) >= 95, close
 
 
