@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from distgprl.data import SCENE_REVISIONS, check_task_name, demo_path
+from distgprl.io import atomic_write_text, config_hash, file_sha256
 from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
@@ -35,8 +36,6 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
     import json
     from dataclasses import asdict
 
-    from distgprl.experiments.results import atomic_write_text, config_hash
-
     config = FitConfig(n_via_points=n_via_points)
     key = config_hash({"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 1})
     path = cache_root() / "skills" / f"{task}_{key}.json"
@@ -53,8 +52,6 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
 
 def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
     """The GP skill fitted to the task's shipped demonstration (cached per file hash)."""
-    from distgprl.experiments.results import file_sha256
-
     path = demo_path(check_task_name(task))
     return _fit_cached(task, n_via_points, file_sha256(path))
 

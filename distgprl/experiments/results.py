@@ -1,4 +1,4 @@
-"""Versioned, atomic result files.
+"""Versioned, atomic result files (atomic writes and hashes: :mod:`distgprl.io`).
 
 Every result file the project writes carries a ``meta`` block (schema version, package
 version, git commit, UTC time, library versions, and whatever the caller adds such as
@@ -10,12 +10,9 @@ unknown schema version raises :class:`SchemaVersionError` instead of guessing.
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
-import os
 import subprocess
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from functools import lru_cache
@@ -25,6 +22,26 @@ from typing import Any
 
 from distgprl import __version__
 from distgprl.errors import UserInputError
+from distgprl.io import atomic_write_bytes, atomic_write_text, config_hash, file_sha256
+
+# Re-exported for the callers that import them from here (their home is distgprl.io).
+__all__ = [
+    "SCHEMA_VERSION",
+    "SOURCE_PATHS",
+    "SchemaVersionError",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "config_hash",
+    "file_sha256",
+    "git_commit",
+    "library_versions",
+    "read_csv",
+    "read_json",
+    "result_meta",
+    "source_commit",
+    "write_csv",
+    "write_json",
+]
 
 SCHEMA_VERSION = 1
 _LIBRARIES = ("numpy", "scipy", "torch", "pybullet", "stable_baselines3", "gymnasium")
@@ -87,43 +104,6 @@ def result_meta(**extra: Any) -> dict[str, Any]:
         "libraries": library_versions(),
         **extra,
     }
-
-
-def config_hash(config: Mapping[str, Any]) -> str:
-    """A short stable hash of a JSON-serialisable configuration."""
-    blob = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def file_sha256(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temp file in the same folder + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o644)  # mkstemp creates 0600; result files are meant to be shared
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
-
-
-def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write UTF-8 text atomically."""
-    return atomic_write_bytes(path, text.encode("utf-8"))
 
 
 def write_json(path: str | Path, payload: Mapping[str, Any], **meta: Any) -> Path:

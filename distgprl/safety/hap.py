@@ -38,11 +38,8 @@ caller (e.g. the simulator's robot and a PyBullet checker).
 
 from __future__ import annotations
 
-import hashlib
 import heapq
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
@@ -53,6 +50,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from distgprl.io import atomic_open, sha256_hex
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.shapes import Box, Cylinder, Plane, Shape
 
@@ -465,7 +463,7 @@ def subspace_cache_key(
         "joint_upper": np.round(np.asarray(joint_upper, dtype=float), 9).tolist(),
     }
     text = json.dumps(payload, sort_keys=True, default=float)
-    return hashlib.sha256(text.encode()).hexdigest()
+    return sha256_hex(text)
 
 
 def _config_from_json(data: dict) -> HapConfig:
@@ -479,26 +477,18 @@ def _config_from_json(data: dict) -> HapConfig:
 
 def save_subspace(subspace: SafeSubspace, path: str | Path) -> None:
     """Write the subspace to ``path`` (.npz) atomically (temp file + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = json.dumps({"config": asdict(subspace.config), "stats": asdict(subspace.stats)})
-    handle, temp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(
-                stream,
-                positions=subspace.positions,
-                rotations=subspace.rotations,
-                configurations=subspace.configurations,
-                costs=subspace.costs,
-                parents=subspace.parents,
-                pose_indices=subspace.pose_indices,
-                meta=np.array(meta),
-            )
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+    with atomic_open(path) as stream:
+        np.savez(
+            stream,
+            positions=subspace.positions,
+            rotations=subspace.rotations,
+            configurations=subspace.configurations,
+            costs=subspace.costs,
+            parents=subspace.parents,
+            pose_indices=subspace.pose_indices,
+            meta=np.array(meta),
+        )
 
 
 def load_subspace(path: str | Path) -> SafeSubspace:

@@ -92,30 +92,6 @@ def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_pat
     assert not out.exists()
 
 
-def test_atomic_write_leaves_old_file_when_interrupted(tmp_path, monkeypatch):
-    target = tmp_path / "f.txt"
-    results.atomic_write_text(target, "old")
-
-    def boom(*args, **kwargs):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(results.os, "replace", boom)
-    with pytest.raises(KeyboardInterrupt):
-        results.atomic_write_text(target, "new")
-    assert target.read_text() == "old"
-    assert [p.name for p in tmp_path.iterdir()] == ["f.txt"]
-
-
-def test_written_files_are_world_readable(tmp_path):
-    path = results.atomic_write_text(tmp_path / "r.txt", "x")
-    assert path.stat().st_mode & 0o777 == 0o644
-
-
-def test_config_hash_is_order_independent():
-    assert results.config_hash({"a": 1, "b": 2}) == results.config_hash({"b": 2, "a": 1})
-    assert results.config_hash({"a": 1}) != results.config_hash({"a": 2})
-
-
 def test_git_commit_is_dirty_for_source_changes_only(tmp_path):
     import subprocess
 
