@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 
-from distgprl.agents.methods import MethodSpec, get_method
 from distgprl.config import Config, load_config
 from distgprl.data import SCENE_REVISIONS, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
@@ -56,6 +55,7 @@ from distgprl.experiments.results import (
     write_csv,
     write_json,
 )
+from distgprl.methods import MethodSpec, get_method
 
 PROGRESS_FIELDS = (
     "step",

@@ -45,8 +45,8 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max`` and
         ``max_off_diagonal``.
     """
-    from distgprl.agents.methods import get_method
-    from distgprl.envs.adaptation import build_action_layout
+    from distgprl.adaptation.layout import build_action_layout
+    from distgprl.methods import get_method
 
     env_config = env_config or EnvConfig()
     layout = build_action_layout(skill, env_config, get_method("dist-gprl"))

@@ -184,10 +184,10 @@ def run_trials(
         UserInputError: bad arguments, missing model, bad calibration, unreachable robot.
         KeyboardInterrupt: re-raised after stopping the robot and saving finished rows.
     """
-    from distgprl.agents.methods import get_method
     from distgprl.config import load_config
     from distgprl.experiments.results import write_csv
     from distgprl.hardware.adapter import perceived_env
+    from distgprl.methods import get_method
 
     if trials < 1:
         raise UserInputError("trials must be at least 1")

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.experiments.results import atomic_write_bytes, read_csv
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.runs import select_runs
 
 PANELS = (

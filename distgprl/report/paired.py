@@ -31,7 +31,6 @@ from pathlib import Path
 
 from scipy import stats
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_csv
@@ -40,6 +39,7 @@ from distgprl.experiments.runner import (
     evaluation_file_names,
     is_safe_success,
 )
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.runs import select_runs
 
 UNADAPTED = "demo"

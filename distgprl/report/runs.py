@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from distgprl.agents.methods import METHODS
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_json
+from distgprl.methods import METHODS
 
 
 @dataclass(frozen=True)

@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import atomic_write_text, read_csv, read_json
 from distgprl.experiments.runner import safe_success_rate
 from distgprl.hardware.trials import moved_robot
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,
