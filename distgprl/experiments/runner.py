@@ -304,7 +304,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
     if all(r.get("peak_joint_speed", "") != "" for r in rows):
-        from distgprl.hardware.safety import SafetyLimits
+        from distgprl.limits import SafetyLimits
 
         peak = column("peak_joint_speed")
         summary["peak_joint_speed_p95"] = float(np.percentile(peak, 95))

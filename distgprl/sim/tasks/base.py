@@ -90,7 +90,7 @@ class SegmentResult:
         peak_joint_speed: largest commanded joint speed (rad/s) in the segment: the joint
             targets' finite differences at the control period (the first from the previous
             target), maximum over joints and periods; the quantity the hardware safety
-            layer bounds (`distgprl.hardware.safety.SafetyLimits.max_joint_speed`).
+            layer bounds (`distgprl.limits.SafetyLimits.max_joint_speed`).
     """
 
     collision: bool
