@@ -10,7 +10,7 @@ import numpy as np
 
 from distgprl.data import SCENE_REVISIONS, check_task_name, demo_path
 from distgprl.io import atomic_write_text, config_hash, file_sha256
-from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load
+from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load, tqdm_progress
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
 
@@ -98,7 +98,11 @@ def _hap_robot_id(tool: str, task: str) -> str:
 
 
 def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
-    """The task's HAP safe subspace against its static obstacles (built once, then cached)."""
+    """The task's HAP safe subspace against its static obstacles (built once, then cached).
+
+    ``progress``: a `ProgressFunction` for the build; default progress bars on stderr
+    (`tqdm_progress`, drawn only on a terminal).
+    """
     from distgprl.sim.tasks import get_task
 
     spec = get_task(check_task_name(task))
@@ -114,7 +118,7 @@ def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
             cache_dir=hap_cache_dir(),
             joint_lower=sim.robot.lower_limits,
             joint_upper=sim.robot.upper_limits,
-            progress=progress,
+            progress=progress if progress is not None else tqdm_progress(),
         )
     finally:
         sim.close()
