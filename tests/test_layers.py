@@ -186,3 +186,37 @@ def test_no_import_cycle_inside_sim():
     sim = set(importers("distgprl.sim"))
     graph = {m: {t for t in imports(m) if t in sim and t != m} for m in sim}
     assert find_cycle(graph) == []
+
+
+#: The package's layers, lowest first (docs/DESIGN.md §1): top-level modules or subpackages.
+LAYERS: tuple[frozenset[str], ...] = tuple(
+    frozenset(layer)
+    for layer in (
+        ("distgprl", "io", "errors", "data", "config", "methods", "limits", "schema", "identity"),
+        ("skill", "safety", "adaptation"),
+        ("sim",),
+        ("envs", "agents"),
+        ("experiments", "hardware"),
+        ("report",),
+        ("cli",),
+    )
+)
+
+
+def layer_of(module: str) -> int:
+    parts = module.split(".")
+    key = parts[1] if len(parts) > 1 else "distgprl"
+    for index, layer in enumerate(LAYERS):
+        if key in layer:
+            return index
+    raise AssertionError(f"{module}: not in any layer of LAYERS (add it to DESIGN §1 too)")
+
+
+def test_imports_point_down_the_layers():
+    """Every distgprl module imports package modules of its own layer or lower ones only."""
+    upward = []
+    for module in modules():
+        for target in sorted(imports(module)):
+            if target.split(".")[0] == "distgprl" and layer_of(target) > layer_of(module):
+                upward.append(f"{module} -> {target}")
+    assert upward == []
