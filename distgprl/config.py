@@ -29,7 +29,8 @@ class EnvConfig:
     Attributes:
         n_via_points: N (paper: 15).
         window_size: L (paper: 5); windows overlap by one via-point.
-        n_windows: RL steps per episode (paper: 3).
+        n_windows: RL steps per episode (paper: 3; the results schema records exactly three,
+            `distgprl.schema.N_WINDOWS`).
         correlation_lambda: lambda of S = K (K + lambda I)^-1 (paper: 1e-2).
         correlation_length_scale: length scale (normalised time) of the kernel matrix K in
             S only; 0 (default) = the kernel fitted to the demonstration, as in every

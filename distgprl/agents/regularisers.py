@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from distgprl.envs.adaptation import ActionLayout
+from distgprl.adaptation.layout import ActionLayout, AuxLayout
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.skill.gp import GPSkill
 
@@ -83,6 +83,8 @@ class ActorRegulariser(nn.Module):
         hap_tau = np.linspace(0.0, 1.0, n_hap_queries)
         buffer("hap_map", skill.position_map(hap_tau))
         self.moving_filter = moving_filter if self.hap_prior is not None else None
+        # Where Gamma, the step one-hot and the anchors sit in the env's aux observation.
+        self.aux_layout = AuxLayout(self.n_via_points, self.n_steps, self.moving_filter is not None)
         # Linear interpolation (N_q, N) of the anchors at the via-point times to the queries.
         via_times = np.asarray(skill.via_times, dtype=float)
         identity = np.eye(len(via_times))
@@ -97,8 +99,8 @@ class ActorRegulariser(nn.Module):
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
         batch = aux.shape[0]
         n = self.n_via_points
-        gamma = aux[:, : n * 6].reshape(batch, n, 6)
-        step = aux[:, n * 6 : n * 6 + self.n_steps].argmax(dim=1)
+        gamma = aux[:, self.aux_layout.gamma].reshape(batch, n, 6)
+        step = aux[:, self.aux_layout.step].argmax(dim=1)
         raw = actions.reshape(batch, self.points_per_step, 6) * self.scale
         delta = torch.bmm(self.operators[step], raw) * self.mask[step].unsqueeze(-1)
         index = self.indices[step].unsqueeze(-1).expand(-1, -1, 6)
@@ -133,13 +135,13 @@ class ActorRegulariser(nn.Module):
                 l_hap = self.hap_prior.loss(positions)
             else:
                 n = self.n_via_points
-                start = n * 6 + self.n_steps
-                if aux.shape[1] != start + n * 3:
+                if aux.shape[1] != self.aux_layout.size:
                     raise ValueError(
                         f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
-                        f"{start + n * 3} (Gamma, step one-hot, anchors)"
+                        f"{self.aux_layout.size} (Gamma, step one-hot, anchors)"
                     )
-                anchors = torch.matmul(self.anchor_map, aux[:, start:].reshape(-1, n, 3))
+                anchor = aux[:, self.aux_layout.anchor].reshape(-1, n, 3)
+                anchors = torch.matmul(self.anchor_map, anchor)
                 l_hap = self.hap_prior.loss(positions, anchors, self.moving_filter)
             total = total + self.weights.lambda_hap * l_hap
             terms["l_hap"] = float(l_hap.detach())

@@ -6,14 +6,14 @@ Env ids: ``DistGPRL-DCP-v4`` and ``DistGPRL-DBM-v4`` (registered in `distgprl.en
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from distgprl.agents.methods import MethodSpec, get_method
+from distgprl.adaptation.layout import AuxLayout, build_action_layout
 from distgprl.config import EnvConfig
+from distgprl.methods import MethodSpec, get_method
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
@@ -28,79 +28,6 @@ OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 RELATIVE_POSITION_CLIP = 0.8
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
-
-
-@dataclass(frozen=True)
-class ActionLayout:
-    """Which via-points each RL step adapts and how raw actions map onto them.
-
-    Attributes:
-        indices: per step, the via-point indices its action covers, shape (n_steps, A_v).
-        operators: per step, the (A_v, A_v) matrix applied to the raw action
-            (S_W for covariance-transformed windows, identity otherwise).
-        segment_bounds: normalised times bounding the executed segments, shape (n_steps+1,).
-        scale: per-axis scale of the raw action, shape (6,), m and rad.
-        frozen: via-point indices whose update is forced to zero (e.g. GPRL's TC via-point).
-    """
-
-    indices: np.ndarray
-    operators: np.ndarray
-    segment_bounds: np.ndarray
-    scale: np.ndarray
-    frozen: tuple[int, ...] = ()
-
-    @property
-    def n_steps(self) -> int:
-        return int(self.indices.shape[0])
-
-    @property
-    def points_per_step(self) -> int:
-        return int(self.indices.shape[1])
-
-    def delta(self, step: int, raw_action: np.ndarray) -> np.ndarray:
-        """Delta Gamma for the step's via-points, shape (A_v, 6) (Eq. transformed_action)."""
-        scaled = raw_action.reshape(self.points_per_step, 6) * self.scale
-        delta = self.operators[step] @ scaled
-        for index in self.frozen:
-            delta[self.indices[step] == index] = 0.0
-        return delta
-
-
-def build_action_layout(
-    skill: GPSkill, config: EnvConfig, method: MethodSpec, frozen: tuple[int, ...] = ()
-) -> ActionLayout:
-    """Windows W_k = {1 + k (L - 1), ..., 1 + k (L - 1) + L - 1} (one-point overlap).
-
-    Windowed methods adapt W_k at step k; global methods adapt all interior via-points
-    1..N-2 at every step (with ``episode_range``: at 1/steps of the scale, the same total
-    range per episode). Segment k runs from the first via-point of W_k (0 for k = 0)
-    to the first via-point of W_{k+1} (1 for the last).
-    """
-    n, length, steps = config.n_via_points, config.window_size, config.n_windows
-    if n != skill.n_via_points:
-        raise ValueError(f"config n_via_points {n} != skill's {skill.n_via_points}")
-    starts = [1 + k * (length - 1) for k in range(steps)]
-    if starts[-1] + length - 1 > n - 2:
-        raise ValueError(f"{steps} windows of {length} do not fit in {n} via-points")
-    windows = np.array([np.arange(s, s + length) for s in starts])
-    bounds = np.r_[0.0, skill.via_times[starts[1:]], 1.0]
-    if method.action_mode == "global":  # residual/none: windows without S (below)
-        interior = np.arange(1, n - 1)
-        indices = np.tile(interior, (steps, 1))
-        operators = np.tile(np.eye(len(interior)), (steps, 1, 1))
-    else:
-        indices = windows
-        if method.covariance_transform:
-            length_scale = config.correlation_length_scale or None  # 0: the fitted one
-            operators = np.stack(
-                [skill.window_operator(w, config.correlation_lambda, length_scale) for w in windows]
-            )
-        else:
-            operators = np.tile(np.eye(length), (steps, 1, 1))
-    scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
-    if method.action_mode == "global" and method.episode_range:
-        scale = scale / steps  # the same per-episode range as a windowed via-point
-    return ActionLayout(indices, operators, bounds, scale, tuple(frozen))
 
 
 def min_jerk(u: np.ndarray) -> np.ndarray:
@@ -285,7 +212,8 @@ class AdaptationEnv(gym.Env):
         n = self.config.n_via_points
         # aux: Gamma, the step's one-hot and, for L_hap's moving-obstacle filter (v4), the
         # moving obstacles' anchor at every via-point time.
-        aux_dim = n * 6 + self.layout.n_steps + (n * 3 if self.method.hap_prior else 0)
+        self.aux_layout = AuxLayout(n, self.layout.n_steps, self.method.hap_prior)
+        aux_dim = self.aux_layout.size
         self.observation_space = spaces.Dict(
             {
                 "state": spaces.Box(-np.inf, np.inf, (state_dim,), np.float32),
@@ -428,12 +356,8 @@ class AdaptationEnv(gym.Env):
                 [self.step_index / self.layout.n_steps],
             ]
         ).astype(np.float32)
-        one_hot = np.zeros(self.layout.n_steps)
-        one_hot[min(self.step_index, self.layout.n_steps - 1)] = 1.0
-        parts = [self.gamma.ravel(), one_hot]
-        if self.method.hap_prior:
-            parts.append(self.moving_obstacle_anchors().ravel())
-        return {"state": state, "aux": np.concatenate(parts).astype(np.float32)}
+        anchors = self.moving_obstacle_anchors() if self.method.hap_prior else None
+        return {"state": state, "aux": self.aux_layout.pack(self.gamma, self.step_index, anchors)}
 
     def _segment_poses(self, step: int) -> np.ndarray:
         """The poses to execute for ``step`` (with continuity blending), shape (m, 6)."""

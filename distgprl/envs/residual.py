@@ -10,9 +10,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from distgprl.agents.methods import get_method
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.methods import get_method
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.promp import ObjectCentricProMP
 

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from distgprl.data import SCENE_REVISIONS, check_task_name, demo_path
-from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load
+from distgprl.io import atomic_write_text, config_hash, file_sha256
+from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load, tqdm_progress
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
 
@@ -35,8 +36,6 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
     import json
     from dataclasses import asdict
 
-    from distgprl.experiments.results import atomic_write_text, config_hash
-
     config = FitConfig(n_via_points=n_via_points)
     key = config_hash({"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 1})
     path = cache_root() / "skills" / f"{task}_{key}.json"
@@ -53,8 +52,6 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
 
 def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
     """The GP skill fitted to the task's shipped demonstration (cached per file hash)."""
-    from distgprl.experiments.results import file_sha256
-
     path = demo_path(check_task_name(task))
     return _fit_cached(task, n_via_points, file_sha256(path))
 
@@ -101,7 +98,11 @@ def _hap_robot_id(tool: str, task: str) -> str:
 
 
 def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
-    """The task's HAP safe subspace against its static obstacles (built once, then cached)."""
+    """The task's HAP safe subspace against its static obstacles (built once, then cached).
+
+    ``progress``: a `ProgressFunction` for the build; default progress bars on stderr
+    (`tqdm_progress`, drawn only on a terminal).
+    """
     from distgprl.sim.tasks import get_task
 
     spec = get_task(check_task_name(task))
@@ -117,7 +118,7 @@ def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
             cache_dir=hap_cache_dir(),
             joint_lower=sim.robot.lower_limits,
             joint_upper=sim.robot.upper_limits,
-            progress=progress,
+            progress=progress if progress is not None else tqdm_progress(),
         )
     finally:
         sim.close()

@@ -269,9 +269,9 @@ def _run_spec(
     sac_overrides: dict[str, Any] | None = None,
 ):
     """The paper preset with the given overrides (a small replay buffer: allocation only)."""
-    from distgprl.agents.methods import get_method
     from distgprl.config import load_config
     from distgprl.experiments.runner import RunSpec
+    from distgprl.methods import get_method
 
     overrides: dict[str, dict[str, Any]] = {"sac": {"buffer_size": 20_000, **(sac_overrides or {})}}
     if env_overrides:

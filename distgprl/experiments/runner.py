@@ -37,122 +37,25 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from distgprl.agents.methods import MethodSpec, get_method
-from distgprl.config import Config, load_config
-from distgprl.data import SCENE_REVISIONS, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
-from distgprl.experiments.results import (
-    atomic_write_bytes,
-    atomic_write_text,
-    config_hash,
+from distgprl.identity import RunSpec, resolve_run
+from distgprl.io import atomic_write_bytes, atomic_write_text
+from distgprl.schema import (
+    EVALUATION_FIELDS,
+    PROGRESS_FIELDS,
+    evaluation_file_names,
     read_csv,
     read_json,
+    run_dir,
+    safe_success_rate,
     write_csv,
     write_json,
 )
-
-PROGRESS_FIELDS = (
-    "step",
-    "episodes",
-    "success_rate",
-    "collision_rate",
-    "mean_return",
-    "min_clearance_p5",
-    "wall_time_s",
-    "l_sim",
-    "l_hap",
-    "ent_coef",
-)
-EVALUATION_FIELDS = (
-    "episode",
-    "object_offset_x",
-    "object_offset_y",
-    "obstacle_offset_x",
-    "obstacle_offset_y",
-    "success",
-    "collision",
-    "min_clearance",
-    "return",
-    "kinematic_retention",
-    "adaptation_ms_w1",
-    "adaptation_ms_w2",
-    "adaptation_ms_w3",
-    "policy_ms",
-    "peak_joint_speed",
-)
-
-
-def method_revisions(method: MethodSpec) -> dict[str, int]:
-    """Revisions of the method's parts, for the config hash (environment v4).
-
-    Only the parts a method uses appear, so fixing one part leaves the hashes (and committed
-    results) of methods without it valid: ``r_ga`` 1 — the gradient-alignment reward at the
-    via-points before the update (Eq. grad_alignment_reward); ``l_hap`` 1 — L_hap over C_safe
-    without the points the moving obstacles block.
-    """
-    revisions = {}
-    if method.distance_rewards:
-        revisions["r_ga"] = 1
-    if method.hap_prior:
-        revisions["l_hap"] = 1
-    return revisions
-
-
-def run_dir(root: str | Path, preset: str, task: str, method: str, seed: int) -> Path:
-    """``<root>/<preset>/<task>/<method>/seed<k>``."""
-    return Path(root) / preset / task / method / f"seed{seed}"
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """Everything that identifies a run."""
-
-    task: str
-    method: MethodSpec
-    seed: int
-    config: Config
-
-    def to_dict(self) -> dict[str, Any]:
-        data: dict[str, Any] = {
-            "task": self.task,
-            "method": self.method.to_dict(),
-            "seed": self.seed,
-            "config": self.config.to_dict(),
-        }
-        if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
-            data["scene_revision"] = SCENE_REVISIONS[self.task]
-        revisions = method_revisions(self.method)
-        if revisions:
-            data["method_revisions"] = revisions
-        return data
-
-    @property
-    def hash(self) -> str:
-        return config_hash(self.to_dict())
-
-
-def resolve_run(
-    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
-) -> RunSpec:
-    """Validate names and resolve the configuration of a run."""
-    check_task_name(task)
-    spec = get_method(method)
-    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED
-
-    if int(seed) in (EVALUATION_SEED, TRAINING_CURVE_SEED):
-        raise UserInputError(
-            f"seed {seed} is reserved: it draws the evaluation / learning-curve TCs, which no "
-            f"run may train on"
-        )
-    overrides = {"run": {"total_steps": steps}} if steps is not None else None
-    config = load_config(preset, task=task, overrides=overrides)
-    return RunSpec(task, spec, int(seed), config)
 
 
 # -- environments and agents ---------------------------------------------------------------
@@ -265,18 +168,6 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
     }
 
 
-def is_safe_success(row: dict[str, Any]) -> bool:
-    """Whether an episode row succeeded without any collision."""
-    return int(row["success"]) == 1 and int(row["collision"]) == 0
-
-
-def safe_success_rate(rows: list[dict[str, Any]]) -> float:
-    """Share of episodes that succeeded without any collision (not a metric of the paper,
-    whose success ignores collisions: in simulation a colliding robot pushes on through
-    kinematic obstacles, where a real arm would stop or knock them away)."""
-    return float(np.mean([is_safe_success(r) for r in rows]))
-
-
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
     """Success rate, collision rate, MinCl = 5th percentile of episode min clearance,
     safe success (success without collision), means of the per-episode columns and, for
@@ -304,7 +195,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
     if all(r.get("peak_joint_speed", "") != "" for r in rows):
-        from distgprl.hardware.safety import SafetyLimits
+        from distgprl.limits import SafetyLimits
 
         peak = column("peak_joint_speed")
         summary["peak_joint_speed_p95"] = float(np.percentile(peak, 95))
@@ -508,10 +399,6 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
 
 
 # -- learning-curve policies (Algorithm 1's "best policy") --------------------------------
-#: Policies that can be evaluated: the final one (Table I) or the best learning-curve one.
-POLICY_CHOICES = ("final", "best")
-
-
 def curve_policy_dir(folder: Path) -> Path:
     """Where a run keeps the actors of its best-so-far learning-curve points (checkpoints)."""
     return checkpoint_dir(folder) / "curve_policies"
@@ -824,23 +711,6 @@ def _train_locked(
 
 
 # -- evaluate -------------------------------------------------------------------------------
-def evaluation_file_names(episodes: int | None = None, policy: str = "final") -> tuple[str, str]:
-    """(per-episode CSV, summary JSON) file names of an evaluation in a run folder.
-
-    ``None``: the preset's evaluation (``evaluation.csv``, ``summary.json``), the one Table I
-    reads. An integer: a supplementary evaluation on the first ``episodes`` TCs of the same
-    evaluation stream (``evaluation_n<episodes>.csv``, ``summary_n<episodes>.json``), kept
-    beside the preset's and never replacing it. ``policy="best"``: the same for the best
-    learning-curve policy, with ``_best`` after the stem (``evaluation_best.csv``,
-    ``summary_best_n1000.json``).
-    """
-    if policy not in POLICY_CHOICES:
-        raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
-    tag = "" if policy == "final" else f"_{policy}"
-    suffix = "" if episodes is None else f"_n{episodes}"
-    return f"evaluation{tag}{suffix}.csv", f"summary{tag}{suffix}.json"
-
-
 def evaluate_run(
     task: str,
     method: str,

@@ -9,6 +9,7 @@ import numpy as np
 
 from distgprl.config import EnvConfig
 from distgprl.experiments.results import read_json, write_json
+from distgprl.io import atomic_write_bytes
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
 
@@ -44,8 +45,8 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max`` and
         ``max_off_diagonal``.
     """
-    from distgprl.agents.methods import get_method
-    from distgprl.envs.adaptation import build_action_layout
+    from distgprl.adaptation.layout import build_action_layout
+    from distgprl.methods import get_method
 
     env_config = env_config or EnvConfig()
     layout = build_action_layout(skill, env_config, get_method("dist-gprl"))
@@ -128,8 +129,6 @@ def plot_fit(skill: GPSkill, demo: Demonstration, out_path: str | Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from distgprl.experiments.results import atomic_write_bytes
 
     tau = demo.normalised_times
     t = demo.times - demo.times[0]

@@ -29,10 +29,10 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from distgprl.agents.methods import get_method
 from distgprl.experiments.results import SchemaVersionError, read_csv, read_json
 from distgprl.experiments.runner import is_locked, resolve_run, run_dir
 from distgprl.experiments.sweep import Job, is_complete
+from distgprl.methods import get_method
 
 STATES = ("done", "running", "partial", "failed", "stale", "unreadable", "missing")
 

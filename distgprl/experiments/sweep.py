@@ -43,11 +43,11 @@ from multiprocessing import get_context
 from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
 
-from distgprl.agents.methods import TABLE_ORDER, get_method
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.results import SchemaVersionError, read_json, write_json
 from distgprl.experiments.runner import evaluate_run, is_locked, resolve_run, run_dir, train_run
+from distgprl.methods import TABLE_ORDER, get_method
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from distgprl.agents.methods import get_method
 from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.envs.residual import ResidualEnv
 from distgprl.hardware.perception import OBJECTS, Percept
+from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.tasks.base import TaskConfig
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes

@@ -55,6 +55,7 @@ from distgprl.hardware.markers import (
     TARGET_BAR_MARKERS,
     MarkerSpec,
 )
+from distgprl.io import atomic_write_text
 from distgprl.sim.transforms import invert_transform, matrix_to_rotvec, rotvec_to_matrix
 
 CALIBRATION_FORMAT = "distgprl-cell-calibration/1"
@@ -236,8 +237,6 @@ def load_calibration(path: str | Path) -> CellCalibration:
 def save_calibration(path: str | Path, calibration: CellCalibration) -> Path:
     """Write a calibration file (YAML unless the suffix is ``.json``), atomically."""
     import yaml
-
-    from distgprl.experiments.results import atomic_write_text
 
     path = Path(path)
     data = calibration.to_dict()

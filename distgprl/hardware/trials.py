@@ -38,33 +38,7 @@ from distgprl.hardware.perception import (
     pose_error,
 )
 from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
-
-TRIAL_FIELDS = (
-    "trial",
-    "backend",
-    "status",
-    "success",
-    "collision",
-    "min_clearance",
-    "clearance_source",
-    "planned_min_clearance",
-    "stop_reason",
-    "refused_limits",
-    "object_offset_y",
-    "obstacle_offset_y",
-    "true_object_offset_y",
-    "true_obstacle_offset_y",
-    "perception_error_mm",
-    "perception_error_deg",
-    "images",
-    "perception_ms",
-    "policy_ms",
-    "check_ms",
-    "execution_s",
-    "trial_s",
-)
-"""Columns of a trial CSV (``success``/``collision`` 0/1; clearances m; errors max over
-the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image)."""
+from distgprl.schema import TRIAL_FIELDS, moved_robot
 
 
 @dataclass(frozen=True)
@@ -79,8 +53,9 @@ class TrialReport:
 def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
     """(policy or None, provenance): the deterministic policy of the trained run and which
     model it is (path, SHA-256, the config hash of the run folder it sits in, if any)."""
-    from distgprl.experiments.results import file_sha256, read_json
-    from distgprl.experiments.runner import deterministic_policy, run_dir
+    from distgprl.experiments.runner import deterministic_policy
+    from distgprl.io import file_sha256
+    from distgprl.schema import read_json, run_dir
 
     if env.method.action_mode == "none":
         return None, {}
@@ -184,10 +159,10 @@ def run_trials(
         UserInputError: bad arguments, missing model, bad calibration, unreachable robot.
         KeyboardInterrupt: re-raised after stopping the robot and saving finished rows.
     """
-    from distgprl.agents.methods import get_method
     from distgprl.config import load_config
-    from distgprl.experiments.results import write_csv
     from distgprl.hardware.adapter import perceived_env
+    from distgprl.methods import get_method
+    from distgprl.schema import write_csv
 
     if trials < 1:
         raise UserInputError("trials must be at least 1")
@@ -289,18 +264,6 @@ def run_trials(
         robot.close()
         adapter.close()
     return TrialReport(rows, path, summarise_trials(rows))
-
-
-def moved_robot(trial: dict[str, Any]) -> bool:
-    """Whether a hardware trial moved the robot: it finished (status ``ok``) or spent
-    execution time (``execution_s`` > 0; e.g. refused or stopped in a later window after
-    executing the earlier ones). A trial refused in its first window, or stopped or not
-    perceived before any motion, did not move; its recorded clearance is that of the start
-    pose (or infinite), not of a motion."""
-    if trial.get("status") == "ok":
-        return True
-    execution = trial.get("execution_s", "")
-    return execution not in ("", None) and float(execution) > 0.0
 
 
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:

@@ -34,6 +34,7 @@ from distgprl.hardware.markers import (
     MarkerSpec,
 )
 from distgprl.hardware.perception import CellCalibration
+from distgprl.io import atomic_write_bytes
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, DBMSim
 from distgprl.sim.transforms import (
     make_transform,
@@ -121,9 +122,10 @@ def marker_texture(marker_id: int, pixels_per_cell: int, dictionary: str = DICTI
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{dictionary}_{marker_id}_{pixels_per_cell}.png"
     if not path.exists():
-        tmp = path.with_suffix(f".{os.getpid()}.png")
-        cv2.imwrite(str(tmp), cv2.cvtColor(plate, cv2.COLOR_GRAY2BGR))
-        os.replace(tmp, path)
+        ok, png = cv2.imencode(".png", cv2.cvtColor(plate, cv2.COLOR_GRAY2BGR))
+        if not ok:
+            raise RuntimeError(f"OpenCV could not encode marker {marker_id} as PNG")
+        atomic_write_bytes(path, png.tobytes())
     return str(path)
 
 

@@ -13,8 +13,8 @@ import math
 import sys
 from pathlib import Path
 
-from distgprl.agents.methods import TABLE_ORDER
 from distgprl.data import TASK_NAMES
+from distgprl.methods import TABLE_ORDER
 
 
 def check_table(path: str | Path, tasks: list[str]) -> list[str]:

@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
-from distgprl.experiments.results import atomic_write_bytes, read_csv
+from distgprl.io import atomic_write_bytes
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.runs import select_runs
+from distgprl.schema import read_csv
 
 PANELS = (
     ("success_rate", "success rate"),

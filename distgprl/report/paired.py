@@ -31,16 +31,11 @@ from pathlib import Path
 
 from scipy import stats
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_csv
-from distgprl.experiments.runner import (
-    EVALUATION_FIELDS,
-    evaluation_file_names,
-    is_safe_success,
-)
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.runs import select_runs
+from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, is_safe_success, read_csv
 
 UNADAPTED = "demo"
 """The unadapted reference: evaluated once per task (seed 0), paired with every seed."""

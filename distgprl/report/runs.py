@@ -6,7 +6,7 @@ hash recorded there is the one the code resolves for it now: a run of an older c
 (say, before a fix to a part of the method, which changes the hash of the methods using it)
 is left out, and listed, instead of being averaged with the current ones. `distgprl status`
 calls such runs "stale". A marker file of an unknown schema version is an error
-(:class:`~distgprl.experiments.results.SchemaVersionError`), never a run quietly left out.
+(:class:`~distgprl.schema.SchemaVersionError`), never a run quietly left out.
 
 So a report is a function of the result files and, for this checkout's presets, of the
 configuration the code resolves for them (presets and method revisions): a change to a
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from distgprl.agents.methods import METHODS
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_json
+from distgprl.methods import METHODS
+from distgprl.schema import read_json
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ def known_preset(preset: str) -> bool:
 def current_hash(task: str, method: str, seed: int, preset: str) -> str:
     """The config hash the code resolves for a run (fixed while the process runs; the reports
     ask for the same runs once per table, figure and method)."""
-    from distgprl.experiments.runner import resolve_run
+    from distgprl.identity import resolve_run
 
     return resolve_run(task, method, seed, preset).hash
 

@@ -31,12 +31,10 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import atomic_write_text, read_csv, read_json
-from distgprl.experiments.runner import safe_success_rate
-from distgprl.hardware.trials import moved_robot
+from distgprl.io import atomic_write_text
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,
@@ -47,6 +45,7 @@ from distgprl.report.paired import (
     supplementary_sizes,
 )
 from distgprl.report.runs import current_hash, known_preset, select_runs
+from distgprl.schema import moved_robot, read_csv, read_json, safe_success_rate
 
 METRICS = (
     ("success_rate", "Success"),

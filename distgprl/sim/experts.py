@@ -1,12 +1,12 @@
 """Scripted experts that write the shipped demonstrations.
 
 Each expert plans a few key TCP poses for a task configuration and joins them with
-minimum-jerk segments (zero velocity and acceleration at every key pose), sampled at
-:data:`SAMPLE_RATE`. ``python -m distgprl.sim.experts [--out DIR]`` regenerates, for every
-task, ``<task>.csv`` (nominal TC) and ``<task>_varied/demo_XX.csv`` with ``tcs.json``
-(20 TCs drawn from :data:`VARIED_SEED`; a drawn TC on which the expert's own execution
-fails or collides is skipped, so every varied demonstration succeeds for its TC).
-The output is byte-for-byte reproducible.
+minimum-jerk segments (zero velocity and acceleration at every key pose; `minimum_jerk` in
+:mod:`distgprl.sim.profiles`), sampled at its ``SAMPLE_RATE``. ``python -m
+distgprl.sim.experts [--out DIR]`` regenerates, for every task, ``<task>.csv`` (nominal TC)
+and ``<task>_varied/demo_XX.csv`` with ``tcs.json`` (20 TCs drawn from :data:`VARIED_SEED`;
+a drawn TC on which the expert's own execution fails or collides is skipped, so every varied
+demonstration succeeds for its TC). The output is byte-for-byte reproducible.
 """
 
 from __future__ import annotations
@@ -20,40 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from distgprl.data import TASK_NAMES
+from distgprl.sim.profiles import minimum_jerk
 from distgprl.sim.tasks.base import DEMO_DIR, TaskConfig, TaskSim, resample_to_control
 from distgprl.skill.demos import save_demonstration
-
-SAMPLE_RATE = 100.0
-"""Samples per second of the written demonstrations."""
 
 VARIED_SEED = 3_141_592
 """Seed of the TCs of the varied demonstrations (distinct from evaluation/training seeds)."""
 
 VARIED_COUNT = 20
-
-
-def minimum_jerk(
-    key_times: np.ndarray, key_poses: np.ndarray, rate: float = SAMPLE_RATE
-) -> tuple[np.ndarray, np.ndarray]:
-    """Minimum-jerk interpolation through key poses, each reached at rest.
-
-    Args:
-        key_times: (k,) s, strictly increasing, starting at 0.
-        key_poses: (k, 6) TCP poses (m, rad).
-        rate: samples per second.
-    Returns:
-        times (n,) s and poses (n, 6), sampled at ``rate`` from 0 to ``key_times[-1]``.
-    """
-    key_times = np.asarray(key_times, dtype=float)
-    key_poses = np.asarray(key_poses, dtype=float)
-    count = int(round(key_times[-1] * rate)) + 1
-    times = np.arange(count) / rate
-    segment = np.clip(np.searchsorted(key_times, times, side="right") - 1, 0, len(key_times) - 2)
-    start, end = key_times[segment], key_times[segment + 1]
-    x = np.clip((times - start) / (end - start), 0.0, 1.0)
-    blend = x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
-    poses = key_poses[segment] + blend[:, None] * (key_poses[segment + 1] - key_poses[segment])
-    return np.round(times, 6), poses
 
 
 # ---------------------------------------------------------------------------- DCP

@@ -19,7 +19,6 @@ perfectly rigid.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import tempfile
@@ -33,6 +32,7 @@ import pybullet
 import ur_analytic_ik
 from pybullet_utils.bullet_client import BulletClient
 
+from distgprl.io import atomic_write_text, sha256_hex
 from distgprl.sim.transforms import (
     invert_transform,
     make_transform,
@@ -185,14 +185,12 @@ def tool_urdf_path(tool: ToolSpec) -> str:
     </joint>
 </robot>"""
     text = text.replace("</robot>", tool_xml)
-    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    digest = sha256_hex(text)[:16]
     folder = Path(tempfile.gettempdir()) / f"distgprl-urdf-{os.getuid()}"
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"ur5e_{tool.name}_{digest}.urdf"
     if not path.exists():
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
+        atomic_write_text(path, text)
     return str(path)
 
 

@@ -17,13 +17,13 @@ in another convention is not silently misread.
 from __future__ import annotations
 
 import csv
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from distgprl.errors import UserInputError
+from distgprl.io import atomic_write_text, sha256_hex
 
 COLUMNS: tuple[str, ...] = ("t", "x", "y", "z", "rx", "ry", "rz")
 
@@ -124,7 +124,7 @@ def load_demonstration(path: str | Path, min_rows: int = 2) -> Demonstration:
         times=data[:, 0].copy(),
         poses=data[:, 1:].copy(),
         name=path.stem,
-        sha256=hashlib.sha256(raw).hexdigest(),
+        sha256=sha256_hex(raw),
     )
 
 
@@ -135,8 +135,6 @@ def save_demonstration(path: str | Path, times: np.ndarray, poses: np.ndarray) -
         times: shape (n,), seconds, strictly increasing.
         poses: shape (n, 6), metres and radians.
     """
-    from distgprl.experiments.results import atomic_write_text
-
     times = np.asarray(times, dtype=float)
     poses = np.asarray(poses, dtype=float)
     if times.ndim != 1 or poses.shape != (times.shape[0], 6):

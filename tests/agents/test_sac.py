@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from distgprl.agents.methods import get_method
+from distgprl.adaptation.layout import build_action_layout
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.agents.sac import exponential_anneal
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import build_action_layout
+from distgprl.methods import get_method
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box

@@ -4,7 +4,7 @@
   outcomes as the committed files.
 - Trained models are not committed, and a full run takes an hour; a committed trained run is
   retrained for its first learning-curve interval and must meet its committed curve there.
-  Every committed run's config hash is checked in `tests/agents/test_methods.py`.
+  Every committed run's config hash is checked in `tests/test_methods.py`.
 
 Bit-identical on the machine that wrote the files; across CPUs only up to floating point: the
 numpy (OpenBLAS, its SIMD loops), torch and PyBullet kernels differ with the instruction set

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from distgprl.agents.methods import METHODS
 from distgprl.errors import UserInputError
 from distgprl.experiments import runner
 from distgprl.experiments.results import read_csv, read_json, write_json
 from distgprl.hardware.safety import SafetyLimits
+from distgprl.methods import METHODS
 
 STEPS = 120  # the `ci` preset shortened further; still past learning_starts
 

@@ -24,15 +24,10 @@ import pybullet
 from distgprl.data import DEMO_DIR
 from distgprl.errors import UserInputError
 from distgprl.safety.shapes import Shape
+from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 from distgprl.sim.bullet import PhysicsConfig, make_client
 from distgprl.sim.robot import ToolSpec, UR5e
 from distgprl.sim.transforms import pose_to_matrix
-
-EVALUATION_SEED = 7_130_911
-"""Seed of the fixed 100-TC evaluation set. No training run may use it."""
-
-TRAINING_CURVE_SEED = 5_204_377
-"""Seed of the fixed TC set used for evaluations during training (learning curves)."""
 
 
 def _as_xy(value: object, name: str) -> tuple[float, float]:
@@ -90,7 +85,7 @@ class SegmentResult:
         peak_joint_speed: largest commanded joint speed (rad/s) in the segment: the joint
             targets' finite differences at the control period (the first from the previous
             target), maximum over joints and periods; the quantity the hardware safety
-            layer bounds (`distgprl.hardware.safety.SafetyLimits.max_joint_speed`).
+            layer bounds (`distgprl.limits.SafetyLimits.max_joint_speed`).
     """
 
     collision: bool

@@ -36,6 +36,7 @@ import numpy as np
 
 from distgprl.safety.shapes import Box, Cylinder, Shape
 from distgprl.sim.bullet import create_compound_body
+from distgprl.sim.profiles import minimum_jerk
 from distgprl.sim.robot import HOOK
 from distgprl.sim.tasks.base import TaskConfig, TaskSim
 from distgprl.sim.transforms import pose_to_matrix, rotation_y
@@ -278,8 +279,6 @@ def dbm_expert(tc: TaskConfig) -> tuple[np.ndarray, np.ndarray]:
     the handle opening, 12 cm behind the handle centre) -> inserted (TCP under the handle beam)
     -> lifted 20 cm while following the belt -> carried 20 cm towards the robot.
     """
-    from distgprl.sim.experts import minimum_jerk
-
     scene = SCENE
     bottom, top = scene.handle_opening
     finger_thickness = 2.0 * HOOK.boxes[1].half_extents[2]

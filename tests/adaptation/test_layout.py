@@ -1,12 +1,14 @@
-"""Action layouts: windows, segments and the covariance transform (DESIGN §3)."""
+"""Action layouts (windows, segments, the covariance transform; DESIGN §3) and the aux
+observation contract (distgprl/adaptation/layout.py)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from distgprl.agents.methods import get_method
+from distgprl.adaptation.layout import AuxLayout, build_action_layout
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import build_action_layout, min_jerk
+from distgprl.methods import get_method
 from distgprl.skill.gp import GPSkill, KernelParams
 
 
@@ -48,11 +50,6 @@ def test_action_is_scaled_per_axis():
     np.testing.assert_allclose(delta[:, 3:], 0.2)
 
 
-def test_min_jerk_blend_endpoints():
-    u = np.array([-1.0, 0.0, 0.5, 1.0, 2.0])
-    np.testing.assert_allclose(min_jerk(u), [0, 0, 0.5, 1, 1])
-
-
 def test_global_action_moves_a_via_point_as_far_per_episode_as_a_window():
     config = EnvConfig(position_action_scale=0.1, rotation_action_scale=0.2)
     windowed = build_action_layout(skill(), config, get_method("dist-gprl-nocov"))
@@ -88,3 +85,29 @@ def test_configured_correlation_lambda_reaches_the_layout_operators():
         operators[correlation_lambda] = layout.operators
     assert EnvConfig().correlation_lambda == 1e-2
     assert np.abs(operators[0.1] - operators[1e-2]).max() > 1e-2
+
+
+@pytest.mark.parametrize("anchors", [False, True])
+def test_aux_slices_read_back_what_pack_writes(anchors):
+    """The slices of `AuxLayout` tile [0, size) in order and recover Gamma, the step's one-hot
+    (clipped to the last step) and the anchors from `pack`'s float32 vector."""
+    rng = np.random.default_rng(0)
+    layout = AuxLayout(15, 3, anchors)
+    gamma, anchor = rng.normal(size=(15, 6)), rng.normal(size=(15, 3))
+    for step in (0, 2, 3):
+        aux = layout.pack(gamma, step, anchor if anchors else None)
+        assert aux.dtype == np.float32 and aux.shape == (layout.size,)
+        assert layout.size == 15 * 6 + 3 + (45 if anchors else 0)
+        assert layout.gamma.stop == layout.step.start and layout.step.stop == layout.anchor.start
+        np.testing.assert_array_equal(aux[layout.gamma], gamma.ravel().astype(np.float32))
+        np.testing.assert_array_equal(aux[layout.step], np.eye(3)[min(step, 2)])
+        expected = anchor.ravel() if anchors else np.empty(0)
+        np.testing.assert_array_equal(aux[layout.anchor], expected.astype(np.float32))
+
+
+def test_aux_pack_refuses_anchors_that_do_not_match_the_layout():
+    """Anchors are required exactly when the layout has the anchors block."""
+    with pytest.raises(ValueError, match="missing"):
+        AuxLayout(15, 3, anchors=True).pack(np.zeros((15, 6)), 0)
+    with pytest.raises(ValueError, match="not expected"):
+        AuxLayout(15, 3).pack(np.zeros((15, 6)), 0, np.zeros((15, 3)))

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from distgprl.agents.methods import METHODS, TABLE_ORDER, get_method
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_json
 from distgprl.experiments.runner import resolve_run
+from distgprl.methods import METHODS, TABLE_ORDER, get_method
 
 
 def test_registry_matches_the_design_table():
@@ -68,7 +68,7 @@ def test_fields_added_later_leave_old_method_hashes_unchanged():
     assert METHODS["gprl"].to_dict()["episode_range"] is True
 
 
-PAPER_RESULTS = Path(__file__).resolve().parents[2] / "results" / "paper"
+PAPER_RESULTS = Path(__file__).resolve().parents[1] / "results" / "paper"
 
 
 def _finished_paper_runs() -> list[Path]:

@@ -1,0 +1,85 @@
+"""Run identity: what a (task, method, seed, preset) run is, and its config hash.
+
+A run's config hash (:attr:`RunSpec.hash`, :func:`distgprl.io.config_hash` of
+:meth:`RunSpec.to_dict`) names its configuration in every result file; the reports count a
+run only if the hash recorded in its folder is the one :func:`resolve_run` gives now. Any
+change to what enters the hash makes committed runs stale, so the definition must only grow
+by fields whose default adds nothing (``scene_revision`` 0, no ``method_revisions``,
+`distgprl.methods.HASH_STABLE_DEFAULTS`).
+
+No torch, pybullet or gymnasium import: the reports use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from distgprl.config import Config, load_config
+from distgprl.data import SCENE_REVISIONS, check_task_name
+from distgprl.errors import UserInputError
+from distgprl.io import config_hash
+from distgprl.methods import MethodSpec, get_method
+from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
+
+__all__ = ["RunSpec", "method_revisions", "resolve_run"]
+
+
+def method_revisions(method: MethodSpec) -> dict[str, int]:
+    """Revisions of the method's parts, for the config hash (environment v4).
+
+    Only the parts a method uses appear, so fixing one part leaves the hashes (and committed
+    results) of methods without it valid: ``r_ga`` 1 — the gradient-alignment reward at the
+    via-points before the update (Eq. grad_alignment_reward); ``l_hap`` 1 — L_hap over C_safe
+    without the points the moving obstacles block.
+    """
+    revisions = {}
+    if method.distance_rewards:
+        revisions["r_ga"] = 1
+    if method.hap_prior:
+        revisions["l_hap"] = 1
+    return revisions
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything that identifies a run."""
+
+    task: str
+    method: MethodSpec
+    seed: int
+    config: Config
+
+    def to_dict(self) -> dict[str, Any]:
+        data: dict[str, Any] = {
+            "task": self.task,
+            "method": self.method.to_dict(),
+            "seed": self.seed,
+            "config": self.config.to_dict(),
+        }
+        if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
+            data["scene_revision"] = SCENE_REVISIONS[self.task]
+        revisions = method_revisions(self.method)
+        if revisions:
+            data["method_revisions"] = revisions
+        return data
+
+    @property
+    def hash(self) -> str:
+        return config_hash(self.to_dict())
+
+
+def resolve_run(
+    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
+) -> RunSpec:
+    """Validate names and resolve the configuration of a run."""
+    check_task_name(task)
+    spec = get_method(method)
+    if int(seed) in (EVALUATION_SEED, TRAINING_CURVE_SEED):
+        raise UserInputError(
+            f"seed {seed} is reserved: it draws the evaluation / learning-curve TCs, which no "
+            f"run may train on"
+        )
+    overrides = {"run": {"total_steps": steps}} if steps is not None else None
+    config = load_config(preset, task=task, overrides=overrides)
+    return RunSpec(task, spec, int(seed), config)

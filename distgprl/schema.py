@@ -1,0 +1,321 @@
+"""The results schema: file formats, run-folder layout, file names, CSV fields and metrics.
+
+Everything a reader of results needs (``report/``, ``distgprl status``) and a writer must
+respect (the runner, the sweep, hardware trials), without importing either: this module
+imports neither torch, pybullet nor gymnasium.
+
+**Versioned files.** Every result file the project writes carries a ``meta`` block (schema
+version, package version, git commit, UTC time, library versions, and whatever the caller adds
+such as the config hash and seed) and is written atomically (:mod:`distgprl.io`). A reader that
+finds an unknown schema version raises :class:`SchemaVersionError` instead of guessing.
+
+**Run folders** ``<root>/<preset>/<task>/<method>/seed<k>/`` (:func:`run_dir`; the files are
+described in :mod:`distgprl.experiments.runner`): ``config.json``, ``progress.csv``
+(:data:`PROGRESS_FIELDS`), ``evaluation[_best][_n<N>].csv`` (:data:`EVALUATION_FIELDS`) with
+its ``summary[_best][_n<N>].json`` (:func:`evaluation_file_names`), ``done.json``.
+
+**Windows.** :data:`N_WINDOWS`: the evaluation rows record the adaptation time of exactly
+three windows (``adaptation_ms_w1..w3``), the paper's three RL steps per episode.
+
+**Evaluation protocol.** The fixed evaluation and learning-curve TCs are drawn from
+:data:`EVALUATION_SEED` and :data:`TRAINING_CURVE_SEED`; no run may train on either.
+
+**Hardware trials**: one row per trial (:data:`TRIAL_FIELDS`); :func:`moved_robot`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+from collections.abc import Iterable, Mapping, Sequence
+from datetime import UTC, datetime
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from distgprl import __version__
+from distgprl.errors import UserInputError
+from distgprl.io import atomic_write_text
+
+__all__ = [
+    "EVALUATION_FIELDS",
+    "EVALUATION_SEED",
+    "N_WINDOWS",
+    "POLICY_CHOICES",
+    "PROGRESS_FIELDS",
+    "SCHEMA_VERSION",
+    "SOURCE_PATHS",
+    "TRAINING_CURVE_SEED",
+    "TRIAL_FIELDS",
+    "SchemaVersionError",
+    "evaluation_file_names",
+    "git_commit",
+    "is_safe_success",
+    "library_versions",
+    "moved_robot",
+    "read_csv",
+    "read_json",
+    "result_meta",
+    "run_dir",
+    "safe_success_rate",
+    "source_commit",
+    "write_csv",
+    "write_json",
+]
+
+SCHEMA_VERSION = 1
+_LIBRARIES = ("numpy", "scipy", "torch", "pybullet", "stable_baselines3", "gymnasium")
+
+
+class SchemaVersionError(UserInputError, ValueError):
+    """A result file was written with a schema version this code cannot read."""
+
+
+SOURCE_PATHS = ("distgprl", "pyproject.toml", "constraints.txt")
+"""What `source_commit` checks for local changes (relative to the repository root)."""
+
+
+@lru_cache(maxsize=1)
+def git_commit() -> str:
+    """`source_commit` of this package's repository (once per process)."""
+    return source_commit(Path(__file__).resolve().parents[1])
+
+
+def source_commit(root: str | Path) -> str:
+    """The commit checked out at ``root``, with ``+dirty`` if the package source or its
+    dependency pins have local changes (result files and other untracked files do not
+    count: re-evaluating a committed run must not mark its own files dirty); ``unknown``
+    outside a git work tree."""
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", *SOURCE_PATHS],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return commit + ("+dirty" if dirty else "")
+
+
+@lru_cache(maxsize=1)
+def library_versions() -> dict[str, str]:
+    """Installed versions of the libraries that determine results."""
+    out = {}
+    for name in _LIBRARIES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "absent"
+    return out
+
+
+def result_meta(**extra: Any) -> dict[str, Any]:
+    """The versioning block stored in every result file."""
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "package_version": __version__,
+        "git_commit": git_commit(),
+        "utc_time": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "libraries": library_versions(),
+        **extra,
+    }
+
+
+def write_json(path: str | Path, payload: Mapping[str, Any], **meta: Any) -> Path:
+    """Write a versioned JSON result: ``{"meta": result_meta(**meta), **payload}``."""
+    document = {"meta": result_meta(**meta), **payload}
+    return atomic_write_text(path, json.dumps(document, indent=2, sort_keys=False) + "\n")
+
+
+def read_json(path: str | Path) -> dict[str, Any]:
+    """Read a versioned JSON result, checking its schema version."""
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise SchemaVersionError(
+            f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})"
+        ) from None
+    meta = document.get("meta") if isinstance(document, dict) else None
+    if not isinstance(meta, dict):
+        raise SchemaVersionError(f"{path}: no 'meta' object; not a distgprl result")
+    version = meta.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise SchemaVersionError(
+            f"{path}: schema_version {version!r} is not supported (this is schema "
+            f"{SCHEMA_VERSION}, distgprl {__version__}); regenerate the file"
+        )
+    return document
+
+
+def write_csv(
+    path: str | Path,
+    rows: Iterable[Mapping[str, Any]],
+    fieldnames: Sequence[str],
+    **meta: Any,
+) -> Path:
+    """Write a versioned CSV: one ``# meta: {json}`` comment line, a header, then rows."""
+    buffer = io.StringIO()
+    buffer.write("# meta: " + json.dumps(result_meta(**meta), sort_keys=True) + "\n")
+    writer = csv.DictWriter(buffer, fieldnames=list(fieldnames), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: row[k] for k in fieldnames})
+    return atomic_write_text(path, buffer.getvalue())
+
+
+def read_csv(path: str | Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    """Read a versioned CSV written by :func:`write_csv`: returns (meta, rows)."""
+    path = Path(path)
+    lines = path.read_text().splitlines()
+    if not lines or not lines[0].startswith("# meta: "):
+        raise SchemaVersionError(f"{path}: missing '# meta:' header line; not a distgprl result")
+    try:
+        meta = json.loads(lines[0][len("# meta: ") :])
+    except json.JSONDecodeError as exc:
+        raise SchemaVersionError(
+            f"{path}: '# meta:' line is not valid JSON ({exc.msg}); not a distgprl result"
+        ) from None
+    if not isinstance(meta, dict):
+        raise SchemaVersionError(f"{path}: '# meta:' line is not an object; not a distgprl result")
+    if meta.get("schema_version") != SCHEMA_VERSION:
+        raise SchemaVersionError(
+            f"{path}: schema_version {meta.get('schema_version')!r} is not supported "
+            f"(this is schema {SCHEMA_VERSION}); regenerate the file"
+        )
+    rows = list(csv.DictReader(lines[1:]))
+    return meta, rows
+
+
+# -- run folders ----------------------------------------------------------------------------
+def run_dir(root: str | Path, preset: str, task: str, method: str, seed: int) -> Path:
+    """``<root>/<preset>/<task>/<method>/seed<k>``."""
+    return Path(root) / preset / task / method / f"seed{seed}"
+
+
+#: Policies that can be evaluated: the final one (Table I) or the best learning-curve one.
+POLICY_CHOICES = ("final", "best")
+
+
+def evaluation_file_names(episodes: int | None = None, policy: str = "final") -> tuple[str, str]:
+    """(per-episode CSV, summary JSON) file names of an evaluation in a run folder.
+
+    ``None``: the preset's evaluation (``evaluation.csv``, ``summary.json``), the one Table I
+    reads. An integer: a supplementary evaluation on the first ``episodes`` TCs of the same
+    evaluation stream (``evaluation_n<episodes>.csv``, ``summary_n<episodes>.json``), kept
+    beside the preset's and never replacing it. ``policy="best"``: the same for the best
+    learning-curve policy, with ``_best`` after the stem (``evaluation_best.csv``,
+    ``summary_best_n1000.json``).
+    """
+    if policy not in POLICY_CHOICES:
+        raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
+    tag = "" if policy == "final" else f"_{policy}"
+    suffix = "" if episodes is None else f"_n{episodes}"
+    return f"evaluation{tag}{suffix}.csv", f"summary{tag}{suffix}.json"
+
+
+N_WINDOWS = 3
+"""Windows (RL steps) per episode the evaluation rows record: ``adaptation_ms_w1..w3``.
+The schema fixes it; ``EnvConfig.n_windows`` is the paper's 3 in every preset."""
+
+PROGRESS_FIELDS = (
+    "step",
+    "episodes",
+    "success_rate",
+    "collision_rate",
+    "mean_return",
+    "min_clearance_p5",
+    "wall_time_s",
+    "l_sim",
+    "l_hap",
+    "ent_coef",
+)
+EVALUATION_FIELDS = (
+    "episode",
+    "object_offset_x",
+    "object_offset_y",
+    "obstacle_offset_x",
+    "obstacle_offset_y",
+    "success",
+    "collision",
+    "min_clearance",
+    "return",
+    "kinematic_retention",
+    "adaptation_ms_w1",
+    "adaptation_ms_w2",
+    "adaptation_ms_w3",
+    "policy_ms",
+    "peak_joint_speed",
+)
+
+
+# -- metrics ----------------------------------------------------------------------------------
+def is_safe_success(row: dict[str, Any]) -> bool:
+    """Whether an episode row succeeded without any collision."""
+    return int(row["success"]) == 1 and int(row["collision"]) == 0
+
+
+def safe_success_rate(rows: list[dict[str, Any]]) -> float:
+    """Share of episodes that succeeded without any collision (not a metric of the paper,
+    whose success ignores collisions: in simulation a colliding robot pushes on through
+    kinematic obstacles, where a real arm would stop or knock them away)."""
+    return float(np.mean([is_safe_success(r) for r in rows]))
+
+
+# -- evaluation protocol ----------------------------------------------------------------------
+EVALUATION_SEED = 7_130_911
+"""Seed of the fixed 100-TC evaluation set. No training run may use it."""
+
+TRAINING_CURVE_SEED = 5_204_377
+"""Seed of the fixed TC set used for evaluations during training (learning curves)."""
+
+
+# -- hardware trials --------------------------------------------------------------------------
+TRIAL_FIELDS = (
+    "trial",
+    "backend",
+    "status",
+    "success",
+    "collision",
+    "min_clearance",
+    "clearance_source",
+    "planned_min_clearance",
+    "stop_reason",
+    "refused_limits",
+    "object_offset_y",
+    "obstacle_offset_y",
+    "true_object_offset_y",
+    "true_obstacle_offset_y",
+    "perception_error_mm",
+    "perception_error_deg",
+    "images",
+    "perception_ms",
+    "policy_ms",
+    "check_ms",
+    "execution_s",
+    "trial_s",
+)
+"""Columns of a trial CSV (``success``/``collision`` 0/1; clearances m; errors max over
+the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image)."""
+
+
+def moved_robot(trial: dict[str, Any]) -> bool:
+    """Whether a hardware trial moved the robot: it finished (status ``ok``) or spent
+    execution time (``execution_s`` > 0; e.g. refused or stopped in a later window after
+    executing the earlier ones). A trial refused in its first window, or stopped or not
+    perceived before any motion, did not move; its recorded clearance is that of the start
+    pose (or infinite), not of a motion."""
+    if trial.get("status") == "ok":
+        return True
+    execution = trial.get("execution_s", "")
+    return execution not in ("", None) and float(execution) > 0.0

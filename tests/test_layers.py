@@ -1,0 +1,222 @@
+"""The package's import layers (DESIGN §1), read from every module's source with `ast`.
+
+Every ``import`` and ``from ... import`` counts, including those inside functions (a lazy
+import is still a dependency). ``from a.b import c`` depends on module ``a.b.c`` if that is a
+module, else on ``a.b``; importing a submodule does not count as depending on its package's
+``__init__``.
+"""
+
+from __future__ import annotations
+
+import ast
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "distgprl"
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+@cache
+def modules() -> dict[str, Path]:
+    """Every module of the package: dotted name -> file."""
+    return {module_name(path): path for path in sorted(PACKAGE.rglob("*.py"))}
+
+
+@cache
+def imports(name: str) -> frozenset[str]:
+    """Absolute names of everything module ``name`` imports (top-level packages for
+    third-party imports, full module names inside distgprl)."""
+    tree = ast.parse(modules()[name].read_text(), filename=str(modules()[name]))
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative imports are not used in this package
+                base = name.rsplit(".", node.level)[0]
+                target = f"{base}.{node.module}" if node.module else base
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                child = f"{target}.{alias.name}"
+                out.add(child if child in modules() else target)
+    return frozenset(out)
+
+
+def importers(prefix: str) -> list[str]:
+    """The modules in package ``prefix`` (e.g. ``distgprl.sim``) and the module itself."""
+    return [m for m in modules() if m == prefix or m.startswith(prefix + ".")]
+
+
+def offending(prefix: str, forbidden: tuple[str, ...]) -> list[str]:
+    """``module -> import`` lines of modules under ``prefix`` importing a forbidden name."""
+    assert importers(prefix), f"no module {prefix}"
+    found = []
+    for module in importers(prefix):
+        for target in sorted(imports(module)):
+            if any(target == f or target.startswith(f + ".") for f in forbidden):
+                found.append(f"{module} -> {target}")
+    return found
+
+
+def test_the_parser_sees_lazy_and_from_imports():
+    """The reader finds a function-local import and resolves ``from pkg import module``: it
+    would otherwise pass every rule below vacuously."""
+    assert len(modules()) > 50
+    assert "distgprl.sim.tasks" in imports("distgprl.sim.render")  # from ... import get_task
+    assert "distgprl.skill.demos" in imports("distgprl.sim.render")  # lazy, in a function
+    assert "pybullet" in imports("distgprl.sim.bullet")
+    assert "torch" in imports("distgprl.agents.sac")
+
+
+@pytest.mark.parametrize(
+    "layer", ["distgprl.skill", "distgprl.safety", "distgprl.envs", "distgprl.sim"]
+)
+def test_lower_layers_do_not_import_experiments(layer):
+    """skill/, safety/, envs/ and sim/ never import distgprl.experiments."""
+    assert offending(layer, ("distgprl.experiments",)) == []
+
+
+def test_no_import_between_envs_and_agents():
+    """envs/ and agents/ both depend on the adaptation core and the method registry, not on
+    each other, in either direction."""
+    assert offending("distgprl.envs", ("distgprl.agents",)) == []
+    assert offending("distgprl.agents", ("distgprl.envs",)) == []
+
+
+@pytest.mark.parametrize("layer", ["distgprl.skill", "distgprl.safety"])
+def test_skill_and_safety_never_import_pybullet(layer):
+    assert offending(layer, ("pybullet", "pybullet_utils", "distgprl.sim")) == []
+
+
+def test_sim_never_imports_torch():
+    assert offending("distgprl.sim", ("torch", "stable_baselines3", "distgprl.agents")) == []
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        "distgprl.io",
+        "distgprl.errors",
+        "distgprl.schema",
+        "distgprl.identity",
+        "distgprl.methods",
+        "distgprl.limits",
+        "distgprl.config",
+        "distgprl.data",
+        "distgprl.adaptation",
+    ],
+)
+def test_ground_floor_imports_nothing_above_it(module):
+    """The shared modules every layer may use import no simulator, learner, env, experiment,
+    hardware or report code."""
+    assert module in modules()
+    forbidden = (
+        "torch",
+        "stable_baselines3",
+        "pybullet",
+        "pybullet_utils",
+        "gymnasium",
+        "distgprl.sim",
+        "distgprl.agents",
+        "distgprl.envs",
+        "distgprl.experiments",
+        "distgprl.hardware",
+        "distgprl.report",
+        "distgprl.cli",
+    )
+    assert offending(module, forbidden) == []
+
+
+def test_io_uses_only_the_standard_library():
+    """distgprl.io is the ground floor: no third-party or package import at all."""
+    import sys
+
+    assert {name.split(".")[0] for name in imports("distgprl.io")} <= set(sys.stdlib_module_names)
+
+
+def test_report_does_not_import_the_runner_or_hardware():
+    """report/ reads results through the schema and identity modules."""
+    assert offending("distgprl.report", ("distgprl.experiments", "distgprl.hardware")) == []
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One cycle of ``graph`` as a path ``[a, b, ..., a]``, or [] if it is acyclic."""
+    state: dict[str, int] = {}  # 1: on the stack, 2: done
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str]:
+        state[node] = 1
+        stack.append(node)
+        for child in sorted(graph.get(node, ())):
+            if state.get(child) == 1:
+                return stack[stack.index(child) :] + [child]
+            if child not in state:
+                cycle = visit(child)
+                if cycle:
+                    return cycle
+        stack.pop()
+        state[node] = 2
+        return []
+
+    for node in sorted(graph):
+        if node not in state:
+            cycle = visit(node)
+            if cycle:
+                return cycle
+    return []
+
+
+def test_find_cycle_finds_one():
+    """The cycle finder is not vacuous: it reports a three-module circle and accepts a DAG."""
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) == []
+
+
+def test_no_import_cycle_inside_sim():
+    """No circle among the sim/ modules (e.g. experts <-> tasks.dbm)."""
+    sim = set(importers("distgprl.sim"))
+    graph = {m: {t for t in imports(m) if t in sim and t != m} for m in sim}
+    assert find_cycle(graph) == []
+
+
+#: The package's layers, lowest first (docs/DESIGN.md §1): top-level modules or subpackages.
+LAYERS: tuple[frozenset[str], ...] = tuple(
+    frozenset(layer)
+    for layer in (
+        ("distgprl", "io", "errors", "data", "config", "methods", "limits", "schema", "identity"),
+        ("skill", "safety", "adaptation"),
+        ("sim",),
+        ("envs", "agents"),
+        ("experiments", "hardware"),
+        ("report",),
+        ("cli",),
+    )
+)
+
+
+def layer_of(module: str) -> int:
+    parts = module.split(".")
+    key = parts[1] if len(parts) > 1 else "distgprl"
+    for index, layer in enumerate(LAYERS):
+        if key in layer:
+            return index
+    raise AssertionError(f"{module}: not in any layer of LAYERS (add it to DESIGN §1 too)")
+
+
+def test_imports_point_down_the_layers():
+    """Every distgprl module imports package modules of its own layer or lower ones only."""
+    upward = []
+    for module in modules():
+        for target in sorted(imports(module)):
+            if target.split(".")[0] == "distgprl" and layer_of(target) > layer_of(module):
+                upward.append(f"{module} -> {target}")
+    assert upward == []
