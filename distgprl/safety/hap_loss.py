@@ -42,6 +42,25 @@ __all__ = ["DEFAULT_QUERY_POINTS", "HapPrior", "HapPriorConfig"]
 DEFAULT_QUERY_POINTS = 20
 
 
+class _SoftMinFunction(torch.autograd.Function):
+    """Per-query values whose gradient w.r.t. the queries is computed with them.
+
+    ``forward(x, evaluate)``: ``evaluate()`` returns (values (n,), jacobian (n, 3)), the
+    gradient of each value w.r.t. its own query x[i] (n, 3); backward is one product.
+    """
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
+        values, jacobian = evaluate()
+        ctx.save_for_backward(jacobian)
+        return values
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
+        (jacobian,) = ctx.saved_tensors
+        return grad.unsqueeze(-1) * jacobian, None
+
+
 @dataclass(frozen=True)
 class HapPriorConfig:
     """Parameters of L_hap (module docstring justifies the defaults).
@@ -142,6 +161,7 @@ class HapPrior:
         self.points_numpy = points
         # Component-wise storage: gathers of (n, k) index arrays stay contiguous.
         self._coordinates = [torch.as_tensor(points[:, i], dtype=self.dtype) for i in range(3)]
+        self._coordinates_numpy: dict[torch.dtype, list[np.ndarray]] = {}
         self.k = min(self.k_requested, len(points))
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
@@ -205,27 +225,77 @@ class HapPrior:
         candidates = self.points_numpy[index.numpy()]
         return np.linalg.norm(candidates - positions[:, None, :], axis=2).max(axis=1)
 
+    def _coordinates_as(self, dtype: torch.dtype) -> list[np.ndarray]:
+        """The stored C_safe coordinates (3 arrays (m,)) cast to ``dtype``, as NumPy (cached)."""
+        arrays = self._coordinates_numpy.get(dtype)
+        if arrays is None:
+            arrays = [c.to(dtype).numpy() for c in self._coordinates]
+            self._coordinates_numpy[dtype] = arrays
+        return arrays
+
+    def _softmin_values(
+        self, x: np.ndarray, index: np.ndarray, blocked: np.ndarray | None, dtype: torch.dtype
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Soft-min (n,) over the k nearest free candidates and its gradient (n, 3) w.r.t. x.
+
+        x (n, 3) and the result in ``dtype``; index (n, c) candidates; blocked (n, c) or None.
+        Distances as the autograd version computed them (sqrt(|x - y|^2 + 1e-18)); the k
+        smallest are selected with ``np.partition`` (a k-th smallest threshold; rows where
+        distances tie at the threshold keep the first k in candidate order). The gradient is
+        sum_j w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept neighbours.
+        """
+        px, py, pz = (c[index] for c in self._coordinates_as(dtype))  # (n, c) each
+        dx, dy, dz = x[:, 0:1] - px, x[:, 1:2] - py, x[:, 2:3] - pz
+        distances = dx * dx
+        distances += dy * dy
+        distances += dz * dz
+        distances += 1e-18
+        np.sqrt(distances, out=distances)
+        if blocked is not None:
+            distances[blocked] = np.inf
+        k = self.k
+        keep = None
+        if distances.shape[1] > k:
+            threshold = np.partition(distances, k - 1, axis=1)[:, k - 1 : k]
+            keep = distances <= threshold
+            ties = np.flatnonzero(keep.sum(axis=1) > k)
+            if ties.size:  # equal distances at the threshold: keep the first k (stable order)
+                order = np.argsort(distances[ties], axis=1, kind="stable")[:, :k]
+                keep[ties] = False
+                keep[ties[:, None], order] = True
+        tau = self.temperature
+        nearest = distances.min(axis=1, keepdims=True)  # finite for every row passed here
+        weights = np.subtract(nearest, distances, out=np.empty_like(distances))
+        weights *= 1.0 / tau
+        np.exp(weights, out=weights)  # exp(-(d - d_min) / tau); 0 where d = inf
+        if keep is not None:
+            weights *= keep
+        total = weights.sum(axis=1, keepdims=True)
+        values = (nearest - tau * np.log(total))[:, 0]  # Eq. (hap_compact)
+        weights /= total
+        weights /= distances  # w_j / d_j; 0 for blocked (inf) candidates
+        jacobian = np.stack(
+            [(weights * dx).sum(axis=1), (weights * dy).sum(axis=1), (weights * dz).sum(axis=1)],
+            axis=1,
+        )
+        return values, jacobian
+
     def _softmin(
         self, x: torch.Tensor, index: torch.Tensor, blocked: np.ndarray | None = None
     ) -> torch.Tensor:
         """-tau log sum_{kNN} exp(-||x - y|| / tau) for x (n, 3) and candidates (n, c): (n,).
 
         ``blocked`` (n, c), optional: candidates to leave out (each row keeps at least one).
+        The gradient reaches x (computed with the values, see `_softmin_values`).
         """
-        flat = index.reshape(-1)
-        px, py, pz = (  # (n, c) each
-            torch.index_select(c.to(x.dtype), 0, flat).view(index.shape) for c in self._coordinates
-        )
-        dx, dy, dz = x[:, 0:1] - px, x[:, 1:2] - py, x[:, 2:3] - pz
-        # Distances recomputed in torch so the gradient reaches x; the epsilon keeps the
-        # gradient finite when x coincides with a C_safe point.
-        distances = torch.sqrt(dx * dx + dy * dy + dz * dz + 1e-18)
-        if blocked is not None:
-            distances = distances.masked_fill(torch.from_numpy(blocked), float("inf"))
-        if distances.shape[1] > self.k:
-            distances, _ = torch.topk(distances, self.k, dim=1, largest=False, sorted=False)
-        tau = self.temperature
-        return -tau * torch.logsumexp(distances * (-1.0 / tau), dim=1)  # Eq. (hap_compact)
+
+        def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
+            values, jacobian = self._softmin_values(
+                x.detach().cpu().numpy(), np.asarray(index), blocked, x.dtype
+            )
+            return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
+
+        return _SoftMinFunction.apply(x, evaluate)
 
     def per_point(
         self,
@@ -245,8 +315,8 @@ class HapPrior:
         cell centre's nearest points): the soft-min is within ~2.5 mm of the exact one.
         """
         flat = x.reshape(-1, 3)
-        positions = flat.detach().cpu().numpy()
-        index = self.neighbours(positions)
+        positions = flat.detach().cpu().numpy().astype(float)
+        index = self.neighbours(positions).numpy()
         if moving is None:
             return (self._softmin(flat, index) - self.offset).reshape(x.shape[:-1])
         if anchors is None:
@@ -261,37 +331,50 @@ class HapPrior:
         blocked = np.zeros(index.shape, dtype=bool)
         near = np.flatnonzero(
             np.linalg.norm(positions - anchors, axis=1)
-            < moving.reach + self._candidate_radius(positions, index)
+            < moving.reach + self._candidate_radius(positions, torch.from_numpy(index))
         )
         if near.size:
-            rows_index = index.numpy()[near]
-            blocked[near] = moving.blocked(self.points_numpy[rows_index], anchors[near])
+            blocked[near] = moving.blocked(self.points_numpy[index[near]], anchors[near])
         short = (~blocked).sum(axis=1) < self.k
-        values = flat.new_zeros(len(flat))
-        rows = np.flatnonzero(~short)
-        if len(rows):
-            part = self._softmin(flat[rows], index[rows], blocked[rows]) - self.offset
-            values = values.index_copy(0, torch.from_numpy(rows), part)
-        empty = 0
-        if short.any():
-            rows = np.flatnonzero(short)
+        rows = np.flatnonzero(short)
+        wide, wide_blocked = None, None
+        if rows.size:
             wide = self._wide_neighbours(positions[rows])
             wide_blocked = moving.blocked(self.points_numpy[wide], anchors[rows])
-            has_free = ~wide_blocked.all(axis=1)
-            empty = int((~has_free).sum())
-            if has_free.any():
-                keep = rows[has_free]
-                part = self._softmin(
-                    flat[keep], torch.from_numpy(wide[has_free]), wide_blocked[has_free]
-                )
-                values = values.index_copy(0, torch.from_numpy(keep), part - self.offset)
+        no_free = np.zeros(len(flat), dtype=bool)
+        if rows.size:
+            no_free[rows[wide_blocked.all(axis=1)]] = True
         self.last_moving_counts = {
             "queries": len(flat),
             "with_blocked": int(blocked.any(axis=1).sum()),
             "fallback": int(short.sum()),
-            "no_free": empty,
+            "no_free": int(no_free.sum()),
         }
-        return values.reshape(x.shape[:-1])
+
+        def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
+            query = flat.detach().cpu().numpy()
+            values = np.zeros(len(flat), dtype=query.dtype)
+            jacobian = np.zeros((len(flat), 3), dtype=values.dtype)
+            full = np.flatnonzero(~short)
+            if full.size:
+                part, grad = self._softmin_values(
+                    query[full], index[full], blocked[full], flat.dtype
+                )
+                values[full], jacobian[full] = part - self.offset, grad
+            if rows.size:
+                free = ~no_free[rows]
+                keep = rows[free]
+                if keep.size:
+                    part, grad = self._softmin_values(
+                        query[keep], wide[free], wide_blocked[free], flat.dtype
+                    )
+                    values[keep], jacobian[keep] = part - self.offset, grad
+            return (
+                torch.from_numpy(values).to(flat.device),
+                torch.from_numpy(jacobian).to(flat.device),
+            )
+
+        return _SoftMinFunction.apply(flat, evaluate).reshape(x.shape[:-1])
 
     def loss(
         self,
