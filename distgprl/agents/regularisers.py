@@ -95,63 +95,57 @@ class ActorRegulariser(nn.Module):
         self._build_flat_maps()
 
     def _build_flat_maps(self) -> None:
-        """The whole action -> (velocity, acceleration, positions) map as one matrix.
+        """Every read-out of the adapted trajectory as one matrix over the via-point axis.
 
-        With c = Gamma - mu (B, N*6, flat) and the step's raw action a (B, A_v*6), the adapted
-        centered via-points are c + a D_s (Eqs. transformed/updated: scale, S_W, frozen rows,
-        scatter onto the window), and every read-out of the trajectory is linear in them:
-        ``out = [c, onehot(s) (x) a] @ [[W], [D_0 W], ..., [D_{S-1} W]] + bias`` with
-        W = [V (x) I_6 | A (x) I_6 | H (x) I_6[:, :3]] (T*6 + T*6 + N_q*3 columns). The bias
-        holds -A Gamma_demo_c and mu[:3]. Products are taken in float64 from the module's own
-        (float32) buffers, so they are exact images of the maps the per-window code applied.
+        The adapted centered via-points of a sample at step s are c + D_s (scale * a) per
+        axis (Eqs. transformed/updated), c = Gamma - mu (N, 6), a the raw action (A_v, 6),
+        D_s (N, A_v) = scatter onto the window of mask * S_W. Velocities V, accelerations A
+        and the L_hap positions H are linear in them, so with M = [V; A; H] (T + T + N_q, N)
+
+            out[b, j] = [M, M D_0, ..., M D_{S-1}] [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
+
+        for each axis j: one (B*6, N + S*A_v) x (N + S*A_v, 2T + N_q) product for the batch.
+        Products are taken in float64 from the module's own (float32) buffers, so they are
+        exact images of the maps that the per-window code applies.
         """
         f64 = torch.float64
         n, steps, per_step = self.n_via_points, self.n_steps, self.points_per_step
-        eye6 = torch.eye(6, dtype=f64)
-        blocks = [
-            torch.kron(self.velocity_map.to(f64).T.contiguous(), eye6),  # (N*6, T*6)
-            torch.kron(self.acceleration_map.to(f64).T.contiguous(), eye6),
-            torch.kron(
-                self.hap_map.to(f64).T.contiguous(), eye6[:, :3].contiguous()
-            ),  # (N*6, N_q*3)
-        ]
-        readout = torch.cat(blocks, dim=1)
-        self._n_velocity = blocks[0].shape[1]
-        self._n_acceleration = blocks[1].shape[1]
+        maps = torch.cat(
+            [self.velocity_map.to(f64), self.acceleration_map.to(f64), self.hap_map.to(f64)]
+        )  # (2T + N_q, N)
+        self._n_similarity = self.velocity_map.shape[0]
         selection = torch.zeros(steps, per_step, n, dtype=f64)  # window row p -> via-point
         selection.scatter_(2, self.indices.unsqueeze(-1), 1.0)
-        # M_s[p', v] = sum_p S_W[s, p, p'] mask[s, p] [indices[s, p] = v]  (A_v, N)
-        gather = torch.einsum(
-            "spq,sp,spv->sqv", self.operators.to(f64), self.mask.to(f64), selection
+        # D_s[v, p'] = sum_p [indices[s, p] = v] mask[s, p] S_W[s, p, p']  (S, N, A_v)
+        scatter = torch.einsum(
+            "spv,sp,spq->svq", selection, self.mask.to(f64), self.operators.to(f64)
         )
-        action_maps = torch.stack(
-            [torch.kron(gather[s], torch.diag(self.scale.to(f64))) @ readout for s in range(steps)]
-        ).reshape(steps * per_step * 6, -1)  # (S*A_v*6, out)
-        bias = torch.zeros(readout.shape[1], dtype=f64)
-        bias[
-            self._n_velocity : self._n_velocity + self._n_acceleration
-        ] = -self.demo_acceleration.to(f64).reshape(-1)
-        bias[self._n_velocity + self._n_acceleration :] = self.prior_mean.to(f64)[:3].repeat(
-            self.hap_map.shape[0]
-        )
+        readout = torch.cat([maps, *(maps @ scatter[s] for s in range(steps))], dim=1)
+        t = self._n_similarity
+        bias = torch.zeros(6, readout.shape[0], dtype=f64)  # per axis j
+        bias[:, t : 2 * t] = -self.demo_acceleration.to(f64).T
+        bias[:3, 2 * t :] = self.prior_mean.to(f64)[:3, None]
         demo_velocity = self.demo_velocity.to(f64)
-        self.register_buffer("flat_map", torch.cat([readout, action_maps]), persistent=False)
-        self.register_buffer("flat_bias", bias, persistent=False)
-        self.register_buffer(
-            "demo_direction",
-            demo_velocity / demo_velocity.norm(dim=-1, keepdim=True).clamp_min(1e-8),
-            persistent=False,
-        )
+        direction = demo_velocity / demo_velocity.norm(dim=-1, keepdim=True).clamp_min(1e-8)
+        self.register_buffer("readout_map", readout.T.contiguous(), persistent=False)
+        self.register_buffer("readout_bias", bias, persistent=False)
+        self.register_buffer("demo_direction", direction.T.contiguous(), persistent=False)
         self._cast: dict[tuple, tuple[torch.Tensor, ...]] = {}
 
-    def _flat(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """flat_map, flat_bias, demo_direction in ``like``'s dtype and device (cached)."""
-        key = (like.dtype, like.device, self.flat_map.device, self.flat_map.data_ptr())
+    def _flat(self, like: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """readout_map, readout_bias, demo_direction, scale, prior_mean as ``like`` (cached)."""
+        key = (like.dtype, like.device, self.readout_map.device, self.readout_map.data_ptr())
         cached = self._cast.get(key)
         if cached is None:
             cached = tuple(
                 t.to(device=like.device, dtype=like.dtype)
-                for t in (self.flat_map, self.flat_bias, self.demo_direction)
+                for t in (
+                    self.readout_map,
+                    self.readout_bias,
+                    self.demo_direction,
+                    self.scale,
+                    self.prior_mean,
+                )
             )
             self._cast = {key: cached}
         return cached
@@ -159,19 +153,22 @@ class ActorRegulariser(nn.Module):
     def readout(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Velocities, accelerations minus the demo's, positions of the adapted trajectory.
 
-        One matrix product (see `_build_flat_maps`); shape (B, T*6 + T*6 + N_q*3), flattened
-        per sample as (T, 6), (T, 6), (N_q, 3), m/s (normalised time), m/s^2, m.
+        One matrix product (see `_build_flat_maps`). Shape (B, 6, 2T + N_q), axis-major:
+        ``[:, :, :T]`` velocities (m or rad per unit normalised time), ``[:, :, T:2T]``
+        accelerations minus the demonstration's, ``[:, :3, 2T:]`` positions, m (rows 3-5 of
+        that block are the orientation components, unused).
         """
         batch = aux.shape[0]
-        n = self.n_via_points
-        flat_map, flat_bias, _ = self._flat(actions)
-        centered = aux[:, : n * 6] - self.prior_mean.to(actions.dtype).repeat(n)
-        step = aux[:, n * 6 : n * 6 + self.n_steps].argmax(dim=1)
-        one_hot = nn.functional.one_hot(step, self.n_steps).to(actions.dtype)
-        selected = (one_hot.unsqueeze(-1) * actions.unsqueeze(1)).reshape(batch, -1)
-        return torch.addmm(
-            flat_bias, torch.cat([centered.to(actions.dtype), selected], 1), flat_map
-        )
+        n, steps = self.n_via_points, self.n_steps
+        readout_map, bias, _, scale, prior_mean = self._flat(actions)
+        centered = aux[:, : n * 6].reshape(batch, n, 6).to(actions.dtype) - prior_mean
+        step = aux[:, n * 6 : n * 6 + steps].argmax(dim=1)
+        one_hot = nn.functional.one_hot(step, steps).to(actions.dtype)  # (B, S)
+        raw = actions.reshape(batch, self.points_per_step, 6) * scale
+        selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
+        stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)
+        columns = stacked.transpose(1, 2).reshape(batch * 6, -1)
+        return (columns @ readout_map).reshape(batch, 6, -1) + bias
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
@@ -198,15 +195,14 @@ class ActorRegulariser(nn.Module):
 
     def _similarity_from_readout(self, out: torch.Tensor) -> torch.Tensor:
         """Batch mean of L_sim (Eq. sim_compact) from `readout`'s output, a scalar."""
-        batch = out.shape[0]
-        n_v, n_a = self._n_velocity, self._n_acceleration
-        _, _, direction = self._flat(out)
-        velocity = out[:, :n_v].reshape(batch, -1, 6)  # (B, T, 6)
+        batch, t = out.shape[0], self._n_similarity
+        _, _, direction, _, _ = self._flat(out)
+        velocity = out[:, :, :t]  # (B, 6, T)
         # cos = v . d / (|v| |d|), d/|d| precomputed (torch's cosine_similarity clamps the
         # norms at 1e-8 likewise).
-        cos = (velocity * direction).sum(-1) / velocity.square().sum(-1).sqrt().clamp_min(1e-8)
-        l1 = out[:, n_v : n_v + n_a].abs().sum()  # sum over B, T and the 6 axes
-        samples = velocity.shape[1] * batch
+        cos = (velocity * direction).sum(1) / velocity.square().sum(1).sqrt().clamp_min(1e-8)
+        l1 = out[:, :, t : 2 * t].abs().sum()  # sum over B, the 6 axes and T
+        samples = t * batch
         return self.weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
             self.weights.lambda_acceleration * l1 / samples
         )
@@ -223,8 +219,7 @@ class ActorRegulariser(nn.Module):
             total = total + self.weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim.detach())
         if self.hap_prior is not None:
-            start = self._n_velocity + self._n_acceleration
-            positions = out[:, start:].reshape(out.shape[0], -1, 3)  # (B, N_q, 3)
+            positions = out[:, :3, 2 * self._n_similarity :].transpose(1, 2)  # (B, N_q, 3)
             if self.moving_filter is None:
                 l_hap = self.hap_prior.loss(positions)
             else:

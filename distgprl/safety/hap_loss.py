@@ -242,42 +242,44 @@ class HapPrior:
         Distances as the autograd version computed them (sqrt(|x - y|^2 + 1e-18)); the k
         smallest are selected with ``np.partition`` (a k-th smallest threshold; rows where
         distances tie at the threshold keep the first k in candidate order). The gradient is
-        sum_j w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept neighbours.
+        sum_j w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept neighbours. Arrays
+        are candidate-major (c, n) so that the per-query reductions run over contiguous rows.
         """
-        px, py, pz = (c[index] for c in self._coordinates_as(dtype))  # (n, c) each
-        dx, dy, dz = x[:, 0:1] - px, x[:, 1:2] - py, x[:, 2:3] - pz
+        columns = np.ascontiguousarray(index.T)  # (c, n)
+        query = np.ascontiguousarray(x.T)  # (3, n)
+        dx, dy, dz = (
+            q - c[columns] for q, c in zip(query, self._coordinates_as(dtype), strict=True)
+        )
         distances = dx * dx
         distances += dy * dy
         distances += dz * dz
         distances += 1e-18
         np.sqrt(distances, out=distances)
         if blocked is not None:
-            distances[blocked] = np.inf
-        k = self.k
+            np.copyto(distances, np.inf, where=blocked.T)
+        k, count = self.k, distances.shape[0]
         keep = None
-        if distances.shape[1] > k:
-            threshold = np.partition(distances, k - 1, axis=1)[:, k - 1 : k]
+        if count > k:
+            rows = np.ascontiguousarray(distances.T)  # (n, c)
+            threshold = np.partition(rows, k - 1, axis=1)[:, k - 1]
             keep = distances <= threshold
-            ties = np.flatnonzero(keep.sum(axis=1) > k)
+            ties = np.flatnonzero(keep.sum(axis=0) > k)
             if ties.size:  # equal distances at the threshold: keep the first k (stable order)
-                order = np.argsort(distances[ties], axis=1, kind="stable")[:, :k]
-                keep[ties] = False
-                keep[ties[:, None], order] = True
+                order = np.argsort(rows[ties], axis=1, kind="stable")[:, :k]
+                keep[:, ties] = False
+                keep[order, ties[:, None]] = True
         tau = self.temperature
-        nearest = distances.min(axis=1, keepdims=True)  # finite for every row passed here
-        weights = np.subtract(nearest, distances, out=np.empty_like(distances))
+        nearest = distances.min(axis=0)  # finite for every row passed here
+        weights = np.subtract(nearest, distances)
         weights *= 1.0 / tau
         np.exp(weights, out=weights)  # exp(-(d - d_min) / tau); 0 where d = inf
         if keep is not None:
             weights *= keep
-        total = weights.sum(axis=1, keepdims=True)
-        values = (nearest - tau * np.log(total))[:, 0]  # Eq. (hap_compact)
+        total = weights.sum(axis=0)
+        values = nearest - tau * np.log(total)  # Eq. (hap_compact)
         weights /= total
         weights /= distances  # w_j / d_j; 0 for blocked (inf) candidates
-        jacobian = np.stack(
-            [(weights * dx).sum(axis=1), (weights * dy).sum(axis=1), (weights * dz).sum(axis=1)],
-            axis=1,
-        )
+        jacobian = np.stack([(weights * d).sum(axis=0) for d in (dx, dy, dz)], axis=1)
         return values, jacobian
 
     def _softmin(
@@ -296,6 +298,17 @@ class HapPrior:
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
         return _SoftMinFunction.apply(x, evaluate)
+
+    @staticmethod
+    def _box_distance(moving: MovingObstacleFilter, relative: np.ndarray) -> np.ndarray:
+        """Distance (n,), m, from positions relative to the anchor (n, 3) to the nearest of
+        the filter's grown boxes (0 inside one)."""
+        nearest = np.full(len(relative), np.inf)
+        for box in moving.template:
+            local = (relative - box.position) @ np.asarray(box.rotation)  # box frame
+            excess = np.maximum(np.abs(local) - box.half_extents, 0.0)
+            np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)), out=nearest)
+        return nearest
 
     def per_point(
         self,
@@ -326,21 +339,23 @@ class HapPrior:
         anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
         if len(anchors) != len(positions):
             raise ValueError(f"{len(anchors)} anchors for {len(positions)} query positions")
-        # Only rows whose candidates can reach the obstacles need the test (a cheap bound:
-        # candidate-to-query distance <= the row's candidate radius).
+        # Only rows whose candidates can reach the obstacles need the test: all candidates
+        # lie within the row's candidate radius R of the query, so a row whose query is
+        # further than R + margin from every (grown) box at its anchor has none blocked.
         blocked = np.zeros(index.shape, dtype=bool)
+        radius = self._candidate_radius(positions, torch.from_numpy(index))
         near = np.flatnonzero(
-            np.linalg.norm(positions - anchors, axis=1)
-            < moving.reach + self._candidate_radius(positions, torch.from_numpy(index))
+            self._box_distance(moving, positions - anchors) < radius + moving.margin + 1e-9
         )
         if near.size:
-            blocked[near] = moving.blocked(self.points_numpy[index[near]], anchors[near])
+            points = np.take(self.points_numpy, index[near], axis=0)  # (rows, c, 3)
+            blocked[near] = moving.blocked(points, anchors[near])
         short = (~blocked).sum(axis=1) < self.k
         rows = np.flatnonzero(short)
         wide, wide_blocked = None, None
         if rows.size:
             wide = self._wide_neighbours(positions[rows])
-            wide_blocked = moving.blocked(self.points_numpy[wide], anchors[rows])
+            wide_blocked = moving.blocked(np.take(self.points_numpy, wide, axis=0), anchors[rows])
         no_free = np.zeros(len(flat), dtype=bool)
         if rows.size:
             no_free[rows[wide_blocked.all(axis=1)]] = True
