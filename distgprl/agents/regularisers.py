@@ -207,31 +207,115 @@ class ActorRegulariser(nn.Module):
             self.weights.lambda_acceleration * l1 / samples
         )
 
+    def _anchors(self, aux: torch.Tensor) -> torch.Tensor:
+        """The moving obstacles' anchors at the L_hap query times, (B, N_q, 3), m, from aux."""
+        n = self.n_via_points
+        start = n * 6 + self.n_steps
+        if aux.shape[1] != start + n * 3:
+            raise ValueError(
+                f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
+                f"{start + n * 3} (Gamma, step one-hot, anchors)"
+            )
+        return torch.matmul(self.anchor_map.to(aux.dtype), aux[:, start:].reshape(-1, n, 3))
+
     def forward(self, aux: torch.Tensor, actions: torch.Tensor) -> tuple[torch.Tensor, dict]:
-        """Total regularisation (scalar) and its logged terms."""
+        """Total regularisation (scalar) and its logged terms; the gradient reaches ``actions``.
+
+        With a `HapPrior` (or no prior) the loss and its gradient w.r.t. the actions are
+        computed together without autograd (`_fused`); any other prior module (with a
+        differentiable ``loss(x)``) goes through autograd. ``aux`` gets no gradient either way.
+        """
         terms: dict[str, float] = {}
-        total = actions.new_zeros(())
         if self.weights.lambda_sim <= 0 and self.hap_prior is None:
-            return total, terms
+            return actions.new_zeros(()), terms
+        if self.hap_prior is None or hasattr(self.hap_prior, "values_and_gradient"):
+            return _ValueWithGradient.apply(
+                actions, lambda: self._fused(aux, actions, terms)
+            ), terms
+        total = actions.new_zeros(())
         out = self.readout(aux, actions)
         if self.weights.lambda_sim > 0:
             l_sim = self._similarity_from_readout(out)
             total = total + self.weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim.detach())
-        if self.hap_prior is not None:
-            positions = out[:, :3, 2 * self._n_similarity :].transpose(1, 2)  # (B, N_q, 3)
-            if self.moving_filter is None:
-                l_hap = self.hap_prior.loss(positions)
-            else:
-                n = self.n_via_points
-                start = n * 6 + self.n_steps
-                if aux.shape[1] != start + n * 3:
-                    raise ValueError(
-                        f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
-                        f"{start + n * 3} (Gamma, step one-hot, anchors)"
-                    )
-                anchors = torch.matmul(self.anchor_map, aux[:, start:].reshape(-1, n, 3))
-                l_hap = self.hap_prior.loss(positions, anchors, self.moving_filter)
-            total = total + self.weights.lambda_hap * l_hap
-            terms["l_hap"] = float(l_hap.detach())
+        positions = out[:, :3, 2 * self._n_similarity :].transpose(1, 2)  # (B, N_q, 3)
+        if self.moving_filter is None:
+            l_hap = self.hap_prior.loss(positions)
+        else:
+            l_hap = self.hap_prior.loss(positions, self._anchors(aux), self.moving_filter)
+        total = total + self.weights.lambda_hap * l_hap
+        terms["l_hap"] = float(l_hap.detach())
         return total, terms
+
+    def _fused(
+        self, aux: torch.Tensor, actions: torch.Tensor, terms: dict[str, float]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Total (scalar) and d total / d actions (B, A), no autograd; fills ``terms``.
+
+        Gradients by hand through `readout` (linear): d out for L_sim (Eq. sim_compact:
+        d cos / d v = (d_hat - cos v_hat) / |v|, d |e| / d e = sign e) and for L_hap (the
+        soft-min's own gradient, `HapPrior.values_and_gradient`), then d columns =
+        d out @ readout_map^T, of which the sample's step block times the scale is d actions.
+        """
+        batch, t = actions.shape[0], self._n_similarity
+        readout_map, _, direction, scale, _ = self._flat(actions)
+        out = self.readout(aux, actions)  # (B, 6, 2T + N_q)
+        grad_out = torch.zeros_like(out)
+        total = out.new_zeros(())
+        weights = self.weights
+        if weights.lambda_sim > 0:
+            samples = t * batch
+            velocity = out[:, :, :t]  # (B, 6, T)
+            norm = velocity.square().sum(1).sqrt_().clamp_min_(1e-8)  # (B, T)
+            cos = (velocity * direction).sum(1).div_(norm)
+            error = out[:, :, t : 2 * t]
+            l_sim = weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
+                weights.lambda_acceleration * error.abs().sum() / samples
+            )
+            total = total + weights.lambda_sim * l_sim
+            terms["l_sim"] = float(l_sim)
+            factor = -weights.lambda_sim * weights.lambda_velocity / samples
+            grad_out[:, :, :t] = (direction - velocity * (cos / norm).unsqueeze(1)) * (
+                factor / norm
+            ).unsqueeze(1)
+            grad_out[:, :, t : 2 * t] = error.sign().mul_(
+                weights.lambda_sim * weights.lambda_acceleration / samples
+            )
+        if self.hap_prior is not None:
+            positions = out[:, :3, 2 * t :].transpose(1, 2).cpu().numpy()  # (B, N_q, 3)
+            anchors = None
+            if self.moving_filter is not None:
+                anchors = self._anchors(aux).cpu().numpy()
+            values, jacobian = self.hap_prior.values_and_gradient(
+                positions.reshape(-1, 3), anchors, self.moving_filter
+            )
+            l_hap = values.mean(dtype=np.float64)
+            total = total + weights.lambda_hap * float(l_hap)
+            terms["l_hap"] = float(l_hap)
+            grad_positions = torch.from_numpy(jacobian).to(out.device).reshape(batch, -1, 3)
+            grad_out[:, :3, 2 * t :] = grad_positions.transpose(1, 2) * (
+                weights.lambda_hap / len(values)
+            )
+        n, steps = self.n_via_points, self.n_steps
+        grad_columns = (grad_out.reshape(batch * 6, -1) @ readout_map.T).reshape(batch, 6, -1)
+        grad_selected = grad_columns[:, :, n:].reshape(batch, 6, steps, -1)  # (B, 6, S, A_v)
+        step = aux[:, n * 6 : n * 6 + steps].argmax(dim=1)
+        grad_raw = grad_selected[torch.arange(batch), :, step]  # (B, 6, A_v)
+        grad_actions = (grad_raw * scale.unsqueeze(-1)).transpose(1, 2).reshape(batch, -1)
+        return total.to(actions.dtype), grad_actions
+
+
+class _ValueWithGradient(torch.autograd.Function):
+    """A scalar whose gradient w.r.t. ``x`` was computed with it: ``evaluate()`` returns
+    (value, d value / d x); backward is one product."""
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
+        value, gradient = evaluate()
+        ctx.save_for_backward(gradient)
+        return value
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
+        (gradient,) = ctx.saved_tensors
+        return grad * gradient, None

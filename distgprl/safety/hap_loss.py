@@ -161,7 +161,7 @@ class HapPrior:
         self.points_numpy = points
         # Component-wise storage: gathers of (n, k) index arrays stay contiguous.
         self._coordinates = [torch.as_tensor(points[:, i], dtype=self.dtype) for i in range(3)]
-        self._coordinates_numpy: dict[torch.dtype, list[np.ndarray]] = {}
+        self._coordinates_numpy: dict[np.dtype, list[np.ndarray]] = {}
         self.k = min(self.k_requested, len(points))
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
@@ -225,20 +225,21 @@ class HapPrior:
         candidates = self.points_numpy[index.numpy()]
         return np.linalg.norm(candidates - positions[:, None, :], axis=2).max(axis=1)
 
-    def _coordinates_as(self, dtype: torch.dtype) -> list[np.ndarray]:
-        """The stored C_safe coordinates (3 arrays (m,)) cast to ``dtype``, as NumPy (cached)."""
+    def _coordinates_as(self, dtype: np.dtype) -> list[np.ndarray]:
+        """The stored C_safe coordinates (3 arrays (m,)) cast to ``dtype`` (cached)."""
         arrays = self._coordinates_numpy.get(dtype)
         if arrays is None:
-            arrays = [c.to(dtype).numpy() for c in self._coordinates]
+            arrays = [c.numpy().astype(dtype) for c in self._coordinates]
             self._coordinates_numpy[dtype] = arrays
         return arrays
 
     def _softmin_values(
-        self, x: np.ndarray, index: np.ndarray, blocked: np.ndarray | None, dtype: torch.dtype
+        self, x: np.ndarray, index: np.ndarray, blocked: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Soft-min (n,) over the k nearest free candidates and its gradient (n, 3) w.r.t. x.
 
-        x (n, 3) and the result in ``dtype``; index (n, c) candidates; blocked (n, c) or None.
+        x (n, 3), m, and the result in x's dtype (C_safe cast to it); index (n, c) candidates;
+        blocked (n, c) or None.
         Distances as the autograd version computed them (sqrt(|x - y|^2 + 1e-18)); the k
         smallest are selected with ``np.partition`` (a k-th smallest threshold; rows where
         distances tie at the threshold keep the first k in candidate order). The gradient is
@@ -248,7 +249,7 @@ class HapPrior:
         columns = np.ascontiguousarray(index.T)  # (c, n)
         query = np.ascontiguousarray(x.T)  # (3, n)
         dx, dy, dz = (
-            q - c[columns] for q, c in zip(query, self._coordinates_as(dtype), strict=True)
+            q - c[columns] for q, c in zip(query, self._coordinates_as(x.dtype), strict=True)
         )
         distances = dx * dx
         distances += dy * dy
@@ -293,7 +294,7 @@ class HapPrior:
 
         def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
             values, jacobian = self._softmin_values(
-                x.detach().cpu().numpy(), np.asarray(index), blocked, x.dtype
+                x.detach().cpu().numpy(), np.asarray(index), blocked
             )
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
@@ -326,16 +327,36 @@ class HapPrior:
         obstacles' blocked zone) gets 0, i.e. no pull (:attr:`last_moving_counts` counts such
         queries). In ``"grid"`` mode the free candidates approximate the filtered kNN (they are the
         cell centre's nearest points): the soft-min is within ~2.5 mm of the exact one.
+        The gradient w.r.t. x is computed with the values (`values_and_gradient`).
         """
         flat = x.reshape(-1, 3)
-        positions = flat.detach().cpu().numpy().astype(float)
-        index = self.neighbours(positions).numpy()
-        if moving is None:
-            return (self._softmin(flat, index) - self.offset).reshape(x.shape[:-1])
-        if anchors is None:
-            raise ValueError("a moving-obstacle filter needs the obstacles' anchors")
         if isinstance(anchors, torch.Tensor):
             anchors = anchors.detach().cpu().numpy()
+
+        def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
+            values, jacobian = self.values_and_gradient(
+                flat.detach().cpu().numpy(), anchors, moving
+            )
+            return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
+
+        return _SoftMinFunction.apply(flat, evaluate).reshape(x.shape[:-1])
+
+    def values_and_gradient(
+        self,
+        x: np.ndarray,
+        anchors: np.ndarray | None = None,
+        moving: MovingObstacleFilter | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`per_point` without torch: values (n,), m, and each value's gradient w.r.t. its own
+        query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd)."""
+        positions = np.asarray(x, dtype=float).reshape(-1, 3)
+        x = x.reshape(-1, 3)
+        index = self.neighbours(positions).numpy()
+        if moving is None:
+            values, jacobian = self._softmin_values(x, index, None)
+            return values - self.offset, jacobian
+        if anchors is None:
+            raise ValueError("a moving-obstacle filter needs the obstacles' anchors")
         anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
         if len(anchors) != len(positions):
             raise ValueError(f"{len(anchors)} anchors for {len(positions)} query positions")
@@ -351,45 +372,30 @@ class HapPrior:
             points = np.take(self.points_numpy, index[near], axis=0)  # (rows, c, 3)
             blocked[near] = moving.blocked(points, anchors[near])
         short = (~blocked).sum(axis=1) < self.k
+        values = np.zeros(len(x), dtype=x.dtype)
+        jacobian = np.zeros((len(x), 3), dtype=x.dtype)
+        full = np.flatnonzero(~short)
+        if full.size:
+            part, grad = self._softmin_values(x[full], index[full], blocked[full])
+            values[full], jacobian[full] = part - self.offset, grad
         rows = np.flatnonzero(short)
-        wide, wide_blocked = None, None
+        no_free = 0
         if rows.size:
             wide = self._wide_neighbours(positions[rows])
             wide_blocked = moving.blocked(np.take(self.points_numpy, wide, axis=0), anchors[rows])
-        no_free = np.zeros(len(flat), dtype=bool)
-        if rows.size:
-            no_free[rows[wide_blocked.all(axis=1)]] = True
+            free = ~wide_blocked.all(axis=1)
+            no_free = int((~free).sum())
+            keep = rows[free]
+            if keep.size:
+                part, grad = self._softmin_values(x[keep], wide[free], wide_blocked[free])
+                values[keep], jacobian[keep] = part - self.offset, grad
         self.last_moving_counts = {
-            "queries": len(flat),
+            "queries": len(x),
             "with_blocked": int(blocked.any(axis=1).sum()),
             "fallback": int(short.sum()),
-            "no_free": int(no_free.sum()),
+            "no_free": no_free,
         }
-
-        def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
-            query = flat.detach().cpu().numpy()
-            values = np.zeros(len(flat), dtype=query.dtype)
-            jacobian = np.zeros((len(flat), 3), dtype=values.dtype)
-            full = np.flatnonzero(~short)
-            if full.size:
-                part, grad = self._softmin_values(
-                    query[full], index[full], blocked[full], flat.dtype
-                )
-                values[full], jacobian[full] = part - self.offset, grad
-            if rows.size:
-                free = ~no_free[rows]
-                keep = rows[free]
-                if keep.size:
-                    part, grad = self._softmin_values(
-                        query[keep], wide[free], wide_blocked[free], flat.dtype
-                    )
-                    values[keep], jacobian[keep] = part - self.offset, grad
-            return (
-                torch.from_numpy(values).to(flat.device),
-                torch.from_numpy(jacobian).to(flat.device),
-            )
-
-        return _SoftMinFunction.apply(flat, evaluate).reshape(x.shape[:-1])
+        return values, jacobian
 
     def loss(
         self,

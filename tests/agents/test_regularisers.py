@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 from _reference_regularisers import ReferenceActorRegulariser
-from test_sac import small_skill
+from test_sac import QuadraticPrior, small_skill
 
 from distgprl.agents.methods import get_method
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
@@ -100,6 +100,36 @@ def test_terms_and_action_gradients_equal_the_reference(
     assert scale > 1e-5
     # 1e-9 absolute, and also relative to the largest entry (the gradients can be small).
     np.testing.assert_allclose(grad, ref_grad, rtol=0, atol=1e-9 * min(scale, 1.0))
+
+
+@pytest.mark.parametrize(("method", "frozen"), [("dist-gprl", ()), ("dist-gprl-global", ())])
+def test_a_generic_prior_module_goes_through_autograd_and_equals_the_reference(method, frozen):
+    """A prior that is not a `HapPrior` (a module with a differentiable ``loss(x)``) takes the
+    autograd path: total, terms and gradient equal the reference to 1e-9 (float64)."""
+    skill = small_skill()
+    layout = build_action_layout(skill, EnvConfig(), get_method(method), frozen=frozen)
+    weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.2)
+    prior = QuadraticPrior().double()
+    new = ActorRegulariser(skill, layout, weights, hap_prior=prior).double()
+    old = ReferenceActorRegulariser(skill, layout, weights, hap_prior=prior).double()
+    aux, actions = _batch(skill, layout, np.random.default_rng(3), anchors=False)
+    total, terms, grad = _evaluate(new, aux, actions)
+    ref_total, ref_terms, ref_grad = _evaluate(old, aux, actions)
+    assert total == pytest.approx(ref_total, abs=1e-9)
+    assert terms == pytest.approx(ref_terms, abs=1e-9) and set(terms) == {"l_sim", "l_hap"}
+    np.testing.assert_allclose(grad, ref_grad, rtol=0, atol=1e-9 * np.abs(ref_grad).max())
+
+
+def test_under_no_grad_the_value_is_the_same_and_carries_no_graph():
+    """The fused path under ``torch.no_grad()``: same value, no graph attached."""
+    weights = RegulariserWeights()
+    skill, layout, new, _ = _pair("dist-gprl", (), weights, True, True)
+    aux, actions = _batch(skill, layout, np.random.default_rng(4), anchors=True)
+    with torch.no_grad():
+        quiet, _ = new(aux, actions.clone().requires_grad_(True))
+    assert not quiet.requires_grad
+    loud, _ = new(aux, actions.clone().requires_grad_(True))
+    assert loud.requires_grad and float(loud.detach()) == float(quiet)
 
 
 @pytest.mark.parametrize(("method", "frozen"), LAYOUTS)
