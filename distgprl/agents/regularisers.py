@@ -163,7 +163,7 @@ class ActorRegulariser(nn.Module):
         readout_map, bias, _, scale, prior_mean = self._flat(actions)
         centered = aux[:, : n * 6].reshape(batch, n, 6).to(actions.dtype) - prior_mean
         step = aux[:, n * 6 : n * 6 + steps].argmax(dim=1)
-        one_hot = nn.functional.one_hot(step, steps).to(actions.dtype)  # (B, S)
+        one_hot = (step.unsqueeze(1) == torch.arange(steps, device=step.device)).to(actions.dtype)
         raw = actions.reshape(batch, self.points_per_step, 6) * scale
         selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
         stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)

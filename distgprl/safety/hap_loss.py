@@ -368,17 +368,24 @@ class HapPrior:
         near = np.flatnonzero(
             self._box_distance(moving, positions - anchors) < radius + moving.margin + 1e-9
         )
+        counts = np.zeros(len(x))  # blocked candidates per query
         if near.size:
             points = np.take(self.points_numpy, index[near], axis=0)  # (rows, c, 3)
-            blocked[near] = moving.blocked(points, anchors[near])
-        short = (~blocked).sum(axis=1) < self.k
-        values = np.zeros(len(x), dtype=x.dtype)
-        jacobian = np.zeros((len(x), 3), dtype=x.dtype)
-        full = np.flatnonzero(~short)
-        if full.size:
-            part, grad = self._softmin_values(x[full], index[full], blocked[full])
-            values[full], jacobian[full] = part - self.offset, grad
+            rows_blocked = moving.blocked(points, anchors[near])
+            blocked[near] = rows_blocked
+            counts[near] = rows_blocked.astype(float) @ np.ones(index.shape[1])
+        short = counts > index.shape[1] - self.k
         rows = np.flatnonzero(short)
+        if not rows.size:  # the common case: every query keeps at least k candidates
+            values, jacobian = self._softmin_values(x, index, blocked)
+            values -= self.offset
+        else:
+            values = np.zeros(len(x), dtype=x.dtype)
+            jacobian = np.zeros((len(x), 3), dtype=x.dtype)
+            full = np.flatnonzero(~short)
+            if full.size:
+                part, grad = self._softmin_values(x[full], index[full], blocked[full])
+                values[full], jacobian[full] = part - self.offset, grad
         no_free = 0
         if rows.size:
             wide = self._wide_neighbours(positions[rows])
@@ -391,8 +398,8 @@ class HapPrior:
                 values[keep], jacobian[keep] = part - self.offset, grad
         self.last_moving_counts = {
             "queries": len(x),
-            "with_blocked": int(blocked.any(axis=1).sum()),
-            "fallback": int(short.sum()),
+            "with_blocked": int(np.count_nonzero(counts)),
+            "fallback": int(rows.size),
             "no_free": no_free,
         }
         return values, jacobian

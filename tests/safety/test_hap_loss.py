@@ -212,7 +212,8 @@ def test_moving_filter_values_gradients_and_counts_equal_the_reference(c_safe, s
     """With a moving-obstacle filter (two boxes, anchors spread over the workspace per query),
     values, gradients and `last_moving_counts` equal the pre-rewrite version to 1e-9 in
     float64 — including queries with blocked candidates, fallback rows and rows without any
-    free point (all three occur)."""
+    free point (all three occur) — and, with the lookup table, for a batch where no query
+    falls back."""
     shapes = (
         Box("a", np.zeros(3), np.eye(3), np.full(3, 0.06), True),
         Box("b", np.array([0.0, 0.15, 0.05]), np.eye(3), np.array([0.03, 0.05, 0.1]), True),
@@ -231,6 +232,18 @@ def test_moving_filter_values_gradients_and_counts_equal_the_reference(c_safe, s
     assert new.last_moving_counts == old.last_moving_counts
     counts = new.last_moving_counts
     assert counts["with_blocked"] > 0 and counts["fallback"] > 0 and counts["no_free"] > 0
+    np.testing.assert_allclose(values, ref_values, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(grad, ref_grad, rtol=0, atol=1e-9)
+    if search == "kdtree":
+        return  # (with exactly k candidates, every row with a blocked one falls back)
+    # Obstacles 0.3 m above the queries inside the lookup box: some candidates blocked, no
+    # fallback (the common case in training).
+    x, weights = x[80:], weights[80:]
+    above = x + np.array([0.0, 0.0, 0.3])
+    values, grad = _values_and_gradient(new, x, above, moving, weights)
+    ref_values, ref_grad = _values_and_gradient(old, x, above, moving, weights)
+    assert new.last_moving_counts == old.last_moving_counts
+    assert new.last_moving_counts["with_blocked"] > 0 and new.last_moving_counts["fallback"] == 0
     np.testing.assert_allclose(values, ref_values, rtol=0, atol=1e-9)
     np.testing.assert_allclose(grad, ref_grad, rtol=0, atol=1e-9)
 
