@@ -199,9 +199,16 @@ class HapPrior:
         positions = np.asarray(positions, dtype=float).reshape(-1, 3)
         if self.neighbour_search == "kdtree":
             return self._exact(positions)
+        return torch.from_numpy(self._table[self._cells(positions)[1]])
+
+    def _cells(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lookup cells (n, 3) of positions (n, 3), m (clipped to the table), and their flat
+        indices (n,) (grid mode)."""
         cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
         np.clip(cell, 0, self._shape - 1, out=cell)
-        return torch.from_numpy(self._table[cell @ self._strides])
+        strides = self._strides
+        flat = cell[:, 0] * strides[0] + cell[:, 1] * strides[1] + cell[:, 2]
+        return cell, flat
 
     def _wide_neighbours(self, positions: np.ndarray) -> np.ndarray:
         """The ``fallback_candidates`` nearest C_safe indices (n, c) of positions (n, 3), exact.
@@ -214,15 +221,16 @@ class HapPrior:
         _, wide = self._tree.query(positions, k=count)
         return np.asarray(wide, dtype=np.int64).reshape(len(positions), count)
 
-    def _candidate_radius(self, positions: np.ndarray, index: torch.Tensor) -> np.ndarray:
-        """An upper bound (n,), m, on the distance from each query to its candidates."""
+    def _candidate_radius(
+        self, positions: np.ndarray, index: np.ndarray, cells: tuple | None = None
+    ) -> np.ndarray:
+        """An upper bound (n,), m, on the distance from each query to its candidates
+        (``cells``: `_cells` of the positions, if already computed)."""
         if self.neighbour_search == "grid":
-            cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
-            np.clip(cell, 0, self._shape - 1, out=cell)
-            flat = cell @ self._strides
-            centre = self._lower + self.resolution * (cell + 0.5)
-            return np.linalg.norm(positions - centre, axis=1) + self._cell_radius[flat]
-        candidates = self.points_numpy[index.numpy()]
+            cell, flat = cells if cells is not None else self._cells(positions)
+            offset = positions - (self._lower + self.resolution * (cell + 0.5))
+            return np.sqrt(np.einsum("ij,ij->i", offset, offset)) + self._cell_radius[flat]
+        candidates = np.take(self.points_numpy, index, axis=0)
         return np.linalg.norm(candidates - positions[:, None, :], axis=2).max(axis=1)
 
     def _coordinates_as(self, dtype: np.dtype) -> list[np.ndarray]:
@@ -351,7 +359,12 @@ class HapPrior:
         query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd)."""
         positions = np.asarray(x, dtype=float).reshape(-1, 3)
         x = x.reshape(-1, 3)
-        index = self.neighbours(positions).numpy()
+        cells = None
+        if self.neighbour_search == "grid":
+            cells = self._cells(positions)
+            index = self._table[cells[1]]
+        else:
+            index = self._exact(positions).numpy()
         if moving is None:
             values, jacobian = self._softmin_values(x, index, None)
             return values - self.offset, jacobian
@@ -364,7 +377,7 @@ class HapPrior:
         # lie within the row's candidate radius R of the query, so a row whose query is
         # further than R + margin from every (grown) box at its anchor has none blocked.
         blocked = np.zeros(index.shape, dtype=bool)
-        radius = self._candidate_radius(positions, torch.from_numpy(index))
+        radius = self._candidate_radius(positions, index, cells)
         near = np.flatnonzero(
             self._box_distance(moving, positions - anchors) < radius + moving.margin + 1e-9
         )
