@@ -10,7 +10,7 @@ Sections of `run_benchmarks` (all measured in one process, so ratios compare lik
    ``getClosestPoints`` for the same points and shapes; re-solving the GP from scratch).
 2. One simulated episode per task (full trajectory, dynamics and contact checks).
 3. One SAC gradient step with the regularised actor loss (batch 256, paper network) vs plain SAC,
-   in wall and in process CPU time; the CPU-time ratio is ``ratios.regularised_over_plain_sac_step``.
+   in wall and in process CPU time (the latter is ``ratios.regularised_over_plain_sac_step``).
 4. Training throughput of a short real training run and where its time goes (timers around
    simulation, IK, EDF, SAC update, ...).
 5. Scaling: adaptation time vs number of via-points and of obstacles; training throughput vs
