@@ -275,12 +275,13 @@ class ActorRegulariser(nn.Module):
             total = total + weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim)
             factor = -weights.lambda_sim * weights.lambda_velocity / samples
-            grad_out[:, :, :t] = (direction - velocity * (cos / norm).unsqueeze(1)) * (
-                factor / norm
-            ).unsqueeze(1)
-            grad_out[:, :, t : 2 * t] = error.sign().mul_(
-                weights.lambda_sim * weights.lambda_acceleration / samples
-            )
+            grad_velocity = grad_out[:, :, :t]  # written in place (views of grad_out)
+            torch.mul(velocity, (cos / norm).unsqueeze(1), out=grad_velocity)
+            torch.sub(direction, grad_velocity, out=grad_velocity)
+            grad_velocity.mul_((factor / norm).unsqueeze(1))
+            grad_error = grad_out[:, :, t : 2 * t]
+            torch.sign(error, out=grad_error)
+            grad_error.mul_(weights.lambda_sim * weights.lambda_acceleration / samples)
         if self.hap_prior is not None:
             positions = out[:, :3, 2 * t :].transpose(1, 2).cpu().numpy()  # (B, N_q, 3)
             anchors = None
