@@ -283,7 +283,9 @@ class ActorRegulariser(nn.Module):
             torch.sign(error, out=grad_error)
             grad_error.mul_(weights.lambda_sim * weights.lambda_acceleration / samples)
         if self.hap_prior is not None:
-            positions = out[:, :3, 2 * t :].transpose(1, 2).cpu().numpy()  # (B, N_q, 3)
+            positions = (
+                out[:, :3, 2 * t :].transpose(1, 2).contiguous().cpu().numpy()
+            )  # (B, N_q, 3)
             anchors = None
             if self.moving_filter is not None:
                 anchors = self._anchors(aux).cpu().numpy()
