@@ -271,9 +271,10 @@ class HapPrior:
         if count > k:
             rows = np.ascontiguousarray(distances.T)  # (n, c)
             threshold = np.partition(rows, k - 1, axis=1)[:, k - 1]
-            keep = distances <= threshold
-            ties = np.flatnonzero(keep.sum(axis=0) > k)
-            if ties.size:  # equal distances at the threshold: keep the first k (stable order)
+            keep = distances <= threshold  # >= k per query; more only where distances tie
+            if np.count_nonzero(keep) > k * keep.shape[1]:
+                # Equal distances at the threshold: keep the first k (stable order).
+                ties = np.flatnonzero(keep.sum(axis=0) > k)
                 order = np.argsort(rows[ties], axis=1, kind="stable")[:, :k]
                 keep[:, ties] = False
                 keep[order, ties[:, None]] = True
