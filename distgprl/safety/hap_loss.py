@@ -183,9 +183,13 @@ class HapPrior:
         cells = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         centres = self._lower + self.resolution * (cells + 0.5)
         _, index = self._tree.query(centres, k=count, workers=-1)
-        self._table = np.ascontiguousarray(np.asarray(index, dtype=np.int64).reshape(-1, count))
+        index = np.asarray(index, dtype=np.int64).reshape(-1, count)
         # Largest distance from each cell centre to its candidates.
-        self._cell_radius = np.linalg.norm(points[self._table] - centres[:, None, :], axis=2).max(1)
+        self._cell_radius = np.linalg.norm(points[index] - centres[:, None, :], axis=2).max(1)
+        # Stored in the smallest integer type that holds the indices: a batch's lookups hit
+        # random cells, so a compact table keeps them in cache (int16 for C_safe < 32768).
+        small = np.int16 if len(points) <= np.iinfo(np.int16).max else np.int32
+        self._table = np.ascontiguousarray(index.astype(small))
         self._strides = np.array([self._shape[1] * self._shape[2], self._shape[2], 1])
 
     def _exact(self, positions: np.ndarray) -> torch.Tensor:
@@ -201,7 +205,7 @@ class HapPrior:
         positions = np.asarray(positions, dtype=float).reshape(-1, 3)
         if self.neighbour_search == "kdtree":
             return self._exact(positions)
-        return torch.from_numpy(self._table[self._cells(positions)[1]])
+        return torch.from_numpy(self._table[self._cells(positions)[1]].astype(np.int64))
 
     def _cells(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lookup cells (n, 3) of positions (n, 3), m (clipped to the table), and their flat
@@ -365,7 +369,7 @@ class HapPrior:
         cells = None
         if self.neighbour_search == "grid":
             cells = self._cells(positions)
-            index = self._table[cells[1]]
+            index = self._table[cells[1]].astype(np.intp)
         else:
             index = self._exact(positions).numpy()
         if moving is None:
