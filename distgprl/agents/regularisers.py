@@ -3,6 +3,12 @@
 Both terms are functions of the *actor's sampled action*: the action is mapped to
 adapted via-points exactly as the environment does (scale, S_W, frozen rows), and the
 adapted trajectory is read through the GP's linear maps, so gradients reach the actor.
+
+Speed (issue 29): the whole action -> (velocity, acceleration, L_hap positions) read-out is one
+precomputed matrix applied to the batch in one product (`ActorRegulariser.readout`), and with a
+`HapPrior` the loss and its gradient w.r.t. the actions are computed together by hand and
+attached to autograd as a single node (`ActorRegulariser._fused`). Values and gradients equal
+the earlier per-window autograd implementation to 1e-9 in float64 (tests/agents).
 """
 
 from __future__ import annotations
@@ -94,6 +100,84 @@ class ActorRegulariser(nn.Module):
                 [np.interp(hap_tau, via_times, identity[j]) for j in range(len(via_times))], 1
             ),
         )
+        self._build_flat_maps()
+
+    def _build_flat_maps(self) -> None:
+        """Every read-out of the adapted trajectory as one matrix over the via-point axis.
+
+        The adapted centered via-points of a sample at step s are c + D_s (scale * a) per
+        axis (Eqs. transformed/updated), c = Gamma - mu (N, 6), a the raw action (A_v, 6),
+        D_s (N, A_v) = scatter onto the window of mask * S_W. Velocities V, accelerations A
+        and the L_hap positions H are linear in them, so with M = [V; A; H] (T + T + N_q, N)
+
+            out[b, j] = [M, M D_0, ..., M D_{S-1}] [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
+
+        for each axis j: one (B*6, N + S*A_v) x (N + S*A_v, 2T + N_q) product for the batch.
+        Products are taken in float64 from the module's own (float32) buffers, so they are
+        exact images of the maps that the per-window code applies.
+        """
+        f64 = torch.float64
+        n, steps, per_step = self.n_via_points, self.n_steps, self.points_per_step
+        maps = torch.cat(
+            [self.velocity_map.to(f64), self.acceleration_map.to(f64), self.hap_map.to(f64)]
+        )  # (2T + N_q, N)
+        self._n_similarity = self.velocity_map.shape[0]
+        selection = torch.zeros(steps, per_step, n, dtype=f64)  # window row p -> via-point
+        selection.scatter_(2, self.indices.unsqueeze(-1), 1.0)
+        # D_s[v, p'] = sum_p [indices[s, p] = v] mask[s, p] S_W[s, p, p']  (S, N, A_v)
+        scatter = torch.einsum(
+            "spv,sp,spq->svq", selection, self.mask.to(f64), self.operators.to(f64)
+        )
+        readout = torch.cat([maps, *(maps @ scatter[s] for s in range(steps))], dim=1)
+        t = self._n_similarity
+        bias = torch.zeros(6, readout.shape[0], dtype=f64)  # per axis j
+        bias[:, t : 2 * t] = -self.demo_acceleration.to(f64).T
+        bias[:3, 2 * t :] = self.prior_mean.to(f64)[:3, None]
+        demo_velocity = self.demo_velocity.to(f64)
+        direction = demo_velocity / demo_velocity.norm(dim=-1, keepdim=True).clamp_min(1e-8)
+        self.register_buffer("readout_map", readout.T.contiguous(), persistent=False)
+        self.register_buffer("readout_bias", bias, persistent=False)
+        self.register_buffer("demo_direction", direction.T.contiguous(), persistent=False)
+        self._cast: dict[tuple, tuple[torch.Tensor, ...]] = {}
+
+    def _flat(self, like: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        """readout_map, readout_bias, demo_direction, scale, prior_mean as ``like`` (cached)."""
+        key = (like.dtype, like.device, self.readout_map.device, self.readout_map.data_ptr())
+        cached = self._cast.get(key)
+        if cached is None:
+            cached = tuple(
+                t.to(device=like.device, dtype=like.dtype)
+                for t in (
+                    self.readout_map,
+                    self.readout_bias,
+                    self.demo_direction,
+                    self.scale,
+                    self.prior_mean,
+                )
+            )
+            self._cast = {key: cached}
+        return cached
+
+    def readout(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """Velocities, accelerations minus the demo's, positions of the adapted trajectory.
+
+        One matrix product (see `_build_flat_maps`). Shape (B, 6, 2T + N_q), axis-major:
+        ``[:, :, :T]`` velocities (m or rad per unit normalised time), ``[:, :, T:2T]``
+        accelerations minus the demonstration's, ``[:, :3, 2T:]`` positions, m (rows 3-5 of
+        that block are the orientation components, unused).
+        """
+        batch = aux.shape[0]
+        n, steps = self.n_via_points, self.n_steps
+        readout_map, bias, _, scale, prior_mean = self._flat(actions)
+        centered = aux[:, self.aux_layout.gamma].reshape(batch, n, 6).to(actions.dtype)
+        centered = centered - prior_mean
+        step = aux[:, self.aux_layout.step].argmax(dim=1)
+        one_hot = (step.unsqueeze(1) == torch.arange(steps, device=step.device)).to(actions.dtype)
+        raw = actions.reshape(batch, self.points_per_step, 6) * scale
+        selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
+        stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)
+        columns = stacked.transpose(1, 2).reshape(batch * 6, -1)
+        return (columns @ readout_map).reshape(batch, 6, -1) + bias
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
@@ -107,7 +191,7 @@ class ActorRegulariser(nn.Module):
         return gamma.scatter_add(1, index, delta)
 
     def similarity_loss(self, centered: torch.Tensor) -> torch.Tensor:
-        """L_sim (Eq. sim_compact) for centered via-points (B, N, 6)."""
+        """L_sim (Eq. sim_compact) for centered via-points (B, N, 6), per sample (B,)."""
         velocity = torch.matmul(self.velocity_map, centered)  # (B, T, 6)
         acceleration = torch.matmul(self.acceleration_map, centered)
         cos = nn.functional.cosine_similarity(
@@ -118,31 +202,132 @@ class ActorRegulariser(nn.Module):
             self.weights.lambda_acceleration * l1.mean(dim=1)
         )
 
+    def _similarity_from_readout(self, out: torch.Tensor) -> torch.Tensor:
+        """Batch mean of L_sim (Eq. sim_compact) from `readout`'s output, a scalar."""
+        batch, t = out.shape[0], self._n_similarity
+        _, _, direction, _, _ = self._flat(out)
+        velocity = out[:, :, :t]  # (B, 6, T)
+        # cos = v . d / (|v| |d|), d/|d| precomputed (torch's cosine_similarity clamps the
+        # norms at 1e-8 likewise).
+        cos = (velocity * direction).sum(1) / velocity.square().sum(1).sqrt().clamp_min(1e-8)
+        l1 = out[:, :, t : 2 * t].abs().sum()  # sum over B, the 6 axes and T
+        samples = t * batch
+        return self.weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
+            self.weights.lambda_acceleration * l1 / samples
+        )
+
+    def _anchors(self, aux: torch.Tensor) -> torch.Tensor:
+        """The moving obstacles' anchors at the L_hap query times, (B, N_q, 3), m, from aux."""
+        n = self.n_via_points
+        if aux.shape[1] != self.aux_layout.size:
+            raise ValueError(
+                f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
+                f"{self.aux_layout.size} (Gamma, step one-hot, anchors)"
+            )
+        anchor = aux[:, self.aux_layout.anchor].reshape(-1, n, 3)
+        return torch.matmul(self.anchor_map.to(aux.dtype), anchor)
+
     def forward(self, aux: torch.Tensor, actions: torch.Tensor) -> tuple[torch.Tensor, dict]:
-        """Total regularisation (scalar) and its logged terms."""
+        """Total regularisation (scalar) and its logged terms; the gradient reaches ``actions``.
+
+        With a `HapPrior` (or no prior) the loss and its gradient w.r.t. the actions are
+        computed together without autograd (`_fused`); any other prior module (with a
+        differentiable ``loss(x)``) goes through autograd. ``aux`` gets no gradient either way.
+        """
         terms: dict[str, float] = {}
-        total = actions.new_zeros(())
         if self.weights.lambda_sim <= 0 and self.hap_prior is None:
-            return total, terms
-        centered = self.adapted_via_points(aux, actions) - self.prior_mean
+            return actions.new_zeros(()), terms
+        if self.hap_prior is None or hasattr(self.hap_prior, "values_and_gradient"):
+            return _ValueWithGradient.apply(
+                actions, lambda: self._fused(aux, actions, terms)
+            ), terms
+        total = actions.new_zeros(())
+        out = self.readout(aux, actions)
         if self.weights.lambda_sim > 0:
-            l_sim = self.similarity_loss(centered).mean()
+            l_sim = self._similarity_from_readout(out)
             total = total + self.weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim.detach())
-        if self.hap_prior is not None:
-            positions = (torch.matmul(self.hap_map, centered) + self.prior_mean)[..., :3]
-            if self.moving_filter is None:
-                l_hap = self.hap_prior.loss(positions)
-            else:
-                n = self.n_via_points
-                if aux.shape[1] != self.aux_layout.size:
-                    raise ValueError(
-                        f"aux has {aux.shape[1]} entries; the moving-obstacle filter needs "
-                        f"{self.aux_layout.size} (Gamma, step one-hot, anchors)"
-                    )
-                anchor = aux[:, self.aux_layout.anchor].reshape(-1, n, 3)
-                anchors = torch.matmul(self.anchor_map, anchor)
-                l_hap = self.hap_prior.loss(positions, anchors, self.moving_filter)
-            total = total + self.weights.lambda_hap * l_hap
-            terms["l_hap"] = float(l_hap.detach())
+        positions = out[:, :3, 2 * self._n_similarity :].transpose(1, 2)  # (B, N_q, 3)
+        if self.moving_filter is None:
+            l_hap = self.hap_prior.loss(positions)
+        else:
+            l_hap = self.hap_prior.loss(positions, self._anchors(aux), self.moving_filter)
+        total = total + self.weights.lambda_hap * l_hap
+        terms["l_hap"] = float(l_hap.detach())
         return total, terms
+
+    def _fused(
+        self, aux: torch.Tensor, actions: torch.Tensor, terms: dict[str, float]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Total (scalar) and d total / d actions (B, A), no autograd; fills ``terms``.
+
+        Gradients by hand through `readout` (linear): d out for L_sim (Eq. sim_compact:
+        d cos / d v = (d_hat - cos v_hat) / |v|, d |e| / d e = sign e) and for L_hap (the
+        soft-min's own gradient, `HapPrior.values_and_gradient`), then d columns =
+        d out @ readout_map^T, of which the sample's step block times the scale is d actions.
+        """
+        batch, t = actions.shape[0], self._n_similarity
+        readout_map, _, direction, scale, _ = self._flat(actions)
+        out = self.readout(aux, actions)  # (B, 6, 2T + N_q)
+        grad_out = torch.zeros_like(out)
+        total = out.new_zeros(())
+        weights = self.weights
+        if weights.lambda_sim > 0:
+            samples = t * batch
+            velocity = out[:, :, :t]  # (B, 6, T)
+            norm = velocity.square().sum(1).sqrt_().clamp_min_(1e-8)  # (B, T)
+            cos = (velocity * direction).sum(1).div_(norm)
+            error = out[:, :, t : 2 * t]
+            l_sim = weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
+                weights.lambda_acceleration * error.abs().sum() / samples
+            )
+            total = total + weights.lambda_sim * l_sim
+            terms["l_sim"] = float(l_sim)
+            factor = -weights.lambda_sim * weights.lambda_velocity / samples
+            grad_velocity = grad_out[:, :, :t]  # written in place (views of grad_out)
+            torch.mul(velocity, (cos / norm).unsqueeze(1), out=grad_velocity)
+            torch.sub(direction, grad_velocity, out=grad_velocity)
+            grad_velocity.mul_((factor / norm).unsqueeze(1))
+            grad_error = grad_out[:, :, t : 2 * t]
+            torch.sign(error, out=grad_error)
+            grad_error.mul_(weights.lambda_sim * weights.lambda_acceleration / samples)
+        if self.hap_prior is not None:
+            positions = (
+                out[:, :3, 2 * t :].transpose(1, 2).contiguous().cpu().numpy()
+            )  # (B, N_q, 3)
+            anchors = None
+            if self.moving_filter is not None:
+                anchors = self._anchors(aux).cpu().numpy()
+            values, jacobian = self.hap_prior.values_and_gradient(
+                positions.reshape(-1, 3), anchors, self.moving_filter
+            )
+            l_hap = values.mean(dtype=np.float64)
+            total = total + weights.lambda_hap * float(l_hap)
+            terms["l_hap"] = float(l_hap)
+            grad_positions = torch.from_numpy(jacobian).to(out.device).reshape(batch, -1, 3)
+            grad_out[:, :3, 2 * t :] = grad_positions.transpose(1, 2) * (
+                weights.lambda_hap / len(values)
+            )
+        n, steps = self.n_via_points, self.n_steps
+        grad_columns = (grad_out.reshape(batch * 6, -1) @ readout_map.T).reshape(batch, 6, -1)
+        grad_selected = grad_columns[:, :, n:].reshape(batch, 6, steps, -1)  # (B, 6, S, A_v)
+        step = aux[:, self.aux_layout.step].argmax(dim=1)
+        grad_raw = grad_selected[torch.arange(batch), :, step]  # (B, 6, A_v)
+        grad_actions = (grad_raw * scale.unsqueeze(-1)).transpose(1, 2).reshape(batch, -1)
+        return total.to(actions.dtype), grad_actions
+
+
+class _ValueWithGradient(torch.autograd.Function):
+    """A scalar whose gradient w.r.t. ``x`` was computed with it: ``evaluate()`` returns
+    (value, d value / d x); backward is one product."""
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
+        value, gradient = evaluate()
+        ctx.save_for_backward(gradient)
+        return value
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
+        (gradient,) = ctx.saved_tensors
+        return grad * gradient, None

@@ -137,22 +137,45 @@ class MovingObstacleFilter:
             anchors: the obstacles' anchor per row, shape (..., 3), m.
         """
         points = np.asarray(points, dtype=float)
-        relative = (points - np.asarray(anchors, dtype=float)[..., None, :]).reshape(-1, 3)
+        anchors = np.asarray(anchors, dtype=float)
+        if self._axis_aligned:
+            return self._blocked_axis_aligned(points, anchors)
+        relative = (points - anchors[..., None, :]).reshape(-1, 3)
         out = np.zeros(len(relative), dtype=bool)
-        if self._axis_aligned:  # inside the grown boxes' common bounding box
-            excess = np.abs(relative - self._middle) - self._span
-            near = np.flatnonzero((excess[:, 0] < 0) & (excess[:, 1] < 0) & (excess[:, 2] < 0))
-        else:
-            near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self.reach**2)
+        near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self.reach**2)
         if near.size:
             local = relative[near][:, None, :] - self._centres  # (m, boxes, 3)
-            if not self._axis_aligned:
-                local = np.einsum("mbi,bij->mbj", local, self._rotations)
+            local = np.einsum("mbi,bij->mbj", local, self._rotations)
             local = np.abs(local, out=local) - self._half_extents
             np.maximum(local, 0.0, out=local)
             squared = np.einsum("mbi,mbi->mb", local, local)
             out[near] = (squared < self.margin**2).any(axis=1)
         return out.reshape(points.shape[:-1])
+
+    def _blocked_axis_aligned(self, points: np.ndarray, anchors: np.ndarray) -> np.ndarray:
+        """`blocked` for axis-aligned boxes, one coordinate array at a time (no (m, 3) rows):
+        points inside the boxes' common bounding box (grown by the margin), then per box
+        |max(|p - a - c| - h, 0)|^2 < margin^2, summed over the axes in x, y, z order."""
+        relative = [points[..., i] - anchors[..., None, i] for i in range(3)]  # (..., c) each
+        inside = np.abs(relative[0] - self._middle[0]) < self._span[0]
+        for i in (1, 2):
+            inside &= np.abs(relative[i] - self._middle[i]) < self._span[i]
+        out = np.zeros(inside.shape, dtype=bool)
+        near = np.flatnonzero(inside)
+        if near.size:
+            local = [r.reshape(-1)[near] for r in relative]
+            hit = np.zeros(near.size, dtype=bool)
+            for centre, half in zip(self._centres, self._half_extents, strict=True):
+                squared = None
+                for i in range(3):
+                    excess = np.abs(local[i] - centre[i])
+                    excess -= half[i]
+                    np.maximum(excess, 0.0, out=excess)
+                    excess *= excess
+                    squared = excess if squared is None else squared + excess
+                hit |= squared < self.margin**2
+            out.reshape(-1)[near] = hit
+        return out
 
 
 def tool_bounds(tool_points: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

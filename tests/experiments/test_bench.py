@@ -55,6 +55,11 @@ def test_run_benchmarks_tiny(tmp_path):
     document = read_json(path)
     for section in ("machine", "adaptation", "simulation", "sac_step", "training", "scaling"):
         assert section in document
+    # The headline ratio is the CPU-time one of the SAC step section, measured interleaved.
+    sac = document["sac_step"]
+    assert document["ratios"]["regularised_over_plain_sac_step"] == pytest.approx(
+        sac["cpu_regularised"]["median_us"] / sac["cpu_plain"]["median_us"]
+    )
     adaptation = document["adaptation"]
     assert set(adaptation["per_window"]) == {"edf", "gp_conditioning", "policy", "total"}
     assert set(adaptation["naive_per_window"]) >= {"edf_pybullet", "gp_resolve"}

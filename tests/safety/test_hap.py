@@ -211,6 +211,28 @@ def test_moving_filter_blocks_exactly_where_the_tool_box_comes_within_margin():
     assert 0.05 < blocked.mean() < 0.95  # both outcomes occur
 
 
+def test_moving_filter_axis_aligned_path_equals_the_general_one_exactly():
+    """The per-coordinate test for axis-aligned boxes gives exactly the general (rotated-box)
+    path's mask — two boxes, points on a fine lattice around them so that many sit at or near
+    the margin, and several leading shapes of ``points``."""
+    shapes = (
+        Box("base", np.array([0.4, 0.1, 0.05]), np.eye(3), np.array([0.1, 0.02, 0.02]), True),
+        Box("post", np.array([0.45, 0.1, 0.12]), np.eye(3), np.array([0.01, 0.02, 0.05]), True),
+    )
+    moving = MovingObstacleFilter(shapes, np.array([0.0, 0.01, 0.06]), np.full(3, 0.02), 0.03)
+    general = MovingObstacleFilter(shapes, np.array([0.0, 0.01, 0.06]), np.full(3, 0.02), 0.03)
+    general._axis_aligned = False
+    rng = np.random.default_rng(3)
+    anchors = rng.uniform([0.3, -0.1, 0.0], [0.5, 0.2, 0.1], (64, 3))
+    lattice = np.stack(np.meshgrid(*[np.linspace(-0.3, 0.3, 25)] * 3, indexing="ij"), -1)
+    points = anchors[:, None, :] + lattice.reshape(1, -1, 3)[:, rng.permutation(25**3)[:500]]
+    fast = moving.blocked(points, anchors)
+    np.testing.assert_array_equal(fast, general.blocked(points, anchors))
+    assert 0.02 < fast.mean() < 0.98
+    np.testing.assert_array_equal(moving.blocked(points[0], anchors[0]), fast[0])
+    np.testing.assert_array_equal(moving.blocked(points[None], anchors[None]), fast[None])
+
+
 def test_moving_filter_matches_the_distance_field_of_its_template_for_rotated_boxes():
     """blocked == clearance of the grown template (DistanceField) below the margin, also for a
     rotated box (whose growth by the tool box is conservative)."""
