@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import torch
 from _reference_regularisers import ReferenceActorRegulariser
+from distgprl.agents.methods import get_method
 from test_sac import QuadraticPrior, small_skill
 
-from distgprl.agents.methods import get_method
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import build_action_layout
