@@ -16,6 +16,7 @@ import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
 from distgprl.safety.shapes import Box, Cylinder, Plane, Shape
+from distgprl.sim.quiet import stdout_to_devnull
 from distgprl.sim.transforms import matrix_to_quaternion
 
 PLANE_SLAB_HALF_SIZE = 1.5
@@ -47,9 +48,16 @@ class PhysicsConfig:
         return self.physics_dt * self.substeps
 
 
+def connect_direct() -> BulletClient:
+    """A new headless (DIRECT) PyBullet client, connected without PyBullet's ``argv[0]=``
+    line on stdout (`stdout_to_devnull`)."""
+    with stdout_to_devnull():
+        return BulletClient(connection_mode=pybullet.DIRECT)
+
+
 def make_client(config: PhysicsConfig) -> BulletClient:
     """A new headless PyBullet client configured with ``config`` (deterministic settings)."""
-    client = BulletClient(connection_mode=pybullet.DIRECT)
+    client = connect_direct()
     client.setPhysicsEngineParameter(
         fixedTimeStep=config.physics_dt,
         numSolverIterations=config.solver_iterations,
