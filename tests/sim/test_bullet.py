@@ -69,8 +69,9 @@ def test_a_connect_writes_nothing_to_stdout(capfd):
 
 
 def test_importing_the_simulation_and_connecting_prints_nothing_in_a_fresh_process():
-    """Neither pybullet's ``pybullet build time`` banner (at import) nor ``argv[0]=`` (at
-    connect) reaches a piped stdout, whichever simulation module is imported first."""
+    """Nothing pybullet prints at import or connect (``argv[0]=``; its ``pybullet build
+    time`` banner goes to stderr) reaches a piped stdout, whichever simulation module is
+    imported first."""
     import subprocess
     import sys
 
