@@ -321,7 +321,7 @@ def sweep(
     failed = [r for r in results if r.status == "failed"]
     busy = [r for r in results if r.status == "busy"]
     typer.echo(
-        f"sweep: {len(results) - len(failed) - len(busy)}/{_runs(len(results))} complete"
+        f"sweep: {len(results) - len(failed) - len(busy)}/{len(results)} runs complete"
         + (f", {len(busy)} left to the other process training them" if busy else "")
     )
     if failed:
@@ -379,9 +379,10 @@ def tables(
     from distgprl.report.tables import write_tables
 
     preset = _preset(preset, config)
-    if against is not None and against not in preset_names():
+    if against is not None and against not in preset_names() and not (root / against).is_dir():
         raise UserInputError(
-            f"--against {against}: not a preset; valid presets: {', '.join(preset_names())}"
+            f"--against {against}: not a preset (valid presets: {', '.join(preset_names())}) "
+            f"and no results under {root / against}"
         )
     for path in write_tables(root, preset, out_dir, against):
         typer.echo(f"wrote {path}")

@@ -72,7 +72,8 @@ def test_tables_against_an_unknown_preset_says_it_is_not_a_preset(tmp_path):
         "tables", "--against", "nope", "--root", str(tmp_path), "--out-dir", str(tmp_path)
     )
     assert result.exit_code == 2
-    assert "--against nope: not a preset; valid presets: ci, correlated, paper" in result.output
+    assert "--against nope: not a preset (valid presets: ci, correlated, paper)" in result.output
+    assert f"no results under {tmp_path / 'nope'}" in " ".join(result.output.split())
 
 
 def test_run_counts_are_singular_for_one():
