@@ -8,21 +8,65 @@ from __future__ import annotations
 import functools
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 
+from distgprl import __version__
+from distgprl.methods import METHODS
+from distgprl.config import register_preset, shipped_presets
+from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 
+
+def _plain_flags(params: list) -> list:
+    """``params`` with no type shown for flags: they take no value, so typer's ``<bool>`` in
+    the help only reads as if they did."""
+    for param in params:
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""
+    return params
+
+
+class _Command(TyperCommand):
+    """A typer command whose help shows no ``<bool>`` for flags (`_plain_flags`)."""
+
+    def get_params(self, ctx):
+        return _plain_flags(super().get_params(ctx))
+
+
+class _Group(TyperGroup):
+    """The typer group of `_Command`: the same for the top-level options."""
+
+    def get_params(self, ctx):
+        return _plain_flags(super().get_params(ctx))
+
+
 app = typer.Typer(
+    cls=_Group,
     add_completion=False,
     no_args_is_help=True,
     help="Dist-GPRL reproduction: fit, simulate, train, evaluate, report.",
 )
+_command = functools.partial(app.command, cls=_Command)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"distgprl {__version__}")
+        raise typer.Exit()
 
 
 @app.callback()
-def _root() -> None:
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
     """Dist-GPRL reproduction: fit, simulate, train, evaluate, report."""
 
 
@@ -40,18 +84,63 @@ def _user_errors(func):
     return wrapper
 
 
+# Names the options take, for their help.
+_TRAINABLE = " | ".join(name for name, spec in METHODS.items() if spec.trainable)
+_METHODS = " | ".join(METHODS)
+_TASKS = " | ".join(TASK_NAMES)
+_PRESETS = " | ".join(shipped_presets())
+
 # Options several commands share.
-RootOption = Annotated[Path, typer.Option(help="Results root folder.")]
-PresetOption = Annotated[str, typer.Option(help="Preset in experiments/: paper | ci.")]
-MethodsOption = Annotated[str | None, typer.Option(help="Comma-separated methods (default all).")]
-TasksOption = Annotated[str | None, typer.Option(help="Comma-separated tasks (default all).")]
+RootOption = Annotated[
+    Path, typer.Option(help="Results root folder (runs go to <root>/<preset>/...).")
+]
+PresetOption = Annotated[
+    str | None,
+    typer.Option(
+        metavar="NAME",
+        help=f"Shipped preset: {_PRESETS} (default paper).",
+        show_default=False,
+    ),
+]
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        metavar="PATH",
+        help="Your own preset YAML instead of --preset (the presets' schema); the preset's "
+        "name is the file stem, which must not be a shipped preset's.",
+    ),
+]
+MethodsOption = Annotated[
+    str | None, typer.Option(help=f"Comma-separated methods (default all): {_METHODS}.")
+]
+TasksOption = Annotated[
+    str | None, typer.Option(help=f"Comma-separated tasks (default all): {_TASKS}.")
+]
 SeedsOption = Annotated[str, typer.Option(help="Comma-separated seeds.")]
+TaskOption = Annotated[str, typer.Option(metavar="TASK", help=f"Task: {_TASKS}.")]
 
 
-@app.command()
+def _preset(preset: str | None, config: Path | None) -> str:
+    """The preset a command runs: ``--preset`` (default ``paper``), or the user's ``--config``
+    file registered under its stem (`register_preset`)."""
+    if config is None:
+        return preset or "paper"
+    if preset is not None:
+        raise UserInputError("give --preset or --config, not both")
+    return register_preset(config)
+
+
+def _runs(count: int) -> str:
+    return f"{count} run" if count == 1 else f"{count} runs"
+
+
+@_command()
 @_user_errors
 def fit(
-    task: Annotated[str | None, typer.Option(help="Fit the task's shipped demo (dcp|dbm).")] = None,
+    task: Annotated[
+        str | None, typer.Option(metavar="TASK", help=f"Fit the task's shipped demo: {_TASKS}.")
+    ] = None,
     demo: Annotated[Path | None, typer.Option(help="Fit a demonstration CSV instead.")] = None,
     n_via_points: Annotated[int, typer.Option(min=2, help="Number of via-points N.")] = 15,
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/skills"),
@@ -83,11 +172,13 @@ def fit(
     )
 
 
-@app.command()
+@_command()
 @_user_errors
 def hardware(
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
-    method: Annotated[str, typer.Option(help="Trained method whose policy adapts.")] = "dist-gprl",
+    method: Annotated[
+        str, typer.Option(metavar="METHOD", help=f"Trained method whose policy adapts: {_METHODS}.")
+    ] = "dist-gprl",
     seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
     backend: Annotated[
         str | None, typer.Option(help="twin | ur (default: ur if --robot-ip, else twin).")
@@ -98,17 +189,21 @@ def hardware(
     camera: Annotated[str | None, typer.Option(help="Camera index or URL (ur backend).")] = None,
     calibration: Annotated[Path | None, typer.Option(help="Calibration YAML/JSON.")] = None,
     dry_run: Annotated[bool, typer.Option(help="Perceive, adapt and check; never move.")] = False,
-    judge: Annotated[str, typer.Option(help="auto | operator.")] = "auto",
+    judge: Annotated[
+        str, typer.Option(metavar="auto|operator", help="Who judges success.")
+    ] = "auto",
     force: Annotated[
         bool, typer.Option(help="Execute plans that fail the pre-flight check.")
     ] = False,
-    preset: Annotated[str, typer.Option(help="Preset of the trained run.")] = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
     root: RootOption = Path("results"),
 ) -> None:
     """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
     from distgprl.hardware.trials import run_trials
 
+    preset = _preset(preset, config)
     report = run_trials(
         trials=trials,
         method=method,
@@ -127,7 +222,7 @@ def hardware(
     typer.echo(f"{report.path}: {report.summary}")
 
 
-@app.command()
+@_command()
 @_user_errors
 def bench(
     quick: Annotated[bool, typer.Option(help="Fewer repeats and smaller sweeps (~1 min).")] = False,
@@ -152,10 +247,11 @@ def _seeds(text: str) -> list[int]:
         raise UserInputError(f"--seeds must be comma-separated integers, got {text!r}") from None
 
 
-@app.command()
+@_command()
 @_user_errors
 def sweep(
-    preset: PresetOption = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
     seeds: SeedsOption = "0,1,2",
@@ -163,7 +259,9 @@ def sweep(
         int | None,
         typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
     ] = None,
-    executor: Annotated[str, typer.Option(help="local | ray.")] = "local",
+    executor: Annotated[
+        Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
+    ] = "local",
     address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
     root: RootOption = Path("results"),
     heartbeat: Annotated[
@@ -184,10 +282,11 @@ def sweep(
         stop_on_interrupt_signals,
     )
 
+    preset = _preset(preset, config)
     jobs = plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root)
     if workers is None:
         workers = default_workers()
-    typer.echo(f"sweep: {len(jobs)} runs ({preset} preset), {workers} parallel job(s)")
+    typer.echo(f"sweep: {_runs(len(jobs))} ({preset} preset), {workers} parallel job(s)")
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
@@ -231,10 +330,11 @@ def sweep(
         raise typer.Exit(code=3)
 
 
-@app.command()
+@_command()
 @_user_errors
 def status(
-    preset: PresetOption = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
     seeds: SeedsOption = "0,1,2",
@@ -251,6 +351,7 @@ def status(
     from distgprl.experiments.status import count_states, sweep_status, training_left
     from distgprl.experiments.sweep import default_workers, plan_jobs
 
+    preset = _preset(preset, config)
     statuses = sweep_status(plan_jobs(preset, _split(methods), _split(tasks), _seeds(seeds), root))
     for entry in statuses:
         typer.echo(entry.describe())
@@ -258,51 +359,72 @@ def status(
     typer.echo(training_left(statuses).describe(workers or default_workers()))
 
 
-@app.command()
+@_command()
 @_user_errors
 def tables(
-    preset: Annotated[str, typer.Option(help="Preset whose results to tabulate.")] = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     root: RootOption = Path("results"),
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
     against: Annotated[
         str | None,
-        typer.Option(help="Also pair every run TC by TC with the same run of this preset."),
+        typer.Option(
+            metavar="NAME",
+            help=f"Also pair every run TC by TC with the same run of this preset: {_PRESETS}.",
+        ),
     ] = None,
 ) -> None:
     """Table I (and Table II if hardware trials exist) as CSV, Markdown and LaTeX."""
+    from distgprl.config import preset_names
     from distgprl.report.tables import write_tables
 
+    preset = _preset(preset, config)
+    if against is not None and against not in preset_names() and not (root / against).is_dir():
+        raise UserInputError(
+            f"--against {against}: not a preset (valid presets: {', '.join(preset_names())}) "
+            f"and no results under {root / against}"
+        )
     for path in write_tables(root, preset, out_dir, against):
         typer.echo(f"wrote {path}")
 
 
-@app.command()
+@_command()
 @_user_errors
 def curves(
-    preset: Annotated[str, typer.Option(help="Preset whose results to plot.")] = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     root: RootOption = Path("results"),
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
 ) -> None:
     """Learning-curve figures (HAP effect, covariance effect, all methods), PNG and PDF."""
     from distgprl.report.curves import write_curves
 
+    preset = _preset(preset, config)
     for path in write_curves(root, preset, out_dir):
         typer.echo(f"wrote {path}")
 
 
 def main() -> None:
-    """Console entry for `python -m distgprl.cli`."""
+    """Console entry for `python -m distgprl` and `python -m distgprl.cli`."""
     app(prog_name="distgprl")
 
 
-@app.command()
+@_command()
 @_user_errors
 def train(
-    method: Annotated[str, typer.Option(help="Method name (see the methods table).")],
-    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    method: Annotated[str, typer.Option(metavar="METHOD", help=f"Method: {_TRAINABLE}.")],
+    task: TaskOption,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
-    preset: PresetOption = "paper",
-    steps: Annotated[int | None, typer.Option(min=3, help="Override total RL steps.")] = None,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    steps: Annotated[
+        int | None,
+        typer.Option(
+            help="Override the preset's total RL steps: a positive multiple of the episode "
+            "length (3 RL steps, one per window).",
+            show_default=False,
+        ),
+    ] = None,
     resume: Annotated[
         bool, typer.Option(help="Continue a killed run from its checkpoint.")
     ] = False,
@@ -312,17 +434,24 @@ def train(
     """Train one method on one task and seed (resumable); then evaluate it."""
     from distgprl.experiments.runner import train_run
 
+    preset = _preset(preset, config)
+    if steps is not None and steps <= 0:
+        raise UserInputError(f"--steps {steps}: must be a positive multiple of the episode length")
     folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
 
 
-@app.command()
+@_command()
 @_user_errors
 def evaluate(
-    method: Annotated[str, typer.Option(help="Method name, or `demo` for the reference.")],
-    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    method: Annotated[
+        str,
+        typer.Option(metavar="METHOD", help=f"Method (demo: the unadapted reference): {_METHODS}."),
+    ],
+    task: TaskOption,
     seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
-    preset: PresetOption = "paper",
+    preset: PresetOption = None,
+    config: ConfigOption = None,
     episodes: Annotated[
         int | None,
         typer.Option(
@@ -336,6 +465,7 @@ def evaluate(
     policy: Annotated[
         str,
         typer.Option(
+            metavar="final|best",
             help="`final` (the trained policy, what Table I evaluates) or `best` (Algorithm "
             "1's best policy: the best learning-curve point, by curve success, then collision, "
             "then return), which writes evaluation_best*.csv / summary_best*.json.",
@@ -345,14 +475,15 @@ def evaluate(
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.runner import describe, evaluate_run
 
+    preset = _preset(preset, config)
     summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
     typer.echo(describe(summary))
 
 
-@app.command()
+@_command()
 @_user_errors
 def render(
-    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    task: TaskOption,
     out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
     tc: Annotated[int | None, typer.Option(help="Evaluation TC index (default: nominal).")] = None,
 ) -> None:
@@ -365,10 +496,10 @@ def render(
     typer.echo(f"wrote {out}: " + ", ".join(f"{k}={v}" for k, v in summary.items() if k != "path"))
 
 
-@app.command()
+@_command()
 @_user_errors
 def hap(
-    task: Annotated[str, typer.Option(help="Task: dcp | dbm.")],
+    task: TaskOption,
     out: Annotated[
         Path | None, typer.Option(help="Figure path (default results/hap/<task>.png).")
     ] = None,

@@ -1,16 +1,22 @@
 """Configuration: frozen dataclasses with the paper's defaults, overridden by YAML presets.
 
-A preset (``experiments/<name>.yaml``) has one mapping per section (``env``, ``sac``,
-``run``) and optional per-task overrides under ``tasks: {dcp: {env: {...}}}``. Unknown
-keys (sections, fields, task names under ``tasks``) are an error, so a typo in a preset
-never silently falls back to a default; so is a value that does not convert to its field's
-type, or a ``clearance_timing`` other than ``"predicted"`` / ``"current"``. Every such error
-is one `UserInputError` line naming the file, the key, the value and what was expected.
+A preset is shipped with the package (``distgprl/presets/<name>.yaml``, read with
+`importlib.resources`, so an installed wheel has them) or is a user's own YAML file made
+known with `register_preset` (the CLI's ``--config PATH``; its name is the file stem). It has
+one mapping per section (``env``, ``sac``, ``run``) and optional per-task overrides under
+``tasks: {dcp: {env: {...}}}``. Unknown keys (sections, fields, task names under ``tasks``)
+are an error, so a typo in a preset never silently falls back to a default; so is a value
+that does not convert to its field's type, or a ``clearance_timing`` other than
+``"predicted"`` / ``"current"``. Every such error is one `UserInputError` line naming the
+file, the key, the value and what was expected.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, field, fields, replace
+from importlib import resources
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +25,12 @@ import yaml
 from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 
-PRESET_DIR = Path(__file__).resolve().parents[1] / "experiments"
+PRESET_DIR: Traversable | Path = resources.files("distgprl") / "presets"
+"""The shipped presets (package data)."""
+
+USER_PRESETS_ENV = "DISTGPRL_USER_PRESETS"
+"""Environment variable listing the user's preset files (`os.pathsep`-separated absolute
+paths) that `register_preset` made known; processes a sweep spawns inherit it."""
 
 
 @dataclass(frozen=True)
@@ -248,17 +259,106 @@ def _apply(section_cls, current, overrides: Any, where: str):
     return replace(current, **values)
 
 
+def shipped_presets() -> tuple[str, ...]:
+    """Names of the presets shipped with the package, sorted."""
+    return tuple(
+        sorted(
+            p.name.removesuffix(".yaml") for p in PRESET_DIR.iterdir() if p.name.endswith(".yaml")
+        )
+    )
+
+
+def _user_presets() -> dict[str, Path]:
+    """The registered user presets: name (file stem) -> file."""
+    paths = [Path(p) for p in os.environ.get(USER_PRESETS_ENV, "").split(os.pathsep) if p]
+    return {path.stem: path for path in paths}
+
+
+def register_preset(path: str | Path) -> str:
+    """Make a user's YAML file (same schema as the shipped presets) a preset named after its
+    stem, for this process and the processes it starts; return that name.
+
+    The file is loaded once here, so a mistake in it is reported before any run starts. Its
+    location does not enter any config hash: the same file elsewhere gives the same runs.
+
+    Raises:
+        UserInputError: the file does not exist, does not load, its stem is a shipped preset's
+            name, or another file of the same stem is registered already.
+    """
+    path = Path(path).expanduser().resolve()
+    if not path.is_file():
+        raise UserInputError(f"--config {path}: no such file")
+    if path.suffix not in (".yaml", ".yml"):
+        raise UserInputError(f"--config {path}: expected a .yaml file")
+    name = path.stem
+    if name in shipped_presets():
+        raise UserInputError(
+            f"--config {path}: its name {name!r} is a shipped preset's (shipped: "
+            f"{', '.join(shipped_presets())}); rename the file so its runs are not mistaken "
+            "for the shipped preset's"
+        )
+    registered = _user_presets()
+    if name in registered and registered[name] != path:
+        raise UserInputError(
+            f"--config {path}: a preset named {name!r} is registered already from "
+            f"{registered[name]}; rename one of the files"
+        )
+    if name in registered:
+        return name
+    previous = os.environ.get(USER_PRESETS_ENV)
+    os.environ[USER_PRESETS_ENV] = os.pathsep.join(
+        [*(str(p) for p in registered.values()), str(path)]
+    )
+    try:
+        for task in (None, *TASK_NAMES):
+            load_config(name, task=task)
+    except UserInputError:  # a file that does not load is not left registered
+        if previous is None:
+            del os.environ[USER_PRESETS_ENV]
+        else:
+            os.environ[USER_PRESETS_ENV] = previous
+        raise
+    return name
+
+
+def preset_names() -> tuple[str, ...]:
+    """Every preset `load_config` resolves: the shipped ones, then the registered ones."""
+    return shipped_presets() + tuple(sorted(set(_user_presets()) - set(shipped_presets())))
+
+
+def _preset_text(preset: str) -> tuple[str, str]:
+    """(YAML text, where it came from) of a preset, or a `UserInputError` listing the valid
+    names."""
+    shipped = PRESET_DIR / f"{preset}.yaml"
+    if shipped.is_file():
+        return shipped.read_text(), str(shipped)
+    user = _user_presets().get(preset)
+    if user is not None:
+        try:
+            return user.read_text(), str(user)
+        except OSError as exc:
+            raise UserInputError(f"preset {preset!r} ({user}): {exc.strerror}") from None
+    raise UserInputError(
+        f"unknown preset {preset!r}; valid presets: {', '.join(preset_names())} "
+        "(or --config PATH for a YAML file of your own)"
+    )
+
+
 def load_config(
     preset: str = "paper",
     task: str | None = None,
     overrides: dict[str, dict[str, Any]] | None = None,
 ) -> Config:
-    """Resolve a preset (and the task's overrides in it) into a `Config`."""
-    path = PRESET_DIR / f"{preset}.yaml"
-    if not path.exists():
-        valid = sorted(p.stem for p in PRESET_DIR.glob("*.yaml"))
-        raise UserInputError(f"unknown preset {preset!r}; valid presets: {', '.join(valid)}")
-    data = yaml.safe_load(path.read_text()) or {}
+    """Resolve a preset (and the task's overrides in it) into a `Config`.
+
+    ``preset`` is a shipped preset's name or a registered user preset's (`register_preset`).
+    """
+    text, path = _preset_text(preset)
+    try:
+        data = yaml.safe_load(text) or {}
+    except yaml.YAMLError as exc:
+        detail = str(exc).replace("\n", " ")
+        raise UserInputError(f"{path}: not valid YAML ({detail})") from None
     if not isinstance(data, dict):
         raise UserInputError(f"{path}: a preset must be a mapping of sections, got {data!r}")
     tasks = data.get("tasks") or {}

@@ -4,6 +4,8 @@ fallback to a default or a raw Python traceback."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from distgprl import config as config_module
@@ -13,7 +15,7 @@ from distgprl.errors import UserInputError
 
 @pytest.fixture
 def preset_dir(tmp_path, monkeypatch):
-    """A preset folder of its own; `write(text)` writes ``experiments/t.yaml``."""
+    """A preset folder of its own; `write(text)` writes ``t.yaml`` there."""
     monkeypatch.setattr(config_module, "PRESET_DIR", tmp_path)
 
     def write(text: str) -> str:
@@ -123,3 +125,89 @@ def test_correlation_length_scale_is_hashed_only_when_set(preset_dir):
 def test_a_negative_correlation_length_scale_is_refused_at_load_time(preset_dir):
     with pytest.raises(UserInputError, match="correlation_length_scale = -0.1 must be > 0"):
         load_config(preset_dir("env:\n  correlation_length_scale: -0.1\n"))
+
+
+# -- shipped presets and the user's own (--config PATH) ----------------------------------------
+@pytest.fixture
+def no_user_presets(monkeypatch):
+    """No user preset registered, and whatever a test registers undone afterwards."""
+    monkeypatch.setenv(config_module.USER_PRESETS_ENV, "")
+
+
+def test_shipped_presets_are_package_data_not_files_of_the_checkout():
+    """The presets live inside the package (what a wheel ships), read via importlib.resources."""
+    from importlib import resources
+
+    assert config_module.shipped_presets() == ("ci", "correlated", "paper")
+    shipped = resources.files("distgprl") / "presets" / "ci.yaml"
+    assert shipped.is_file()
+    assert load_config("ci").run.total_steps == 240
+
+
+def test_a_user_preset_is_named_after_its_stem_and_loads_like_a_shipped_one(
+    tmp_path, no_user_presets
+):
+    """A copy of `ci` registered as ``mine`` resolves to `ci`'s values under the name
+    ``mine``, per task too."""
+    from importlib import resources
+
+    text = (resources.files("distgprl") / "presets" / "ci.yaml").read_text()
+    (tmp_path / "mine.yaml").write_text(text)
+    assert config_module.register_preset(tmp_path / "mine.yaml") == "mine"
+    assert "mine" in config_module.preset_names()
+    for task in (None, "dcp", "dbm"):
+        assert load_config("mine", task=task) == replace(
+            load_config("ci", task=task), preset="mine"
+        )
+
+
+def test_a_user_presets_run_hash_does_not_depend_on_where_the_file_is(
+    tmp_path, monkeypatch, no_user_presets
+):
+    """The same file in two folders gives the same run (config hash), so moving a preset
+    file never makes its runs stale."""
+    from distgprl.experiments.runner import resolve_run
+
+    hashes = []
+    for folder in ("a", "b/c"):
+        monkeypatch.setenv(config_module.USER_PRESETS_ENV, "")
+        path = tmp_path / folder / "mine.yaml"
+        path.parent.mkdir(parents=True)
+        path.write_text("run:\n  total_steps: 300\n")
+        config_module.register_preset(path)
+        hashes.append(resolve_run("dcp", "dist-gprl", 0, "mine").hash)
+    assert hashes[0] == hashes[1]
+    assert hashes[0] != resolve_run("dcp", "dist-gprl", 0, "paper").hash
+
+
+def test_a_user_preset_may_not_take_a_shipped_presets_name(tmp_path, no_user_presets):
+    (tmp_path / "paper.yaml").write_text("run:\n  total_steps: 300\n")
+    with pytest.raises(UserInputError, match="'paper' is a shipped preset's"):
+        config_module.register_preset(tmp_path / "paper.yaml")
+    assert load_config("paper").run.total_steps == 30_000
+
+
+def test_two_files_of_one_stem_are_refused(tmp_path, no_user_presets):
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "mine.yaml").write_text("")
+    config_module.register_preset(tmp_path / "a" / "mine.yaml")
+    config_module.register_preset(tmp_path / "a" / "mine.yaml")  # the same file again is fine
+    with pytest.raises(UserInputError, match="registered already from"):
+        config_module.register_preset(tmp_path / "b" / "mine.yaml")
+
+
+def test_a_user_preset_that_does_not_load_is_reported_and_not_registered(tmp_path, no_user_presets):
+    """The mistake is one line naming the file; the bad file is not left registered."""
+    for text, message in [
+        ("run:\n  total_stepz: 3\n", "unknown key"),
+        ("a: [\n", "not valid YAML"),
+    ]:
+        path = tmp_path / "bad.yaml"
+        path.write_text(text)
+        with pytest.raises(UserInputError, match=message) as caught:
+            config_module.register_preset(path)
+        assert "\n" not in str(caught.value) and "bad.yaml" in str(caught.value)
+        assert "bad" not in config_module.preset_names()
+    with pytest.raises(UserInputError, match="no such file"):
+        config_module.register_preset(tmp_path / "missing.yaml")

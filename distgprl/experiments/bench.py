@@ -305,9 +305,10 @@ class BulletDistance:
 
     def __init__(self, shapes) -> None:
         import pybullet
-        from pybullet_utils.bullet_client import BulletClient
 
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        from distgprl.sim.bullet import connect_direct
+
+        self.client = connect_direct()
         shape = self.client.createCollisionShape(pybullet.GEOM_SPHERE, radius=self.PROBE_RADIUS)
         self.probe = self.client.createMultiBody(0, shape)
         self.bodies = _shape_bodies(self.client, shapes)

@@ -37,6 +37,7 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -711,6 +712,75 @@ def _train_locked(
 
 
 # -- evaluate -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TrainedPolicy:
+    """A trained run's policy, loaded by `load_trained_policy`.
+
+    Attributes:
+        run: the run as it was trained (with its ``--steps``, if it was trained with them).
+        model: the `RegularisedSAC` holding the policy (for ``policy="best"``, with the
+            actor of the selected learning-curve point).
+        selected: for ``policy="best"``: ``policy``, ``policy_step`` and the selected
+            point's curve figures (what the summary records); else empty.
+    """
+
+    run: RunSpec
+    model: Any
+    selected: dict[str, Any]
+
+
+def load_trained_policy(run: RunSpec, folder: Path, env, policy: str = "final") -> TrainedPolicy:
+    """Load the final (``policy="final"``, ``model.zip``) or best learning-curve
+    (``policy="best"``) policy of the trained run in ``folder``.
+
+    The run is taken with the configuration it was trained with (its ``total_steps``
+    included), which must still be what the code resolves; a model of an older
+    configuration, or one whose spaces do not match ``env``'s, is a `UserInputError`.
+    """
+    task, method, seed, preset = run.task, run.method.name, run.seed, run.config.preset
+    model_path = folder / "model.zip"
+    if not model_path.exists():
+        raise UserInputError(
+            f"{model_path}: no trained model; run `distgprl train --method {method} "
+            f"--task {task} --seed {seed} --preset {preset}` first"
+        )
+    trained = read_json(folder / "config.json") if (folder / "config.json").exists() else {}
+    steps = trained.get("run", {}).get("config", {}).get("run", {}).get("total_steps")
+    if steps is not None and steps != run.config.run.total_steps:  # trained with --steps
+        run = resolve_run(task, method, seed, preset, steps)
+    recorded = trained.get("config_hash")
+    if recorded != run.hash:
+        raise UserInputError(
+            f"{model_path}: trained with configuration {recorded}, the code now resolves "
+            f"{run.hash} for this run; re-train it (evaluating would mislabel the model)"
+        )
+    from distgprl.agents.sac import RegularisedSAC
+
+    try:
+        model = RegularisedSAC.load_saved(model_path)
+    except Exception as exc:
+        raise UserInputError(
+            f"{model_path}: cannot load model ({type(exc).__name__}: {exc})"
+        ) from None
+    if model.observation_space != env.observation_space or (model.action_space != env.action_space):
+        raise UserInputError(
+            f"{model_path}: model spaces do not match the {task}/{method} environment"
+        )
+    selected: dict[str, Any] = {}
+    if policy == "best":
+        _, curve = read_csv(folder / "progress.csv")
+        best = best_curve_row(curve)
+        load_curve_policy(folder, model, int(best["step"]))
+        selected = {
+            "policy": "best",
+            "policy_step": int(best["step"]),
+            "curve_success_rate": float(best["success_rate"]),
+            "curve_collision_rate": float(best["collision_rate"]),
+            "curve_mean_return": float(best["mean_return"]),
+        }
+    return TrainedPolicy(run, model, selected)
+
+
 def evaluate_run(
     task: str,
     method: str,
@@ -746,48 +816,9 @@ def evaluate_run(
     actor = None
     selected: dict[str, Any] = {}
     if run.method.trainable:
-        model_path = folder / "model.zip"
-        if not model_path.exists():
-            raise UserInputError(
-                f"{model_path}: no trained model; run `distgprl train --method {method} "
-                f"--task {task} --seed {seed} --preset {preset}` first"
-            )
-        trained = read_json(folder / "config.json") if (folder / "config.json").exists() else {}
-        steps = trained.get("run", {}).get("config", {}).get("run", {}).get("total_steps")
-        if steps is not None and steps != run.config.run.total_steps:  # trained with --steps
-            run = resolve_run(task, method, seed, preset, steps)
-        recorded = trained.get("config_hash")
-        if recorded != run.hash:
-            raise UserInputError(
-                f"{model_path}: trained with configuration {recorded}, the code now resolves "
-                f"{run.hash} for this run; re-train it (evaluating would mislabel the model)"
-            )
-        from distgprl.agents.sac import RegularisedSAC
-
-        try:
-            model = RegularisedSAC.load_saved(model_path)
-        except Exception as exc:
-            raise UserInputError(
-                f"{model_path}: cannot load model ({type(exc).__name__}: {exc})"
-            ) from None
-        if model.observation_space != env.observation_space or (
-            model.action_space != env.action_space
-        ):
-            raise UserInputError(
-                f"{model_path}: model spaces do not match the {task}/{method} environment"
-            )
-        if policy == "best":
-            _, curve = read_csv(folder / "progress.csv")
-            best = best_curve_row(curve)
-            load_curve_policy(folder, model, int(best["step"]))
-            selected = {
-                "policy": "best",
-                "policy_step": int(best["step"]),
-                "curve_success_rate": float(best["success_rate"]),
-                "curve_collision_rate": float(best["collision_rate"]),
-                "curve_mean_return": float(best["mean_return"]),
-            }
-        actor = deterministic_policy(model)
+        trained = load_trained_policy(run, folder, env, policy)
+        run, selected = trained.run, trained.selected
+        actor = deterministic_policy(trained.model)
     elif not supplementary or not (folder / "config.json").exists():
         # the reference's config is written with its preset evaluation; a supplementary
         # evaluation leaves an existing one untouched (its own files carry their meta)

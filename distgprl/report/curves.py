@@ -2,8 +2,13 @@
 
 Each panel shows the mean over seeds and a ± std band of success rate, collision rate and
 episode return against training steps. The band is the sample standard deviation over seeds
-(ddof = 1, as in Table I); a single seed has no band. Seeds are aligned on their common
-steps.
+(ddof = 1, as in Table I), clipped to [0, 1] for the rates (a rate outside it means
+nothing); a single seed has no band. Seeds are aligned on their common steps.
+
+For print: every panel has its y-axis label, one legend for the whole figure sits below the
+panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
+method keeps its colour in every figure, and each figure is written as a vector PDF and a
+150 dpi PNG.
 """
 
 from __future__ import annotations
@@ -23,6 +28,18 @@ PANELS = (
     ("collision_rate", "collision rate"),
     ("mean_return", "episode return"),
 )
+#: y-axis label per panel (learning-curve evaluations: the fixed curve TCs, deterministic).
+Y_LABELS = {
+    "success_rate": "success rate (curve TCs)",
+    "collision_rate": "collision rate (curve TCs)",
+    "mean_return": "mean episode return",
+}
+#: Panels whose values are rates: their bands are clipped to [0, 1].
+RATES = frozenset({"success_rate", "collision_rate"})
+#: The proposed method, drawn bold and on top of the others.
+HIGHLIGHT = "dist-gprl"
+#: PNG resolution (dots per inch); the PDF is vector.
+PNG_DPI = 150
 #: Figure titles (the paper's captions, shortened).
 TITLES = {
     "hap_effect": "Effect of the HAP subspace prior",
@@ -76,7 +93,35 @@ def mean_and_band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     return mean, values.std(axis=0, ddof=1)
 
 
+def method_color(method: str) -> str:
+    """The method's colour, the same in every figure: black for `HIGHLIGHT`, else by its
+    place in `TABLE_ORDER`."""
+    if method == HIGHLIGHT:
+        return "black"
+    return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
+
+
+def band_limits(key: str, mean: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of the mean ± std band; clipped to [0, 1] for a rate (`RATES`)."""
+    low, high = mean - std, mean + std
+    if key in RATES:
+        low, high = np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)
+    return low, high
+
+
+def _seed_note(seeds: dict[str, int]) -> str:
+    """``3 seeds``, or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
+    counts = set(seeds.values())
+    if len(counts) == 1:
+        (count,) = counts
+        return f"{count} seed{'s' if count != 1 else ''}"
+    return ", ".join(f"{task.upper()} {n}" for task, n in seeds.items()) + " seeds"
+
+
 def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], title: str):
+    """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
+    entry, one legend below the panels. Returns (figure, number of (task, method) curves
+    drawn)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -84,29 +129,56 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
 
     fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     drawn = 0
+    handles: dict[str, object] = {}
+    seeds_of: dict[str, dict[str, int]] = {}
     for row, task in enumerate(tasks):
-        for index, method in enumerate(methods):
+        for method in methods:
             data = load_curves(root, preset, task, method)
             if data is None:
                 continue
             steps, values = data
             drawn += 1
-            for col, (key, label) in enumerate(PANELS):
+            bold = method == HIGHLIGHT
+            color = method_color(method)
+            for col, (key, _) in enumerate(PANELS):
                 ax = axes[row, col]
                 mean, std = mean_and_band(values[key])
-                color = f"C{index}"
-                seeds = values[key].shape[0]
-                plural = "s" if seeds != 1 else ""
-                label_text = f"{METHODS[method].label} ({seeds} seed{plural})"
-                ax.plot(steps, mean, color=color, label=label_text)
+                seeds_of.setdefault(method, {})[task] = values[key].shape[0]
+                (line,) = ax.plot(
+                    steps, mean, color=color, lw=2.4 if bold else 1.3, zorder=4 if bold else 2
+                )
+                handles.setdefault(method, line)
                 if std is not None:
-                    ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2, lw=0)
-                ax.set_title(f"{task.upper()}: {label}")
-                ax.set_xlabel("training steps")
-        if axes[row, 0].get_legend_handles_labels()[0]:
-            axes[row, 0].legend(fontsize=7)
+                    low, high = band_limits(key, mean, std)
+                    ax.fill_between(
+                        steps, low, high, color=color, alpha=0.18 if bold else 0.12, lw=0,
+                        zorder=3 if bold else 1,
+                    )  # fmt: skip
+        for col, (key, label) in enumerate(PANELS):
+            ax = axes[row, col]
+            ax.set_title(f"{task.upper()}: {label}")
+            ax.set_xlabel("training steps")
+            ax.set_ylabel(Y_LABELS[key])
+            if key in RATES:
+                ax.set_ylim(-0.03, 1.03)
+            ax.grid(alpha=0.3, lw=0.5)
     fig.suptitle(title)
-    fig.tight_layout()
+    legend_rows = 0
+    if handles:
+        order = [m for m in methods if m in handles]
+        labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
+        columns = min(len(order), 4)
+        legend_rows = -(-len(order) // columns)
+        legend = fig.legend(
+            [handles[m] for m in order], labels, loc="lower center", ncol=columns,
+            fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
+        )  # fmt: skip
+        for text, method in zip(legend.get_texts(), order, strict=True):
+            if method == HIGHLIGHT:
+                text.set_fontweight("bold")
+    height = fig.get_figheight()
+    bottom = (0.08 + 0.18 * legend_rows) / height if legend_rows else 0.0
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / height))
     return fig, drawn
 
 
@@ -142,7 +214,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
                     if suffix == "png"
                     else {"CreationDate": None, "Producer": None}
                 )
-                fig.savefig(buffer, format=suffix, dpi=90, metadata=metadata)
+                fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
                 written.append(
                     atomic_write_bytes(
                         Path(out_dir) / f"{name}_{preset}.{suffix}", buffer.getvalue()

@@ -9,6 +9,11 @@ distance field computed from those shapes agrees with PyBullet's own geometry.
 
 from __future__ import annotations
 
+import ctypes
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,9 +52,62 @@ class PhysicsConfig:
         return self.physics_dt * self.substeps
 
 
+# -- PyBullet's C-level stdout -------------------------------------------------------------------
+# PyBullet prints ``argv[0]=`` each time a client connects, with C ``printf``: below Python's
+# `sys.stdout` (so `contextlib.redirect_stdout` does not catch it) and, when stdout is a pipe,
+# flushed by C's buffer at some later point, into output meant for reading or parsing (66
+# lines per `ci` sweep). (Its ``pybullet build time`` banner at import goes to stderr.)
+
+
+def _flush_c_stdout() -> None:
+    """Flush C stdio's buffers (``fflush(NULL)``), so buffered text goes where fd 1 points
+    now; a no-op where the C library cannot be loaded."""
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
+@contextmanager
+def stdout_to_devnull() -> Iterator[None]:
+    """Point file descriptor 1 at the null device for the block, then restore it.
+
+    Python's and C's buffers are flushed on entry (what was printed before still reaches
+    stdout) and C's again before restoring (what the block printed goes to the null device,
+    not later to stdout). Process-wide while it lasts: keep the block short (a connect).
+    Where fd 1 cannot be duplicated (no stdout at all), the block runs as is.
+    """
+    try:
+        sys.stdout.flush()
+    except (AttributeError, OSError, ValueError):
+        pass
+    _flush_c_stdout()
+    try:
+        saved = os.dup(1)
+    except OSError:
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        _flush_c_stdout()
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def connect_direct() -> BulletClient:
+    """A new headless (DIRECT) PyBullet client, connected without PyBullet's ``argv[0]=``
+    line on stdout (`stdout_to_devnull`)."""
+    with stdout_to_devnull():
+        return BulletClient(connection_mode=pybullet.DIRECT)
+
+
 def make_client(config: PhysicsConfig) -> BulletClient:
     """A new headless PyBullet client configured with ``config`` (deterministic settings)."""
-    client = BulletClient(connection_mode=pybullet.DIRECT)
+    client = connect_direct()
     client.setPhysicsEngineParameter(
         fixedTimeStep=config.physics_dt,
         numSolverIterations=config.solver_iterations,

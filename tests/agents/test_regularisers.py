@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 from _reference_regularisers import ReferenceActorRegulariser
-from distgprl.agents.methods import get_method
+from distgprl.methods import get_method
 from test_sac import QuadraticPrior, small_skill
 
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights

@@ -169,3 +169,63 @@ def test_a_figure_without_any_finished_run_is_removed_not_left_stale(tmp_path):
     written = write_curves(tmp_path, "p", out)
     assert not (out / "hap_effect_p.png").exists() and not (out / "hap_effect_p.pdf").exists()
     assert out / "all_methods_p.png" in written
+
+
+def test_rate_bands_are_clipped_to_the_unit_interval_and_returns_are_not(tmp_path):
+    """Seeds at 0.9 and 1.0 have mean + std above 1: the success band stops at 1 (and the
+    collision band at 0), the return band is not clipped."""
+    _run(tmp_path, "dist-gprl", 0, [0, 100], [0.9, 1.0])
+    _run(tmp_path, "dist-gprl", 1, [0, 100], [0.7, 0.8])
+    fig, _ = plot_figure(tmp_path, "p", ["dcp"], ("dist-gprl",), "t")
+    success, collision, returns = fig.axes
+    high = [ax.collections[0].get_paths()[0].vertices[:, 1] for ax in fig.axes]
+    assert high[0].max() == pytest.approx(1.0) and high[0].min() >= 0.0
+    assert high[1].min() == pytest.approx(0.0) and high[1].max() <= 1.0
+    std = np.std([[9.0, 10.0], [7.0, 8.0]], axis=0, ddof=1)
+    assert high[2].max() == pytest.approx(9.0 + std[1])  # 10 x success, unclipped
+    assert all(ax.get_ylim() == pytest.approx((-0.03, 1.03)) for ax in (success, collision))
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_one_legend_outside_the_panels_labels_on_every_axis_and_ours_on_top(tmp_path):
+    """Every panel has a y-axis label; the figure has one legend (none per panel) that
+    overlaps no panel; Dist-GPRL's lines are the widest and drawn above the others."""
+    for method in ("dist-gprl", "gprl-d", "dist-gprl-nocov"):
+        for task in ("dcp", "dbm"):
+            _run(tmp_path, method, 0, [0, 100], [0.2, 0.6], task=task)
+    fig, drawn = plot_figure(
+        tmp_path, "p", ["dcp", "dbm"], ("gprl-d", "dist-gprl", "dist-gprl-nocov"), "t"
+    )
+    assert drawn == 6
+    assert all(ax.get_ylabel() for ax in fig.axes)
+    assert not [ax for ax in fig.axes if ax.get_legend() is not None]
+    assert len(fig.legends) == 1
+    fig.canvas.draw()
+    legend = fig.legends[0].get_window_extent()
+    for ax in fig.axes:
+        assert not legend.overlaps(ax.get_tightbbox())
+    labels = [text.get_text() for text in fig.legends[0].get_texts()]
+    assert labels == ["GPRL-D (1 seed)", "Dist-GPRL (ours) (1 seed)", "Dist-GPRL-NoCov (1 seed)"]
+    for ax in fig.axes:
+        ours, *others = sorted(ax.lines, key=lambda line: line.get_zorder(), reverse=True)
+        assert ours.get_linewidth() > max(line.get_linewidth() for line in others)
+        assert ours.get_color() == "black"
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_figures_are_a_vector_pdf_and_a_150_dpi_png(tmp_path):
+    from PIL import Image
+
+    from distgprl.report.curves import write_curves
+
+    _run(tmp_path, "dist-gprl", 0, [0, 100], [0.2, 0.6])
+    written = write_curves(tmp_path, "p", tmp_path / "out")
+    png = tmp_path / "out" / "hap_effect_p.png"
+    assert png in written and (tmp_path / "out" / "hap_effect_p.pdf") in written
+    with Image.open(png) as image:
+        assert image.size == (12 * 150, round(3.2 * 150))
+    assert (tmp_path / "out" / "hap_effect_p.pdf").read_bytes().startswith(b"%PDF")

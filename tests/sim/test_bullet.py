@@ -53,3 +53,35 @@ def test_a_dynamic_compound_body_beyond_one_shape_array_is_refused():
             )
     finally:
         client.disconnect()
+
+
+def test_a_connect_writes_nothing_to_stdout(capfd):
+    """PyBullet's ``argv[0]=`` (C printf at connect) stays off file descriptor 1, and what
+    was printed before and after still reaches it, in order."""
+    from distgprl.sim.bullet import PhysicsConfig, make_client
+
+    print("before", flush=True)
+    client = make_client(PhysicsConfig())
+    client.disconnect()
+    print("after", flush=True)
+    out, _ = capfd.readouterr()
+    assert out == "before\nafter\n"
+
+
+def test_importing_the_simulation_and_connecting_prints_nothing_in_a_fresh_process():
+    """Nothing pybullet prints at import or connect (``argv[0]=``; its ``pybullet build
+    time`` banner goes to stderr) reaches a piped stdout, whichever simulation module is
+    imported first."""
+    import subprocess
+    import sys
+
+    for module in ("distgprl.sim.tasks.base", "distgprl.sim.robot", "distgprl.sim.bullet"):
+        code = (
+            f"import {module}; from distgprl.sim.bullet import PhysicsConfig, make_client; "
+            "make_client(PhysicsConfig()).disconnect(); print('done')"
+        )
+        result = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+        )
+        assert result.returncode == 0, result.stderr
+        assert result.stdout == "done\n", (module, result.stdout)
