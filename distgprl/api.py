@@ -30,8 +30,8 @@ from distgprl.errors import UserInputError
 if TYPE_CHECKING:
     import gymnasium
 
-    from distgprl.identity import RunSpec
     from distgprl.experiments.skills import FitOutput
+    from distgprl.identity import RunSpec
 
 __all__ = ["Policy", "evaluate", "fit_skill", "load_policy", "make_env", "train"]
 

@@ -14,10 +14,10 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 
 from distgprl import __version__
-from distgprl.methods import METHODS
 from distgprl.config import register_preset, shipped_presets
 from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
+from distgprl.methods import METHODS
 
 
 def _plain_flags(params: list) -> list:

@@ -9,8 +9,8 @@ from typer.testing import CliRunner
 
 from distgprl import __version__
 from distgprl import config as config_module
-from distgprl.methods import METHODS
 from distgprl.cli import _runs, app
+from distgprl.methods import METHODS
 
 WIDE = {"COLUMNS": "250", "TERMINAL_WIDTH": "250", "NO_COLOR": "1"}
 COMMANDS = sorted(command.name or command.callback.__name__ for command in app.registered_commands)

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import torch
 from _reference_regularisers import ReferenceActorRegulariser
-from distgprl.methods import get_method
 from test_sac import QuadraticPrior, small_skill
 
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import build_action_layout
+from distgprl.methods import get_method
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box
