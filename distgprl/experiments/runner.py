@@ -137,22 +137,49 @@ class RunSpec:
         return config_hash(self.to_dict())
 
 
-def resolve_run(
-    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
-) -> RunSpec:
-    """Validate names and resolve the configuration of a run."""
-    check_task_name(task)
-    spec = get_method(method)
-    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED
+SEED_LIMIT = 2**32
+"""Seeds are integers in ``[0, SEED_LIMIT)`` (what NumPy, gymnasium and torch accept)."""
+
+
+def check_seed(seed: int) -> int:
+    """``seed`` as an int if it is a valid run seed, else a `UserInputError`."""
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) < SEED_LIMIT:
+        raise UserInputError(f"seed {seed!r} must be an integer from 0 to 2**32 - 1")
+    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED  # imports pybullet
 
     if int(seed) in (EVALUATION_SEED, TRAINING_CURVE_SEED):
         raise UserInputError(
             f"seed {seed} is reserved: it draws the evaluation / learning-curve TCs, which no "
             f"run may train on"
         )
-    overrides = {"run": {"total_steps": steps}} if steps is not None else None
+    return int(seed)
+
+
+def resolve_run(
+    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
+) -> RunSpec:
+    """Validate a run request and resolve its configuration, before anything touches the
+    disk: the task, method and preset names, the seed (`check_seed`) and, if given, the
+    total RL steps (a positive multiple of the episode length, ``env.n_windows`` RL steps).
+    `train_run`, `evaluate_run` and the sweep's `plan_jobs` all start here.
+
+    Raises:
+        UserInputError: one line saying what is wrong with which input.
+    """
+    check_task_name(task)
+    spec = get_method(method)
+    seed = check_seed(seed)
+    overrides = None
+    if steps is not None:
+        episode = load_config(preset, task=task).env.n_windows
+        if isinstance(steps, bool) or int(steps) != steps or steps <= 0 or steps % episode:
+            raise UserInputError(
+                f"steps {steps!r} must be a positive multiple of the episode length "
+                f"({episode} RL steps)"
+            )
+        overrides = {"run": {"total_steps": int(steps)}}
     config = load_config(preset, task=task, overrides=overrides)
-    return RunSpec(task, spec, int(seed), config)
+    return RunSpec(task, spec, seed, config)
 
 
 # -- environments and agents ---------------------------------------------------------------
@@ -610,14 +637,45 @@ def train_run(
     and its best learning-curve policy (``policy="best"`` of `evaluate_run`; skipped, with a
     note, when that point's actor was not kept). Returns the run folder.
 
-    The run folder is locked while it trains (see `run_lock`).
+    The request is validated (`resolve_run`) before anything touches the disk, and the run
+    folder is locked while it trains (see `run_lock`). A start that fails before training
+    begins (say, the environment cannot be built) leaves nothing behind: the folders, the
+    lock and the ``config.json`` it created are removed, so the next try starts clean.
     """
     run = resolve_run(task, method, seed, preset, steps)
     if not run.method.trainable:
         raise UserInputError(f"method {method!r} does not train; use `distgprl evaluate`")
     folder = run_dir(root, preset, task, method, seed)
-    with run_lock(folder):
-        return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
+    created = [p for p in (folder, *folder.parents) if not p.exists()]
+    try:
+        with run_lock(folder):
+            return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
+    except _StartFailed as failed:
+        for path in created:  # innermost first; only the still empty ones this start made
+            if path == folder:
+                (folder / ".lock").unlink(missing_ok=True)
+            try:
+                path.rmdir()
+            except OSError:
+                break
+        raise failed.__cause__ from None
+
+
+class _StartFailed(Exception):
+    """A run's start failed before training began; ``__cause__`` is the error."""
+
+
+@contextmanager
+def _undo_on_failure(path: Path) -> Iterator[None]:
+    """Remove ``path`` (a file this start writes) if the block fails, then raise
+    `_StartFailed` from the error (`train_run` then removes the folders it made)."""
+    existed = path.exists()
+    try:
+        yield
+    except Exception as error:
+        if not existed:
+            path.unlink(missing_ok=True)
+        raise _StartFailed from error
 
 
 @contextmanager
@@ -666,7 +724,7 @@ def _train_locked(
 ) -> Path:
     import torch
 
-    task, method, seed = run.task, run.method.name, run.seed
+    seed = run.seed
     torch.set_num_threads(run.config.run.torch_threads)
     config_path = folder / "config.json"
     paths = _checkpoint_paths(folder)
@@ -681,13 +739,35 @@ def _train_locked(
             )
         if not resume:
             raise UserInputError(f"{folder}: run exists; pass --resume to continue it")
-    write_json(
-        config_path,
-        {"run": run.to_dict(), "config_hash": run.hash},
-        kind="config",
-        config_hash=run.hash,
-        seed=seed,
-    )
+    with _undo_on_failure(config_path):
+        write_json(
+            config_path,
+            {"run": run.to_dict(), "config_hash": run.hash},
+            kind="config",
+            config_hash=run.hash,
+            seed=seed,
+        )
+        started = _start(run, folder, resume, paths)
+    return _train_started(run, folder, preset, root, show_progress, evaluate_after, started)
+
+
+@dataclass(frozen=True)
+class _Started:
+    """A run ready for its first training step (`_start`)."""
+
+    env: Any
+    eval_env: Any
+    model: Any
+    curve_tcs: list
+    progress_rows: list[dict[str, Any]]
+    wall_offset: float
+    resumes: list[dict[str, Any]]
+
+
+def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> _Started:
+    """Build the environments and the agent (from the checkpoint when resuming): everything
+    before the first training step."""
+    seed = run.seed
     env = make_env(run)
     eval_env = make_env(run)
     spec = env.spec_task
@@ -726,6 +806,23 @@ def _train_locked(
                 stale.unlink()
         model = make_agent(env, run)
         env.reset(seed=seed)
+    return _Started(env, eval_env, model, curve_tcs, progress_rows, wall_offset, resumes)
+
+
+def _train_started(
+    run: RunSpec,
+    folder: Path,
+    preset: str,
+    root: str | Path,
+    show_progress: bool,
+    evaluate_after: bool,
+    started: _Started,
+) -> Path:
+    """Train a started run to its total steps, save and evaluate it, write ``done.json``."""
+    task, method, seed = run.task, run.method.name, run.seed
+    env, eval_env, model = started.env, started.eval_env, started.model
+    curve_tcs, progress_rows = started.curve_tcs, started.progress_rows
+    wall_offset, resumes = started.wall_offset, started.resumes
     total = run.config.run.total_steps
     eval_every = run.config.run.eval_every
     ckpt_every = run.config.run.checkpoint_every

@@ -47,7 +47,14 @@ from distgprl.agents.methods import TABLE_ORDER, get_method
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.results import SchemaVersionError, read_json, write_json
-from distgprl.experiments.runner import evaluate_run, is_locked, resolve_run, run_dir, train_run
+from distgprl.experiments.runner import (
+    check_seed,
+    evaluate_run,
+    is_locked,
+    resolve_run,
+    run_dir,
+    train_run,
+)
 
 
 @dataclass(frozen=True)
@@ -80,8 +87,11 @@ def plan_jobs(
     seeds: Sequence[int] = (0, 1, 2),
     root: str | Path = "results",
 ) -> list[Job]:
-    """All jobs of a sweep (validates every name first): seed by seed, methods in the given
-    order (default: table order), tasks innermost. The `demo` reference runs once (seed 0)."""
+    """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
+    tasks innermost. The `demo` reference runs once (seed 0).
+
+    Every name, seed and the preset are validated first (`resolve_run` for every job), so
+    a bad request is a `UserInputError` before anything touches the disk."""
     methods = list(methods or TABLE_ORDER)
     tasks = list(tasks or TASK_NAMES)
     for method in methods:
@@ -90,7 +100,8 @@ def plan_jobs(
         check_task_name(task)
     if not seeds:
         raise UserInputError("no seeds given")
-    seeds = list(dict.fromkeys(int(seed) for seed in seeds))  # a repeated seed: one job
+    # a repeated seed: one job
+    seeds = list(dict.fromkeys(check_seed(seed) for seed in seeds))
     jobs = []
     # Seeds outermost, then methods, then tasks: an interrupted sweep has one seed of every
     # method on every task before it starts on the next seed.
@@ -108,6 +119,8 @@ def plan_jobs(
                         str(root),
                     )
                 )
+    for job in jobs:
+        resolve_run(job.task, job.method, job.seed, job.preset)
     return jobs
 
 

@@ -33,6 +33,20 @@ def test_plan_validates_names_and_runs_demo_once_per_task():
         sweep.plan_jobs("ci", ["demo"], ["bogus"])
 
 
+@pytest.mark.parametrize(
+    ("seeds", "preset", "message"),
+    [([-1], "ci", "seed -1"), ([0, 2**32], "ci", "seed 4294967296"), ([0], "nope", "preset")],
+)
+def test_a_bad_seed_or_preset_is_refused_when_the_sweep_is_planned(
+    tmp_path, seeds, preset, message
+):
+    """`plan_jobs` validates every job as `resolve_run` does, so `sweep --seeds -1` is
+    refused input (nothing written), not a failed run."""
+    with pytest.raises(UserInputError, match=message):
+        sweep.plan_jobs(preset, ["demo", "gprl-d"], ["dcp"], seeds, root=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_repeated_seed_plans_one_job():
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0, 0, 1])
     assert [j.name for j in jobs] == ["dcp/gprl-d/seed0", "dcp/gprl-d/seed1"]
