@@ -170,11 +170,15 @@ def sweep(
         float,
         typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
     ] = 5.0,
+    retrain_damaged: Annotated[
+        bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
+    ] = False,
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped.
 
-    Exit code 0: every run is complete; 1: a run failed (its error.json says why); 3: no
-    failure, but runs were left to another process training them (busy); 130: interrupted.
+    Exit code 0: every run is complete; 1: a run failed (its error.json says why) or is
+    damaged (reported, left alone without --retrain-damaged); 3: no failure, but runs were
+    left to another process training them (busy); 130: interrupted.
     """
     from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import (
@@ -211,6 +215,7 @@ def sweep(
             on_result=report,
             on_tick=progress if heartbeat > 0 else None,
             tick_s=heartbeat * 60.0,
+            retrain_damaged=retrain_damaged,
         )
     except KeyboardInterrupt:
         typer.echo(
@@ -221,11 +226,14 @@ def sweep(
         raise typer.Exit(code=130) from None
     failed = [r for r in results if r.status == "failed"]
     busy = [r for r in results if r.status == "busy"]
+    damaged = [r for r in results if r.status == "damaged"]
     typer.echo(
-        f"sweep: {len(results) - len(failed) - len(busy)}/{len(results)} runs complete"
+        f"sweep: {len(results) - len(failed) - len(busy) - len(damaged)}/{len(results)} runs "
+        "complete"
         + (f", {len(busy)} left to the other process training them" if busy else "")
+        + (f", {len(damaged)} damaged (--retrain-damaged retrains them)" if damaged else "")
     )
-    if failed:
+    if failed or damaged:
         raise typer.Exit(code=1)
     if busy:  # not complete yet: `make reproduce` must not go on to the tables as if it were
         raise typer.Exit(code=3)

@@ -132,9 +132,10 @@ def test_a_job_interrupted_before_the_sweep_interrupts_the_sweep(tmp_path, monke
 
 
 def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_path):
-    """A done.json that is not a result (say, damaged by hand) makes the job fail with the
-    reason, from the sweep's first check and from `run_job` alike; the run folder is left
-    byte for byte as it was (no retraining over a finished run that has no checkpoint)."""
+    """A done.json that is not a result (say, damaged by hand) makes the job `damaged` with
+    the reason, from the sweep's first check and from `run_job` alike; the run folder is
+    left byte for byte as it was (no retraining over a finished run that has no
+    checkpoint)."""
     job = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0], root=tmp_path)[0]
     folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     folder.mkdir(parents=True)
@@ -142,7 +143,7 @@ def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_
     (folder / "progress.csv").write_text("the finished run's curve\n")
     before = {path.name: path.read_bytes() for path in folder.iterdir()}
     for result in (sweep.run_sweep([job])[0], sweep.run_job(job)):
-        assert result.status == "failed" and "not valid JSON" in result.error
+        assert result.status == "damaged" and "not valid JSON" in result.error
         assert {path.name: path.read_bytes() for path in folder.iterdir()} == before
 
 
