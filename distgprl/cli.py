@@ -317,10 +317,20 @@ def train(
     root: RootOption = Path("results"),
     evaluate: Annotated[bool, typer.Option(help="Evaluate after training.")] = True,
 ) -> None:
-    """Train one method on one task and seed (resumable); then evaluate it."""
-    from distgprl.experiments.runner import train_run
+    """Train one method on one task and seed (resumable); then evaluate it.
 
-    folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    Interrupted (Ctrl-C, SIGINT or SIGTERM): says where it stopped and how to resume; exit 130.
+    """
+    from distgprl.experiments.runner import describe_interrupt, resume_command, train_run
+    from distgprl.experiments.sweep import stop_on_interrupt_signals
+
+    stop_on_interrupt_signals()
+    try:
+        folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    except KeyboardInterrupt as stop:
+        command = resume_command(task, method, seed, preset, steps, root, evaluate)
+        typer.echo(describe_interrupt(stop, command), err=True)
+        raise typer.Exit(code=130) from None
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
 
 

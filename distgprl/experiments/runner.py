@@ -661,6 +661,66 @@ def train_run(
         raise failed.__cause__ from None
 
 
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped by KeyboardInterrupt (SIGINT; SIGTERM with
+    `~distgprl.experiments.sweep.stop_on_interrupt_signals`), with where it stopped.
+
+    Attributes:
+        folder: the run folder.
+        step: RL steps trained when it stopped.
+        total: the run's total RL steps.
+        checkpoint_step: the step of the last checkpoint written (a resume continues from
+            it), or None if the run had none yet (a resume starts over).
+    """
+
+    def __init__(self, folder: Path, step: int, total: int, checkpoint_step: int | None):
+        super().__init__(f"{folder}: interrupted at step {step}/{total}")
+        self.folder, self.step, self.total = folder, step, total
+        self.checkpoint_step = checkpoint_step
+
+    def describe(self, resume_command: str) -> str:
+        """Two lines for stderr: where training stopped, what is kept, how to resume."""
+        if self.checkpoint_step is None:
+            kept = "no checkpoint was written yet, so a resume starts over"
+        else:
+            kept = f"its checkpoint of step {self.checkpoint_step} is kept"
+        return (
+            f"train interrupted at step {self.step} of {self.total} ({self.folder}); {kept}.\n"
+            f"resume with: {resume_command}"
+        )
+
+
+def describe_interrupt(error: KeyboardInterrupt, command: str) -> str:
+    """What `distgprl train` prints when interrupted: `TrainingInterrupted.describe`, or,
+    interrupted outside the training steps (setting up, or evaluating after them), one
+    line with the resume command."""
+    if isinstance(error, TrainingInterrupted):
+        return error.describe(command)
+    return f"train interrupted outside the training steps; resume with: {command}"
+
+
+def resume_command(
+    task: str,
+    method: str,
+    seed: int,
+    preset: str,
+    steps: int | None,
+    root: str | Path,
+    evaluate_after: bool = True,
+) -> str:
+    """The exact ``distgprl train ... --resume`` command that continues a run."""
+    import shlex
+
+    words = ["distgprl", "train", "--method", method, "--task", task, "--seed", str(seed)]
+    words += ["--preset", preset]
+    if steps is not None:
+        words += ["--steps", str(steps)]
+    words += ["--root", str(root), "--resume"]
+    if not evaluate_after:
+        words.append("--no-evaluate")
+    return shlex.join(words)
+
+
 class _StartFailed(Exception):
     """A run's start failed before training began; ``__cause__`` is the error."""
 
@@ -866,29 +926,38 @@ def _train_started(
             method=method,
         )
 
-    if model.num_timesteps == 0 and not progress_rows:
-        record_curve()
-    while model.num_timesteps < total:
-        next_stop = min(
-            total,
-            (model.num_timesteps // eval_every + 1) * eval_every,
-            (model.num_timesteps // ckpt_every + 1) * ckpt_every,
-        )
-        model.learn(
-            total_timesteps=next_stop - model.num_timesteps,
-            reset_num_timesteps=False,
-            progress_bar=False,
-            callback=None if bar is None else _BarCallback(bar),
-        )
-        if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
+    # The step of the checkpoint on disk (None: none yet), for the message of an interrupt.
+    checkpoint_step = model.num_timesteps if has_checkpoint(folder) else None
+    try:
+        if model.num_timesteps == 0 and not progress_rows:
             record_curve()
-        if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
-            save_checkpoint(
-                folder,
-                model,
-                env,
-                {"wall_time_s": wall_offset + time.perf_counter() - start_wall, "resumes": resumes},
+        while model.num_timesteps < total:
+            next_stop = min(
+                total,
+                (model.num_timesteps // eval_every + 1) * eval_every,
+                (model.num_timesteps // ckpt_every + 1) * ckpt_every,
             )
+            model.learn(
+                total_timesteps=next_stop - model.num_timesteps,
+                reset_num_timesteps=False,
+                progress_bar=False,
+                callback=None if bar is None else _BarCallback(bar),
+            )
+            if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
+                record_curve()
+            if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
+                extra = {
+                    "wall_time_s": wall_offset + time.perf_counter() - start_wall,
+                    "resumes": resumes,
+                }
+                save_checkpoint(folder, model, env, extra)
+                checkpoint_step = model.num_timesteps
+    except KeyboardInterrupt as interrupt:
+        if bar is not None:
+            bar.close()
+        raise TrainingInterrupted(
+            folder, model.num_timesteps, total, checkpoint_step
+        ) from interrupt
     if bar is not None:
         bar.close()
     tmp = folder / ".model.tmp.zip"
