@@ -268,11 +268,15 @@ def sweep(
         float,
         typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
     ] = 5.0,
+    retrain_damaged: Annotated[
+        bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
+    ] = False,
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped.
 
-    Exit code 0: every run is complete; 1: a run failed (its error.json says why); 3: no
-    failure, but runs were left to another process training them (busy); 130: interrupted.
+    Exit code 0: every run is complete; 1: a run failed (its error.json says why) or is
+    damaged (reported, left alone without --retrain-damaged); 3: no failure, but runs were
+    left to another process training them (busy); 130: interrupted.
     """
     from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import (
@@ -310,6 +314,7 @@ def sweep(
             on_result=report,
             on_tick=progress if heartbeat > 0 else None,
             tick_s=heartbeat * 60.0,
+            retrain_damaged=retrain_damaged,
         )
     except KeyboardInterrupt:
         typer.echo(
@@ -320,11 +325,14 @@ def sweep(
         raise typer.Exit(code=130) from None
     failed = [r for r in results if r.status == "failed"]
     busy = [r for r in results if r.status == "busy"]
+    damaged = [r for r in results if r.status == "damaged"]
     typer.echo(
-        f"sweep: {len(results) - len(failed) - len(busy)}/{len(results)} runs complete"
+        f"sweep: {len(results) - len(failed) - len(busy) - len(damaged)}/{len(results)} runs "
+        "complete"
         + (f", {len(busy)} left to the other process training them" if busy else "")
+        + (f", {len(damaged)} damaged (--retrain-damaged retrains them)" if damaged else "")
     )
-    if failed:
+    if failed or damaged:
         raise typer.Exit(code=1)
     if busy:  # not complete yet: `make reproduce` must not go on to the tables as if it were
         raise typer.Exit(code=3)
@@ -431,13 +439,21 @@ def train(
     root: RootOption = Path("results"),
     evaluate: Annotated[bool, typer.Option(help="Evaluate after training.")] = True,
 ) -> None:
-    """Train one method on one task and seed (resumable); then evaluate it."""
-    from distgprl.experiments.runner import train_run
+    """Train one method on one task and seed (resumable); then evaluate it.
+
+    Interrupted (Ctrl-C, SIGINT or SIGTERM): says where it stopped and how to resume; exit 130.
+    """
+    from distgprl.experiments.runner import describe_interrupt, resume_command, train_run
+    from distgprl.experiments.sweep import stop_on_interrupt_signals
 
     preset = _preset(preset, config)
-    if steps is not None and steps <= 0:
-        raise UserInputError(f"--steps {steps}: must be a positive multiple of the episode length")
-    folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    stop_on_interrupt_signals()
+    try:
+        folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    except KeyboardInterrupt as stop:
+        command = resume_command(task, method, seed, preset, steps, root, evaluate)
+        typer.echo(describe_interrupt(stop, command), err=True)
+        raise typer.Exit(code=130) from None
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
 
 

@@ -69,17 +69,44 @@ class RunSpec:
         return config_hash(self.to_dict())
 
 
-def resolve_run(
-    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
-) -> RunSpec:
-    """Validate names and resolve the configuration of a run."""
-    check_task_name(task)
-    spec = get_method(method)
+SEED_LIMIT = 2**32
+"""Seeds are integers in ``[0, SEED_LIMIT)`` (what NumPy, gymnasium and torch accept)."""
+
+
+def check_seed(seed: int) -> int:
+    """``seed`` as an int if it is a valid run seed, else a `UserInputError`."""
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) < SEED_LIMIT:
+        raise UserInputError(f"seed {seed!r} must be an integer from 0 to 2**32 - 1")
     if int(seed) in (EVALUATION_SEED, TRAINING_CURVE_SEED):
         raise UserInputError(
             f"seed {seed} is reserved: it draws the evaluation / learning-curve TCs, which no "
             f"run may train on"
         )
-    overrides = {"run": {"total_steps": steps}} if steps is not None else None
+    return int(seed)
+
+
+def resolve_run(
+    task: str, method: str, seed: int, preset: str = "paper", steps: int | None = None
+) -> RunSpec:
+    """Validate a run request and resolve its configuration, before anything touches the
+    disk: the task, method and preset names, the seed (`check_seed`) and, if given, the
+    total RL steps (a positive multiple of the episode length, ``env.n_windows`` RL steps).
+    `train_run`, `evaluate_run` and the sweep's `plan_jobs` all start here.
+
+    Raises:
+        UserInputError: one line saying what is wrong with which input.
+    """
+    check_task_name(task)
+    spec = get_method(method)
+    seed = check_seed(seed)
+    overrides = None
+    if steps is not None:
+        episode = load_config(preset, task=task).env.n_windows
+        if isinstance(steps, bool) or int(steps) != steps or steps <= 0 or steps % episode:
+            raise UserInputError(
+                f"steps {steps!r} must be a positive multiple of the episode length "
+                f"({episode} RL steps)"
+            )
+        overrides = {"run": {"total_steps": int(steps)}}
     config = load_config(preset, task=task, overrides=overrides)
-    return RunSpec(task, spec, int(seed), config)
+    return RunSpec(task, spec, seed, config)

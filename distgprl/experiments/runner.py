@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.errors import RunBusyError, UserInputError
-from distgprl.identity import RunSpec, resolve_run
+from distgprl.identity import RunSpec, check_seed, resolve_run  # noqa: F401 - re-exported
 from distgprl.io import atomic_write_bytes, atomic_write_text
 from distgprl.schema import (
     EVALUATION_FIELDS,
@@ -498,14 +498,105 @@ def train_run(
     and its best learning-curve policy (``policy="best"`` of `evaluate_run`; skipped, with a
     note, when that point's actor was not kept). Returns the run folder.
 
-    The run folder is locked while it trains (see `run_lock`).
+    The request is validated (`resolve_run`) before anything touches the disk, and the run
+    folder is locked while it trains (see `run_lock`). A start that fails before training
+    begins (say, the environment cannot be built) leaves nothing behind: the folders, the
+    lock and the ``config.json`` it created are removed, so the next try starts clean.
     """
     run = resolve_run(task, method, seed, preset, steps)
     if not run.method.trainable:
         raise UserInputError(f"method {method!r} does not train; use `distgprl evaluate`")
     folder = run_dir(root, preset, task, method, seed)
-    with run_lock(folder):
-        return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
+    created = [p for p in (folder, *folder.parents) if not p.exists()]
+    try:
+        with run_lock(folder):
+            return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
+    except _StartFailed as failed:
+        for path in created:  # innermost first; only the still empty ones this start made
+            if path == folder:
+                (folder / ".lock").unlink(missing_ok=True)
+            try:
+                path.rmdir()
+            except OSError:
+                break
+        raise failed.__cause__ from None
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped by KeyboardInterrupt (SIGINT; SIGTERM with
+    `~distgprl.experiments.sweep.stop_on_interrupt_signals`), with where it stopped.
+
+    Attributes:
+        folder: the run folder.
+        step: RL steps trained when it stopped.
+        total: the run's total RL steps.
+        checkpoint_step: the step of the last checkpoint written (a resume continues from
+            it), or None if the run had none yet (a resume starts over).
+    """
+
+    def __init__(self, folder: Path, step: int, total: int, checkpoint_step: int | None):
+        super().__init__(f"{folder}: interrupted at step {step}/{total}")
+        self.folder, self.step, self.total = folder, step, total
+        self.checkpoint_step = checkpoint_step
+
+    def describe(self, resume_command: str) -> str:
+        """Two lines for stderr: where training stopped, what is kept, how to resume."""
+        if self.checkpoint_step is None:
+            kept = "no checkpoint was written yet, so a resume starts over"
+        else:
+            kept = f"its checkpoint of step {self.checkpoint_step} is kept"
+        return (
+            f"train interrupted at step {self.step} of {self.total} ({self.folder}); {kept}.\n"
+            f"resume with: {resume_command}"
+        )
+
+
+def describe_interrupt(error: KeyboardInterrupt, command: str) -> str:
+    """What `distgprl train` prints when interrupted: `TrainingInterrupted.describe`, or,
+    interrupted outside the training steps (setting up, or evaluating after them), one
+    line with the resume command."""
+    if isinstance(error, TrainingInterrupted):
+        return error.describe(command)
+    return f"train interrupted outside the training steps; resume with: {command}"
+
+
+def resume_command(
+    task: str,
+    method: str,
+    seed: int,
+    preset: str,
+    steps: int | None,
+    root: str | Path,
+    evaluate_after: bool = True,
+) -> str:
+    """The exact ``distgprl train ... --resume`` command that continues a run."""
+    import shlex
+
+    words = ["distgprl", "train", "--method", method, "--task", task, "--seed", str(seed)]
+    words += ["--preset", preset]
+    if steps is not None:
+        words += ["--steps", str(steps)]
+    words += ["--root", str(root), "--resume"]
+    if not evaluate_after:
+        words.append("--no-evaluate")
+    return shlex.join(words)
+
+
+class _StartFailed(Exception):
+    """A run's start failed before training began; ``__cause__`` is the error."""
+
+
+@contextmanager
+def _undo_on_failure(path: Path) -> Iterator[None]:
+    """Remove ``path`` (a file this start writes) if the block fails, then raise
+    `_StartFailed` from the error (`train_run` then removes the folders it made)."""
+    existed = path.exists()
+    try:
+        yield
+    except Exception as error:
+        if not existed:
+            path.unlink(missing_ok=True)
+        raise _StartFailed from error
 
 
 @contextmanager
@@ -554,7 +645,7 @@ def _train_locked(
 ) -> Path:
     import torch
 
-    task, method, seed = run.task, run.method.name, run.seed
+    seed = run.seed
     torch.set_num_threads(run.config.run.torch_threads)
     config_path = folder / "config.json"
     paths = _checkpoint_paths(folder)
@@ -569,13 +660,35 @@ def _train_locked(
             )
         if not resume:
             raise UserInputError(f"{folder}: run exists; pass --resume to continue it")
-    write_json(
-        config_path,
-        {"run": run.to_dict(), "config_hash": run.hash},
-        kind="config",
-        config_hash=run.hash,
-        seed=seed,
-    )
+    with _undo_on_failure(config_path):
+        write_json(
+            config_path,
+            {"run": run.to_dict(), "config_hash": run.hash},
+            kind="config",
+            config_hash=run.hash,
+            seed=seed,
+        )
+        started = _start(run, folder, resume, paths)
+    return _train_started(run, folder, preset, root, show_progress, evaluate_after, started)
+
+
+@dataclass(frozen=True)
+class _Started:
+    """A run ready for its first training step (`_start`)."""
+
+    env: Any
+    eval_env: Any
+    model: Any
+    curve_tcs: list
+    progress_rows: list[dict[str, Any]]
+    wall_offset: float
+    resumes: list[dict[str, Any]]
+
+
+def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> _Started:
+    """Build the environments and the agent (from the checkpoint when resuming): everything
+    before the first training step."""
+    seed = run.seed
     env = make_env(run)
     eval_env = make_env(run)
     spec = env.spec_task
@@ -614,6 +727,23 @@ def _train_locked(
                 stale.unlink()
         model = make_agent(env, run)
         env.reset(seed=seed)
+    return _Started(env, eval_env, model, curve_tcs, progress_rows, wall_offset, resumes)
+
+
+def _train_started(
+    run: RunSpec,
+    folder: Path,
+    preset: str,
+    root: str | Path,
+    show_progress: bool,
+    evaluate_after: bool,
+    started: _Started,
+) -> Path:
+    """Train a started run to its total steps, save and evaluate it, write ``done.json``."""
+    task, method, seed = run.task, run.method.name, run.seed
+    env, eval_env, model = started.env, started.eval_env, started.model
+    curve_tcs, progress_rows = started.curve_tcs, started.progress_rows
+    wall_offset, resumes = started.wall_offset, started.resumes
     total = run.config.run.total_steps
     eval_every = run.config.run.eval_every
     ckpt_every = run.config.run.checkpoint_every
@@ -657,29 +787,38 @@ def _train_locked(
             method=method,
         )
 
-    if model.num_timesteps == 0 and not progress_rows:
-        record_curve()
-    while model.num_timesteps < total:
-        next_stop = min(
-            total,
-            (model.num_timesteps // eval_every + 1) * eval_every,
-            (model.num_timesteps // ckpt_every + 1) * ckpt_every,
-        )
-        model.learn(
-            total_timesteps=next_stop - model.num_timesteps,
-            reset_num_timesteps=False,
-            progress_bar=False,
-            callback=None if bar is None else _BarCallback(bar),
-        )
-        if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
+    # The step of the checkpoint on disk (None: none yet), for the message of an interrupt.
+    checkpoint_step = model.num_timesteps if has_checkpoint(folder) else None
+    try:
+        if model.num_timesteps == 0 and not progress_rows:
             record_curve()
-        if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
-            save_checkpoint(
-                folder,
-                model,
-                env,
-                {"wall_time_s": wall_offset + time.perf_counter() - start_wall, "resumes": resumes},
+        while model.num_timesteps < total:
+            next_stop = min(
+                total,
+                (model.num_timesteps // eval_every + 1) * eval_every,
+                (model.num_timesteps // ckpt_every + 1) * ckpt_every,
             )
+            model.learn(
+                total_timesteps=next_stop - model.num_timesteps,
+                reset_num_timesteps=False,
+                progress_bar=False,
+                callback=None if bar is None else _BarCallback(bar),
+            )
+            if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
+                record_curve()
+            if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
+                extra = {
+                    "wall_time_s": wall_offset + time.perf_counter() - start_wall,
+                    "resumes": resumes,
+                }
+                save_checkpoint(folder, model, env, extra)
+                checkpoint_step = model.num_timesteps
+    except KeyboardInterrupt as interrupt:
+        if bar is not None:
+            bar.close()
+        raise TrainingInterrupted(
+            folder, model.num_timesteps, total, checkpoint_step
+        ) from interrupt
     if bar is not None:
         bar.close()
     tmp = folder / ".model.tmp.zip"

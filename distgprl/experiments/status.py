@@ -1,16 +1,8 @@
 """`distgprl status`: where every run of a sweep stands, read from its run folder alone.
 
-A run's state, from the files its trainer writes (see `distgprl.experiments.runner`):
-
-| state        | meaning                                                                  |
-|--------------|--------------------------------------------------------------------------|
-| `done`       | ``done.json`` (``summary.json`` for `demo`) with the current config hash |
-| `stale`      | finished, but with another configuration (a sweep would retrain it)      |
-| `unreadable` | a finish marker not of this schema (reported; never retrained over)      |
-| `running`    | a process holds the run folder's lock (``.lock``)                        |
-| `failed`     | ``error.json`` from the last attempt, nobody training it now             |
-| `partial`    | started (``config.json``), not finished, nobody training it: resumed     |
-| `missing`    | nothing yet                                                              |
+A run's state is its `distgprl.experiments.runstate.RunState` verdict (``done``, ``stale``,
+``damaged``, ``running``, ``failed``, ``partial``, ``missing``), the one the sweep and the
+reports use too; a damaged run is listed with the file and the reason.
 
 For started runs the last learning-curve row of ``progress.csv`` gives the step reached,
 the curve success and collision rates and the training wall time so far. The ETA is the
@@ -29,12 +21,13 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from distgprl.experiments.results import SchemaVersionError, read_csv, read_json
-from distgprl.experiments.runner import is_locked, resolve_run, run_dir
-from distgprl.experiments.sweep import Job, is_complete
+from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.runner import resolve_run, run_dir
+from distgprl.experiments.runstate import VERDICTS, job_state
+from distgprl.experiments.sweep import Job
 from distgprl.methods import get_method
 
-STATES = ("done", "running", "partial", "failed", "stale", "unreadable", "missing")
+STATES = VERDICTS
 
 
 @dataclass(frozen=True)
@@ -54,7 +47,7 @@ class RunStatus:
     @property
     def eta_s(self) -> float | None:
         """Seconds of training left at the pace so far (None if unknown or finished)."""
-        if self.state in ("done", "stale", "unreadable", "missing") or not self.seconds_per_step:
+        if self.state in ("done", "stale", "damaged", "missing") or not self.seconds_per_step:
             return None
         return self.seconds_per_step * max(self.total_steps - self.step, 0)
 
@@ -97,16 +90,16 @@ def _seconds_per_step(rows: list[dict[str, str]]) -> float | None:
 
 
 def run_status(job: Job) -> RunStatus:
-    """The state of one job's run folder (never trains, never writes)."""
+    """The state of one job's run folder (never trains, never writes): its `job_state`
+    verdict, with the learning curve's progress for started runs."""
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
     trainable = get_method(job.method).trainable
+    state = job_state(job.root, job.preset, job.task, job.method, job.seed)
     total = resolve_run(job.task, job.method, job.seed, job.preset).config.run.total_steps
     total = total if trainable else 0
-    try:
-        complete = is_complete(job)
-    except SchemaVersionError as error:
-        return RunStatus(job, "unreadable", 0, total, error=str(error))
-    if complete:
+    if state.verdict == "damaged":
+        return RunStatus(job, "damaged", 0, total, error=state.describe())
+    if state.verdict == "done":
         pace = None
         if trainable:
             try:
@@ -115,11 +108,8 @@ def run_status(job: Job) -> RunStatus:
             except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
                 pace = None
         return RunStatus(job, "done", total, total, seconds_per_step=pace)
-    marker = folder / ("done.json" if trainable else "summary.json")
-    if marker.exists():
-        return RunStatus(job, "stale", 0, total)
-    if not folder.exists():
-        return RunStatus(job, "missing", 0, total)
+    if state.verdict in ("stale", "missing"):
+        return RunStatus(job, state.verdict, 0, total)
     rows = _curve_rows(folder)
     fields: dict = {}
     if rows:
@@ -131,17 +121,7 @@ def run_status(job: Job) -> RunStatus:
             "wall_time_s": float(row["wall_time_s"]),
             "seconds_per_step": _seconds_per_step(rows),
         }
-    if is_locked(folder):
-        return RunStatus(job, "running", total_steps=total, **fields)
-    if (folder / "error.json").exists():
-        try:
-            error = str(read_json(folder / "error.json").get("error", ""))
-        except Exception:  # noqa: BLE001
-            error = "unreadable error.json"
-        return RunStatus(job, "failed", total_steps=total, error=error, **fields)
-    if (folder / "config.json").exists():
-        return RunStatus(job, "partial", total_steps=total, **fields)
-    return RunStatus(job, "missing", 0, total)
+    return RunStatus(job, state.verdict, total_steps=total, error=state.reason, **fields)
 
 
 def sweep_status(jobs: Iterable[Job]) -> list[RunStatus]:

@@ -15,8 +15,11 @@
   signal) fails its own job only: the sweep writes that job's ``error.json`` (exit code or
   signal) and goes on with the others. On Ray, a crashed or lost task is recorded the same
   way.
-- A finished run whose marker file is unreadable (not a result of this schema) is reported
-  failed and left alone, never retrained over.
+- A damaged run (`distgprl.experiments.runstate`: a result file not readable as a result
+  of this schema, or the evaluation of a finished run gone) is reported ``damaged`` with
+  the file and the reason and left alone, never retrained over (that would discard a
+  finished run whose checkpoints are gone, e.g. a committed one on a fresh clone) unless
+  the sweep is told to (``retrain_damaged``: its folder is removed and it trains anew).
 - A job whose run another process is training (its folder is locked) is reported ``busy``
   and left to that process; nothing is written. So two sweeps of overlapping jobs can run
   side by side (e.g. one per CPU core, in different orders), each training what the other
@@ -32,6 +35,7 @@ from __future__ import annotations
 import _thread
 import os
 import pickle
+import shutil
 import signal
 import sys
 import threading
@@ -45,8 +49,17 @@ from pathlib import Path
 
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
-from distgprl.experiments.results import SchemaVersionError, read_json, write_json
-from distgprl.experiments.runner import evaluate_run, is_locked, resolve_run, run_dir, train_run
+from distgprl.experiments.results import write_json
+from distgprl.experiments.runner import (
+    check_seed,
+    checkpoint_dir,
+    evaluate_run,
+    is_locked,
+    resolve_run,
+    run_dir,
+    train_run,
+)
+from distgprl.experiments.runstate import job_state
 from distgprl.methods import TABLE_ORDER, get_method
 
 
@@ -68,7 +81,8 @@ class Job:
 @dataclass(frozen=True)
 class JobResult:
     job: Job
-    status: str  # "done", "skipped", "busy" (another process trains it), "failed"
+    # "done", "skipped", "busy" (another process trains it), "failed", "damaged" (left alone)
+    status: str
     seconds: float
     error: str = ""
 
@@ -80,8 +94,11 @@ def plan_jobs(
     seeds: Sequence[int] = (0, 1, 2),
     root: str | Path = "results",
 ) -> list[Job]:
-    """All jobs of a sweep (validates every name first): seed by seed, methods in the given
-    order (default: table order), tasks innermost. The `demo` reference runs once (seed 0)."""
+    """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
+    tasks innermost. The `demo` reference runs once (seed 0).
+
+    Every name, seed and the preset are validated first (`resolve_run` for every job), so
+    a bad request is a `UserInputError` before anything touches the disk."""
     methods = list(methods or TABLE_ORDER)
     tasks = list(tasks or TASK_NAMES)
     for method in methods:
@@ -90,7 +107,8 @@ def plan_jobs(
         check_task_name(task)
     if not seeds:
         raise UserInputError("no seeds given")
-    seeds = list(dict.fromkeys(int(seed) for seed in seeds))  # a repeated seed: one job
+    # a repeated seed: one job
+    seeds = list(dict.fromkeys(check_seed(seed) for seed in seeds))
     jobs = []
     # Seeds outermost, then methods, then tasks: an interrupted sweep has one seed of every
     # method on every task before it starts on the next seed.
@@ -108,6 +126,8 @@ def plan_jobs(
                         str(root),
                     )
                 )
+    for job in jobs:
+        resolve_run(job.task, job.method, job.seed, job.preset)
     return jobs
 
 
@@ -120,31 +140,33 @@ def default_workers() -> int:
 
 
 def is_complete(job: Job) -> bool:
-    """True if the job's run folder holds a finished run of the same configuration.
-
-    Raises:
-        SchemaVersionError: the finish marker (``done.json``, or ``summary.json`` for the
-            untrained `demo`) exists but is not readable as a result of this schema. Such a
-            run is reported, never retrained over (that would discard a finished run whose
-            checkpoints are gone, e.g. a committed one on a fresh clone).
-    """
-    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
-    marker = folder / ("done.json" if get_method(job.method).trainable else "summary.json")
-    if not marker.exists():
-        return False
-    recorded = read_json(marker)["meta"].get("config_hash")
-    return recorded == resolve_run(job.task, job.method, job.seed, job.preset).hash
+    """True if the job's run folder holds a finished, undamaged run of the same
+    configuration (`job_state` is ``done``)."""
+    return job_state(job.root, job.preset, job.task, job.method, job.seed).verdict == "done"
 
 
 def finished_result(job: Job) -> JobResult | None:
-    """The job's result if there is nothing to run: "skipped" (finished, same
-    configuration) or "failed" (its finish marker is unreadable: reported, never retrained
-    over); None if it has to run."""
-    try:
-        complete = is_complete(job)
-    except SchemaVersionError as error:
-        return JobResult(job, "failed", 0.0, f"{type(error).__name__}: {error}")
-    return JobResult(job, "skipped", 0.0) if complete else None
+    """The job's result if there is nothing to run: "skipped" (`job_state` ``done``) or
+    "damaged" (reported with the file and reason, never retrained over); None if it has
+    to run."""
+    state = job_state(job.root, job.preset, job.task, job.method, job.seed)
+    if state.verdict == "done":
+        return JobResult(job, "skipped", 0.0)
+    if state.verdict == "damaged":
+        return JobResult(job, "damaged", 0.0, state.describe())
+    return None
+
+
+def clear_damaged(job: Job) -> bool:
+    """Remove a damaged run's folder (and its checkpoints) so that it trains anew; False
+    (nothing removed) if the run is not damaged or a process is training it."""
+    folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
+    state = job_state(job.root, job.preset, job.task, job.method, job.seed)
+    if state.verdict != "damaged" or is_locked(folder):
+        return False
+    shutil.rmtree(checkpoint_dir(folder), ignore_errors=True)
+    shutil.rmtree(folder)
+    return True
 
 
 def run_job(job: Job) -> JobResult:
@@ -390,15 +412,22 @@ def run_sweep(
     on_result: Callable[[JobResult, int, int], None] | None = None,
     on_tick: Callable[[list[Job]], None] | None = None,
     tick_s: float = 300.0,
+    retrain_damaged: bool = False,
 ) -> list[JobResult]:
     """Run every job; ``on_result(result, finished, total)`` reports each finished job and
     ``on_tick(unfinished_jobs)`` is called every ``tick_s`` seconds while jobs run (from a
-    background thread), e.g. to report the running jobs' progress from their run folders."""
+    background thread), e.g. to report the running jobs' progress from their run folders.
+
+    A damaged run is reported ("damaged") and left alone; with ``retrain_damaged`` its
+    folder is removed (`clear_damaged`) and it trains anew."""
     if executor not in ("local", "ray"):
         raise UserInputError(f"unknown executor {executor!r}; valid: local, ray")
     todo, results = [], []
     for job in jobs:
         finished = finished_result(job)
+        if finished is not None and finished.status == "damaged" and retrain_damaged:
+            if clear_damaged(job):
+                finished = None
         if finished is None:
             todo.append(job)
         else:

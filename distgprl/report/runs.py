@@ -5,8 +5,11 @@ tables and paired analyses, ``done.json`` (trained) for the learning curves — 
 hash recorded there is the one the code resolves for it now: a run of an older configuration
 (say, before a fix to a part of the method, which changes the hash of the methods using it)
 is left out, and listed, instead of being averaged with the current ones. `distgprl status`
-calls such runs "stale". A marker file of an unknown schema version is an error
-(:class:`~distgprl.schema.SchemaVersionError`), never a run quietly left out.
+calls such runs "stale". A damaged run (the `distgprl.experiments.runstate` verdict
+``damaged``: a result file of an unknown schema version or not a result at all, or the
+evaluation of a finished run gone) is an error naming the file and the reason
+(:class:`~distgprl.experiments.runstate.DamagedRunError`, exit 2 at the CLI), in the tables
+and the curves alike, never a run quietly left out.
 
 So a report is a function of the result files and, for this checkout's presets, of the
 configuration the code resolves for them (presets and method revisions): a change to a
@@ -20,6 +23,7 @@ from functools import cache
 from pathlib import Path
 
 from distgprl.errors import UserInputError
+from distgprl.experiments.runstate import run_state
 from distgprl.methods import METHODS
 from distgprl.schema import read_json
 
@@ -84,15 +88,20 @@ def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> 
         if method not in METHODS:
             continue
         name = f"{task}/{method}/{folder.name}"
-        path = folder / (marker if METHODS[method].trainable else "summary.json")
+        trainable = METHODS[method].trainable
+        hash_now = None
+        if checked:
+            hash_now = current_hash(task, method, int(folder.name.removeprefix("seed")), preset)
+        # A damaged run stops the report, never a run silently left out (exit 2).
+        state = run_state(folder, trainable, hash_now)
+        if state.verdict == "damaged":
+            raise state.error()
+        path = folder / (marker if trainable else "summary.json")
         if not path.exists():
             continue
-        # A file of an unknown schema version (or not a result at all) is an error that
-        # stops the report, never a run silently left out (SchemaVersionError, exit 2).
         recorded = read_json(path)["meta"].get("config_hash")
         if checked:
-            seed = int(folder.name.removeprefix("seed"))
-            if recorded != current_hash(task, method, seed, preset):
+            if recorded != hash_now:
                 excluded.append(f"{name} (configuration changed since; `distgprl status`: stale)")
                 continue
         current.add(folder)

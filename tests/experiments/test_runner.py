@@ -364,3 +364,74 @@ def test_checkpoint_pieces_reach_the_disk_before_the_commit_marker(tmp_path, mon
     commit = next(i for i, name in enumerate(synced) if name.startswith(".commit.json."))
     assert {".model.tmp.zip", ".buffer.tmp.pkl"} <= set(synced[:commit])
     assert runner.has_checkpoint(tmp_path)
+
+
+@pytest.mark.parametrize("seed", [-1, 2**32, 1.5, True])
+def test_a_seed_outside_0_to_2_32_is_refused_before_anything_is_written(tmp_path, seed):
+    """`resolve_run` (where train, evaluate and the sweep start) refuses a seed NumPy and
+    torch would reject mid-start, and `train_run` / `evaluate_run` create no folder."""
+    with pytest.raises(UserInputError, match="must be an integer from 0 to 2\\*\\*32 - 1"):
+        runner.resolve_run("dcp", "dist-gprl", seed, "ci")
+    with pytest.raises(UserInputError, match="seed"):
+        runner.train_run("dcp", "dist-gprl", seed, "ci", root=tmp_path, show_progress=False)
+    with pytest.raises(UserInputError, match="seed"):
+        runner.evaluate_run("dcp", "demo", seed, "ci", root=tmp_path, show_progress=False)
+    assert list(tmp_path.iterdir()) == []
+    assert runner.resolve_run("dcp", "dist-gprl", 2**32 - 1, "ci").seed == 2**32 - 1
+
+
+@pytest.mark.parametrize("steps", [0, -3, 4, 121])
+def test_steps_must_be_a_positive_multiple_of_the_episode_length(tmp_path, steps):
+    """Total steps of 0, a negative multiple or a non-multiple of the episode (3 RL steps)
+    are refused by `resolve_run`, before `train_run` writes anything."""
+    with pytest.raises(UserInputError, match="positive multiple of the episode length"):
+        runner.resolve_run("dcp", "dist-gprl", 0, "ci", steps)
+    with pytest.raises(UserInputError, match="positive multiple"):
+        train(tmp_path, "dist-gprl", steps=steps)
+    assert list(tmp_path.iterdir()) == []
+    assert runner.resolve_run("dcp", "dist-gprl", 0, "ci", 3).config.run.total_steps == 3
+
+
+def test_a_bad_preset_is_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(UserInputError, match="unknown preset 'nope'"):
+        runner.train_run("dcp", "dist-gprl", 0, "nope", root=tmp_path, show_progress=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_start_that_fails_before_training_leaves_nothing_behind(tmp_path, monkeypatch):
+    """An error while the run is set up (after config.json and .lock were written) removes
+    what this start created: the next try is not told "run exists". Folders that existed
+    before (here the task folder of another run) stay."""
+    other = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    other.mkdir(parents=True)
+
+    def broken_env(run):
+        raise RuntimeError("simulated start-up failure")
+
+    monkeypatch.setattr(runner, "make_env", broken_env)
+    with pytest.raises(RuntimeError, match="simulated start-up failure"):
+        train(tmp_path, "dist-gprl")
+    assert not runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0).parent.exists()
+    assert sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*")) == [
+        "ci",
+        "ci/dcp",
+        "ci/dcp/gprl-d",
+        "ci/dcp/gprl-d/seed0",
+    ]
+
+
+def test_a_failed_resume_keeps_the_runs_files(tmp_path, monkeypatch):
+    """A start-up failure of a resumed run removes nothing it did not create: the run's
+    config.json (from the earlier start) stays."""
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder.mkdir(parents=True)
+    run = runner.resolve_run("dcp", "dist-gprl", 0, "ci", STEPS)
+    write_json(folder / "config.json", {"run": run.to_dict(), "config_hash": run.hash})
+
+    def broken_env(run):
+        raise RuntimeError("simulated start-up failure")
+
+    monkeypatch.setattr(runner, "make_env", broken_env)
+    with pytest.raises(RuntimeError, match="simulated"):
+        train(tmp_path, "dist-gprl", resume=True)
+    assert (folder / "config.json").exists()

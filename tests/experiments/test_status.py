@@ -208,14 +208,14 @@ def test_sweep_command_prints_running_jobs_progress(tmp_path, monkeypatch):
     assert "curve success 0.25 collision 0.50" in result.output
 
 
-def test_a_finish_marker_not_of_this_schema_is_unreadable_not_stale(tmp_path):
-    """A done.json that is not a result of this schema is reported `unreadable` with the
-    reason (not `stale`, which a sweep would retrain), and has no ETA."""
+def test_a_finish_marker_not_of_this_schema_is_damaged_not_stale(tmp_path):
+    """A done.json that is not a result of this schema is reported `damaged` with the file
+    and the reason (not `stale`, which a sweep would retrain), and has no ETA."""
     job = _job(tmp_path)
     folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     folder.mkdir(parents=True)
     (folder / "done.json").write_text('{"meta": {"schema_version": 999}, "steps": 240}')
     status = run_status(job)
-    assert status.state == "unreadable" and status.eta_s is None
-    assert "schema_version 999 is not supported" in status.error
-    assert count_states([status]) == "0/1 done, 1 unreadable"
+    assert status.state == "damaged" and status.eta_s is None
+    assert status.error.startswith(f"{folder / 'done.json'}: schema_version 999 is not supported")
+    assert count_states([status]) == "0/1 done, 1 damaged"

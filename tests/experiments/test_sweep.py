@@ -33,6 +33,20 @@ def test_plan_validates_names_and_runs_demo_once_per_task():
         sweep.plan_jobs("ci", ["demo"], ["bogus"])
 
 
+@pytest.mark.parametrize(
+    ("seeds", "preset", "message"),
+    [([-1], "ci", "seed -1"), ([0, 2**32], "ci", "seed 4294967296"), ([0], "nope", "preset")],
+)
+def test_a_bad_seed_or_preset_is_refused_when_the_sweep_is_planned(
+    tmp_path, seeds, preset, message
+):
+    """`plan_jobs` validates every job as `resolve_run` does, so `sweep --seeds -1` is
+    refused input (nothing written), not a failed run."""
+    with pytest.raises(UserInputError, match=message):
+        sweep.plan_jobs(preset, ["demo", "gprl-d"], ["dcp"], seeds, root=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_repeated_seed_plans_one_job():
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0, 0, 1])
     assert [j.name for j in jobs] == ["dcp/gprl-d/seed0", "dcp/gprl-d/seed1"]
@@ -118,9 +132,10 @@ def test_a_job_interrupted_before_the_sweep_interrupts_the_sweep(tmp_path, monke
 
 
 def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_path):
-    """A done.json that is not a result (say, damaged by hand) makes the job fail with the
-    reason, from the sweep's first check and from `run_job` alike; the run folder is left
-    byte for byte as it was (no retraining over a finished run that has no checkpoint)."""
+    """A done.json that is not a result (say, damaged by hand) makes the job `damaged` with
+    the reason, from the sweep's first check and from `run_job` alike; the run folder is
+    left byte for byte as it was (no retraining over a finished run that has no
+    checkpoint)."""
     job = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0], root=tmp_path)[0]
     folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     folder.mkdir(parents=True)
@@ -128,7 +143,7 @@ def test_a_finished_run_with_an_unreadable_marker_is_reported_not_retrained(tmp_
     (folder / "progress.csv").write_text("the finished run's curve\n")
     before = {path.name: path.read_bytes() for path in folder.iterdir()}
     for result in (sweep.run_sweep([job])[0], sweep.run_job(job)):
-        assert result.status == "failed" and "not valid JSON" in result.error
+        assert result.status == "damaged" and "not valid JSON" in result.error
         assert {path.name: path.read_bytes() for path in folder.iterdir()} == before
 
 

@@ -14,6 +14,10 @@ from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.curves import load_curves, mean_and_band, plot_figure
 
+EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
+EPISODE += ("obstacle_offset_y", "success", "collision")
+"""Columns of the minimal evaluation.csv of a finished, evaluated run."""
+
 
 def _run(root, method, seed, steps, success, finished=True, task="dcp"):
     folder = root / "p" / task / method / f"seed{seed}"
@@ -39,6 +43,7 @@ def _run(root, method, seed, steps, success, finished=True, task="dcp"):
         "safe_success_rate": success[-1] / 2,
     }
     write_json(folder / "summary.json", {"summary": summary})
+    write_csv(folder / "evaluation.csv", [{**dict.fromkeys(EPISODE, 0), "success": 1}], EPISODE)
     if finished:
         write_json(folder / "done.json", {"steps": steps[-1], "train_wall_time_s": 60.0})
     return folder

@@ -68,6 +68,10 @@ def test_unknown_schema_version_is_a_clear_error(tmp_path):
         write_tables(tmp_path, "p", tmp_path / "out")
 
 
+EPISODE_FIELDS = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
+EPISODE_FIELDS += ("obstacle_offset_y", "success", "collision")
+
+
 def episodes(pairs):
     """Minimal per-episode rows from (success, collision) pairs."""
     return [{"episode": i, "success": s, "collision": c} for i, (s, c) in enumerate(pairs)]
@@ -119,6 +123,11 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
             )
             if method != "demo":
                 write_json(folder / "done.json", {"train_wall_time_s": 600.0 * (seed + 1)})
+                write_csv(
+                    folder / "evaluation.csv",
+                    [{**dict.fromkeys(EPISODE_FIELDS, 0), "success": 1}],
+                    EPISODE_FIELDS,
+                )
     rows = per_seed_rows(tmp_path, "p")
     assert [(r["method"], r["seed"]) for r in rows] == [
         ("gprl", 0),
@@ -132,7 +141,7 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert (
-        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | – | – | – | – | – | 20.0 |"
+        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | 1.00 | – | – | – | – | 20.0 |"
         in markdown
     )
 
