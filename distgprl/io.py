@@ -15,6 +15,7 @@ This module imports only the standard library, so every layer may use it.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -95,3 +96,19 @@ def config_hash(config: Mapping[str, Any]) -> str:
 def file_sha256(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes."""
     return sha256_hex(Path(path).read_bytes())
+
+
+def is_locked(folder: str | Path) -> bool:
+    """True if a process holds ``folder``'s run lock (is training it) right now."""
+    path = Path(folder) / ".lock"
+    try:
+        descriptor = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(descriptor)  # closing releases the probe's lock if it got one
+    return False

@@ -45,7 +45,7 @@ import numpy as np
 
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.identity import RunSpec, check_seed, resolve_run  # noqa: F401 - re-exported
-from distgprl.io import atomic_write_bytes, atomic_write_text
+from distgprl.io import atomic_write_bytes, atomic_write_text, is_locked  # noqa: F401
 from distgprl.schema import (
     EVALUATION_FIELDS,
     PROGRESS_FIELDS,
@@ -616,22 +616,6 @@ def run_lock(folder: Path) -> Iterator[None]:
                 f"{folder}: another process is training this run (lock {folder / '.lock'})"
             ) from None
         yield
-
-
-def is_locked(folder: Path) -> bool:
-    """True if a process holds ``folder``'s run lock (is training it) right now."""
-    path = Path(folder) / ".lock"
-    try:
-        descriptor = os.open(path, os.O_RDONLY)
-    except FileNotFoundError:
-        return False
-    try:
-        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return True
-    finally:
-        os.close(descriptor)  # closing releases the probe's lock if it got one
-    return False
 
 
 def _train_locked(

@@ -1,6 +1,6 @@
 """`distgprl status`: where every run of a sweep stands, read from its run folder alone.
 
-A run's state is its `distgprl.experiments.runstate.RunState` verdict (``done``, ``stale``,
+A run's state is its `distgprl.runstate.RunState` verdict (``done``, ``stale``,
 ``damaged``, ``running``, ``failed``, ``partial``, ``missing``), the one the sweep and the
 reports use too; a damaged run is listed with the file and the reason.
 
@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 from distgprl.experiments.results import read_csv, read_json
 from distgprl.experiments.runner import resolve_run, run_dir
-from distgprl.experiments.runstate import VERDICTS, job_state
 from distgprl.experiments.sweep import Job
 from distgprl.methods import get_method
+from distgprl.runstate import VERDICTS, job_state
 
 STATES = VERDICTS
 

@@ -15,7 +15,7 @@
   signal) fails its own job only: the sweep writes that job's ``error.json`` (exit code or
   signal) and goes on with the others. On Ray, a crashed or lost task is recorded the same
   way.
-- A damaged run (`distgprl.experiments.runstate`: a result file not readable as a result
+- A damaged run (`distgprl.runstate`: a result file not readable as a result
   of this schema, or the evaluation of a finished run gone) is reported ``damaged`` with
   the file and the reason and left alone, never retrained over (that would discard a
   finished run whose checkpoints are gone, e.g. a committed one on a fresh clone) unless
@@ -59,8 +59,8 @@ from distgprl.experiments.runner import (
     run_dir,
     train_run,
 )
-from distgprl.experiments.runstate import job_state
 from distgprl.methods import TABLE_ORDER, get_method
+from distgprl.runstate import job_state
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,10 @@ tables and paired analyses, ``done.json`` (trained) for the learning curves — 
 hash recorded there is the one the code resolves for it now: a run of an older configuration
 (say, before a fix to a part of the method, which changes the hash of the methods using it)
 is left out, and listed, instead of being averaged with the current ones. `distgprl status`
-calls such runs "stale". A damaged run (the `distgprl.experiments.runstate` verdict
+calls such runs "stale". A damaged run (the `distgprl.runstate` verdict
 ``damaged``: a result file of an unknown schema version or not a result at all, or the
 evaluation of a finished run gone) is an error naming the file and the reason
-(:class:`~distgprl.experiments.runstate.DamagedRunError`, exit 2 at the CLI), in the tables
+(:class:`~distgprl.runstate.DamagedRunError`, exit 2 at the CLI), in the tables
 and the curves alike, never a run quietly left out.
 
 So a report is a function of the result files and, for this checkout's presets, of the
@@ -23,8 +23,8 @@ from functools import cache
 from pathlib import Path
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.runstate import run_state
 from distgprl.methods import METHODS
+from distgprl.runstate import run_state
 from distgprl.schema import read_json
 
 

@@ -17,10 +17,10 @@ from distgprl.cli import app
 from distgprl.experiments import sweep
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import EVALUATION_FIELDS, PROGRESS_FIELDS, resolve_run, run_dir
-from distgprl.experiments.runstate import DamagedRunError, job_state, run_state
 from distgprl.experiments.status import run_status
 from distgprl.report.curves import write_curves
 from distgprl.report.tables import write_tables
+from distgprl.runstate import DamagedRunError, job_state, run_state
 
 TASK, METHOD, SEED, PRESET = "dcp", "gprl-d", 0, "ci"
 
@@ -198,7 +198,7 @@ def test_other_verdicts_from_the_folder_alone(tmp_path):
 def test_the_verdict_module_imports_neither_torch_nor_pybullet(tmp_path):
     folder = finished_run(tmp_path)
     code = (
-        "import sys; from distgprl.experiments.runstate import run_state; "
+        "import sys; from distgprl.runstate import run_state; "
         f"print(run_state({str(folder)!r}, True, None).verdict, "
         "'torch' in sys.modules, 'pybullet' in sys.modules)"
     )

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from distgprl.experiments.results import SchemaVersionError, read_csv, read_json
+from distgprl.schema import SchemaVersionError, read_csv, read_json
 
 VERDICTS = ("done", "running", "partial", "failed", "stale", "damaged", "missing")
 """Every verdict `run_state` gives, in the order `distgprl status` counts them."""
@@ -173,7 +173,7 @@ def run_state(folder: str | Path, trainable: bool, current_hash: str | None) -> 
             cannot be resolved (a preset not in this checkout): then a finished run is
             `done` whatever hash it records.
     """
-    from distgprl.experiments.runner import is_locked
+    from distgprl.io import is_locked
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -203,8 +203,9 @@ def run_state(folder: str | Path, trainable: bool, current_hash: str | None) -> 
 def job_state(root: str | Path, preset: str, task: str, method: str, seed: int) -> RunState:
     """`run_state` of ``<root>/<preset>/<task>/<method>/seed<seed>`` against the config hash
     the code resolves for it now (names must be valid: `resolve_run`)."""
-    from distgprl.experiments.runner import resolve_run, run_dir
+    from distgprl.identity import resolve_run
     from distgprl.methods import get_method
+    from distgprl.schema import run_dir
 
     run = resolve_run(task, method, seed, preset)
     folder = run_dir(root, preset, task, method, seed)
