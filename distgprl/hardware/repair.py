@@ -145,6 +145,7 @@ class RepairResult:
         remaining: what is still violated after retiming and repair (empty unless
             refused; a refused result returns the plan as given, for ``--force``).
         original: the check of the plan as given (what ``--no-repair`` would have judged).
+        pushes: predicted min clearance (m) after each via-point push, in order.
     """
 
     decision: str
@@ -157,6 +158,7 @@ class RepairResult:
     shift_end: np.ndarray = field(default_factory=lambda: np.zeros(3))
     remaining: list[Violation] = field(default_factory=list)
     original: PlanCheck | None = None
+    pushes: tuple[float, ...] = ()
 
     @property
     def reason(self) -> str:
@@ -399,8 +401,10 @@ def repair_plan(
             chosen.shift_end,
             list(remaining),
             original.check,
+            tuple(history),
         )
 
+    history: list[float] = []
     k = via_points.count if via_points is not None else 0
     zero = np.zeros((k, 3))
     if original.check.ok:
@@ -474,6 +478,7 @@ def repair_plan(
             norms = np.linalg.norm(total, axis=1, keepdims=True)
             total *= np.minimum(1.0, config.max_displacement / np.maximum(norms, 1e-12))
             current = timed(np.asarray(via_points.replan(total), dtype=float))
+            history.append(float(current.check.min_clearance))
     if not current.check.ok:
         return refuse(current)
     if np.any(total != 0.0):

@@ -637,13 +637,15 @@ def _repair_window(
 def _describe(result: RepairResult) -> str:
     """One line for a window's repair decision."""
     if result.decision == "refused":
-        return f"refused after retiming and repair -- {result.reason}"
+        pushes = ", ".join(f"{1000 * d:.1f}" for d in result.pushes)
+        tried = f" (clearance after each push, mm: {pushes})" if pushes else ""
+        return f"refused after retiming and repair{tried} -- {result.reason}"
     if result.decision == "none":
         return "none (plan passes the pre-flight check)"
     text = f"{result.decision}: +{result.time_added:.2f} s"
     if result.decision == "repaired":
         text += f", via-points moved up to {1000.0 * result.max_displacement:.1f} mm"
-    original = ",".join(dict.fromkeys(v.limit for v in (result.original.violations or [])))
+    original = ", ".join(f"{v.limit} {v.value:.4g}" for v in result.original.violations)
     return f"{text} (was: {original}; now min clearance {result.check.min_clearance:.4f} m)"
 
 
