@@ -21,7 +21,8 @@ once. :func:`repair_plan` tries, in order:
    (linearised: least squares through the plan's linear dependence on its via-points) is
    clipped to ``step_size`` per via-point and the total to ``max_displacement`` (projected
    steps), the plan is rebuilt and re-checked (and retimed again if the push made it too
-   fast), for at most ``iterations`` steps.
+   fast); a push that does not raise the predicted clearance is halved from the last
+   accepted plan (backtracking), for at most ``iterations`` re-checks.
 3. **Refuse** whatever is still unsafe after both (violations in the returned check).
 
 Keeping the engagement with the conveyed bar (DBM). The bars ride the belt at a known
@@ -100,7 +101,7 @@ class RepairConfig:
     clearance_margin: float = 0.002
     step_size: float = 0.01
     max_displacement: float = 0.03
-    iterations: int = 6
+    iterations: int = 10
 
 
 @dataclass(frozen=True)
@@ -347,6 +348,35 @@ def _as_candidate(path_poses, shift, q_start, robot, limits, dt, clearance_at, v
     return _Candidate(poses, np.asarray(path_poses, float), parameter, check, 0.0, shift.copy())
 
 
+def _push_step(current, rows, robot, gradient_at, target, dt) -> np.ndarray | None:
+    """Least-norm via-point displacement (k, 3), m, that moves every control instant closer
+    than ``target`` (m) out by its deficit along the field's gradient at its worst tool
+    point (linearised through ``rows``, the plan's dependence on its via-points at plan
+    instants 0..n); None if no such instant depends on the via-points."""
+    points = [tool_check_points(robot, q) for q in current.check.joints]
+    count = len(points[0])
+    steps = np.repeat(np.arange(len(points)), count)
+    distance, gradient = gradient_at(np.concatenate(points), steps)
+    distance = np.asarray(distance).reshape(len(points), count)
+    gradient = np.asarray(gradient).reshape(len(points), count, 3)
+    worst = distance.argmin(axis=1)
+    per_step = distance[np.arange(len(points)), worst]
+    close = np.flatnonzero(per_step < target)
+    if not len(close):
+        return None
+    # influence at the (possibly re-timed) instants: interpolated in plan time
+    index = current.parameter[close] / dt
+    lower = np.clip(np.floor(index).astype(int), 0, len(rows) - 1)
+    upper = np.clip(lower + 1, 0, len(rows) - 1)
+    frac = (index - lower)[:, None]
+    matrix = (1.0 - frac) * rows[lower] + frac * rows[upper]  # (c, k)
+    if not np.any(np.abs(matrix) > 1e-9):
+        return None
+    push = (target - per_step[close])[:, None] * gradient[close, worst[close]]  # (c, 3)
+    step, *_ = np.linalg.lstsq(matrix, push, rcond=None)
+    return step
+
+
 def repair_plan(
     poses: np.ndarray,
     q_start: np.ndarray,
@@ -447,38 +477,30 @@ def repair_plan(
         influence_base = via_points.influence(base)  # (n, k), rows at plan instants 1..n
         rows = np.vstack([np.zeros((1, k)), influence_base])  # row 0: the fixed start
         target = limits.min_clearance + config.clearance_margin
+        step = None
+        scale = 1.0
         for _ in range(config.iterations):
             names = _names(current.check)
             if "clearance" not in names or names - REPAIRABLE_LIMITS:
                 break
-            points = [tool_check_points(robot, q) for q in current.check.joints]
-            count = len(points[0])
-            steps = np.repeat(np.arange(len(points)), count)
-            distance, gradient = gradient_at(np.concatenate(points), steps)
-            distance = np.asarray(distance).reshape(len(points), count)
-            gradient = np.asarray(gradient).reshape(len(points), count, 3)
-            worst = distance.argmin(axis=1)
-            per_step = distance[np.arange(len(points)), worst]
-            close = np.flatnonzero(per_step < target)
-            if not len(close):
-                break
-            # influence at the (possibly re-timed) instants: interpolate in plan time
-            index = current.parameter[close] / dt
-            lower = np.clip(np.floor(index).astype(int), 0, len(rows) - 1)
-            upper = np.clip(lower + 1, 0, len(rows) - 1)
-            frac = (index - lower)[:, None]
-            matrix = (1.0 - frac) * rows[lower] + frac * rows[upper]  # (c, k)
-            push = (target - per_step[close])[:, None] * gradient[close, worst[close]]  # (c, 3)
-            if not np.any(np.abs(matrix) > 1e-9):
-                break  # the offending instants do not depend on the movable via-points
-            step, *_ = np.linalg.lstsq(matrix, push, rcond=None)  # least-norm push (k, 3)
-            norms = np.linalg.norm(step, axis=1, keepdims=True)
-            step *= np.minimum(1.0, config.step_size / np.maximum(norms, 1e-12))
-            total = total + step
-            norms = np.linalg.norm(total, axis=1, keepdims=True)
-            total *= np.minimum(1.0, config.max_displacement / np.maximum(norms, 1e-12))
-            current = timed(np.asarray(via_points.replan(total), dtype=float))
-            history.append(float(current.check.min_clearance))
+            if step is None:
+                step = _push_step(current, rows, robot, gradient_at, target, dt)
+                if step is None:
+                    break  # nothing close depends on the movable via-points
+                norms = np.linalg.norm(step, axis=1, keepdims=True)
+                step = step * np.minimum(1.0, config.step_size / np.maximum(norms, 1e-12))
+            trial = total + scale * step
+            norms = np.linalg.norm(trial, axis=1, keepdims=True)
+            trial = trial * np.minimum(1.0, config.max_displacement / np.maximum(norms, 1e-12))
+            candidate = timed(np.asarray(via_points.replan(trial), dtype=float))
+            history.append(float(candidate.check.min_clearance))
+            improved = not (_names(candidate.check) - {"clearance"}) and (
+                candidate.check.min_clearance > current.check.min_clearance
+            )
+            if candidate.check.ok or improved:
+                current, total, step, scale = candidate, trial, None, 1.0
+            else:  # backtrack: half the step from the last accepted plan
+                scale *= 0.5
     if not current.check.ok:
         return refuse(current)
     if np.any(total != 0.0):

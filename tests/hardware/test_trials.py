@@ -225,3 +225,65 @@ def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
     assert summary["success_rate"] == pytest.approx(1 / 3)
     only_refused = summarise_trials([row("refused", "0.0", "0.060")])
     assert only_refused["moved"] == 0 and "min_clearance_p5" not in only_refused
+
+
+def test_too_fast_plans_are_retimed_not_refused(tmp_path):
+    """Under a 0.6 rad/s joint-speed limit the demo's plans are too fast: with repair they
+    are re-timed (recorded per window), without it the first window is refused."""
+    from distgprl.hardware.repair import DECISIONS
+    from distgprl.hardware.safety import SafetyLimits
+
+    slow = SafetyLimits(max_joint_speed=0.6)
+    kwargs = dict(trials=1, method="demo", seed=1, root=tmp_path, twin_config=SMALL)
+    repaired = run_trials(limits=slow, echo=lambda _: None, **kwargs).rows[0]
+    decisions = repaired["repair"].split(";")
+    assert decisions[0] == "retimed" and set(decisions) <= set(DECISIONS)
+    added = [float(v) for v in repaired["repair_added_s"].split(";")]
+    moved = [float(v) for v in repaired["repair_displacement_m"].split(";")]
+    assert len(added) == len(moved) == len(decisions) and added[0] > 0.0
+    assert all(m > 0 for m, d in zip(moved, decisions, strict=True) if d == "repaired")
+    assert repaired["refused_limits"] not in ("joint_speed", "joint_acceleration")
+    assert float(repaired["execution_s"]) > 0.0  # the re-timed window moved the robot
+
+    report = run_trials(limits=slow, repair=False, echo=lambda _: None, **kwargs)
+    plain = report.rows[0]
+    assert plain["status"] == "refused" and plain["refused_limits"] == "joint_speed"
+    assert plain["repair"] == "refused" and plain["repair_added_s"] == "0.000"
+    meta, rows = read_csv(report.path)
+    assert meta["repair"] is False and rows[0]["repair"] == "refused"
+
+
+def test_dry_run_prints_the_window_decisions(tmp_path):
+    lines: list[str] = []
+    report = run_trials(
+        trials=1,
+        method="demo",
+        seed=1,
+        root=tmp_path,
+        dry_run=True,
+        twin_config=SMALL,
+        echo=lines.append,
+    )
+    windows = [line for line in lines if ", window " in line]
+    assert len(windows) == len(report.rows[0]["repair"].split(";")) >= 1
+    assert all(
+        line.split(": ", 1)[1].split()[0] in {"none", "retimed:", "repaired:", "refused"}
+        for line in windows
+    )
+
+
+def test_sensor_noise_level_is_recorded_with_the_perception_error(tmp_path):
+    report = run_trials(
+        trials=1,
+        method="demo",
+        seed=2,
+        root=tmp_path,
+        twin_config=SMALL,
+        sensor_noise=1,
+        echo=lambda _: None,
+    )
+    meta, rows = read_csv(report.path)
+    assert meta["sensor_noise"] == 1
+    assert 0.0 < float(rows[0]["perception_error_mm"]) < 100.0
+    with pytest.raises(UserInputError, match="sensor noise level"):
+        run_trials(trials=1, method="demo", root=tmp_path, twin_config=SMALL, sensor_noise=5)
