@@ -144,6 +144,7 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
     calibration = save_calibration(tmp_path / "cell.yaml", twin_calibration(SMALL))
     fake = FakeRTDE(model_sim.start_joint_positions, model_sim.robot.fk)
     camera = TwinCamera(SMALL)
+    lines: list[str] = []
     report = run_trials(
         trials=1,
         method="demo",
@@ -155,9 +156,12 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
         root=tmp_path,
         rtde_factory=fake.factory,
         ask=lambda _: pytest.fail("a dry run must not prompt"),
-        echo=lambda _: None,
+        echo=lines.append,
     )
     assert report.rows[0]["status"] in ("planned", "refused")
+    # the ur backend goes through the same repair path and prints its per-window decisions
+    decisions = report.rows[0]["repair"].split(";")
+    assert len([line for line in lines if ", window " in line]) == len(decisions) >= 1
     moving = {"servoJ", "moveJ", "speedJ", "servoL", "moveL"}
     assert not moving & set(fake.names())
     assert "stopScript" in fake.names() and camera.closed
