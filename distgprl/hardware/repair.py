@@ -18,12 +18,15 @@ once. :func:`repair_plan` tries, in order:
    pushed along the distance field's gradient. At every control instant closer than
    ``min_clearance + margin`` the gradient at the worst tool point says where "away" is;
    the smallest via-point displacement that pushes those instants out by their deficit
-   (linearised: least squares through the plan's linear dependence on its via-points) is
-   clipped to ``step_size`` per via-point and the total to ``max_displacement`` (projected
-   steps), the plan is rebuilt and re-checked (and retimed again if the push made it too
-   fast); a push that does not raise the predicted clearance is halved from the last
-   accepted plan (backtracking), for at most ``iterations`` re-checks.
-3. **Refuse** whatever is still unsafe after both (violations in the returned check).
+   (linearised: least squares, truncated SVD, through the plan's linear dependence on its
+   via-points) is scaled to at most ``step_size`` per via-point and the total is projected
+   onto ``max_displacement`` per via-point; the plan is rebuilt and re-checked (and
+   re-timed again if the push made it too fast); a push that does not raise the predicted
+   clearance is halved from the last accepted plan (backtracking), for at most
+   ``iterations`` re-checks. Instants pinned by the continuity blend to the previous
+   window's end, or caught between two obstacles (opposite gradients), may not be
+   repairable within the bound.
+3. **Refuse** whatever is still unsafe after both (:attr:`RepairResult.remaining`).
 
 Keeping the engagement with the conveyed bar (DBM). The bars ride the belt at a known
 velocity ``v``; a retimed window ends later than planned, so the bars are ``v * delay``
@@ -373,7 +376,9 @@ def _push_step(current, rows, robot, gradient_at, target, dt) -> np.ndarray | No
     if not np.any(np.abs(matrix) > 1e-9):
         return None
     push = (target - per_step[close])[:, None] * gradient[close, worst[close]]  # (c, 3)
-    step, *_ = np.linalg.lstsq(matrix, push, rcond=None)
+    # truncated SVD: neighbouring via-points move the plan almost alike, and the exact
+    # least-norm solution would play them against each other with huge opposite moves
+    step, *_ = np.linalg.lstsq(matrix, push, rcond=0.1)
     return step
 
 
@@ -487,8 +492,8 @@ def repair_plan(
                 step = _push_step(current, rows, robot, gradient_at, target, dt)
                 if step is None:
                     break  # nothing close depends on the movable via-points
-                norms = np.linalg.norm(step, axis=1, keepdims=True)
-                step = step * np.minimum(1.0, config.step_size / np.maximum(norms, 1e-12))
+                largest = float(np.linalg.norm(step, axis=1).max())
+                step = step * min(1.0, config.step_size / max(largest, 1e-12))  # same direction
             trial = total + scale * step
             norms = np.linalg.norm(trial, axis=1, keepdims=True)
             trial = trial * np.minimum(1.0, config.max_displacement / np.maximum(norms, 1e-12))

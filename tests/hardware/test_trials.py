@@ -291,3 +291,28 @@ def test_sensor_noise_level_is_recorded_with_the_perception_error(tmp_path):
     assert 0.0 < float(rows[0]["perception_error_mm"]) < 100.0
     with pytest.raises(UserInputError, match="sensor noise level"):
         run_trials(trials=1, method="demo", root=tmp_path, twin_config=SMALL, sensor_noise=5)
+
+
+def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
+    """`distgprl hardware --no-repair --sensor-noise 2` reaches run_trials; 3 is rejected."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    import distgprl.hardware.trials as trials
+    from distgprl.cli import app
+
+    seen = {}
+
+    def fake_run_trials(**kwargs):
+        seen.update(kwargs)
+        return trials.TrialReport([], Path(tmp_path / "t.csv"), {})
+
+    monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    runner = CliRunner()
+    result = runner.invoke(app, ["hardware", "--no-repair", "--sensor-noise", "2"])
+    assert result.exit_code == 0, result.output
+    assert seen["repair"] is False and seen["sensor_noise"] == 2
+    assert runner.invoke(app, ["hardware"]).exit_code == 0
+    assert seen["repair"] is True and seen["sensor_noise"] == 0
+    assert runner.invoke(app, ["hardware", "--sensor-noise", "3"]).exit_code != 0
