@@ -70,7 +70,8 @@ TRIAL_FIELDS = (
     "trial_s",
 )
 """Columns of a trial CSV (``success``/``collision`` 0/1; clearances m; errors max over
-the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image). The
+the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image;
+``check_ms`` includes the plan repair). The
 ``repair*`` columns hold one ``;``-separated entry per planned window: the decision
 (``none``/``retimed``/``repaired``/``refused``), the time added (s) and the largest
 via-point displacement (m)."""

@@ -30,23 +30,26 @@ def fast_plan(model_sim, steps=8, dy=0.06, wrist=0.9):
     return q0, start, poses
 
 
-def kinematics(q0, joints):
+def kinematics(q0, joints, v_start=None):
     """(max joint speed rad/s, max joint acceleration rad/s^2) as the check measures them."""
     velocity = np.diff(np.vstack([q0, joints]), axis=0) / DT
-    acceleration = np.diff(np.vstack([np.zeros(6), velocity]), axis=0) / DT
+    previous = np.zeros(6) if v_start is None else v_start
+    acceleration = np.diff(np.vstack([previous, velocity]), axis=0) / DT
     return np.abs(velocity).max(), np.abs(acceleration).max()
 
 
-def test_fast_plan_is_retimed_within_every_limit_on_its_path(model_sim):
+@pytest.mark.parametrize("moving", [False, True])  # from rest, or already moving along it
+def test_fast_plan_is_retimed_within_every_limit_on_its_path(model_sim, moving):
     robot, limits = model_sim.robot, SafetyLimits()
     q0, start, poses = fast_plan(model_sim)
     before = check_plan(poses, q0, robot, limits, DT, force=True)
     assert kinematics(q0, before.joints)[0] > 2.0
     assert {"joint_speed", "joint_acceleration"} <= {v.limit for v in before.violations}
+    v_start = 0.4 * (before.joints[0] - q0) / DT if moving else None
 
-    result = repair_plan(poses, q0, robot, limits, DT)
+    result = repair_plan(poses, q0, robot, limits, DT, v_start=v_start)
     assert result.decision == "retimed" and result.check.ok and not result.remaining
-    speed, acceleration = kinematics(q0, result.check.joints)
+    speed, acceleration = kinematics(q0, result.check.joints, v_start)
     assert speed <= limits.max_joint_speed and acceleration <= limits.max_joint_acceleration
     tcp = np.vstack([start[:3], result.poses[:, :3]])
     assert np.linalg.norm(np.diff(tcp, axis=0), axis=1).max() / DT <= limits.max_tcp_speed
