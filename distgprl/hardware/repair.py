@@ -94,6 +94,8 @@ class RepairConfig:
         step_size: largest via-point move per push, m.
         max_displacement: largest total displacement of a via-point, m.
         iterations: largest number of pushes.
+        follow_belt: keep re-timed plans in the belt's frame while the target bar is on
+            the belt (module docstring); False keeps them in the robot base frame.
     """
 
     retime: bool = True
@@ -105,6 +107,7 @@ class RepairConfig:
     step_size: float = 0.01
     max_displacement: float = 0.03
     iterations: int = 10
+    follow_belt: bool = True
 
 
 @dataclass(frozen=True)

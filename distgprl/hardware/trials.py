@@ -627,7 +627,7 @@ def _repair_window(
         None if movable is None else movable[0],
         v_start=velocity,
         shift=shift,
-        belt_velocity=world.velocity if on_belt else None,
+        belt_velocity=world.velocity if on_belt and config.follow_belt else None,
         config=config,
     )
     if result.decision == "repaired" and movable is not None:
