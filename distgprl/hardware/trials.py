@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -205,7 +205,7 @@ def run_trials(
     rtde_factory: Callable | None = None,
     repair: bool = True,
     repair_config: RepairConfig | None = None,
-    sensor_noise: int = 0,
+    sensor_noise: int | None = None,
 ) -> TrialReport:
     """Run hardware trials of a trained DBM policy (see the module docstring).
 
@@ -233,7 +233,8 @@ def run_trials(
             at once, the behaviour before plan repair).
         repair_config: settings of the repair (default :class:`RepairConfig`).
         sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
-            0 none, 1 mild, 2 strong); ignored by the ur backend (a real camera).
+            0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
+            Ignored by the ur backend (a real camera).
 
     Returns:
         The rows, the CSV path and a summary (success/collision rates, MinCl).
@@ -270,8 +271,10 @@ def run_trials(
             twin_calibration,
         )
 
-        noise = sensor_noise_level(sensor_noise)
-        twin_config = replace(twin_config or TwinConfig(), noise=noise)
+        twin_config = twin_config or TwinConfig()
+        if sensor_noise is not None:
+            twin_config = replace(twin_config, noise=sensor_noise_level(sensor_noise))
+        noise = twin_config.noise
         cal = load_calibration(calibration) if calibration else twin_calibration(twin_config)
         cal = miscalibrated(cal, noise, np.random.default_rng([seed, 4]))
     else:
@@ -323,6 +326,7 @@ def run_trials(
         "force": force,
         "repair": repair,
         "sensor_noise": sensor_noise if backend == "twin" else None,
+        "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
         "policy": provenance,  # which trained model ran (empty for the unadapted demo)
     }
