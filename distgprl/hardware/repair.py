@@ -11,7 +11,10 @@ once. :func:`repair_plan` tries, in order:
    safety layer enforces, *never faster than the plan itself* (``ds/dt <= 1``: a virtual
    seventh coordinate ``q_7(s) = s`` with speed limit 1 carries that bound, and the TCP
    speed bound ``ds/dt <= v_tcp / |dp/ds|`` on the same coordinate), starting at the path
-   speed nearest the robot's current joint velocity. The new timing is sampled at the
+   speed nearest the robot's current joint velocity and ending at rest (so that the next
+   window, whatever its direction, can start from rest: a seam between a moving end and a
+   plan that turns away is a joint-acceleration spike no timing of the next window can
+   remove; stopping costs ``v / a``, ~0.1 s at the UR5e limits). The new timing is sampled at the
    control period; the fraction of the limits shrinks until the sampled plan passes the
    discrete check (finite differences, as the check measures them).
 2. **Repair** (predicted clearance below the limit): the window's movable via-points are
@@ -102,7 +105,7 @@ class RepairConfig:
     repair: bool = True
     limit_scales: tuple[float, ...] = (0.95, 0.85, 0.7, 0.55, 0.4)
     grid_per_step: int = 4
-    max_added_s: float = 3.0
+    max_added_s: float = 6.0
     clearance_margin: float = 0.002
     step_size: float = 0.01
     max_displacement: float = 0.03
@@ -307,15 +310,12 @@ def retime_plan(
         )
         sd = None
         for sd_start in dict.fromkeys((min(max(speed0, 0.0), 1.0), 0.0)):
-            for sd_end in (1.0, 0.5, 0.25, 0.0):
-                try:
-                    _, candidate, *_ = instance.compute_parameterization(sd_start, sd_end)
-                except Exception:  # toppra raises on some infeasible boundary values
-                    candidate = None
-                if candidate is not None and np.all(np.isfinite(candidate)):
-                    sd = np.maximum(np.asarray(candidate, dtype=float), 0.0)
-                    break
-            if sd is not None:
+            try:
+                _, candidate, *_ = instance.compute_parameterization(sd_start, 0.0)
+            except Exception:  # toppra raises on some infeasible boundary values
+                candidate = None
+            if candidate is not None and np.all(np.isfinite(candidate)):
+                sd = np.maximum(np.asarray(candidate, dtype=float), 0.0)
                 break
         if sd is None:
             continue
