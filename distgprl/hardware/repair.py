@@ -274,27 +274,30 @@ def retime_plan(
     spline = CubicSpline(s_knots, knots, axis=0)
     s_grid = np.linspace(0.0, n * dt, n * max(1, int(config.grid_per_step)) + 1)
     dense = spline(s_grid)
-    joints = np.empty((len(s_grid), 6))
-    q = q_start
-    joints[0] = q
-    for i in range(1, len(s_grid)):
-        pose = dense[i].copy()
-        pose[:3] += shift
-        solution = robot.ik_nearest(pose_to_matrix(pose), q)
-        if solution is None:
-            return None
-        q = joints[i] = solution
-    # joints + virtual coordinate q_7(s) = s (carries ds/dt <= 1 and the TCP speed bound)
-    path = toppra.SplineInterpolator(s_grid, np.hstack([joints, s_grid[:, None]]))
     tcp_rate = np.linalg.norm(spline(s_grid, 1)[:, :3], axis=1)  # |dp/ds|, m per s of plan
-    tangent0 = path(0.0, 1)[:6]
-    speed0 = float(tangent0 @ velocity0 / max(float(tangent0 @ tangent0), 1e-12))
-    for scale in config.limit_scales:
+    belt = None if belt_velocity is None else np.asarray(belt_velocity, dtype=float)
+
+    def joint_path(offset: np.ndarray):
+        """TOPP-RA path through the IK chain of the spline + shift + ``offset`` (grid, 3)."""
+        joints = np.empty((len(s_grid), 6))
+        q = joints[0] = q_start
+        for i in range(1, len(s_grid)):
+            pose = dense[i].copy()
+            pose[:3] += shift + offset[i]
+            solution = robot.ik_nearest(pose_to_matrix(pose), q)
+            if solution is None:
+                return None
+            q = joints[i] = solution
+        # joints + virtual coordinate q_7(s) = s (carries ds/dt <= 1 and the TCP bound)
+        return toppra.SplineInterpolator(s_grid, np.hstack([joints, s_grid[:, None]]))
+
+    def parameterise(path, scale: float):
+        """(path speeds ds/dt on the grid, times on the grid) within ``scale`` x the limits."""
         v_joint = scale * limits.max_joint_speed
         a_joint = scale * limits.max_joint_acceleration
         v_tcp = scale * limits.max_tcp_speed
 
-        def velocity_limits(s: float, v_joint=v_joint, v_tcp=v_tcp) -> np.ndarray:
+        def velocity_limits(s: float) -> np.ndarray:
             rate = float(np.interp(s, s_grid, tcp_rate))
             bound = min(1.0, v_tcp / rate) if rate > 1e-12 else 1.0
             upper = np.array([v_joint] * 6 + [bound])
@@ -308,22 +311,42 @@ def retime_plan(
         instance = toppra.algorithm.TOPPRA(
             constraints, path, gridpoints=s_grid, parametrizer="ParametrizeConstAccel"
         )
-        sd = None
+        tangent0 = path(0.0, 1)[:6]
+        speed0 = float(tangent0 @ velocity0 / max(float(tangent0 @ tangent0), 1e-12))
         for sd_start in dict.fromkeys((min(max(speed0, 0.0), 1.0), 0.0)):
             try:
-                _, candidate, *_ = instance.compute_parameterization(sd_start, 0.0)
+                _, sd, *_ = instance.compute_parameterization(sd_start, 0.0)
             except Exception:  # toppra raises on some infeasible boundary values
-                candidate = None
-            if candidate is not None and np.all(np.isfinite(candidate)):
-                sd = np.maximum(np.asarray(candidate, dtype=float), 0.0)
+                sd = None
+            if sd is None or not np.all(np.isfinite(sd)):
+                continue
+            sd = np.maximum(np.asarray(sd, dtype=float), 0.0)
+            mean = sd[:-1] + sd[1:]
+            if np.any(mean <= 0.0):
+                continue
+            return sd, np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s_grid) / mean)])
+        return None
+
+    for scale in config.limit_scales:
+        # On a belt the shift v (t(s) - s) depends on the timing being sought: fixed-point
+        # iteration (the belt is slow, two or three rounds agree to well under a mm).
+        offset = np.zeros((len(s_grid), 3))
+        solved = None
+        for _ in range(4 if belt is not None else 1):
+            path = joint_path(offset)
+            if path is None:
+                return None
+            solved = parameterise(path, scale)
+            if solved is None or belt is None:
                 break
-        if sd is None:
+            update = (solved[1] - s_grid)[:, None] * belt
+            converged = float(np.abs(update - offset).max()) < 1e-4
+            offset = update
+            if converged:
+                break
+        if solved is None:
             continue
-        ds = np.diff(s_grid)
-        mean = sd[:-1] + sd[1:]
-        if np.any(mean <= 0.0):
-            continue
-        t_grid = np.concatenate([[0.0], np.cumsum(2.0 * ds / mean)])
+        sd, t_grid = solved
         total = float(t_grid[-1])
         steps = max(1, math.ceil(total / dt - 1e-9))
         added = steps * dt - n * dt
