@@ -370,7 +370,8 @@ def retime_plan(
     return None
 
 
-def _as_candidate(path_poses, shift, q_start, robot, limits, dt, clearance_at, v_start, belt):
+def _as_candidate(path_poses, shift, q_start, robot, limits, dt, clearance_at, v_start):
+    """The plan as given (shifted), checked: no new timing."""
     poses = _shifted(path_poses, shift)
     check = check_plan(poses, q_start, robot, limits, dt, clearance_at, force=True, v_start=v_start)
     parameter = np.arange(1, len(poses) + 1) * dt
@@ -447,7 +448,7 @@ def repair_plan(
     """
     shift = np.zeros(3) if shift is None else np.asarray(shift, dtype=float)
     velocity0 = np.zeros(6) if v_start is None else np.asarray(v_start, dtype=float)
-    args = (q_start, robot, limits, dt, clearance_at, velocity0, belt_velocity)
+    args = (q_start, robot, limits, dt, clearance_at, velocity0)
     original = _as_candidate(np.asarray(poses, dtype=float), shift, *args)
 
     def result(decision: str, chosen: _Candidate, displacement, remaining=()):
