@@ -199,6 +199,17 @@ def hardware(
     config: ConfigOption = None,
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
     root: RootOption = Path("results"),
+    repair: Annotated[
+        bool,
+        typer.Option(
+            help="Retime too-fast plans and push too-close via-points before refusing "
+            "(--no-repair: refuse at once)."
+        ),
+    ] = True,
+    sensor_noise: Annotated[
+        int,
+        typer.Option(min=0, max=2, help="Twin sensor noise: 0 none, 1 mild, 2 strong."),
+    ] = 0,
 ) -> None:
     """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
     from distgprl.hardware.trials import run_trials
@@ -218,6 +229,8 @@ def hardware(
         root=root,
         preset=preset,
         model_path=model,
+        repair=repair,
+        sensor_noise=sensor_noise,
     )
     typer.echo(f"{report.path}: {report.summary}")
 

@@ -292,6 +292,9 @@ TRIAL_FIELDS = (
     "planned_min_clearance",
     "stop_reason",
     "refused_limits",
+    "repair",
+    "repair_added_s",
+    "repair_displacement_m",
     "object_offset_y",
     "obstacle_offset_y",
     "true_object_offset_y",
@@ -306,7 +309,11 @@ TRIAL_FIELDS = (
     "trial_s",
 )
 """Columns of a trial CSV (``success``/``collision`` 0/1; clearances m; errors max over
-the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image)."""
+the trial's images; ``*_ms`` summed over the trial, ``perception_ms`` per image;
+``check_ms`` includes the plan repair). The ``repair*`` columns (absent in trial files made
+before plan repair) hold one ``;``-separated entry per planned window: the decision
+(``none``/``retimed``/``repaired``/``refused``), the time added (s) and the largest
+via-point displacement (m)."""
 
 
 def moved_robot(trial: dict[str, Any]) -> bool:

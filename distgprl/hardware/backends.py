@@ -87,16 +87,25 @@ class TwinBackend:
         twin: camera/sensor settings.
         rng: generator for the pixel noise.
         chunk: control instants executed between contact checks.
+        noise_rng: generator for the image effects of ``twin.noise`` (exposure, blur,
+            extra sensor noise); default seeded 0.
     """
 
     name = "twin"
 
-    def __init__(self, twin=None, rng: np.random.Generator | None = None, chunk: int = 5) -> None:
+    def __init__(
+        self,
+        twin=None,
+        rng: np.random.Generator | None = None,
+        chunk: int = 5,
+        noise_rng: np.random.Generator | None = None,
+    ) -> None:
         from distgprl.hardware.twin import TwinConfig, TwinSim
 
         self.twin = twin or TwinConfig()
         self.sim = TwinSim(self.twin)
         self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.noise_rng = noise_rng if noise_rng is not None else np.random.default_rng(0)
         self.control_dt = float(self.sim.control_dt)
         self.chunk = int(chunk)
         self.collision = False
@@ -126,7 +135,7 @@ class TwinBackend:
     def capture(self) -> tuple[np.ndarray, float]:
         """Image of the current state; then ``latency_s`` passes with the robot holding still."""
         stamp = self.now()
-        image = self.sim.capture(self.rng)
+        image = self.sim.capture(self.rng, self.noise_rng)
         if self.twin.latency_s > 0:
             self.hold(self.twin.latency_s)
         return image, stamp

@@ -9,7 +9,9 @@ One trial on the DBM cell:
 3. for each of the 3 windows: a fresh image updates the bar tracks and the distance field
    (static cell geometry + perceived other bar), the trained policy adapts the window from
    the observation built exactly as in training, the segment's poses are checked by the
-   safety layer (refused below the limits unless ``force``), then streamed to the robot;
+   plan repair (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points pushed
+   along the distance field's gradient if too close) and the safety layer (refused if
+   still unsafe, unless ``force``), then streamed to the robot;
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -37,6 +39,7 @@ from distgprl.hardware.perception import (
     load_calibration,
     pose_error,
 )
+from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints, repair_plan
 from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
 from distgprl.schema import TRIAL_FIELDS, moved_robot
 
@@ -109,6 +112,46 @@ def _clearance_function(adapter, now: float, dt: float, chunk: int = 5):
     return clearance_at
 
 
+def _gradient_function(adapter, now: float, dt: float, chunk: int = 5):
+    """``(points, steps) -> (distance, gradient)``, the other bar predicted at each step."""
+    field = adapter.field
+    world = adapter.world
+
+    def gradient_at(points: np.ndarray, steps: np.ndarray):
+        distance = np.empty(len(points))
+        gradient = np.empty((len(points), 3))
+        groups = steps // chunk
+        for group in np.unique(groups):
+            mask = groups == group
+            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            distance[mask], gradient[mask] = field.distance(points[mask])
+        field.update(world.obstacle_shapes(now))
+        return distance, gradient
+
+    return gradient_at
+
+
+def _via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
+    """The window's movable via-points (not frozen ones) and how its plan depends on them;
+    None for the residual ProMP baseline (its parameters are weights, not via-points)."""
+    if adapter.method.action_mode == "residual":
+        return None
+    frozen = set(adapter.layout.frozen)
+    movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)
+    if not len(movable):
+        return None
+
+    def replan(displacement: np.ndarray) -> np.ndarray:
+        saved = adapter.gamma.copy()
+        try:
+            adapter.gamma[movable, :3] += np.asarray(displacement, dtype=float)
+            return adapter._segment_poses(step)
+        finally:
+            adapter.gamma = saved
+
+    return ViaPoints(replan, len(movable)), movable
+
+
 def run_trials(
     trials: int = 10,
     method: str = "dist-gprl",
@@ -128,6 +171,9 @@ def run_trials(
     ask: Callable[[str], str] = input,
     echo: Callable[[str], None] = print,
     rtde_factory: Callable | None = None,
+    repair: bool = True,
+    repair_config: RepairConfig | None = None,
+    sensor_noise: int | None = None,
 ) -> TrialReport:
     """Run hardware trials of a trained DBM policy (see the module docstring).
 
@@ -151,6 +197,12 @@ def run_trials(
         limits: safety limits (default :class:`SafetyLimits`).
         ask: prompt function (operator judge, bar placement); echo: progress output.
         rtde_factory: ``ip -> (control, receive)`` for the ur backend (tests inject a fake).
+        repair: retime / repair unsafe window plans before refusing them (False: refuse
+            at once, the behaviour before plan repair).
+        repair_config: settings of the repair (default :class:`RepairConfig`).
+        sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
+            0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
+            Ignored by the ur backend (a real camera).
 
     Returns:
         The rows, the CSV path and a summary (success/collision rates, MinCl).
@@ -180,10 +232,19 @@ def run_trials(
     robot: Any
     if backend == "twin":
         from distgprl.hardware.backends import TwinBackend
-        from distgprl.hardware.twin import TwinConfig, twin_calibration
+        from distgprl.hardware.twin import (
+            TwinConfig,
+            miscalibrated,
+            sensor_noise_level,
+            twin_calibration,
+        )
 
         twin_config = twin_config or TwinConfig()
+        if sensor_noise is not None:
+            twin_config = replace(twin_config, noise=sensor_noise_level(sensor_noise))
+        noise = twin_config.noise
         cal = load_calibration(calibration) if calibration else twin_calibration(twin_config)
+        cal = miscalibrated(cal, noise, np.random.default_rng([seed, 4]))
     else:
         if calibration is None:
             raise UserInputError("the ur backend needs --calibration FILE (camera + markers)")
@@ -194,7 +255,11 @@ def run_trials(
     try:
         policy, provenance = _load_policy(method, seed, preset, root, model_path, adapter)
         if backend == "twin":
-            robot = TwinBackend(twin_config, rng=np.random.default_rng([seed, 1]))
+            robot = TwinBackend(
+                twin_config,
+                rng=np.random.default_rng([seed, 1]),
+                noise_rng=np.random.default_rng([seed, 2]),
+            )
         else:
             from distgprl.hardware.backends import OpenCVCamera, URBackend
 
@@ -206,7 +271,14 @@ def run_trials(
     except BaseException:
         adapter.close()
         raise
-    perception = MarkerPerception(cal)
+    if backend == "twin" and twin_config.noise.corner_noise_px > 0:
+        from distgprl.hardware.twin import NoisyCornerPerception
+
+        perception = NoisyCornerPerception(
+            cal, twin_config.noise.corner_noise_px, np.random.default_rng([seed, 3])
+        )
+    else:
+        perception = MarkerPerception(cal)
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
     prefix = "plans" if dry_run else "trials"
@@ -220,6 +292,9 @@ def run_trials(
         "dry_run": dry_run,
         "judge": judge,
         "force": force,
+        "repair": repair,
+        "sensor_noise": sensor_noise if backend == "twin" else None,
+        "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
         "policy": provenance,  # which trained model ran (empty for the unadapted demo)
     }
@@ -247,6 +322,7 @@ def run_trials(
                 force,
                 ask,
                 echo,
+                (repair_config or RepairConfig()) if repair else None,
             )
             row["backend"] = backend
             rows.append(row)
@@ -289,7 +365,20 @@ def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
 
 
 def _one_trial(
-    index, tc, robot, perception, adapter, policy, limits, dt, dry_run, judge, force, ask, echo
+    index,
+    tc,
+    robot,
+    perception,
+    adapter,
+    policy,
+    limits,
+    dt,
+    dry_run,
+    judge,
+    force,
+    ask,
+    echo,
+    repair_config: RepairConfig | None = None,
 ) -> dict[str, Any]:
     trial_start = time.perf_counter()
     twin = robot.name == "twin"
@@ -343,42 +432,85 @@ def _one_trial(
     q = robot.joint_positions()
     velocity = np.zeros(6)
     clock = now  # predicted time in dry-run (nothing moves)
+    shift = np.zeros(3)  # belt shift of re-timed plans (repair module docstring)
+    last_pose = None  # last commanded pose (with the shift)
+    windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
     for step in range(adapter.layout.n_steps):
         if step > 0 and not dry_run:
             perceive()
         elif step > 0:
-            adapter.world.set_robot(adapter._last_commanded, clock)
+            adapter.world.set_robot(
+                adapter._last_commanded if last_pose is None else last_pose, clock
+            )
         start = time.perf_counter()
         observation = adapter.observe()
         action = None if policy is None else policy(observation)
         timings["policy"] += time.perf_counter() - start
         poses = adapter.adapt(action)
         reference = clock if dry_run else robot.now()
-        try:
-            check = check_plan(
+        clearance_at = _clearance_function(adapter, reference, dt)
+        path_poses = poses
+        if repair_config is None:
+            try:
+                check = check_plan(
+                    poses,
+                    q,
+                    adapter.model.robot,
+                    limits,
+                    dt,
+                    clearance_at,
+                    force=force,
+                    v_start=velocity,
+                )
+            except UnsafePlanError as refused:
+                echo(f"trial {index + 1}, window {step + 1}: {refused}")
+                windows.append(("refused", 0.0, 0.0))
+                row.update(
+                    status="refused",
+                    refused_limits=",".join(dict.fromkeys(v.limit for v in refused.violations)),
+                    stop_reason=str(refused),
+                )
+                break
+            windows.append(("refused" if check.violations else "none", 0.0, 0.0))
+            timings["check"] += check.check_ms / 1000.0
+        else:
+            started = time.perf_counter()
+            repaired = _repair_window(
+                adapter,
+                step,
                 poses,
                 q,
-                adapter.model.robot,
+                velocity,
                 limits,
                 dt,
-                _clearance_function(adapter, reference, dt),
-                force=force,
-                v_start=velocity,
+                clearance_at,
+                reference,
+                shift,
+                repair_config,
             )
-        except UnsafePlanError as refused:
-            echo(f"trial {index + 1}, window {step + 1}: {refused}")
-            row.update(
-                status="refused",
-                refused_limits=",".join(dict.fromkeys(v.limit for v in refused.violations)),
-                stop_reason=str(refused),
-            )
-            break
-        timings["check"] += check.check_ms / 1000.0
+            timings["check"] += time.perf_counter() - started
+            windows.append((repaired.decision, repaired.time_added, repaired.max_displacement))
+            if repaired.decision != "none" or dry_run:
+                echo(f"trial {index + 1}, window {step + 1}: {_describe(repaired)}")
+            if repaired.decision == "refused" and not force:
+                refused = UnsafePlanError(repaired.remaining)
+                row.update(
+                    status="refused",
+                    refused_limits=",".join(repaired.refused_limits),
+                    stop_reason=f"after retiming and repair: {refused}",
+                )
+                break
+            check, poses, path_poses = repaired.check, repaired.poses, repaired.path_poses
+            shift = repaired.shift_end
+            if repaired.decision == "refused":  # forced: executed as given, recorded
+                row["refused_limits"] = ",".join(repaired.refused_limits)
         planned = min(planned, check.min_clearance)
-        if check.violations:
+        if check.violations and repair_config is None:
             row["refused_limits"] = ",".join(dict.fromkeys(v.limit for v in check.violations))
         if dry_run:
-            adapter.executed(poses)
+            adapter.executed(path_poses)
+            if len(poses):
+                last_pose = np.asarray(poses[-1], dtype=float).copy()
             clock += len(poses) * dt
             if len(check.joints):
                 velocity = (check.joints[-1] - (check.joints[-2] if len(poses) > 1 else q)) / dt
@@ -386,8 +518,9 @@ def _one_trial(
             continue
         result = robot.execute(check.joints, poses)
         timings["execution"] += result.wall_s
-        adapter.executed(poses[: result.steps])
+        adapter.executed(path_poses[: result.steps])
         if result.steps:
+            last_pose = np.asarray(poses[result.steps - 1], dtype=float).copy()
             q = check.joints[result.steps - 1]
             previous = check.joints[result.steps - 2] if result.steps > 1 else q
             velocity = (q - previous) / dt
@@ -398,6 +531,9 @@ def _one_trial(
             break
         if not twin:
             q = robot.joint_positions()
+    row["repair"] = ";".join(w[0] for w in windows)
+    row["repair_added_s"] = ";".join(f"{w[1]:.3f}" for w in windows)
+    row["repair_displacement_m"] = ";".join(f"{w[2]:.4f}" for w in windows)
 
     # -- judge ---------------------------------------------------------------------------
     if dry_run:
@@ -425,6 +561,53 @@ def _one_trial(
         row["success"] = int(lifted >= adapter.world.scene.lift_height and row["status"] == "ok")
         row["collision"] = int(row["collision"] == 1)
     return _finish(row, trial_start, timings, errors, planned)
+
+
+def _repair_window(
+    adapter, step, poses, q, velocity, limits, dt, clearance_at, reference, shift, config
+) -> RepairResult:
+    """Retime / repair / refuse the window's plan (:func:`repair_plan`).
+
+    The plan follows the belt (re-timed poses shifted by the belt's travel during the
+    added time) while the perceived target bar is still on the belt; once it is lifted
+    the shift stays as it is. Repaired via-points are written back into the adapter (the
+    policy sees them in its next observation, as if it had moved them).
+    """
+    world = adapter.world
+    on_belt = "target_bar" in world.tracks and world._on_belt(world.tracks["target_bar"].transform)
+    movable = _via_points(adapter, step)
+    result = repair_plan(
+        poses,
+        q,
+        adapter.model.robot,
+        limits,
+        dt,
+        clearance_at,
+        _gradient_function(adapter, reference, dt),
+        None if movable is None else movable[0],
+        v_start=velocity,
+        shift=shift,
+        belt_velocity=world.velocity if on_belt and config.follow_belt else None,
+        config=config,
+    )
+    if result.decision == "repaired" and movable is not None:
+        adapter.gamma[movable[1], :3] += result.displacement
+    return result
+
+
+def _describe(result: RepairResult) -> str:
+    """One line for a window's repair decision."""
+    if result.decision == "refused":
+        pushes = ", ".join(f"{1000 * d:.1f}" for d in result.pushes)
+        tried = f" (clearance after each push, mm: {pushes})" if pushes else ""
+        return f"refused after retiming and repair{tried} -- {result.reason}"
+    if result.decision == "none":
+        return "none (plan passes the pre-flight check)"
+    text = f"{result.decision}: +{result.time_added:.2f} s"
+    if result.decision == "repaired":
+        text += f", via-points moved up to {1000.0 * result.max_displacement:.1f} mm"
+    original = ", ".join(f"{v.limit} {v.value:.4g}" for v in result.original.violations)
+    return f"{text} (was: {original}; now min clearance {result.check.min_clearance:.4f} m)"
 
 
 def _fk_pose(robot, q: np.ndarray) -> np.ndarray:

@@ -8,6 +8,14 @@ with images from ``cv2.aruco.generateImageMarker``; the bar markers follow their
 every render. Images get configurable Gaussian pixel noise; the latency model lives in
 :class:`~distgprl.hardware.backends.TwinBackend` (the world keeps moving while an image is
 processed).
+
+Sensor noise (:class:`SensorNoise`, levels :data:`SENSOR_NOISE`) makes the twin see like a
+camera: a per-image exposure change (a gain, saturating at 255), Gaussian optical blur and
+extra sensor noise on the image; Gaussian noise on the detected marker corners
+(:class:`NoisyCornerPerception`); and a calibration error of the base marker plate (the
+calibration file places it slightly off, :func:`miscalibrated`). Every effect draws from a
+generator passed in; level 0 draws nothing and gives exactly the images of a twin without
+sensor noise.
 """
 
 from __future__ import annotations
@@ -15,13 +23,14 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import pybullet
 
+from distgprl.errors import UserInputError
 from distgprl.hardware.markers import (
     BAR_PLATE_SIDE,
     BASE_MARKERS,
@@ -33,18 +42,138 @@ from distgprl.hardware.markers import (
     TARGET_BAR_MARKERS,
     MarkerSpec,
 )
-from distgprl.hardware.perception import CellCalibration
+from distgprl.hardware.perception import CellCalibration, MarkerPerception
 from distgprl.io import atomic_write_bytes
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, DBMSim
 from distgprl.sim.transforms import (
     make_transform,
+    matrix_to_pose,
     matrix_to_quaternion,
     pose_to_matrix,
     quaternion_to_matrix,
+    rotvec_to_matrix,
 )
 
 SHIPPED_CALIBRATION = Path(__file__).with_name("twin_calibration.yaml")
 """The calibration file of the default twin (:func:`twin_calibration` of ``TwinConfig()``)."""
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Camera imperfections of the twin beyond its pixel noise (zeros: none).
+
+    Attributes:
+        exposure_std: std of the per-image exposure change, stops (gain ``2**N(0, std)``;
+            bright pixels saturate at 255).
+        blur_sigma_px: std of the Gaussian optical blur, px (0: sharp).
+        pixel_noise_std: extra Gaussian sensor noise per pixel and channel (0..255 scale),
+            after exposure and blur.
+        corner_noise_px: std of Gaussian noise on every detected marker corner, px per axis.
+        base_translation_mm: std of the base-plate calibration error per axis, mm (one draw
+            per run: the cell is miscalibrated, not the image).
+        base_rotation_deg: std of the base-plate calibration error per axis, degrees.
+    """
+
+    exposure_std: float = 0.0
+    blur_sigma_px: float = 0.0
+    pixel_noise_std: float = 0.0
+    corner_noise_px: float = 0.0
+    base_translation_mm: float = 0.0
+    base_rotation_deg: float = 0.0
+
+    @property
+    def affects_image(self) -> bool:
+        return bool(self.exposure_std or self.blur_sigma_px or self.pixel_noise_std)
+
+
+SENSOR_NOISE: dict[int, SensorNoise] = {
+    0: SensorNoise(),
+    1: SensorNoise(
+        exposure_std=0.15,
+        blur_sigma_px=0.7,
+        pixel_noise_std=3.0,
+        corner_noise_px=0.15,
+        base_translation_mm=1.0,
+        base_rotation_deg=0.2,
+    ),
+    2: SensorNoise(
+        exposure_std=0.4,
+        blur_sigma_px=1.5,
+        pixel_noise_std=8.0,
+        corner_noise_px=0.4,
+        base_translation_mm=3.0,
+        base_rotation_deg=0.5,
+    ),
+}
+"""``--sensor-noise`` levels: 0 none (today's twin), 1 mild (a good industrial camera
+under changing light), 2 strong (cheap camera, poor light, a rushed calibration)."""
+
+
+def sensor_noise_level(level: int) -> SensorNoise:
+    """The :class:`SensorNoise` of a level (raises :class:`UserInputError` if unknown)."""
+    if level not in SENSOR_NOISE:
+        raise UserInputError(f"sensor noise level must be one of {sorted(SENSOR_NOISE)}")
+    return SENSOR_NOISE[level]
+
+
+def degrade_image(rgb: np.ndarray, noise: SensorNoise, rng: np.random.Generator) -> np.ndarray:
+    """Exposure change, blur and sensor noise on a float image (h, w, 3), 0..255 scale."""
+    import cv2
+
+    out = np.asarray(rgb, dtype=float)
+    if noise.exposure_std > 0:
+        out = out * 2.0 ** rng.normal(0.0, noise.exposure_std)
+    if noise.blur_sigma_px > 0:
+        out = cv2.GaussianBlur(out, (0, 0), noise.blur_sigma_px)
+    if noise.pixel_noise_std > 0:
+        out = out + rng.normal(0.0, noise.pixel_noise_std, size=out.shape)
+    return out
+
+
+def miscalibrated(
+    calibration: CellCalibration, noise: SensorNoise, rng: np.random.Generator
+) -> CellCalibration:
+    """``calibration`` with the base marker plate moved by one random rigid error.
+
+    The error (translation ``N(0, base_translation_mm)`` per axis, rotation vector
+    ``N(0, base_rotation_deg)`` per axis, about the plate's centre) is what a real
+    calibration of the plate gets wrong; unchanged (and nothing drawn) when both are zero.
+    """
+    if not (noise.base_translation_mm or noise.base_rotation_deg):
+        return calibration
+    translation = rng.normal(0.0, noise.base_translation_mm / 1000.0, 3)
+    rotation = rotvec_to_matrix(np.radians(rng.normal(0.0, noise.base_rotation_deg, 3)))
+    centre = np.mean([np.asarray(m.pose[:3]) for m in calibration.base_markers], axis=0)
+    error = make_transform(rotation, centre + translation) @ make_transform(np.eye(3), -centre)
+    markers = tuple(
+        replace(m, pose=tuple(float(v) for v in matrix_to_pose(error @ pose_to_matrix(m.pose))))
+        for m in calibration.base_markers
+    )
+    return replace(calibration, base_markers=markers)
+
+
+class NoisyCornerPerception(MarkerPerception):
+    """:class:`MarkerPerception` whose detected corners get Gaussian noise (px).
+
+    Args:
+        calibration: as :class:`MarkerPerception`.
+        corner_noise_px: std of the noise per corner and axis, px.
+        rng: generator for the noise.
+    """
+
+    def __init__(
+        self, calibration: CellCalibration, corner_noise_px: float, rng: np.random.Generator
+    ) -> None:
+        super().__init__(calibration)
+        self.corner_noise_px = float(corner_noise_px)
+        self.rng = rng
+
+    def detect(self, image: np.ndarray) -> dict[int, np.ndarray]:
+        corners = super().detect(image)
+        return {
+            marker: c + self.rng.normal(0.0, self.corner_noise_px, c.shape)
+            for marker, c in sorted(corners.items())
+        }
 
 
 @dataclass(frozen=True)
@@ -63,6 +192,7 @@ class TwinConfig:
         supersample: the image is rendered this many times larger per side and averaged
             down, which integrates light over each pixel's area like a real sensor
             (TinyRenderer samples one point per pixel: hard, aliased edges bias corners).
+        noise: camera imperfections beyond the pixel noise (:class:`SensorNoise`).
     """
 
     width: int = 1920
@@ -74,6 +204,7 @@ class TwinConfig:
     latency_s: float = 0.0
     texture_pixels_per_cell: int = 64
     supersample: int = 1
+    noise: SensorNoise = field(default_factory=SensorNoise)
 
     def intrinsics(self) -> np.ndarray:
         """OpenCV camera matrix (3, 3), px (pixel centres at integer coordinates)."""
@@ -228,11 +359,15 @@ class TwinSim(DBMSim):
         return self._body_transform(self.marker_bodies[marker_id])
 
     # -- camera ----------------------------------------------------------------------------------
-    def capture(self, rng: np.random.Generator | None = None) -> np.ndarray:
+    def capture(
+        self, rng: np.random.Generator | None = None, noise_rng: np.random.Generator | None = None
+    ) -> np.ndarray:
         """A camera image (height, width, 3) uint8 of the current state.
 
         Args:
             rng: generator for the pixel noise (``pixel_noise_std``); None = no noise.
+            noise_rng: generator for the image effects of ``twin.noise`` (exposure, blur,
+                extra noise), applied before the pixel noise; None = none of them.
         """
         self._sync_markers()
         twin = self.twin
@@ -258,6 +393,8 @@ class TwinSim(DBMSim):
         )
         rgba = np.asarray(image[2], dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
         rgb = rgba.reshape(twin.height, factor, twin.width, factor, 3).mean(axis=(1, 3))
+        if noise_rng is not None and twin.noise.affects_image:
+            rgb = degrade_image(rgb, twin.noise, noise_rng)
         if rng is not None and twin.pixel_noise_std > 0:
             noisy = rgb + rng.normal(0.0, twin.pixel_noise_std, size=rgb.shape)
             rgb = noisy

@@ -144,6 +144,7 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
     calibration = save_calibration(tmp_path / "cell.yaml", twin_calibration(SMALL))
     fake = FakeRTDE(model_sim.start_joint_positions, model_sim.robot.fk)
     camera = TwinCamera(SMALL)
+    lines: list[str] = []
     report = run_trials(
         trials=1,
         method="demo",
@@ -155,9 +156,12 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
         root=tmp_path,
         rtde_factory=fake.factory,
         ask=lambda _: pytest.fail("a dry run must not prompt"),
-        echo=lambda _: None,
+        echo=lines.append,
     )
     assert report.rows[0]["status"] in ("planned", "refused")
+    # the ur backend goes through the same repair path and prints its per-window decisions
+    decisions = report.rows[0]["repair"].split(";")
+    assert len([line for line in lines if ", window " in line]) == len(decisions) >= 1
     moving = {"servoJ", "moveJ", "speedJ", "servoL", "moveL"}
     assert not moving & set(fake.names())
     assert "stopScript" in fake.names() and camera.closed
@@ -225,3 +229,90 @@ def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
     assert summary["success_rate"] == pytest.approx(1 / 3)
     only_refused = summarise_trials([row("refused", "0.0", "0.060")])
     assert only_refused["moved"] == 0 and "min_clearance_p5" not in only_refused
+
+
+def test_too_fast_plans_are_retimed_not_refused(tmp_path):
+    """Under a 0.6 rad/s joint-speed limit the demo's plans are too fast: with repair they
+    are re-timed (recorded per window), without it the first window is refused."""
+    from distgprl.hardware.repair import DECISIONS
+    from distgprl.hardware.safety import SafetyLimits
+
+    slow = SafetyLimits(max_joint_speed=0.6)
+    kwargs = dict(trials=1, method="demo", seed=1, root=tmp_path, twin_config=SMALL)
+    repaired = run_trials(limits=slow, echo=lambda _: None, **kwargs).rows[0]
+    decisions = repaired["repair"].split(";")
+    assert decisions[0] == "retimed" and set(decisions) <= set(DECISIONS)
+    added = [float(v) for v in repaired["repair_added_s"].split(";")]
+    moved = [float(v) for v in repaired["repair_displacement_m"].split(";")]
+    assert len(added) == len(moved) == len(decisions) and added[0] > 0.0
+    assert all(m > 0 for m, d in zip(moved, decisions, strict=True) if d == "repaired")
+    assert repaired["refused_limits"] not in ("joint_speed", "joint_acceleration")
+    assert float(repaired["execution_s"]) > 0.0  # the re-timed window moved the robot
+
+    report = run_trials(limits=slow, repair=False, echo=lambda _: None, **kwargs)
+    plain = report.rows[0]
+    assert plain["status"] == "refused" and plain["refused_limits"] == "joint_speed"
+    assert plain["repair"] == "refused" and plain["repair_added_s"] == "0.000"
+    meta, rows = read_csv(report.path)
+    assert meta["repair"] is False and rows[0]["repair"] == "refused"
+
+
+def test_dry_run_prints_the_window_decisions(tmp_path):
+    lines: list[str] = []
+    report = run_trials(
+        trials=1,
+        method="demo",
+        seed=1,
+        root=tmp_path,
+        dry_run=True,
+        twin_config=SMALL,
+        echo=lines.append,
+    )
+    windows = [line for line in lines if ", window " in line]
+    assert len(windows) == len(report.rows[0]["repair"].split(";")) >= 1
+    assert all(
+        line.split(": ", 1)[1].split()[0] in {"none", "retimed:", "repaired:", "refused"}
+        for line in windows
+    )
+
+
+def test_sensor_noise_level_is_recorded_with_the_perception_error(tmp_path):
+    report = run_trials(
+        trials=1,
+        method="demo",
+        seed=2,
+        root=tmp_path,
+        twin_config=SMALL,
+        sensor_noise=1,
+        echo=lambda _: None,
+    )
+    meta, rows = read_csv(report.path)
+    assert meta["sensor_noise"] == 1
+    assert 0.0 < float(rows[0]["perception_error_mm"]) < 100.0
+    with pytest.raises(UserInputError, match="sensor noise level"):
+        run_trials(trials=1, method="demo", root=tmp_path, twin_config=SMALL, sensor_noise=5)
+
+
+def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
+    """`distgprl hardware --no-repair --sensor-noise 2` reaches run_trials; 3 is rejected."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    import distgprl.hardware.trials as trials
+    from distgprl.cli import app
+
+    seen = {}
+
+    def fake_run_trials(**kwargs):
+        seen.update(kwargs)
+        return trials.TrialReport([], Path(tmp_path / "t.csv"), {})
+
+    monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    runner = CliRunner()
+    result = runner.invoke(app, ["hardware", "--no-repair", "--sensor-noise", "2"])
+    assert result.exit_code == 0, result.output
+    assert seen["repair"] is False and seen["sensor_noise"] == 2
+    assert runner.invoke(app, ["hardware"]).exit_code == 0
+    assert seen["repair"] is True and seen["sensor_noise"] == 0
+    assert runner.invoke(app, ["hardware", "--sensor-noise", "3"]).exit_code != 0
