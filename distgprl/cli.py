@@ -202,16 +202,24 @@ def hardware(
     repair: Annotated[
         bool,
         typer.Option(
-            help="Retime too-fast plans and push too-close via-points before refusing "
-            "(--no-repair: refuse at once)."
+            help="Retime too-fast plans before refusing (with --repair-push also push "
+            "too-close via-points; --no-repair: refuse at once)."
         ),
     ] = True,
     sensor_noise: Annotated[
         int,
         typer.Option(min=0, max=2, help="Twin sensor noise: 0 none, 1 mild, 2 strong."),
     ] = 0,
+    repair_push: Annotated[
+        bool,
+        typer.Option(
+            help="Also push too-close via-points along the distance field (off by default: "
+            "not yet shown to make a grazing plan safer, see RepairConfig)."
+        ),
+    ] = False,
 ) -> None:
     """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
+    from distgprl.hardware.repair import RepairConfig
     from distgprl.hardware.trials import run_trials
 
     preset = _preset(preset, config)
@@ -230,6 +238,7 @@ def hardware(
         preset=preset,
         model_path=model,
         repair=repair,
+        repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
     )
     typer.echo(f"{report.path}: {report.summary}")

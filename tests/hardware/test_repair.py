@@ -15,6 +15,10 @@ from distgprl.sim.transforms import matrix_to_pose, matrix_to_rotvec, rotvec_to_
 DT = 0.04
 
 
+PUSH = RepairConfig(repair=True)
+"""The via-point push is off by default (see `RepairConfig.repair`); these tests turn it on."""
+
+
 def fast_plan(model_sim, steps=8, dy=0.06, wrist=0.9):
     """A straight 6 cm TCP line with a 0.9 rad wrist turn in 8 steps: above 2 rad/s."""
     q0 = model_sim.start_joint_positions
@@ -131,7 +135,7 @@ def test_grazing_plan_is_pushed_to_the_clearance_limit(model_sim):
     assert {v.limit for v in before.violations} == {"clearance"}
 
     via = hat_via_points(poses)
-    result = repair_plan(poses, q0, robot, limits, DT, clearance, gradient, via)
+    result = repair_plan(poses, q0, robot, limits, DT, clearance, gradient, via, config=PUSH)
     assert result.decision in ("repaired", "refused")
     if result.decision == "repaired":
         assert result.check.ok and result.check.min_clearance >= limits.min_clearance
@@ -142,6 +146,9 @@ def test_grazing_plan_is_pushed_to_the_clearance_limit(model_sim):
     else:
         assert "clearance" in result.reason
     assert result.decision == "repaired"  # this plan is repairable: the field is one box
+    assert repair_plan(poses, q0, robot, limits, DT, clearance, gradient, via).decision == (
+        "refused"
+    )  # by default (no push) the same plan is refused
 
 
 def test_plan_the_repair_cannot_save_is_refused_with_its_reason(model_sim):
@@ -150,7 +157,9 @@ def test_plan_the_repair_cannot_save_is_refused_with_its_reason(model_sim):
     # the tool is 10 cm deep in a block; the push may move a via-point 3 cm at most
     buried = grazing_box(model_sim, q0, poses, gap=-0.10, half=(0.2, 0.2, 0.1))
     clearance, gradient = oracles(buried)
-    result = repair_plan(poses, q0, robot, limits, DT, clearance, gradient, hat_via_points(poses))
+    result = repair_plan(
+        poses, q0, robot, limits, DT, clearance, gradient, hat_via_points(poses), config=PUSH
+    )
     assert result.decision == "refused"
     assert result.refused_limits == ["clearance"] and "clearance" in result.reason
     assert result.remaining[0].value < limits.min_clearance
