@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.agents.methods import MethodSpec, get_method
-from distgprl.config import Config, load_config
+from distgprl.config import ENVIRONMENT_VERSION, Config, load_config
 from distgprl.data import SCENE_REVISIONS, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.results import (
@@ -76,8 +76,10 @@ EVALUATION_FIELDS = (
     "obstacle_offset_x",
     "obstacle_offset_y",
     "success",
+    "completed",
     "collision",
     "min_clearance",
+    "min_signed_clearance",
     "return",
     "kinematic_retention",
     "adaptation_ms_w1",
@@ -124,6 +126,7 @@ class RunSpec:
             "method": self.method.to_dict(),
             "seed": self.seed,
             "config": self.config.to_dict(),
+            "environment_version": ENVIRONMENT_VERSION,
         }
         if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
             data["scene_revision"] = SCENE_REVISIONS[self.task]
@@ -253,8 +256,10 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
         "obstacle_offset_x": float(tc.obstacle_offset[0]),
         "obstacle_offset_y": float(tc.obstacle_offset[1]),
         "success": int(info["success"]),
+        "completed": int(info["completed"]),
         "collision": int(info["collision"]),
         "min_clearance": float(info["min_clearance"]),
+        "min_signed_clearance": float(info["min_signed_clearance"]),
         "return": float(total),
         "kinematic_retention": float(info["kinematic_retention"]),
         "adaptation_ms_w1": adaptation[0],
@@ -278,8 +283,10 @@ def safe_success_rate(rows: list[dict[str, Any]]) -> float:
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance,
-    safe success (success without collision), means of the per-episode columns and, for
+    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance
+    (clamped at 0: a distance), safe success (success without collision; equal to success
+    from environment v5 on), for v5 rows the completion rate (v4's success) and the 5th
+    percentile of the signed minimum clearance (negative: penetration), means of the per-episode columns and, for
     rows that record it, the 95th percentile of the episodes' peak joint speed (rad/s) and
     the share of episodes above the hardware safety layer's joint speed limit."""
     if not rows:
@@ -296,13 +303,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
         "safe_success_rate": safe_success_rate(rows),
-        "min_clearance_p5": float(np.percentile(column("min_clearance"), 5)),
-        "mean_min_clearance": float(column("min_clearance").mean()),
+        # MinCl as the paper defines it: a distance, >= 0 (v5); the signed minimum
+        # (negative = penetration depth) separately.
+        "min_clearance_p5": float(np.percentile(np.maximum(column("min_clearance"), 0.0), 5)),
+        "mean_min_clearance": float(np.maximum(column("min_clearance"), 0.0).mean()),
         "mean_return": float(column("return").mean()),
         "mean_kinematic_retention": float(column("kinematic_retention").mean()),
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
+    if all(r.get("completed", "") != "" for r in rows):  # v5 rows
+        # v4's success: the task completed, whether or not a collision happened first.
+        summary["completion_rate"] = float(column("completed").mean())
+        summary["min_signed_clearance_p5"] = float(np.percentile(column("min_signed_clearance"), 5))
     if all(r.get("peak_joint_speed", "") != "" for r in rows):
         from distgprl.hardware.safety import SafetyLimits
 
