@@ -534,8 +534,8 @@ class AdaptationEnv(gym.Env):
         # previous step (or in reset), and the obstacles have not moved since.
         indices = self.layout.indices[step]
         raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        if self.method.action_mode == "none":  # the `demo` reference executes Gamma_0
-            raw = np.zeros_like(raw)
+        if not self.method.trainable:  # references: `demo` executes Gamma_0, `promp-nominal`
+            raw = np.zeros_like(raw)  # the ProMP mean
         delta = self.layout.delta(step, raw)  # Eq. transformed_action
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:

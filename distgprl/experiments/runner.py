@@ -164,7 +164,7 @@ def make_env(run: RunSpec):
     if run.method.action_mode == "residual":
         from distgprl.envs.residual import ResidualEnv
 
-        return ResidualEnv(run.task, run.config.env)
+        return ResidualEnv(run.task, run.config.env, method=run.method)
     from distgprl.envs.adaptation import AdaptationEnv
 
     return AdaptationEnv(run.task, run.method, run.config.env)
