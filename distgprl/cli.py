@@ -164,12 +164,24 @@ def fit(
     correlation = output.correlation
     windows = correlation["windows"]
     typer.echo(
-        f"covariance transform (lambda {correlation['correlation_lambda']:g}): neighbouring "
-        f"via-points correlate {correlation['neighbour_correlation']:.2f} in the kernel; S_W "
-        f"eigenvalues {min(w['eigenvalue_min'] for w in windows):.3f}-"
+        f"covariance transform (lambda {correlation['correlation_lambda']:g}, K scale "
+        f"{correlation['covariance_scale']!r}): neighbouring via-points correlate "
+        f"{correlation['neighbour_correlation']:.2f} in the kernel; S_W eigenvalues "
+        f"{min(w['eigenvalue_min'] for w in windows):.3f}-"
         f"{max(w['eigenvalue_max'] for w in windows):.3f}, largest off-diagonal "
         f"{max(w['max_off_diagonal'] for w in windows):.3f}"
     )
+    for window in windows:
+        spectrum = ", ".join(
+            f"{axis} {a['eigenvalue_min']:.3f}-{a['eigenvalue_max']:.3f}"
+            for axis, a in window["axes"].items()
+        )
+        typer.echo(f"  S_W via-points {window['via_points']}: {spectrum}")
+    for scale, spectrum in correlation["candidates"].items():
+        typer.echo(
+            f"  candidate K scale {scale!r}: S_W eigenvalues "
+            f"{spectrum['eigenvalue_min']:.3f}-{spectrum['eigenvalue_max']:.3f}"
+        )
 
 
 @_command()

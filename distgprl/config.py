@@ -33,6 +33,14 @@ USER_PRESETS_ENV = "DISTGPRL_USER_PRESETS"
 paths) that `register_preset` made known; processes a sweep spawns inherit it."""
 
 
+ENVIRONMENT_VERSION = 5
+"""The environment version every run records (it enters the config hash, so runs of an
+older version are stale). v5 (docs/FINDINGS.md "Environment v5"): a collision ends the
+episode and success is completion without collision; DBM's bars vary in the xy-plane; S's
+K is the GP's covariance in via-point units; MinCl is a distance (>= 0); ProMP-RRL gets the
+one demonstration the GP methods get."""
+
+
 @dataclass(frozen=True)
 class EnvConfig:
     """The adaptation MDP (paper §IV, DESIGN §3).
@@ -49,6 +57,11 @@ class EnvConfig:
             scales (just under the via-point spacing) S_W is nearly the identity
             (docs/FINDINGS.md, "Covariance transform"), so this lets a run use a K that
             does correlate neighbouring via-points. The trajectory GP is unchanged.
+        covariance_scale: the scale of K in S (environment v5): ``"signal"`` — K_tt is the
+            GP's covariance matrix (Eq. 2) in the via-points' units, per axis the fitted
+            signal variance times the axis's demonstration variance (docs/DESIGN.md §2);
+            ``"unit"`` — v4's unit-variance correlation matrix, the ablation preset
+            ``unit-covariance``.
         position_action_scale: m of via-point change per unit raw action (the paper does
             not give it). 0.1 m (env v3; v0-v2: 0.03 m): the tasks' TCs move the objects by
             up to 20 cm, and the approach via-points that conditioning leaves in place must
@@ -60,6 +73,10 @@ class EnvConfig:
         progress_weight: r_tc weight of the change in task progress (in [0, 1]).
         success_bonus: r_tc bonus on success at the end of the episode.
         collision_penalty: r_tc penalty for a segment with a collision.
+        collision_ends_episode: a collision stops execution at that control period and
+            ends the episode, as a protective stop ends a hardware trial; success is then
+            task completion without collision (environment v5; False = v4: execution
+            pushes on through kinematic obstacles and success ignores collisions).
         sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward).
         sd_d_min: d_min of Eq. safety_reward, m.
         sd_epsilon: epsilon of Eq. safety_reward, m.
@@ -87,12 +104,14 @@ class EnvConfig:
     n_windows: int = 3
     correlation_lambda: float = 1e-2
     correlation_length_scale: float = 0.0
+    covariance_scale: str = "signal"
     position_action_scale: float = 0.1
     rotation_action_scale: float = 0.05
     lambda_ga: float = 0.2
     progress_weight: float = 10.0
     success_bonus: float = 10.0
     collision_penalty: float = 10.0
+    collision_ends_episode: bool = True
     sd_beta: float = 2e-4
     sd_d_min: float = 0.03
     sd_epsilon: float = 0.01

@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from distgprl.config import Config, load_config
+from distgprl.config import ENVIRONMENT_VERSION, Config, load_config
 from distgprl.data import SCENE_REVISIONS, check_task_name
 from distgprl.errors import UserInputError
 from distgprl.io import config_hash
@@ -26,7 +26,8 @@ __all__ = ["RunSpec", "method_revisions", "resolve_run"]
 
 
 def method_revisions(method: MethodSpec) -> dict[str, int]:
-    """Revisions of the method's parts, for the config hash (environment v4).
+    """Revisions of the method's parts, for the config hash (since environment v4; the
+    environment version itself is in every hash from v5 on).
 
     Only the parts a method uses appear, so fixing one part leaves the hashes (and committed
     results) of methods without it valid: ``r_ga`` 1 — the gradient-alignment reward at the
@@ -56,6 +57,7 @@ class RunSpec:
             "method": self.method.to_dict(),
             "seed": self.seed,
             "config": self.config.to_dict(),
+            "environment_version": ENVIRONMENT_VERSION,
         }
         if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
             data["scene_revision"] = SCENE_REVISIONS[self.task]

@@ -34,6 +34,9 @@ class MethodSpec:
         signature_reward: add GPRL's signature-similarity reward.
         entropy: ``auto`` (SAC's automatic temperature) or ``anneal`` (GPRL schedule).
         trainable: whether the method trains a policy.
+        demonstrations: what a residual method's ProMP is fitted to: ``one`` — the one
+            demonstration every method gets (conditioned on training TCs), ``expert`` — 20
+            TC-aware expert demonstrations (an exploration variant with more information).
         episode_range: a global action's per-step scale is the configured one divided by
             the number of RL steps, so that over an episode a via-point can move as far as
             a windowed method's (DESIGN §3: windowing and correlation are the only
@@ -53,6 +56,7 @@ class MethodSpec:
     entropy: EntropyMode = "auto"
     trainable: bool = True
     episode_range: bool = False
+    demonstrations: Literal["one", "expert"] = "one"
 
     def to_dict(self) -> dict:
         """The spec as a dict (hashed into every run's config hash). Fields added after
@@ -66,7 +70,7 @@ class MethodSpec:
 
 
 #: Fields added to `MethodSpec` after committed results, with their old-behaviour default.
-HASH_STABLE_DEFAULTS: dict[str, object] = {"episode_range": False}
+HASH_STABLE_DEFAULTS: dict[str, object] = {"episode_range": False, "demonstrations": "one"}
 
 
 METHODS: dict[str, MethodSpec] = {
@@ -82,6 +86,9 @@ METHODS: dict[str, MethodSpec] = {
             episode_range=True,
         ),
         MethodSpec("promp-rrl", "ProMP-RRL", "residual"),
+        MethodSpec(
+            "promp-rrl-expert", "ProMP-RRL (20 expert demos)", "residual", demonstrations="expert"
+        ),
         MethodSpec(
             "dist-gprl-global",
             "Dist-GPRL-Global",
@@ -126,6 +133,7 @@ METHODS: dict[str, MethodSpec] = {
             similarity_loss=True,
         ),
         MethodSpec("demo", "Demo (no adaptation)", "none", trainable=False),
+        MethodSpec("promp-nominal", "ProMP nominal (no residual)", "residual", trainable=False),
     )
 }
 
@@ -139,7 +147,12 @@ TABLE_ORDER: tuple[str, ...] = (
     "dist-gprl",
     "dist-gprl-nocov",
     "demo",
+    "promp-nominal",
 )
+
+EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-expert",)
+"""Methods with more information than Table I's (20 TC-aware expert demonstrations instead
+of one): run them by name; they are not in Table I or in a default sweep."""
 
 
 def get_method(name: str) -> MethodSpec:

@@ -10,7 +10,7 @@ import pytest
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_json
 from distgprl.experiments.runner import resolve_run
-from distgprl.methods import METHODS, TABLE_ORDER, get_method
+from distgprl.methods import EXPLORATION_METHODS, METHODS, TABLE_ORDER, get_method
 
 
 def test_registry_matches_the_design_table():
@@ -40,7 +40,11 @@ def test_registry_matches_the_design_table():
 
 
 def test_table_order_covers_every_method_once():
-    assert sorted(TABLE_ORDER) == sorted(METHODS)
+    """Every method but the exploration ones (more information) is a Table I row, once."""
+    assert sorted(TABLE_ORDER) == sorted(set(METHODS) - set(EXPLORATION_METHODS))
+    assert METHODS["promp-rrl-expert"].demonstrations == "expert"
+    assert METHODS["promp-rrl"].demonstrations == "one"
+    assert not METHODS["promp-nominal"].trainable
 
 
 def test_unknown_method_lists_valid_names():
@@ -61,10 +65,13 @@ def test_fields_added_later_leave_old_method_hashes_unchanged():
     from dataclasses import asdict
 
     windowed = METHODS["dist-gprl"].to_dict()
-    assert "episode_range" not in windowed
+    assert "episode_range" not in windowed and "demonstrations" not in windowed
     assert windowed == {
-        k: v for k, v in asdict(METHODS["dist-gprl"]).items() if k != "episode_range"
+        k: v
+        for k, v in asdict(METHODS["dist-gprl"]).items()
+        if k not in ("episode_range", "demonstrations")
     }
+    assert METHODS["promp-rrl-expert"].to_dict()["demonstrations"] == "expert"
     assert METHODS["gprl"].to_dict()["episode_range"] is True
 
 

@@ -17,7 +17,21 @@ from distgprl.config import EnvConfig
 from distgprl.methods import MethodSpec
 from distgprl.skill.gp import GPSkill
 
-__all__ = ["ActionLayout", "AuxLayout", "build_action_layout"]
+__all__ = [
+    "COVARIANCE_SCALES",
+    "OBSERVATION_SCALE_FLOOR",
+    "ActionLayout",
+    "AuxLayout",
+    "build_action_layout",
+    "window_operators",
+]
+
+#: Minimum per-axis scale (m, m, m, rad, rad, rad) used to standardise observed via-points
+#: (and, environment v5, the scale of an axis the demonstration keeps constant in S's K).
+OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
+
+COVARIANCE_SCALES = ("signal", "unit")
+"""The scales of K in S (`EnvConfig.covariance_scale`)."""
 
 
 @dataclass(frozen=True)
@@ -26,8 +40,10 @@ class ActionLayout:
 
     Attributes:
         indices: per step, the via-point indices its action covers, shape (n_steps, A_v).
-        operators: per step, the (A_v, A_v) matrix applied to the raw action
-            (S_W for covariance-transformed windows, identity otherwise).
+        operators: per step and axis, the (A_v, A_v) matrix applied to that axis's
+            column of the scaled raw action, shape (n_steps, 6, A_v, A_v) (S_W per axis
+            for covariance-transformed windows, identity otherwise; environment v5 — v4's
+            S_W was one matrix for all axes, the unit-variance operator).
         segment_bounds: normalised times bounding the executed segments, shape (n_steps+1,).
         scale: per-axis scale of the raw action, shape (6,), m and rad.
         frozen: via-point indices whose update is forced to zero (e.g. GPRL's TC via-point).
@@ -50,10 +66,30 @@ class ActionLayout:
     def delta(self, step: int, raw_action: np.ndarray) -> np.ndarray:
         """Delta Gamma for the step's via-points, shape (A_v, 6) (Eq. transformed_action)."""
         scaled = raw_action.reshape(self.points_per_step, 6) * self.scale
-        delta = self.operators[step] @ scaled
+        delta = np.einsum("aij,ja->ia", self.operators[step], scaled)  # per axis a: S_W,a x_a
         for index in self.frozen:
             delta[self.indices[step] == index] = 0.0
         return delta
+
+
+def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> np.ndarray:
+    """S_W per axis for one window, shape (6, L, L) (Eq. global_S, Eq. transformed_action).
+
+    ``config.covariance_scale``: ``"signal"`` (v5) — K_tt is the GP's covariance matrix in
+    the via-points' units, axis a's ``sigma_f^2 s_a^2 R`` (`GPSkill.signal_variance_per_axis`,
+    s_a floored at `OBSERVATION_SCALE_FLOOR`); ``"unit"`` (v4, the ablation preset
+    ``unit-covariance``) — the unit-variance correlation matrix R for every axis.
+    """
+    length_scale = config.correlation_length_scale or None  # 0: the fitted one
+    if config.covariance_scale == "unit":
+        operator = skill.window_operator(window, config.correlation_lambda, length_scale)
+        return np.tile(operator, (6, 1, 1))
+    if config.covariance_scale != "signal":
+        raise ValueError(
+            f"covariance_scale must be one of {COVARIANCE_SCALES}, got {config.covariance_scale!r}"
+        )
+    variance = skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
+    return skill.axis_window_operators(window, config.correlation_lambda, variance, length_scale)
 
 
 def build_action_layout(
@@ -77,16 +113,13 @@ def build_action_layout(
     if method.action_mode == "global":  # residual/none: windows without S (below)
         interior = np.arange(1, n - 1)
         indices = np.tile(interior, (steps, 1))
-        operators = np.tile(np.eye(len(interior)), (steps, 1, 1))
+        operators = np.tile(np.eye(len(interior)), (steps, 6, 1, 1))
     else:
         indices = windows
         if method.covariance_transform:
-            length_scale = config.correlation_length_scale or None  # 0: the fitted one
-            operators = np.stack(
-                [skill.window_operator(w, config.correlation_lambda, length_scale) for w in windows]
-            )
+            operators = np.stack([window_operators(skill, config, w) for w in windows])
         else:
-            operators = np.tile(np.eye(length), (steps, 1, 1))
+            operators = np.tile(np.eye(length), (steps, 6, 1, 1))
     scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
     if method.action_mode == "global" and method.episode_range:
         scale = scale / steps  # the same per-episode range as a windowed via-point

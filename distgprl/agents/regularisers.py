@@ -110,9 +110,10 @@ class ActorRegulariser(nn.Module):
         D_s (N, A_v) = scatter onto the window of mask * S_W. Velocities V, accelerations A
         and the L_hap positions H are linear in them, so with M = [V; A; H] (T + T + N_q, N)
 
-            out[b, j] = [M, M D_0, ..., M D_{S-1}] [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
+            out[b, j] = [M, M D_0,j, ..., M D_{S-1},j] [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
 
-        for each axis j: one (B*6, N + S*A_v) x (N + S*A_v, 2T + N_q) product for the batch.
+        for each axis j (D_s,j from axis j's S_W, environment v5): one batched
+        (B, 6, N + S*A_v) x (6, N + S*A_v, 2T + N_q) product for the batch.
         Products are taken in float64 from the module's own (float32) buffers, so they are
         exact images of the maps that the per-window code applies.
         """
@@ -124,18 +125,24 @@ class ActorRegulariser(nn.Module):
         self._n_similarity = self.velocity_map.shape[0]
         selection = torch.zeros(steps, per_step, n, dtype=f64)  # window row p -> via-point
         selection.scatter_(2, self.indices.unsqueeze(-1), 1.0)
-        # D_s[v, p'] = sum_p [indices[s, p] = v] mask[s, p] S_W[s, p, p']  (S, N, A_v)
+        # D_s,j[v, p'] = sum_p [indices[s, p] = v] mask[s, p] S_W,j[s, p, p'] (S, 6, N, A_v):
+        # one S_W per axis j (environment v5)
         scatter = torch.einsum(
-            "spv,sp,spq->svq", selection, self.mask.to(f64), self.operators.to(f64)
+            "spv,sp,sapq->savq", selection, self.mask.to(f64), self.operators.to(f64)
         )
-        readout = torch.cat([maps, *(maps @ scatter[s] for s in range(steps))], dim=1)
+        readout = torch.stack(
+            [
+                torch.cat([maps, *(maps @ scatter[s, j] for s in range(steps))], dim=1)
+                for j in range(6)
+            ]
+        )  # (6, 2T + N_q, N + S A_v)
         t = self._n_similarity
-        bias = torch.zeros(6, readout.shape[0], dtype=f64)  # per axis j
+        bias = torch.zeros(6, readout.shape[1], dtype=f64)  # per axis j
         bias[:, t : 2 * t] = -self.demo_acceleration.to(f64).T
         bias[:3, 2 * t :] = self.prior_mean.to(f64)[:3, None]
         demo_velocity = self.demo_velocity.to(f64)
         direction = demo_velocity / demo_velocity.norm(dim=-1, keepdim=True).clamp_min(1e-8)
-        self.register_buffer("readout_map", readout.T.contiguous(), persistent=False)
+        self.register_buffer("readout_map", readout.transpose(1, 2).contiguous(), persistent=False)
         self.register_buffer("readout_bias", bias, persistent=False)
         self.register_buffer("demo_direction", direction.T.contiguous(), persistent=False)
         self._cast: dict[tuple, tuple[torch.Tensor, ...]] = {}
@@ -176,8 +183,8 @@ class ActorRegulariser(nn.Module):
         raw = actions.reshape(batch, self.points_per_step, 6) * scale
         selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
         stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)
-        columns = stacked.transpose(1, 2).reshape(batch * 6, -1)
-        return (columns @ readout_map).reshape(batch, 6, -1) + bias
+        columns = stacked.transpose(1, 2)  # (B, 6, N + S A_v)
+        return torch.einsum("bjk,jkq->bjq", columns, readout_map) + bias
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
@@ -186,7 +193,9 @@ class ActorRegulariser(nn.Module):
         gamma = aux[:, self.aux_layout.gamma].reshape(batch, n, 6)
         step = aux[:, self.aux_layout.step].argmax(dim=1)
         raw = actions.reshape(batch, self.points_per_step, 6) * self.scale
-        delta = torch.bmm(self.operators[step], raw) * self.mask[step].unsqueeze(-1)
+        # per sample b and axis a: S_W,a of the sample's step times the axis's column
+        delta = torch.einsum("baij,bja->bia", self.operators[step], raw)
+        delta = delta * self.mask[step].unsqueeze(-1)
         index = self.indices[step].unsqueeze(-1).expand(-1, -1, 6)
         return gamma.scatter_add(1, index, delta)
 
@@ -309,7 +318,7 @@ class ActorRegulariser(nn.Module):
                 weights.lambda_hap / len(values)
             )
         n, steps = self.n_via_points, self.n_steps
-        grad_columns = (grad_out.reshape(batch * 6, -1) @ readout_map.T).reshape(batch, 6, -1)
+        grad_columns = torch.einsum("bjq,jkq->bjk", grad_out, readout_map)  # (B, 6, N + S A_v)
         grad_selected = grad_columns[:, :, n:].reshape(batch, 6, steps, -1)  # (B, 6, S, A_v)
         step = aux[:, self.aux_layout.step].argmax(dim=1)
         grad_raw = grad_selected[torch.arange(batch), :, step]  # (B, 6, A_v)

@@ -15,7 +15,7 @@ DATA_DIR = Path(__file__).resolve().parent
 DEMO_DIR = DATA_DIR / "demos"
 TASK_NAMES: tuple[str, ...] = ("dcp", "dbm")
 
-SCENE_REVISIONS: dict[str, int] = {"dcp": 0, "dbm": 1}
+SCENE_REVISIONS: dict[str, int] = {"dcp": 0, "dbm": 2}
 """Per task, the revision of its simulated scene. A non-zero revision enters every run's
 config hash, so runs made in an earlier scene are stale (a sweep re-runs them); revision 0
 adds nothing, keeping the hashes of runs made before revisions were recorded.
@@ -24,6 +24,8 @@ adds nothing, keeping the hashes of runs made before revisions were recorded.
   the first 16 (PyBullet silently drops shapes beyond 16 per shape array): the physical
   conveyor ended at y = 0.015 m while the distance field saw rollers up to 0.615 m, so
   robot contact with the missing rollers was neither a collision nor in the clearance.
+- dbm 2 (environment v5): the bars' TC offsets vary across the belt too (x, up to the
+  rails), as the paper varies them in the xy-plane.
 """
 
 

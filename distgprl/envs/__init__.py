@@ -2,18 +2,21 @@
 
 Registered ids (``gymnasium.make(id, method=...)``):
 
-- ``DistGPRL-DCP-v4``, ``DistGPRL-DBM-v4``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v3``, ``ProMPRRL-DBM-v3``: `distgprl.envs.residual.ResidualEnv`.
+- ``DistGPRL-DCP-v5``, ``DistGPRL-DBM-v5``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v5``, ``ProMPRRL-DBM-v5``: `distgprl.envs.residual.ResidualEnv`.
+
+Both follow `distgprl.config.ENVIRONMENT_VERSION` (the residual env skipped v4).
 """
 
 from gymnasium.envs.registration import register, registry
 
+from distgprl.config import ENVIRONMENT_VERSION
 from distgprl.data import TASK_NAMES
 
 for _task in TASK_NAMES:
     for _prefix, _version, _entry in (
-        ("DistGPRL", 4, "distgprl.envs.adaptation:AdaptationEnv"),
-        ("ProMPRRL", 3, "distgprl.envs.residual:ResidualEnv"),
+        ("DistGPRL", ENVIRONMENT_VERSION, "distgprl.envs.adaptation:AdaptationEnv"),
+        ("ProMPRRL", ENVIRONMENT_VERSION, "distgprl.envs.residual:ResidualEnv"),
     ):
         _id = f"{_prefix}-{_task.upper()}-v{_version}"
         if _id not in registry:

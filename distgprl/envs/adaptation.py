@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v4`` and ``DistGPRL-DBM-v4`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v5`` and ``DistGPRL-DBM-v5`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from distgprl.adaptation.layout import AuxLayout, build_action_layout
+from distgprl.adaptation.layout import (  # noqa: F401 - re-exported
+    COVARIANCE_SCALES,
+    OBSERVATION_SCALE_FLOOR,
+    AuxLayout,
+    build_action_layout,
+    window_operators,
+)
 from distgprl.config import EnvConfig
 from distgprl.methods import MethodSpec, get_method
 from distgprl.safety.edf import DistanceField
@@ -19,9 +25,6 @@ from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.rotations import nearest_equivalent_rotvec
-
-#: Minimum per-axis scale (m, m, m, rad, rad, rad) used to standardise observed via-points.
-OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
 #: Observed e_o and e_g are clipped to +-this per axis (m) before scaling (a knocked-off
 #: object must not blow the inputs up).
@@ -100,8 +103,10 @@ class AdaptationEnv(gym.Env):
     under its name and they sum to the reward:
 
     - ``r_progress`` = progress_weight * (task progress after - before), progress in [0, 1];
-    - ``r_success`` = success_bonus at the last step if the task succeeded;
-    - ``r_collision`` = -collision_penalty if the segment had a collision;
+    - ``r_success`` = success_bonus at the last step if the episode succeeded (v5: the
+      task completed without collision);
+    - ``r_collision`` = -collision_penalty if the segment had a collision (v5: the
+      episode's last step);
     - ``r_sd`` = -beta sum_i 1[d_i < d_min] / (d_i + eps) over the tool points at
       ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward; 0 if the
       method has no distance rewards);
@@ -117,9 +122,15 @@ class AdaptationEnv(gym.Env):
     demonstration's, conditioned on the TC: the interaction via-point and its successors
     move by the object's start offset; via-point 0 is the robot's start pose.
 
-    **End**: ``terminated`` after ``n_windows`` steps (no early termination; collisions
-    are penalised and recorded, and execution continues). ``info`` at the end carries
-    ``success``, ``collision``, ``min_clearance`` (m), ``peak_joint_speed`` (rad/s, the
+    **End**: ``terminated`` after ``n_windows`` steps, or (v5, ``collision_ends_episode``)
+    at the step whose segment collides: execution stops at the control period of the
+    collision, as a protective stop ends a hardware trial, and the episode ends there
+    (``stopped_at_step``; -1 if it ran to the end). ``info`` at the end carries ``success``
+    (v5: the task completed and no collision; with ``collision_ends_episode=False``, v4's
+    completion regardless of collision), ``completed`` (the task's success criterion at the
+    end, whatever happened before), ``collision``, ``min_clearance`` (m, the minimum
+    robot/tool-obstacle distance, >= 0), ``min_signed_clearance`` (m, negative =
+    penetration depth), ``peak_joint_speed`` (rad/s, the
     largest commanded joint speed of the episode; not part of the MDP, recorded because
     the hardware safety layer bounds it), ``kinematic_retention`` (mean velocity cosine to
     the demonstration) and ``adaptation_time_s`` per step.
@@ -127,7 +138,13 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v4 — (a) r_ga takes grad d at the window's via-points before the step's
+    **Versions**: v5 — (a) a collision ends the episode (protective stop) and success is
+    completion without collision (``completed`` keeps v4's success); (b) S_W is built per
+    axis from the GP's covariance in via-point units (``covariance_scale="signal"``; v4's
+    unit-variance K made S_W nearly the identity); (c) DBM's bars vary across the belt too
+    (scene revision 2); (d) ``min_clearance`` is a distance (>= 0), the signed value is
+    ``min_signed_clearance``. docs/FINDINGS.md "Environment v5".
+    v4 — (a) r_ga takes grad d at the window's via-points before the step's
     update, as Eq. grad_alignment_reward defines v_j (v3 used the updated via-points, so a
     move across an obstacle's medial axis could be scored against the gradient on the far
     side); (b) for methods with the HAP prior, ``aux`` carries the moving obstacles'
@@ -224,6 +241,7 @@ class AdaptationEnv(gym.Env):
         self._rng = np.random.default_rng()
         self.gamma = self.skill.via_points.copy()
         self.step_index = 0
+        self._episode_over = True  # until reset()
 
     # -- helpers ---------------------------------------------------------------------------
     def _build_segment_maps(self):
@@ -401,6 +419,7 @@ class AdaptationEnv(gym.Env):
         self.gamma = self._initial_parameters(tc)
         self.gamma_initial = self.gamma.copy()
         self.step_index = 0
+        self._episode_over = False
         self._refresh_field()
         self._progress = self.sim.task_progress()
         self._collision = False
@@ -412,7 +431,7 @@ class AdaptationEnv(gym.Env):
         return self._observation(), {"tc": tc}
 
     def step(self, action: np.ndarray):
-        if self.step_index >= self.layout.n_steps:
+        if self._episode_over:
             raise RuntimeError("episode is over; call reset()")
         config, step = self.config, self.step_index
         start = time.perf_counter()
@@ -420,8 +439,8 @@ class AdaptationEnv(gym.Env):
         # previous step (or in reset), and the obstacles have not moved since.
         indices = self.layout.indices[step]
         raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        if self.method.action_mode == "none":  # the `demo` reference executes Gamma_0
-            raw = np.zeros_like(raw)
+        if not self.method.trainable:  # references: `demo` executes Gamma_0, `promp-nominal`
+            raw = np.zeros_like(raw)  # the ProMP mean
         delta = self.layout.delta(step, raw)  # Eq. transformed_action
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
@@ -435,16 +454,19 @@ class AdaptationEnv(gym.Env):
 
         # Execute the segment in chunks; r_sd is evaluated after each chunk.
         segment_collision = False
+        stop = config.collision_ends_episode
         chunks = np.array_split(np.arange(len(poses)), config.sd_samples_per_segment)
         for chunk in chunks:
             if len(chunk) == 0:
                 continue
-            result = self.sim.execute(poses[chunk])
+            result = self.sim.execute(poses[chunk], stop_on_collision=stop)
             segment_collision |= result.collision
             self._min_clearance = min(self._min_clearance, result.min_clearance)
             self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
             if self.method.distance_rewards:
                 terms["r_sd"] += self._clearance_penalty()
+            if stop and result.collision:  # v5: a protective stop ends the episode here
+                break
         if len(poses):
             self._last_commanded = poses[-1].copy()
             self._last_tau = float(self._segment_maps[step][0][-1])
@@ -463,17 +485,25 @@ class AdaptationEnv(gym.Env):
                 )
             )
         self.step_index += 1
-        terminated = self.step_index >= self.layout.n_steps
+        stopped = config.collision_ends_episode and segment_collision
+        terminated = self.step_index >= self.layout.n_steps or stopped
         info: dict = {"step": step}
+        self._episode_over = terminated
         if terminated:
-            success = bool(self.sim.success())
+            completed = bool(self.sim.success())
+            # v5: success is completion without collision (as on hardware, where a
+            # collision is a protective stop); v4's success is kept as ``completed``.
+            success = completed and not (self._collision and config.collision_ends_episode)
             if success:
                 terms["r_success"] = config.success_bonus
             velocity = self._planned_velocity(self._retention_tau)
             info.update(
                 success=success,
+                completed=completed,
                 collision=bool(self._collision),
-                min_clearance=float(self._min_clearance),
+                stopped_at_step=step if stopped else -1,
+                min_clearance=max(float(self._min_clearance), 0.0),
+                min_signed_clearance=float(self._min_clearance),
                 peak_joint_speed=float(self._peak_joint_speed),
                 kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
                 adaptation_time_s=list(self._adaptation_times),

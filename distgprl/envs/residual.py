@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v3`` and ``ProMPRRL-DBM-v3``.
+Env ids: ``ProMPRRL-DCP-v5`` and ``ProMPRRL-DBM-v5``.
 """
 
 from __future__ import annotations
@@ -12,18 +12,51 @@ import numpy as np
 
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import AdaptationEnv
-from distgprl.methods import get_method
+from distgprl.methods import MethodSpec, get_method
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.promp import ObjectCentricProMP
 
+DEMONSTRATION_SOURCES = ("one", "expert")
 
-@lru_cache(maxsize=4)
-def load_task_promp(task: str) -> ObjectCentricProMP:
-    """The object-centric ProMP fitted to the task's 20 varied demonstrations.
+ONE_DEMONSTRATION_TC_SEED = 20_251_201
+"""Seed of the training-distribution TCs the one demonstration is conditioned on to give
+ProMP-RRL its demonstration set (distinct from the evaluation and learning-curve seeds)."""
 
-    Each demonstration is expressed in its object's frame by subtracting the object's
-    start offset (x, y, 0) of the TC it was made for (``tcs.json`` beside the files).
+ONE_DEMONSTRATION_SET_SIZE = 20
+"""As many conditioned copies as the expert variant has demonstrations."""
+
+
+def one_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """The task's one demonstration, conditioned on ``ONE_DEMONSTRATION_SET_SIZE`` TCs drawn
+    from the task's training distribution: (demos as (times, poses) pairs, object offsets (K, 3)).
+
+    Every GP method gets exactly this information: the one demonstration and the observed
+    TC, conditioned by moving the demonstration with the object from the interaction time on
+    (`distgprl.sim.tasks.base.condition_by_translation`, the GP skill's conditioning rule on
+    the dense demonstration). No expert plans, no success filter. Expressed in each object's
+    frame, the copies coincide after the interaction time and differ before it, where the
+    translation ramps in: that is the variability an object-centric ProMP can learn from one
+    demonstration (Carvalho et al. fit it to demonstrations for several object poses).
     """
+    from distgprl.sim.tasks import get_task
+    from distgprl.sim.tasks.base import condition_by_translation
+
+    spec = get_task(task)
+    demo = load_demonstration(spec.demo_path)
+    rng = np.random.default_rng(ONE_DEMONSTRATION_TC_SEED)
+    demos, offsets = [], []
+    for _ in range(ONE_DEMONSTRATION_SET_SIZE):
+        offset = np.asarray(spec.sample_tc(rng).object_offset, dtype=float)
+        poses = condition_by_translation(demo.times, demo.poses, offset, spec.interaction_time)
+        demos.append((demo.times, poses))
+        offsets.append([*offset, 0.0])
+    return demos, np.asarray(offsets)
+
+
+def expert_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """The 20 TC-aware scripted-expert demonstrations shipped for the exploration method
+    ``promp-rrl-expert`` (each planned for its own TC and kept only when it succeeded without
+    collision; environment v4's ProMP-RRL): (demos, object offsets (K, 3))."""
     from distgprl.sim.tasks import get_task
 
     folder = get_task(task).varied_demo_dir
@@ -33,21 +66,62 @@ def load_task_promp(task: str) -> ObjectCentricProMP:
         demo = load_demonstration(folder / name)
         demos.append((demo.times, demo.poses))
         offsets.append([*tc["object_offset"], 0.0])
-    return ObjectCentricProMP.fit(demos, np.asarray(offsets))
+    return demos, np.asarray(offsets)
+
+
+@lru_cache(maxsize=8)
+def load_task_promp(task: str, source: str = "one") -> ObjectCentricProMP:
+    """The object-centric ProMP of ProMP-RRL: fitted to `one_demonstration_set` (``"one"``,
+    the Table I baseline, environment v5) or to `expert_demonstration_set` (``"expert"``).
+
+    Each demonstration is expressed in its object's frame by subtracting the object's start
+    offset (x, y, 0) before the fit.
+    """
+    if source == "one":
+        demos, offsets = one_demonstration_set(task)
+    elif source == "expert":
+        demos, offsets = expert_demonstration_set(task)
+    else:
+        raise ValueError(f"source must be one of {DEMONSTRATION_SOURCES}, got {source!r}")
+    return ObjectCentricProMP.fit(demos, offsets)
+
+
+def variance_gate(promp: ObjectCentricProMP, centres: np.ndarray) -> np.ndarray:
+    """Per residual basis centre, how much of the residual acts there, shape (N,), in [0, 1].
+
+    Carvalho et al. use the demonstrations' variability "as a decision variable to reduce
+    the search space for RRL": the residual acts where the ProMP's variance is low (where
+    the demonstrations agree, the task needs precision, and a correction is what the
+    nominal lacks) and is held back where it is high. Here, without a threshold to tune:
+    ``1 - sigma(tau_j) / max_k sigma(tau_k)``, sigma the ProMP's positional standard
+    deviation (the mean over x, y, z) at the basis centre, in the object frame. A ProMP with
+    no variability (sigma = 0 everywhere) gates nothing.
+    """
+    sigma = promp.trajectory_std(np.clip(centres, 0.0, 1.0))[:, :3].mean(axis=1)
+    top = float(sigma.max())
+    if top <= 1e-12:
+        return np.ones(len(centres))
+    return 1.0 - sigma / top
 
 
 class ResidualEnv(AdaptationEnv):
     """Residual RL on the ProMP nominal trajectory, with the Dist-GPRL episode structure.
 
     The nominal trajectory is the object-centric ProMP's mean for the observed object
-    start offset, conditioned to start at the robot's current pose. The policy learns a
-    residual correction on top of it (Johannink et al. 2018):
+    start offset, conditioned to start at the robot's current pose. The ProMP is fitted to
+    the one demonstration conditioned on training-distribution TCs (`load_task_promp`,
+    ``"one"``; the exploration method ``promp-rrl-expert`` fits it to 20 TC-aware expert
+    demonstrations instead). The policy learns a residual correction on top of it
+    (Johannink et al. 2018):
 
-        pose(tau) = nominal(tau) + sum_j w_j phi_j(tau),
+        pose(tau) = nominal(tau) + sum_j g_j w_j phi_j(tau),
 
-    with N = 15 Gaussian radial basis functions phi_j centred at the via-point times
-    (width = their spacing) and residual weights w (N x 6, m and rad), all zero at the
-    start of an episode (a zero action executes the nominal trajectory exactly). RL step
+    with N = 15 Gaussian radial basis functions centred at the via-point times (width =
+    their spacing), *normalised* to sum to 1 (v5: so a residual of the same size on every
+    weight moves the pose by exactly that size — the GP methods' total range; v4's
+    unnormalised basis gave about 2.5 times it), the ProMP's `variance_gate` g_j, and
+    residual weights w (N x 6, m and rad), all zero at the start of an episode (a zero
+    action executes the nominal trajectory exactly). RL step
     k adds to the weights of the same windows as Dist-GPRL (W_k, L = 5, one-point overlap)
     from a raw action a in [-1, 1]^(L x 6) scaled per axis — no covariance transform —
     and the same segments are executed with the same blending (the overlap via-point's
@@ -60,22 +134,40 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
+    **Versions**: v5 — the ProMP is fitted to the one demonstration the GP methods get (v4:
+    20 TC-aware expert demonstrations, now ``promp-rrl-expert``); normalised residual basis;
+    the variance gate; the AdaptationEnv v5 outcome semantics. v4 was not released for
+    this env (its ids went from v3 to v5). v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
     clearances and O(1) observation units (see `AdaptationEnv`). v1 — floored observation
     scale. v0 — first release.
     """
 
-    def __init__(self, task: str, config: EnvConfig | None = None, render_mode=None) -> None:
-        self.promp = load_task_promp(task)
-        super().__init__(task, get_method("promp-rrl"), config, render_mode=render_mode)
+    def __init__(
+        self,
+        task: str,
+        config: EnvConfig | None = None,
+        render_mode=None,
+        method: str | MethodSpec = "promp-rrl",
+    ) -> None:
+        spec = method if isinstance(method, MethodSpec) else get_method(method)
+        if spec.action_mode != "residual":
+            raise ValueError(f"method {spec.name} is not a residual method")
+        self.promp = load_task_promp(task, spec.demonstrations)
+        # the basis centres are the via-point times, evenly spaced (GPSkill's)
+        centres = np.linspace(0.0, 1.0, (config or EnvConfig()).n_via_points)
+        self._gate = variance_gate(self.promp, centres)
+        super().__init__(task, spec, config, render_mode=render_mode)
 
-    def _rbf(self, tau: np.ndarray) -> np.ndarray:
+    def residual_basis(self, tau: np.ndarray) -> np.ndarray:
+        """The gated, normalised residual basis at normalised times ``tau`` (m,): (m, N);
+        the residual's pose offset at ``tau`` is ``residual_basis(tau) @ gamma``."""
         centres = self.skill.via_times
         width = centres[1] - centres[0]
-        return np.exp(-0.5 * ((np.asarray(tau)[:, None] - centres[None, :]) / width) ** 2)
+        values = np.exp(-0.5 * ((np.asarray(tau)[:, None] - centres[None, :]) / width) ** 2)
+        return values / values.sum(axis=1, keepdims=True) * self._gate[None, :]
 
     def _parameter_map(self, tau: np.ndarray) -> np.ndarray:
-        return self._rbf(tau)
+        return self.residual_basis(tau)
 
     def _nominal(self, tau: np.ndarray) -> np.ndarray:
         return self._nominal_promp.mean_trajectory(np.clip(tau, 0.0, 1.0), self._object_offset)
@@ -84,7 +176,7 @@ class ResidualEnv(AdaptationEnv):
         return self._nominal_bases[step]
 
     def _plan(self, tau: np.ndarray) -> np.ndarray:
-        return self._nominal(tau) + self._rbf(tau) @ self.gamma
+        return self._nominal(tau) + self.residual_basis(tau) @ self.gamma
 
     def _planned_velocity(self, tau: np.ndarray) -> np.ndarray:
         dense = np.linspace(0.0, 1.0, 400)

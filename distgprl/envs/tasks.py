@@ -37,7 +37,9 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
     from dataclasses import asdict
 
     config = FitConfig(n_via_points=n_via_points)
-    key = config_hash({"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 1})
+    key = config_hash(
+        {"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 2}
+    )  # v2: axis_scale
     path = cache_root() / "skills" / f"{task}_{key}.json"
     if path.exists():
         try:

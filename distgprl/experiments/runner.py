@@ -65,7 +65,7 @@ def make_env(run: RunSpec):
     if run.method.action_mode == "residual":
         from distgprl.envs.residual import ResidualEnv
 
-        return ResidualEnv(run.task, run.config.env)
+        return ResidualEnv(run.task, run.config.env, method=run.method)
     from distgprl.envs.adaptation import AdaptationEnv
 
     return AdaptationEnv(run.task, run.method, run.config.env)
@@ -157,8 +157,10 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
         "obstacle_offset_x": float(tc.obstacle_offset[0]),
         "obstacle_offset_y": float(tc.obstacle_offset[1]),
         "success": int(info["success"]),
+        "completed": int(info["completed"]),
         "collision": int(info["collision"]),
         "min_clearance": float(info["min_clearance"]),
+        "min_signed_clearance": float(info["min_signed_clearance"]),
         "return": float(total),
         "kinematic_retention": float(info["kinematic_retention"]),
         "adaptation_ms_w1": adaptation[0],
@@ -170,8 +172,10 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance,
-    safe success (success without collision), means of the per-episode columns and, for
+    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance
+    (clamped at 0: a distance), safe success (success without collision; equal to success
+    from environment v5 on), for v5 rows the completion rate (v4's success) and the 5th
+    percentile of the signed minimum clearance (negative: penetration), means of the per-episode columns and, for
     rows that record it, the 95th percentile of the episodes' peak joint speed (rad/s) and
     the share of episodes above the hardware safety layer's joint speed limit."""
     if not rows:
@@ -188,13 +192,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
         "safe_success_rate": safe_success_rate(rows),
-        "min_clearance_p5": float(np.percentile(column("min_clearance"), 5)),
-        "mean_min_clearance": float(column("min_clearance").mean()),
+        # MinCl as the paper defines it: a distance, >= 0 (v5); the signed minimum
+        # (negative = penetration depth) separately.
+        "min_clearance_p5": float(np.percentile(np.maximum(column("min_clearance"), 0.0), 5)),
+        "mean_min_clearance": float(np.maximum(column("min_clearance"), 0.0).mean()),
         "mean_return": float(column("return").mean()),
         "mean_kinematic_retention": float(column("kinematic_retention").mean()),
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
+    if all(r.get("completed", "") != "" for r in rows):  # v5 rows
+        # v4's success: the task completed, whether or not a collision happened first.
+        summary["completion_rate"] = float(column("completed").mean())
+        summary["min_signed_clearance_p5"] = float(np.percentile(column("min_signed_clearance"), 5))
     if all(r.get("peak_joint_speed", "") != "" for r in rows):
         from distgprl.limits import SafetyLimits
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,45 +32,75 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     """How strongly the covariance transform acts on this skill's windows.
 
     Builds the windows' S_W exactly as the adaptation env does (Eq. transformed_action,
-    ``build_action_layout`` for ``dist-gprl``) and reports, per window: the eigenvalue range of
-    S_W (its shrink of a raw action along its eigenvectors; 1 = unchanged) and the largest
-    off-diagonal entry (how much a via-point's raw action moves its neighbours). Also the
-    kernel's correlation between neighbouring via-points, k(spacing) / k(0). When every
-    eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the identity: the
-    transform then barely correlates the update (see docs/FINDINGS.md).
+    ``build_action_layout`` for ``dist-gprl``): one (L, L) operator per window and axis. Reports,
+    per window: the eigenvalue range of S_W over its axes (its shrink of a raw action along its
+    eigenvectors; 1 = unchanged), the largest off-diagonal entry (how much a via-point's raw
+    action moves its neighbours) and the same per axis. Also the kernel's correlation between
+    neighbouring via-points, k(spacing) / k(0), and the same spectrum under every candidate
+    scale of K (``candidates``: ``"signal"`` — the GP's covariance in via-point units, v5;
+    ``"unit"`` — the unit-variance correlation matrix, v4), so `distgprl fit` shows them side
+    by side. When every eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the
+    identity: the transform then barely correlates the update (see docs/FINDINGS.md).
 
     Returns:
-        A JSON-ready dict: ``correlation_lambda``, ``length_scale`` (of K: the fitted one
-        unless ``env_config.correlation_length_scale`` sets it) and ``via_point_spacing``
-        (normalised time), ``neighbour_correlation``, and ``windows``: one dict per window
-        with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max`` and
-        ``max_off_diagonal``.
+        A JSON-ready dict: ``correlation_lambda``, ``covariance_scale``, ``length_scale`` (of K:
+        the fitted one unless ``env_config.correlation_length_scale`` sets it),
+        ``via_point_spacing`` (normalised time), ``neighbour_correlation``, ``windows``: one dict
+        per window with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max``,
+        ``max_off_diagonal`` and ``axes`` (the same three per axis x..rz), and ``candidates``:
+        per scale, ``eigenvalue_min`` / ``eigenvalue_max`` over all windows and axes (absent
+        for a scale the skill cannot build, e.g. ``"signal"`` without its axis scale).
     """
-    from distgprl.adaptation.layout import build_action_layout
+    from distgprl.adaptation.layout import COVARIANCE_SCALES, build_action_layout
     from distgprl.methods import get_method
 
     env_config = env_config or EnvConfig()
-    layout = build_action_layout(skill, env_config, get_method("dist-gprl"))
     spacing = float(np.min(np.diff(skill.via_times)))
     length_scale = float(env_config.correlation_length_scale or skill.kernel.length_scale)
-    windows = []
-    for indices, operator in zip(layout.indices, layout.operators, strict=True):
-        eigenvalues = np.linalg.eigvalsh(0.5 * (operator + operator.T))
-        off_diagonal = operator - np.diag(np.diag(operator))
-        windows.append(
-            {
-                "via_points": [int(i) for i in indices],
-                "eigenvalue_min": float(eigenvalues.min()),
-                "eigenvalue_max": float(eigenvalues.max()),
-                "max_off_diagonal": float(np.abs(off_diagonal).max()),
-            }
-        )
+    method = get_method("dist-gprl")
+
+    def describe(config: EnvConfig) -> list[dict]:
+        layout = build_action_layout(skill, config, method)
+        windows = []
+        for indices, operators in zip(layout.indices, layout.operators, strict=True):
+            axes = {}
+            for axis, operator in zip(AXES, operators, strict=True):
+                eigenvalues = np.linalg.eigvalsh(0.5 * (operator + operator.T))
+                off_diagonal = operator - np.diag(np.diag(operator))
+                axes[axis] = {
+                    "eigenvalue_min": float(eigenvalues.min()),
+                    "eigenvalue_max": float(eigenvalues.max()),
+                    "max_off_diagonal": float(np.abs(off_diagonal).max()),
+                }
+            windows.append(
+                {
+                    "via_points": [int(i) for i in indices],
+                    "eigenvalue_min": min(a["eigenvalue_min"] for a in axes.values()),
+                    "eigenvalue_max": max(a["eigenvalue_max"] for a in axes.values()),
+                    "max_off_diagonal": max(a["max_off_diagonal"] for a in axes.values()),
+                    "axes": axes,
+                }
+            )
+        return windows
+
+    candidates = {}
+    for scale in COVARIANCE_SCALES:
+        try:
+            windows = describe(dataclasses.replace(env_config, covariance_scale=scale))
+        except ValueError:  # e.g. a skill saved without its axis scale
+            continue
+        candidates[scale] = {
+            "eigenvalue_min": min(w["eigenvalue_min"] for w in windows),
+            "eigenvalue_max": max(w["eigenvalue_max"] for w in windows),
+        }
     return {
         "correlation_lambda": float(env_config.correlation_lambda),
+        "covariance_scale": env_config.covariance_scale,
         "length_scale": length_scale,
         "via_point_spacing": spacing,
         "neighbour_correlation": float(np.exp(-(spacing**2) / (2 * length_scale**2))),
-        "windows": windows,
+        "windows": describe(env_config),
+        "candidates": candidates,
     }
 
 
@@ -87,14 +118,7 @@ def fit_demonstration(
     demo = load_demonstration(demo_file, min_rows=config.n_via_points)
     name = name or demo.name
     skill = fit_skill(demo, config)
-    skill = GPSkill(
-        kernel=skill.kernel,
-        via_times=skill.via_times,
-        via_points=skill.via_points,
-        prior_mean=skill.prior_mean,
-        duration=skill.duration,
-        name=name,
-    )
+    skill = dataclasses.replace(skill, name=name)
     rmse = reconstruction_error(skill, demo)
     correlation = correlation_summary(skill)
     out_dir = Path(out_dir)

@@ -51,11 +51,18 @@ METRICS = (
     ("success_rate", "Success"),
     ("collision_rate", "Collision"),
     ("min_clearance_p5", "MinCl (m)"),
+    ("min_signed_clearance_p5", "SignedCl (m)"),
+    ("completion_rate", "Completed"),
     ("mean_kinematic_retention", "KinRet"),
-    ("safe_success_rate", "SafeSucc"),
 )
-"""Columns per task: the paper's three, then two it does not tabulate (kinematic retention
-and safe success = success without collision)."""
+"""Columns per task (environment v5): the paper's three — Success (the task completed without
+collision), Collision, MinCl (5th percentile of the episodes' minimum clearance, a distance
+>= 0) — then three it does not tabulate: the signed clearance's 5th percentile (negative =
+penetration depth), completion regardless of collision (v4's Success) and kinematic
+retention."""
+
+CLEARANCE_METRICS = ("min_clearance_p5", "min_signed_clearance_p5")
+"""Metrics in metres, shown to the millimetre."""
 
 INTERVAL_METRICS = ("success_rate", "collision_rate")
 """Metrics whose Markdown and LaTeX cells also show the 95 % interval (clipped to [0, 1])."""
@@ -65,7 +72,7 @@ def _cell_text(cell: Cell, key: str) -> str:
     """A Table I cell as the Markdown and LaTeX tables show it."""
     if key in INTERVAL_METRICS:
         return cell.text(2, interval=True, bounds=(0.0, 1.0))
-    return cell.text(3 if key == "min_clearance_p5" else 2)
+    return cell.text(3 if key in CLEARANCE_METRICS else 2)
 
 
 @dataclass(frozen=True)
@@ -223,7 +230,7 @@ def _per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
         for key, _ in columns:
             value = row[key]
-            digits = 3 if key == "min_clearance_p5" else 2
+            digits = 3 if key in CLEARANCE_METRICS else 2
             cells.append("–" if value == "" else f"{float(value):.{digits}f}")
         cells.append("–" if row["train_wall_min"] == "" else f"{row['train_wall_min']:.1f}")
         table.append(cells)

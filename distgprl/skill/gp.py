@@ -186,6 +186,10 @@ class GPSkill:
         prior_mean: shape (6,), constant prior mean per axis, m and rad.
         duration: trajectory duration in seconds (tau = t / duration).
         name: skill name.
+        axis_scale: shape (6,), the demonstration's standard deviation per axis (m, rad):
+            the scale by which each axis was standardised for the kernel fit, so the GP's
+            covariance of axis a in via-point units is ``axis_scale[a]**2 * K`` (None for a
+            skill saved before it was recorded).
     """
 
     kernel: KernelParams
@@ -194,6 +198,7 @@ class GPSkill:
     prior_mean: np.ndarray
     duration: float
     name: str = "skill"
+    axis_scale: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -295,6 +300,42 @@ class GPSkill:
         operator = self.correlation_operator(correlation_lambda, length_scale)
         return operator[np.ix_(idx, idx)].copy()
 
+    def signal_variance_per_axis(self, axis_floor: np.ndarray) -> np.ndarray:
+        """The GP prior variance of each axis in via-point units, shape (6,), m^2 / rad^2.
+
+        The kernel was fitted to the standardised signal, so axis a's covariance matrix is
+        ``sigma_f^2 s_a^2 R`` (Eq. 2's K_tt in the via-points' units) with s_a the axis's
+        demonstration std. An axis the demonstration keeps constant (s_a = 0, e.g. the tool
+        orientation) has no scale of its own; s_a is floored at ``axis_floor`` (6,), the
+        physical scale an axis is measured in (the env's observation floor).
+        """
+        if self.axis_scale is None:
+            raise ValueError(
+                f"skill {self.name!r} has no axis_scale (saved before it was recorded); refit it"
+            )
+        scale = np.maximum(np.asarray(self.axis_scale, dtype=float), axis_floor)
+        return self.kernel.signal_variance * scale**2
+
+    def axis_window_operators(
+        self,
+        indices: Sequence[int],
+        correlation_lambda: float,
+        axis_variance: np.ndarray,
+        length_scale: float | None = None,
+    ) -> np.ndarray:
+        """S_W per axis, shape (6, L, L), for K_a = v_a R (Eq. global_S with Eq. 2's scale).
+
+        S_a = v_a R (v_a R + lambda I)^{-1} = R (R + (lambda / v_a) I)^{-1}: the unit-variance
+        operator at lambda / v_a. With v_a of the order of lambda the eigenvalues spread over
+        (0, 1): lambda then "controls the strength of action correlation", as the paper says.
+        """
+        variance = np.asarray(axis_variance, dtype=float)
+        if variance.shape != (6,) or np.any(variance <= 0):
+            raise ValueError(f"axis_variance must be 6 positive values, got {variance}")
+        return np.stack(
+            [self.window_operator(indices, correlation_lambda / v, length_scale) for v in variance]
+        )
+
     # -- task conditioning -----------------------------------------------------------------
     def nearest_via_index(self, tau: float) -> int:
         """Index of the via-point nearest to normalised time ``tau``."""
@@ -342,6 +383,11 @@ class GPSkill:
             "via_times": self.via_times.tolist(),
             "via_points": self.via_points.tolist(),
             "prior_mean": self.prior_mean.tolist(),
+            **(
+                {}
+                if self.axis_scale is None
+                else {"axis_scale": np.asarray(self.axis_scale).tolist()}
+            ),
         }
 
     @classmethod
@@ -353,6 +399,9 @@ class GPSkill:
             prior_mean=np.asarray(data["prior_mean"], dtype=float),
             duration=float(data["duration_s"]),
             name=data.get("name", "skill"),
+            axis_scale=(
+                None if "axis_scale" not in data else np.asarray(data["axis_scale"], dtype=float)
+            ),
         )
 
 
@@ -418,6 +467,7 @@ def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
         prior_mean=poses.mean(axis=0),
         duration=demo.duration,
         name=demo.name,
+        axis_scale=poses.std(axis=0),
     )
 
 

@@ -14,7 +14,9 @@ from distgprl.skill.gp import GPSkill, KernelParams
 
 def skill():
     tau = np.linspace(0, 1, 15)
-    return GPSkill(KernelParams(0.12), tau, np.zeros((15, 6)), np.zeros(6), 4.0)
+    return GPSkill(
+        KernelParams(0.12), tau, np.zeros((15, 6)), np.zeros(6), 4.0, axis_scale=np.full(6, 0.3)
+    )
 
 
 def test_windows_overlap_by_one_and_skip_the_end_points():
@@ -26,14 +28,36 @@ def test_windows_overlap_by_one_and_skip_the_end_points():
 
 
 def test_covariance_transform_applied_only_where_the_method_says():
+    """S_W per axis (v5: K_a = sigma_f^2 s_a^2 R, here 1 * 0.3^2 R for every axis) for the
+    methods with the transform; the identity for every axis elsewhere."""
     s = skill()
     with_s = build_action_layout(s, EnvConfig(), get_method("dist-gprl"))
-    np.testing.assert_allclose(with_s.operators[1], s.window_operator([5, 6, 7, 8, 9], 1e-2))
-    assert not np.allclose(with_s.operators[1], np.eye(5))
+    assert with_s.operators.shape == (3, 6, 5, 5)
+    expected = s.window_operator([5, 6, 7, 8, 9], 1e-2 / 0.3**2)
+    for axis in range(6):
+        np.testing.assert_allclose(with_s.operators[1, axis], expected)
+    assert not np.allclose(with_s.operators[1, 0], np.eye(5))
     for name in ("dist-gprl-nocov", "dist-gprl-global", "gprl"):
         layout = build_action_layout(s, EnvConfig(), get_method(name))
-        for op in layout.operators:
-            np.testing.assert_array_equal(op, np.eye(op.shape[0]))
+        for per_axis in layout.operators:
+            for op in per_axis:
+                np.testing.assert_array_equal(op, np.eye(op.shape[0]))
+
+
+def test_each_axis_gets_its_own_operator_and_the_delta_applies_it_per_axis():
+    """ActionLayout.delta applies axis a's S_W to the scaled action's column a only."""
+    tau = np.linspace(0, 1, 15)
+    scales = np.array([0.05, 0.1, 0.2, 0.2, 0.3, 0.4])
+    s = GPSkill(KernelParams(0.12), tau, np.zeros((15, 6)), np.zeros(6), 4.0, axis_scale=scales)
+    layout = build_action_layout(s, EnvConfig(), get_method("dist-gprl"))
+    raw = np.random.default_rng(3).uniform(-1, 1, 30)
+    delta = layout.delta(0, raw)
+    scaled = raw.reshape(5, 6) * layout.scale
+    for axis in range(6):
+        floor = (0.05, 0.05, 0.05, 0.2, 0.2, 0.2)[axis]
+        variance = max(scales[axis], floor) ** 2
+        operator = s.window_operator([1, 2, 3, 4, 5], 1e-2 / variance)
+        np.testing.assert_allclose(delta[:, axis], operator @ scaled[:, axis], atol=1e-12)
 
 
 def test_global_methods_adapt_all_interior_via_points_every_step():
@@ -71,17 +95,19 @@ def independent_correlation_operator(via_times, length_scale, correlation_lambda
 def test_configured_correlation_lambda_reaches_the_layout_operators():
     """build_action_layout's S_W equal the window blocks of an independently computed
     K (K + lambda I)^-1 for the configured lambda (0.1 and the default 1e-2), and the two
-    lambdas give different operators; K ignores the signal variance (lambda is scale-free)."""
+    lambdas give different operators; the unit-variance K (v4, ``covariance_scale="unit"``)
+    ignores the signal variance."""
     tau = np.linspace(0, 1, 15)
     s = GPSkill(KernelParams(0.12, 1.7, 1e-6), tau, np.zeros((15, 6)), np.zeros(6), 4.0)
     operators = {}
     for correlation_lambda in (0.1, EnvConfig().correlation_lambda):
-        config = EnvConfig(correlation_lambda=correlation_lambda)
+        config = EnvConfig(correlation_lambda=correlation_lambda, covariance_scale="unit")
         layout = build_action_layout(s, config, get_method("dist-gprl"))
         full = independent_correlation_operator(tau, 0.12, correlation_lambda)
-        assert layout.operators.shape == (3, 5, 5)
-        for window, operator in zip(layout.indices, layout.operators, strict=True):
-            np.testing.assert_allclose(operator, full[np.ix_(window, window)], atol=1e-10)
+        assert layout.operators.shape == (3, 6, 5, 5)
+        for window, per_axis in zip(layout.indices, layout.operators, strict=True):
+            for operator in per_axis:
+                np.testing.assert_allclose(operator, full[np.ix_(window, window)], atol=1e-10)
         operators[correlation_lambda] = layout.operators
     assert EnvConfig().correlation_lambda == 1e-2
     assert np.abs(operators[0.1] - operators[1e-2]).max() > 1e-2

@@ -88,7 +88,9 @@ class ReferenceActorRegulariser(nn.Module):
         gamma = aux[:, : n * 6].reshape(batch, n, 6)
         step = aux[:, n * 6 : n * 6 + self.n_steps].argmax(dim=1)
         raw = actions.reshape(batch, self.points_per_step, 6) * self.scale
-        delta = torch.bmm(self.operators[step], raw) * self.mask[step].unsqueeze(-1)
+        # environment v5: one S_W per axis (the only change to the verbatim copy)
+        delta = torch.einsum("baij,bja->bia", self.operators[step], raw)
+        delta = delta * self.mask[step].unsqueeze(-1)
         index = self.indices[step].unsqueeze(-1).expand(-1, -1, 6)
         return gamma.scatter_add(1, index, delta)
 

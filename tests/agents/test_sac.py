@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from distgprl.adaptation.layout import build_action_layout
+from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, build_action_layout
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.agents.sac import exponential_anneal
 from distgprl.config import EnvConfig
@@ -37,6 +37,7 @@ def small_skill(seed=0) -> GPSkill:
         base + 0.001 * rng.normal(size=base.shape),
         base.mean(axis=0),
         4.0,
+        axis_scale=np.full(6, 0.1),
     )
 
 
@@ -86,12 +87,18 @@ def test_adapted_via_points_match_the_environment_update(method, frozen, step):
 
     indices = layout.indices[step]
     scaled = action[0].reshape(-1, 6) * layout.scale
-    if spec.covariance_transform:
-        operator = skill.window_operator(indices, EnvConfig().correlation_lambda)
-        assert not np.allclose(operator, np.eye(len(indices)), atol=1e-3)
+    if spec.covariance_transform:  # v5: per axis, K_a = sigma_f^2 s_a^2 R
+        variance = (
+            skill.kernel.signal_variance
+            * np.maximum(skill.axis_scale, OBSERVATION_SCALE_FLOOR) ** 2
+        )
+        operators = [
+            skill.window_operator(indices, EnvConfig().correlation_lambda / v) for v in variance
+        ]
+        assert not np.allclose(operators[0], np.eye(len(indices)), atol=1e-3)
     else:
-        operator = np.eye(len(indices))
-    delta = operator @ scaled
+        operators = [np.eye(len(indices))] * 6
+    delta = np.stack([operators[a] @ scaled[:, a] for a in range(6)], axis=1)
     delta[np.isin(indices, frozen)] = 0.0
     expected = gamma.copy()
     expected[indices] += delta
@@ -261,14 +268,18 @@ def test_critic_frozen_in_the_actor_loss_leaves_the_update_unchanged():
 
 # -- the real agent ------------------------------------------------------------------------
 def real_observations(env, episodes=2):
-    """Observations at every step (0, 1, 2) of a few random-action episodes, batched."""
+    """Observations at every step (0, 1, 2) of a few random-action episodes, batched (an
+    episode a collision ends early contributes its steps up to the collision)."""
     rng = np.random.default_rng(0)
     observations = []
     for episode in range(episodes):
         obs, _ = env.reset(seed=episode)
         for _ in range(env.layout.n_steps):
             observations.append(obs)
-            obs, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+            action = 0.3 * rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+            obs, _, terminated, _, _ = env.step(action)
+            if terminated:
+                break
     return {
         key: torch.as_tensor(np.stack([o[key] for o in observations]), dtype=torch.float32)
         for key in observations[0]

@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
+from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR, REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.sim.tasks import TaskConfig
@@ -23,24 +23,74 @@ def dcp_env():
 
 
 def rollout(env, tc, actions):
+    """Step through ``actions`` until the episode ends (v5: possibly early, at a collision)."""
     obs, _ = env.reset(options={"tc": tc})
     records = []
     for action in actions:
         obs, reward, terminated, truncated, info = env.step(action)
         records.append((obs, reward, terminated, info))
+        if terminated:
+            break
     return records
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v4", method="dist-gprl").unwrapped
+    env = gym.make("DistGPRL-DCP-v5", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
+    env.close()
+
+
+def test_a_collision_stops_execution_and_ends_the_episode_without_success():
+    """v5: pushing every via-point into the table collides in the first segment; execution
+    stops at the colliding control period (fewer poses than the segment), the episode ends
+    at step 0 with success False, the collision penalty paid, and a further step raises."""
+    env = AdaptationEnv("dcp", "dist-gprl-nocov")
+    executed = []
+    execute = env.sim.execute
+
+    def spy(poses, **kwargs):
+        result = execute(poses, **kwargs)
+        executed.append((len(poses), result.steps, result.collision, result.stopped))
+        return result
+
+    env.sim.execute = spy
+    n = env.action_space.shape[0]
+    down = np.zeros((n // 6, 6))
+    down[:, 2] = -1.0
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    _, reward, terminated, _, info = env.step(down.ravel())
+    assert terminated and info["collision"] and not info["success"]
+    assert info["stopped_at_step"] == 0
+    assert info["r_collision"] == -env.config.collision_penalty and info["r_success"] == 0.0
+    assert info["min_clearance"] == 0.0 and info["min_signed_clearance"] <= 0.0
+    poses, steps, collision, stopped = executed[-1]
+    assert collision and stopped and steps < poses
+    with pytest.raises(RuntimeError, match="episode is over"):
+        env.step(down.ravel())
+    env.close()
+
+
+def test_without_protective_stop_the_episode_runs_on_through_a_collision():
+    """``collision_ends_episode=False`` (v4 semantics): the same colliding actions run all
+    three steps, and success is completion regardless of the collision."""
+    env = AdaptationEnv("dcp", "dist-gprl-nocov", EnvConfig(collision_ends_episode=False))
+    n = env.action_space.shape[0]
+    down = np.zeros((n // 6, 6))
+    down[:, 2] = -1.0
+    env.reset(options={"tc": env.spec_task.nominal_tc})
+    terminated, steps = False, 0
+    while not terminated:
+        _, _, terminated, _, info = env.step(down.ravel())
+        steps += 1
+    assert steps == 3 and info["collision"] and info["stopped_at_step"] == -1
+    assert info["success"] == info["completed"]
     env.close()
 
 
 def test_episode_is_three_steps_and_reward_terms_sum_to_reward(dcp_env):
     rng = np.random.default_rng(0)
     tc = dcp_env.spec_task.evaluation_tcs(3)[1]
-    actions = rng.uniform(-1, 1, size=(3, dcp_env.action_space.shape[0]))
+    actions = 0.2 * rng.uniform(-1, 1, size=(3, dcp_env.action_space.shape[0]))
     records = rollout(dcp_env, tc, actions)
     assert [r[2] for r in records] == [False, False, True]
     for _, reward, _, info in records:
@@ -70,8 +120,8 @@ def spy_on_segments(env, monkeypatch) -> list[tuple[bool, float]]:
     chunks: list[tuple[bool, float]] = []
     execute = env.sim.execute
 
-    def spy(poses):
-        result = execute(poses)
+    def spy(poses, **kwargs):
+        result = execute(poses, **kwargs)
         chunks.append((bool(result.collision), clearance_penalty(env.sim, env.config)))
         return result
 
@@ -137,6 +187,9 @@ def test_reward_terms_have_their_specified_values(method, monkeypatch):
                 assert info["r_signature"] == 0.0, where
             seen["r_sd"].append(info["r_sd"])
             seen["r_ga"].append(info["r_ga"])
+            if terminated:  # v5: a collision ends the episode at its step
+                assert k == 2 or (collided and info["stopped_at_step"] == k), where
+                break
         assert terminated
         assert info["collision"] == any(step_collisions), f"{method} {name}"
         seen["success"].append(info["success"])
@@ -173,7 +226,16 @@ def test_window_update_applies_the_covariance_transform(dcp_env):
     action = np.random.default_rng(1).uniform(-1, 1, size=30)
     dcp_env.step(action)
     window = dcp_env.layout.indices[0]
-    expected = dcp_env.skill.window_operator(window) @ (action.reshape(5, 6) * dcp_env.layout.scale)
+    scaled = action.reshape(5, 6) * dcp_env.layout.scale
+    # v5: per axis a, S_W,a from K_a = the GP's covariance of axis a in via-point units
+    variance = dcp_env.skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
+    expected = np.stack(
+        [
+            dcp_env.skill.window_operator(window, 1e-2 / variance[a]) @ scaled[:, a]
+            for a in range(6)
+        ],
+        axis=1,
+    )
     np.testing.assert_allclose(dcp_env.gamma[window] - before[window], expected, atol=1e-12)
     untouched = np.setdiff1d(np.arange(15), window)
     np.testing.assert_array_equal(dcp_env.gamma[untouched], before[untouched])
@@ -226,8 +288,9 @@ def test_gradient_alignment_reward_is_positive_for_moves_along_the_gradient(dcp_
     # Raw action whose S_W-transformed position part points along the EDF gradient.
     target = np.zeros((5, 6))
     target[:, :3] = gradient * 0.02
-    raw = np.linalg.solve(dcp_env.layout.operators[0], target) / dcp_env.layout.scale
-    raw = np.clip(raw, -1, 1).ravel()
+    operators = dcp_env.layout.operators[0]  # (6, L, L): one S_W per axis (v5)
+    raw = np.stack([np.linalg.solve(operators[a], target[:, a]) for a in range(6)], axis=1)
+    raw = np.clip(raw / dcp_env.layout.scale, -1, 1).ravel()
     _, _, _, _, info = dcp_env.step(raw)
     assert info["r_ga"] > 0
 
@@ -264,9 +327,10 @@ def test_observations_stay_well_scaled_under_saturated_actions(task):
     rng = np.random.default_rng(0)
     for tc in env.spec_task.evaluation_tcs(3):
         obs, _ = env.reset(options={"tc": tc})
-        for _ in range(3):
+        terminated = False
+        while not terminated:  # v5: a collision may end the episode early
             assert np.abs(obs["state"]).max() < 10.0
-            obs, *_ = env.step(rng.choice([-1.0, 1.0], size=30))
+            obs, _, terminated, _, _ = env.step(rng.choice([-1.0, 1.0], size=30))
     env.close()
 
 

@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.envs.residual import ResidualEnv
+from distgprl.envs.residual import (
+    ResidualEnv,
+    load_task_promp,
+    one_demonstration_set,
+    variance_gate,
+)
+from distgprl.sim.tasks import get_task
+from distgprl.sim.tasks.base import condition_by_translation
+from distgprl.skill.demos import load_demonstration
 
 
 @pytest.fixture(scope="module")
@@ -50,3 +58,65 @@ def test_residual_action_changes_only_the_window_weights(env):
     assert np.all(env.gamma[window] != 0)
     assert np.all(np.delete(env.gamma, window, axis=0) == 0)
     assert env.observation_space["state"].shape == (42,)
+
+
+def test_promp_rrl_gets_only_the_one_demonstration_conditioned_on_training_tcs():
+    """v5, equal information: every copy in ProMP-RRL's demonstration set is the shipped
+    demonstration moved by its TC's object offset (the conditioning rule), nothing else."""
+    spec = get_task("dcp")
+    demo = load_demonstration(spec.demo_path)
+    demos, offsets = one_demonstration_set("dcp")
+    assert len(demos) == 20 and offsets.shape == (20, 3)
+    assert np.ptp(offsets[:, :2], axis=0).min() > 0.1  # the TCs vary
+    for (times, poses), offset in zip(demos, offsets, strict=True):
+        np.testing.assert_array_equal(times, demo.times)
+        expected = condition_by_translation(
+            demo.times, demo.poses, offset[:2], spec.interaction_time
+        )
+        np.testing.assert_array_equal(poses, expected)
+
+
+def test_one_demonstration_promp_varies_only_before_the_interaction():
+    """In the object frame the conditioned copies coincide after the interaction time and
+    differ before it: the ProMP's positional std is ~0 late and > 1 cm at the start; the
+    variance gate therefore lets the residual act fully late and not at the start."""
+    promp = load_task_promp("dcp", "one")
+    interaction = get_task("dcp").interaction_time
+    late = np.linspace(interaction + 0.05, 1.0, 10)
+    assert promp.trajectory_std(late)[:, :3].max() < 2e-3
+    assert promp.trajectory_std(np.zeros(1))[0, :2].min() > 0.01
+    gate = variance_gate(promp, np.linspace(0.0, 1.0, 15))
+    assert gate.min() == pytest.approx(0.0) and gate[-1] > 0.9
+    assert np.all((gate >= 0.0) & (gate <= 1.0))
+
+
+def test_residual_basis_is_normalised_so_the_total_range_is_the_gp_methods():
+    """v5: the residual basis sums to the gate at every time (a partition of unity before
+    gating), so saturating every weight by the action scale moves a pose by at most the
+    scale — the GP methods' total range — never the ~2.5x of v4's unnormalised basis."""
+    env = ResidualEnv("dcp")
+    tau = np.linspace(0.0, 1.0, 200)
+    basis = env.residual_basis(tau)
+    gate = variance_gate(env.promp, env.skill.via_times)
+    assert basis.min() >= 0.0 and basis.sum(axis=1).max() <= 1.0 + 1e-12
+    ungated = basis / np.where(gate > 0, gate, 1.0)[None, :]
+    full = gate > 0
+    np.testing.assert_allclose(ungated[:, full].sum(axis=1)[tau > 0.9], 1.0, atol=1e-6)
+    scale = env.layout.scale[0]
+    weights = np.full((env.skill.n_via_points, 6), scale)
+    assert np.abs(basis @ weights).max() <= scale + 1e-12
+    env.close()
+
+
+def test_expert_variant_and_nominal_reference():
+    """``promp-rrl-expert`` fits the 20 shipped expert demonstrations; ``promp-nominal``
+    ignores its actions (the ProMP mean is executed as is)."""
+    expert = ResidualEnv("dcp", method="promp-rrl-expert")
+    assert expert.promp.demonstration_count == 20
+    assert not np.allclose(expert.promp.weight_mean, load_task_promp("dcp", "one").weight_mean)
+    expert.close()
+    nominal = ResidualEnv("dcp", method="promp-nominal")
+    nominal.reset(options={"tc": nominal.spec_task.nominal_tc})
+    nominal.step(np.ones(nominal.action_space.shape))
+    assert np.all(nominal.gamma == 0)
+    nominal.close()

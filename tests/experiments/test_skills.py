@@ -14,6 +14,10 @@ from distgprl.skill.gp import GPSkill, KernelParams
 PAPER_WINDOWS = ([1, 2, 3, 4, 5], [5, 6, 7, 8, 9], [9, 10, 11, 12, 13])
 
 
+AXIS_SCALE = np.array([0.06, 0.2, 0.09, 0.0, 0.0, 0.0])  # like the DCP demonstration's
+UNIT = EnvConfig(covariance_scale="unit")
+
+
 def make_skill(length_scale: float) -> GPSkill:
     rng = np.random.default_rng(0)
     return GPSkill(
@@ -22,6 +26,7 @@ def make_skill(length_scale: float) -> GPSkill:
         via_points=rng.normal(size=(15, 6)) * 0.1,
         prior_mean=np.zeros(6),
         duration=4.0,
+        axis_scale=AXIS_SCALE,
     )
 
 
@@ -37,7 +42,7 @@ def independent_window_operator(length_scale, correlation_lambda, window):
 def test_summary_describes_the_paper_windows_of_the_independent_operator(
     length_scale, correlation_lambda
 ):
-    config = EnvConfig(correlation_lambda=correlation_lambda)
+    config = EnvConfig(correlation_lambda=correlation_lambda, covariance_scale="unit")
     summary = correlation_summary(make_skill(length_scale), config)
     assert [w["via_points"] for w in summary["windows"]] == list(PAPER_WINDOWS)
     for window, reported in zip(PAPER_WINDOWS, summary["windows"], strict=True):
@@ -55,8 +60,9 @@ def test_summary_describes_the_paper_windows_of_the_independent_operator(
 
 def test_a_length_scale_below_the_spacing_leaves_s_w_near_the_identity():
     """With l < the via-point spacing and lambda = 1e-2 (the fitted demonstrations' case),
-    S_W shrinks a raw action by under 10 % and moves no neighbour by more than 3 %."""
-    summary = correlation_summary(make_skill(0.06), EnvConfig())
+    the unit-variance S_W (v4) shrinks a raw action by under 10 % and moves no neighbour by
+    more than 3 %."""
+    summary = correlation_summary(make_skill(0.06), UNIT)
     assert min(w["eigenvalue_min"] for w in summary["windows"]) > 0.9
     assert max(w["max_off_diagonal"] for w in summary["windows"]) < 0.03
 
@@ -67,7 +73,8 @@ def test_near_the_spacing_longer_length_scales_and_larger_lambdas_correlate_more
 
     def strength(length_scale, correlation_lambda):
         summary = correlation_summary(
-            make_skill(length_scale), EnvConfig(correlation_lambda=correlation_lambda)
+            make_skill(length_scale),
+            EnvConfig(correlation_lambda=correlation_lambda, covariance_scale="unit"),
         )
         windows = summary["windows"]
         return (
@@ -82,7 +89,7 @@ def test_near_the_spacing_longer_length_scales_and_larger_lambdas_correlate_more
 
 
 def test_summary_follows_the_env_window_size():
-    config = dataclasses.replace(EnvConfig(), window_size=4, n_windows=4)
+    config = dataclasses.replace(UNIT, window_size=4, n_windows=4)
     summary = correlation_summary(make_skill(0.1), config)
     assert [w["via_points"] for w in summary["windows"]] == [
         [1, 2, 3, 4],
@@ -96,7 +103,7 @@ def test_a_configured_length_scale_replaces_the_fitted_one_in_s_only():
     """`correlation_length_scale` builds S_W from K with that length scale (checked against
     the independent operator); the skill's own kernel, and so its trajectory, is unchanged."""
     skill = make_skill(0.06)
-    config = EnvConfig(correlation_length_scale=0.1)
+    config = EnvConfig(correlation_length_scale=0.1, covariance_scale="unit")
     summary = correlation_summary(skill, config)
     assert summary["length_scale"] == 0.1
     for window, reported in zip(PAPER_WINDOWS, summary["windows"], strict=True):
@@ -104,8 +111,56 @@ def test_a_configured_length_scale_replaces_the_fitted_one_in_s_only():
         off = np.abs(s_w - np.diag(np.diag(s_w))).max()
         assert reported["max_off_diagonal"] == pytest.approx(off, abs=1e-8)
     assert skill.kernel.length_scale == 0.06
-    fitted = correlation_summary(skill, EnvConfig())
+    fitted = correlation_summary(skill, UNIT)
     assert fitted["length_scale"] == 0.06
     assert max(w["max_off_diagonal"] for w in summary["windows"]) > 5 * max(
         w["max_off_diagonal"] for w in fitted["windows"]
     )
+
+
+def independent_axis_operator(length_scale, correlation_lambda, variance, window):
+    """The block of S = K (K + lambda I)^-1 for K = variance * the unit SE kernel matrix."""
+    tau = np.linspace(0.0, 1.0, 15)
+    k = variance * np.exp(-((tau[:, None] - tau[None, :]) ** 2) / (2 * length_scale**2))
+    s = k @ np.linalg.inv(k + correlation_lambda * np.eye(15))
+    return s[np.ix_(window, window)]
+
+
+def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units():
+    """v5: axis a's S_W is built from K_a = sigma_f^2 max(s_a, floor_a)^2 R (checked against an
+    independent operator), so axes with a smaller prior variance are shrunk more."""
+    from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR
+
+    skill = make_skill(0.06)
+    summary = correlation_summary(skill, EnvConfig())
+    assert summary["covariance_scale"] == "signal"
+    variance = 0.3 * np.maximum(AXIS_SCALE, OBSERVATION_SCALE_FLOOR) ** 2
+    for window, reported in zip(PAPER_WINDOWS, summary["windows"], strict=True):
+        for axis, v in zip(("x", "y", "z", "rx", "ry", "rz"), variance, strict=True):
+            s_w = independent_axis_operator(0.06, 1e-2, v, window)
+            eigenvalues = np.linalg.eigvalsh(0.5 * (s_w + s_w.T))
+            assert reported["axes"][axis]["eigenvalue_min"] == pytest.approx(eigenvalues.min())
+            assert reported["axes"][axis]["eigenvalue_max"] == pytest.approx(eigenvalues.max())
+    axes = summary["windows"][0]["axes"]
+    assert axes["x"]["eigenvalue_max"] < axes["z"]["eigenvalue_max"] < axes["y"]["eigenvalue_max"]
+    assert set(summary["candidates"]) == {"signal", "unit"}
+    assert summary["candidates"]["unit"]["eigenvalue_min"] > 0.9
+
+
+def test_shipped_skills_are_correlated_under_the_v5_operator():
+    """The shipped demonstrations' S_W under the v5 scale: smallest eigenvalue not above 0.9
+    (issue 30's bar for an operator that acts), largest below 1."""
+    from distgprl.envs.tasks import load_task_skill
+
+    for task in ("dcp", "dbm"):
+        summary = correlation_summary(load_task_skill(task), EnvConfig())
+        low = min(w["eigenvalue_min"] for w in summary["windows"])
+        high = max(w["eigenvalue_max"] for w in summary["windows"])
+        assert low <= 0.9 and high < 1.0, (task, low, high)
+
+
+def test_a_skill_without_axis_scale_cannot_build_the_signal_operator():
+    skill = dataclasses.replace(make_skill(0.06), axis_scale=None)
+    with pytest.raises(ValueError, match="axis_scale"):
+        correlation_summary(skill, EnvConfig())
+    assert set(correlation_summary(skill, UNIT)["candidates"]) == {"unit"}

@@ -86,6 +86,8 @@ class SegmentResult:
             targets' finite differences at the control period (the first from the previous
             target), maximum over joints and periods; the quantity the hardware safety
             layer bounds (`distgprl.limits.SafetyLimits.max_joint_speed`).
+        stopped: execution stopped at a collision before the segment's last pose (a
+            protective stop; only with ``execute(..., stop_on_collision=True)``).
     """
 
     collision: bool
@@ -93,6 +95,7 @@ class SegmentResult:
     ik_failures: int
     steps: int
     peak_joint_speed: float = 0.0
+    stopped: bool = False
 
 
 @dataclass(frozen=True)
@@ -307,12 +310,15 @@ class TaskSim:
                     best = point[8]
         return best
 
-    def execute(self, poses: np.ndarray) -> SegmentResult:
+    def execute(self, poses: np.ndarray, stop_on_collision: bool = False) -> SegmentResult:
         """Track Cartesian TCP poses, one per control period, with dynamics.
 
         Args:
             poses: shape (n, 6): x, y, z (m), rx, ry, rz (rad), world frame. Pose k is the
                 target at the end of control period k of this segment.
+            stop_on_collision: end execution after the control period in which a collision
+                is detected, as a hardware protective stop ends a trial (environment v5);
+                the remaining poses are not executed (``SegmentResult.stopped``).
 
         Each pose is converted by IK (branch nearest the previous joint target) into a
         joint target; the joint position controllers move to it, linearly interpolated
@@ -339,6 +345,7 @@ class TaskSim:
         peak_speed = 0.0
         fractions = [(s + 1) / substeps for s in range(substeps)]
         inverse_dt = 1.0 / self.control_dt
+        executed = 0
         for pose in poses:
             q_target = robot.ik_nearest(pose_to_matrix(pose), self._q_command)
             if q_target is None:
@@ -370,14 +377,18 @@ class TaskSim:
             clearance = self.clearance()
             if clearance < min_clearance:
                 min_clearance = clearance
+            executed += 1
+            if stop_on_collision and (collision or min_clearance <= 0.0):
+                break
         if min_clearance <= 0.0:
             collision = True
         return SegmentResult(
             collision=collision,
             min_clearance=float(min_clearance),
             ik_failures=failures,
-            steps=int(poses.shape[0]),
+            steps=executed,
             peak_joint_speed=peak_speed,
+            stopped=executed < int(poses.shape[0]),
         )
 
     def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:

@@ -13,9 +13,14 @@ Scene (world = UR base frame, m). A roller conveyor runs along world +y at x = 0
 The hook's finger enters the target bar's handle from behind (-y), then lifts the bar by
 the handle with contact physics and carries it off the conveyor towards the robot.
 
-TC: ``object_offset = (0, dy)`` and ``obstacle_offset = (0, dy')`` shift the bars along
-the conveyor, each uniform in [-0.20, 0.20] m; draws in which the bars would start
-closer than ``min_bar_gap`` (1 cm between faces) are redrawn. The bars start 16 cm
+TC (scene revision 2, environment v5): ``object_offset = (dx, dy)`` and
+``obstacle_offset = (dx', dy')`` shift the bars in the xy-plane of the conveyor: along the
+belt (y) each uniform in [-0.20, 0.20] m, across it (x) each uniform in
+[-``lateral_range``, ``lateral_range``] = [-0.035, 0.035] m — as far as the conveyor allows:
+the rails' inner faces are 12 cm from the belt's centre line, a bar reaches 8 cm to each
+side, and ``rail_margin`` (5 mm) is kept free. Draws in which the bars would start closer
+than ``min_bar_gap`` (1 cm between faces, along the belt) are redrawn. (Revisions 0-1
+shifted the bars along the belt only.) The bars start 16 cm
 apart (faces) in the nominal TC; the hook lowers its finger to handle height 12 cm
 behind the target's handle and slides it in, so it sweeps the space between the bars.
 
@@ -67,6 +72,7 @@ class DBMScene:
     target_start_y: float = -0.10
     other_start_y: float = -0.31
     offset_range: float = 0.20
+    rail_margin: float = 0.005
     min_bar_gap: float = 0.01
     lift_height: float = 0.12
     start_pose: tuple[float, ...] = (0.35, -0.30, 0.35, 0.0, 0.0, 0.0)
@@ -75,6 +81,13 @@ class DBMScene:
     def bar_centre_z(self) -> float:
         """Resting height (m) of a bar's base-box centre."""
         return self.roller_top + self.bar_half_extents[2]
+
+    @property
+    def lateral_range(self) -> float:
+        """Largest offset (m) of a bar across the belt: its ends keep ``rail_margin`` from
+        the rails' inner faces."""
+        inner_face = self.rail_offset - self.rail_half_extents[0]
+        return inner_face - self.bar_half_extents[0] - self.rail_margin
 
     @property
     def handle_opening(self) -> tuple[float, float]:
@@ -119,15 +132,19 @@ def bar_boxes(scene: DBMScene, centre: np.ndarray, prefix: str, dynamic: bool) -
 
 
 def sample_dbm_tc(rng: np.random.Generator) -> TaskConfig:
-    """Both bars offset along the conveyor, uniform in [-0.2, 0.2] m; overlapping draws redrawn."""
+    """Both bars offset in the conveyor's xy-plane: along the belt uniform in [-0.2, 0.2] m,
+    across it uniform in [-lateral_range, lateral_range]; overlapping draws redrawn."""
     scene = SCENE
     length = 2.0 * scene.bar_half_extents[1]
+    lateral = scene.lateral_range
     while True:
         target, other = rng.uniform(-scene.offset_range, scene.offset_range, size=2)
+        target_x, other_x = rng.uniform(-lateral, lateral, size=2)
         gap = (scene.target_start_y + target) - (scene.other_start_y + other) - length
         if gap >= scene.min_bar_gap:
             return TaskConfig(
-                object_offset=(0.0, float(target)), obstacle_offset=(0.0, float(other))
+                object_offset=(float(target_x), float(target)),
+                obstacle_offset=(float(other_x), float(other)),
             )
 
 
