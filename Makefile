@@ -31,7 +31,7 @@ format:
 tables:
 	$(BIN)/distgprl tables --preset paper
 	$(BIN)/distgprl curves --preset paper
-	$(BIN)/distgprl tables --preset correlated --against paper
+
 
 reproduce:
 	$(BIN)/distgprl sweep --preset paper

@@ -138,7 +138,7 @@ def test_shipped_presets_are_package_data_not_files_of_the_checkout():
     """The presets live inside the package (what a wheel ships), read via importlib.resources."""
     from importlib import resources
 
-    assert config_module.shipped_presets() == ("ci", "correlated", "paper")
+    assert config_module.shipped_presets() == ("ci", "correlated", "paper", "unit-covariance")
     shipped = resources.files("distgprl") / "presets" / "ci.yaml"
     assert shipped.is_file()
     assert load_config("ci").run.total_steps == 240

@@ -32,3 +32,12 @@ def test_correlated_preset_is_the_paper_preset_but_for_the_correlation_length_sc
     assert correlated.env.correlation_length_scale == pytest.approx(1 / 7)
     assert replace(correlated.env, correlation_length_scale=0.0) == paper.env
     assert (correlated.sac, correlated.run) == (paper.sac, paper.run)
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_unit_covariance_preset_is_the_paper_preset_with_v4s_operator(task):
+    """The `unit-covariance` ablation differs from `paper` only in the scale of K in S."""
+    paper, unit = load_config("paper", task=task), load_config("unit-covariance", task=task)
+    assert paper.env.covariance_scale == "signal" and unit.env.covariance_scale == "unit"
+    assert replace(unit.env, covariance_scale="signal") == paper.env
+    assert (unit.sac, unit.run) == (paper.sac, paper.run)
