@@ -62,9 +62,9 @@ print("RESULT " + json.dumps({"import_s": imported - start, "make_env_s": built 
 def profile_training(steps: int) -> None:
     import torch
 
-    from distgprl.agents.methods import get_method
     from distgprl.config import load_config
     from distgprl.experiments.runner import RunSpec, make_agent, make_env
+    from distgprl.methods import get_method
 
     torch.set_num_threads(1)
     overrides = {"sac": {"learning_starts": 90, "buffer_size": 20_000}}

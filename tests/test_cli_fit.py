@@ -24,7 +24,8 @@ def test_fit_demo_writes_json_and_figure(tmp_path, smooth_demo_file):
     correlation = document["correlation_operator"]
     assert correlation["correlation_lambda"] == 0.01
     assert [w["via_points"][0] for w in correlation["windows"]] == [1, 5, 9]
-    assert "covariance transform (lambda 0.01)" in result.output
+    assert "covariance transform (lambda 0.01, K scale 'signal')" in result.output
+    assert "candidate K scale 'unit'" in result.output  # both candidates' spectra (v5)
 
 
 @pytest.mark.parametrize(

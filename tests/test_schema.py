@@ -86,7 +86,7 @@ def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_pat
     assert result.exception is None or isinstance(result.exception, SystemExit)
     lines = result.output.strip().splitlines()
     assert len(lines) == 1, result.output
-    assert lines[0].startswith(f"error: {summary}: ")
+    assert lines[0].startswith(f"error: damaged run {summary}: ")  # the one RunState verdict
     assert "schema_version 999 is not supported" in lines[0]
     assert result.stdout == ""  # the error goes to stderr only
     assert not out.exists()

@@ -110,7 +110,8 @@ class ActorRegulariser(nn.Module):
         D_s (N, A_v) = scatter onto the window of mask * S_W. Velocities V, accelerations A
         and the L_hap positions H are linear in them, so with M = [V; A; H] (T + T + N_q, N)
 
-            out[b, j] = [M, M D_0,j, ..., M D_{S-1},j] [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
+            out[b, j] = [M, M D_0,j, ..., M D_{S-1},j]
+                        [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
 
         for each axis j (D_s,j from axis j's S_W, environment v5): one batched
         (B, 6, N + S*A_v) x (6, N + S*A_v, 2T + N_q) product for the batch.

@@ -1,7 +1,9 @@
 """Shipped data: demonstrations (CSV) per task.
 
 ``demos/<task>.csv`` is the nominal demonstration of a task; ``demos/<task>_varied/``
-holds the 20 varied demonstrations (one per task configuration) that ProMP-RRL fits.
+holds the 20 varied demonstrations (one per task configuration, planned by a TC-aware
+expert) that the exploration method `promp-rrl-expert` fits (Table I's ProMP-RRL gets only
+the nominal one, environment v5).
 Both are regenerated exactly by ``python -m distgprl.sim.experts``.
 """
 

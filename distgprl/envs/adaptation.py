@@ -402,6 +402,12 @@ class AdaptationEnv(gym.Env):
             np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
         )
 
+    @property
+    def at_episode_start(self) -> bool:
+        """True between ``reset()`` and the episode's first step (where a training run can be
+        checkpointed and resumed exactly)."""
+        return self.step_index == 0 and not self._episode_over
+
     # -- gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)

@@ -137,7 +137,8 @@ class ResidualEnv(AdaptationEnv):
     **Versions**: v5 — the ProMP is fitted to the one demonstration the GP methods get (v4:
     20 TC-aware expert demonstrations, now ``promp-rrl-expert``); normalised residual basis;
     the variance gate; the AdaptationEnv v5 outcome semantics. v4 was not released for
-    this env (its ids went from v3 to v5). v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
+    this env (its ids went from v3 to v5).
+    v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
     clearances and O(1) observation units (see `AdaptationEnv`). v1 — floored observation
     scale. v0 — first release.
     """

@@ -132,6 +132,7 @@ def bench_gp(n_query: int = 200, n_via_points: int = 15, seed: int = 0) -> dict[
         via_points=rng.normal(size=(n_via_points, 6)),
         prior_mean=np.zeros(6),
         duration=5.0,
+        axis_scale=np.full(6, 0.3),
     )
     tau = np.linspace(0, 1, n_query)
     maps = skill.maps(tau)
@@ -873,7 +874,13 @@ def _scaled_skill(skill, n_via_points: int):
     via_points = skill.position(skill.via_points, times)
     via_points[0], via_points[-1] = skill.via_points[0], skill.via_points[-1]
     return GPSkill(
-        skill.kernel, times, via_points, skill.prior_mean.copy(), skill.duration, skill.name
+        skill.kernel,
+        times,
+        via_points,
+        skill.prior_mean.copy(),
+        skill.duration,
+        skill.name,
+        axis_scale=skill.axis_scale,
     )
 
 

@@ -175,7 +175,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
     """Success rate, collision rate, MinCl = 5th percentile of episode min clearance
     (clamped at 0: a distance), safe success (success without collision; equal to success
     from environment v5 on), for v5 rows the completion rate (v4's success) and the 5th
-    percentile of the signed minimum clearance (negative: penetration), means of the per-episode columns and, for
+    percentile of the signed minimum clearance (negative: penetration), means of the
+    per-episode columns and, for
     rows that record it, the 95th percentile of the episodes' peak joint speed (rad/s) and
     the share of episodes above the hardware safety layer's joint speed limit."""
     if not rows:
@@ -801,6 +802,16 @@ def _train_started(
             if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
                 record_curve()
             if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
+                # Checkpoints are taken between episodes (`_rng_state`); since environment v5 a
+                # collision ends an episode early, so a checkpoint step can fall inside one:
+                # train on to the episode's end first (at most n_windows - 1 steps).
+                while not env.at_episode_start and model.num_timesteps < total:
+                    model.learn(
+                        total_timesteps=1,
+                        reset_num_timesteps=False,
+                        progress_bar=False,
+                        callback=None if bar is None else _BarCallback(bar),
+                    )
                 extra = {
                     "wall_time_s": wall_offset + time.perf_counter() - start_wall,
                     "resumes": resumes,

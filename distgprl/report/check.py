@@ -1,8 +1,10 @@
 """Sanity check of a Table I CSV (used by CI after the reduced-size sweep).
 
 `python -m distgprl.report.check TABLE.csv [--tasks dcp,dbm]`: every method of the
-registry has a row, every task has at least one seed per row, rates lie in [0, 1], safe
-success does not exceed success, and clearances are finite metres of plausible size.
+registry has a row, every task has at least one seed per row, rates lie in [0, 1], success
+does not exceed completion and success + collision does not exceed 1 (environment v5: success
+is completion without collision), and MinCl is a finite, non-negative distance of plausible
+size.
 Exit code 1 with a line per problem.
 """
 
@@ -31,12 +33,23 @@ def check_table(path: str | Path, tasks: list[str]) -> list[str]:
                 value = float(row[f"{task}_{key}_mean"])
                 if not (-1.0 <= value <= 1.0) or (key != "mean_kinematic_retention" and value < 0):
                     problems.append(f"{method} {task} {key} out of range: {value}")
-            safe = float(row[f"{task}_safe_success_rate_mean"])
-            if not (0.0 <= safe <= float(row[f"{task}_success_rate_mean"]) + 1e-9):
-                problems.append(f"{method} {task} safe success not in [0, success]: {safe}")
+            # environment v5: success is completion without collision
+            success = float(row[f"{task}_success_rate_mean"])
+            collision = float(row[f"{task}_collision_rate_mean"])
+            completed = float(row[f"{task}_completion_rate_mean"])
+            if success > completed + 1e-9:
+                problems.append(
+                    f"{method} {task} success above completion: {success} > {completed}"
+                )
+            if success + collision > 1.0 + 1e-9:
+                problems.append(
+                    f"{method} {task} success + collision above 1: {round(success + collision, 6)}"
+                )
             clearance = float(row[f"{task}_min_clearance_p5_mean"])
             if not math.isfinite(clearance) or abs(clearance) > 1.0:
                 problems.append(f"{method} {task} MinCl implausible: {clearance}")
+            elif clearance < 0.0:
+                problems.append(f"{method} {task} MinCl negative: {clearance}")
     return problems
 
 

@@ -119,10 +119,11 @@ def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
     shutil.rmtree(runner.checkpoint_dir(folder))
     capsys.readouterr()
     train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
-    assert "reached step 120 and restarts from step 0" in capsys.readouterr().err
-    assert read_json(folder / "done.json")["resumes"] == [
-        {"step": 0, "exact": False, "restarted_after_step": 120}
-    ]
+    err = capsys.readouterr().err
+    [resume] = read_json(folder / "done.json")["resumes"]
+    lost = resume["restarted_after_step"]  # the killed run's first checkpoint (see below)
+    assert 120 <= lost < 123 and f"reached step {lost} and restarts from step 0" in err
+    assert resume == {"step": 0, "exact": False, "restarted_after_step": lost}
     _, progress = read_csv(folder / "progress.csv")
     assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
@@ -143,7 +144,10 @@ def test_a_killed_and_resumed_run_equals_the_uninterrupted_run(
     for a, b in zip(_actor_parameters(whole), _actor_parameters(resumed), strict=True):
         np.testing.assert_array_equal(a, b)
     assert read_json(whole / "done.json")["resumes"] == []
-    assert read_json(resumed / "done.json")["resumes"] == [{"step": 120, "exact": True}]
+    # the first checkpoint: at step 120, or (v5: a collision ends an episode early) at the
+    # end of the episode that step 120 falls in
+    [resume] = read_json(resumed / "done.json")["resumes"]
+    assert resume["exact"] and 120 <= resume["step"] < 120 + 3
 
 
 @pytest.fixture(scope="module")
@@ -191,7 +195,8 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
     monkeypatch.undo()
     folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     resumed = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
-    assert read_json(folder / "done.json")["resumes"] == [{"step": resumed_at, "exact": True}]
+    [resume] = read_json(folder / "done.json")["resumes"]
+    assert resume["exact"] and resumed_at <= resume["step"] < resumed_at + 3  # see above
     assert sorted(p.name for p in runner.checkpoint_dir(folder).iterdir()) == [
         "curve_policies",  # the best-so-far learning-curve actors (`--policy best`)
         "model.zip",
@@ -209,10 +214,10 @@ def test_checkpoint_pieces_from_different_steps_are_a_clear_error(tmp_path, monk
     original = runner.save_checkpoint
     saved = {}
 
-    def save_and_keep(folder, model, env, extra):
+    def save_and_keep(folder, model, env, extra):  # killed after the second checkpoint
         original(folder, model, env, extra)
-        saved[model.num_timesteps] = (runner.checkpoint_dir(folder) / "model.zip").read_bytes()
-        if model.num_timesteps == 240:
+        saved[len(saved)] = (runner.checkpoint_dir(folder) / "model.zip").read_bytes()
+        if len(saved) == 2:
             raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "save_checkpoint", save_and_keep)
@@ -220,7 +225,7 @@ def test_checkpoint_pieces_from_different_steps_are_a_clear_error(tmp_path, monk
         train(tmp_path, "gprl-d", steps=360, evaluate_after=False)
     monkeypatch.undo()
     folder = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
-    (runner.checkpoint_dir(folder) / "model.zip").write_bytes(saved[120])  # a stale model
+    (runner.checkpoint_dir(folder) / "model.zip").write_bytes(saved[0])  # a stale model
     with pytest.raises(UserInputError, match="from different checkpoints"):
         train(tmp_path, "gprl-d", steps=360, evaluate_after=False, resume=True)
 

@@ -45,6 +45,10 @@ def rows(as_text: bool = False) -> list[dict]:
         row = dict.fromkeys(EVALUATION_FIELDS, 0.0)
         row["episode"] = index
         row.update(zip(COLUMNS, values, strict=True))
+        # environment v5 rows: min_clearance is a distance (>= 0), the signed value beside it
+        row["min_signed_clearance"] = row["min_clearance"]
+        row["min_clearance"] = max(row["min_clearance"], 0.0)
+        row["completed"] = row["success"]
         out.append({k: str(v) for k, v in row.items()} if as_text else row)
     return out
 
@@ -67,8 +71,8 @@ def median_by_hand(values: list[float]) -> float:
 def test_summarise_gives_rates_mincl_means_and_safe_success_of_the_episodes(as_text):
     """success / collision rate = share of episodes; safe success = share with success and
     no collision; MinCl = 5th percentile (linear interpolation) of the episodes' minimum
-    clearance; means of clearance, return and kinematic retention; medians of adaptation
-    time (three windows, a missing window skipped, plus policy time) and policy time; the
+    clearance clamped at 0, and the same of the signed clearance; completion rate; means of
+    clearance, return and kinematic retention; medians of adaptation time (three windows, a missing window skipped, plus policy time) and policy time; the
     95th percentile of the peak joint speed and the share above the 2 rad/s safety limit."""
     summary = summarise(rows(as_text))
     success = [e[0] for e in EPISODES]
@@ -80,11 +84,15 @@ def test_summarise_gives_rates_mincl_means_and_safe_success_of_the_episodes(as_t
     assert sum(success) == 6 and sum(collision) == 3
     # successes without collision: episodes 0, 4, 5, 8 (1 and 7 collided)
     assert summary["safe_success_rate"] == pytest.approx(4 / 10)
-    # sorted clearances: -0.020, -0.004, 0.001, ...; position 0.05 * 9 = 0.45
-    expected_p5 = -0.020 + 0.45 * (-0.004 - -0.020)
-    assert percentile_by_hand(clearance, 5) == pytest.approx(expected_p5)
-    assert summary["min_clearance_p5"] == pytest.approx(expected_p5)  # -0.0128
-    assert summary["mean_min_clearance"] == pytest.approx(sum(clearance) / 10)
+    # sorted signed clearances: -0.020, -0.004, 0.001, ...; position 0.05 * 9 = 0.45
+    expected_signed_p5 = -0.020 + 0.45 * (-0.004 - -0.020)
+    assert percentile_by_hand(clearance, 5) == pytest.approx(expected_signed_p5)
+    assert summary["min_signed_clearance_p5"] == pytest.approx(expected_signed_p5)  # -0.0128
+    # MinCl (v5) is the 5th percentile of the distance, clamped at 0: 0, 0, 0.001, ...
+    distance = [max(c, 0.0) for c in clearance]
+    assert summary["min_clearance_p5"] == pytest.approx(percentile_by_hand(distance, 5)) == 0.0
+    assert summary["mean_min_clearance"] == pytest.approx(sum(distance) / 10)
+    assert summary["completion_rate"] == pytest.approx(6 / 10)
     assert summary["mean_return"] == pytest.approx(sum(e[3] for e in EPISODES) / 10)  # 4.0
     assert summary["mean_kinematic_retention"] == pytest.approx(sum(e[4] for e in EPISODES) / 10)
     per_episode = [
@@ -115,7 +123,8 @@ def test_summarise_of_a_single_episode_is_that_episode():
     summary = summarise(rows()[1:2])  # success with collision
     assert (summary["success_rate"], summary["collision_rate"]) == (1.0, 1.0)
     assert summary["safe_success_rate"] == 0.0
-    assert summary["min_clearance_p5"] == pytest.approx(-0.004)
+    assert summary["min_clearance_p5"] == 0.0  # a distance (v5)
+    assert summary["min_signed_clearance_p5"] == pytest.approx(-0.004)
 
 
 def test_summarise_refuses_an_empty_evaluation():

@@ -316,7 +316,9 @@ def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_p
         done = read_json(folder / "done.json")
         assert done["steps"] == 240
         if seed == 0:  # resumed from its checkpoint, not restarted from scratch
-            assert [r["step"] for r in done["resumes"]] in ([120], [240])
+            # a checkpoint at 120 (or the end of the episode it falls in, v5) or at 240
+            [resumed] = [r["step"] for r in done["resumes"]]
+            assert 120 <= resumed < 123 or resumed == 240
             assert all(r["exact"] for r in done["resumes"])
         _, progress = read_csv(folder / "progress.csv")
         steps = [int(r["step"]) for r in progress]

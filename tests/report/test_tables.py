@@ -36,11 +36,15 @@ def test_aggregate_mean_std_and_t_interval():
 
 
 def summary(success, collision, clearance):
+    """A v5 summary: completion as success (no episode completed before a collision), the
+    signed clearance percentile as MinCl's."""
     return {
         "summary": {
             "success_rate": success,
             "collision_rate": collision,
             "min_clearance_p5": clearance,
+            "min_signed_clearance_p5": clearance,
+            "completion_rate": success,
             "mean_kinematic_retention": 0.9,
         }
     }
@@ -84,31 +88,24 @@ def test_safe_success_counts_only_successes_without_collision():
     assert safe_success_rate(rows) == pytest.approx(0.25)
 
 
-def test_summaries_without_safe_success_fall_back_to_the_episode_file(tmp_path):
-    from distgprl.experiments.results import write_csv
-
-    folder = tmp_path / "p" / "dbm" / "dist-gprl" / "seed0"
-    write_json(folder / "summary.json", summary(0.75, 0.5, 0.01))  # no safe_success_rate
-    write_csv(
-        folder / "evaluation.csv",
-        episodes([(1, 0), (1, 1), (1, 1), (0, 0)]),
-        ("episode", "success", "collision"),
-    )
-    rows, _ = simulation_table(tmp_path, "p")
-    assert rows[0]["dbm_safe_success_rate"].mean == pytest.approx(0.25)
-
-
-def test_check_flags_safe_success_above_success(tmp_path):
+def test_check_flags_success_above_completion_and_rates_past_one(tmp_path):
+    """v5: success (completion without collision) cannot exceed completion, and success and
+    collision exclude each other, so they sum to at most 1; MinCl is a distance (>= 0)."""
     from distgprl.report.check import check_table
 
-    for method in ("demo", "dist-gprl"):
-        document = summary(0.5, 0.2, 0.01)
-        document["summary"]["safe_success_rate"] = 0.4 if method == "demo" else 0.6
+    for method, (success, collision, completed, clearance) in {
+        "demo": (0.4, 0.5, 0.4, 0.0),
+        "dist-gprl": (0.6, 0.5, 0.5, -0.01),
+    }.items():
+        document = summary(success, collision, clearance)
+        document["summary"]["completion_rate"] = completed
         write_json(tmp_path / "p" / "dcp" / method / "seed0" / "summary.json", document)
     out = tmp_path / "out"
     write_tables(tmp_path, "p", out)
     problems = check_table(out / "table1_p.csv", ["dcp"])
-    assert "dist-gprl dcp safe success not in [0, success]: 0.6" in problems
+    assert "dist-gprl dcp success above completion: 0.6 > 0.5" in problems
+    assert "dist-gprl dcp success + collision above 1: 1.1" in problems
+    assert "dist-gprl dcp MinCl negative: -0.01" in problems
     assert not any(p.startswith("demo dcp") for p in problems)
 
 
@@ -141,8 +138,8 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert (
-        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.90 | 1.00 | – | – | – | – | 20.0 |"
-        in markdown
+        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.010 | 0.60 | 0.90 "
+        "| – | – | – | – | 20.0 |" in markdown
     )
 
 
@@ -260,17 +257,21 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
     success = "0.90 ± 0.10 [0.65, 1.00]"  # t-interval [0.65, 1.15], clipped to the rate's range
     collision = "0.20 ± 0.10 [0.00, 0.45]"  # t-interval [-0.05, 0.45]
     markdown = (tmp_path / "out" / "table1_p.md").read_text()
-    assert f"| Dist-GPRL (ours) | {success} [3] | {collision} | 0.020 ± 0.010 | 0.90 ± 0.00 |" in (
-        markdown
+    assert (
+        f"| Dist-GPRL (ours) | {success} [3] | {collision} | 0.020 ± 0.010 | 0.020 ± 0.010 | "
+        "0.90 ± 0.10 | 0.90 ± 0.00 |" in markdown
     )
-    assert "| Demo (no adaptation) | 0.50 [1] | 0.40 | 0.000 | 0.90 |" in markdown
+    assert "| Demo (no adaptation) | 0.50 [1] | 0.40 | 0.000 | 0.000 | 0.50 | 0.90 |" in markdown
     assert "95 % t-interval" in markdown.splitlines()[0]
     latex = (tmp_path / "out" / "table1_p.tex").read_text()
     pm = "$\\pm$"
     assert (
         f"Dist-GPRL (ours) & 0.90 {pm} 0.10 [0.65, 1.00] & 0.20 {pm} 0.10 [0.00, 0.45] &" in latex
     )
-    assert f"[0.00, 0.45] & 0.020 {pm} 0.010 & 0.90 {pm} 0.00 &" in latex
+    assert (
+        f"[0.00, 0.45] & 0.020 {pm} 0.010 & 0.020 {pm} 0.010 & 0.90 {pm} 0.10 & 0.90 {pm} 0.00"
+        in latex
+    )
     assert "Demo (no adaptation) & 0.50 & 0.40 & 0.000 &" in latex
     assert "95\\,\\% t-interval" in latex
     with open(tmp_path / "out" / "table1_p.csv", newline="") as handle:

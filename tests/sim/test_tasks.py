@@ -43,12 +43,20 @@ def test_dcp_sampler_ranges():
 
 
 def test_dbm_sampler_ranges():
-    """DBM: offsets along the conveyor only, within +-0.20 m, bars never closer than the gap."""
+    """DBM (scene revision 2): offsets in the xy-plane — along the belt within +-0.20 m,
+    across it within the rails (+-3.5 cm: the bar's ends keep 5 mm from the rails' inner
+    faces) — and the bars never closer than the gap."""
     rng = np.random.default_rng(0)
     tcs = [get_task("dbm").sample_tc(rng) for _ in range(2000)]
     objects = np.array([tc.object_offset for tc in tcs])
     obstacles = np.array([tc.obstacle_offset for tc in tcs])
-    assert np.all(objects[:, 0] == 0.0) and np.all(obstacles[:, 0] == 0.0)
+    lateral = DBM_SCENE.lateral_range
+    inner_face = DBM_SCENE.rail_offset - DBM_SCENE.rail_half_extents[0]
+    assert lateral == pytest.approx(inner_face - DBM_SCENE.bar_half_extents[0] - 0.005)
+    assert lateral == pytest.approx(0.035)
+    for offsets in (objects, obstacles):
+        assert np.abs(offsets[:, 0]).max() <= lateral and np.abs(offsets[:, 0]).max() > 0.03
+        assert offsets[:, 0].std() > 0.015  # spread over the range, not pinned
     assert np.abs(objects[:, 1]).max() <= 0.2 and np.abs(obstacles[:, 1]).max() <= 0.2
     assert np.abs(objects[:, 1]).max() > 0.19
     gap = (
