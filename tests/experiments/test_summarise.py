@@ -72,8 +72,9 @@ def test_summarise_gives_rates_mincl_means_and_safe_success_of_the_episodes(as_t
     """success / collision rate = share of episodes; safe success = share with success and
     no collision; MinCl = 5th percentile (linear interpolation) of the episodes' minimum
     clearance clamped at 0, and the same of the signed clearance; completion rate; means of
-    clearance, return and kinematic retention; medians of adaptation time (three windows, a missing window skipped, plus policy time) and policy time; the
-    95th percentile of the peak joint speed and the share above the 2 rad/s safety limit."""
+    clearance, return and kinematic retention; medians of adaptation time (three windows, a
+    missing window skipped, plus policy time) and policy time; the 95th percentile of the peak
+    joint speed and the share above the 2 rad/s safety limit."""
     summary = summarise(rows(as_text))
     success = [e[0] for e in EPISODES]
     collision = [e[1] for e in EPISODES]
