@@ -239,7 +239,12 @@ PROGRESS_FIELDS = (
     "l_sim",
     "l_hap",
     "ent_coef",
+    "grad_q",
+    "grad_sim",
+    "grad_hap",
 )
+"""``grad_*`` (environment v5): each actor-loss term's mean per-sample gradient norm on the
+actor's output at the curve point (`RegularisedSAC.actor_loss_gradient_norms`)."""
 EVALUATION_FIELDS = (
     "episode",
     "object_offset_x",

@@ -90,6 +90,7 @@ class ActorRegulariser(nn.Module):
         buffer("hap_map", skill.position_map(hap_tau))
         self.moving_filter = moving_filter if self.hap_prior is not None else None
         # Where Gamma, the step one-hot and the anchors sit in the env's aux observation.
+        self.split_gradients: dict[str, torch.Tensor] | None = None  # see `term_gradients`
         self.aux_layout = AuxLayout(self.n_via_points, self.n_steps, self.moving_filter is not None)
         # Linear interpolation (N_q, N) of the anchors at the via-point times to the queries.
         via_times = np.asarray(skill.via_times, dtype=float)
@@ -318,13 +319,46 @@ class ActorRegulariser(nn.Module):
             grad_out[:, :3, 2 * t :] = grad_positions.transpose(1, 2) * (
                 weights.lambda_hap / len(values)
             )
-        n, steps = self.n_via_points, self.n_steps
+        if self.split_gradients is not None:  # `term_gradients`: each term's own gradient
+            self.split_gradients["l_sim"] = self._to_actions(
+                aux, grad_out[:, :, : 2 * t], readout_map[:, :, : 2 * t], scale
+            )
+            self.split_gradients["l_hap"] = self._to_actions(
+                aux, grad_out[:, :, 2 * t :], readout_map[:, :, 2 * t :], scale
+            )
+        return total.to(actions.dtype), self._to_actions(aux, grad_out, readout_map, scale)
+
+    def _to_actions(
+        self,
+        aux: torch.Tensor,
+        grad_out: torch.Tensor,
+        readout_map: torch.Tensor,
+        scale: torch.Tensor,
+    ) -> torch.Tensor:
+        """d loss / d actions (B, A) from d loss / d `readout` (B, 6, Q) over readout columns
+        Q (``readout_map`` restricted to the same columns): d columns = d out @ map^T, of which
+        the sample's step block times the scale is d actions."""
+        batch, n, steps = grad_out.shape[0], self.n_via_points, self.n_steps
         grad_columns = torch.einsum("bjq,jkq->bjk", grad_out, readout_map)  # (B, 6, N + S A_v)
         grad_selected = grad_columns[:, :, n:].reshape(batch, 6, steps, -1)  # (B, 6, S, A_v)
         step = aux[:, self.aux_layout.step].argmax(dim=1)
         grad_raw = grad_selected[torch.arange(batch), :, step]  # (B, 6, A_v)
-        grad_actions = (grad_raw * scale.unsqueeze(-1)).transpose(1, 2).reshape(batch, -1)
-        return total.to(actions.dtype), grad_actions
+        return (grad_raw * scale.unsqueeze(-1)).transpose(1, 2).reshape(batch, -1)
+
+    def term_gradients(self, aux: torch.Tensor, actions: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Each weighted term's gradient w.r.t. the actions, ``{"l_sim": (B, A), "l_hap": (B,
+        A)}`` (terms the method does not use are zero): d (lambda_sim L_sim) / d a and d
+        (lambda_hap L_hap) / d a of the batch-mean losses (Eq. actor_final_compact's
+        regularisers), no autograd. Only for the fused path (a `HapPrior` or no prior)."""
+        if self.hap_prior is not None and not hasattr(self.hap_prior, "values_and_gradient"):
+            raise ValueError("term_gradients needs the fused path (a HapPrior or no prior)")
+        self.split_gradients = {}
+        try:
+            with torch.no_grad():
+                self._fused(aux, actions, {})
+            return self.split_gradients
+        finally:
+            self.split_gradients = None
 
 
 class _ValueWithGradient(torch.autograd.Function):

@@ -252,6 +252,52 @@ class RegularisedSAC(SAC):
             ent_coef=float(np.mean(ent_coefs)),
         )
 
+    def actor_loss_gradient_norms(self, batch_size: int = 256, seed: int = 0) -> dict[str, float]:
+        """How strongly each actor-loss term pulls on the actor's output (issue 30's check
+        that L_sim reaches the actor at a scale comparable to the Q term).
+
+        On ``batch_size`` replay observations (indices drawn with their own generator from
+        ``seed``: the training's random streams are untouched, so a resumed run logs the same
+        values) and the policy's deterministic (mean) action a there: the mean over the batch
+        of the per-sample gradient norm |d l_b / d a_b| of each term of Eq.
+        actor_final_compact — ``grad_q`` for the SAC term's -Q(s, a) (the entropy term does
+        not depend on the squashed action), ``grad_sim`` for lambda_sim L_sim and ``grad_hap``
+        for lambda_hap L_hap (only the terms the method uses; each batch-mean loss's gradient
+        times the batch size, so every norm is per sample). Raw action units. Empty before
+        the replay buffer holds a transition.
+        """
+        buffer = self.replay_buffer
+        size = buffer.buffer_size if buffer.full else buffer.pos
+        if size == 0:
+            return {}
+        rng = np.random.default_rng(seed)
+        indices = rng.integers(0, size, batch_size)
+        observations = {
+            key: th.as_tensor(values[indices, 0], device=self.device)
+            for key, values in buffer.observations.items()
+        }
+        with th.no_grad():
+            mean_actions = self.actor(observations, deterministic=True)
+        actions = mean_actions.detach().requires_grad_(True)
+        self.critic.requires_grad_(False)
+        try:
+            q_values = th.cat(self.critic(observations, actions), dim=1)
+            min_q = th.min(q_values, dim=1).values
+            (grad_q,) = th.autograd.grad(-min_q.sum(), actions)  # per sample: d(-Q_b)/d a_b
+        finally:
+            self.critic.requires_grad_(True)
+        norms = {"grad_q": float(grad_q.norm(dim=1).mean())}
+        if self.regulariser is not None and hasattr(self.regulariser, "term_gradients"):
+            terms = self.regulariser.term_gradients(observations["aux"], actions.detach())
+            weights = self.regulariser.weights
+            for name, key, weight in (
+                ("l_sim", "grad_sim", weights.lambda_sim),
+                ("l_hap", "grad_hap", weights.lambda_hap if self.regulariser.hap_prior else 0.0),
+            ):
+                if weight > 0 and name in terms:
+                    norms[key] = float((terms[name] * batch_size).norm(dim=1).mean())
+        return norms
+
     def _setup_learn(self, *args, **kwargs):
         # distgprl: SB3's default logger for verbose=0 without tensorboard still creates an
         # empty tempdir/SB3-<time> folder per learn(); record in memory only instead.

@@ -755,6 +755,9 @@ def _train_started(
         rows = evaluate_policy(eval_env, curve_tcs, deterministic_policy(model))
         summary = summarise(rows)
         terms = model.last_regulariser_terms
+        # Per-term gradient norms on the actor's output (issue 30): own index stream, so the
+        # training's random streams and a resume's exactness are untouched.
+        norms = model.actor_loss_gradient_norms(seed=run.seed * 1_000_003 + model.num_timesteps)
         best_before = max((curve_rank(row) for row in progress_rows), default=None)
         progress_rows.append(
             {
@@ -768,6 +771,9 @@ def _train_started(
                 "l_sim": terms.get("l_sim", ""),
                 "l_hap": terms.get("l_hap", ""),
                 "ent_coef": terms.get("ent_coef", model.current_entropy_coefficient()),
+                "grad_q": norms.get("grad_q", ""),
+                "grad_sim": norms.get("grad_sim", ""),
+                "grad_hap": norms.get("grad_hap", ""),
             }
         )
         if best_before is None or curve_rank(progress_rows[-1]) > best_before:

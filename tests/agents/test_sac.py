@@ -426,3 +426,53 @@ def test_l_hap_filters_c_safe_with_the_moving_obstacles_anchors_from_aux():
     assert actions.grad is not None and actions.grad.abs().sum() > 0
     with pytest.raises(ValueError, match="moving-obstacle filter needs"):
         filtered(base, actions)
+
+
+def test_term_gradients_split_the_fused_gradient_into_its_terms(dist_gprl_agent):
+    """`ActorRegulariser.term_gradients`: the weighted terms' gradients sum to the autograd
+    gradient of the whole regulariser, and L_sim's equals an autograd gradient through the
+    unfused similarity loss (so the split is not just any two summands)."""
+    env, model, observations = dist_gprl_agent
+    reg = model.regulariser
+    aux = observations["aux"].double()
+    actions = torch.as_tensor(
+        np.random.default_rng(5).uniform(-1, 1, (aux.shape[0], env.action_space.shape[0]))
+    )
+    split = reg.term_gradients(aux, actions)
+    leaf = actions.clone().requires_grad_(True)
+    total, _ = reg(aux, leaf)
+    (whole,) = torch.autograd.grad(total, leaf)
+    torch.testing.assert_close(split["l_sim"] + split["l_hap"], whole, rtol=1e-9, atol=1e-12)
+    leaf = actions.clone().float().requires_grad_(True)
+    centered = reg.adapted_via_points(aux.float(), leaf) - reg.prior_mean
+    l_sim = reg.weights.lambda_sim * reg.similarity_loss(centered).mean()
+    (expected,) = torch.autograd.grad(l_sim, leaf)
+    scale = expected.abs().max().item()
+    assert scale > 0 and split["l_hap"].abs().max() > 0
+    torch.testing.assert_close(split["l_sim"].float(), expected, rtol=1e-3, atol=1e-4 * scale)
+
+
+def test_actor_loss_gradient_norms_are_per_term_and_leave_the_random_streams_alone(
+    dist_gprl_agent,
+):
+    """`RegularisedSAC.actor_loss_gradient_norms`: {} on an empty replay buffer; then one
+    positive norm per actor-loss term the method uses (Q, L_sim, L_hap), the same for the
+    same seed, and neither torch's nor NumPy's global generator moves (a resumed run logs the
+    same values and trains the same)."""
+    env, model, observations = dist_gprl_agent
+    assert model.actor_loss_gradient_norms() == {}
+    rng = np.random.default_rng(0)
+    buffer = model.replay_buffer
+    for index in range(6):
+        obs = {key: value[index : index + 1].numpy() for key, value in observations.items()}
+        action = rng.uniform(-1, 1, (1, env.action_space.shape[0])).astype(np.float32)
+        buffer.add(obs, obs, action, np.array([1.0]), np.array([False]), [{}])
+    torch_state, numpy_state = torch.get_rng_state(), np.random.get_state()  # noqa: NPY002
+    first = model.actor_loss_gradient_norms(batch_size=16, seed=3)
+    assert set(first) == {"grad_q", "grad_sim", "grad_hap"}
+    assert all(np.isfinite(v) and v > 0 for v in first.values()), first
+    assert model.actor_loss_gradient_norms(batch_size=16, seed=3) == first
+    assert torch.equal(torch.get_rng_state(), torch_state)
+    after = np.random.get_state()  # noqa: NPY002
+    assert np.array_equal(after[1], numpy_state[1]) and after[2] == numpy_state[2]
+    buffer.reset()

@@ -82,7 +82,10 @@ RETURN_TCS = 3
 CURVE_TCS = 20
 # Columns computed from the replay buffer and the networks only (losses, the entropy
 # coefficient): smooth in the data, so within 5 %.
-SMOOTH_COLUMNS = {"l_sim", "l_hap", "ent_coef"}
+SMOOTH_COLUMNS = {"l_sim", "l_hap", "ent_coef", "grad_q", "grad_sim", "grad_hap"}
+# Episodes trained by a curve point: since environment v5 a collision ends an episode early,
+# so the count follows the collisions (contact-chaotic): within 10 %.
+COUNT_COLUMNS = {"episodes"}
 
 
 def _counts_consistent(new_rate: float, old_rate: float, n: int = CURVE_TCS) -> bool:
@@ -142,6 +145,8 @@ def test_committed_run_reproduces_its_first_curve_point(method, task, tmp_path, 
                 assert row[column] == "", where
             elif column in RATE_COLUMNS:
                 assert _counts_consistent(float(row[column]), float(old[column])), where
+            elif column in COUNT_COLUMNS:
+                assert float(row[column]) == pytest.approx(float(old[column]), rel=0.1), where
             elif column in SMOOTH_COLUMNS:
                 assert float(row[column]) == pytest.approx(
                     float(old[column]), rel=0.05, abs=1e-3
