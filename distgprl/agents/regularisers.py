@@ -21,6 +21,7 @@ from torch import nn
 
 from distgprl.adaptation.layout import ActionLayout, AuxLayout
 from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_loss import ValueWithGradient
 from distgprl.skill.gp import GPSkill
 
 
@@ -249,9 +250,7 @@ class ActorRegulariser(nn.Module):
         if self.weights.lambda_sim <= 0 and self.hap_prior is None:
             return actions.new_zeros(()), terms
         if self.hap_prior is None or hasattr(self.hap_prior, "values_and_gradient"):
-            return _ValueWithGradient.apply(
-                actions, lambda: self._fused(aux, actions, terms)
-            ), terms
+            return ValueWithGradient.apply(actions, lambda: self._fused(aux, actions, terms)), terms
         total = actions.new_zeros(())
         out = self.readout(aux, actions)
         if self.weights.lambda_sim > 0:
@@ -359,19 +358,3 @@ class ActorRegulariser(nn.Module):
             return self.split_gradients
         finally:
             self.split_gradients = None
-
-
-class _ValueWithGradient(torch.autograd.Function):
-    """A scalar whose gradient w.r.t. ``x`` was computed with it: ``evaluate()`` returns
-    (value, d value / d x); backward is one product."""
-
-    @staticmethod
-    def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
-        value, gradient = evaluate()
-        ctx.save_for_backward(gradient)
-        return value
-
-    @staticmethod
-    def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
-        (gradient,) = ctx.saved_tensors
-        return grad * gradient, None

@@ -44,23 +44,26 @@ __all__ = ["DEFAULT_QUERY_POINTS", "HapPrior", "HapPriorConfig"]
 DEFAULT_QUERY_POINTS = 20
 
 
-class _SoftMinFunction(torch.autograd.Function):
-    """Per-query values whose gradient w.r.t. the queries is computed with them.
+class ValueWithGradient(torch.autograd.Function):
+    """Values whose gradient w.r.t. ``x`` was computed with them, without autograd.
 
-    ``forward(x, evaluate)``: ``evaluate()`` returns (values (n,), jacobian (n, 3)), the
-    gradient of each value w.r.t. its own query x[i] (n, 3); backward is one product.
+    ``ValueWithGradient.apply(x, evaluate)``: ``evaluate()`` returns (values, gradient), the
+    values of any shape V and the gradient of each value w.r.t. its own slice of ``x``, of
+    shape V + S (e.g. a scalar and d value / d x of x's shape; or per-query values (n,) and a
+    jacobian (n, 3) w.r.t. queries x (n, 3)); backward is one broadcast product.
     """
 
     @staticmethod
     def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
-        values, jacobian = evaluate()
-        ctx.save_for_backward(jacobian)
+        values, gradient = evaluate()
+        ctx.save_for_backward(gradient)
         return values
 
     @staticmethod
     def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
-        (jacobian,) = ctx.saved_tensors
-        return grad.unsqueeze(-1) * jacobian, None
+        (gradient,) = ctx.saved_tensors
+        extra = gradient.dim() - grad.dim()
+        return grad.reshape(*grad.shape, *([1] * extra)) * gradient, None
 
 
 @dataclass(frozen=True)
@@ -313,7 +316,7 @@ class HapPrior:
             )
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
-        return _SoftMinFunction.apply(x, evaluate)
+        return ValueWithGradient.apply(x, evaluate)
 
     @staticmethod
     def _box_distance(moving: MovingObstacleFilter, relative: np.ndarray) -> np.ndarray:
@@ -354,7 +357,7 @@ class HapPrior:
             )
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
-        return _SoftMinFunction.apply(flat, evaluate).reshape(x.shape[:-1])
+        return ValueWithGradient.apply(flat, evaluate).reshape(x.shape[:-1])
 
     def values_and_gradient(
         self,
