@@ -48,7 +48,7 @@ def outcomes(task, method, seed, preset, root, episodes, physics) -> tuple[list[
         policy = load_policy(task, method, seed, preset=preset, root=root)
         tcs = env.spec_task.evaluation_tcs(episodes)
         start = time.process_time()
-        rows = evaluate_policy(env, tcs, lambda obs: policy.predict(obs)[0], progress=True)
+        rows = evaluate_policy(env, tcs, policy.predict, progress=True)
         cpu = (time.process_time() - start) / episodes
         env.close()
     finally:
