@@ -361,7 +361,7 @@ class AdaptationPipeline:
         self.shapes = tuple(shapes) if shapes is not None else tuple(env.sim.obstacle_shapes())
         self.tool_points = np.asarray(env.sim.tool_points())
         self.gamma_initial = env.gamma.copy()
-        self.state = env._observation()["state"]
+        self.state = env.observation()["state"]
         self.layout = env.layout
         self._torch = torch
         rng = np.random.default_rng(0)
@@ -376,10 +376,8 @@ class AdaptationPipeline:
 
     def gp_conditioning(self, step: int, action: np.ndarray) -> np.ndarray:
         """Delta Gamma = S_W a on the window, then the segment's poses (m, 6)."""
-        env = self.env
-        delta = self.layout.delta(step, np.clip(action, -1.0, 1.0))
-        env.gamma[self.layout.indices[step]] += delta
-        return env._segment_poses(step)
+        self.env.apply_action(step, action)
+        return self.env.segment_poses(step)
 
     def policy(self) -> np.ndarray:
         """Deterministic action for the current observation, (A,) (`NumpyActor`)."""
@@ -414,7 +412,7 @@ def _naive_pipeline(pipeline: AdaptationPipeline, bullet: BulletDistance, model)
 
     env = pipeline.env
     skill = env.skill
-    obs = env._observation()
+    obs = env.observation()
 
     def edf(step: int) -> np.ndarray:
         points = np.concatenate(
@@ -423,10 +421,9 @@ def _naive_pipeline(pipeline: AdaptationPipeline, bullet: BulletDistance, model)
         return bullet.distance(points)
 
     def gp(step: int, action: np.ndarray) -> np.ndarray:
-        delta = pipeline.layout.delta(step, np.clip(action, -1.0, 1.0))
-        env.gamma[pipeline.layout.indices[step]] += delta
+        env.apply_action(step, action)
         fresh = GPSkill(skill.kernel, skill.via_times, env.gamma, skill.prior_mean, skill.duration)
-        return fresh.position(env.gamma, env._segment_maps[step][0])
+        return fresh.position(env.gamma, env.segment_tau(step))
 
     def policy() -> np.ndarray:
         return model.predict(obs, deterministic=True)[0]
@@ -920,7 +917,7 @@ def bench_via_point_scaling(sizes: BenchSizes, task: str = BENCH_TASK) -> list[d
                     "n_via_points": n,
                     "window_size": n // 3,
                     "action_size": int(env.action_space.shape[0]),
-                    "segment_samples": int(len(env._segment_maps[1][0])),
+                    "segment_samples": int(len(env.segment_tau(1))),
                     **{name: t.to_dict() for name, t in timings.items()},
                 }
             )
