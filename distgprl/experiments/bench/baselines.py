@@ -60,7 +60,15 @@ class BulletDistance:
 
 
 def naive_pipeline(pipeline: AdaptationPipeline, bullet: BulletDistance, model):
-    """Naive counterparts: PyBullet distances, GP re-solve, SB3 ``predict``."""
+    """Naive counterparts of the pipeline's pieces: PyBullet distances, GP re-solve, SB3
+    ``predict``.
+
+    Returns:
+        ``(edf, gp, policy)``: ``edf(step)`` the distances (n,), m, of the window via-points
+        and tool points from ``bullet``; ``gp(step, action)`` applies the action (the env's
+        `apply_action`) and re-solves the GP for the segment's poses (m, 6); ``policy()``
+        SB3's deterministic action (A,) for the env's current observation.
+    """
     from distgprl.skill.gp import GPSkill
 
     env = pipeline.env
