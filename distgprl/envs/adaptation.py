@@ -402,6 +402,79 @@ class AdaptationEnv(gym.Env):
             np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
         )
 
+    # -- the plan state's public API (the env's steps, the hardware adapter, the bench) ------
+    def start_plan(self, tc, tcp_pose: np.ndarray, start_time: float) -> None:
+        """Start the plan of an episode: condition on ``tc`` from the robot's TCP pose.
+
+        Sets the TC, the start pose (``tcp_pose`` (6,), m and rad, its rotation vector made
+        the equivalent nearest the demonstration's first via-point), the episode's start time
+        ``start_time`` (s, the world's clock), the initial parameters (``gamma`` and
+        ``gamma_initial``: the TC-conditioned via-points, or zero residual weights), step 0
+        and the last commanded pose (the start pose). Does not touch the world.
+        """
+        self.tc = tc
+        start = np.array(tcp_pose, dtype=float)
+        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
+        self._start_pose = start
+        self._episode_start_time = float(start_time)
+        self.gamma = self._initial_parameters(tc)
+        self.gamma_initial = self.gamma.copy()
+        self.step_index = 0
+        self._last_commanded = start.copy()
+        self._last_tau = 0.0
+
+    def apply_action(self, step: int, action: np.ndarray) -> np.ndarray:
+        """Apply a raw action to step ``step``'s parameters; return Delta Gamma, (A_v, 6).
+
+        The action (A_v x 6 entries, flattened, in [-1, 1]; clipped) is scaled and
+        correlated by the layout (Delta Gamma = S_W a, Eq. transformed_action) and added to
+        the step's parameters in ``gamma`` (Eq. updated_via_points): the window via-points,
+        or the residual weights of ProMP-RRL. Methods that train no policy (``demo``,
+        ``promp-nominal``) ignore the action: their Delta Gamma is zero.
+        """
+        raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        if not self.method.trainable:  # references: `demo` executes Gamma_0, `promp-nominal`
+            raw = np.zeros_like(raw)  # the ProMP mean
+        delta = self.layout.delta(step, raw)  # Eq. transformed_action
+        self.gamma[self.layout.indices[step]] += delta  # Eq. updated_via_points
+        return delta
+
+    def segment_tau(self, step: int) -> np.ndarray:
+        """Normalised times tau in (0, 1] of segment ``step``'s control instants, shape (m,)
+        (the end of each control period; multiply by ``skill.duration`` for seconds)."""
+        return self._segment_maps[step][0].copy()
+
+    def segment_poses(self, step: int) -> np.ndarray:
+        """Poses to command for segment ``step`` from the current parameters, shape (m, 6),
+        m and rad, at `segment_tau`; blended from the last commanded pose (continuity)."""
+        return self._segment_poses(step)
+
+    def plan(self, tau: np.ndarray) -> np.ndarray:
+        """Planned poses at normalised times ``tau`` (m,) from the current parameters, shape
+        (m, 6), m and rad (no continuity blend)."""
+        return self._plan(np.asarray(tau, dtype=float))
+
+    def mark_commanded(self, step: int, poses: np.ndarray) -> None:
+        """Record that segment ``step``'s ``poses`` (m, 6) were commanded: the next segment's
+        continuity blend starts from the last of them (nothing happens if m = 0)."""
+        if len(poses):
+            self._last_commanded = np.array(poses[-1], dtype=float)
+            self._last_tau = float(self._segment_maps[step][0][-1])
+
+    @property
+    def last_commanded(self) -> np.ndarray:
+        """The last commanded pose (6,), m and rad (the start pose before the first segment)."""
+        return self._last_commanded.copy()
+
+    @property
+    def episode_start_time(self) -> float:
+        """The world's time (s) at the start of the current episode's plan."""
+        return self._episode_start_time
+
+    def observation(self) -> dict[str, np.ndarray]:
+        """The current observation (``state`` and ``aux``, as returned by `step`)."""
+        return self._observation()
+
     @property
     def at_episode_start(self) -> bool:
         """True between ``reset()`` and the episode's first step (where a training run can be
@@ -418,13 +491,7 @@ class AdaptationEnv(gym.Env):
             tc = self.spec_task.sample_tc(self._rng)
         self.tc = tc
         self.sim.reset(tc)
-        self._episode_start_time = float(self.sim.time)
-        start = self.sim.tcp_pose()
-        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
-        self._start_pose = start
-        self.gamma = self._initial_parameters(tc)
-        self.gamma_initial = self.gamma.copy()
-        self.step_index = 0
+        self.start_plan(tc, self.sim.tcp_pose(), float(self.sim.time))
         self._episode_over = False
         self._refresh_field()
         self._progress = self.sim.task_progress()
@@ -432,8 +499,6 @@ class AdaptationEnv(gym.Env):
         self._min_clearance = np.inf
         self._peak_joint_speed = 0.0
         self._adaptation_times: list[float] = []
-        self._last_commanded = start.copy()
-        self._last_tau = 0.0
         return self._observation(), {"tc": tc}
 
     def step(self, action: np.ndarray):
@@ -444,17 +509,14 @@ class AdaptationEnv(gym.Env):
         # Alg. 1 "update EDF using current obstacle state": already done at the end of the
         # previous step (or in reset), and the obstacles have not moved since.
         indices = self.layout.indices[step]
-        raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        if not self.method.trainable:  # references: `demo` executes Gamma_0, `promp-nominal`
-            raw = np.zeros_like(raw)  # the ProMP mean
-        delta = self.layout.delta(step, raw)  # Eq. transformed_action
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
             # Eq. grad_alignment_reward: grad d at the window's via-points *before* the update
             # (v_j in Gamma_{t_s}^W, not the updated ones; v4).
             _, gradient = self.window_distance(indices)
+        delta = self.apply_action(step, action)  # Eq. transformed_action, updated_via_points
+        if self.method.distance_rewards:
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
-        self.gamma[indices] += delta  # Eq. updated_via_points
         poses = self._segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
 
@@ -473,9 +535,7 @@ class AdaptationEnv(gym.Env):
                 terms["r_sd"] += self._clearance_penalty()
             if stop and result.collision:  # v5: a protective stop ends the episode here
                 break
-        if len(poses):
-            self._last_commanded = poses[-1].copy()
-            self._last_tau = float(self._segment_maps[step][0][-1])
+        self.mark_commanded(step, poses)
         self._collision |= segment_collision
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)

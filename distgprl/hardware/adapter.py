@@ -22,7 +22,6 @@ from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.tasks.base import TaskConfig
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
-from distgprl.skill.rotations import nearest_equivalent_rotvec
 
 
 def bar_shapes(
@@ -57,7 +56,7 @@ class PerceivedScene:
     """The world as perceived: object tracks, obstacle shapes and the robot's TCP.
 
     Implements the part of the task-simulation interface that
-    :meth:`AdaptationEnv._observation` reads (``tcp_pose``, ``object_position``,
+    :meth:`AdaptationEnv.observation` reads (``tcp_pose``, ``object_position``,
     ``goal_position``), from perception instead of simulation state.
 
     Args:
@@ -171,53 +170,38 @@ class _PerceivedWorld:
         """Start an episode at the robot's TCP pose (6,); returns the perceived TC."""
         self.world.set_robot(tcp_pose, start_time)
         tc = self.perceived_tc(start_time)
-        self.tc = tc
-        start = np.asarray(tcp_pose, dtype=float).copy()
-        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
-        self._start_pose = start
-        self._episode_start_time = float(start_time)
-        # The environment's own initial parameters: the TC-conditioned via-points (GP
-        # methods) or zero residual weights on the ProMP nominal (ProMP-RRL).
-        self.gamma = self._initial_parameters(tc)
-        self.gamma_initial = self.gamma.copy()
-        self.step_index = 0
-        self._last_commanded = start.copy()
-        self._last_tau = 0.0
+        # The environment's own plan start: the TC-conditioned via-points (GP methods) or
+        # zero residual weights on the ProMP nominal (ProMP-RRL), from the robot's pose.
+        self.start_plan(tc, tcp_pose, start_time)
         self.field.update(self.world.obstacle_shapes())
         return tc
 
     def observe(self) -> dict[str, np.ndarray]:
         """The policy's observation from the perceived world (same layout as in training)."""
         self.field.update(self.world.obstacle_shapes())
-        return self._observation()
+        return self.observation()
 
     def adapt(self, action: np.ndarray | None) -> np.ndarray:
         """Apply the (raw) action to the current window; return the segment's poses (m, 6).
 
         The action updates what the environment adapts: the window's via-points (GP methods)
-        or its residual weights (ProMP-RRL), exactly as in training.
+        or its residual weights (ProMP-RRL), exactly as in training (`AdaptationEnv.apply_action`).
 
-        ``None`` (or the ``demo`` method) keeps the conditioned demonstration.
+        ``None`` (or a method that trains no policy: ``demo``, ``promp-nominal``) keeps the
+        conditioned demonstration (the ProMP nominal).
         """
         step = self.step_index
-        indices = self.layout.indices[step]
-        raw = np.zeros(self.action_space.shape) if action is None else np.asarray(action, float)
-        if self.method.action_mode == "none":
-            raw = np.zeros_like(raw)
-        self.gamma[indices] += self.layout.delta(step, np.clip(raw, -1.0, 1.0))
-        return self._segment_poses(step)
+        raw = np.zeros(self.action_space.shape) if action is None else action
+        self.apply_action(step, raw)
+        return self.segment_poses(step)
 
     def segment_times(self, step: int) -> np.ndarray:
         """Trial times (s from the trial start) of the control instants of segment ``step``."""
-        tau = self._segment_maps[step][0]
-        return tau * self.skill.duration
+        return self.segment_tau(step) * self.skill.duration
 
     def executed(self, poses: np.ndarray) -> None:
         """Record that ``poses`` (the segment of the current step) were commanded."""
-        step = self.step_index
-        if len(poses):
-            self._last_commanded = np.asarray(poses[-1], dtype=float).copy()
-            self._last_tau = float(self._segment_maps[step][0][-1])
+        self.mark_commanded(self.step_index, poses)
         self.step_index += 1
 
     def close(self) -> None:

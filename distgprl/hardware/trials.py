@@ -145,7 +145,7 @@ def _via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
         saved = adapter.gamma.copy()
         try:
             adapter.gamma[movable, :3] += np.asarray(displacement, dtype=float)
-            return adapter._segment_poses(step)
+            return adapter.segment_poses(step)
         finally:
             adapter.gamma = saved
 
@@ -440,7 +440,7 @@ def _one_trial(
             perceive()
         elif step > 0:
             adapter.world.set_robot(
-                adapter._last_commanded if last_pose is None else last_pose, clock
+                adapter.last_commanded if last_pose is None else last_pose, clock
             )
         start = time.perf_counter()
         observation = adapter.observe()

@@ -1,4 +1,6 @@
-"""`run_benchmarks` at the tiny size: every section runs and writes a well-formed JSON + figure.
+"""The benchmark package: `run_benchmarks` at the tiny size runs every section and writes a
+well-formed JSON + figure; the size presets are one table; the package's modules stay small and
+its entry points (``python -m distgprl.experiments.bench``) work.
 
 No timing thresholds: only structure, and that every number is positive and finite.
 """
@@ -6,6 +8,10 @@ No timing thresholds: only structure, and that every number is positive and fini
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+from dataclasses import asdict, fields
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -83,3 +89,46 @@ def test_run_benchmarks_tiny(tmp_path):
             assert value > 0, where
     table = bench.markdown_table(document)
     assert table.count("|") > 40 and "per episode" in table
+
+
+def test_size_presets_are_one_table():
+    """Every preset is a `BenchSizes` with every field set from the table; the named constants
+    and ``sizes_for`` are the table's rows, and each preset measures no more than the next
+    larger one (tiny <= quick <= full, field by field)."""
+    assert set(bench.SIZE_PRESETS) == {"full", "quick", "tiny"}
+    assert bench.SIZE_PRESETS["full"] is bench.FULL_SIZES is bench.sizes_for(False)
+    assert bench.SIZE_PRESETS["quick"] is bench.QUICK_SIZES is bench.sizes_for(True)
+    assert bench.SIZE_PRESETS["tiny"] is bench.TINY_SIZES
+    for small, large in (
+        (bench.TINY_SIZES, bench.QUICK_SIZES),
+        (bench.QUICK_SIZES, bench.FULL_SIZES),
+    ):
+        for field in fields(bench.BenchSizes):
+            a, b = getattr(small, field.name), getattr(large, field.name)
+            if isinstance(a, tuple):
+                assert 0 < len(a) <= len(b), field.name
+            else:
+                assert 0 < a <= b, field.name
+    assert asdict(bench.FULL_SIZES)["obstacles"] == (1, 2, 4, 8, 16, 32)
+
+
+def test_no_bench_module_is_a_god_module():
+    """The package is split by section: every module stays under 500 lines."""
+    package = Path(bench.__file__).parent
+    sizes = {path.name: len(path.read_text().splitlines()) for path in package.glob("*.py")}
+    assert len(sizes) >= 10
+    assert max(sizes.values()) < 500, sizes
+
+
+def test_module_entry_point_parses_its_arguments():
+    """``python -m distgprl.experiments.bench`` (the worker processes' entry) is the package's
+    argparse main, with the ``--worker`` protocol option."""
+    result = subprocess.run(
+        [sys.executable, "-m", "distgprl.experiments.bench", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    assert "--worker TASK LEARNING_STARTS STEPS" in result.stdout
+    assert "--quick" in result.stdout

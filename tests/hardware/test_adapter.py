@@ -55,7 +55,9 @@ def test_perceived_adapter_matches_the_training_env(method, kind):
         np.testing.assert_allclose(tc.obstacle_offset, TC.obstacle_offset, atol=1e-3)
         np.testing.assert_allclose(adapter.gamma, env.gamma, atol=1e-3)
         # the nominal under the adapted parameters (conditioned demo / ProMP mean)
-        np.testing.assert_allclose(adapter._segment_base(0), env._segment_base(0), atol=1e-3)
+        np.testing.assert_allclose(
+            adapter.plan(adapter.segment_tau(0)), env.plan(env.segment_tau(0)), atol=1e-3
+        )
         np.testing.assert_allclose(adapter.observe()["state"], obs["state"], atol=1e-2)
 
         action = np.random.default_rng(0).uniform(-1, 1, env.action_space.shape)
@@ -66,6 +68,70 @@ def test_perceived_adapter_matches_the_training_env(method, kind):
         assert planned.shape[1] == 6 and len(planned) == len(adapter.segment_times(0))
         adapter.executed(planned)
         assert adapter.step_index == 1
+    finally:
+        adapter.close()
+        env.close()
+
+
+def _begun(method: str):
+    """A training env after reset and an adapter begun on the same perceived state."""
+    env = _training_env(method)
+    adapter = perceived_env(method, env.config)
+    env.reset(options={"tc": TC})
+    now = float(env.sim.time)
+    adapter.world.tracks["target_bar"] = TrackedObject(
+        _bar_transform(env.sim.object_position()), now
+    )
+    adapter.world.tracks["other_bar"] = TrackedObject(
+        _bar_transform(env.sim.other_bar_position_at(now)), now
+    )
+    adapter.begin(env.sim.tcp_pose(), now)
+    return env, adapter
+
+
+def test_apply_action_is_the_one_window_update():
+    """`AdaptationEnv.apply_action` clips, maps through the layout (S_W per axis) and adds
+    Delta Gamma to the step's via-points only; the adapter's `adapt` is exactly that plus the
+    segment's poses, and `executed` moves the continuity blend's start to the last pose."""
+    env, adapter = _begun("dist-gprl")
+    try:
+        action = np.random.default_rng(1).uniform(-2, 2, env.action_space.shape)  # some clipped
+        before = env.gamma.copy()
+        delta = env.apply_action(0, action)
+        indices = env.layout.indices[0]
+        np.testing.assert_array_equal(delta, env.layout.delta(0, np.clip(action, -1, 1)))
+        np.testing.assert_array_equal(env.gamma[indices], before[indices] + delta)
+        untouched = np.setdiff1d(np.arange(len(before)), indices)
+        np.testing.assert_array_equal(env.gamma[untouched], before[untouched])
+        assert np.abs(delta).max() > 0
+
+        adapter_before = adapter.gamma.copy()
+        planned = adapter.adapt(action)
+        np.testing.assert_array_equal(adapter.gamma - adapter_before, env.gamma - before)
+        np.testing.assert_array_equal(planned, adapter.segment_poses(0))
+        np.testing.assert_allclose(
+            adapter.segment_times(0), adapter.segment_tau(0) * adapter.skill.duration
+        )
+        np.testing.assert_allclose(adapter.last_commanded[:3], env.sim.tcp_pose()[:3], atol=1e-3)
+        adapter.executed(planned)
+        np.testing.assert_array_equal(adapter.last_commanded, planned[-1])
+        assert adapter.step_index == 1
+    finally:
+        adapter.close()
+        env.close()
+
+
+def test_the_demo_reference_ignores_the_action():
+    """``demo`` (no trained policy) keeps the conditioned demonstration whatever action it is
+    given, in the env and in the adapter alike (both go through `apply_action`)."""
+    env, adapter = _begun("demo")
+    try:
+        action = np.ones(env.action_space.shape)
+        before, adapter_before = env.gamma.copy(), adapter.gamma.copy()
+        assert not np.any(env.apply_action(0, action))
+        np.testing.assert_array_equal(env.gamma, before)
+        np.testing.assert_array_equal(adapter.adapt(action), adapter.adapt(None))
+        np.testing.assert_array_equal(adapter.gamma, adapter_before)
     finally:
         adapter.close()
         env.close()

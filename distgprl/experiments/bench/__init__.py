@@ -1,0 +1,122 @@
+"""Benchmarks (`distgprl bench [--quick]`): medians and spreads with warm-up and repeats.
+
+Sections of `run_benchmarks` (all measured in one process, so ratios compare like with like):
+
+1. **Adaptation compute** per window and per episode, as in the paper (§V): EDF query at the
+   window via-points and the tool points, GP conditioning (the window update
+   Delta Gamma = S_W a plus re-evaluating the executed segment of the trajectory), policy
+   inference of a SAC actor with the real observation size, and the total, side by side with
+   the paper's figures and with naive alternatives measured in the same run (PyBullet
+   ``getClosestPoints`` for the same points and shapes; re-solving the GP from scratch).
+2. One simulated episode per task (full trajectory, dynamics and contact checks).
+3. One SAC gradient step with the regularised actor loss (batch 256, paper network) vs plain SAC,
+   in wall and in process CPU time (the latter is ``ratios.regularised_over_plain_sac_step``).
+4. Training throughput of a short real training run and where its time goes (timers around
+   simulation, IK, EDF, SAC update, ...).
+5. Scaling: adaptation time vs number of via-points and of obstacles; training throughput vs
+   number of worker processes.
+
+Every timing is wall time of the calling process; the machine's load average is recorded
+before and after, because other processes sharing the cores inflate every figure.
+
+Modules (one per section, plus what they share; every name below is re-exported here):
+
+- `timing`: `Timing`, `measure`, `measure_interleaved`, `SectionTimers`, `machine_info`.
+- `sizes`: `BenchSizes` and the presets table `SIZE_PRESETS` (`FULL_SIZES`, `QUICK_SIZES`,
+  `TINY_SIZES`); `run_spec`, the measured run.
+- `pipeline`: `AdaptationPipeline`; `baselines`: `BulletDistance` and the naive pipeline.
+- `adaptation` (1, and `bench_gp`), `simulation` (2), `training` (3, 4), `scaling` (5a, 5b),
+  `workers` (5c, and the worker protocol of ``python -m distgprl.experiments.bench --worker``).
+- `markdown`, `plots`: the README table and the figure; `run`: `run_benchmarks`,
+  `load_results`; `cli`: the argparse `main` of ``python -m distgprl.experiments.bench``.
+"""
+
+from __future__ import annotations
+
+from distgprl.agents.sac import NumpyActor
+from distgprl.experiments.bench.adaptation import (
+    PAPER_MS_PER_EPISODE,
+    PAPER_MS_PER_WINDOW,
+    TARGET_MS_PER_EPISODE,
+    bench_adaptation,
+    bench_gp,
+)
+from distgprl.experiments.bench.baselines import BulletDistance, naive_pipeline
+from distgprl.experiments.bench.cli import main
+from distgprl.experiments.bench.markdown import markdown_table
+from distgprl.experiments.bench.pipeline import AdaptationPipeline
+from distgprl.experiments.bench.plots import plot_results
+from distgprl.experiments.bench.run import load_results, run_benchmarks
+from distgprl.experiments.bench.scaling import (
+    bench_obstacle_scaling,
+    bench_via_point_scaling,
+    random_boxes,
+)
+from distgprl.experiments.bench.simulation import bench_simulation
+from distgprl.experiments.bench.sizes import (
+    BENCH_METHOD,
+    BENCH_TASK,
+    FULL_SIZES,
+    QUICK_SIZES,
+    SIZE_PRESETS,
+    TINY_SIZES,
+    BenchSizes,
+    run_spec,
+    sizes_for,
+)
+from distgprl.experiments.bench.timing import (
+    SectionTimers,
+    Timing,
+    machine_info,
+    measure,
+    measure_interleaved,
+)
+from distgprl.experiments.bench.training import bench_sac_step, bench_training, training_breakdown
+from distgprl.experiments.bench.workers import (
+    WORKER_RATE,
+    WORKER_READY,
+    bench_workers,
+    training_worker,
+)
+
+__all__ = [
+    "BENCH_METHOD",
+    "BENCH_TASK",
+    "FULL_SIZES",
+    "PAPER_MS_PER_EPISODE",
+    "PAPER_MS_PER_WINDOW",
+    "QUICK_SIZES",
+    "SIZE_PRESETS",
+    "TARGET_MS_PER_EPISODE",
+    "TINY_SIZES",
+    "WORKER_RATE",
+    "WORKER_READY",
+    "AdaptationPipeline",
+    "BenchSizes",
+    "BulletDistance",
+    "NumpyActor",
+    "SectionTimers",
+    "Timing",
+    "bench_adaptation",
+    "bench_gp",
+    "bench_obstacle_scaling",
+    "bench_sac_step",
+    "bench_simulation",
+    "bench_training",
+    "bench_via_point_scaling",
+    "bench_workers",
+    "load_results",
+    "machine_info",
+    "main",
+    "markdown_table",
+    "measure",
+    "measure_interleaved",
+    "naive_pipeline",
+    "plot_results",
+    "random_boxes",
+    "run_benchmarks",
+    "run_spec",
+    "sizes_for",
+    "training_breakdown",
+    "training_worker",
+]

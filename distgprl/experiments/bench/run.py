@@ -1,0 +1,102 @@
+"""`run_benchmarks`: every section in one process, one schema-versioned JSON and a figure."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from distgprl.experiments.bench.adaptation import bench_adaptation
+from distgprl.experiments.bench.plots import plot_results
+from distgprl.experiments.bench.scaling import bench_obstacle_scaling, bench_via_point_scaling
+from distgprl.experiments.bench.simulation import bench_simulation
+from distgprl.experiments.bench.sizes import BenchSizes, run_spec, sizes_for
+from distgprl.experiments.bench.timing import machine_info
+from distgprl.experiments.bench.training import bench_sac_step, bench_training
+from distgprl.experiments.bench.workers import bench_workers
+
+__all__ = ["load_results", "run_benchmarks"]
+
+
+def run_benchmarks(
+    quick: bool,
+    out_dir: Path = Path("results/bench"),
+    sizes: BenchSizes | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Path:
+    """Run every benchmark section; write ``bench_<quick|full>.json`` and ``.png`` in ``out_dir``.
+
+    Args:
+        quick: the ~1 minute version (fewer repeats, smaller sweeps) instead of ~10 minutes.
+        out_dir: output folder (created).
+        sizes: explicit sizes (overrides ``quick``; the tests use `TINY_SIZES`).
+        progress: called with a short message before each section (e.g. ``print``).
+
+    Returns:
+        The path of the JSON written with `distgprl.experiments.results.write_json`.
+    """
+    import torch
+
+    from distgprl.experiments.results import write_json
+    from distgprl.experiments.runner import make_agent, make_env
+
+    sizes = sizes or sizes_for(quick)
+    say = progress or (lambda message: None)
+    started = time.perf_counter()
+    machine = machine_info()
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # policy inference and SAC steps as in training (1 thread)
+    try:
+        say("adaptation compute (EDF, GP conditioning, policy) vs paper and naive")
+        run = run_spec()
+        env = make_env(run)
+        model = make_agent(env, run)
+        env.reset(seed=0)
+        adaptation = bench_adaptation(env, model, sizes)
+        say("adaptation vs obstacles")
+        env.reset(seed=0)
+        obstacles = bench_obstacle_scaling(env, model, sizes)
+        say("SAC gradient step")
+        sac_step = bench_sac_step(env, model, sizes.sac_repeats)
+        env.close()
+        say("adaptation vs via-points")
+        via_points = bench_via_point_scaling(sizes)
+    finally:
+        torch.set_num_threads(threads)
+    say("simulated episodes")
+    simulation = {task: bench_simulation(task, sizes.sim_episodes) for task in sizes.tasks}
+    say("training throughput and breakdown")
+    training = bench_training(sizes)
+    say("training throughput vs workers")
+    workers = bench_workers(sizes, training["steps_per_s"])
+    document = {
+        "quick": bool(quick),
+        "sizes": asdict(sizes),
+        "machine": machine,
+        "load_average_after": list(os.getloadavg()),
+        "wall_time_s": time.perf_counter() - started,
+        "adaptation": adaptation,
+        "simulation": simulation,
+        "sac_step": sac_step,
+        "ratios": {
+            # Process CPU time of a regularised (dist-gprl, DCP) over a plain SAC step.
+            "regularised_over_plain_sac_step": sac_step["cpu_regularised_over_plain"],
+        },
+        "training": training,
+        "scaling": {"via_points": via_points, "obstacles": obstacles, "workers": workers},
+    }
+    out_dir = Path(out_dir)
+    name = "bench_quick" if quick else "bench_full"
+    path = write_json(out_dir / f"{name}.json", document, kind="bench")
+    plot_results(document, out_dir / f"{name}.png")
+    return path
+
+
+def load_results(path: Path) -> dict[str, Any]:
+    """Read a benchmark JSON (schema-checked)."""
+    from distgprl.experiments.results import read_json
+
+    return read_json(path)

@@ -1,0 +1,115 @@
+"""How much the benchmarks measure (`BenchSizes`: one preset per row of `SIZE_PRESETS`) and the
+run they measure (`run_spec`: the paper preset, DCP / dist-gprl)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from distgprl.identity import RunSpec
+
+__all__ = [
+    "BENCH_METHOD",
+    "BENCH_TASK",
+    "FULL_SIZES",
+    "QUICK_SIZES",
+    "SIZE_PRESETS",
+    "TINY_SIZES",
+    "BenchSizes",
+    "run_spec",
+    "sizes_for",
+]
+
+BENCH_TASK = "dcp"
+BENCH_METHOD = "dist-gprl"
+
+
+@dataclass(frozen=True)
+class BenchSizes:
+    """How much `run_benchmarks` measures (repeats, episodes, sweep points).
+
+    Attributes:
+        repeats: samples per adaptation micro-benchmark (each of ``inner`` calls).
+        inner: calls per sample of the fast (microsecond) operations.
+        naive_repeats: samples of the slow naive alternatives (PyBullet, GP re-solve).
+        in_env_episodes: real environment episodes whose recorded adaptation time is reported.
+        sim_episodes: simulated episodes per task.
+        tasks: tasks of the simulation benchmark.
+        sac_repeats: samples of one SAC gradient step (regularised and plain, interleaved).
+        learning_starts: random-action steps before gradient steps start (not timed).
+        training_steps: timed training steps (each: env step + one gradient step).
+        worker_steps: timed training steps per worker in the worker-scaling runs.
+        workers: worker counts of the worker-scaling runs (independent processes).
+        via_points: via-point counts of the via-point scaling curve.
+        obstacles: box counts of the obstacle scaling curve.
+        scaling_repeats: samples per point of the scaling curves.
+    """
+
+    repeats: int
+    inner: int
+    naive_repeats: int
+    in_env_episodes: int
+    sim_episodes: int
+    tasks: tuple[str, ...]
+    sac_repeats: int
+    learning_starts: int
+    training_steps: int
+    worker_steps: int
+    workers: tuple[int, ...]
+    via_points: tuple[int, ...]
+    obstacles: tuple[int, ...]
+    scaling_repeats: int
+
+
+#: The size presets, one column each: ``full`` (~10 min, `distgprl bench`), ``quick`` (~1 min,
+#: ``--quick``) and ``tiny`` (the test suite's: every section runs, numbers are meaningless).
+_PRESET_NAMES = ("full", "quick", "tiny")
+_PRESET_TABLE: dict[str, tuple[Any, Any, Any]] = {
+    #                  full                      quick              tiny
+    "repeats":         (200,                     40,                5),
+    "inner":           (10,                      5,                 2),
+    "naive_repeats":   (40,                      8,                 2),
+    "in_env_episodes": (30,                      5,                 1),
+    "sim_episodes":    (20,                      2,                 1),
+    "tasks":           (("dcp", "dbm"),          ("dcp", "dbm"),    ("dcp",)),
+    "sac_repeats":     (60,                      12,                2),
+    "learning_starts": (60,                      20,                6),
+    "training_steps":  (1200,                    60,                6),
+    "worker_steps":    (450,                     45,                6),
+    "workers":         ((1, 2),                  (1, 2),            (1,)),
+    "via_points":      ((15, 30, 45, 60),        (15, 60),          (15, 30)),
+    "obstacles":       ((1, 2, 4, 8, 16, 32),    (1, 8, 32),        (1, 4)),
+    "scaling_repeats": (60,                      10,                2),
+}  # fmt: skip
+
+SIZE_PRESETS: dict[str, BenchSizes] = {
+    name: BenchSizes(**{field: row[column] for field, row in _PRESET_TABLE.items()})
+    for column, name in enumerate(_PRESET_NAMES)
+}
+"""The presets by name (``full``, ``quick``, ``tiny``), built from the table above."""
+
+FULL_SIZES = SIZE_PRESETS["full"]
+QUICK_SIZES = SIZE_PRESETS["quick"]
+TINY_SIZES = SIZE_PRESETS["tiny"]
+"""The test-suite size: every section runs, numbers are meaningless."""
+
+
+def sizes_for(quick: bool) -> BenchSizes:
+    """The preset of ``distgprl bench``: `QUICK_SIZES` with ``--quick``, else `FULL_SIZES`."""
+    return QUICK_SIZES if quick else FULL_SIZES
+
+
+def run_spec(
+    task: str = BENCH_TASK,
+    method: str = BENCH_METHOD,
+    env_overrides: dict[str, Any] | None = None,
+    sac_overrides: dict[str, Any] | None = None,
+) -> RunSpec:
+    """The paper preset with the given overrides (a small replay buffer: allocation only)."""
+    from distgprl.config import load_config
+    from distgprl.methods import get_method
+
+    overrides: dict[str, dict[str, Any]] = {"sac": {"buffer_size": 20_000, **(sac_overrides or {})}}
+    if env_overrides:
+        overrides["env"] = env_overrides
+    return RunSpec(task, get_method(method), 0, load_config("paper", task, overrides))
