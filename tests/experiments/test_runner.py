@@ -267,6 +267,23 @@ def test_evaluate_demo_reference_writes_summary(tmp_path):
     assert summary["joint_speed_over_limit_rate"] == pytest.approx(np.mean(peaks > limit))
 
 
+def test_a_fresh_evaluation_csv_reads_with_plain_pandas_one_row_per_episode(tmp_path):
+    """``pandas.read_csv`` with its defaults: the documented EVALUATION_FIELDS as columns,
+    one row per evaluation episode, the values `read_csv` reads."""
+    pandas = pytest.importorskip("pandas")
+    from distgprl.schema import EVALUATION_FIELDS
+
+    runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    frame = pandas.read_csv(folder / "evaluation.csv")
+    episodes = runner.resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
+    assert list(frame.columns) == list(EVALUATION_FIELDS)
+    assert len(frame) == episodes
+    _, rows = read_csv(folder / "evaluation.csv")
+    np.testing.assert_allclose(frame["min_clearance"], [float(r["min_clearance"]) for r in rows])
+    assert read_json(folder / "evaluation.csv.meta.json")["meta"]["method"] == "demo"
+
+
 def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp_path):
     """``--episodes N`` other than the preset's writes ``evaluation_n<N>.csv`` whose first
     TCs are the preset's (same outcomes), and leaves the preset's evaluation and the
