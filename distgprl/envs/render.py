@@ -161,6 +161,8 @@ def _panel(
         colour = tuple(int(DEMO_FADE * c + (1.0 - DEMO_FADE) * 255) for c in colour)
     cv2.rectangle(image, (0, 0), (width - 1, height - 1), colour, 8)
     stage = end or ("start" if window < 0 else f"window {window + 1}/{n_windows}")
+    strip = image[8:64, 8 : min(width - 8, 300)]
+    strip[...] = (0.35 * strip + 0.65 * 255).astype(np.uint8)  # a light caption background
     cv2.putText(image, title, (14, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (20, 20, 20), 2)
     cv2.putText(image, stage, (14, 56), cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, 2)
     return image
@@ -182,7 +184,8 @@ def compose_frames(
         ):
             last = len(episode.frames) - 1
             at = min(index, last)
-            end = f"end: {_outcome(episode.info)}" if index >= last else ""
+            stopped = f"window {episode.windows[last] + 1}/{episode.n_windows}"
+            end = f"end ({stopped}): {_outcome(episode.info)}" if index >= last else ""
             panels.append(
                 _panel(episode.frames[at], episode.windows[at], episode.n_windows, title, fade, end)
             )

@@ -56,7 +56,7 @@ def test_a_tc_index_outside_the_evaluation_tcs_is_refused():
 
 
 def _episode(n_frames, window_of, info, value=100):
-    frames = [np.full((40, 60, 3), value, dtype=np.uint8) for _ in range(n_frames)]
+    frames = [np.full((120, 200, 3), value, dtype=np.uint8) for _ in range(n_frames)]
     return RecordedEpisode(frames, [window_of(i) for i in range(n_frames)], 3, info)
 
 
@@ -66,12 +66,13 @@ def test_composed_frames_put_the_faded_demo_beside_and_hold_the_shorter_episode(
     adapted = _episode(5, lambda i: i // 2 - (i == 0), {"success": True})
     demo = _episode(3, lambda i: i - 1, {"collision": True})
     frames = compose_frames(adapted, demo, "dist-gprl seed 0")
-    assert len(frames) == 5 and frames[0].shape == (40, 120, 3)
+    assert len(frames) == 5 and frames[0].shape == (120, 400, 3)
     window = adapted.windows[3]
-    assert tuple(frames[3][20, 1]) == WINDOW_COLOURS[window]  # the left panel's border
-    inside_left, inside_right = frames[3][30:38, 20:40], frames[3][30:38, 80:100]
+    assert tuple(frames[3][100, 1]) == WINDOW_COLOURS[window]  # the left panel's border
+    inside_left, inside_right = frames[3][80:110, 40:80], frames[3][80:110, 240:280]
     assert inside_right.mean() > inside_left.mean() + 50
-    np.testing.assert_array_equal(frames[3][:, 60:], frames[4][:, 60:])  # demo held at its end
+    np.testing.assert_array_equal(frames[3][:, 200:], frames[4][:, 200:])  # demo held at its end
+    assert not np.array_equal(frames[3][:, :200], frames[4][:, :200])  # the adapted one goes on
 
 
 @pytest.fixture(scope="module")
