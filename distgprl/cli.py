@@ -536,13 +536,46 @@ def render(
     task: TaskOption,
     out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
     tc: Annotated[int | None, typer.Option(help="Evaluation TC index (default: nominal).")] = None,
+    method: Annotated[
+        str,
+        typer.Option(
+            metavar="METHOD",
+            help=f"Method: {_METHODS}. demo: the GP skill alone; any other: the trained "
+            "run's adapted episode beside the unadapted demonstration (faded), windows marked.",
+        ),
+    ] = "demo",
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    root: RootOption = Path("results"),
+    policy: Annotated[
+        str, typer.Option(metavar="final|best", help="The run's final or best policy.")
+    ] = "final",
 ) -> None:
-    """Render an episode of the TC-conditioned GP skill (headless)."""
+    """Render an episode (headless): the GP skill, or a trained policy's adaptation."""
     from distgprl.data import check_task_name
-    from distgprl.envs.render import render_demo_episode
 
     check_task_name(task)
-    summary = render_demo_episode(task, tc, out)
+    if method == "demo":
+        from distgprl.envs.render import render_demo_episode
+
+        summary = render_demo_episode(task, tc, out)
+    else:
+        from distgprl.api import load_policy
+        from distgprl.envs.render import render_policy_episode
+        from distgprl.experiments.runner import make_env, resolve_run
+
+        preset = _preset(preset, config)
+        trained = load_policy(task, method, seed, preset=preset, root=root, policy=policy)
+        env = make_env(trained.run)
+        demo_env = make_env(resolve_run(task, "demo", seed, preset))
+        try:
+            summary = render_policy_episode(
+                env, trained, demo_env, tc, out, title=f"{method} seed {seed} ({policy})"
+            )
+        finally:
+            env.close()
+            demo_env.close()
     typer.echo(f"wrote {out}: " + ", ".join(f"{k}={v}" for k, v in summary.items() if k != "path"))
 
 

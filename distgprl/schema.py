@@ -7,7 +7,10 @@ imports neither torch, pybullet nor gymnasium.
 **Versioned files.** Every result file the project writes carries a ``meta`` block (schema
 version, package version, git commit, UTC time, library versions, and whatever the caller adds
 such as the config hash and seed) and is written atomically (:mod:`distgprl.io`). A reader that
-finds an unknown schema version raises :class:`SchemaVersionError` instead of guessing.
+finds an unknown schema version raises :class:`SchemaVersionError` instead of guessing. A CSV
+result is a plain CSV (header line, rows: a default ``pandas.read_csv`` reads it) whose meta
+block is in the JSON sidecar ``<name>.csv.meta.json`` (:func:`csv_meta_path`); CSVs written
+before the sidecar carry it as a first ``# meta: {json}`` line, and :func:`read_csv` reads both.
 
 **Run folders** ``<root>/<preset>/<task>/<method>/seed<k>/`` (:func:`run_dir`; the files are
 described in :mod:`distgprl.experiments.runner`): ``config.json``, ``progress.csv``
@@ -43,6 +46,7 @@ from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 
 __all__ = [
+    "CSV_META_SUFFIX",
     "EVALUATION_FIELDS",
     "EVALUATION_SEED",
     "N_WINDOWS",
@@ -53,6 +57,7 @@ __all__ = [
     "TRAINING_CURVE_SEED",
     "TRIAL_FIELDS",
     "SchemaVersionError",
+    "csv_meta_path",
     "evaluation_file_names",
     "git_commit",
     "is_safe_success",
@@ -158,42 +163,77 @@ def read_json(path: str | Path) -> dict[str, Any]:
     return document
 
 
+CSV_META_SUFFIX = ".meta.json"
+"""A CSV result's metadata sidecar: ``evaluation.csv`` -> ``evaluation.csv.meta.json``."""
+
+
+def csv_meta_path(path: str | Path) -> Path:
+    """The metadata sidecar of the CSV result ``path`` (`CSV_META_SUFFIX`)."""
+    path = Path(path)
+    return path.with_name(path.name + CSV_META_SUFFIX)
+
+
 def write_csv(
     path: str | Path,
     rows: Iterable[Mapping[str, Any]],
     fieldnames: Sequence[str],
     **meta: Any,
 ) -> Path:
-    """Write a versioned CSV: one ``# meta: {json}`` comment line, a header, then rows."""
+    """Write a versioned CSV: a plain CSV (one header line, then rows: what a default
+    ``pandas.read_csv`` reads) and its metadata sidecar `csv_meta_path` (a versioned JSON
+    result, `write_json`: ``{"meta": ..., "columns": fieldnames}``).
+
+    The sidecar is written first, so a CSV on disk always has one (a kill in between
+    leaves the previous CSV beside the new sidecar).
+    """
+    path = Path(path)
     buffer = io.StringIO()
-    buffer.write("# meta: " + json.dumps(result_meta(**meta), sort_keys=True) + "\n")
     writer = csv.DictWriter(buffer, fieldnames=list(fieldnames), lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: row[k] for k in fieldnames})
+    write_json(csv_meta_path(path), {"columns": list(fieldnames)}, **meta)
     return atomic_write_text(path, buffer.getvalue())
 
 
-def read_csv(path: str | Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
-    """Read a versioned CSV written by :func:`write_csv`: returns (meta, rows)."""
-    path = Path(path)
-    lines = path.read_text().splitlines()
-    if not lines or not lines[0].startswith("# meta: "):
-        raise SchemaVersionError(f"{path}: missing '# meta:' header line; not a distgprl result")
+def _legacy_meta(path: Path, line: str) -> dict[str, Any]:
+    """The metadata of a CSV in the format before the sidecar (schema 1 files committed
+    under ``results/``): a first line ``# meta: {json}``."""
     try:
-        meta = json.loads(lines[0][len("# meta: ") :])
+        meta = json.loads(line[len("# meta: ") :])
     except json.JSONDecodeError as exc:
         raise SchemaVersionError(
             f"{path}: '# meta:' line is not valid JSON ({exc.msg}); not a distgprl result"
         ) from None
     if not isinstance(meta, dict):
         raise SchemaVersionError(f"{path}: '# meta:' line is not an object; not a distgprl result")
+    return meta
+
+
+def read_csv(path: str | Path) -> tuple[dict[str, Any], list[dict[str, str]]]:
+    """Read a versioned CSV written by :func:`write_csv`: returns (meta, rows).
+
+    Also reads the earlier format, whose metadata is a first ``# meta: {json}`` line (the
+    committed results written before the sidecar), and checks the schema version of both.
+    """
+    path = Path(path)
+    lines = path.read_text().splitlines()
+    if lines and lines[0].startswith("# meta: "):
+        meta, lines = _legacy_meta(path, lines[0]), lines[1:]
+    else:
+        sidecar = csv_meta_path(path)
+        if not sidecar.exists():
+            raise SchemaVersionError(
+                f"{path}: no metadata (neither {sidecar.name} beside it nor a '# meta:' "
+                "first line); not a distgprl result"
+            )
+        meta = read_json(sidecar)["meta"]
     if meta.get("schema_version") != SCHEMA_VERSION:
         raise SchemaVersionError(
             f"{path}: schema_version {meta.get('schema_version')!r} is not supported "
             f"(this is schema {SCHEMA_VERSION}); regenerate the file"
         )
-    rows = list(csv.DictReader(lines[1:]))
+    rows = list(csv.DictReader(lines))
     return meta, rows
 
 

@@ -71,6 +71,12 @@ def _malformed(name, text, reason):
     return damage
 
 
+def _progress_without_meta(folder):
+    (folder / "progress.csv").write_text("step,success\n0,1\n")
+    (folder / "progress.csv.meta.json").unlink(missing_ok=True)
+    return "progress.csv", "no metadata"
+
+
 def _no_evaluation(folder):
     (folder / "evaluation.csv").unlink()
     return "evaluation.csv", "missing, although done.json and summary.json"
@@ -80,7 +86,7 @@ DAMAGES = {
     "malformed summary.json": _malformed("summary.json", '{"summary": {', "not valid JSON"),
     "malformed done.json": _malformed("done.json", '{"steps": 240', "not valid JSON"),
     "unknown schema_version": _unknown_schema,
-    "malformed progress.csv": _malformed("progress.csv", "step,success\n0,1\n", "'# meta:'"),
+    "progress.csv without metadata": _progress_without_meta,
     "evaluation.csv missing with a done.json": _no_evaluation,
 }
 

@@ -30,30 +30,60 @@ def test_unknown_schema_version_is_a_clear_error(tmp_path):
 
 
 def test_csv_round_trip_and_version_check(tmp_path):
+    """write_csv -> read_csv returns the rows and the meta; a CSV with no metadata at all
+    (no sidecar, no '# meta:' line) is refused."""
     rows = [{"a": 1, "b": 0.5}, {"a": 2, "b": 1.5}]
     path = schema.write_csv(tmp_path / "r.csv", rows, ["a", "b"], seed=1)
     meta, back = schema.read_csv(path)
     assert meta["seed"] == 1 and back == [{"a": "1", "b": "0.5"}, {"a": "2", "b": "1.5"}]
-    path.write_text("a,b\n1,2\n")
-    with pytest.raises(schema.SchemaVersionError, match="missing '# meta:'"):
+    assert path.read_text() == "a,b\n1,0.5\n2,1.5\n"  # a plain CSV: header, then rows
+    sidecar = schema.read_json(tmp_path / "r.csv.meta.json")
+    assert sidecar["meta"] == meta and sidecar["columns"] == ["a", "b"]
+    (tmp_path / "r.csv.meta.json").unlink()
+    with pytest.raises(schema.SchemaVersionError, match="no metadata"):
         schema.read_csv(path)
+
+
+def test_a_written_csv_reads_with_a_plain_pandas_read_csv(tmp_path):
+    """pandas with its defaults sees the fields as the header and one row per record."""
+    pandas = pytest.importorskip("pandas")
+    rows = [{"episode": i, "success": i % 2, "min_clearance": 0.01 * i} for i in range(4)]
+    path = schema.write_csv(tmp_path / "e.csv", rows, ["episode", "success", "min_clearance"])
+    frame = pandas.read_csv(path)
+    assert list(frame.columns) == ["episode", "success", "min_clearance"]
+    assert frame["episode"].tolist() == [0, 1, 2, 3]
+    assert frame["min_clearance"].tolist() == pytest.approx([0.0, 0.01, 0.02, 0.03])
+
+
+def test_a_csv_of_the_earlier_format_with_a_meta_line_still_reads(tmp_path):
+    """Committed results keep their first '# meta: {json}' line: read_csv takes the meta
+    from it (and ignores any sidecar) and the rows from the rest."""
+    meta = schema.result_meta(seed=4)
+    path = tmp_path / "old.csv"
+    path.write_text("# meta: " + json.dumps(meta, sort_keys=True) + "\na,b\n1,2\n3,4\n")
+    read_meta, rows = schema.read_csv(path)
+    assert read_meta["seed"] == 4 and rows == [{"a": "1", "b": "2"}, {"a": "3", "b": "4"}]
 
 
 def test_csv_with_unknown_schema_version_names_the_file_and_version(tmp_path):
-    """A CSV whose `# meta:` line has schema_version 999 is refused, not guessed at: the
-    SchemaVersionError names the file and the unsupported version."""
+    """A CSV whose sidecar (or, earlier format, '# meta:' line) has schema_version 999 is
+    refused, not guessed at: the SchemaVersionError names the file and the version."""
     path = schema.write_csv(tmp_path / "r.csv", [{"a": 1}], ["a"])
-    header, body = path.read_text().split("\n", 1)
-    meta = json.loads(header[len("# meta: ") :])
-    assert meta["schema_version"] == schema.SCHEMA_VERSION  # only the version changes
-    path.write_text("# meta: " + json.dumps({**meta, "schema_version": 999}) + "\n" + body)
-    with pytest.raises(schema.SchemaVersionError) as caught:
-        schema.read_csv(path)
-    message = str(caught.value)
-    assert message.startswith(f"{path}: ")
-    assert "schema_version 999 is not supported" in message
-    assert f"this is schema {schema.SCHEMA_VERSION}" in message
-    assert isinstance(caught.value, UserInputError)  # the CLI's clean-exit path
+    sidecar = schema.csv_meta_path(path)
+    document = json.loads(sidecar.read_text())
+    assert document["meta"]["schema_version"] == schema.SCHEMA_VERSION
+    document["meta"]["schema_version"] = 999
+    sidecar.write_text(json.dumps(document))
+    legacy = tmp_path / "legacy.csv"
+    legacy.write_text("# meta: " + json.dumps(document["meta"]) + "\n" + path.read_text())
+    for damaged, named in ((path, sidecar), (legacy, legacy)):
+        with pytest.raises(schema.SchemaVersionError) as caught:
+            schema.read_csv(damaged)
+        message = str(caught.value)
+        assert message.startswith(f"{named}: ")
+        assert "schema_version 999 is not supported" in message
+        assert f"this is schema {schema.SCHEMA_VERSION}" in message
+        assert isinstance(caught.value, UserInputError)  # the CLI's clean-exit path
 
 
 @pytest.mark.parametrize("preset", ["ci", "p"])  # a preset of this checkout, and another
@@ -202,3 +232,23 @@ def test_safe_success_needs_success_and_no_collision():
     ]
     assert [schema.is_safe_success(r) for r in rows] == [True, False, False, True]
     assert schema.safe_success_rate(rows) == 0.5
+
+
+def test_every_committed_csv_of_the_earlier_format_still_reads():
+    """Each CSV under results/ (results/archive/ included) with a '# meta:' first line, as
+    the results committed before the sidecar were written, reads with `read_csv`: its meta
+    with the schema version, and one row per line after the header."""
+    from pathlib import Path
+
+    results = Path(__file__).resolve().parents[1] / "results"
+    legacy = [
+        path for path in sorted(results.rglob("*.csv")) if path.read_text().startswith("# meta: ")
+    ]
+    if not legacy:
+        pytest.skip(f"no committed results under {results}")
+    assert any("archive" in path.parts for path in legacy)
+    for path in legacy:
+        meta, rows = schema.read_csv(path)
+        assert meta["schema_version"] == schema.SCHEMA_VERSION, path
+        lines = [line for line in path.read_text().splitlines()[2:] if line]
+        assert len(rows) == len(lines), path

@@ -15,22 +15,116 @@ Networks see only the ``state`` key of the Dict observation (`StateOnlyExtractor
 Outside the copy, `RegularisedSAC._setup_learn` gives a silent model (``verbose=0``, no
 tensorboard) an in-memory logger: SB3's default makes an empty ``SB3-<time>`` folder in the
 temporary directory at every ``learn`` call (every run, resume and test).
+`training_logger` is the logger a run gives its model instead: the same records, also
+written as TensorBoard event files when the optional ``tensorboard`` package is installed;
+`EpisodeLogCallback` adds each training episode's return, success and collision to it.
+Neither touches a random stream, so training stays bit-identical with or without them.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
-from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
 
 SB3_VERSION_COPIED = "2.9.2"
+
+
+_TENSORBOARD_NOTE_SHOWN = False
+
+
+def tensorboard_available() -> bool:
+    """Whether the optional ``tensorboard`` package (``distgprl[tensorboard]``) is installed."""
+    try:
+        from torch.utils.tensorboard import SummaryWriter  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class _ResumableTensorBoard(TensorBoardOutputFormat):
+    """SB3's TensorBoard writer with a ``purge_step``: on a resume from step k, TensorBoard
+    discards the earlier event files' records at steps > k (written after the checkpoint by
+    the killed process), so the resumed curves do not overlap."""
+
+    def __init__(self, folder: str, purge_step: int | None) -> None:
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.writer = SummaryWriter(log_dir=folder, purge_step=purge_step)
+        self._is_closed = False
+
+
+def training_logger(tb_dir: Path | None, start_step: int = 0) -> Logger:
+    """The logger of one training run (set it with ``model.set_logger``).
+
+    Args:
+        tb_dir: folder for TensorBoard event files (created); None, or ``tensorboard`` not
+            installed: records are kept in memory only (the latter said once per process on
+            stderr).
+        start_step: the run's current step (environment steps); > 0 on a resume, where
+            records of the interrupted process after this step are purged.
+    """
+    global _TENSORBOARD_NOTE_SHOWN
+    if tb_dir is None:
+        return Logger(folder=None, output_formats=[])
+    if not tensorboard_available():
+        if not _TENSORBOARD_NOTE_SHOWN:
+            print(
+                "note: tensorboard is not installed (pip install 'distgprl[tensorboard]'); "
+                "no TensorBoard event file is written",
+                file=sys.stderr,
+            )
+            _TENSORBOARD_NOTE_SHOWN = True
+        return Logger(folder=None, output_formats=[])
+    tb_dir.mkdir(parents=True, exist_ok=True)
+    # Records at steps <= start_step were all written before the checkpoint (its last
+    # episode ends at start_step): purge only what came after.
+    writer = _ResumableTensorBoard(str(tb_dir), start_step + 1 if start_step > 0 else None)
+    return Logger(folder=str(tb_dir), output_formats=[writer])
+
+
+class EpisodeLogCallback(BaseCallback):
+    """Records each finished training episode into the model's logger and dumps it at the
+    episode's last step: ``rollout/episode_return`` (sum of the rewards, r_tc + r_ga),
+    ``rollout/episode_length`` (steps = windows), ``rollout/episode_success`` and
+    ``rollout/episode_collision`` (0/1, from the final step's ``info``). The dump also
+    writes the latest ``train/*`` records (losses, alpha, regulariser terms)."""
+
+    def __init__(self) -> None:
+        super().__init__(verbose=0)
+        self._returns: np.ndarray | None = None
+        self._lengths: np.ndarray | None = None
+
+    def _on_step(self) -> bool:
+        rewards = np.asarray(self.locals["rewards"], dtype=np.float64)
+        if self._returns is None:
+            self._returns = np.zeros_like(rewards)
+            self._lengths = np.zeros(rewards.shape, dtype=np.int64)
+        self._returns += rewards
+        self._lengths += 1
+        for index, done in enumerate(np.asarray(self.locals["dones"])):
+            if not done:
+                continue
+            info = self.locals["infos"][index]
+            self.logger.record("rollout/episode_return", float(self._returns[index]))
+            self.logger.record("rollout/episode_length", int(self._lengths[index]))
+            for key in ("success", "collision"):
+                if key in info:
+                    self.logger.record(f"rollout/episode_{key}", float(info[key]))
+            self.logger.dump(step=self.num_timesteps)
+            self._returns[index] = 0.0
+            self._lengths[index] = 0
+        return True
 
 
 class StateOnlyExtractor(BaseFeaturesExtractor):

@@ -17,6 +17,9 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``evaluation_best[_n<N>].csv``, ``summary_best[_n<N>].json``  optional evaluation of the
                       best learning-curve policy, Algorithm 1's "best policy"
                       (``distgprl evaluate --policy best``, `best_curve_row`);
+- ``tb/``             TensorBoard event files (losses, alpha, regulariser terms, gradient
+                      norms, training episodes, learning curve; `training_logger`; only with
+                      the optional ``tensorboard`` package; never committed);
 - ``done.json``       marker written last: the run is complete (steps, training wall
                       time, and the steps it was resumed at, each marked exact or not).
 
@@ -49,6 +52,7 @@ from distgprl.io import atomic_write_bytes, atomic_write_text, is_locked  # noqa
 from distgprl.schema import (
     EVALUATION_FIELDS,
     PROGRESS_FIELDS,
+    csv_meta_path,
     evaluation_file_names,
     read_csv,
     read_json,
@@ -715,7 +719,8 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
                 file=sys.stderr,
             )
             resumes = [{"step": 0, "exact": False, "restarted_after_step": lost}]
-        for stale in (folder / "progress.csv", paths["dir"]):
+        progress = folder / "progress.csv"
+        for stale in (progress, csv_meta_path(progress), paths["dir"]):
             if stale.is_dir():
                 shutil.rmtree(stale)
             elif stale.exists():
@@ -743,6 +748,12 @@ def _train_started(
     eval_every = run.config.run.eval_every
     ckpt_every = run.config.run.checkpoint_every
     start_wall = time.perf_counter()
+    from distgprl.agents.sac import EpisodeLogCallback, training_logger
+
+    # TensorBoard event files in tb/ (a resume purges the killed process's records from the
+    # checkpoint's step on); the logger and the callback draw no random numbers.
+    model.set_logger(training_logger(folder / "tb", model.num_timesteps))
+    episode_log = EpisodeLogCallback()
     bar = None
     if show_progress:
         from tqdm import tqdm
@@ -776,6 +787,10 @@ def _train_started(
                 "grad_hap": norms.get("grad_hap", ""),
             }
         )
+        for key, value in progress_rows[-1].items():
+            if key not in ("step", "episodes", "wall_time_s") and value != "":
+                model.logger.record(f"curve/{key}", float(value))
+        model.logger.dump(step=model.num_timesteps)
         if best_before is None or curve_rank(progress_rows[-1]) > best_before:
             save_curve_policy(folder, model)  # before the row: a kill never leaves it unkept
         write_csv(
@@ -787,6 +802,9 @@ def _train_started(
             task=task,
             method=method,
         )
+
+    def callbacks() -> list:
+        return [episode_log] if bar is None else [episode_log, _BarCallback(bar)]
 
     # The step of the checkpoint on disk (None: none yet), for the message of an interrupt.
     checkpoint_step = model.num_timesteps if has_checkpoint(folder) else None
@@ -803,7 +821,7 @@ def _train_started(
                 total_timesteps=next_stop - model.num_timesteps,
                 reset_num_timesteps=False,
                 progress_bar=False,
-                callback=None if bar is None else _BarCallback(bar),
+                callback=callbacks(),
             )
             if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
                 record_curve()
@@ -816,7 +834,7 @@ def _train_started(
                         total_timesteps=1,
                         reset_num_timesteps=False,
                         progress_bar=False,
-                        callback=None if bar is None else _BarCallback(bar),
+                        callback=callbacks(),
                     )
                 extra = {
                     "wall_time_s": wall_offset + time.perf_counter() - start_wall,
@@ -825,11 +843,13 @@ def _train_started(
                 save_checkpoint(folder, model, env, extra)
                 checkpoint_step = model.num_timesteps
     except KeyboardInterrupt as interrupt:
+        model.logger.close()
         if bar is not None:
             bar.close()
         raise TrainingInterrupted(
             folder, model.num_timesteps, total, checkpoint_step
         ) from interrupt
+    model.logger.close()
     if bar is not None:
         bar.close()
     tmp = folder / ".model.tmp.zip"

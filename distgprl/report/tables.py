@@ -8,10 +8,11 @@ confidence interval (Student t over seeds; a single seed has neither). The CSV h
 numbers of every cell. The Markdown and LaTeX tables show the interval, as
 ``0.88 ± 0.06 [0.73, 1.00]``, on the Success and Collision columns only (the table is
 copied into the README, and ten columns of intervals would make it unreadable); their
-caption says so. Those displayed intervals are clipped to [0, 1], the range of a rate (the
-CSV keeps the unclipped t-interval); cells of a single seed stay ``mean`` and the seed count
-follows the Success cell in brackets, e.g. ``[3]``. Rows follow the paper's order, then the
-ablation and the `demo` reference. Pure functions of the files they read.
+caption says so. Those displayed intervals, and the CSV's intervals of every rate
+(`RATE_BOUNDS`), are clipped to [0, 1], the range of a rate; cells of a single seed stay
+``mean`` and the seed count follows the Success cell in brackets, e.g. ``[3]``. Rows follow
+the paper's order, then the ablation and the `demo` reference. Pure functions of the files
+they read.
 
 Table II (hardware, ``table2_<preset>``) counts the trial files of the preset's policies
 (`select_trial_files`: never trials with the pre-flight check overridden, dry runs, or
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,7 +47,14 @@ from distgprl.report.paired import (
     supplementary_sizes,
 )
 from distgprl.report.runs import current_hash, known_preset, select_runs
-from distgprl.schema import moved_robot, read_csv, read_json, safe_success_rate
+from distgprl.schema import (
+    SCHEMA_VERSION,
+    csv_meta_path,
+    moved_robot,
+    read_csv,
+    read_json,
+    safe_success_rate,
+)
 
 METRICS = (
     ("success_rate", "Success"),
@@ -63,6 +72,9 @@ retention."""
 
 CLEARANCE_METRICS = ("min_clearance_p5", "min_signed_clearance_p5")
 """Metrics in metres, shown to the millimetre."""
+
+RATE_BOUNDS = (0.0, 1.0)
+"""The range of a rate (metrics named ``*_rate``): their CSV intervals are clipped to it."""
 
 INTERVAL_METRICS = ("success_rate", "collision_rate")
 """Metrics whose Markdown and LaTeX cells also show the 95 % interval (clipped to [0, 1])."""
@@ -381,6 +393,8 @@ def _csv_text(rows: list[dict], tasks: list[str]) -> str:
                 cell = row.get(f"{task}_{key}", aggregate([]))
                 for part in ("mean", "std", "ci_low", "ci_high"):
                     value = getattr(cell, part)
+                    if part.startswith("ci_") and key.endswith("_rate"):
+                        value = float(np.clip(value, *RATE_BOUNDS))  # NaN stays NaN
                     out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
         writer.writerow(out)
     return buffer.getvalue()
@@ -534,14 +548,24 @@ def write_tables(
     out_dir = Path(out_dir)
     stem = f"table1_{preset}"
     note = select_runs(root, preset).note()
-    written = [
-        atomic_write_text(out_dir / f"{stem}.csv", _csv_text(rows, tasks)),
-        atomic_write_text(out_dir / f"{stem}.md", _markdown(rows, tasks, preset, note)),
-        atomic_write_text(out_dir / f"{stem}.tex", _latex(rows, tasks, preset)),
-    ]
-    per_seed_csv, per_seed_md = _per_seed_texts(per_seed_rows(root, preset), preset)
-    written.append(atomic_write_text(out_dir / f"{stem}_per_seed.csv", per_seed_csv))
-    written.append(atomic_write_text(out_dir / f"{stem}_per_seed.md", per_seed_md))
+    table_one = (
+        "Table I: per task, each metric's mean, sample std and 95 % t-interval over seeds "
+        "(ci_low, ci_high; empty for one seed)"
+    )
+    written = _write_or_remove(
+        out_dir / stem,
+        (".csv", ".md", ".tex"),
+        (_csv_text(rows, tasks), _markdown(rows, tasks, preset, note), _latex(rows, tasks, preset)),
+        preset,
+        table_one,
+    )
+    written += _write_or_remove(
+        out_dir / f"{stem}_per_seed",
+        (".csv", ".md"),
+        _per_seed_texts(per_seed_rows(root, preset), preset),
+        preset,
+        "Table I per run: every seed's metrics, late learning-curve means and training wall time",
+    )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:
         for episodes in (None, *sizes):
@@ -550,6 +574,8 @@ def write_tables(
                 out_dir / f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}",
                 (".csv", ".md"),
                 paired_texts(pairs, preset, reference, episodes) if pairs else None,
+                preset,
+                f"each run paired TC by TC with the {reference} reference (McNemar)",
             )
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
@@ -559,12 +585,16 @@ def write_tables(
         out_dir / f"paired_best_vs_final_{preset}",
         (".csv", ".md"),
         paired_texts(best, preset, FINAL_POLICY) if best else None,
+        preset,
+        "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
     )
     if cross is not None:
         written += _write_or_remove(
             out_dir / f"paired_{preset}_vs_{against}",
             (".csv", ".md"),
             paired_texts(cross, preset, base_preset=against),
+            preset,
+            f"each run paired TC by TC with the same run of the {against} preset (McNemar)",
         )
     trial_files = select_trial_files(root, preset)
     hardware = hardware_rows(trial_files)
@@ -572,12 +602,44 @@ def write_tables(
         out_dir / f"table2_{preset}",
         (".csv", ".md", ".tex"),
         _hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
+        preset,
+        "Table II: hardware trials per method; rates with the exact 95 % binomial interval",
     )
     return written
 
 
+def table_meta_text(csv_text: str, preset: str, description: str) -> str:
+    """The metadata sidecar (`csv_meta_path`) of a table's CSV, in the result files'
+    convention (``{"meta": ..., "columns": ...}``, `distgprl.schema.write_csv`) so that
+    `read_csv` reads the table and a plain ``pandas.read_csv`` reads the CSV. Only what the
+    committed results determine (no time, no commit): ``make tables`` stays byte for byte."""
+    columns = next(csv.reader([csv_text.split("\n", 1)[0]]))
+    meta = {
+        "schema_version": SCHEMA_VERSION,
+        "kind": "table",
+        "preset": preset,
+        "description": description,
+        "rate_intervals_clipped_to": list(RATE_BOUNDS),
+    }
+    return json.dumps({"meta": meta, "columns": columns}, indent=2) + "\n"
+
+
+def _write_table(path: Path, text: str, preset: str, description: str) -> list[Path]:
+    """Write one table file; a CSV with its metadata sidecar (`table_meta_text`)."""
+    written = [atomic_write_text(path, text)]
+    if path.suffix == ".csv":
+        written.append(
+            atomic_write_text(csv_meta_path(path), table_meta_text(text, preset, description))
+        )
+    return written
+
+
 def _write_or_remove(
-    stem: Path, suffixes: tuple[str, ...], texts: tuple[str, ...] | None
+    stem: Path,
+    suffixes: tuple[str, ...],
+    texts: tuple[str, ...] | None,
+    preset: str,
+    description: str,
 ) -> list[Path]:
     """Write ``texts`` (one per suffix) to ``stem`` + suffix; with ``texts`` None
     (nothing to tabulate, e.g. no trial files any more) remove those files instead, so no
@@ -586,5 +648,10 @@ def _write_or_remove(
     if texts is None:
         for path in paths:
             path.unlink(missing_ok=True)
+            if path.suffix == ".csv":
+                csv_meta_path(path).unlink(missing_ok=True)
         return []
-    return [atomic_write_text(p, t) for p, t in zip(paths, texts, strict=True)]
+    written = []
+    for path, text in zip(paths, texts, strict=True):
+        written += _write_table(path, text, preset, description)
+    return written

@@ -267,6 +267,23 @@ def test_evaluate_demo_reference_writes_summary(tmp_path):
     assert summary["joint_speed_over_limit_rate"] == pytest.approx(np.mean(peaks > limit))
 
 
+def test_a_fresh_evaluation_csv_reads_with_plain_pandas_one_row_per_episode(tmp_path):
+    """``pandas.read_csv`` with its defaults: the documented EVALUATION_FIELDS as columns,
+    one row per evaluation episode, the values `read_csv` reads."""
+    pandas = pytest.importorskip("pandas")
+    from distgprl.schema import EVALUATION_FIELDS
+
+    runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    frame = pandas.read_csv(folder / "evaluation.csv")
+    episodes = runner.resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
+    assert list(frame.columns) == list(EVALUATION_FIELDS)
+    assert len(frame) == episodes
+    _, rows = read_csv(folder / "evaluation.csv")
+    np.testing.assert_allclose(frame["min_clearance"], [float(r["min_clearance"]) for r in rows])
+    assert read_json(folder / "evaluation.csv.meta.json")["meta"]["method"] == "demo"
+
+
 def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp_path):
     """``--episodes N`` other than the preset's writes ``evaluation_n<N>.csv`` whose first
     TCs are the preset's (same outcomes), and leaves the preset's evaluation and the
@@ -440,3 +457,102 @@ def test_a_failed_resume_keeps_the_runs_files(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="simulated"):
         train(tmp_path, "dist-gprl", resume=True)
     assert (folder / "config.json").exists()
+
+
+def _event_scalars(folder: Path) -> dict[str, list[tuple[int, float]]]:
+    """Every scalar tag of a run's ``tb/`` event files: ``tag -> [(step, value), ...]``."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(folder / "tb"))
+    events.Reload()
+    return {
+        tag: [(event.step, event.value) for event in events.Scalars(tag)]
+        for tag in events.Tags()["scalars"]
+    }
+
+
+def test_each_run_writes_tensorboard_events_without_changing_its_training(tmp_path, monkeypatch):
+    """A run's ``tb/`` holds the losses, alpha, regulariser terms, gradient norms, training
+    episodes and curve points, and training with it is bit-identical to training without."""
+    pytest.importorskip("tensorboard")
+    from distgprl.agents import sac
+
+    logged = train(tmp_path / "logged", "dist-gprl", evaluate_after=False)
+    scalars = _event_scalars(logged)
+    for tag in (
+        "train/actor_loss",
+        "train/critic_loss",
+        "train/ent_coef",
+        "train/l_sim",
+        "train/l_hap",
+        "rollout/episode_return",
+        "rollout/episode_success",
+        "rollout/episode_collision",
+        "curve/success_rate",
+        "curve/collision_rate",
+        "curve/mean_return",
+        "curve/grad_q",
+        "curve/grad_sim",
+        "curve/grad_hap",
+    ):
+        assert scalars.get(tag), tag
+    _, progress = read_csv(logged / "progress.csv")
+    assert [step for step, _ in scalars["curve/success_rate"]] == [0, 120]
+    assert scalars["curve/success_rate"][-1][1] == pytest.approx(
+        float(progress[-1]["success_rate"])
+    )
+    assert len(scalars["rollout/episode_return"]) == int(progress[-1]["episodes"])
+
+    monkeypatch.setattr(sac, "training_logger", lambda tb_dir, start_step=0: sac.Logger(None, []))
+    silent = train(tmp_path / "silent", "dist-gprl", evaluate_after=False)
+    assert not (silent / "tb").exists()
+    _, silent_progress = read_csv(silent / "progress.csv")
+    for a, b in zip(progress, silent_progress, strict=True):
+        a.pop("wall_time_s"), b.pop("wall_time_s")
+        assert a == b
+    for a, b in zip(_actor_parameters(logged), _actor_parameters(silent), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_resumed_runs_events_purge_what_the_killed_process_logged_after_its_checkpoint(
+    tmp_path, monkeypatch
+):
+    """Killed at its second checkpoint (after logging steps 120..240) and resumed from the
+    first: each curve point and each training episode appears once in the event files."""
+    pytest.importorskip("tensorboard")
+    original = runner.save_checkpoint
+    calls = []
+
+    def die_at_the_second(folder, model, env, extra):
+        calls.append(model.num_timesteps)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        original(folder, model, env, extra)
+
+    monkeypatch.setattr(runner, "save_checkpoint", die_at_the_second)
+    with pytest.raises(runner.TrainingInterrupted):
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.setattr(runner, "save_checkpoint", original)
+    folder = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    scalars = _event_scalars(folder)
+    assert [step for step, _ in scalars["curve/success_rate"]] == [0, 120, 240]
+    episode_steps = [step for step, _ in scalars["rollout/episode_return"]]
+    assert episode_steps == sorted(set(episode_steps))
+    _, progress = read_csv(folder / "progress.csv")
+    assert len(episode_steps) == int(progress[-1]["episodes"])
+
+
+def test_without_tensorboard_training_says_once_that_no_event_file_is_written(
+    tmp_path, monkeypatch, capsys
+):
+    """The optional package missing: training works, one note on stderr, no ``tb/``."""
+    from distgprl.agents import sac
+
+    monkeypatch.setattr(sac, "tensorboard_available", lambda: False)
+    monkeypatch.setattr(sac, "_TENSORBOARD_NOTE_SHOWN", False)
+    capsys.readouterr()
+    first = train(tmp_path / "a", "gprl", evaluate_after=False)
+    second = train(tmp_path / "b", "gprl", evaluate_after=False)
+    assert (first / "model.zip").exists() and (second / "model.zip").exists()
+    assert not (first / "tb").exists()
+    assert capsys.readouterr().err.count("no TensorBoard event file is written") == 1

@@ -23,7 +23,9 @@ def test_committed_tables_are_regenerated_byte_for_byte(tmp_path):
         committed = FIGURES / path.name
         assert committed.exists(), f"{path.name} is made from results/ but not committed"
         assert path.read_bytes() == committed.read_bytes(), f"{path.name} is stale"
-    committed = {p.name for p in FIGURES.iterdir() if p.suffix in (".csv", ".md", ".tex")}
+    committed = {
+        p.name for p in FIGURES.iterdir() if p.name.endswith((".csv", ".md", ".tex", ".meta.json"))
+    }
     left = committed - {path.name for path in made}
     assert not left, f"committed tables no longer made from results/: {sorted(left)}"
 

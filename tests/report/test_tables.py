@@ -242,7 +242,8 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
     """With >= 2 seeds the Markdown and LaTeX Success and Collision cells read
     ``mean ± std [low, high]`` with the Student-t 95 % interval (clipped to [0, 1]), the
     other columns stay ``mean ± std``, single-seed cells stay ``mean`` with the seed count,
-    the caption says so, and the CSV keeps the unclipped interval."""
+    the caption says so, and the CSV's rate intervals are clipped to [0, 1] too (its other
+    intervals are not: MinCl's may fall below zero)."""
     seeds = {
         0: summary(0.80, 0.10, 0.010),
         1: summary(0.90, 0.20, 0.020),
@@ -276,8 +277,45 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
     assert "95\\,\\% t-interval" in latex
     with open(tmp_path / "out" / "table1_p.csv", newline="") as handle:
         ours = {row["method"]: row for row in csv.DictReader(handle)}["dist-gprl"]
-    assert float(ours["dcp_success_rate_ci_high"]) == pytest.approx(0.9 + half, rel=1e-5)
-    assert float(ours["dcp_collision_rate_ci_low"]) == pytest.approx(0.2 - half, rel=1e-5)
+    assert float(ours["dcp_success_rate_ci_low"]) == pytest.approx(0.9 - half, rel=1e-5)
+    assert float(ours["dcp_success_rate_ci_high"]) == 1.0  # t: 1.15
+    assert float(ours["dcp_collision_rate_ci_low"]) == 0.0  # t: -0.05
+    assert float(ours["dcp_collision_rate_ci_high"]) == pytest.approx(0.2 + half, rel=1e-5)
+    clearance_half = 4.302652729911275 * 0.01 / np.sqrt(3)
+    assert float(ours["dcp_min_clearance_p5_ci_low"]) == pytest.approx(
+        0.02 - clearance_half, rel=1e-5
+    )  # -0.005: a distance's interval is not a rate's
+
+
+def test_every_table_csv_has_a_meta_sidecar_and_reads_with_plain_pandas(tmp_path):
+    """Each CSV `write_tables` makes reads with a default ``pandas.read_csv`` (header, one
+    row per method/run) and with `read_csv` through its ``.csv.meta.json`` sidecar, whose
+    columns are the CSV's; the sidecars are deterministic (the same bytes when remade)."""
+    pandas = pytest.importorskip("pandas")
+    from distgprl.schema import read_csv
+
+    for seed in (0, 1):
+        folder = tmp_path / "p" / "dcp" / "dist-gprl" / f"seed{seed}"
+        write_json(folder / "summary.json", summary(0.5 + 0.1 * seed, 0.1, 0.01))
+    write_json(tmp_path / "p" / "dcp" / "demo" / "seed0" / "summary.json", summary(0.5, 0.4, 0))
+    written = write_tables(tmp_path, "p", tmp_path / "out")
+    csvs = [path for path in written if path.suffix == ".csv"]
+    assert {path.name for path in csvs} >= {"table1_p.csv", "table1_p_per_seed.csv"}
+    for path in csvs:
+        sidecar = path.with_name(path.name + ".meta.json")
+        assert sidecar in written
+        frame = pandas.read_csv(path)
+        meta, rows = read_csv(path)
+        assert meta["kind"] == "table" and meta["preset"] == "p"
+        assert json.loads(sidecar.read_text())["columns"] == list(frame.columns)
+        assert len(frame) == len(rows) > 0
+    assert pandas.read_csv(tmp_path / "out" / "table1_p.csv")["method"].tolist() == [
+        "dist-gprl",
+        "demo",
+    ]
+    before = {path: path.read_bytes() for path in written}
+    write_tables(tmp_path, "p", tmp_path / "out")
+    assert {path: path.read_bytes() for path in written} == before
 
 
 def test_table2_min_clearance_is_over_trials_that_moved_the_robot_only(tmp_path):
