@@ -681,6 +681,7 @@ class _Started:
     curve_tcs: list
     progress_rows: list[dict[str, Any]]
     wall_offset: float
+    cpu_offset: float
     resumes: list[dict[str, Any]]
 
 
@@ -693,13 +694,14 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
     spec = env.spec_task
     curve_tcs = spec.training_curve_tcs(run.config.run.curve_episodes)
     progress_rows: list[dict[str, Any]] = []
-    wall_offset = 0.0
+    wall_offset = cpu_offset = 0.0
     # Where the run was resumed, and whether exactly (older checkpoints lack the pending TC
     # and NumPy's generator: their resumes restart the TC sequence); recorded in done.json.
     resumes: list[dict[str, Any]] = []
     if resume and has_checkpoint(folder):
         model, state = load_checkpoint(folder, env, run)
         wall_offset = state.get("wall_time_s", 0.0)
+        cpu_offset = state.get("cpu_time_s", 0.0)  # absent in checkpoints before it was kept
         resumes = [
             *state.get("resumes", []),
             {"step": int(state["num_timesteps"]), "exact": "pending_tc" in state},
@@ -727,7 +729,9 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
                 stale.unlink()
         model = make_agent(env, run)
         env.reset(seed=seed)
-    return _Started(env, eval_env, model, curve_tcs, progress_rows, wall_offset, resumes)
+    return _Started(
+        env, eval_env, model, curve_tcs, progress_rows, wall_offset, cpu_offset, resumes
+    )
 
 
 def _train_started(
@@ -748,6 +752,7 @@ def _train_started(
     eval_every = run.config.run.eval_every
     ckpt_every = run.config.run.checkpoint_every
     start_wall = time.perf_counter()
+    start_cpu = time.process_time()  # process CPU seconds: honest on a shared machine
     from distgprl.agents.sac import EpisodeLogCallback, training_logger
 
     # TensorBoard event files in tb/ (a resume purges the killed process's records from the
@@ -838,6 +843,7 @@ def _train_started(
                     )
                 extra = {
                     "wall_time_s": wall_offset + time.perf_counter() - start_wall,
+                    "cpu_time_s": started.cpu_offset + time.process_time() - start_cpu,
                     "resumes": resumes,
                 }
                 save_checkpoint(folder, model, env, extra)
@@ -856,6 +862,7 @@ def _train_started(
     model.save(tmp)
     tmp.replace(folder / "model.zip")
     train_wall = wall_offset + time.perf_counter() - start_wall
+    train_cpu = started.cpu_offset + time.process_time() - start_cpu
     env.close()
     eval_env.close()
     if evaluate_after:
@@ -873,7 +880,15 @@ def _train_started(
             )
     write_json(
         folder / "done.json",
-        {"steps": total, "train_wall_time_s": train_wall, "resumes": resumes},
+        {
+            "steps": total,
+            "train_wall_time_s": train_wall,
+            # process CPU seconds of training (curve evaluations included; a run resumed
+            # from a checkpoint made before this was recorded counts from the resume on)
+            "train_cpu_time_s": train_cpu,
+            "cpu_s_per_step": train_cpu / total,
+            "resumes": resumes,
+        },
         kind="done",
         config_hash=run.hash,
         seed=seed,

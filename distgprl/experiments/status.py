@@ -42,6 +42,7 @@ class RunStatus:
     collision_rate: float | None = None
     wall_time_s: float | None = None
     seconds_per_step: float | None = None
+    cpu_seconds_per_step: float | None = None
     error: str = ""
 
     @property
@@ -100,14 +101,17 @@ def run_status(job: Job) -> RunStatus:
     if state.verdict == "damaged":
         return RunStatus(job, "damaged", 0, total, error=state.describe())
     if state.verdict == "done":
-        pace = None
+        pace = cpu_pace = None
         if trainable:
             try:
                 done = read_json(folder / "done.json")
                 pace = float(done["train_wall_time_s"]) / int(done["steps"])
+                cpu_pace = done.get("cpu_s_per_step")  # runs made before it was recorded: None
             except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
-                pace = None
-        return RunStatus(job, "done", total, total, seconds_per_step=pace)
+                pace = cpu_pace = None
+        return RunStatus(
+            job, "done", total, total, seconds_per_step=pace, cpu_seconds_per_step=cpu_pace
+        )
     if state.verdict in ("stale", "missing"):
         return RunStatus(job, state.verdict, 0, total)
     rows = _curve_rows(folder)
@@ -140,11 +144,14 @@ def count_states(statuses: Iterable[RunStatus]) -> str:
 
 @dataclass(frozen=True)
 class TrainingLeft:
-    """The sweep's remaining training, in seconds of one worker."""
+    """The sweep's remaining training, in seconds of one worker (wall time at the finished
+    runs' load) and in process CPU seconds (``cpu_seconds``: what the same work costs on an
+    idle core, None if no finished run recorded it)."""
 
     seconds: float
     runs: int
     unestimated: int
+    cpu_seconds: float | None = None
 
     def describe(self, workers: int = 1) -> str:
         """e.g. ``"training left: 9 runs, 6.1 h of one worker (3.1 h with 2 workers)"``."""
@@ -154,6 +161,10 @@ class TrainingLeft:
         text = f"training left: {self.runs} runs, {hours:.1f} h of one worker"
         if workers > 1:
             text += f" ({hours / workers:.1f} h with {workers} workers)"
+        if self.cpu_seconds is not None:
+            cpu_hours = self.cpu_seconds / 3600.0
+            text += f"; {cpu_hours:.1f} CPU-hours ({cpu_hours / workers:.1f} h on {workers} idle"
+            text += " cores)" if workers > 1 else " core)"
         if self.unestimated:
             text += f"; {self.unestimated} without an estimate (no finished run of the task)"
         return text
@@ -166,18 +177,26 @@ def training_left(statuses: Iterable[RunStatus]) -> TrainingLeft:
     (another worker), so this is an estimate at the same load."""
     statuses = list(statuses)
     paces: dict[str, list[float]] = {}
+    cpu_paces: dict[str, list[float]] = {}
     for status in statuses:
         if status.state == "done" and status.seconds_per_step:
             paces.setdefault(status.job.task, []).append(status.seconds_per_step)
+        if status.state == "done" and status.cpu_seconds_per_step:
+            cpu_paces.setdefault(status.job.task, []).append(status.cpu_seconds_per_step)
     median = {task: statistics.median(values) for task, values in paces.items()}
+    cpu_median = {task: statistics.median(values) for task, values in cpu_paces.items()}
     seconds, runs, unestimated = 0.0, 0, 0
+    cpu_seconds: float | None = None
     for status in statuses:
         if status.state == "done" or not status.total_steps:
             continue
         runs += 1
+        steps_left = max(status.total_steps - status.step, 0)  # stale runs: step 0
+        if status.job.task in cpu_median:  # the task's finished runs' median CPU pace
+            cpu_seconds = (cpu_seconds or 0.0) + cpu_median[status.job.task] * steps_left
         pace = status.seconds_per_step or median.get(status.job.task)
         if pace is None:
             unestimated += 1
             continue
-        seconds += pace * max(status.total_steps - status.step, 0)  # stale runs: step 0
-    return TrainingLeft(seconds, runs, unestimated)
+        seconds += pace * steps_left
+    return TrainingLeft(seconds, runs, unestimated, cpu_seconds)

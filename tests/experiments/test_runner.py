@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pickle
 import shutil
 from pathlib import Path
 
@@ -95,7 +96,13 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
     monkeypatch.setattr(runner, "save_checkpoint", original)
     train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
-    assert read_json(folder / "done.json")["steps"] == 240
+    done = read_json(folder / "done.json")
+    assert done["steps"] == 240
+    # process CPU seconds of training, carried over the resume by the checkpoint
+    state = pickle.loads((runner.checkpoint_dir(folder) / "state.pkl").read_bytes())
+    checkpoint_cpu = state["cpu_time_s"]
+    assert 0.0 < checkpoint_cpu <= done["train_cpu_time_s"]
+    assert done["cpu_s_per_step"] == pytest.approx(done["train_cpu_time_s"] / 240)
     model = _load_model(runner.checkpoint_dir(folder) / "model.zip")
     model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
     assert model.num_timesteps == 240

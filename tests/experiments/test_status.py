@@ -87,9 +87,10 @@ def test_a_finished_run_reports_its_training_pace(tmp_path):
     job = _job(tmp_path)
     folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     run = resolve_run("dcp", "gprl-d", 0, "ci")
-    done = {"steps": 300, "train_wall_time_s": 60.0}
+    done = {"steps": 300, "train_wall_time_s": 60.0, "cpu_s_per_step": 0.15}
     write_json(folder / "done.json", done, kind="done", config_hash=run.hash)
     assert run_status(job).seconds_per_step == pytest.approx(0.2)
+    assert run_status(job).cpu_seconds_per_step == pytest.approx(0.15)
 
 
 def test_training_left_uses_own_pace_else_the_tasks_finished_median(tmp_path):
@@ -120,6 +121,24 @@ def test_training_left_uses_own_pace_else_the_tasks_finished_median(tmp_path):
         f"({2100 / 7200:.1f} h with 2 workers)"
     )
     assert training_left(statuses[:3]).describe() == "training left: none"
+
+
+def test_training_left_adds_cpu_hours_from_the_finished_runs_cpu_pace(tmp_path):
+    """With finished runs that recorded their CPU seconds per step, the remaining training is
+    also given as CPU-hours (each unfinished run's steps left at its task's median CPU pace)
+    and as hours on that many idle cores; without such runs no CPU figure is made up."""
+    jobs = [sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [s], root=tmp_path)[0] for s in range(4)]
+    done = [
+        RunStatus(jobs[0], "done", 1000, 1000, seconds_per_step=0.4, cpu_seconds_per_step=0.1),
+        RunStatus(jobs[1], "done", 1000, 1000, seconds_per_step=0.6, cpu_seconds_per_step=0.3),
+        RunStatus(jobs[2], "done", 1000, 1000, seconds_per_step=0.5, cpu_seconds_per_step=0.2),
+    ]
+    left = training_left([*done, RunStatus(jobs[3], "partial", 400, 1000, seconds_per_step=1.0)])
+    assert left.cpu_seconds == pytest.approx(600 * 0.2)
+    hours = 600 * 0.2 / 3600
+    assert left.describe(2).endswith(f"; {hours:.1f} CPU-hours ({hours / 2:.1f} h on 2 idle cores)")
+    old = [RunStatus(j, "done", 1000, 1000, seconds_per_step=0.5) for j in jobs[:3]]
+    assert training_left([*old, RunStatus(jobs[3], "missing", 0, 1000)]).cpu_seconds is None
 
 
 def test_count_states_lists_done_out_of_all_then_the_others(tmp_path):
