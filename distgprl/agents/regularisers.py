@@ -172,7 +172,7 @@ class ActorRegulariser(nn.Module):
         """Velocities, accelerations minus the demo's, positions of the adapted trajectory.
 
         One matrix product (see `_build_flat_maps`). Shape (B, 6, 2T + N_q), axis-major:
-        ``[:, :, :T]`` velocities (m or rad per unit normalised time), ``[:, :, T:2T]``
+        ``[:, :, :T]`` velocities (m/s or rad/s: the skill's maps are per second), ``[:, :, T:2T]``
         accelerations minus the demonstration's, ``[:, :3, 2T:]`` positions, m (rows 3-5 of
         that block are the orientation components, unused).
         """
