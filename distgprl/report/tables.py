@@ -37,6 +37,8 @@ from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.aggregate import Scores, aggregate_texts, run_scores
+from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,
@@ -151,20 +153,23 @@ def _load_summary(path: Path) -> dict:
     return {**document, "summary": summary}
 
 
-def _markdown_table(title: str | None, header: list[str], rows: list[list[str]]) -> str:
-    """A Markdown pipe table, under ``title`` and a blank line if given."""
-    lines = [] if title is None else [title, ""]
-    lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(cells) + " |" for cells in rows]
-    return "\n".join(lines) + "\n"
-
-
 def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
     """{(task, method): [summary per seed]} from ``<root>/<preset>/<task>/<method>/seed*/``."""
     out: dict[tuple[str, str], list[dict]] = {}
     for path in _summary_paths(root, preset):
         task, method = path.parts[-4], path.parts[-3]
         out.setdefault((task, method), []).append(_load_summary(path)["summary"])
+    return out
+
+
+def collect_scores(root: str | Path, preset: str) -> Scores:
+    """{(task, method): [`run_scores` per seed]} of the runs `collect_summaries` reads: the
+    rates and learning-curve measures the aggregates and the claims table bootstrap."""
+    out: dict[tuple[str, str], list[dict[str, float]]] = {}
+    for path in _summary_paths(Path(root), preset):
+        task, method = path.parts[-4], path.parts[-3]
+        summary = _load_summary(path)["summary"]
+        out.setdefault((task, method), []).append(run_scores(path.parent, summary))
     return out
 
 
@@ -565,6 +570,15 @@ def write_tables(
         _per_seed_texts(per_seed_rows(root, preset), preset),
         preset,
         "Table I per run: every seed's metrics, late learning-curve means and training wall time",
+    )
+    scores = collect_scores(root, preset)
+    written += _write_or_remove(
+        out_dir / f"aggregates_{preset}",
+        (".csv", ".md"),
+        aggregate_texts(scores, preset),
+        preset,
+        "mean, IQM and probability of improvement over seeds with 95 % stratified-bootstrap "
+        "intervals (distgprl.report.aggregate)",
     )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:

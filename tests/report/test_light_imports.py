@@ -61,6 +61,8 @@ def test_the_blocker_blocks():
         "distgprl.report.paired",
         "distgprl.report.runs",
         "distgprl.report.check",
+        "distgprl.report.aggregate",
+        "distgprl.report.markdown",
         "distgprl.schema",
         "distgprl.identity",
     ],
