@@ -38,6 +38,7 @@ from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import Scores, aggregate_texts, run_scores
+from distgprl.report.claims import claims_texts
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.paired import (
     FINAL_POLICY,
@@ -579,6 +580,14 @@ def write_tables(
         preset,
         "mean, IQM and probability of improvement over seeds with 95 % stratified-bootstrap "
         "intervals (distgprl.report.aggregate)",
+    )
+    written += _write_or_remove(
+        out_dir / f"claims_{preset}",
+        (".csv", ".md"),
+        claims_texts(scores, preset),
+        preset,
+        "each claim of the paper, the statistic testing it and the verdict "
+        "(rules: distgprl.report.claims)",
     )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:

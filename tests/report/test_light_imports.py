@@ -62,6 +62,7 @@ def test_the_blocker_blocks():
         "distgprl.report.runs",
         "distgprl.report.check",
         "distgprl.report.aggregate",
+        "distgprl.report.claims",
         "distgprl.report.markdown",
         "distgprl.schema",
         "distgprl.identity",
