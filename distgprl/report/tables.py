@@ -1,7 +1,9 @@
 """Table I (simulation) and Table II (hardware) from result files only.
 
-`write_tables` also writes Table I per run and each run's paired comparisons, TC by TC,
-with the `demo` reference and with `dist-gprl` (`distgprl.report.paired`).
+`write_tables` also writes Table I per run, each run's paired comparisons, TC by TC,
+with the `demo` reference and with `dist-gprl` (`distgprl.report.paired`), the robust
+aggregates with stratified-bootstrap intervals (`distgprl.report.aggregate`) and the claims
+table (`distgprl.report.claims`).
 
 Each cell is the mean ± sample standard deviation (ddof = 1) over seeds with a 95 %
 confidence interval (Student t over seeds; a single seed has neither). The CSV has all four
@@ -532,7 +534,11 @@ def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
     """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
-    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time) and
+    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time), the
+    stratified-bootstrap aggregates (``aggregates_<preset>``: mean, IQM and Dist-GPRL's
+    probability of improvement, `distgprl.report.aggregate`) and the claims table
+    (``claims_<preset>``: a verdict per paper claim, `distgprl.report.claims`), CSV and
+    Markdown, and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
     seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
     ``..._n<N>`` for supplementary evaluations on N TCs), and, for runs whose best
