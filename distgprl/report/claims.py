@@ -232,7 +232,8 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
 
 CSV_FIELDS = ("claim", "test", "value", "ci_low", "ci_high", "seeds", "verdict", "detail")
 """Columns of ``claims_<preset>.csv`` (``seeds`` per task stratum, ``;``-separated; value and
-interval empty without runs, the interval empty below two seeds)."""
+interval empty without runs, the interval empty below two seeds). The ProMP-RRL row's value is
+its collision IQM, its success IQM is in ``detail``."""
 
 
 def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
