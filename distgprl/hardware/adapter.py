@@ -233,15 +233,18 @@ class PerceivedResidual(_PerceivedWorld, ResidualEnv):
     window. Same use as :class:`PerceivedAdaptation`.
     """
 
-    def __init__(self, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
-        ResidualEnv.__init__(self, "dbm", config)
+    def __init__(
+        self, method: str = "promp-rrl", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
+    ) -> None:
+        ResidualEnv.__init__(self, "dbm", config, method=method)
         self._attach_world(conveyor_velocity)
 
 
 def perceived_env(
     method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)
 ) -> PerceivedAdaptation | PerceivedResidual:
-    """The trial adapter for ``method``: residual for ProMP-RRL, via-points otherwise."""
+    """The trial adapter for ``method``: residual for the ProMP methods (`promp-rrl`,
+    `promp-rrl-expert`, the `promp-nominal` reference), via-points otherwise."""
     if get_method(method).action_mode == "residual":
-        return PerceivedResidual(config, conveyor_velocity)
+        return PerceivedResidual(method, config, conveyor_velocity)
     return PerceivedAdaptation(method, config, conveyor_velocity)

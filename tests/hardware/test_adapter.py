@@ -135,3 +135,20 @@ def test_the_demo_reference_ignores_the_action():
     finally:
         adapter.close()
         env.close()
+
+
+def test_the_residual_adapter_is_built_for_the_requested_promp_method():
+    """`perceived_env` builds the residual adapter with the method it is asked for: the
+    `promp-nominal` reference ignores actions (executes the ProMP mean), `promp-rrl-expert`
+    fits the 20 expert demonstrations (it used to build `promp-rrl` for every one)."""
+    from distgprl.hardware.adapter import perceived_env
+
+    nominal = perceived_env("promp-nominal")
+    expert = perceived_env("promp-rrl-expert")
+    try:
+        assert nominal.method.name == "promp-nominal" and not nominal.method.trainable
+        assert expert.method.name == "promp-rrl-expert"
+        assert expert.promp.demonstration_count == 20
+    finally:
+        nominal.close()
+        expert.close()
