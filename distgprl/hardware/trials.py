@@ -60,7 +60,7 @@ def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
     from distgprl.io import file_sha256
     from distgprl.schema import read_json, run_dir
 
-    if env.method.action_mode == "none":
+    if not env.method.trainable:  # the references (`demo`, `promp-nominal`) run no policy
         return None, {}
     path = (
         Path(model_path) if model_path else run_dir(root, preset, "dbm", method, seed) / "model.zip"

@@ -316,3 +316,21 @@ def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
     assert runner.invoke(app, ["hardware"]).exit_code == 0
     assert seen["repair"] is True and seen["sensor_noise"] == 0
     assert runner.invoke(app, ["hardware", "--sensor-noise", "3"]).exit_code != 0
+
+
+def test_the_promp_nominal_reference_runs_trials_without_a_trained_model(tmp_path):
+    """`promp-nominal` is a reference (no policy): a twin trial runs the ProMP mean without
+    looking for a model, as `demo` runs the conditioned demonstration."""
+    from distgprl.hardware.trials import run_trials
+
+    report = run_trials(
+        trials=1,
+        method="promp-nominal",
+        seed=0,
+        backend="twin",
+        root=tmp_path,
+        preset="ci",
+        echo=lambda *_: None,
+    )
+    assert len(report.rows) == 1 and report.rows[0]["status"] in ("ok", "refused", "stopped")
+    assert report.rows[0]["backend"] == "twin"
