@@ -11,13 +11,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from distgprl.adaptation.layout import (  # noqa: F401 - re-exported
-    COVARIANCE_SCALES,
-    OBSERVATION_SCALE_FLOOR,
-    AuxLayout,
-    build_action_layout,
-    window_operators,
-)
+from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build_action_layout
 from distgprl.config import EnvConfig
 from distgprl.methods import MethodSpec, get_method
 from distgprl.safety.edf import DistanceField

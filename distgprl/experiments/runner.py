@@ -192,6 +192,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
     adaptation = np.nansum(
         np.stack([column(f"adaptation_ms_w{k}") for k in (1, 2, 3)], axis=1), axis=1
     )
+    distance = np.maximum(column("min_clearance"), 0.0)  # v4 rows hold the signed value
     summary = {
         "episodes": len(rows),
         "success_rate": float(column("success").mean()),
@@ -199,8 +200,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         "safe_success_rate": safe_success_rate(rows),
         # MinCl as the paper defines it: a distance, >= 0 (v5); the signed minimum
         # (negative = penetration depth) separately.
-        "min_clearance_p5": float(np.percentile(np.maximum(column("min_clearance"), 0.0), 5)),
-        "mean_min_clearance": float(np.maximum(column("min_clearance"), 0.0).mean()),
+        "min_clearance_p5": float(np.percentile(distance, 5)),
+        "mean_min_clearance": float(distance.mean()),
         "mean_return": float(column("return").mean()),
         "mean_kinematic_retention": float(column("kinematic_retention").mean()),
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
@@ -808,8 +809,14 @@ def _train_started(
             method=method,
         )
 
-    def callbacks() -> list:
-        return [episode_log] if bar is None else [episode_log, _BarCallback(bar)]
+    def learn(steps: int) -> None:
+        """Continue training for ``steps`` environment steps (SB3 keeps the episode going)."""
+        model.learn(
+            total_timesteps=steps,
+            reset_num_timesteps=False,
+            progress_bar=False,
+            callback=[episode_log] if bar is None else [episode_log, _BarCallback(bar)],
+        )
 
     # The step of the checkpoint on disk (None: none yet), for the message of an interrupt.
     checkpoint_step = model.num_timesteps if has_checkpoint(folder) else None
@@ -822,12 +829,7 @@ def _train_started(
                 (model.num_timesteps // eval_every + 1) * eval_every,
                 (model.num_timesteps // ckpt_every + 1) * ckpt_every,
             )
-            model.learn(
-                total_timesteps=next_stop - model.num_timesteps,
-                reset_num_timesteps=False,
-                progress_bar=False,
-                callback=callbacks(),
-            )
+            learn(next_stop - model.num_timesteps)
             if model.num_timesteps % eval_every == 0 or model.num_timesteps >= total:
                 record_curve()
             if model.num_timesteps % ckpt_every == 0 or model.num_timesteps >= total:
@@ -835,12 +837,7 @@ def _train_started(
                 # collision ends an episode early, so a checkpoint step can fall inside one:
                 # train on to the episode's end first (at most n_windows - 1 steps).
                 while not env.at_episode_start and model.num_timesteps < total:
-                    model.learn(
-                        total_timesteps=1,
-                        reset_num_timesteps=False,
-                        progress_bar=False,
-                        callback=callbacks(),
-                    )
+                    learn(1)
                 extra = {
                     "wall_time_s": wall_offset + time.perf_counter() - start_wall,
                     "cpu_time_s": started.cpu_offset + time.process_time() - start_cpu,

@@ -83,12 +83,16 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
             )
         return windows
 
+    chosen = describe(env_config)  # raises for a scale the skill cannot build
     candidates = {}
     for scale in COVARIANCE_SCALES:
-        try:
-            windows = describe(dataclasses.replace(env_config, covariance_scale=scale))
-        except ValueError:  # e.g. a skill saved without its axis scale
-            continue
+        if scale == env_config.covariance_scale:
+            windows = chosen
+        else:
+            try:
+                windows = describe(dataclasses.replace(env_config, covariance_scale=scale))
+            except ValueError:  # e.g. a skill saved without its axis scale
+                continue
         candidates[scale] = {
             "eigenvalue_min": min(w["eigenvalue_min"] for w in windows),
             "eigenvalue_max": max(w["eigenvalue_max"] for w in windows),
@@ -99,7 +103,7 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         "length_scale": length_scale,
         "via_point_spacing": spacing,
         "neighbour_correlation": float(np.exp(-(spacing**2) / (2 * length_scale**2))),
-        "windows": describe(env_config),
+        "windows": chosen,
         "candidates": candidates,
     }
 

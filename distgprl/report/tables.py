@@ -58,7 +58,6 @@ from distgprl.schema import (
     moved_robot,
     read_csv,
     read_json,
-    safe_success_rate,
 )
 
 METRICS = (
@@ -145,23 +144,12 @@ def _summary_paths(root: Path, preset: str) -> list[Path]:
     )
 
 
-def _load_summary(path: Path) -> dict:
-    """A ``summary.json`` document; its ``summary`` gains ``safe_success_rate`` from the
-    per-episode file if it was written before that column existed."""
-    document = read_json(path)
-    summary = document["summary"]
-    evaluation = path.parent / "evaluation.csv"
-    if "safe_success_rate" not in summary and evaluation.exists():
-        summary = {**summary, "safe_success_rate": safe_success_rate(read_csv(evaluation)[1])}
-    return {**document, "summary": summary}
-
-
 def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
     """{(task, method): [summary per seed]} from ``<root>/<preset>/<task>/<method>/seed*/``."""
     out: dict[tuple[str, str], list[dict]] = {}
     for path in _summary_paths(root, preset):
         task, method = path.parts[-4], path.parts[-3]
-        out.setdefault((task, method), []).append(_load_summary(path)["summary"])
+        out.setdefault((task, method), []).append(read_json(path)["summary"])
     return out
 
 
@@ -171,7 +159,7 @@ def collect_scores(root: str | Path, preset: str) -> Scores:
     out: dict[tuple[str, str], list[dict[str, float]]] = {}
     for path in _summary_paths(Path(root), preset):
         task, method = path.parts[-4], path.parts[-3]
-        summary = _load_summary(path)["summary"]
+        summary = read_json(path)["summary"]
         out.setdefault((task, method), []).append(run_scores(path.parent, summary))
     return out
 
@@ -184,7 +172,7 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         task, method, seed = path.parts[-4], path.parts[-3], path.parts[-2]
         if method not in METHODS:
             continue
-        document = _load_summary(path)
+        document = read_json(path)
         summary = document["summary"]
         done = path.parent / "done.json"
         wall = read_json(done).get("train_wall_time_s") if done.exists() else None
