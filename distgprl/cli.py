@@ -17,6 +17,7 @@ from distgprl import __version__
 from distgprl.config import register_preset, shipped_presets
 from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
+from distgprl.identity import SWEEP_SEEDS
 from distgprl.methods import METHODS
 
 
@@ -118,6 +119,7 @@ TasksOption = Annotated[
     str | None, typer.Option(help=f"Comma-separated tasks (default all): {_TASKS}.")
 ]
 SeedsOption = Annotated[str, typer.Option(help="Comma-separated seeds.")]
+DEFAULT_SEEDS = ",".join(str(seed) for seed in SWEEP_SEEDS)
 TaskOption = Annotated[str, typer.Option(metavar="TASK", help=f"Task: {_TASKS}.")]
 
 
@@ -288,7 +290,7 @@ def sweep(
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
-    seeds: SeedsOption = "0,1,2",
+    seeds: SeedsOption = DEFAULT_SEEDS,
     workers: Annotated[
         int | None,
         typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
@@ -379,7 +381,7 @@ def status(
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
-    seeds: SeedsOption = "0,1,2",
+    seeds: SeedsOption = DEFAULT_SEEDS,
     root: RootOption = Path("results"),
     workers: Annotated[
         int | None,

@@ -135,8 +135,11 @@ class SACConfig:
         lambda_hap: weight of L_hap (paper: 0.2).
         lambda_velocity: lambda_v of Eq. sim_compact (the paper does not give it; set once,
             never tuned).
-        lambda_acceleration: lambda_a of Eq. sim_compact (per m/s^2 of L1 error; the paper
-            does not give it; set once, never tuned).
+        lambda_acceleration: lambda_a of Eq. sim_compact, per unit of *relative* L1
+            acceleration error (the L1 term divided by the demonstration's mean L1
+            acceleration, so both terms are dimensionless; environment v5). The paper gives
+            neither lambda_v nor lambda_a, only lambda_sim: equal unit weights of two
+            dimensionless terms, set from the units before any v5 run, never tuned.
         n_similarity_samples: T, trajectory samples for L_sim.
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
         anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
@@ -159,7 +162,7 @@ class SACConfig:
     lambda_sim: float = 0.5
     lambda_hap: float = 0.2
     lambda_velocity: float = 1.0
-    lambda_acceleration: float = 0.05
+    lambda_acceleration: float = 1.0
     n_similarity_samples: int = 50
     hap_k: int = 8
     hap_temperature: float = 0.05

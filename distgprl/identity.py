@@ -22,7 +22,7 @@ from distgprl.io import config_hash
 from distgprl.methods import MethodSpec, get_method
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 
-__all__ = ["RunSpec", "method_revisions", "resolve_run"]
+__all__ = ["SWEEP_SEEDS", "RunSpec", "method_revisions", "resolve_run"]
 
 
 def method_revisions(method: MethodSpec) -> dict[str, int]:
@@ -70,6 +70,10 @@ class RunSpec:
     def hash(self) -> str:
         return config_hash(self.to_dict())
 
+
+SWEEP_SEEDS = (0, 1, 2, 3, 4)
+"""The seeds a sweep trains by default: five per method and task (Table I v5, issue 33; three
+seeds could not settle any ablation)."""
 
 SEED_LIMIT = 2**32
 """Seeds are integers in ``[0, SEED_LIMIT)`` (what NumPy, gymnasium and torch accept)."""

@@ -20,19 +20,29 @@ import torch
 from torch import nn
 
 from distgprl.adaptation.layout import ActionLayout, AuxLayout
+from distgprl.config import SACConfig
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import ValueWithGradient
 from distgprl.skill.gp import GPSkill
 
+ACCELERATION_REFERENCE_FLOOR = 1e-3
+"""Smallest demonstration mean L1 acceleration (m/s^2) the L1 term is divided by."""
+
 
 @dataclass(frozen=True)
 class RegulariserWeights:
-    """lambda_sim, lambda_hap (Eq. actor_final_compact) and lambda_v, lambda_a (Eq. sim_compact)."""
+    """lambda_sim, lambda_hap (Eq. actor_final_compact) and lambda_v, lambda_a (Eq. sim_compact).
 
-    lambda_sim: float = 0.5
-    lambda_hap: float = 0.2
-    lambda_velocity: float = 1.0
-    lambda_acceleration: float = 0.05
+    lambda_a weighs the *relative* L1 acceleration error: `ActorRegulariser` divides the L1 term
+    by the demonstration's own mean L1 acceleration (``acceleration_reference``), so that both
+    terms of Eq. sim_compact are dimensionless like 1 - cos (environment v5, DESIGN §3). The
+    defaults are `distgprl.config.SACConfig`'s.
+    """
+
+    lambda_sim: float = SACConfig.lambda_sim
+    lambda_hap: float = SACConfig.lambda_hap
+    lambda_velocity: float = SACConfig.lambda_velocity
+    lambda_acceleration: float = SACConfig.lambda_acceleration
 
 
 class ActorRegulariser(nn.Module):
@@ -87,6 +97,14 @@ class ActorRegulariser(nn.Module):
         buffer("acceleration_map", skill.acceleration_map(tau))
         buffer("demo_velocity", skill.velocity_map(tau) @ demo_centered)
         buffer("demo_acceleration", skill.acceleration_map(tau) @ demo_centered)
+        # Eq. sim_compact's L1 term in units of the demonstration's own acceleration:
+        # (1/T) sum_t |zeta''(t)|_1 (m/s^2 and rad/s^2 over the six axes), floored so that a
+        # demonstration at rest cannot blow the weight up.
+        self.acceleration_reference = max(
+            float(np.abs(skill.acceleration_map(tau) @ demo_centered).sum(axis=1).mean()),
+            ACCELERATION_REFERENCE_FLOOR,
+        )
+        self.acceleration_weight = weights.lambda_acceleration / self.acceleration_reference
         hap_tau = np.linspace(0.0, 1.0, n_hap_queries)
         buffer("hap_map", skill.position_map(hap_tau))
         self.moving_filter = moving_filter if self.hap_prior is not None else None
@@ -211,7 +229,7 @@ class ActorRegulariser(nn.Module):
         )
         l1 = (acceleration - self.demo_acceleration).abs().sum(dim=-1)
         return self.weights.lambda_velocity * (1.0 - cos.mean(dim=1)) + (
-            self.weights.lambda_acceleration * l1.mean(dim=1)
+            self.acceleration_weight * l1.mean(dim=1)
         )
 
     def _similarity_from_readout(self, out: torch.Tensor) -> torch.Tensor:
@@ -225,7 +243,7 @@ class ActorRegulariser(nn.Module):
         l1 = out[:, :, t : 2 * t].abs().sum()  # sum over B, the 6 axes and T
         samples = t * batch
         return self.weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
-            self.weights.lambda_acceleration * l1 / samples
+            self.acceleration_weight * l1 / samples
         )
 
     def _anchors(self, aux: torch.Tensor) -> torch.Tensor:
@@ -289,7 +307,7 @@ class ActorRegulariser(nn.Module):
             cos = (velocity * direction).sum(1).div_(norm)
             error = out[:, :, t : 2 * t]
             l_sim = weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
-                weights.lambda_acceleration * error.abs().sum() / samples
+                self.acceleration_weight * error.abs().sum() / samples
             )
             total = total + weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim)
@@ -300,7 +318,7 @@ class ActorRegulariser(nn.Module):
             grad_velocity.mul_((factor / norm).unsqueeze(1))
             grad_error = grad_out[:, :, t : 2 * t]
             torch.sign(error, out=grad_error)
-            grad_error.mul_(weights.lambda_sim * weights.lambda_acceleration / samples)
+            grad_error.mul_(weights.lambda_sim * self.acceleration_weight / samples)
         if self.hap_prior is not None:
             positions = (
                 out[:, :3, 2 * t :].transpose(1, 2).contiguous().cpu().numpy()

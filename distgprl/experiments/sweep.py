@@ -59,6 +59,7 @@ from distgprl.experiments.runner import (
     run_dir,
     train_run,
 )
+from distgprl.identity import SWEEP_SEEDS
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
 
@@ -91,7 +92,7 @@ def plan_jobs(
     preset: str,
     methods: Sequence[str] | None = None,
     tasks: Sequence[str] | None = None,
-    seeds: Sequence[int] = (0, 1, 2),
+    seeds: Sequence[int] = SWEEP_SEEDS,
     root: str | Path = "results",
 ) -> list[Job]:
     """All jobs of a sweep: seed by seed, methods in the given order (default: table order),

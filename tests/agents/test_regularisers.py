@@ -8,6 +8,8 @@ the total, each logged term and the gradient w.r.t. the actions agree to 1e-9 in
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -73,8 +75,14 @@ def _pair(method, frozen, weights, hap, moving):
     prior = HapPrior(_c_safe(), dtype=torch.float64) if hap else None
     kwargs = dict(hap_prior=prior, moving_filter=_moving_filter() if moving else None)
     new = ActorRegulariser(skill, layout, weights, **kwargs).double()
-    old = ReferenceActorRegulariser(skill, layout, weights, **kwargs).double()
+    old = ReferenceActorRegulariser(skill, layout, _as_reference(weights, new), **kwargs).double()
     return skill, layout, new, old
+
+
+def _as_reference(weights, new):
+    """The reference predates environment v5's relative L1 term: give it lambda_a already
+    divided by the demonstration's mean L1 acceleration."""
+    return replace(weights, lambda_acceleration=new.acceleration_weight)
 
 
 @pytest.mark.parametrize(("method", "frozen"), LAYOUTS)
@@ -111,7 +119,9 @@ def test_a_generic_prior_module_goes_through_autograd_and_equals_the_reference(m
     weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.2)
     prior = QuadraticPrior().double()
     new = ActorRegulariser(skill, layout, weights, hap_prior=prior).double()
-    old = ReferenceActorRegulariser(skill, layout, weights, hap_prior=prior).double()
+    old = ReferenceActorRegulariser(
+        skill, layout, _as_reference(weights, new), hap_prior=prior
+    ).double()
     aux, actions = _batch(skill, layout, np.random.default_rng(3), anchors=False)
     total, terms, grad = _evaluate(new, aux, actions)
     ref_total, ref_terms, ref_grad = _evaluate(old, aux, actions)
@@ -159,9 +169,41 @@ def test_float32_regulariser_agrees_with_the_reference_to_float_precision():
     weights = RegulariserWeights()
     prior = HapPrior(_c_safe())
     new = ActorRegulariser(skill, layout, weights, hap_prior=prior)
-    old = ReferenceActorRegulariser(skill, layout, weights, hap_prior=prior)
+    old = ReferenceActorRegulariser(skill, layout, _as_reference(weights, new), hap_prior=prior)
     aux, actions = _batch(skill, layout, np.random.default_rng(2), anchors=False)
     results = [_evaluate(m, aux.float(), actions.float()) for m in (new, old)]
     assert results[0][0] == pytest.approx(results[1][0], rel=1e-5)
     scale = np.abs(results[1][2]).max()
     np.testing.assert_allclose(results[0][2], results[1][2], rtol=0, atol=1e-5 * scale)
+
+
+def test_acceleration_term_is_the_relative_l1_error():
+    """Environment v5: Eq. sim_compact's L1 term is divided by the demonstration's own mean
+    L1 acceleration (1/T) sum_t |acc_demo(t)|_1, so L_sim of adapted via-points equals
+    lambda_v (1 - mean cos) + lambda_a mean |acc' - acc_demo|_1 / mean |acc_demo|_1; and a
+    demonstration with twice the motion, adapted twice as much, has the same L_sim (both
+    terms are dimensionless)."""
+    skill = small_skill()
+    layout = build_action_layout(skill, EnvConfig(), get_method("dist-gprl"))
+    weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.0, lambda_acceleration=0.7)
+    module = ActorRegulariser(skill, layout, weights).double()
+    tau = np.linspace(0.0, 1.0, 50)
+    demo = skill.via_points - skill.prior_mean
+    reference = np.abs(skill.acceleration_map(tau) @ demo).sum(1).mean()
+    assert module.acceleration_reference == pytest.approx(reference, rel=1e-9)
+    rng = np.random.default_rng(4)
+    adapted = demo[None] + rng.normal(0.0, 0.02, (8, *demo.shape))
+    velocity = np.einsum("tn,bnj->btj", skill.velocity_map(tau), adapted)
+    demo_velocity = skill.velocity_map(tau) @ demo
+    cos = (velocity * demo_velocity).sum(-1) / (
+        np.linalg.norm(velocity, axis=-1) * np.linalg.norm(demo_velocity, axis=-1)
+    )
+    error = np.einsum("tn,bnj->btj", skill.acceleration_map(tau), adapted - demo[None])
+    expected = (1.0 - cos.mean(1)) + 0.7 * np.abs(error).sum(-1).mean(1) / reference
+    value = module.similarity_loss(torch.as_tensor(adapted)).numpy()
+    np.testing.assert_allclose(value, expected, rtol=1e-5)
+    doubled = replace(skill, via_points=skill.prior_mean + 2.0 * demo)
+    module2 = ActorRegulariser(doubled, layout, weights).double()
+    assert module2.acceleration_reference == pytest.approx(2.0 * reference, rel=1e-9)
+    value2 = module2.similarity_loss(torch.as_tensor(2.0 * adapted)).numpy()
+    np.testing.assert_allclose(value2, value, rtol=1e-6)
