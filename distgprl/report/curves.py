@@ -1,9 +1,13 @@
 """Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
 
-Each panel shows the mean over seeds and a ± std band of success rate, collision rate and
-episode return against training steps. The band is the sample standard deviation over seeds
-(ddof = 1, as in Table I), clipped to [0, 1] for the rates (a rate outside it means
-nothing); a single seed has no band. Seeds are aligned on their common steps.
+Each panel shows the mean over seeds of success rate, collision rate and episode return
+against training steps, with a 95 % bootstrap band: at every step, the 2.5th and 97.5th
+percentiles of the mean over `BOOTSTRAP_REPS` resamples of the seeds with replacement (whole
+curves are resampled, seeds are the units; Agarwal et al. 2021, as `distgprl.report.aggregate`
+does for Table I's intervals). Rate bands lie in [0, 1] by construction (means of rates);
+a single seed has no band. Seeds are aligned on their common steps. Each band draws from its
+own generator (`estimate_rng` of the figure seed, task, method and metric), so the figures
+are reproducible byte for byte and adding a method leaves the other bands unchanged.
 
 For print: every panel has its y-axis label, one legend for the whole figure sits below the
 panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
@@ -20,6 +24,7 @@ import numpy as np
 
 from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
 from distgprl.report.runs import select_runs
 from distgprl.schema import read_csv
 
@@ -34,7 +39,7 @@ Y_LABELS = {
     "collision_rate": "collision rate (curve TCs)",
     "mean_return": "mean episode return",
 }
-#: Panels whose values are rates: their bands are clipped to [0, 1].
+#: Panels whose values are rates (their axes span [0, 1]).
 RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
@@ -84,13 +89,20 @@ def load_curves(root: str | Path, preset: str, task: str, method: str):
     return np.array(common), out
 
 
-def mean_and_band(values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """(mean, sample std with ddof = 1) over seeds (axis 0) of a (seeds, k) array; the std
-    is None (no band) for a single seed."""
+def mean_and_band(
+    values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """(mean, (low, high)) over seeds (axis 0) of a (seeds, k) array: the mean curve and its
+    `CONFIDENCE` percentile bootstrap band (``reps`` resamples of the seeds, each resample's
+    mean curve). The band is None for a single seed."""
     mean = values.mean(axis=0)
-    if values.shape[0] < 2:
+    seeds = values.shape[0]
+    if seeds < 2:
         return mean, None
-    return mean, values.std(axis=0, ddof=1)
+    resampled = values[rng.integers(0, seeds, size=(reps, seeds))].mean(axis=1)  # (reps, k)
+    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
+    low, high = np.percentile(resampled, [tail, 100.0 - tail], axis=0)
+    return mean, (low, high)
 
 
 def method_color(method: str) -> str:
@@ -99,14 +111,6 @@ def method_color(method: str) -> str:
     if method == HIGHLIGHT:
         return "black"
     return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
-
-
-def band_limits(key: str, mean: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) of the mean ± std band; clipped to [0, 1] for a rate (`RATES`)."""
-    low, high = mean - std, mean + std
-    if key in RATES:
-        low, high = np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)
-    return low, high
 
 
 def _seed_note(seeds: dict[str, int]) -> str:
@@ -142,14 +146,15 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
             color = method_color(method)
             for col, (key, _) in enumerate(PANELS):
                 ax = axes[row, col]
-                mean, std = mean_and_band(values[key])
+                rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
+                mean, band = mean_and_band(values[key], rng)
                 seeds_of.setdefault(method, {})[task] = values[key].shape[0]
                 (line,) = ax.plot(
                     steps, mean, color=color, lw=2.4 if bold else 1.3, zorder=4 if bold else 2
                 )
                 handles.setdefault(method, line)
-                if std is not None:
-                    low, high = band_limits(key, mean, std)
+                if band is not None:
+                    low, high = band
                     ax.fill_between(
                         steps, low, high, color=color, alpha=0.18 if bold else 0.12, lw=0,
                         zorder=3 if bold else 1,

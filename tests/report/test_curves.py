@@ -105,24 +105,37 @@ def test_tables_and_figures_are_byte_identical_from_another_process(tmp_path, re
         assert content == second[name], name
 
 
-def test_curve_band_is_the_sample_std_over_seeds_and_absent_for_one_seed():
-    """The ± band is the sample standard deviation over seeds (ddof = 1, as Table I), not
-    the population std; a single seed gives the mean and no band."""
+def test_curve_band_is_the_bootstrap_interval_of_the_mean_and_absent_for_one_seed():
+    """The band is the 95 % percentile bootstrap interval of the mean over seeds: it lies
+    within the seeds' range at every step, contains the mean, leaves at most 2.5 % (+ 1 %
+    sampling slack) of the exact resample distribution (the 27 equally likely resamples of
+    three seeds) on either side, is reproducible for one generator seed, and is absent for a
+    single seed."""
+    import itertools
+
     values = np.array([[0.0, 0.2, 0.6], [0.1, 0.5, 0.9], [0.2, 0.2, 0.3]])
-    mean, std = mean_and_band(values)
+    mean, band = mean_and_band(values, np.random.default_rng(0), reps=20000)
     np.testing.assert_allclose(mean, [0.1, 0.3, 0.6])
-    deviations = values - mean
-    sample_std = np.sqrt((deviations**2).sum(axis=0) / (len(values) - 1))
-    np.testing.assert_allclose(std, sample_std)
-    assert not np.allclose(std, values.std(axis=0))  # the population std differs
-    mean, std = mean_and_band(values[:1])
+    low, high = band
+    assert np.all(low <= mean) and np.all(mean <= high)
+    assert np.all(low >= values.min(0) - 1e-12) and np.all(high <= values.max(0) + 1e-12)
+    means = np.array([values[list(i)].mean(0) for i in itertools.product(range(3), repeat=3)])
+    # the defining property of the percentile interval, on the exact resample distribution
+    assert np.all((means < low - 1e-12).mean(0) <= 0.025 + 0.01)
+    assert np.all((means > high + 1e-12).mean(0) <= 0.025 + 0.01)
+    assert np.all(high - low > 0)
+    again = mean_and_band(values, np.random.default_rng(0), reps=20000)[1]
+    np.testing.assert_array_equal(again[0], low)
+    mean, band = mean_and_band(values[:1], np.random.default_rng(0))
     np.testing.assert_array_equal(mean, values[0])
-    assert std is None
+    assert band is None
 
 
-def test_figure_band_spans_the_sample_std_and_a_single_seed_has_no_band(tmp_path):
-    """The filled band drawn around the mean curve reaches mean ± sample std (ddof = 1);
-    a method with one seed has a curve but no band."""
+def test_figure_band_is_the_bootstrap_interval_and_a_single_seed_has_no_band(tmp_path):
+    """The filled band drawn around the mean curve spans the bootstrap interval of two
+    seeds: with two seeds every resample mean is one seed's value or their average, so the
+    band reaches from (nearly) the lower seed to (nearly) the upper one; a method with one
+    seed has a curve but no band."""
     _run(tmp_path, "dist-gprl", 0, [0, 100], [0.2, 0.4])
     _run(tmp_path, "dist-gprl", 1, [0, 100], [0.4, 0.8])
     _run(tmp_path, "gprl-d", 0, [0, 100], [0.1, 0.3])
@@ -131,9 +144,9 @@ def test_figure_band_spans_the_sample_std_and_a_single_seed_has_no_band(tmp_path
     success = fig.axes[0]
     assert len(success.lines) == 2 and len(success.collections) == 1  # gprl-d: no band
     vertices = success.collections[0].get_paths()[0].vertices
-    sample_std = np.std([[0.2, 0.4], [0.4, 0.8]], axis=0, ddof=1)  # [0.141, 0.283]
-    assert vertices[:, 1].max() == pytest.approx(0.6 + sample_std[1])
-    assert vertices[:, 1].min() == pytest.approx(0.3 - sample_std[0])
+    # P(both resamples the lower seed) = 1/4 > 2.5 %: the percentiles are the seeds' values
+    assert vertices[:, 1].max() == pytest.approx(0.8)
+    assert vertices[:, 1].min() == pytest.approx(0.2)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
@@ -176,9 +189,10 @@ def test_a_figure_without_any_finished_run_is_removed_not_left_stale(tmp_path):
     assert out / "all_methods_p.png" in written
 
 
-def test_rate_bands_are_clipped_to_the_unit_interval_and_returns_are_not(tmp_path):
-    """Seeds at 0.9 and 1.0 have mean + std above 1: the success band stops at 1 (and the
-    collision band at 0), the return band is not clipped."""
+def test_rate_bands_stay_in_the_unit_interval_and_returns_are_not_limited(tmp_path):
+    """Seeds at 0.9 and 1.0 (and 0.7, 0.8): the success band (means of resampled seeds) reaches
+    1 and never passes it, the collision band stays at 0, the return band reaches the upper
+    seed's return (10 x success, no [0, 1] limit); rate axes span [0, 1]."""
     _run(tmp_path, "dist-gprl", 0, [0, 100], [0.9, 1.0])
     _run(tmp_path, "dist-gprl", 1, [0, 100], [0.7, 0.8])
     fig, _ = plot_figure(tmp_path, "p", ["dcp"], ("dist-gprl",), "t")
@@ -186,8 +200,7 @@ def test_rate_bands_are_clipped_to_the_unit_interval_and_returns_are_not(tmp_pat
     high = [ax.collections[0].get_paths()[0].vertices[:, 1] for ax in fig.axes]
     assert high[0].max() == pytest.approx(1.0) and high[0].min() >= 0.0
     assert high[1].min() == pytest.approx(0.0) and high[1].max() <= 1.0
-    std = np.std([[9.0, 10.0], [7.0, 8.0]], axis=0, ddof=1)
-    assert high[2].max() == pytest.approx(9.0 + std[1])  # 10 x success, unclipped
+    assert high[2].max() == pytest.approx(10.0)
     assert all(ax.get_ylim() == pytest.approx((-0.03, 1.03)) for ax in (success, collision))
     import matplotlib.pyplot as plt
 
