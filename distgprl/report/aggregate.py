@@ -76,6 +76,7 @@ HIGHER_IS_BETTER: dict[str, bool] = {
     "steps_to_80": False,
     "late_variance": False,
     "curve_auc": True,
+    "mean_kinematic_retention": True,
 }
 """Every score `run_scores` gives, and whether a higher value is an improvement."""
 
@@ -242,9 +243,12 @@ def curve_measures(path: Path) -> dict[str, float]:
 
 
 def run_scores(folder: Path, summary: Mapping[str, float]) -> dict[str, float]:
-    """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates (``summary``)
-    and its `curve_measures` (``folder/progress.csv``; none for an untrained reference)."""
+    """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
+    retention (``summary``) and its `curve_measures` (``folder/progress.csv``; none for an
+    untrained reference)."""
     scores = {key: float(summary[key]) for key, _ in RATES if key in summary}
+    if "mean_kinematic_retention" in summary:  # velocity cosine to the demonstration
+        scores["mean_kinematic_retention"] = float(summary["mean_kinematic_retention"])
     scores.update(curve_measures(folder / "progress.csv"))
     return scores
 

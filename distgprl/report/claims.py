@@ -27,6 +27,12 @@ Ranking claims compare IQM intervals of the seven trained methods of Table I (`R
   lies entirely above Dist-GPRL's or its collision-IQM interval lies entirely above those of
   at least half of the others; else *inconclusive*.
 
+- "Dist-GPRL balances collisions and kinematic retention": on the pair (collision IQM, lower
+  is better; kinematic-retention IQM, the mean velocity cosine to the demonstration, higher
+  is better) method A *dominates* B if A's interval lies entirely on the better side of B's on
+  both. *Reproduced* if no trained method dominates Dist-GPRL and Dist-GPRL dominates at
+  least one; *refuted* if some method dominates it; else *inconclusive*.
+
 Every claim is *inconclusive (no runs)* while a method it needs has no run, and
 *inconclusive (fewer than 2 seeds)* while one has a task with a single seed (no interval).
 """
@@ -202,6 +208,47 @@ def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> Verdict
     return Verdict(claim, test, collision[method], verdict, detail)
 
 
+def _better(a: Estimate, b: Estimate, higher_is_better: bool) -> bool:
+    """Whether ``a``'s interval lies entirely on the better side of ``b``'s."""
+    return _above(a, b) if higher_is_better else _above(b, a)
+
+
+def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> Verdict:
+    """ "Dist-GPRL balances collisions and kinematic retention" by its dominance rule (module
+    docstring)."""
+    keys = (("collision_rate", False), ("mean_kinematic_retention", True))
+    estimates = {
+        key: {m: method_estimate(scores, tasks, m, key, "iqm", seed) for m in RANKED}
+        for key, _ in keys
+    }
+    others = [m for m in RANKED if m != PROPOSED]
+
+    def dominates(a: str, b: str) -> bool:
+        return all(_better(estimates[k][a], estimates[k][b], up) for k, up in keys)
+
+    dominated_by = [m for m in others if dominates(m, PROPOSED)]
+    dominating = [m for m in others if dominates(PROPOSED, m)]
+    verdict = _availability([e for per in estimates.values() for e in per.values()])
+    if verdict is None:
+        if dominated_by:
+            verdict = REFUTED
+        elif dominating:
+            verdict = REPRODUCED
+        else:
+            verdict = INCONCLUSIVE
+    own = estimates["mean_kinematic_retention"][PROPOSED]
+    detail = ""
+    if own.seeds and estimates["collision_rate"][PROPOSED].seeds:
+        detail = (
+            f"collision IQM {estimates['collision_rate'][PROPOSED].text()}; dominates "
+            f"{', '.join(_label(m) for m in dominating) or 'none'}; dominated by "
+            f"{', '.join(_label(m) for m in dominated_by) or 'none'}"
+        )
+    test = "Dist-GPRL's (collision, kinematic retention) IQM intervals vs each trained method's"
+    claim = "Dist-GPRL balances collisions and kinematic retention"
+    return Verdict(claim, test, own, verdict, detail)
+
+
 def claims_group(scores: Scores) -> list[str]:
     """The tasks the claims pool: every task with runs (`ALL_TASKS`), or the single one."""
     groups = dict(task_groups(scores))
@@ -221,6 +268,7 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
         lambda: extreme_verdict(
             scores, tasks, PROPOSED, "success_rate", "Dist-GPRL has the best success", seed
         ),
+        lambda: balance_verdict(scores, tasks, seed),
         lambda: conservative_verdict(scores, tasks, seed),
         lambda: extreme_verdict(
             scores, tasks, "gprl", "collision_rate", "GPRL collides most", seed
@@ -233,7 +281,8 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
 CSV_FIELDS = ("claim", "test", "value", "ci_low", "ci_high", "seeds", "verdict", "detail")
 """Columns of ``claims_<preset>.csv`` (``seeds`` per task stratum, ``;``-separated; value and
 interval empty without runs, the interval empty below two seeds). The ProMP-RRL row's value is
-its collision IQM, its success IQM is in ``detail``."""
+its collision IQM, its success IQM is in ``detail``; the balance row's value is Dist-GPRL's
+kinematic-retention IQM, its collision IQM is in ``detail``."""
 
 
 def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:

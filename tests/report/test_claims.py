@@ -22,11 +22,13 @@ SEEDS = 5
 JITTER = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
 
 
-def runs(success, collision, curve=None):
-    """Five seeds' scores around ``success`` and ``collision`` (and curve measures)."""
+def runs(success, collision, curve=None, retention=0.5):
+    """Five seeds' scores around ``success``, ``collision`` and kinematic ``retention`` (and
+    curve measures)."""
     out = []
     for jitter in JITTER[:SEEDS]:
         run = {"success_rate": success + jitter, "collision_rate": collision + jitter}
+        run["mean_kinematic_retention"] = retention + jitter
         run.update(curve or {})
         out.append(run)
     return out
@@ -42,14 +44,15 @@ def by_claim(verdicts):
 
 
 FIELD = {  # every trained method; Dist-GPRL best, GPRL collides most, ProMP-RRL conservative
-    "gprl": runs(0.4, 0.5),
-    "promp-rrl": runs(0.2, 0.05),
-    "dist-gprl-global": runs(0.3, 0.3),
-    "gprl-d": runs(0.6, 0.2),
-    "gprl-h": runs(0.6, 0.35),
-    "dist-gprl": runs(0.9, 0.1),
-    "dist-gprl-nocov": runs(0.7, 0.15),
-}
+    "gprl": runs(0.4, 0.5, retention=0.4),
+    "promp-rrl": runs(0.2, 0.05, retention=0.3),
+    "dist-gprl-global": runs(0.3, 0.3, retention=0.5),
+    "gprl-d": runs(0.6, 0.2, retention=0.6),
+    "gprl-h": runs(0.6, 0.35, retention=0.6),
+    "dist-gprl": runs(0.9, 0.1, retention=0.7),
+    "dist-gprl-nocov": runs(0.7, 0.15, retention=0.7),
+}  # Dist-GPRL dominates GPRL, Global, GPRL-D/H on (collision, retention); nobody dominates it
+BALANCE = "Dist-GPRL balances collisions and kinematic retention"
 
 
 def test_a_clear_improvement_is_reproduced():
@@ -66,6 +69,19 @@ def test_a_clear_improvement_is_reproduced():
     assert verdicts["ProMP-RRL is conservative (few collisions, low success)"].verdict == (
         REPRODUCED
     )
+    assert verdicts[BALANCE].verdict == REPRODUCED
+
+
+def test_balance_is_refuted_by_a_dominating_method_and_inconclusive_without_dominance():
+    """A method with fewer collisions *and* more kinematic retention (both intervals apart)
+    refutes "balances"; when every method overlaps Dist-GPRL on one of the two scores, no
+    one dominates anyone and the claim is inconclusive."""
+    field = {**FIELD, "promp-rrl": runs(0.2, 0.05, retention=0.9)}
+    verdict = by_claim(evaluate_claims(scores_of(field), seed=0))[BALANCE]
+    assert verdict.verdict == REFUTED and "dominated by ProMP-RRL" in verdict.detail
+    flat = {m: runs(0.5, 0.2, retention=0.5) for m in FIELD}
+    flat["dist-gprl"] = runs(0.9, 0.2, retention=0.5)
+    assert by_claim(evaluate_claims(scores_of(flat), seed=0))[BALANCE].verdict == INCONCLUSIVE
 
 
 def test_identical_distributions_are_inconclusive():
@@ -155,7 +171,7 @@ def test_write_tables_writes_the_aggregates_and_the_claims_from_a_result_tree(tm
     assert windowed["verdict"] == REPRODUCED and float(windowed["ci_low"]) > 0.5
     assert windowed["seeds"] == "5;5"
     markdown = (tmp_path / "out" / "claims_p.md").read_text()
-    assert markdown.count("| inconclusive (no runs) |") == 8  # every other claim
+    assert markdown.count("| inconclusive (no runs) |") == 9  # every other claim
     _, aggregates = read_csv(tmp_path / "out" / "aggregates_p.csv")
     pooled = [r for r in aggregates if r["task"] == "all" and r["statistic"] == "poi"]
     assert {r["versus"] for r in pooled} == {"dist-gprl-global"}
