@@ -300,6 +300,60 @@ def nearest_branch_exact(
     return best
 
 
+def _wrapped_branch(
+    row: list[float],
+    reference: list[float],
+    limits: Sequence[tuple[float, float]],
+    bound: float,
+) -> tuple[list[float], float] | None:
+    """One branch of `nearest_branch_exact`'s rule: (wrapped joints, squared distance), or
+    None if it leaves the limits, is singular, or its distance exceeds ``bound``."""
+    candidate = []
+    distance = 0.0
+    for value, ref, (lower, upper) in zip(row, reference, limits, strict=True):
+        if value != value:  # NaN: singular branch
+            return None
+        value -= TWO_PI * round((value - ref) / TWO_PI)
+        if value > upper:
+            value -= TWO_PI
+        elif value < lower:
+            value += TWO_PI
+        if value < lower or value > upper:
+            return None
+        candidate.append(value)
+        distance += (value - ref) ** 2
+        if distance > bound:  # partial sums only grow: it cannot be the nearest
+            return None
+    return candidate, distance
+
+
+def nearest_branch(
+    solutions: Sequence[np.ndarray],
+    reference: list[float],
+    limits: Sequence[tuple[float, float]],
+    hint: int = 0,
+) -> tuple[list[float] | None, int]:
+    """`nearest_branch_exact`'s choice, computed faster: (the branch, its index).
+
+    Branch ``hint`` (e.g. the one chosen for the previous pose) is wrapped first; its
+    distance bounds the others, each dropped as soon as its partial squared distance
+    exceeds it (partial sums of squares never decrease, so a dropped branch is farther
+    than the hint, and a branch tying the hint is kept: the first of equals still wins).
+    """
+    rows = [solution.tolist() for solution in solutions]
+    hinted = _wrapped_branch(rows[hint], reference, limits, math.inf) if hint < len(rows) else None
+    bound = math.inf if hinted is None else hinted[1]
+    best: list[float] | None = None
+    best_index = hint
+    best_distance = math.inf
+    for index, row in enumerate(rows):
+        branch = hinted if index == hint else _wrapped_branch(row, reference, limits, bound)
+        if branch is not None and branch[1] < best_distance:
+            best, best_distance = branch
+            best_index = index
+    return best, best_index
+
+
 def _float_list(values: Sequence[float]) -> list[float]:
     """``values`` as a list of floats (a list is passed through: the control loop's)."""
     return values if isinstance(values, list) else np.asarray(values, dtype=float).tolist()
@@ -355,6 +409,7 @@ class UR5e:
         self._limits = tuple(
             zip(self.lower_limits.tolist(), self.upper_limits.tolist(), strict=True)
         )
+        self._last_branch = 0  # `ik_nearest`'s first guess: the branch it chose last
         self.tool_link = links["tool"]
         self.tcp_link = links["tcp"]
         self._tool0_from_tcp = tool.tool0_from_tcp
@@ -408,33 +463,13 @@ class UR5e:
         possible to the reference within the joint limits (wrap-around), then the branch
         with the smallest Euclidean joint distance is returned (the first of equals).
         """
-        # Called once per control period, so the branches are wrapped as one array (issue
-        # 29). The wrap is the same IEEE arithmetic as `nearest_branch_exact`; the distances
-        # are not (x * x here, libm's pow(x, 2) there: they differ in the last bit now and
-        # then), so when the two nearest branches are within a relative 1e-9 the scalar
-        # rule picks, and the choice is always the scalar rule's.
+        # Called once per control period (issue 29): the scalar rule, with the distance of
+        # the branch chosen last time as a bound that cuts the other branches short.
         solutions = _inverse_kinematics(tcp_transform @ self._tcp_from_tool0)
-        if not solutions:
-            return None
-        reference = np.array([float(v) for v in q_reference])
-        branches = np.array(solutions)
-        turns = np.rint((branches - reference) / TWO_PI) + 0.0  # + 0.0: round()'s int 0
-        wrapped = branches - TWO_PI * turns
-        lower, upper = self.lower_limits, self.upper_limits
-        wrapped = np.where(
-            wrapped > upper, wrapped - TWO_PI, np.where(wrapped < lower, wrapped + TWO_PI, wrapped)
+        best, self._last_branch = nearest_branch(
+            solutions, [float(v) for v in q_reference], self._limits, self._last_branch
         )
-        valid = ((wrapped >= lower) & (wrapped <= upper)).all(axis=1)  # NaN rows fail
-        difference = wrapped - reference
-        distance = np.where(valid, (difference * difference).sum(axis=1), math.inf)
-        order = np.argsort(distance, kind="stable")
-        nearest = distance[order[0]]
-        if nearest == math.inf:
-            return None
-        if len(order) > 1 and distance[order[1]] - nearest <= 1e-9 * max(nearest, 1e-300):
-            best = nearest_branch_exact(solutions, reference.tolist(), self._limits)
-            return None if best is None else np.array(best)
-        return wrapped[order[0]].copy()
+        return None if best is None else np.array(best)
 
     # ------------------------------------------------------------------ state and control
     def reset_joints(self, q: np.ndarray) -> None:

@@ -131,14 +131,14 @@ def test_tool_points_lie_on_the_tool(robot):
 
 
 def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
-    """`UR5e.ik_nearest` (array form) returns exactly the joint vector of the scalar rule
-    `nearest_branch_exact` (the implementation the committed runs were made with), or None
-    where it gives None: on random reachable poses with random references (wrap-around,
-    branches outside the limits), and on references placed exactly between two branches
-    (ties, decided by the scalar rule)."""
+    """`UR5e.ik_nearest` (and `nearest_branch` from every starting hint) returns exactly the
+    joint vector of the scalar rule `nearest_branch_exact` (the implementation the committed
+    runs were made with), or None where it gives None: on random reachable poses with random
+    references (wrap-around, branches outside the limits), and on references placed midway
+    between two branches (near-ties, where the first of equals must win)."""
     import ur_analytic_ik
 
-    from distgprl.sim.robot import nearest_branch_exact
+    from distgprl.sim.robot import nearest_branch, nearest_branch_exact
     from distgprl.sim.transforms import invert_transform
 
     rng = np.random.default_rng(7)
@@ -152,11 +152,10 @@ def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
         solutions = ur_analytic_ik.ur5e.inverse_kinematics(robot.fk_tool0(q))
         if rng.uniform() < 0.25 and len(solutions) >= 2:  # a tie: midway between two branches
             reference = 0.5 * (solutions[0] + solutions[1])
-        expected = nearest_branch_exact(
-            ur_analytic_ik.ur5e.inverse_kinematics(tcp @ tcp_from_tool0),
-            reference.tolist(),
-            limits,
-        )
+        branches = ur_analytic_ik.ur5e.inverse_kinematics(tcp @ tcp_from_tool0)
+        expected = nearest_branch_exact(branches, reference.tolist(), limits)
+        for hint in range(len(branches) + 1):
+            assert nearest_branch(branches, reference.tolist(), limits, hint)[0] == expected
         found = robot.ik_nearest(tcp, reference)
         if expected is None:
             assert found is None
