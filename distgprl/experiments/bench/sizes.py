@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from distgprl.data import TASK_NAMES
 from distgprl.identity import RunSpec
 
 __all__ = [
@@ -76,7 +77,7 @@ _PRESET_TABLE: dict[str, tuple[Any, Any, Any]] = {
     "in_env_episodes": (30,                      5,                 1),
     "sim_episodes":    (20,                      2,                 1),
     "env_episodes":    (10,                      3,                 1),
-    "tasks":           (("dcp", "dbm"),          ("dcp", "dbm"),    ("dcp",)),
+    "tasks":           (TASK_NAMES,              TASK_NAMES,        TASK_NAMES[:1]),
     "sac_repeats":     (60,                      12,                2),
     "learning_starts": (60,                      20,                6),
     "training_steps":  (1200,                    60,                6),
