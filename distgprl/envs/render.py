@@ -36,8 +36,8 @@ def render_demo_episode(task: str, tc_index: int | None, out_path: str | Path) -
         spec = env.spec_task
         tc = spec.nominal_tc if tc_index is None else spec.evaluation_tcs(tc_index + 1)[-1]
         env.reset(options={"tc": tc})
-        tau = np.concatenate([segment[0] for segment in env._segment_maps])
-        poses = env._plan(tau)
+        tau = np.concatenate([env.segment_tau(step) for step in range(env.layout.n_steps)])
+        poses = env.plan(tau)
     finally:
         env.close()
     return render_episode(task, tc_index, out_path, poses=poses)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.data import SCENE_REVISIONS, check_task_name, demo_path
+from distgprl.data import check_task_name, demo_path
 from distgprl.io import atomic_write_text, config_hash, file_sha256
 from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load, tqdm_progress
 from distgprl.skill.demos import load_demonstration
@@ -91,12 +91,13 @@ def task_hap_config(task: str, n_via_points: int = 15) -> HapConfig:
     )
 
 
-def _hap_robot_id(tool: str, task: str) -> str:
-    """The collision model's identity in the HAP cache key: the scene's PyBullet bodies are
-    what the collision checks see, so a new scene revision builds a new subspace (revision
-    0 adds nothing: caches made before revisions stay valid)."""
-    revision = SCENE_REVISIONS[task]
-    return f"ur5e+{tool}/{task}/hap-wiring-v1" + (f"/scene-r{revision}" if revision else "")
+def hap_robot_id(robot: str, tool: str, task: str, scene_revision: int) -> str:
+    """The collision model's identity in the HAP cache key (``ur5e+shovel/dcp/...``): the
+    robot, its tool and the scene's PyBullet bodies are what the collision checks see, so a
+    new scene revision builds a new subspace (revision 0 adds nothing: caches made before
+    revisions stay valid)."""
+    suffix = f"/scene-r{scene_revision}" if scene_revision else ""
+    return f"{robot}+{tool}/{task}/hap-wiring-v1{suffix}"
 
 
 def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
@@ -116,7 +117,7 @@ def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
             sim.robot.ik_all,
             sim.configuration_in_collision,
             obstacles=static,
-            robot_id=_hap_robot_id(sim.tool.name, task),
+            robot_id=hap_robot_id(sim.robot.name, sim.tool.name, task, spec.scene_revision),
             cache_dir=hap_cache_dir(),
             joint_lower=sim.robot.lower_limits,
             joint_upper=sim.robot.upper_limits,

@@ -1,4 +1,9 @@
-"""The UR5e arm (official kinematics, real joint limits) with a rigidly attached tool.
+"""Robots of the task simulations: the `Robot` protocol, tools, and the UR5e (its one
+implementation: official kinematics, real joint limits, a rigidly attached tool).
+
+A task simulation (`distgprl.sim.tasks.base.TaskSim`) is given a `RobotFactory` (default
+`UR5e`) and calls only what `Robot` declares; the control loop (`distgprl.sim.control`)
+likewise. A new robot is one module implementing `Robot` (README "Extending: a new robot").
 
 Frames:
 - **world** = the UR controller's ``base`` frame (the frame ``ur_rtde`` reports poses
@@ -22,9 +27,11 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import airo_models
 import numpy as np
@@ -53,6 +60,8 @@ JOINT_NAMES: tuple[str, ...] = (
 """The six actuated joints, in controller order."""
 
 TWO_PI = 2.0 * math.pi
+
+_inverse_kinematics = ur_analytic_ik.ur5e.inverse_kinematics
 
 
 @dataclass(frozen=True)
@@ -127,6 +136,71 @@ HOOK = ToolSpec(
 """DBM tool: an L-shaped hook; the TCP is on the finger's upper face, where a handle rests."""
 
 
+@runtime_checkable
+class Robot(Protocol):
+    """What a task simulation and its control loop need of a robot arm with a tool.
+
+    Joint vectors are (n_joints,) in rad (six for the UR5e); transforms are (4, 4) in the
+    world frame (the robot's base frame); poses are (6,): x, y, z (m) and a rotation
+    vector (rad). The TCP is the tool's working point (`ToolSpec.tcp_position`).
+
+    Attributes:
+        name: the robot's identity in cache keys (e.g. the HAP subspace's, ``"ur5e"``).
+        tool: the mounted tool.
+        body: PyBullet body id (the contact and clearance queries' ``bodyA``).
+        lower_limits, upper_limits: joint limits (n_joints,), rad.
+    """
+
+    name: str
+    tool: ToolSpec
+    body: int
+    lower_limits: np.ndarray
+    upper_limits: np.ndarray
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """TCP transform (4, 4) for joint positions ``q``."""
+        ...
+
+    def ik_all(self, tcp_transform: np.ndarray) -> np.ndarray:
+        """Every IK branch (k, n_joints) within the joint limits reaching the TCP transform."""
+        ...
+
+    def ik_nearest(
+        self, tcp_transform: np.ndarray, q_reference: Sequence[float]
+    ) -> np.ndarray | None:
+        """The IK solution nearest ``q_reference`` (n_joints,), or None if unreachable."""
+        ...
+
+    def reset_joints(self, q: np.ndarray) -> None:
+        """Teleport the joints to ``q`` at rest and hold them there."""
+        ...
+
+    def command(self, q_target: Sequence[float], qd_target: Sequence[float]) -> None:
+        """Joint position targets (rad) with feed-forward velocities (rad/s) for the next
+        physics step."""
+        ...
+
+    def joint_positions(self) -> np.ndarray:
+        """Measured joint positions (n_joints,), rad."""
+        ...
+
+    def tcp_transform(self) -> np.ndarray:
+        """Current TCP transform (4, 4) from the simulated joints."""
+        ...
+
+    def tcp_pose(self) -> np.ndarray:
+        """Current TCP pose (6,)."""
+        ...
+
+    def tool_points(self) -> np.ndarray:
+        """Points (m, 3) on the tool's surface at the current pose, world frame, m."""
+        ...
+
+
+RobotFactory = Callable[[BulletClient, ToolSpec], Robot]
+"""Builds a robot carrying a tool in a simulation's PyBullet client (e.g. `UR5e`)."""
+
+
 def _box_surface_points(box: ToolBox, count: int) -> np.ndarray:
     """``count`` deterministic points spread over the surface of ``box`` (tool0), (count, 3)."""
     half = np.asarray(box.half_extents)
@@ -194,8 +268,99 @@ def tool_urdf_path(tool: ToolSpec) -> str:
     return str(path)
 
 
+def nearest_branch_exact(
+    solutions: Sequence[np.ndarray],
+    reference: list[float],
+    limits: Sequence[tuple[float, float]],
+) -> list[float] | None:
+    """The scalar nearest-branch rule of `UR5e.ik_nearest` (the reference its array form
+    follows): each branch (6,) of ``solutions`` wrapped by multiples of 2 pi towards
+    ``reference`` within ``limits`` ((lower, upper) per joint, rad); the first branch of
+    smallest squared distance, or None if no branch fits the limits."""
+    best: list[float] | None = None
+    best_distance = math.inf
+    for solution in solutions:
+        candidate = []
+        distance = 0.0
+        for value, ref, (lower, upper) in zip(solution.tolist(), reference, limits, strict=True):
+            if value != value:  # NaN: singular branch
+                break
+            value -= TWO_PI * round((value - ref) / TWO_PI)
+            if value > upper:
+                value -= TWO_PI
+            elif value < lower:
+                value += TWO_PI
+            if value < lower or value > upper:
+                break
+            candidate.append(value)
+            distance += (value - ref) ** 2
+        else:
+            if distance < best_distance:
+                best, best_distance = candidate, distance
+    return best
+
+
+def _wrapped_branch(
+    row: list[float],
+    reference: list[float],
+    limits: Sequence[tuple[float, float]],
+    bound: float,
+) -> tuple[list[float], float] | None:
+    """One branch of `nearest_branch_exact`'s rule: (wrapped joints, squared distance), or
+    None if it leaves the limits, is singular, or its distance exceeds ``bound``."""
+    candidate = []
+    distance = 0.0
+    for value, ref, (lower, upper) in zip(row, reference, limits, strict=True):
+        if value != value:  # NaN: singular branch
+            return None
+        value -= TWO_PI * round((value - ref) / TWO_PI)
+        if value > upper:
+            value -= TWO_PI
+        elif value < lower:
+            value += TWO_PI
+        if value < lower or value > upper:
+            return None
+        candidate.append(value)
+        distance += (value - ref) ** 2
+        if distance > bound:  # partial sums only grow: it cannot be the nearest
+            return None
+    return candidate, distance
+
+
+def nearest_branch(
+    solutions: Sequence[np.ndarray],
+    reference: list[float],
+    limits: Sequence[tuple[float, float]],
+    hint: int = 0,
+) -> tuple[list[float] | None, int]:
+    """`nearest_branch_exact`'s choice, computed faster: (the branch, its index).
+
+    Branch ``hint`` (e.g. the one chosen for the previous pose) is wrapped first; its
+    distance bounds the others, each dropped as soon as its partial squared distance
+    exceeds it (partial sums of squares never decrease, so a dropped branch is farther
+    than the hint, and a branch tying the hint is kept: the first of equals still wins).
+    """
+    rows = [solution.tolist() for solution in solutions]
+    hinted = _wrapped_branch(rows[hint], reference, limits, math.inf) if hint < len(rows) else None
+    bound = math.inf if hinted is None else hinted[1]
+    best: list[float] | None = None
+    best_index = hint
+    best_distance = math.inf
+    for index, row in enumerate(rows):
+        branch = hinted if index == hint else _wrapped_branch(row, reference, limits, bound)
+        if branch is not None and branch[1] < best_distance:
+            best, best_distance = branch
+            best_index = index
+    return best, best_index
+
+
+def _float_list(values: Sequence[float]) -> list[float]:
+    """``values`` as a list of floats (a list is passed through: the control loop's)."""
+    return values if isinstance(values, list) else np.asarray(values, dtype=float).tolist()
+
+
 class UR5e:
-    """A UR5e with a tool in one PyBullet client, plus analytic kinematics.
+    """A UR5e with a tool in one PyBullet client, plus analytic kinematics (a `Robot`).
 
     Args:
         client: the simulation's PyBullet client.
@@ -203,12 +368,15 @@ class UR5e:
         position_gain: PyBullet position-control gain (0..1) of the joint motors.
 
     Attributes:
+        name: ``"ur5e"``.
         body: PyBullet body id.
         joint_indices: PyBullet joint index of each of :data:`JOINT_NAMES`.
         lower_limits, upper_limits: joint limits (6,), rad, from the URDF.
         max_forces: joint effort limits (6,), N m.
         link_index: PyBullet link index by link name (``tool``, ``tcp``, ``base_link_inertia``...).
     """
+
+    name = "ur5e"
 
     def __init__(self, client: BulletClient, tool: ToolSpec, position_gain: float = 0.6) -> None:
         self.client = client
@@ -238,8 +406,10 @@ class UR5e:
         self.upper_limits = np.asarray(upper)
         self.max_forces = np.asarray(forces)
         self.link_index = links
-        self._lower_list = self.lower_limits.tolist()
-        self._upper_list = self.upper_limits.tolist()
+        self._limits = tuple(
+            zip(self.lower_limits.tolist(), self.upper_limits.tolist(), strict=True)
+        )
+        self._last_branch = 0  # `ik_nearest`'s first guess: the branch it chose last
         self.tool_link = links["tool"]
         self.tcp_link = links["tcp"]
         self._tool0_from_tcp = tool.tool0_from_tcp
@@ -284,36 +454,21 @@ class UR5e:
         keep &= np.all((branches >= self.lower_limits) & (branches <= self.upper_limits), axis=1)
         return branches[keep]
 
-    def ik_nearest(self, tcp_transform: np.ndarray, q_reference: np.ndarray) -> np.ndarray | None:
+    def ik_nearest(
+        self, tcp_transform: np.ndarray, q_reference: Sequence[float]
+    ) -> np.ndarray | None:
         """The IK solution (6,), rad, nearest to ``q_reference`` (6,), or None if unreachable.
 
         Each joint of each branch is shifted by a multiple of 2 pi to lie as close as
         possible to the reference within the joint limits (wrap-around), then the branch
-        with the smallest Euclidean joint distance is returned.
+        with the smallest Euclidean joint distance is returned (the first of equals).
         """
-        solutions = ur_analytic_ik.ur5e.inverse_kinematics(tcp_transform @ self._tcp_from_tool0)
-        best: list[float] | None = None
-        best_distance = math.inf
-        reference = [float(v) for v in q_reference]
-        lower, upper = self._lower_list, self._upper_list
-        for solution in solutions:
-            candidate = [0.0] * 6
-            distance = 0.0
-            for j, value in enumerate(solution.tolist()):
-                if value != value:  # NaN: singular branch
-                    break
-                value -= TWO_PI * round((value - reference[j]) / TWO_PI)
-                if value > upper[j]:
-                    value -= TWO_PI
-                elif value < lower[j]:
-                    value += TWO_PI
-                if value < lower[j] or value > upper[j]:
-                    break
-                candidate[j] = value
-                distance += (value - reference[j]) ** 2
-            else:
-                if distance < best_distance:
-                    best, best_distance = candidate, distance
+        # Called once per control period (issue 29): the scalar rule, with the distance of
+        # the branch chosen last time as a bound that cuts the other branches short.
+        solutions = _inverse_kinematics(tcp_transform @ self._tcp_from_tool0)
+        best, self._last_branch = nearest_branch(
+            solutions, [float(v) for v in q_reference], self._limits, self._last_branch
+        )
         return None if best is None else np.array(best)
 
     # ------------------------------------------------------------------ state and control
@@ -323,14 +478,15 @@ class UR5e:
             self.client.resetJointState(self.body, index, float(value), 0.0)
         self.command(np.asarray(q, dtype=float), np.zeros(6))
 
-    def command(self, q_target: np.ndarray, qd_target: np.ndarray) -> None:
-        """Position-control targets (6,), rad, with feed-forward velocities (6,), rad/s."""
+    def command(self, q_target: Sequence[float], qd_target: Sequence[float]) -> None:
+        """Position-control targets (6,), rad, with feed-forward velocities (6,), rad/s
+        (arrays or lists of floats)."""
         self._set_motors(
             self.body,
             self.joint_indices,
             pybullet.POSITION_CONTROL,
-            targetPositions=q_target.tolist(),
-            targetVelocities=qd_target.tolist(),
+            targetPositions=_float_list(q_target),
+            targetVelocities=_float_list(qd_target),
             forces=self._forces,
             positionGains=self._gains,
             velocityGains=self._velocity_gains,

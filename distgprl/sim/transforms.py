@@ -12,22 +12,26 @@ import math
 import numpy as np
 
 
-def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of a rotation vector (3,) in radians (Rodrigues)."""
-    rx, ry, rz = (float(v) for v in rotvec)
+def _rodrigues(rx: float, ry: float, rz: float) -> list[list[float]] | None:
+    """Rows of the rotation matrix of a rotation vector (rad); None for the identity."""
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
     if angle < 1e-12:
-        return np.eye(3)
+        return None
     kx, ky, kz = rx / angle, ry / angle, rz / angle
     c, s = math.cos(angle), math.sin(angle)
     v = 1.0 - c
-    return np.array(
-        [
-            [c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s],
-            [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s],
-            [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v],
-        ]
-    )
+    return [
+        [c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s],
+        [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s],
+        [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v],
+    ]
+
+
+def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of a rotation vector (3,) in radians (Rodrigues)."""
+    rx, ry, rz = (float(v) for v in rotvec)
+    rows = _rodrigues(rx, ry, rz)
+    return np.eye(3) if rows is None else np.array(rows)
 
 
 def matrix_to_rotvec(rotation: np.ndarray) -> np.ndarray:
@@ -92,10 +96,21 @@ def rotvec_to_quaternion(rotvec: np.ndarray) -> np.ndarray:
 
 def pose_to_matrix(pose: np.ndarray) -> np.ndarray:
     """Homogeneous transform (4, 4) of a pose (6,) ``(x, y, z, rx, ry, rz)``."""
-    transform = np.eye(4)
-    transform[:3, :3] = rotvec_to_matrix(pose[3:6])
-    transform[:3, 3] = pose[:3]
-    return transform
+    # One array from plain floats: called once per control period (issue 29).
+    values = pose.tolist() if isinstance(pose, np.ndarray) else [float(v) for v in pose]
+    x, y, z, rx, ry, rz = values[:6]
+    rows = _rodrigues(float(rx), float(ry), float(rz))
+    if rows is None:
+        rows = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rows
+    return np.array(
+        [
+            [r00, r01, r02, float(x)],
+            [r10, r11, r12, float(y)],
+            [r20, r21, r22, float(z)],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def matrix_to_pose(transform: np.ndarray) -> np.ndarray:

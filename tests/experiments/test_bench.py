@@ -74,6 +74,17 @@ def test_run_benchmarks_tiny(tmp_path):
     assert [r["n_via_points"] for r in scaling["via_points"]] == list(bench.TINY_SIZES.via_points)
     assert [r["n_obstacles"] for r in scaling["obstacles"]] == list(bench.TINY_SIZES.obstacles)
     assert [r["workers"] for r in scaling["workers"]] == list(bench.TINY_SIZES.workers)
+    # Issue 29's headline keys: env step over the physics in it, the suite's cost.
+    for task in bench.TINY_SIZES.tasks:
+        environment = document["environment"][task]
+        assert document["ratios"]["env_step_over_bare_physics"][task] == pytest.approx(
+            environment["env_step_per_episode"]["median_us"]
+            / environment["bare_physics_per_episode"]["median_us"]
+        )
+        assert document["ratios"]["env_step_over_bare_physics"][task] > 1.0
+    suite = document["suite"]
+    assert len(suite["methods"]) == 7 and "demo" not in suite["methods"]
+    assert suite["hours_two_idle_cores"] == pytest.approx(suite["cpu_hours"] / 2)
     breakdown = document["training"]["breakdown"]
     assert sum(part["fraction"] for part in breakdown.values()) == pytest.approx(1.0)
     agreements = ("edf_pybullet_max_abs_difference_m", "policy_numpy_vs_torch_max_abs_difference")
@@ -89,6 +100,15 @@ def test_run_benchmarks_tiny(tmp_path):
             assert value > 0, where
     table = bench.markdown_table(document)
     assert table.count("|") > 40 and "per episode" in table
+
+
+def test_suite_cpu_hours_is_seeds_times_steps_times_cost():
+    """`suite_cpu_hours` at a size checkable by hand: 2 methods x 2 tasks x 3 seeds, 10 and 20
+    steps per run, per-step costs 1-4 s: (10 (1 + 3) + 20 (2 + 4)) x 3 s = 480 s."""
+    costs = {("a", "dcp"): 1.0, ("a", "dbm"): 2.0, ("b", "dcp"): 3.0, ("b", "dbm"): 4.0}
+    hours = bench.suite_cpu_hours(costs, {"dcp": 10, "dbm": 20}, seeds=3)
+    assert hours == pytest.approx(480.0 / 3600.0)
+    assert bench.suite_cpu_hours({}, {"dcp": 10}, seeds=5) == 0.0
 
 
 def test_size_presets_are_one_table():

@@ -128,3 +128,40 @@ def test_tool_points_lie_on_the_tool(robot):
     world = robot.tool_points()
     flange = robot.link_transform(robot.link_index["tool0"])
     assert np.allclose(world, points @ flange[:3, :3].T + flange[:3, 3], atol=1e-6)
+
+
+def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
+    """`UR5e.ik_nearest` (and `nearest_branch` from every starting hint) returns exactly the
+    joint vector of the scalar rule `nearest_branch_exact` (the implementation the committed
+    runs were made with), or None where it gives None: on random reachable poses with random
+    references (wrap-around, branches outside the limits), and on references placed midway
+    between two branches (near-ties, where the first of equals must win)."""
+    import ur_analytic_ik
+
+    from distgprl.sim.robot import nearest_branch, nearest_branch_exact
+    from distgprl.sim.transforms import invert_transform
+
+    rng = np.random.default_rng(7)
+    limits = tuple(zip(robot.lower_limits.tolist(), robot.upper_limits.tolist(), strict=True))
+    tcp_from_tool0 = invert_transform(robot.tool.tool0_from_tcp)  # as UR5e computes it
+    cases = 0
+    for _ in range(400):
+        q = rng.uniform(-math.pi, math.pi, 6)
+        tcp = robot.fk(q)
+        reference = rng.uniform(-2 * math.pi, 2 * math.pi, 6)
+        solutions = ur_analytic_ik.ur5e.inverse_kinematics(robot.fk_tool0(q))
+        if rng.uniform() < 0.25 and len(solutions) >= 2:  # a tie: midway between two branches
+            reference = 0.5 * (solutions[0] + solutions[1])
+        branches = ur_analytic_ik.ur5e.inverse_kinematics(tcp @ tcp_from_tool0)
+        expected = nearest_branch_exact(branches, reference.tolist(), limits)
+        for hint in range(len(branches) + 1):
+            assert nearest_branch(branches, reference.tolist(), limits, hint)[0] == expected
+        found = robot.ik_nearest(tcp, reference)
+        if expected is None:
+            assert found is None
+            continue
+        cases += 1
+        assert found is not None and found.dtype == np.float64
+        assert np.array_equal(found, np.array(expected)), (q, reference)
+        assert [math.copysign(1.0, v) for v in found] == [math.copysign(1.0, v) for v in expected]
+    assert cases > 300

@@ -81,3 +81,43 @@ def test_evaluation_sets_are_fixed(name):
     assert not set(curve) & set(first)
     assert 0.0 < spec.interaction_time < 1.0
     assert spec.demo_path.is_file()
+
+
+def test_every_registry_reads_the_task_modules_declarations():
+    """Each task module's ``TASK`` is what `TASKS` holds (in `TASK_NAMES` order); its scene
+    revision is the pybullet-free catalogue's (`SCENE_REVISIONS`, which the config hashes
+    read, values unchanged: dcp 0, dbm 2); its expert and simulation class are the module's."""
+    from distgprl.data import SCENE_REVISIONS, TASK_NAMES
+    from distgprl.sim.tasks import dbm, dcp
+
+    assert tuple(TASKS) == TASK_NAMES
+    assert TASKS["dcp"] is dcp.TASK and TASKS["dbm"] is dbm.TASK
+    assert SCENE_REVISIONS == {"dcp": 0, "dbm": 2}
+    for name, module in (("dcp", dcp), ("dbm", dbm)):
+        spec = TASKS[name]
+        assert spec.name == name
+        assert spec.scene_revision == SCENE_REVISIONS[name]
+        assert spec.expert is getattr(module, f"{name}_expert")
+        assert spec.make_sim is getattr(module, f"{name.upper()}Sim")
+
+
+def test_a_task_simulation_runs_the_robot_its_factory_builds():
+    """`TaskSim` builds its robot with the injected factory (the UR5e only by default), and
+    the robot satisfies the `Robot` protocol; the control loop drives that robot."""
+    from distgprl.sim.robot import Robot, UR5e
+    from distgprl.sim.tasks.dcp import DCPSim
+
+    built = []
+
+    def factory(client, tool):
+        robot = UR5e(client, tool)
+        built.append(robot)
+        return robot
+
+    sim = DCPSim(robot_factory=factory)
+    try:
+        assert built and sim.robot is built[0] and sim.control.robot is built[0]
+        assert isinstance(sim.robot, Robot) and sim.robot.tool is sim.tool
+        assert sim.robot.name == "ur5e"
+    finally:
+        sim.close()

@@ -8,13 +8,17 @@ Sections of `run_benchmarks` (all measured in one process, so ratios compare lik
    inference of a SAC actor with the real observation size, and the total, side by side with
    the paper's figures and with naive alternatives measured in the same run (PyBullet
    ``getClosestPoints`` for the same points and shapes; re-solving the GP from scratch).
-2. One simulated episode per task (full trajectory, dynamics and contact checks).
+2. One simulated episode per task (full trajectory, dynamics and contact checks); 2b. the
+   environment's step against the bare physics inside it, in process CPU time
+   (``ratios.env_step_over_bare_physics``).
 3. One SAC gradient step with the regularised actor loss (batch 256, paper network) vs plain SAC,
    in wall and in process CPU time (the latter is ``ratios.regularised_over_plain_sac_step``).
 4. Training throughput of a short real training run and where its time goes (timers around
    simulation, IK, EDF, SAC update, ...).
 5. Scaling: adaptation time vs number of via-points and of obstacles; training throughput vs
    number of worker processes.
+6. The paper suite's CPU-hours from a timed training step of every trainable method on every
+   task (``suite.cpu_hours``, ``suite.hours_two_idle_cores``).
 
 Every timing is wall time of the calling process; the machine's load average is recorded
 before and after, because other processes sharing the cores inflate every figure.
@@ -25,8 +29,9 @@ Modules (one per section, plus what they share; every name below is re-exported 
 - `sizes`: `BenchSizes` and the presets table `SIZE_PRESETS` (`FULL_SIZES`, `QUICK_SIZES`,
   `TINY_SIZES`); `run_spec`, the measured run.
 - `pipeline`: `AdaptationPipeline`; `baselines`: `BulletDistance` and the naive pipeline.
-- `adaptation` (1, and `bench_gp`), `simulation` (2), `training` (3, 4), `scaling` (5a, 5b),
-  `workers` (5c, and the worker protocol of ``python -m distgprl.experiments.bench --worker``).
+- `adaptation` (1, and `bench_gp`), `simulation` (2), `environment` (2b), `training` (3, 4),
+  `scaling` (5a, 5b), `workers` (5c, and the worker protocol of ``python -m
+  distgprl.experiments.bench --worker``), `suite` (6).
 - `markdown`, `plots`: the README table and the figure; `run`: `run_benchmarks`,
   `load_results`; `cli`: the argparse `main` of ``python -m distgprl.experiments.bench``.
 """
@@ -43,6 +48,7 @@ from distgprl.experiments.bench.adaptation import (
 )
 from distgprl.experiments.bench.baselines import BulletDistance, naive_pipeline
 from distgprl.experiments.bench.cli import main
+from distgprl.experiments.bench.environment import bench_env_step
 from distgprl.experiments.bench.markdown import markdown_table
 from distgprl.experiments.bench.pipeline import AdaptationPipeline
 from distgprl.experiments.bench.plots import plot_results
@@ -64,6 +70,7 @@ from distgprl.experiments.bench.sizes import (
     run_spec,
     sizes_for,
 )
+from distgprl.experiments.bench.suite import bench_suite, suite_cpu_hours
 from distgprl.experiments.bench.timing import (
     SectionTimers,
     Timing,
@@ -98,10 +105,12 @@ __all__ = [
     "SectionTimers",
     "Timing",
     "bench_adaptation",
+    "bench_env_step",
     "bench_gp",
     "bench_obstacle_scaling",
     "bench_sac_step",
     "bench_simulation",
+    "bench_suite",
     "bench_training",
     "bench_via_point_scaling",
     "bench_workers",
@@ -117,6 +126,7 @@ __all__ = [
     "run_benchmarks",
     "run_spec",
     "sizes_for",
+    "suite_cpu_hours",
     "training_breakdown",
     "training_worker",
 ]

@@ -76,6 +76,11 @@ def markdown_table(document: dict[str, Any]) -> str:
             f"| simulated episode, {task} ({sim['control_steps']} control steps, "
             f"{sim['physics_steps']} physics steps), ms | {_fmt_ms(sim['episode'], 1)} |"
         )
+    for task, env in document.get("environment", {}).items():  # not in files before issue 29
+        lines.append(
+            f"| env step, {task}, process CPU, ms (over the bare physics in it) | "
+            f"{env['env_step_cpu_ms']:.1f} ({env['env_step_over_bare_physics']:.2f}x) |"
+        )
     sac = document["sac_step"]
     lines.append(
         f"| SAC gradient step, regularised actor loss (batch {sac['batch_size']}), ms | "
@@ -100,6 +105,13 @@ def markdown_table(document: dict[str, Any]) -> str:
         lines.append(
             f"| training throughput, {row['workers']} independent process(es), aggregate steps/s "
             f"| {row['aggregate_steps_per_s']:.1f} |"
+        )
+    if "suite" in document:
+        suite = document["suite"]
+        lines.append(
+            f"| paper suite ({len(suite['methods'])} methods x {len(suite['tasks'])} tasks x "
+            f"{suite['seeds']} seeds), CPU-hours (hours on two idle cores) | "
+            f"{suite['cpu_hours']:.1f} ({suite['hours_two_idle_cores']:.1f}) |"
         )
     lines += ["", "| Where a training step's time goes | ms/step | share |", "|---|---|---|"]
     for name, part in sorted(training["breakdown"].items(), key=lambda kv: -kv[1]["fraction"]):

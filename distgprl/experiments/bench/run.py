@@ -10,10 +10,12 @@ from pathlib import Path
 from typing import Any
 
 from distgprl.experiments.bench.adaptation import bench_adaptation
+from distgprl.experiments.bench.environment import bench_env_step
 from distgprl.experiments.bench.plots import plot_results
 from distgprl.experiments.bench.scaling import bench_obstacle_scaling, bench_via_point_scaling
 from distgprl.experiments.bench.simulation import bench_simulation
 from distgprl.experiments.bench.sizes import BenchSizes, run_spec, sizes_for
+from distgprl.experiments.bench.suite import bench_suite
 from distgprl.experiments.bench.timing import machine_info
 from distgprl.experiments.bench.training import bench_sac_step, bench_training
 from distgprl.experiments.bench.workers import bench_workers
@@ -68,10 +70,14 @@ def run_benchmarks(
         torch.set_num_threads(threads)
     say("simulated episodes")
     simulation = {task: bench_simulation(task, sizes.sim_episodes) for task in sizes.tasks}
+    say("environment step vs bare physics")
+    environment = {task: bench_env_step(task, sizes.env_episodes) for task in sizes.tasks}
     say("training throughput and breakdown")
     training = bench_training(sizes)
     say("training throughput vs workers")
     workers = bench_workers(sizes, training["steps_per_s"])
+    say("suite cost: a training step of every method and task")
+    suite = bench_suite(sizes)
     document = {
         "quick": bool(quick),
         "sizes": asdict(sizes),
@@ -80,11 +86,17 @@ def run_benchmarks(
         "wall_time_s": time.perf_counter() - started,
         "adaptation": adaptation,
         "simulation": simulation,
+        "environment": environment,
         "sac_step": sac_step,
         "ratios": {
             # Process CPU time of a regularised (dist-gprl, DCP) over a plain SAC step.
             "regularised_over_plain_sac_step": sac_step["cpu_regularised_over_plain"],
+            # Process CPU time of an env step over the stepSimulation calls inside it.
+            "env_step_over_bare_physics": {
+                task: section["env_step_over_bare_physics"] for task, section in environment.items()
+            },
         },
+        "suite": suite,
         "training": training,
         "scaling": {"via_points": via_points, "obstacles": obstacles, "workers": workers},
     }

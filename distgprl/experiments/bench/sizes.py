@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from distgprl.data import TASK_NAMES
 from distgprl.identity import RunSpec
 
 __all__ = [
@@ -34,6 +35,7 @@ class BenchSizes:
         naive_repeats: samples of the slow naive alternatives (PyBullet, GP re-solve).
         in_env_episodes: real environment episodes whose recorded adaptation time is reported.
         sim_episodes: simulated episodes per task.
+        env_episodes: environment episodes per task of the env-step vs physics section.
         tasks: tasks of the simulation benchmark.
         sac_repeats: samples of one SAC gradient step (regularised and plain, interleaved).
         learning_starts: random-action steps before gradient steps start (not timed).
@@ -43,6 +45,7 @@ class BenchSizes:
         via_points: via-point counts of the via-point scaling curve.
         obstacles: box counts of the obstacle scaling curve.
         scaling_repeats: samples per point of the scaling curves.
+        suite_steps: timed training steps per (method, task) of the suite-cost section.
     """
 
     repeats: int
@@ -50,6 +53,7 @@ class BenchSizes:
     naive_repeats: int
     in_env_episodes: int
     sim_episodes: int
+    env_episodes: int
     tasks: tuple[str, ...]
     sac_repeats: int
     learning_starts: int
@@ -59,6 +63,7 @@ class BenchSizes:
     via_points: tuple[int, ...]
     obstacles: tuple[int, ...]
     scaling_repeats: int
+    suite_steps: int
 
 
 #: The size presets, one column each: ``full`` (~10 min, `distgprl bench`), ``quick`` (~1 min,
@@ -71,7 +76,8 @@ _PRESET_TABLE: dict[str, tuple[Any, Any, Any]] = {
     "naive_repeats":   (40,                      8,                 2),
     "in_env_episodes": (30,                      5,                 1),
     "sim_episodes":    (20,                      2,                 1),
-    "tasks":           (("dcp", "dbm"),          ("dcp", "dbm"),    ("dcp",)),
+    "env_episodes":    (10,                      3,                 1),
+    "tasks":           (TASK_NAMES,              TASK_NAMES,        TASK_NAMES[:1]),
     "sac_repeats":     (60,                      12,                2),
     "learning_starts": (60,                      20,                6),
     "training_steps":  (1200,                    60,                6),
@@ -80,6 +86,7 @@ _PRESET_TABLE: dict[str, tuple[Any, Any, Any]] = {
     "via_points":      ((15, 30, 45, 60),        (15, 60),          (15, 30)),
     "obstacles":       ((1, 2, 4, 8, 16, 32),    (1, 8, 32),        (1, 4)),
     "scaling_repeats": (60,                      10,                2),
+    "suite_steps":     (150,                     30,                3),
 }  # fmt: skip
 
 SIZE_PRESETS: dict[str, BenchSizes] = {

@@ -87,10 +87,10 @@ def _instrument(env, model) -> SectionTimers:
     sim = env.sim
     timers.wrap(env, "step", "env_step")
     timers.wrap(sim, "execute", "sim_execute")
-    timers.wrap(sim, "_step_simulation", "physics_step")
-    timers.wrap(sim, "_contact_points", "contact_query")
-    timers.wrap(sim, "clearance", "clearance_query")
-    timers.wrap(sim, "_move_kinematic", "kinematic_obstacles")
+    timers.wrap(sim.calls, "step_simulation", "physics_step")
+    timers.wrap(sim.calls, "contact_points", "contact_query")
+    timers.wrap(sim.control, "clearance", "clearance_query")
+    timers.wrap(sim, "move_kinematic", "kinematic_obstacles")
     timers.wrap(sim.robot, "command", "joint_commands")
     timers.wrap(sim.robot, "ik_nearest", "ik")
     for attribute in ("distance", "update", "clearance"):

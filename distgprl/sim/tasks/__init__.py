@@ -1,8 +1,15 @@
-"""The simulated tasks and their registry (``TASKS``, :func:`get_task`)."""
+"""The simulated tasks and their registry (``TASKS``, :func:`get_task`).
+
+Each task module declares its one `TaskSpec` as ``TASK`` (name, scene revision, TC sampler,
+expert, simulation class, demonstrations); `TASKS` collects them in
+`distgprl.data.TASK_NAMES` order, the pybullet-free catalogue of names and scene revisions
+that the config hashes and the CLI read (a test checks the two agree).
+"""
 
 from __future__ import annotations
 
-from distgprl.data import check_task_name
+from distgprl.data import TASK_NAMES, check_task_name
+from distgprl.sim.tasks import dbm, dcp
 from distgprl.sim.tasks.base import (
     DEMO_DIR,
     EVALUATION_SEED,
@@ -12,36 +19,13 @@ from distgprl.sim.tasks.base import (
     TaskSim,
     TaskSpec,
 )
-from distgprl.sim.tasks.dbm import DBMSim, sample_dbm_tc
-from distgprl.sim.tasks.dbm import engagement_time as _dbm_engagement
-from distgprl.sim.tasks.dcp import DCPSim, sample_dcp_tc
-from distgprl.sim.tasks.dcp import engagement_time as _dcp_engagement
+from distgprl.sim.tasks.dbm import DBMSim
+from distgprl.sim.tasks.dcp import DCPSim
 
-TASKS: dict[str, TaskSpec] = {
-    "dcp": TaskSpec(
-        name="dcp",
-        title="Dynamic cube pushing",
-        demo_path=DEMO_DIR / "dcp.csv",
-        varied_demo_dir=DEMO_DIR / "dcp_varied",
-        nominal_tc=TaskConfig(),
-        interaction_time=_dcp_engagement() / DCPSim.demo_duration,
-        goal="push the drifting cube with the shovel until its centre lies in the goal rectangle",
-        sampler=sample_dcp_tc,
-        make_sim=DCPSim,
-    ),
-    "dbm": TaskSpec(
-        name="dbm",
-        title="Dynamic bar manipulation",
-        demo_path=DEMO_DIR / "dbm.csv",
-        varied_demo_dir=DEMO_DIR / "dbm_varied",
-        nominal_tc=TaskConfig(),
-        interaction_time=_dbm_engagement() / DBMSim.demo_duration,
-        goal="hook the conveyed target bar by its handle and lift it 12 cm clear of the conveyor",
-        sampler=sample_dbm_tc,
-        make_sim=DBMSim,
-    ),
-}
-"""Task registry: name -> :class:`TaskSpec`."""
+_DECLARED: dict[str, TaskSpec] = {spec.name: spec for spec in (dcp.TASK, dbm.TASK)}
+
+TASKS: dict[str, TaskSpec] = {name: _DECLARED[name] for name in TASK_NAMES}
+"""Task registry: name -> :class:`TaskSpec` (each task module's ``TASK``)."""
 
 
 def get_task(name: str) -> TaskSpec:
@@ -50,6 +34,7 @@ def get_task(name: str) -> TaskSpec:
 
 
 __all__ = [
+    "DEMO_DIR",
     "EVALUATION_SEED",
     "TASKS",
     "TRAINING_CURVE_SEED",

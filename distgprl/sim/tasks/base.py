@@ -3,8 +3,11 @@
 A *task configuration* (TC) is what varies between episodes: the manipulated object's
 start offset and the dynamic obstacle's start offset (both xy, metres, world frame)
 from the nominal scene. A :class:`TaskSpec` describes a task (demonstration, nominal TC,
-TC sampler, fixed evaluation sets). A :class:`TaskSim` subclass assembles robot, tool and
-scene in its own PyBullet client and executes Cartesian trajectories.
+TC sampler, expert, scene revision, fixed evaluation sets); each task module declares one
+(``TASK``) and `distgprl.sim.tasks.TASKS` collects them. A :class:`TaskSim` subclass builds
+its scene in its own PyBullet client around a robot it is given (a
+`distgprl.sim.robot.Robot`, the UR5e by default) and executes Cartesian trajectories with
+the control loop of `distgprl.sim.control`.
 
 Time: the simulation clock starts at 0 on :meth:`TaskSim.reset` and advances by
 ``control_dt`` per executed pose; object and obstacle motion are functions of this clock
@@ -26,8 +29,8 @@ from distgprl.errors import UserInputError
 from distgprl.safety.shapes import Shape
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 from distgprl.sim.bullet import PhysicsConfig, make_client
-from distgprl.sim.robot import ToolSpec, UR5e
-from distgprl.sim.transforms import pose_to_matrix
+from distgprl.sim.control import BulletCalls, ControlLoop, SegmentResult
+from distgprl.sim.robot import Robot, RobotFactory, ToolSpec, UR5e
 
 
 def _as_xy(value: object, name: str) -> tuple[float, float]:
@@ -69,36 +72,6 @@ class TaskConfig:
 
 
 @dataclass(frozen=True)
-class SegmentResult:
-    """Outcome of executing one trajectory segment.
-
-    Attributes:
-        collision: any contact (penetration distance <= 0) between a robot link or the
-            tool and an obstacle during the segment, checked after every physics step and
-            at every control step (exempt pairs are listed by the task).
-        min_clearance: minimum distance (m) between robot/tool and the obstacles over the
-            segment's control steps, capped at the task's ``clearance_cutoff``; <= 0 on
-            contact.
-        ik_failures: poses with no IK solution within the joint limits (the previous joint
-            target is then held).
-        steps: poses executed (control periods).
-        peak_joint_speed: largest commanded joint speed (rad/s) in the segment: the joint
-            targets' finite differences at the control period (the first from the previous
-            target), maximum over joints and periods; the quantity the hardware safety
-            layer bounds (`distgprl.limits.SafetyLimits.max_joint_speed`).
-        stopped: execution stopped at a collision before the segment's last pose (a
-            protective stop; only with ``execute(..., stop_on_collision=True)``).
-    """
-
-    collision: bool
-    min_clearance: float
-    ik_failures: int
-    steps: int
-    peak_joint_speed: float = 0.0
-    stopped: bool = False
-
-
-@dataclass(frozen=True)
 class TaskSpec:
     """A task: its demonstration, TC ranges and fixed evaluation sets.
 
@@ -114,7 +87,12 @@ class TaskSpec:
             via-points from here on by the object offset.
         goal: one-line description of the goal and the success criterion.
         sampler: draws one TC from a generator (see :meth:`sample_tc`).
-        make_sim: builds a fresh task simulation.
+        make_sim: builds a fresh task simulation (keyword arguments go to its class, e.g.
+            ``robot_factory``).
+        expert: the scripted expert, TC -> (times (n,) s, poses (n, 6)), that wrote the
+            shipped demonstrations (`distgprl.sim.experts`).
+        scene_revision: the revision of the simulated scene (`distgprl.data.SCENE_REVISIONS`,
+            the pybullet-free catalogue the config hashes read).
     """
 
     name: str
@@ -125,7 +103,9 @@ class TaskSpec:
     interaction_time: float
     goal: str
     sampler: Callable[[np.random.Generator], TaskConfig]
-    make_sim: Callable[[], TaskSim]
+    make_sim: Callable[..., TaskSim]
+    expert: Callable[[TaskConfig], tuple[np.ndarray, np.ndarray]]
+    scene_revision: int
 
     def sample_tc(self, rng: np.random.Generator) -> TaskConfig:
         """One random TC drawn with ``rng`` (task-specific ranges, see the task module)."""
@@ -146,7 +126,7 @@ class TaskSim:
     """Common machinery of the task simulations (robot + tool + scene in one client).
 
     Subclasses build the scene in :meth:`_build_scene`, place objects for a TC in
-    :meth:`_place`, move the kinematic bodies in :meth:`_move_kinematic` and define
+    :meth:`_place`, move the kinematic bodies in :meth:`move_kinematic` and define
     :meth:`task_progress`, :meth:`success`, :meth:`obstacle_shapes`.
 
     The manipulated object is *conveyed* (moved kinematically at a constant velocity)
@@ -157,11 +137,16 @@ class TaskSim:
         control_dt: control period, s (one pose of :meth:`execute` per period).
         demo_duration: duration of the task's demonstration, s.
         clearance_cutoff: distances above this (m) are reported as this value.
+        robot: the robot carrying the task's ``tool`` (a `Robot`).
+        calls: the client's per-step PyBullet functions (`BulletCalls`).
+        control: the control loop (`ControlLoop`) :meth:`execute` runs.
+        time: the world's clock, s.
 
     Args:
         physics: physics settings (default :class:`PhysicsConfig`: 25 Hz control,
             3 physics steps of 1/75 s per control period).
         clearance_cutoff: see above, m (default 0.10).
+        robot_factory: builds the robot in the simulation's client (default `UR5e`).
     """
 
     tool: ToolSpec
@@ -169,14 +154,18 @@ class TaskSim:
     start_joint_positions: np.ndarray
 
     def __init__(
-        self, physics: PhysicsConfig | None = None, clearance_cutoff: float = 0.10
+        self,
+        physics: PhysicsConfig | None = None,
+        clearance_cutoff: float = 0.10,
+        robot_factory: RobotFactory = UR5e,
     ) -> None:
         physics = physics if physics is not None else PhysicsConfig()
         self.physics = physics
         self.control_dt = physics.control_dt
         self.clearance_cutoff = clearance_cutoff
         self.client = make_client(physics)
-        self.robot = UR5e(self.client, self.tool)
+        self.robot: Robot = robot_factory(self.client, self.tool)
+        self.calls = BulletCalls(self.client)
         self.object_body = -1
         self.obstacle_bodies: tuple[int, ...] = ()
         self.exempt_links: dict[int, frozenset[int]] = {}
@@ -184,14 +173,15 @@ class TaskSim:
         for body, links in self.exempt_links.items():
             for link in links:
                 self.client.setCollisionFilterPair(self.robot.body, body, link, -1, 0)
-        self._robot_body = self.robot.body
-        # bound once: BulletClient's attribute lookup is slow in the inner loop
-        self._step_simulation = self.client.stepSimulation
-        self._contact_points = self.client.getContactPoints
-        self._closest_points = self.client.getClosestPoints
-        self._reset_base_pose = self.client.resetBasePositionAndOrientation
-        self._reset_base_velocity = self.client.resetBaseVelocity
-        self._obstacle_set = frozenset(self.obstacle_bodies)
+        self.control = ControlLoop(
+            self.robot,
+            self.calls,
+            physics,
+            self.object_body,
+            self.obstacle_bodies,
+            self.exempt_links,
+            clearance_cutoff,
+        )
         self._initial_state = self.client.saveState()
         self.time = 0.0
         self.tc = TaskConfig()
@@ -200,6 +190,7 @@ class TaskSim:
         self._object_start = np.zeros(3)
         self._object_velocity = np.zeros(3)
         self._object_quaternion = (0.0, 0.0, 0.0, 1.0)
+        self._conveyor = (0.0, 0.0, 0.0, 0.0, 0.0)
         self.reset(TaskConfig())
 
     # ------------------------------------------------------------------ to implement
@@ -210,7 +201,7 @@ class TaskSim:
         """Set object start/velocity and the obstacles' paths for ``tc``."""
         raise NotImplementedError
 
-    def _move_kinematic(self, time: float) -> None:
+    def move_kinematic(self, time: float) -> None:
         """Put the kinematically moved obstacles at their poses for ``time`` (s)."""
         raise NotImplementedError
 
@@ -249,8 +240,10 @@ class TaskSim:
         self._q_command = np.array(self.start_joint_positions, dtype=float)
         self._place(tc)
         self._object_velocity_list = self._object_velocity.tolist()
-        self._convey_object(0.0)
-        self._move_kinematic(0.0)
+        x0, y0, z0 = self._object_start.tolist()
+        self._conveyor = (x0, y0, z0, *self._object_velocity_list[:2])
+        self.convey_object(0.0)
+        self.move_kinematic(0.0)
 
     def tcp_pose(self) -> np.ndarray:
         """Current TCP pose (6,): x, y, z (m), rx, ry, rz (rad)."""
@@ -277,6 +270,19 @@ class TaskSim:
         """True once the robot has touched the object (it then moves freely)."""
         return self._object_released
 
+    def release_object(self) -> None:
+        """The robot touched the object: it is no longer conveyed (contact physics only)."""
+        self._object_released = True
+
+    @property
+    def q_command(self) -> np.ndarray:
+        """The last joint target (6,), rad: the IK reference of the next pose."""
+        return self._q_command
+
+    @q_command.setter
+    def q_command(self, q: np.ndarray) -> None:
+        self._q_command = np.asarray(q, dtype=float)
+
     def configuration_in_collision(
         self, q: np.ndarray, margin: float = 0.0, include_dynamic: bool = False
     ) -> bool:
@@ -288,30 +294,24 @@ class TaskSim:
         """
         self.robot.reset_joints(np.asarray(q, dtype=float))
         dynamic = () if include_dynamic else getattr(self, "dynamic_obstacle_bodies", ())
-        robot_body = self._robot_body
+        robot_body = self.robot.body
+        closest_points = self.calls.closest_points
         for body in self.obstacle_bodies:
             if body in dynamic:
                 continue
             exempt = self.exempt_links.get(body)
-            for point in self._closest_points(bodyA=robot_body, bodyB=body, distance=margin):
+            for point in closest_points(bodyA=robot_body, bodyB=body, distance=margin):
                 if point[8] <= margin and (exempt is None or point[3] not in exempt):
                     return True
         return False
 
     def clearance(self) -> float:
         """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff."""
-        best = cutoff = self.clearance_cutoff
-        closest_points = self._closest_points
-        robot_body = self._robot_body
-        for body in self.obstacle_bodies:
-            exempt = self.exempt_links.get(body)
-            for point in closest_points(bodyA=robot_body, bodyB=body, distance=cutoff):
-                if point[8] < best and (exempt is None or point[3] not in exempt):
-                    best = point[8]
-        return best
+        return self.control.clearance()
 
     def execute(self, poses: np.ndarray, stop_on_collision: bool = False) -> SegmentResult:
-        """Track Cartesian TCP poses, one per control period, with dynamics.
+        """Track Cartesian TCP poses, one per control period, with dynamics
+        (`ControlLoop.run`).
 
         Args:
             poses: shape (n, 6): x, y, z (m), rx, ry, rz (rad), world frame. Pose k is the
@@ -326,70 +326,7 @@ class TaskSim:
         obstacles keep moving. Collisions are checked after every physics step,
         clearance at every control step.
         """
-        poses = np.asarray(poses, dtype=float)
-        if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
-            raise UserInputError(f"poses must be a finite (n, 6) array, got shape {poses.shape}")
-        robot = self.robot
-        step_simulation = self._step_simulation
-        contact_points = self._contact_points
-        substeps = self.physics.substeps
-        dt = self.physics.physics_dt
-        robot_body = self._robot_body
-        object_body = self.object_body
-        obstacles = self._obstacle_set
-        exempt = self.exempt_links
-        no_links: frozenset[int] = frozenset()
-        collision = False
-        min_clearance = self.clearance_cutoff
-        failures = 0
-        peak_speed = 0.0
-        fractions = [(s + 1) / substeps for s in range(substeps)]
-        inverse_dt = 1.0 / self.control_dt
-        executed = 0
-        for pose in poses:
-            q_target = robot.ik_nearest(pose_to_matrix(pose), self._q_command)
-            if q_target is None:
-                failures += 1
-                q_target = self._q_command
-            q_previous = self._q_command
-            delta = q_target - q_previous
-            velocity = delta * inverse_dt
-            speed = float(np.abs(velocity).max())
-            if speed > peak_speed:
-                peak_speed = speed
-            for step, fraction in enumerate(fractions):
-                robot.command(q_previous + fraction * delta, velocity)
-                time = self.time + (step + 1) * dt
-                self._move_kinematic(time)
-                step_simulation()
-                for contact in contact_points(bodyA=robot_body):
-                    if contact[8] > 0.0:
-                        continue
-                    other = contact[2]
-                    if other == object_body:
-                        self._object_released = True
-                    elif other in obstacles and contact[3] not in exempt.get(other, no_links):
-                        collision = True
-                if not self._object_released:
-                    self._convey_object(time)
-            self.time += substeps * dt
-            self._q_command = q_target
-            clearance = self.clearance()
-            if clearance < min_clearance:
-                min_clearance = clearance
-            executed += 1
-            if stop_on_collision and (collision or min_clearance <= 0.0):
-                break
-        if min_clearance <= 0.0:
-            collision = True
-        return SegmentResult(
-            collision=collision,
-            min_clearance=float(min_clearance),
-            ik_failures=failures,
-            steps=executed,
-            peak_joint_speed=peak_speed,
-            stopped=executed < int(poses.shape[0]),
-        )
+        return self.control.run(self, poses, stop_on_collision)
 
     def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
         """An RGB image (height, width, 3) uint8 of the scene (headless TinyRenderer)."""
@@ -425,17 +362,18 @@ class TaskSim:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    # ------------------------------------------------------------------ helpers
-    def _convey_object(self, time: float) -> None:
+    def convey_object(self, time: float) -> None:
+        """Put the conveyed object where the conveyor has it at ``time`` (s), with the
+        conveying velocity; nothing once it is released."""
         if self._object_released:
             return
-        start, velocity = self._object_start, self._object_velocity
-        self._reset_base_pose(
-            self.object_body,
-            (start[0] + velocity[0] * time, start[1] + velocity[1] * time, start[2]),
-            self._object_quaternion,
+        x0, y0, z0, vx, vy = self._conveyor  # plain floats of the start and velocity
+        self.calls.reset_base_pose(
+            self.object_body, (x0 + vx * time, y0 + vy * time, z0), self._object_quaternion
         )
-        self._reset_base_velocity(self.object_body, self._object_velocity_list, (0.0, 0.0, 0.0))
+        self.calls.reset_base_velocity(
+            self.object_body, self._object_velocity_list, (0.0, 0.0, 0.0)
+        )
 
 
 def smooth_step(x: np.ndarray) -> np.ndarray:

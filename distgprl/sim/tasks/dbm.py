@@ -39,11 +39,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from distgprl.data import DEMO_DIR, SCENE_REVISIONS
 from distgprl.safety.shapes import Box, Cylinder, Shape
 from distgprl.sim.bullet import create_compound_body
 from distgprl.sim.profiles import minimum_jerk
 from distgprl.sim.robot import HOOK
-from distgprl.sim.tasks.base import TaskConfig, TaskSim
+from distgprl.sim.tasks.base import TaskConfig, TaskSim, TaskSpec
 from distgprl.sim.transforms import pose_to_matrix, rotation_y
 
 IDENTITY = np.eye(3)
@@ -252,11 +253,12 @@ class DBMSim(TaskSim):
         """Base-box centre (3,), m, of the other bar at ``time`` s for the current TC."""
         return self._other_start + np.array([0.0, self.scene.belt_speed * time, 0.0])
 
-    def _move_kinematic(self, time: float) -> None:
+    def move_kinematic(self, time: float) -> None:
+        """Put the other bar where the belt carries it at ``time`` (s)."""
         start = self._other_start
         position = (start[0], start[1] + self.scene.belt_speed * time, start[2])
         self._other_position = position
-        self._reset_base_pose(self.other_bar_body, position, (0.0, 0.0, 0.0, 1.0))
+        self.calls.reset_base_pose(self.other_bar_body, position, (0.0, 0.0, 0.0, 1.0))
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Rollers, rails and the other bar, as EDF primitives.
@@ -320,3 +322,19 @@ def dbm_expert(tc: TaskConfig) -> tuple[np.ndarray, np.ndarray]:
     )
     key_times = np.array([0.0, 1.5, t_engage, t_inserted, t_lifted, t_end])
     return minimum_jerk(key_times, key_poses)
+
+
+TASK = TaskSpec(
+    name="dbm",
+    title="Dynamic bar manipulation",
+    demo_path=DEMO_DIR / "dbm.csv",
+    varied_demo_dir=DEMO_DIR / "dbm_varied",
+    nominal_tc=TaskConfig(),
+    interaction_time=engagement_time() / DBMSim.demo_duration,
+    goal="hook the conveyed target bar by its handle and lift it 12 cm clear of the conveyor",
+    sampler=sample_dbm_tc,
+    make_sim=DBMSim,
+    expert=dbm_expert,
+    scene_revision=SCENE_REVISIONS["dbm"],
+)
+"""The DBM task's registration (`distgprl.sim.tasks.TASKS` reads it)."""

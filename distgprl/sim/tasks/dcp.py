@@ -31,10 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from distgprl.data import DEMO_DIR, SCENE_REVISIONS
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.bullet import create_shape_body
+from distgprl.sim.profiles import minimum_jerk
 from distgprl.sim.robot import SHOVEL
-from distgprl.sim.tasks.base import TaskConfig, TaskSim
+from distgprl.sim.tasks.base import TaskConfig, TaskSim, TaskSpec
 from distgprl.sim.transforms import pose_to_matrix
 
 IDENTITY = np.eye(3)
@@ -164,6 +166,8 @@ class DCPSim(TaskSim):
         self._object_start = np.array([start_xy[0], start_xy[1], scene.cube_half + 1e-4])
         self._object_velocity = np.array([*scene.drift_velocity, 0.0])
         self._obstacle_line = np.asarray(scene.obstacle_centre) + np.asarray(tc.obstacle_offset)
+        line_x, line_y = self._obstacle_line.tolist()
+        self._obstacle_path = (line_x, line_y, scene.obstacle_half + 1e-4)
         self._start_cube_xy = start_xy
 
     def obstacle_position_at(self, time: float) -> np.ndarray:
@@ -178,11 +182,15 @@ class DCPSim(TaskSim):
             ]
         )
 
-    def _move_kinematic(self, time: float) -> None:
-        self._obstacle_position = self.obstacle_position_at(time)
-        self.client.resetBasePositionAndOrientation(
-            self.obstacle_body, self._obstacle_position.tolist(), (0.0, 0.0, 0.0, 1.0)
-        )
+    def move_kinematic(self, time: float) -> None:
+        """Put the obstacle cube at `obstacle_position_at` ``time`` (s) (plain floats: this
+        runs every physics step)."""
+        scene = self.scene
+        phase = 2.0 * math.pi * time / scene.obstacle_period + scene.obstacle_phase
+        line_x, line_y, height = self._obstacle_path
+        position = (line_x + scene.obstacle_amplitude * math.sin(phase), line_y, height)
+        self._obstacle_position = position
+        self.calls.reset_base_pose(self.obstacle_body, position, (0.0, 0.0, 0.0, 1.0))
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Table (box), wall and obstacle cube, as EDF primitives.
@@ -221,3 +229,53 @@ class DCPSim(TaskSim):
         initial = float(np.linalg.norm(self._start_cube_xy - goal))
         now = float(np.linalg.norm(position[:2] - goal))
         return float(np.clip(1.0 - now / max(initial, 1e-9), 0.0, 1.0))
+
+
+def dcp_expert(tc: TaskConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Demonstration (times (n,), poses (n, 6)) pushing the drifting cube into the goal.
+
+    Key poses: start -> above and behind the cube -> engage (blade 2 cm behind the cube,
+    8 mm above the table, square to the cube-to-goal direction) -> push the cube centre
+    onto the goal centre -> retreat up and back.
+    """
+    scene = SCENE
+    t_engage = engagement_time()
+    cube = np.asarray(scene.cube_start) + np.asarray(tc.object_offset)
+    cube_engage = cube + np.asarray(scene.drift_velocity) * t_engage
+    goal = np.asarray(scene.goal_centre)
+    direction = goal - cube_engage
+    direction /= np.linalg.norm(direction)
+    yaw = math.atan2(direction[1], direction[0]) - math.pi / 2.0
+    start = np.asarray(scene.start_pose, dtype=float)
+
+    def pose(xy: np.ndarray, z: float) -> np.ndarray:
+        return np.array([xy[0], xy[1], z, 0.0, 0.0, yaw])
+
+    back = scene.cube_half + 0.02
+    key_poses = np.stack(
+        [
+            start,
+            pose(cube_engage - direction * (back + 0.05), 0.10),
+            pose(cube_engage - direction * back, 0.008),
+            pose(goal - direction * scene.cube_half, 0.008),
+            pose(goal - direction * (scene.cube_half + 0.10), 0.15),
+        ]
+    )
+    key_times = np.array([0.0, 1.4, t_engage, 4.0, 4.8])
+    return minimum_jerk(key_times, key_poses)
+
+
+TASK = TaskSpec(
+    name="dcp",
+    title="Dynamic cube pushing",
+    demo_path=DEMO_DIR / "dcp.csv",
+    varied_demo_dir=DEMO_DIR / "dcp_varied",
+    nominal_tc=TaskConfig(),
+    interaction_time=engagement_time() / DCPSim.demo_duration,
+    goal="push the drifting cube with the shovel until its centre lies in the goal rectangle",
+    sampler=sample_dcp_tc,
+    make_sim=DCPSim,
+    expert=dcp_expert,
+    scene_revision=SCENE_REVISIONS["dcp"],
+)
+"""The DCP task's registration (`distgprl.sim.tasks.TASKS` reads it)."""

@@ -1,0 +1,115 @@
+"""Record a bit-exact trace of paper-preset environment episodes (the bit-exactness reference).
+
+`record_trace` runs fixed-seed episodes with fixed pseudo-random actions and returns every
+observation, reward, terminated flag and numeric ``info`` value (timings left out), plus the
+simulator's float64 state after every step (joint positions, TCP pose, object pose, clock).
+
+``python tests/envs/_env_trace.py OUT.npz`` writes the trace of `TRACE_RUNS` (what
+``tests/envs/data/env_trace_v5.npz`` was generated with, before the issue 28/29 simulation
+refactor).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+TRACE_RUNS: tuple[tuple[str, str, int], ...] = (
+    ("dcp", "dist-gprl", 10),
+    ("dbm", "dist-gprl", 10),
+    ("dcp", "promp-rrl", 3),
+    ("dbm", "promp-rrl", 3),
+    ("dcp", "gprl", 2),
+    ("dbm", "gprl", 2),
+    ("dcp", "demo", 2),
+    ("dbm", "demo", 2),
+)
+"""(task, method, episodes) of the committed trace."""
+
+#: info keys that are wall-clock timings (not numerics) or not numbers.
+SKIPPED_INFO = frozenset({"adaptation_time_s", "tc"})
+
+
+def _sim_state(sim) -> np.ndarray:
+    """The simulator's float64 state: joints (6), TCP pose (6), object position (3) and
+    quaternion (4), clock (1)."""
+    return np.concatenate(
+        [
+            sim.joint_positions(),
+            sim.tcp_pose(),
+            sim.object_position(),
+            sim.object_orientation(),
+            [sim.time],
+        ]
+    )
+
+
+def record_trace(task: str, method: str, episodes: int) -> dict[str, np.ndarray]:
+    """Run ``episodes`` episodes (reset seeds 100, 101, ...; actions uniform in [-1, 1] from
+    generators seeded 1000, 1001, ...) of the paper preset's env for ``method`` on ``task``.
+
+    Returns arrays keyed ``<task>/<method>/<name>``: ``state``, ``aux`` (every observation,
+    the reset's included), ``reward``, ``terminated``, ``sim`` (after every step and reset)
+    and ``info/<key>`` (numeric info values of every step, NaN-padded where a step lacks one).
+    """
+    from distgprl.api import make_env
+
+    env = make_env(task, method, preset="paper")
+    prefix = f"{task}/{method}"
+    states, auxes, rewards, terminated_flags, sims = [], [], [], [], []
+    infos: list[dict[str, np.ndarray]] = []
+    try:
+        sim = env.unwrapped.sim
+        for episode in range(episodes):
+            rng = np.random.default_rng(1000 + episode)
+            obs, _ = env.reset(seed=100 + episode)
+            states.append(obs["state"])
+            auxes.append(obs["aux"])
+            sims.append(_sim_state(sim))
+            done = False
+            while not done:
+                action = rng.uniform(-1.0, 1.0, env.action_space.shape).astype(np.float32)
+                obs, reward, terminated, truncated, info = env.step(action)
+                done = terminated or truncated
+                states.append(obs["state"])
+                auxes.append(obs["aux"])
+                sims.append(_sim_state(sim))
+                rewards.append(reward)
+                terminated_flags.append(terminated)
+                infos.append(
+                    {
+                        key: np.atleast_1d(np.asarray(value, dtype=float)).ravel()
+                        for key, value in info.items()
+                        if key not in SKIPPED_INFO
+                    }
+                )
+    finally:
+        env.close()
+    trace = {
+        f"{prefix}/state": np.stack(states),
+        f"{prefix}/aux": np.stack(auxes),
+        f"{prefix}/reward": np.asarray(rewards, dtype=float),
+        f"{prefix}/terminated": np.asarray(terminated_flags, dtype=bool),
+        f"{prefix}/sim": np.stack(sims),
+    }
+    for key in sorted({k for info in infos for k in info}):
+        width = max(len(info[key]) for info in infos if key in info)
+        rows = np.full((len(infos), width), np.nan)
+        for row, info in zip(rows, infos, strict=True):
+            if key in info:
+                row[: len(info[key])] = info[key]
+        trace[f"{prefix}/info/{key}"] = rows
+    return trace
+
+
+def record_all() -> dict[str, np.ndarray]:
+    """The trace of every run in `TRACE_RUNS`."""
+    out: dict[str, np.ndarray] = {}
+    for task, method, episodes in TRACE_RUNS:
+        out.update(record_trace(task, method, episodes))
+    return out
+
+
+if __name__ == "__main__":
+    np.savez_compressed(sys.argv[1], **record_all())
