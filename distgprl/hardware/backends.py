@@ -147,7 +147,7 @@ class TwinBackend:
         steps = int(round(seconds / self.control_dt))
         if steps <= 0:
             return
-        pose = matrix_to_pose(self.sim.robot.fk(self.sim._q_command))
+        pose = matrix_to_pose(self.sim.robot.fk(self.sim.q_command))
         self._run(np.tile(pose, (steps, 1)))
 
     def _run(self, poses: np.ndarray) -> ExecutionResult:
@@ -181,7 +181,7 @@ class TwinBackend:
 
     def move_joints(self, q: np.ndarray) -> ExecutionResult:
         self.sim.robot.reset_joints(np.asarray(q, dtype=float))
-        self.sim._q_command = np.asarray(q, dtype=float).copy()
+        self.sim.q_command = np.asarray(q, dtype=float).copy()
         return ExecutionResult(0)
 
     def execute(self, joints: np.ndarray, poses: np.ndarray) -> ExecutionResult:
