@@ -59,6 +59,16 @@ def test_best_point_ranks_success_then_collision_then_return_earliest_first():
         runner.best_curve_row([])
 
 
+def test_a_point_beats_every_earlier_one_only_when_it_ranks_above_all_of_them():
+    """The first point is kept; a later one only if it ranks strictly above every earlier
+    one (a tie keeps the earlier actor, as `best_curve_row` selects the earliest)."""
+    first, better, tie = row(0.5, 0.0, 1.0, 0), row(0.6, 0.0, 0.0, 1), row(0.6, 0.0, 0.0, 2)
+    assert policies.beats_every_earlier([], first)
+    assert policies.beats_every_earlier([first], better)
+    assert not policies.beats_every_earlier([first, better], tie)
+    assert not policies.beats_every_earlier([better], first)
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A 240-step dist-gprl run (curve points and checkpoints at 0/120/240 and 120/240)."""
