@@ -1,7 +1,8 @@
 """The public Python API: the CLI's commands as functions, for notebooks and scripts.
 
 Each function is a thin wrapper over the library function the CLI calls
-(`distgprl.experiments.runner`, `distgprl.experiments.skills`), with the CLI's defaults::
+(`distgprl.experiments.training`, `distgprl.experiments.evaluation`,
+`distgprl.experiments.skills`), with the CLI's defaults::
 
     import distgprl
 
@@ -49,12 +50,12 @@ def make_env(
     task: str, method: str = "dist-gprl", preset: str = "paper", config: str | Path | None = None
 ) -> gymnasium.Env:
     """The adaptation environment a run of ``method`` on ``task`` trains and is evaluated in
-    (`distgprl.experiments.runner.make_env`; ProMP-RRL's residual environment for
+    (`distgprl.experiments.factories.make_env`; ProMP-RRL's residual environment for
     ``promp-rrl``). Observations are dicts; ``obs["state"]`` is what the policies read.
 
     Close it with ``env.close()`` (it holds a PyBullet client).
     """
-    from distgprl.experiments.runner import make_env as _make_env
+    from distgprl.experiments.factories import make_env as _make_env
     from distgprl.identity import resolve_run
 
     return _make_env(resolve_run(task, method, 0, _preset(preset, config)))
@@ -101,7 +102,7 @@ class Policy:
 
     def __call__(self, obs: dict[str, np.ndarray]) -> np.ndarray:
         """`predict` with ``deterministic=True`` (a ``policy(obs)`` callable, as
-        `distgprl.experiments.runner.run_episode` takes)."""
+        `distgprl.experiments.rollout.run_episode` takes)."""
         return self.predict(obs)
 
 
@@ -118,19 +119,17 @@ def load_policy(
 
     Args:
         policy: ``final`` (``model.zip``, what Table I evaluates) or ``best`` (Algorithm 1's
-            best learning-curve policy; `distgprl.experiments.runner.best_curve_row`).
+            best learning-curve policy; `distgprl.experiments.policies.best_curve_row`).
 
     Raises:
         UserInputError: unknown names, no trained model there, or a model of a configuration
             other than the one the code resolves now (as ``distgprl evaluate``).
     """
-    from distgprl.experiments.runner import (
-        deterministic_policy,
-        load_trained_policy,
-        resolve_run,
-        run_dir,
-    )
-    from distgprl.experiments.runner import make_env as _make_env
+    from distgprl.experiments.factories import make_env as _make_env
+    from distgprl.experiments.policies import load_trained_policy
+    from distgprl.experiments.rollout import deterministic_policy
+    from distgprl.identity import resolve_run
+    from distgprl.schema import run_dir
 
     if policy not in ("final", "best"):
         raise UserInputError(f"policy must be 'final' or 'best', got {policy!r}")
@@ -163,12 +162,12 @@ def train(
     progress: bool = True,
     config: str | Path | None = None,
 ) -> Path:
-    """Train one run (``distgprl train``; `distgprl.experiments.runner.train_run`) and, by
+    """Train one run (``distgprl train``; `distgprl.experiments.training.train_run`) and, by
     default, evaluate it; return the run folder ``<root>/<preset>/<task>/<method>/seed<k>``.
 
     ``steps`` overrides the preset's total RL steps (a multiple of the episode length, 3).
     """
-    from distgprl.experiments.runner import train_run
+    from distgprl.experiments.training import train_run
 
     return train_run(
         task,
@@ -195,10 +194,10 @@ def evaluate(
     config: str | Path | None = None,
 ) -> dict[str, Any]:
     """Evaluate a trained run or the ``demo`` reference (``distgprl evaluate``;
-    `distgprl.experiments.runner.evaluate_run`): writes its ``evaluation*.csv`` and
+    `distgprl.experiments.evaluation.evaluate_run`): writes its ``evaluation*.csv`` and
     ``summary*.json`` and returns the summary (success and collision rates in [0, 1],
     ``min_clearance_p5`` in m, means)."""
-    from distgprl.experiments.runner import evaluate_run
+    from distgprl.experiments.evaluation import evaluate_run
 
     return evaluate_run(
         task,

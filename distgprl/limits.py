@@ -2,7 +2,7 @@
 
 :class:`SafetyLimits` is what the hardware safety layer (:mod:`distgprl.hardware.safety`)
 checks every trial motion against; the evaluation reports the share of simulated episodes
-whose peak joint speed is above ``max_joint_speed`` (:mod:`distgprl.experiments.runner`), so
+whose peak joint speed is above ``max_joint_speed`` (:mod:`distgprl.experiments.rollout`), so
 the limits live below both.
 """
 

@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 
 from distgprl import __version__
 from distgprl import config as config_module
-from distgprl.cli import _runs, app
+from distgprl.cli import app
+from distgprl.cli.common import runs_text
 from distgprl.methods import METHODS
 
 WIDE = {"COLUMNS": "250", "TERMINAL_WIDTH": "250", "NO_COLOR": "1"}
@@ -80,7 +81,7 @@ def test_tables_against_an_unknown_preset_says_it_is_not_a_preset(tmp_path):
 
 
 def test_run_counts_are_singular_for_one():
-    assert (_runs(1), _runs(2), _runs(0)) == ("1 run", "2 runs", "0 runs")
+    assert (runs_text(1), runs_text(2), runs_text(0)) == ("1 run", "2 runs", "0 runs")
 
 
 def test_config_of_a_shipped_presets_name_or_with_preset_is_refused(tmp_path):

@@ -22,10 +22,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from distgprl.experiments.results import read_csv, read_json
-from distgprl.experiments.runner import resolve_run, run_dir
 from distgprl.experiments.sweep import Job
+from distgprl.identity import resolve_run
 from distgprl.methods import get_method
 from distgprl.runstate import VERDICTS, job_state
+from distgprl.schema import run_dir
 
 STATES = VERDICTS
 

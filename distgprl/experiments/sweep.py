@@ -49,19 +49,15 @@ from pathlib import Path
 
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
+from distgprl.experiments.checkpoints import checkpoint_dir
+from distgprl.experiments.evaluation import evaluate_run
 from distgprl.experiments.results import write_json
-from distgprl.experiments.runner import (
-    check_seed,
-    checkpoint_dir,
-    evaluate_run,
-    is_locked,
-    resolve_run,
-    run_dir,
-    train_run,
-)
-from distgprl.identity import SWEEP_SEEDS
+from distgprl.experiments.training import train_run
+from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
+from distgprl.io import is_locked
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
+from distgprl.schema import run_dir
 
 
 @dataclass(frozen=True)

@@ -39,9 +39,11 @@ from distgprl.hardware.perception import (
     load_calibration,
     pose_error,
 )
-from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints, repair_plan
+from distgprl.hardware.repair import RepairConfig
 from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
-from distgprl.schema import TRIAL_FIELDS, moved_robot
+from distgprl.hardware.trial_rows import ask_yes_no, finish_row, summarise_trials
+from distgprl.hardware.window_check import clearance_function, describe_repair, repair_window
+from distgprl.schema import TRIAL_FIELDS
 
 
 @dataclass(frozen=True)
@@ -56,7 +58,8 @@ class TrialReport:
 def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
     """(policy or None, provenance): the deterministic policy of the trained run and which
     model it is (path, SHA-256, the config hash of the run folder it sits in, if any)."""
-    from distgprl.experiments.runner import deterministic_policy
+    from distgprl.experiments.factories import load_model
+    from distgprl.experiments.rollout import deterministic_policy
     from distgprl.io import file_sha256
     from distgprl.schema import read_json, run_dir
 
@@ -70,86 +73,12 @@ def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
             f"{path}: no trained model; run `distgprl train --method {method} --task dbm "
             f"--seed {seed} --preset {preset}` first (or pass --model)"
         )
-    from distgprl.agents.sac import RegularisedSAC
-
-    try:
-        model = RegularisedSAC.load_saved(path)
-    except Exception as exc:  # an unreadable zip is the user's input problem
-        raise UserInputError(f"{path}: cannot load model ({type(exc).__name__}: {exc})") from None
-    if model.observation_space != env.observation_space or model.action_space != env.action_space:
-        raise UserInputError(f"{path}: model spaces do not match the dbm/{method} environment")
+    model = load_model(path, env, "dbm", method)
     provenance = {"model": str(path), "model_sha256": file_sha256(path)}
     config_path = path.parent / "config.json"
     if config_path.exists():
         provenance["run_config_hash"] = read_json(config_path).get("config_hash")
     return deterministic_policy(model), provenance
-
-
-def _yes_no(ask: Callable[[str], str], question: str) -> int:
-    while True:
-        answer = ask(f"{question} [y/n] ").strip().lower()
-        if answer in ("y", "yes", "1"):
-            return 1
-        if answer in ("n", "no", "0"):
-            return 0
-
-
-def _clearance_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> distance`` with the other bar predicted at each step's time."""
-    field = adapter.field
-    world = adapter.world
-
-    def clearance_at(points: np.ndarray, steps: np.ndarray) -> np.ndarray:
-        out = np.empty(len(points))
-        groups = steps // chunk
-        for group in np.unique(groups):
-            mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
-            out[mask] = field.clearance(points[mask])
-        field.update(world.obstacle_shapes(now))
-        return out
-
-    return clearance_at
-
-
-def _gradient_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> (distance, gradient)``, the other bar predicted at each step."""
-    field = adapter.field
-    world = adapter.world
-
-    def gradient_at(points: np.ndarray, steps: np.ndarray):
-        distance = np.empty(len(points))
-        gradient = np.empty((len(points), 3))
-        groups = steps // chunk
-        for group in np.unique(groups):
-            mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
-            distance[mask], gradient[mask] = field.distance(points[mask])
-        field.update(world.obstacle_shapes(now))
-        return distance, gradient
-
-    return gradient_at
-
-
-def _via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
-    """The window's movable via-points (not frozen ones) and how its plan depends on them;
-    None for the residual ProMP baseline (its parameters are weights, not via-points)."""
-    if adapter.method.action_mode == "residual":
-        return None
-    frozen = set(adapter.layout.frozen)
-    movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)
-    if not len(movable):
-        return None
-
-    def replan(displacement: np.ndarray) -> np.ndarray:
-        saved = adapter.gamma.copy()
-        try:
-            adapter.gamma[movable, :3] += np.asarray(displacement, dtype=float)
-            return adapter.segment_poses(step)
-        finally:
-            adapter.gamma = saved
-
-    return ViaPoints(replan, len(movable)), movable
 
 
 def run_trials(
@@ -342,28 +271,6 @@ def run_trials(
     return TrialReport(rows, path, summarise_trials(rows))
 
 
-def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate (over judged trials), MinCl (5th percentile of min
-    clearance, over the trials that moved the robot, `moved_robot`; as Table II), counts."""
-    executed = [r for r in rows if r["success"] != ""]  # judged: ran, stopped or refused
-    if not executed:
-        return {"trials": len(rows), "judged": 0}
-    moved = [r for r in executed if moved_robot(r)]
-    summary = {
-        "trials": len(rows),
-        "judged": len(executed),
-        "moved": len(moved),
-        "refused": sum(1 for r in rows if r["status"] == "refused"),
-        "success_rate": float(np.mean([float(r["success"]) for r in executed])),
-        "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
-        "mean_trial_s": float(np.mean([float(r["trial_s"]) for r in rows])),
-    }
-    if moved:
-        clearance = [float(r["min_clearance"]) for r in moved]
-        summary["min_clearance_p5"] = float(np.percentile(clearance, 5))
-    return summary
-
-
 def _one_trial(
     index,
     tc,
@@ -403,7 +310,7 @@ def _one_trial(
         result = robot.move_joints(q_home)
         if result.stopped:
             row.update(status="stopped", stop_reason=result.stop_reason)
-            return _finish(row, trial_start, timings, errors, planned, judge_skip=True)
+            return finish_row(row, trial_start, timings, errors, planned, judge_skip=True)
 
     def perceive() -> bool:
         image, stamp = robot.capture()
@@ -424,7 +331,7 @@ def _one_trial(
 
     if not perceive():
         row.update(status="not_perceived", stop_reason="a bar was not detected at the start")
-        return _finish(row, trial_start, timings, errors, planned, judge_skip=True)
+        return finish_row(row, trial_start, timings, errors, planned, judge_skip=True)
     now = robot.now()
     perceived_tc = adapter.begin(robot.tcp_pose(), now)
     row["object_offset_y"] = round(perceived_tc.object_offset[1], 5)
@@ -448,7 +355,7 @@ def _one_trial(
         timings["policy"] += time.perf_counter() - start
         poses = adapter.adapt(action)
         reference = clock if dry_run else robot.now()
-        clearance_at = _clearance_function(adapter, reference, dt)
+        clearance_at = clearance_function(adapter, reference, dt)
         path_poses = poses
         if repair_config is None:
             try:
@@ -475,7 +382,7 @@ def _one_trial(
             timings["check"] += check.check_ms / 1000.0
         else:
             started = time.perf_counter()
-            repaired = _repair_window(
+            repaired = repair_window(
                 adapter,
                 step,
                 poses,
@@ -491,7 +398,7 @@ def _one_trial(
             timings["check"] += time.perf_counter() - started
             windows.append((repaired.decision, repaired.time_added, repaired.max_displacement))
             if repaired.decision != "none" or dry_run:
-                echo(f"trial {index + 1}, window {step + 1}: {_describe(repaired)}")
+                echo(f"trial {index + 1}, window {step + 1}: {describe_repair(repaired)}")
             if repaired.decision == "refused" and not force:
                 refused = UnsafePlanError(repaired.remaining)
                 row.update(
@@ -539,7 +446,7 @@ def _one_trial(
     if dry_run:
         if row["status"] == "ok":
             row["status"] = "planned"
-        return _finish(row, trial_start, timings, errors, planned)
+        return finish_row(row, trial_start, timings, errors, planned)
     if twin:
         row["min_clearance"] = float(robot.min_clearance)
         row["clearance_source"] = "sim"
@@ -550,8 +457,8 @@ def _one_trial(
         row["success"] = int(robot.success())
         row["collision"] = int(bool(robot.collision))
     elif judge == "operator":
-        row["success"] = _yes_no(ask, f"trial {index + 1}: was the target bar lifted off?")
-        row["collision"] = _yes_no(
+        row["success"] = ask_yes_no(ask, f"trial {index + 1}: was the target bar lifted off?")
+        row["collision"] = ask_yes_no(
             ask, f"trial {index + 1}: did the robot or tool touch a roller, rail or the other bar?"
         )
     else:  # real robot, automatic: perceived lift; collision = a protective stop
@@ -560,54 +467,7 @@ def _one_trial(
         lifted = track[2, 3] - adapter.world.scene.bar_centre_z
         row["success"] = int(lifted >= adapter.world.scene.lift_height and row["status"] == "ok")
         row["collision"] = int(row["collision"] == 1)
-    return _finish(row, trial_start, timings, errors, planned)
-
-
-def _repair_window(
-    adapter, step, poses, q, velocity, limits, dt, clearance_at, reference, shift, config
-) -> RepairResult:
-    """Retime / repair / refuse the window's plan (:func:`repair_plan`).
-
-    The plan follows the belt (re-timed poses shifted by the belt's travel during the
-    added time) while the perceived target bar is still on the belt; once it is lifted
-    the shift stays as it is. Repaired via-points are written back into the adapter (the
-    policy sees them in its next observation, as if it had moved them).
-    """
-    world = adapter.world
-    on_belt = "target_bar" in world.tracks and world._on_belt(world.tracks["target_bar"].transform)
-    movable = _via_points(adapter, step)
-    result = repair_plan(
-        poses,
-        q,
-        adapter.model.robot,
-        limits,
-        dt,
-        clearance_at,
-        _gradient_function(adapter, reference, dt),
-        None if movable is None else movable[0],
-        v_start=velocity,
-        shift=shift,
-        belt_velocity=world.velocity if on_belt and config.follow_belt else None,
-        config=config,
-    )
-    if result.decision == "repaired" and movable is not None:
-        adapter.gamma[movable[1], :3] += result.displacement
-    return result
-
-
-def _describe(result: RepairResult) -> str:
-    """One line for a window's repair decision."""
-    if result.decision == "refused":
-        pushes = ", ".join(f"{1000 * d:.1f}" for d in result.pushes)
-        tried = f" (clearance after each push, mm: {pushes})" if pushes else ""
-        return f"refused after retiming and repair{tried} -- {result.reason}"
-    if result.decision == "none":
-        return "none (plan passes the pre-flight check)"
-    text = f"{result.decision}: +{result.time_added:.2f} s"
-    if result.decision == "repaired":
-        text += f", via-points moved up to {1000.0 * result.max_displacement:.1f} mm"
-    original = ", ".join(f"{v.limit} {v.value:.4g}" for v in result.original.violations)
-    return f"{text} (was: {original}; now min clearance {result.check.min_clearance:.4f} m)"
+    return finish_row(row, trial_start, timings, errors, planned)
 
 
 def _fk_pose(robot, q: np.ndarray) -> np.ndarray:
@@ -621,23 +481,3 @@ def _edf_clearance(adapter, robot) -> float:
     points = tool_check_points(adapter.model.robot, robot.joint_positions())
     adapter.field.update(adapter.world.obstacle_shapes())
     return float(adapter.field.clearance(points).min())
-
-
-def _finish(row, trial_start, timings, errors, planned, judge_skip: bool = False):
-    """Fill the bookkeeping columns; trials that never moved count as failures."""
-    if judge_skip:  # stopped or not perceived before any motion
-        row["success"] = 0
-        row["collision"] = int(row["collision"] == 1)
-        row["min_clearance"] = np.inf
-    row["planned_min_clearance"] = float(planned)
-    if errors:
-        array = np.array(errors)
-        row["perception_error_mm"] = round(1000.0 * float(array[:, 0].max()), 3)
-        row["perception_error_deg"] = round(float(array[:, 1].max()), 3)
-    if timings["perception"]:
-        row["perception_ms"] = round(float(np.mean(timings["perception"])), 2)
-    row["policy_ms"] = round(1000.0 * timings["policy"], 3)
-    row["check_ms"] = round(1000.0 * timings["check"], 3)
-    row["execution_s"] = round(timings["execution"], 3)
-    row["trial_s"] = round(time.perf_counter() - trial_start, 3)
-    return row

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from distgprl.experiments import runner
+from distgprl.experiments import runner, training
 
 
 @pytest.fixture
@@ -14,13 +14,13 @@ def kill_at_the_first_checkpoint(monkeypatch):
     would)."""
 
     def kill(root, method: str = "dist-gprl") -> None:
-        original = runner.save_checkpoint
+        original = training.save_checkpoint
 
         def save_then_die(folder, model, env, extra):
             original(folder, model, env, extra)
             raise KeyboardInterrupt
 
-        monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+        monkeypatch.setattr(training, "save_checkpoint", save_then_die)
         with pytest.raises(KeyboardInterrupt):
             runner.train_run(
                 "dcp",
@@ -32,6 +32,6 @@ def kill_at_the_first_checkpoint(monkeypatch):
                 show_progress=False,
                 evaluate_after=False,
             )
-        monkeypatch.setattr(runner, "save_checkpoint", original)
+        monkeypatch.setattr(training, "save_checkpoint", original)
 
     return kill

@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from distgprl.cli import app
 from distgprl.errors import UserInputError
-from distgprl.experiments import runner
+from distgprl.experiments import policies, runner, training
 from distgprl.experiments.results import read_csv, read_json
 
 STEPS = 240  # the `ci` preset shortened: curve points at 0, 120, 240
@@ -59,6 +59,16 @@ def test_best_point_ranks_success_then_collision_then_return_earliest_first():
         runner.best_curve_row([])
 
 
+def test_a_point_beats_every_earlier_one_only_when_it_ranks_above_all_of_them():
+    """The first point is kept; a later one only if it ranks strictly above every earlier
+    one (a tie keeps the earlier actor, as `best_curve_row` selects the earliest)."""
+    first, better, tie = row(0.5, 0.0, 1.0, 0), row(0.6, 0.0, 0.0, 1), row(0.6, 0.0, 0.0, 2)
+    assert policies.beats_every_earlier([], first)
+    assert policies.beats_every_earlier([first], better)
+    assert not policies.beats_every_earlier([first, better], tie)
+    assert not policies.beats_every_earlier([better], first)
+
+
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A 240-step dist-gprl run (curve points and checkpoints at 0/120/240 and 120/240)."""
@@ -80,7 +90,7 @@ def test_a_curve_policy_is_kept_exactly_where_a_point_beats_every_earlier_one(tr
 def ranked_by_step(tmp_path_factory):
     """A 240-step run (evaluated) whose curve ranking always improves (later is better)."""
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(runner, "curve_rank", lambda r: (float(r["step"]),))
+        patch.setattr(policies, "curve_rank", lambda r: (float(r["step"]),))
         root = tmp_path_factory.mktemp("ranked")
         folder = train(root)
     return root, folder
@@ -123,7 +133,7 @@ def test_best_policy_evaluation_writes_its_own_files_and_records_the_selection(
     """The best point here is the last (ranking by step): its evaluation equals the final
     policy's episode by episode, under the ``_best`` names, with the selection recorded."""
     root, folder = ranked_by_step
-    monkeypatch.setattr(runner, "curve_rank", lambda r: (float(r["step"]),))
+    monkeypatch.setattr(policies, "curve_rank", lambda r: (float(r["step"]),))
     final_text = (folder / "evaluation.csv").read_text()
     summary = runner.evaluate_run(
         "dcp", "dist-gprl", 0, "ci", root=root, show_progress=False, policy="best"
@@ -142,17 +152,17 @@ def test_best_policy_evaluation_writes_its_own_files_and_records_the_selection(
 def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkeypatch):
     """Ranking earliest first selects the untrained step-0 actor: the evaluated policy is
     that actor (its returns differ from the final policy's), not the final one."""
-    monkeypatch.setattr(runner, "curve_rank", lambda r: (-float(r["step"]),))
+    monkeypatch.setattr(policies, "curve_rank", lambda r: (-float(r["step"]),))
     folder = train(tmp_path)
     loaded = {}
-    original = runner.load_curve_policy
+    original = policies.load_curve_policy
 
     def spy(folder_, model, step):
         original(folder_, model, step)
         loaded["step"] = step
         loaded["actor"] = [v.numpy().copy() for v in model.actor.state_dict().values()]
 
-    monkeypatch.setattr(runner, "load_curve_policy", spy)
+    monkeypatch.setattr(policies, "load_curve_policy", spy)
     summary = runner.evaluate_run(
         "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
     )
@@ -176,7 +186,7 @@ def test_training_skips_the_best_policy_evaluation_it_cannot_do_and_says_so(
 ):
     """A run whose best point has no kept actor (trained before they were kept) still
     finishes and is evaluated; only the best-policy evaluation is skipped, with a note."""
-    monkeypatch.setattr(runner, "save_curve_policy", lambda folder, model: None)
+    monkeypatch.setattr(training, "save_curve_policy", lambda folder, model: None)
     folder = train(tmp_path, steps=120)
     assert (folder / "done.json").exists() and (folder / "summary.json").exists()
     assert not (folder / "summary_best.json").exists()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments import runner
+from distgprl.experiments import checkpoints, runner, training
 from distgprl.experiments.results import read_csv, read_json, write_json
 from distgprl.hardware.safety import SafetyLimits
 from distgprl.methods import METHODS
@@ -78,7 +78,7 @@ def test_same_seed_gives_identical_progress(tmp_path):
 
 
 def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_path, monkeypatch):
-    original = runner.save_checkpoint
+    original = training.save_checkpoint
     calls = {"n": 0}
 
     def save_then_die(folder, model, env, extra):
@@ -87,14 +87,14 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
         if calls["n"] == 1:
             raise KeyboardInterrupt  # killed right after the first checkpoint
 
-    monkeypatch.setattr(runner, "save_checkpoint", save_then_die)
+    monkeypatch.setattr(training, "save_checkpoint", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
     folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     assert not (folder / "done.json").exists()
     with pytest.raises(UserInputError, match="pass --resume"):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
+    monkeypatch.setattr(training, "save_checkpoint", original)
     train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     done = read_json(folder / "done.json")
     assert done["steps"] == 240
@@ -186,7 +186,7 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
         monkeypatch.setattr(RegularisedSAC, "save_replay_buffer", die_in_second_save)
         resumed_at = 120
     else:
-        original_install = runner._install_checkpoint
+        original_install = checkpoints.install_checkpoint
 
         def die_after_moving_the_model(paths):
             calls["save"] += 1
@@ -195,7 +195,7 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
                 raise KeyboardInterrupt
             original_install(paths)
 
-        monkeypatch.setattr(runner, "_install_checkpoint", die_after_moving_the_model)
+        monkeypatch.setattr(checkpoints, "install_checkpoint", die_after_moving_the_model)
         resumed_at = 240
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
@@ -218,7 +218,7 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
 
 
 def test_checkpoint_pieces_from_different_steps_are_a_clear_error(tmp_path, monkeypatch):
-    original = runner.save_checkpoint
+    original = training.save_checkpoint
     saved = {}
 
     def save_and_keep(folder, model, env, extra):  # killed after the second checkpoint
@@ -227,7 +227,7 @@ def test_checkpoint_pieces_from_different_steps_are_a_clear_error(tmp_path, monk
         if len(saved) == 2:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "save_checkpoint", save_and_keep)
+    monkeypatch.setattr(training, "save_checkpoint", save_and_keep)
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "gprl-d", steps=360, evaluate_after=False)
     monkeypatch.undo()
@@ -437,7 +437,7 @@ def test_a_start_that_fails_before_training_leaves_nothing_behind(tmp_path, monk
     def broken_env(run):
         raise RuntimeError("simulated start-up failure")
 
-    monkeypatch.setattr(runner, "make_env", broken_env)
+    monkeypatch.setattr(training, "make_env", broken_env)
     with pytest.raises(RuntimeError, match="simulated start-up failure"):
         train(tmp_path, "dist-gprl")
     assert not runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0).parent.exists()
@@ -460,7 +460,7 @@ def test_a_failed_resume_keeps_the_runs_files(tmp_path, monkeypatch):
     def broken_env(run):
         raise RuntimeError("simulated start-up failure")
 
-    monkeypatch.setattr(runner, "make_env", broken_env)
+    monkeypatch.setattr(training, "make_env", broken_env)
     with pytest.raises(RuntimeError, match="simulated"):
         train(tmp_path, "dist-gprl", resume=True)
     assert (folder / "config.json").exists()
@@ -527,7 +527,7 @@ def test_a_resumed_runs_events_purge_what_the_killed_process_logged_after_its_ch
     """Killed at its second checkpoint (after logging steps 120..240) and resumed from the
     first: each curve point and each training episode appears once in the event files."""
     pytest.importorskip("tensorboard")
-    original = runner.save_checkpoint
+    original = training.save_checkpoint
     calls = []
 
     def die_at_the_second(folder, model, env, extra):
@@ -536,10 +536,10 @@ def test_a_resumed_runs_events_purge_what_the_killed_process_logged_after_its_ch
             raise KeyboardInterrupt
         original(folder, model, env, extra)
 
-    monkeypatch.setattr(runner, "save_checkpoint", die_at_the_second)
+    monkeypatch.setattr(training, "save_checkpoint", die_at_the_second)
     with pytest.raises(runner.TrainingInterrupted):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
-    monkeypatch.setattr(runner, "save_checkpoint", original)
+    monkeypatch.setattr(training, "save_checkpoint", original)
     folder = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     scalars = _event_scalars(folder)
     assert [step for step, _ in scalars["curve/success_rate"]] == [0, 120, 240]

@@ -57,6 +57,8 @@ def test_the_blocker_blocks():
     "module",
     [
         "distgprl.report.tables",
+        "distgprl.report.table1",
+        "distgprl.report.table2",
         "distgprl.report.curves",
         "distgprl.report.paired",
         "distgprl.report.runs",

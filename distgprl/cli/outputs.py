@@ -1,0 +1,126 @@
+"""`distgprl tables`, `curves`, `render` and `bench`: the tables and figures made from
+result files, an episode's rendering and the benchmarks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from distgprl.cli.common import (
+    METHODS_HELP,
+    PRESETS_HELP,
+    ConfigOption,
+    PresetOption,
+    RootOption,
+    TaskOption,
+    resolve_preset,
+    user_errors,
+)
+from distgprl.errors import UserInputError
+
+
+@user_errors
+def bench(
+    quick: Annotated[bool, typer.Option(help="Fewer repeats and smaller sweeps (~1 min).")] = False,
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/bench"),
+) -> None:
+    """Adaptation latency, simulation and training throughput, scaling; JSON + figure."""
+    from distgprl.experiments.bench import load_results, markdown_table, run_benchmarks
+
+    path = run_benchmarks(quick, out_dir, progress=typer.echo)
+    typer.echo(markdown_table(load_results(path)))
+    typer.echo(f"wrote {path}")
+
+
+@user_errors
+def tables(
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    root: RootOption = Path("results"),
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+    against: Annotated[
+        str | None,
+        typer.Option(
+            metavar="NAME",
+            help=f"Also pair every run TC by TC with the same run of this preset: {PRESETS_HELP}.",
+        ),
+    ] = None,
+) -> None:
+    """Table I (and Table II if hardware trials exist) as CSV, Markdown and LaTeX."""
+    from distgprl.config import preset_names
+    from distgprl.report.tables import write_tables
+
+    preset = resolve_preset(preset, config)
+    if against is not None and against not in preset_names() and not (root / against).is_dir():
+        raise UserInputError(
+            f"--against {against}: not a preset (valid presets: {', '.join(preset_names())}) "
+            f"and no results under {root / against}"
+        )
+    for path in write_tables(root, preset, out_dir, against):
+        typer.echo(f"wrote {path}")
+
+
+@user_errors
+def curves(
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    root: RootOption = Path("results"),
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+) -> None:
+    """Learning-curve figures (HAP effect, covariance effect, all methods), PNG and PDF."""
+    from distgprl.report.curves import write_curves
+
+    preset = resolve_preset(preset, config)
+    for path in write_curves(root, preset, out_dir):
+        typer.echo(f"wrote {path}")
+
+
+@user_errors
+def render(
+    task: TaskOption,
+    out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
+    tc: Annotated[int | None, typer.Option(help="Evaluation TC index (default: nominal).")] = None,
+    method: Annotated[
+        str,
+        typer.Option(
+            metavar="METHOD",
+            help=f"Method: {METHODS_HELP}. demo: the GP skill alone; any other: the trained "
+            "run's adapted episode beside the unadapted demonstration (faded), windows marked.",
+        ),
+    ] = "demo",
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    root: RootOption = Path("results"),
+    policy: Annotated[
+        str, typer.Option(metavar="final|best", help="The run's final or best policy.")
+    ] = "final",
+) -> None:
+    """Render an episode (headless): the GP skill, or a trained policy's adaptation."""
+    from distgprl.data import check_task_name
+
+    check_task_name(task)
+    if method == "demo":
+        from distgprl.envs.render import render_demo_episode
+
+        summary = render_demo_episode(task, tc, out)
+    else:
+        from distgprl.api import load_policy
+        from distgprl.envs.render import render_policy_episode
+        from distgprl.experiments.factories import make_env
+        from distgprl.identity import resolve_run
+
+        preset = resolve_preset(preset, config)
+        trained = load_policy(task, method, seed, preset=preset, root=root, policy=policy)
+        env = make_env(trained.run)
+        demo_env = make_env(resolve_run(task, "demo", seed, preset))
+        try:
+            summary = render_policy_episode(
+                env, trained, demo_env, tc, out, title=f"{method} seed {seed} ({policy})"
+            )
+        finally:
+            env.close()
+            demo_env.close()
+    typer.echo(f"wrote {out}: " + ", ".join(f"{k}={v}" for k, v in summary.items() if k != "path"))

@@ -1,0 +1,227 @@
+"""`distgprl train`, `evaluate`, `sweep` and `status`: train and evaluate runs, one or a
+whole sweep, and see where a sweep stands."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+import typer
+
+from distgprl.cli.common import (
+    DEFAULT_SEEDS,
+    METHODS_HELP,
+    TRAINABLE_HELP,
+    ConfigOption,
+    MethodsOption,
+    PresetOption,
+    RootOption,
+    SeedsOption,
+    TaskOption,
+    TasksOption,
+    parse_seeds,
+    resolve_preset,
+    runs_text,
+    split_list,
+    user_errors,
+)
+
+
+@user_errors
+def sweep(
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    methods: MethodsOption = None,
+    tasks: TasksOption = None,
+    seeds: SeedsOption = DEFAULT_SEEDS,
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
+    ] = None,
+    executor: Annotated[
+        Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
+    ] = "local",
+    address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
+    root: RootOption = Path("results"),
+    heartbeat: Annotated[
+        float,
+        typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
+    ] = 5.0,
+    retrain_damaged: Annotated[
+        bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
+    ] = False,
+) -> None:
+    """Train and evaluate every (method, task, seed); finished runs are skipped.
+
+    Exit code 0: every run is complete; 1: a run failed (its error.json says why) or is
+    damaged (reported, left alone without --retrain-damaged); 3: no failure, but runs were
+    left to another process training them (busy); 130: interrupted.
+    """
+    from distgprl.experiments.status import sweep_status
+    from distgprl.experiments.sweep import (
+        default_workers,
+        plan_jobs,
+        run_sweep,
+        stop_on_interrupt_signals,
+    )
+
+    preset = resolve_preset(preset, config)
+    jobs = plan_jobs(preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root)
+    if workers is None:
+        workers = default_workers()
+    typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
+
+    def report(result, finished, total):
+        extra = f" ({result.error})" if result.error else ""
+        typer.echo(
+            f"[{finished}/{total}] {result.job.name}: {result.status} "
+            f"in {result.seconds:.0f} s{extra}"
+        )
+
+    def progress(unfinished):
+        for status in sweep_status(unfinished):
+            if status.state == "running":
+                typer.echo(f"  {status.describe()}")
+
+    stop_on_interrupt_signals()
+    try:
+        results = run_sweep(
+            jobs,
+            workers,
+            executor,
+            address,
+            on_result=report,
+            on_tick=progress if heartbeat > 0 else None,
+            tick_s=heartbeat * 60.0,
+            retrain_damaged=retrain_damaged,
+        )
+    except KeyboardInterrupt:
+        typer.echo(
+            "sweep interrupted: queued runs were not started and running ones stopped at "
+            "their last checkpoint; re-run the same command to resume.",
+            err=True,
+        )
+        raise typer.Exit(code=130) from None
+    failed = [r for r in results if r.status == "failed"]
+    busy = [r for r in results if r.status == "busy"]
+    damaged = [r for r in results if r.status == "damaged"]
+    typer.echo(
+        f"sweep: {len(results) - len(failed) - len(busy) - len(damaged)}/{len(results)} runs "
+        "complete"
+        + (f", {len(busy)} left to the other process training them" if busy else "")
+        + (f", {len(damaged)} damaged (--retrain-damaged retrains them)" if damaged else "")
+    )
+    if failed or damaged:
+        raise typer.Exit(code=1)
+    if busy:  # not complete yet: `make reproduce` must not go on to the tables as if it were
+        raise typer.Exit(code=3)
+
+
+@user_errors
+def status(
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    methods: MethodsOption = None,
+    tasks: TasksOption = None,
+    seeds: SeedsOption = DEFAULT_SEEDS,
+    root: RootOption = Path("results"),
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            min=1, help="Parallel jobs to estimate the time left for (default: as `sweep`)."
+        ),
+    ] = None,
+) -> None:
+    """Where every run of a sweep stands (done, running, partial, ...), from its run folder,
+    and the training time left."""
+    from distgprl.experiments.status import count_states, sweep_status, training_left
+    from distgprl.experiments.sweep import default_workers, plan_jobs
+
+    preset = resolve_preset(preset, config)
+    statuses = sweep_status(
+        plan_jobs(preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root)
+    )
+    for entry in statuses:
+        typer.echo(entry.describe())
+    typer.echo(count_states(statuses))
+    typer.echo(training_left(statuses).describe(workers or default_workers()))
+
+
+@user_errors
+def train(
+    method: Annotated[str, typer.Option(metavar="METHOD", help=f"Method: {TRAINABLE_HELP}.")],
+    task: TaskOption,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    steps: Annotated[
+        int | None,
+        typer.Option(
+            help="Override the preset's total RL steps: a positive multiple of the episode "
+            "length (3 RL steps, one per window).",
+            show_default=False,
+        ),
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option(help="Continue a killed run from its checkpoint.")
+    ] = False,
+    root: RootOption = Path("results"),
+    evaluate: Annotated[bool, typer.Option(help="Evaluate after training.")] = True,
+) -> None:
+    """Train one method on one task and seed (resumable); then evaluate it.
+
+    Interrupted (Ctrl-C, SIGINT or SIGTERM): says where it stopped and how to resume; exit 130.
+    """
+    from distgprl.experiments.run_control import describe_interrupt, resume_command
+    from distgprl.experiments.sweep import stop_on_interrupt_signals
+    from distgprl.experiments.training import train_run
+
+    preset = resolve_preset(preset, config)
+    stop_on_interrupt_signals()
+    try:
+        folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)
+    except KeyboardInterrupt as stop:
+        command = resume_command(task, method, seed, preset, steps, root, evaluate)
+        typer.echo(describe_interrupt(stop, command), err=True)
+        raise typer.Exit(code=130) from None
+    typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
+
+
+@user_errors
+def evaluate(
+    method: Annotated[
+        str,
+        typer.Option(
+            metavar="METHOD", help=f"Method (demo: the unadapted reference): {METHODS_HELP}."
+        ),
+    ],
+    task: TaskOption,
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    episodes: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Evaluation TCs (default: preset). Another number writes a supplementary "
+            "evaluation_n<N>.csv / summary_n<N>.json (first N TCs of the same stream) "
+            "beside the preset's.",
+        ),
+    ] = None,
+    root: RootOption = Path("results"),
+    policy: Annotated[
+        str,
+        typer.Option(
+            metavar="final|best",
+            help="`final` (the trained policy, what Table I evaluates) or `best` (Algorithm "
+            "1's best policy: the best learning-curve point, by curve success, then collision, "
+            "then return), which writes evaluation_best*.csv / summary_best*.json.",
+        ),
+    ] = "final",
+) -> None:
+    """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
+    from distgprl.experiments.evaluation import describe, evaluate_run
+
+    preset = resolve_preset(preset, config)
+    summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
+    typer.echo(describe(summary))

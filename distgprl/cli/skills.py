@@ -1,0 +1,94 @@
+"""`distgprl fit` and `hap`: the GP via-point skill fitted to a demonstration and the
+task's HAP safe subspace."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from distgprl.cli.common import (
+    TASKS_HELP,
+    TaskOption,
+    user_errors,
+)
+from distgprl.errors import UserInputError
+
+
+@user_errors
+def fit(
+    task: Annotated[
+        str | None, typer.Option(metavar="TASK", help=f"Fit the task's shipped demo: {TASKS_HELP}.")
+    ] = None,
+    demo: Annotated[Path | None, typer.Option(help="Fit a demonstration CSV instead.")] = None,
+    n_via_points: Annotated[int, typer.Option(min=2, help="Number of via-points N.")] = 15,
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/skills"),
+) -> None:
+    """Fit the GP via-point skill to a demonstration; write JSON and a figure."""
+    from distgprl.data import demo_path
+    from distgprl.experiments.skills import fit_demonstration
+    from distgprl.skill.gp import FitConfig
+
+    if (task is None) == (demo is None):
+        raise UserInputError("give exactly one of --task or --demo")
+    source = demo_path(task) if task is not None else demo
+    output = fit_demonstration(
+        source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points)
+    )
+    worst = max(output.rmse["position"][:3])
+    typer.echo(
+        f"fitted {output.skill.name}: length scale {output.skill.kernel.length_scale:.4f}, "
+        f"max position RMSE {worst * 1000:.3f} mm -> {output.json_path}, {output.figure_path}"
+    )
+    correlation = output.correlation
+    windows = correlation["windows"]
+    typer.echo(
+        f"covariance transform (lambda {correlation['correlation_lambda']:g}, K scale "
+        f"{correlation['covariance_scale']!r}): neighbouring via-points correlate "
+        f"{correlation['neighbour_correlation']:.2f} in the kernel; S_W eigenvalues "
+        f"{min(w['eigenvalue_min'] for w in windows):.3f}-"
+        f"{max(w['eigenvalue_max'] for w in windows):.3f}, largest off-diagonal "
+        f"{max(w['max_off_diagonal'] for w in windows):.3f}"
+    )
+    for window in windows:
+        spectrum = ", ".join(
+            f"{axis} {a['eigenvalue_min']:.3f}-{a['eigenvalue_max']:.3f}"
+            for axis, a in window["axes"].items()
+        )
+        typer.echo(f"  S_W via-points {window['via_points']}: {spectrum}")
+    for scale, spectrum in correlation["candidates"].items():
+        typer.echo(
+            f"  candidate K scale {scale!r}: S_W eigenvalues "
+            f"{spectrum['eigenvalue_min']:.3f}-{spectrum['eigenvalue_max']:.3f}"
+        )
+
+
+@user_errors
+def hap(
+    task: TaskOption,
+    out: Annotated[
+        Path | None, typer.Option(help="Figure path (default results/hap/<task>.png).")
+    ] = None,
+) -> None:
+    """Build (or load) the task's HAP safe subspace; report it and plot C_safe."""
+    from distgprl.data import check_task_name
+    from distgprl.envs.tasks import load_task_subspace
+    from distgprl.safety.hap import plot_subspace
+    from distgprl.sim.tasks import get_task
+
+    check_task_name(task)
+    subspace, loaded = load_task_subspace(task)
+    stats = subspace.stats
+    out = out or Path("results/hap") / f"{task}.png"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sim = get_task(task).make_sim()
+    try:
+        plot_subspace(subspace, sim.obstacle_shapes(), out, title=f"{task.upper()} C_safe")
+    finally:
+        sim.close()
+    typer.echo(
+        f"{task}: C_safe {len(subspace.unique_positions)} positions "
+        f"({stats.n_mapped}/{stats.n_reachable} reachable poses mapped), "
+        f"build {stats.build_seconds:.1f} s{' (cached)' if loaded else ''} -> {out}"
+    )

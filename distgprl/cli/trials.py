@@ -1,0 +1,89 @@
+"""`distgprl hardware`: trials of a trained DBM policy on a UR5e or its digital twin."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from distgprl.cli.common import (
+    METHODS_HELP,
+    ConfigOption,
+    PresetOption,
+    RootOption,
+    resolve_preset,
+    user_errors,
+)
+
+
+@user_errors
+def hardware(
+    trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
+    method: Annotated[
+        str,
+        typer.Option(metavar="METHOD", help=f"Trained method whose policy adapts: {METHODS_HELP}."),
+    ] = "dist-gprl",
+    seed: Annotated[int, typer.Option(help="Seed of the trained run.")] = 0,
+    backend: Annotated[
+        str | None, typer.Option(help="twin | ur (default: ur if --robot-ip, else twin).")
+    ] = None,
+    robot_ip: Annotated[
+        str | None, typer.Option(help="UR controller address (ur backend).")
+    ] = None,
+    camera: Annotated[str | None, typer.Option(help="Camera index or URL (ur backend).")] = None,
+    calibration: Annotated[Path | None, typer.Option(help="Calibration YAML/JSON.")] = None,
+    dry_run: Annotated[bool, typer.Option(help="Perceive, adapt and check; never move.")] = False,
+    judge: Annotated[
+        str, typer.Option(metavar="auto|operator", help="Who judges success.")
+    ] = "auto",
+    force: Annotated[
+        bool, typer.Option(help="Execute plans that fail the pre-flight check.")
+    ] = False,
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
+    root: RootOption = Path("results"),
+    repair: Annotated[
+        bool,
+        typer.Option(
+            help="Retime too-fast plans before refusing (with --repair-push also push "
+            "too-close via-points; --no-repair: refuse at once)."
+        ),
+    ] = True,
+    sensor_noise: Annotated[
+        int,
+        typer.Option(min=0, max=2, help="Twin sensor noise: 0 none, 1 mild, 2 strong."),
+    ] = 0,
+    repair_push: Annotated[
+        bool,
+        typer.Option(
+            help="Also push too-close via-points along the distance field (off by default: "
+            "not yet shown to make a grazing plan safer, see RepairConfig)."
+        ),
+    ] = False,
+) -> None:
+    """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
+    from distgprl.hardware.repair import RepairConfig
+    from distgprl.hardware.trials import run_trials
+
+    preset = resolve_preset(preset, config)
+    report = run_trials(
+        trials=trials,
+        method=method,
+        seed=seed,
+        backend=backend or ("ur" if robot_ip else "twin"),
+        robot_ip=robot_ip,
+        camera=camera,
+        calibration=calibration,
+        dry_run=dry_run,
+        judge=judge,
+        force=force,
+        root=root,
+        preset=preset,
+        model_path=model,
+        repair=repair,
+        repair_config=RepairConfig(repair=repair_push),
+        sensor_noise=sensor_noise,
+    )
+    typer.echo(f"{report.path}: {report.summary}")

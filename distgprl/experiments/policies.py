@@ -1,0 +1,152 @@
+"""The policies a trained run keeps: the actors of its best-so-far learning-curve points
+(Algorithm 1's "best policy", ranked by `curve_rank`) and the loading of a trained run's
+final or best policy (`load_trained_policy`)."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from distgprl.errors import UserInputError
+from distgprl.experiments.checkpoints import checkpoint_dir
+from distgprl.experiments.factories import load_model
+from distgprl.identity import RunSpec, resolve_run
+from distgprl.io import atomic_write_bytes
+from distgprl.schema import read_csv, read_json
+
+
+def curve_policy_dir(folder: Path) -> Path:
+    """Where a run keeps the actors of its best-so-far learning-curve points (checkpoints)."""
+    return checkpoint_dir(folder) / "curve_policies"
+
+
+def curve_policy_path(folder: Path, step: int) -> Path:
+    """The kept actor of the learning-curve point at ``step``."""
+    return curve_policy_dir(folder) / f"step{int(step)}.pt"
+
+
+def curve_rank(row: dict[str, Any]) -> tuple[float, float, float]:
+    """How learning-curve points are ordered when Algorithm 1's "best policy" is selected:
+    higher success rate on the learning-curve TCs, then lower collision rate, then higher
+    mean return. The curve TCs are drawn from their own stream, never the evaluation TCs, so
+    selecting on them and evaluating on the evaluation TCs is an honest model selection."""
+    return (
+        float(row["success_rate"]),
+        -float(row["collision_rate"]),
+        float(row["mean_return"]),
+    )
+
+
+def best_curve_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The best learning-curve point (`curve_rank`; the earliest of equal ones)."""
+    if not rows:
+        raise UserInputError("no learning-curve points to select the best policy from")
+    return max(rows, key=curve_rank)  # max keeps the first of equal ones
+
+
+def beats_every_earlier(earlier: list[dict[str, Any]], row: dict[str, Any]) -> bool:
+    """Whether learning-curve point ``row`` ranks above every point of ``earlier``
+    (`curve_rank`; the first point does): training keeps its actor then."""
+    best_before = max((curve_rank(point) for point in earlier), default=None)
+    return best_before is None or curve_rank(row) > best_before
+
+
+def save_curve_policy(folder: Path, model) -> None:
+    """Keep the model's actor (weights only) as the learning-curve policy of its step."""
+    import torch
+
+    buffer = io.BytesIO()
+    torch.save(model.actor.state_dict(), buffer)
+    path = curve_policy_path(folder, model.num_timesteps)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, buffer.getvalue())
+
+
+def drop_curve_policies_after(folder: Path, step: int) -> None:
+    """Delete kept curve policies of points after ``step`` (a resume discards those points)."""
+    directory = curve_policy_dir(folder)
+    if not directory.is_dir():
+        return
+    for path in directory.glob("step*.pt"):
+        if int(path.stem.removeprefix("step")) > step:
+            path.unlink()
+
+
+def load_curve_policy(folder: Path, model, step: int) -> None:
+    """Replace the model's actor by the kept learning-curve actor of ``step``."""
+    import torch
+
+    path = curve_policy_path(folder, step)
+    if not path.exists():
+        raise UserInputError(
+            f"{path}: the best learning-curve point (step {step}) has no kept policy: it was "
+            "trained before training kept curve policies, or on another machine (they stay "
+            "in the checkpoint folder of the machine that trained the run)"
+        )
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        model.actor.load_state_dict(state)
+    except Exception as exc:
+        raise UserInputError(
+            f"{path}: cannot load the curve policy ({type(exc).__name__}: {exc})"
+        ) from None
+
+
+@dataclass(frozen=True)
+class TrainedPolicy:
+    """A trained run's policy, loaded by `load_trained_policy`.
+
+    Attributes:
+        run: the run as it was trained (with its ``--steps``, if it was trained with them).
+        model: the `RegularisedSAC` holding the policy (for ``policy="best"``, with the
+            actor of the selected learning-curve point).
+        selected: for ``policy="best"``: ``policy``, ``policy_step`` and the selected
+            point's curve figures (what the summary records); else empty.
+    """
+
+    run: RunSpec
+    model: Any
+    selected: dict[str, Any]
+
+
+def load_trained_policy(run: RunSpec, folder: Path, env, policy: str = "final") -> TrainedPolicy:
+    """Load the final (``policy="final"``, ``model.zip``) or best learning-curve
+    (``policy="best"``) policy of the trained run in ``folder``.
+
+    The run is taken with the configuration it was trained with (its ``total_steps``
+    included), which must still be what the code resolves; a model of an older
+    configuration, or one whose spaces do not match ``env``'s, is a `UserInputError`.
+    """
+    task, method, seed, preset = run.task, run.method.name, run.seed, run.config.preset
+    model_path = folder / "model.zip"
+    if not model_path.exists():
+        raise UserInputError(
+            f"{model_path}: no trained model; run `distgprl train --method {method} "
+            f"--task {task} --seed {seed} --preset {preset}` first"
+        )
+    trained = read_json(folder / "config.json") if (folder / "config.json").exists() else {}
+    steps = trained.get("run", {}).get("config", {}).get("run", {}).get("total_steps")
+    if steps is not None and steps != run.config.run.total_steps:  # trained with --steps
+        run = resolve_run(task, method, seed, preset, steps)
+    recorded = trained.get("config_hash")
+    if recorded != run.hash:
+        raise UserInputError(
+            f"{model_path}: trained with configuration {recorded}, the code now resolves "
+            f"{run.hash} for this run; re-train it (evaluating would mislabel the model)"
+        )
+    model = load_model(model_path, env, task, method)
+    selected: dict[str, Any] = {}
+    if policy == "best":
+        _, curve = read_csv(folder / "progress.csv")
+        best = best_curve_row(curve)
+        load_curve_policy(folder, model, int(best["step"]))
+        selected = {
+            "policy": "best",
+            "policy_step": int(best["step"]),
+            "curve_success_rate": float(best["success_rate"]),
+            "curve_collision_rate": float(best["collision_rate"]),
+            "curve_mean_return": float(best["mean_return"]),
+        }
+    return TrainedPolicy(run, model, selected)

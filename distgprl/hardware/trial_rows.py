@@ -1,0 +1,83 @@
+"""The rows of hardware trials: the bookkeeping columns of a finished trial (`finish_row`),
+the operator's yes/no judgement and the summary of a trial file's rows (as Table II counts
+them)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from distgprl.schema import moved_robot
+
+
+def finish_row(
+    row: dict[str, Any],
+    trial_start: float,
+    timings: dict[str, Any],
+    errors: list[tuple[float, float]],
+    planned: float,
+    judge_skip: bool = False,
+) -> dict[str, Any]:
+    """Fill the bookkeeping columns of a trial's ``row`` (`distgprl.schema.TRIAL_FIELDS`)
+    and return it; with ``judge_skip`` (stopped or not perceived before any motion) the
+    trial counts as a failure.
+
+    Args:
+        row: the trial's row, filled in place.
+        trial_start: ``time.perf_counter()`` at the trial's start (s).
+        timings: ``perception`` (detection ms per image), ``policy``, ``check`` and
+            ``execution`` (s, summed over the windows).
+        errors: (position error m, rotation error deg) of each perceived pose (twin only).
+        planned: the smallest planned clearance over the windows (m; inf if none).
+    """
+    if judge_skip:  # stopped or not perceived before any motion
+        row["success"] = 0
+        row["collision"] = int(row["collision"] == 1)
+        row["min_clearance"] = np.inf
+    row["planned_min_clearance"] = float(planned)
+    if errors:
+        array = np.array(errors)
+        row["perception_error_mm"] = round(1000.0 * float(array[:, 0].max()), 3)
+        row["perception_error_deg"] = round(float(array[:, 1].max()), 3)
+    if timings["perception"]:
+        row["perception_ms"] = round(float(np.mean(timings["perception"])), 2)
+    row["policy_ms"] = round(1000.0 * timings["policy"], 3)
+    row["check_ms"] = round(1000.0 * timings["check"], 3)
+    row["execution_s"] = round(timings["execution"], 3)
+    row["trial_s"] = round(time.perf_counter() - trial_start, 3)
+    return row
+
+
+def ask_yes_no(ask: Callable[[str], str], question: str) -> int:
+    """Ask the operator ``question`` until the answer is yes or no: 1 for yes, 0 for no."""
+    while True:
+        answer = ask(f"{question} [y/n] ").strip().lower()
+        if answer in ("y", "yes", "1"):
+            return 1
+        if answer in ("n", "no", "0"):
+            return 0
+
+
+def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Success rate, collision rate (over judged trials), MinCl (5th percentile of min
+    clearance, over the trials that moved the robot, `moved_robot`; as Table II), counts."""
+    executed = [r for r in rows if r["success"] != ""]  # judged: ran, stopped or refused
+    if not executed:
+        return {"trials": len(rows), "judged": 0}
+    moved = [r for r in executed if moved_robot(r)]
+    summary = {
+        "trials": len(rows),
+        "judged": len(executed),
+        "moved": len(moved),
+        "refused": sum(1 for r in rows if r["status"] == "refused"),
+        "success_rate": float(np.mean([float(r["success"]) for r in executed])),
+        "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
+        "mean_trial_s": float(np.mean([float(r["trial_s"]) for r in rows])),
+    }
+    if moved:
+        clearance = [float(r["min_clearance"]) for r in moved]
+        summary["min_clearance_p5"] = float(np.percentile(clearance, 5))
+    return summary

@@ -1,0 +1,122 @@
+"""The pre-flight handling of one window's plan in a hardware trial: the clearance and the
+distance-field gradient along the plan with the other bar predicted to each step's time, the
+window's movable via-points, and the retime / repair / refuse decision
+(`distgprl.hardware.repair.repair_plan`) written back into the adapter."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from distgprl.hardware.repair import RepairResult, ViaPoints, repair_plan
+
+
+def clearance_function(adapter, now: float, dt: float, chunk: int = 5):
+    """``(points, steps) -> distance`` with the other bar predicted at each step's time."""
+    field = adapter.field
+    world = adapter.world
+
+    def clearance_at(points: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        out = np.empty(len(points))
+        groups = steps // chunk
+        for group in np.unique(groups):
+            mask = groups == group
+            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            out[mask] = field.clearance(points[mask])
+        field.update(world.obstacle_shapes(now))
+        return out
+
+    return clearance_at
+
+
+def gradient_function(adapter, now: float, dt: float, chunk: int = 5):
+    """``(points, steps) -> (distance, gradient)``, the other bar predicted at each step."""
+    field = adapter.field
+    world = adapter.world
+
+    def gradient_at(points: np.ndarray, steps: np.ndarray):
+        distance = np.empty(len(points))
+        gradient = np.empty((len(points), 3))
+        groups = steps // chunk
+        for group in np.unique(groups):
+            mask = groups == group
+            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            distance[mask], gradient[mask] = field.distance(points[mask])
+        field.update(world.obstacle_shapes(now))
+        return distance, gradient
+
+    return gradient_at
+
+
+def movable_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
+    """The window's movable via-points (not frozen ones) and how its plan depends on them;
+    None for the residual ProMP baseline (its parameters are weights, not via-points)."""
+    if adapter.method.action_mode == "residual":
+        return None
+    frozen = set(adapter.layout.frozen)
+    movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)
+    if not len(movable):
+        return None
+
+    def replan(displacement: np.ndarray) -> np.ndarray:
+        saved = adapter.gamma.copy()
+        try:
+            adapter.gamma[movable, :3] += np.asarray(displacement, dtype=float)
+            return adapter.segment_poses(step)
+        finally:
+            adapter.gamma = saved
+
+    return ViaPoints(replan, len(movable)), movable
+
+
+def repair_window(
+    adapter, step, poses, q, velocity, limits, dt, clearance_at, reference, shift, config
+) -> RepairResult:
+    """Retime / repair / refuse the window's plan (:func:`repair_plan`).
+
+    Args: ``adapter`` the trial's environment (`~distgprl.hardware.adapter.perceived_env`),
+    ``step`` the window (0-based), ``poses`` its planned tool poses (n, 7), ``q`` and
+    ``velocity`` the joints (rad) and joint velocities (rad/s) at its start, ``limits`` the
+    safety limits, ``dt`` the control period (s), ``clearance_at`` `clearance_function`'s
+    callable, ``reference`` the time the plan starts at (s, the robot's clock), ``shift``
+    the belt shift of earlier re-timed windows (m, (3,)), ``config`` the `RepairConfig`.
+
+    The plan follows the belt (re-timed poses shifted by the belt's travel during the
+    added time) while the perceived target bar is still on the belt; once it is lifted
+    the shift stays as it is. Repaired via-points are written back into the adapter (the
+    policy sees them in its next observation, as if it had moved them).
+    """
+    world = adapter.world
+    on_belt = "target_bar" in world.tracks and world._on_belt(world.tracks["target_bar"].transform)
+    movable = movable_via_points(adapter, step)
+    result = repair_plan(
+        poses,
+        q,
+        adapter.model.robot,
+        limits,
+        dt,
+        clearance_at,
+        gradient_function(adapter, reference, dt),
+        None if movable is None else movable[0],
+        v_start=velocity,
+        shift=shift,
+        belt_velocity=world.velocity if on_belt and config.follow_belt else None,
+        config=config,
+    )
+    if result.decision == "repaired" and movable is not None:
+        adapter.gamma[movable[1], :3] += result.displacement
+    return result
+
+
+def describe_repair(result: RepairResult) -> str:
+    """One line for a window's repair decision."""
+    if result.decision == "refused":
+        pushes = ", ".join(f"{1000 * d:.1f}" for d in result.pushes)
+        tried = f" (clearance after each push, mm: {pushes})" if pushes else ""
+        return f"refused after retiming and repair{tried} -- {result.reason}"
+    if result.decision == "none":
+        return "none (plan passes the pre-flight check)"
+    text = f"{result.decision}: +{result.time_added:.2f} s"
+    if result.decision == "repaired":
+        text += f", via-points moved up to {1000.0 * result.max_displacement:.1f} mm"
+    original = ", ".join(f"{v.limit} {v.value:.4g}" for v in result.original.violations)
+    return f"{text} (was: {original}; now min clearance {result.check.min_clearance:.4f} m)"

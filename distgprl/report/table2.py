@@ -1,0 +1,208 @@
+"""Table II (hardware) from the trial files of a preset's policies.
+
+Table II (``table2_<preset>``) counts the trial files of the preset's policies
+(`select_trial_files`: never trials with the pre-flight check overridden, dry runs, or
+policies of an older configuration; those are listed under the table). Its rates are over
+all trials (a refused trial is a failure without collision), with the exact (Clopper-Pearson)
+95 % binomial interval over the trials; its MinCl is over the trials that moved the robot
+only (`moved_robot`), and says over how many when that is fewer than the trials.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.markdown import markdown_table as _markdown_table
+from distgprl.report.runs import current_hash, known_preset
+from distgprl.report.table1 import INTERVAL_METRICS
+from distgprl.schema import moved_robot, read_csv
+
+HARDWARE_TASK = "dbm"
+"""The task of the hardware cell (and of the policies its trials run)."""
+
+
+@dataclass(frozen=True)
+class TrialFiles:
+    """The hardware trial files Table II of a preset counts, and why others do not.
+
+    Attributes:
+        counted: (method, rows) of every counted file, in table order then file name.
+        excluded: one line per left-out file of the preset: ``method/file (reason)``.
+    """
+
+    counted: tuple[tuple[str, tuple[dict, ...]], ...]
+    excluded: tuple[str, ...]
+
+    def note(self) -> str:
+        """A sentence for the table: what was left out (empty if nothing)."""
+        if not self.excluded:
+            return ""
+        return f"Not tabulated ({len(self.excluded)}): " + "; ".join(self.excluded)
+
+
+def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
+    """The trial files ``<root>/hardware/<method>/*.csv`` of ``preset``'s policies (their
+    meta's ``preset``; another preset's files belong to its own table) that Table II counts:
+    not those run with the pre-flight check overridden (``force``: the safety layer's
+    refusals were not applied, so they are not the method's hardware result) or as a dry
+    run, and, for this checkout's presets, only those whose policy's recorded config hash
+    is the one the code resolves now (as Table I; a trial of an older policy is listed)."""
+    base = Path(root) / "hardware"
+    checked = known_preset(preset)
+    counted, excluded = [], []
+    for method in TABLE_ORDER:
+        for path in sorted((base / method).glob("*.csv")) if (base / method).exists() else []:
+            meta, rows = read_csv(path)
+            if meta.get("preset") != preset:
+                continue
+            name = f"{method}/{path.name}"
+            policy_hash = (meta.get("policy") or {}).get("run_config_hash")
+            if meta.get("force"):
+                excluded.append(f"{name} (pre-flight check overridden, --force)")
+            elif meta.get("dry_run"):
+                excluded.append(f"{name} (dry run)")
+            elif (
+                checked
+                and METHODS[method].trainable
+                and policy_hash
+                != current_hash(HARDWARE_TASK, method, int(meta.get("seed", -1)), preset)
+            ):
+                recorded = policy_hash or "not recorded"
+                excluded.append(f"{name} (policy config hash {recorded}, not the current one)")
+            else:
+                counted.append((method, tuple(rows)))
+    return TrialFiles(tuple(counted), tuple(excluded))
+
+
+def binomial_interval(successes: int, trials: int, level: float = 0.95) -> tuple[float, float]:
+    """Exact (Clopper-Pearson) two-sided interval of a rate of ``successes`` in ``trials``."""
+    alpha, failures = 1.0 - level, trials - successes
+    low = 0.0 if successes == 0 else stats.beta.ppf(alpha / 2, successes, failures + 1)
+    high = 1.0 if failures == 0 else stats.beta.ppf(1 - alpha / 2, successes + 1, failures)
+    return float(low), float(high)
+
+
+def hardware_table(root: str | Path, preset: str) -> list[dict]:
+    """Rows of Table II from the trial files `select_trial_files` counts (`hardware_rows`)."""
+    return hardware_rows(select_trial_files(root, preset))
+
+
+def hardware_rows(files: TrialFiles) -> list[dict]:
+    """Rows of Table II from the trial files ``files`` counts, one per (method,
+    backend): trials on the real robot (``ur``) and on the digital twin are never mixed.
+    Refused trials (the safety layer's pre-flight check refused a window's plan) count as
+    failures without collision and are also counted on their own. Success and collision
+    rates are over all trials, each with its exact 95 % binomial interval
+    (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of the trials'
+    minimum clearance, only over the ``executed`` trials that moved the robot
+    (`moved_robot`; NaN if none did)."""
+    by_method: dict[str, list[dict]] = {}
+    for method, trial_rows in files.counted:
+        by_method.setdefault(method, []).extend(trial_rows)
+    rows = []
+    for method, trials in by_method.items():  # counted in table order
+        for backend in sorted({r.get("backend", "unknown") for r in trials}):
+            subset = [r for r in trials if r.get("backend", "unknown") == backend]
+            executed = [r for r in subset if moved_robot(r)]
+            clearance = [
+                float(r["min_clearance"])
+                for r in executed
+                if r["min_clearance"] not in ("", "nan") and np.isfinite(float(r["min_clearance"]))
+            ]
+            row = {
+                "method": method,
+                "label": METHODS[method].label,
+                "backend": backend,
+                "trials": len(subset),
+                "refused": sum(r.get("status") == "refused" for r in subset),
+                "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
+                "executed": len(executed),
+            }
+            for key, column in (("success_rate", "success"), ("collision_rate", "collision")):
+                count = int(sum(round(float(r[column])) for r in subset))
+                row[key] = count / len(subset)
+                row[f"{key}_ci_low"], row[f"{key}_ci_high"] = binomial_interval(count, len(subset))
+            rows.append(row)
+    return rows
+
+
+HARDWARE_COLUMNS = (
+    ("trials", "Trials"),
+    ("refused", "Refused"),
+    ("success_rate", "Success"),
+    ("collision_rate", "Collision"),
+    ("min_clearance_p5", "MinCl (m)"),
+)
+"""Table II columns after method and backend (MinCl: 5th percentile of the minimum
+clearance of the trials that moved the robot, m). The CSV adds ``executed``, the number of
+those trials."""
+
+HARDWARE_CAPTION = (
+    "Hardware trials (DBM); refused trials count as failures; Success and Collision with "
+    "the exact 95 % binomial interval over the trials; MinCl is over the trials that "
+    "moved the robot (n = their number where fewer than the trials; – if none did)"
+)
+
+
+def hardware_min_clearance(row: dict) -> str:
+    """The MinCl cell: the value, ``(n=k)`` if only k of the trials moved the robot."""
+    value = row["min_clearance_p5"]
+    text = "–" if np.isnan(value) else f"{value:.3f}"
+    if row["executed"] != row["trials"]:
+        text += f" (n={row['executed']})"
+    return text
+
+
+def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, str, str]:
+    """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
+    buffer = io.StringIO()
+    fields = ["method", "backend", *(key for key, _ in HARDWARE_COLUMNS), "executed"]
+    fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
+    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        value = row["min_clearance_p5"]
+        writer.writerow({**row, "min_clearance_p5": "" if np.isnan(value) else value})
+
+    def cells(row: dict) -> list[str]:
+        return [
+            row["label"],
+            row["backend"],
+            str(row["trials"]),
+            str(row["refused"]),
+            *(
+                f"{row[key]:.2f} [{row[f'{key}_ci_low']:.2f}, {row[f'{key}_ci_high']:.2f}]"
+                for key in INTERVAL_METRICS
+            ),
+            hardware_min_clearance(row),
+        ]
+
+    header = ["Method", "Backend", *(label for _, label in HARDWARE_COLUMNS)]
+    caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"
+    markdown = _markdown_table(f"Table II: {caption}", header, [cells(row) for row in rows])
+    if note:
+        markdown += f"\n{note}.\n"
+    latex_caption = caption.replace("–", "--").replace(" %", "\\,\\%")
+    lines = [
+        "\\begin{table}[htb]",
+        "\\centering",
+        f"\\caption{{{latex_caption}}}",
+        "\\label{tab:hardware_results}",
+        "\\begin{tabular}{ll" + "c" * len(HARDWARE_COLUMNS) + "}",
+        "\\toprule",
+        " & ".join(header) + " \\\\",
+        "\\midrule",
+        *(" & ".join(cells(row)).replace("–", "--") + " \\\\" for row in rows),
+        "\\bottomrule",
+        "\\end{tabular}",
+        "\\end{table}",
+        "",
+    ]
+    return buffer.getvalue(), markdown, "\n".join(lines)
