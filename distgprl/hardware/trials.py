@@ -94,28 +94,40 @@ def _yes_no(ask: Callable[[str], str], question: str) -> int:
             return 0
 
 
-def _clearance_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> distance`` with the other bar predicted at each step's time."""
-    field = adapter.field
-    world = adapter.world
+def clearance_function(
+    field, obstacle_shapes: Callable[[float], tuple], now: float, dt: float, chunk: int = 5
+):
+    """The clearance oracle of the safety check: ``(points (m, 3) m, control instants (m,))
+    -> distance (m,)``, m, with the obstacles predicted at each instant's time.
+
+    Control instant ``k`` is at ``now + k * dt`` (s); the instants are taken in groups of
+    ``chunk``, each against the obstacles at the group's middle time.
+
+    Args:
+        field: the :class:`~distgprl.safety.edf.DistanceField` to move (left at ``now``).
+        obstacle_shapes: ``time (s) -> shapes``, every obstacle predicted at that time (the
+            perceived world's, or a simulation's ``obstacle_shapes``).
+        now: time (s) of the window's start; dt: control period, s.
+    """
 
     def clearance_at(points: np.ndarray, steps: np.ndarray) -> np.ndarray:
         out = np.empty(len(points))
         groups = steps // chunk
         for group in np.unique(groups):
             mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            field.update(obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
             out[mask] = field.clearance(points[mask])
-        field.update(world.obstacle_shapes(now))
+        field.update(obstacle_shapes(now))
         return out
 
     return clearance_at
 
 
-def _gradient_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> (distance, gradient)``, the other bar predicted at each step."""
-    field = adapter.field
-    world = adapter.world
+def gradient_function(
+    field, obstacle_shapes: Callable[[float], tuple], now: float, dt: float, chunk: int = 5
+):
+    """The repair's field oracle: ``(points (m, 3) m, control instants (m,)) -> (distance
+    (m,) m, unit gradient (m, 3))``, obstacles predicted as in :func:`clearance_function`."""
 
     def gradient_at(points: np.ndarray, steps: np.ndarray):
         distance = np.empty(len(points))
@@ -123,17 +135,29 @@ def _gradient_function(adapter, now: float, dt: float, chunk: int = 5):
         groups = steps // chunk
         for group in np.unique(groups):
             mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            field.update(obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
             distance[mask], gradient[mask] = field.distance(points[mask])
-        field.update(world.obstacle_shapes(now))
+        field.update(obstacle_shapes(now))
         return distance, gradient
 
     return gradient_at
 
 
-def _via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
-    """The window's movable via-points (not frozen ones) and how its plan depends on them;
-    None for the residual ProMP baseline (its parameters are weights, not via-points)."""
+def window_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
+    """The movable via-points of window ``step`` and how its plan depends on them.
+
+    Args:
+        adapter: an :class:`~distgprl.envs.adaptation.AdaptationEnv` (or the trial adapter
+            built on one) in the middle of an episode; its ``gamma`` is restored after
+            every ``replan``.
+        step: the window.
+
+    Returns:
+        (:class:`ViaPoints` whose ``replan`` gives the window's segment poses (m, 6) with
+        the movable via-points moved, their indices into ``gamma`` (k,)); None for the
+        residual ProMP baseline (its parameters are weights, not via-points) or a window
+        without a movable (not frozen) via-point.
+    """
     if adapter.method.action_mode == "residual":
         return None
     frozen = set(adapter.layout.frozen)
@@ -448,7 +472,9 @@ def _one_trial(
         timings["policy"] += time.perf_counter() - start
         poses = adapter.adapt(action)
         reference = clock if dry_run else robot.now()
-        clearance_at = _clearance_function(adapter, reference, dt)
+        clearance_at = clearance_function(
+            adapter.field, adapter.world.obstacle_shapes, reference, dt
+        )
         path_poses = poses
         if repair_config is None:
             try:
@@ -491,7 +517,7 @@ def _one_trial(
             timings["check"] += time.perf_counter() - started
             windows.append((repaired.decision, repaired.time_added, repaired.max_displacement))
             if repaired.decision != "none" or dry_run:
-                echo(f"trial {index + 1}, window {step + 1}: {_describe(repaired)}")
+                echo(f"trial {index + 1}, window {step + 1}: {describe_repair(repaired)}")
             if repaired.decision == "refused" and not force:
                 refused = UnsafePlanError(repaired.remaining)
                 row.update(
@@ -575,7 +601,7 @@ def _repair_window(
     """
     world = adapter.world
     on_belt = "target_bar" in world.tracks and world._on_belt(world.tracks["target_bar"].transform)
-    movable = _via_points(adapter, step)
+    movable = window_via_points(adapter, step)
     result = repair_plan(
         poses,
         q,
@@ -583,7 +609,7 @@ def _repair_window(
         limits,
         dt,
         clearance_at,
-        _gradient_function(adapter, reference, dt),
+        gradient_function(adapter.field, adapter.world.obstacle_shapes, reference, dt),
         None if movable is None else movable[0],
         v_start=velocity,
         shift=shift,
@@ -595,8 +621,8 @@ def _repair_window(
     return result
 
 
-def _describe(result: RepairResult) -> str:
-    """One line for a window's repair decision."""
+def describe_repair(result: RepairResult) -> str:
+    """One line (for the terminal) for a window's repair decision."""
     if result.decision == "refused":
         pushes = ", ".join(f"{1000 * d:.1f}" for d in result.pushes)
         tried = f" (clearance after each push, mm: {pushes})" if pushes else ""
