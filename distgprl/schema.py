@@ -48,6 +48,8 @@ from distgprl.io import atomic_write_text
 __all__ = [
     "CSV_META_SUFFIX",
     "EVALUATION_FIELDS",
+    "REPAIR_EVALUATION_FIELDS",
+    "REPAIR_MODES",
     "EVALUATION_SEED",
     "N_WINDOWS",
     "POLICY_CHOICES",
@@ -65,6 +67,7 @@ __all__ = [
     "moved_robot",
     "read_csv",
     "read_json",
+    "repair_evaluation_file_names",
     "result_meta",
     "run_dir",
     "safe_success_rate",
@@ -304,6 +307,67 @@ EVALUATION_FIELDS = (
     "policy_ms",
     "peak_joint_speed",
 )
+
+
+REPAIR_EVALUATION_FIELDS = (
+    "episode",
+    "object_offset_x",
+    "object_offset_y",
+    "obstacle_offset_x",
+    "obstacle_offset_y",
+    "success",
+    "completed",
+    "collision",
+    "refused",
+    "refused_window",
+    "refused_limits",
+    "refusal_reason",
+    "min_clearance",
+    "min_signed_clearance",
+    "planned_min_clearance",
+    "peak_joint_speed",
+    "executed_s",
+    "repair",
+    "repair_added_s",
+    "repair_displacement_m",
+    "time_added_s",
+    "max_displacement_m",
+    "policy_ms",
+    "repair_ms",
+)
+"""Columns of an evaluation with the safety layer in the loop
+(:func:`repair_evaluation_file_names`; `distgprl.experiments.repaired_evaluation`).
+``success``/``completed``/``collision``/``refused`` 0/1 (a refused episode is neither a
+success nor a collision); ``refused_window`` 1-based, ``""`` unless refused; clearances m
+(``min_clearance`` of the executed motion, the start pose's if nothing moved;
+``planned_min_clearance`` the predicted one of the executed plans); ``executed_s`` the
+executed motion, s. ``repair``, ``repair_added_s`` and ``repair_displacement_m`` hold one
+``;``-separated entry per planned window, as the trial rows do (:data:`TRIAL_FIELDS`):
+decision ``none``/``retimed``/``repaired``/``refused``, time added (s), largest via-point
+displacement (m); ``time_added_s`` and ``max_displacement_m`` are their sum and maximum."""
+
+
+REPAIR_MODES = {"check": "_check", "repair": "_repair", "push": "_repair_push"}
+"""File tags of the safety-layer evaluations: ``check`` refuses every unsafe window at once,
+``repair`` retimes before refusing (``--plan-repair``), ``push`` also pushes via-points out
+of the clearance margin (``--plan-repair --repair-push``)."""
+
+
+def repair_evaluation_file_names(
+    episodes: int | None = None, policy: str = "final", mode: str = "repair"
+) -> tuple[str, str]:
+    """(per-episode CSV, summary JSON) of an evaluation with the safety layer in the loop,
+    beside the plain evaluation of `evaluation_file_names` (never replacing it):
+    ``evaluation[_best]<tag>[_n<N>].csv`` and the matching ``summary...json``, the tag that
+    of ``mode`` in :data:`REPAIR_MODES` (e.g. ``evaluation_repair.csv``)."""
+    if mode not in REPAIR_MODES:
+        raise UserInputError(f"unknown repair mode {mode!r}; choose from {', '.join(REPAIR_MODES)}")
+    csv_name, summary_name = evaluation_file_names(episodes, policy)
+    suffix = "" if episodes is None else f"_n{episodes}"
+    csv_stem = csv_name.removesuffix(".csv").removesuffix(suffix)
+    summary_stem = summary_name.removesuffix(".json").removesuffix(suffix)
+    tag = REPAIR_MODES[mode]
+    return f"{csv_stem}{tag}{suffix}.csv", f"{summary_stem}{tag}{suffix}.json"
 
 
 # -- metrics ----------------------------------------------------------------------------------

@@ -193,6 +193,25 @@ def test_evaluation_file_names(episodes, policy, names):
     assert schema.evaluation_file_names(episodes, policy) == names
 
 
+@pytest.mark.parametrize(
+    ("episodes", "policy", "mode", "names"),
+    [
+        (None, "final", "repair", ("evaluation_repair.csv", "summary_repair.json")),
+        (None, "final", "push", ("evaluation_repair_push.csv", "summary_repair_push.json")),
+        (None, "final", "check", ("evaluation_check.csv", "summary_check.json")),
+        (50, "best", "repair", ("evaluation_best_repair_n50.csv", "summary_best_repair_n50.json")),
+    ],
+)
+def test_repair_evaluation_file_names(episodes, policy, mode, names):
+    """The safety-layer evaluations have their own names, none of them a plain evaluation's
+    (nor matching the supplementary ``evaluation_n*.csv`` the paired tests collect)."""
+    assert schema.repair_evaluation_file_names(episodes, policy, mode) == names
+    assert names[0] != schema.evaluation_file_names(episodes, policy)[0]
+    assert not names[0].startswith("evaluation_n")
+    with pytest.raises(UserInputError, match="unknown repair mode"):
+        schema.repair_evaluation_file_names(mode="fix")
+
+
 def test_unknown_policy_is_a_user_error():
     with pytest.raises(UserInputError, match="unknown policy 'worst'"):
         schema.evaluation_file_names(policy="worst")

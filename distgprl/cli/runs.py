@@ -25,6 +25,7 @@ from distgprl.cli.common import (
     split_list,
     user_errors,
 )
+from distgprl.errors import UserInputError
 
 
 @user_errors
@@ -218,10 +219,38 @@ def evaluate(
             "then return), which writes evaluation_best*.csv / summary_best*.json.",
         ),
     ] = "final",
+    plan_repair: Annotated[
+        bool,
+        typer.Option(
+            "--plan-repair",
+            help="Put the hardware safety layer between each window plan and execution: "
+            "pre-flight check, retime what is too fast, refuse what is still unsafe (the "
+            "episode stops there). Writes evaluation_repair.csv / summary_repair.json beside "
+            "the plain evaluation.",
+        ),
+    ] = False,
+    repair_push: Annotated[
+        bool,
+        typer.Option(
+            "--repair-push",
+            help="With --plan-repair: also push via-points out of the clearance margin along "
+            "the distance field's gradient (evaluation_repair_push.csv).",
+        ),
+    ] = False,
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.evaluation import describe, evaluate_run
 
     preset = resolve_preset(preset, config)
-    summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
+    if repair_push and not plan_repair:
+        raise UserInputError("--repair-push needs --plan-repair")
+    if plan_repair:
+        from distgprl.experiments.repaired_evaluation import evaluate_with_repair
+        from distgprl.hardware.repair import RepairConfig
+
+        summary = evaluate_with_repair(
+            task, method, seed, preset, episodes, root, policy, RepairConfig(repair=repair_push)
+        )
+    else:
+        summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
     typer.echo(describe(summary))

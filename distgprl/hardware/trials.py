@@ -355,7 +355,9 @@ def _one_trial(
         timings["policy"] += time.perf_counter() - start
         poses = adapter.adapt(action)
         reference = clock if dry_run else robot.now()
-        clearance_at = clearance_function(adapter, reference, dt)
+        clearance_at = clearance_function(
+            adapter.field, adapter.world.obstacle_shapes, reference, dt
+        )
         path_poses = poses
         if repair_config is None:
             try:

@@ -5,33 +5,47 @@ window's movable via-points, and the retime / repair / refuse decision
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from distgprl.hardware.repair import RepairResult, ViaPoints, repair_plan
 
 
-def clearance_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> distance`` with the other bar predicted at each step's time."""
-    field = adapter.field
-    world = adapter.world
+def clearance_function(
+    field, obstacle_shapes: Callable[[float], tuple], now: float, dt: float, chunk: int = 5
+):
+    """The clearance oracle of the safety check: ``(points (m, 3) m, control instants (m,))
+    -> distance (m,)``, m, with the obstacles predicted at each instant's time.
+
+    Control instant ``k`` is at ``now + k * dt`` (s); the instants are taken in groups of
+    ``chunk``, each against the obstacles at the group's middle time.
+
+    Args:
+        field: the :class:`~distgprl.safety.edf.DistanceField` to move (left at ``now``).
+        obstacle_shapes: ``time (s) -> shapes``, every obstacle predicted at that time (the
+            perceived world's, or a simulation's ``obstacle_shapes``).
+        now: time (s) of the window's start; dt: control period, s.
+    """
 
     def clearance_at(points: np.ndarray, steps: np.ndarray) -> np.ndarray:
         out = np.empty(len(points))
         groups = steps // chunk
         for group in np.unique(groups):
             mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            field.update(obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
             out[mask] = field.clearance(points[mask])
-        field.update(world.obstacle_shapes(now))
+        field.update(obstacle_shapes(now))
         return out
 
     return clearance_at
 
 
-def gradient_function(adapter, now: float, dt: float, chunk: int = 5):
-    """``(points, steps) -> (distance, gradient)``, the other bar predicted at each step."""
-    field = adapter.field
-    world = adapter.world
+def gradient_function(
+    field, obstacle_shapes: Callable[[float], tuple], now: float, dt: float, chunk: int = 5
+):
+    """The repair's field oracle: ``(points (m, 3) m, control instants (m,)) -> (distance
+    (m,) m, unit gradient (m, 3))``, obstacles predicted as in :func:`clearance_function`."""
 
     def gradient_at(points: np.ndarray, steps: np.ndarray):
         distance = np.empty(len(points))
@@ -39,9 +53,9 @@ def gradient_function(adapter, now: float, dt: float, chunk: int = 5):
         groups = steps // chunk
         for group in np.unique(groups):
             mask = groups == group
-            field.update(world.obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
+            field.update(obstacle_shapes(now + (group * chunk + chunk / 2.0) * dt))
             distance[mask], gradient[mask] = field.distance(points[mask])
-        field.update(world.obstacle_shapes(now))
+        field.update(obstacle_shapes(now))
         return distance, gradient
 
     return gradient_at
@@ -95,7 +109,7 @@ def repair_window(
         limits,
         dt,
         clearance_at,
-        gradient_function(adapter, reference, dt),
+        gradient_function(adapter.field, world.obstacle_shapes, reference, dt),
         None if movable is None else movable[0],
         v_start=velocity,
         shift=shift,

@@ -283,6 +283,12 @@ class TaskSim:
     def q_command(self, q: np.ndarray) -> None:
         self._q_command = np.asarray(q, dtype=float)
 
+    @property
+    def conveying_velocity(self) -> np.ndarray:
+        """Velocity (3,), m/s, at which the object is conveyed until it is released (the
+        DBM belt, the DCP drift), for the current TC."""
+        return np.array(self._object_velocity, dtype=float)
+
     def configuration_in_collision(
         self, q: np.ndarray, margin: float = 0.0, include_dynamic: bool = False
     ) -> bool:
