@@ -470,6 +470,16 @@ class AdaptationEnv(gym.Env):
         return self._observation()
 
     @property
+    def tc_generator_state(self) -> dict:
+        """The state of the generator that draws the training TCs at ``reset()`` (NumPy
+        ``bit_generator.state``; a training checkpoint saves and restores it)."""
+        return self._rng.bit_generator.state
+
+    @tc_generator_state.setter
+    def tc_generator_state(self, state: dict) -> None:
+        self._rng.bit_generator.state = state
+
+    @property
     def at_episode_start(self) -> bool:
         """True between ``reset()`` and the episode's first step (where a training run can be
         checkpointed and resumed exactly)."""

@@ -111,7 +111,7 @@ def rng_state(model, env) -> dict[str, Any]:
         "torch": torch.get_rng_state(),
         "numpy_global": np.random.get_state(),  # noqa: NPY002  (SB3 samples with it)
         "python_random": random.getstate(),
-        "env_rng": env._rng.bit_generator.state,
+        "env_rng": env.tc_generator_state,
         "action_space": model.action_space.np_random.bit_generator.state,
         "pending_tc": env.tc,
     }
@@ -183,6 +183,6 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
         np.random.set_state(state["numpy_global"])  # noqa: NPY002
         random.setstate(state["python_random"])
     torch.set_rng_state(state["torch"])
-    env._rng.bit_generator.state = state["env_rng"]
+    env.tc_generator_state = state["env_rng"]
     model.action_space.np_random.bit_generator.state = state["action_space"]
     return model, state

@@ -95,14 +95,16 @@ class PerceivedScene:
         self.now = float(now)
 
     # -- predictions -----------------------------------------------------------------------
-    def _on_belt(self, transform: np.ndarray) -> bool:
+    def on_belt(self, transform: np.ndarray) -> bool:
+        """Whether a bar at ``transform`` (4, 4) still lies on the belt (its centre less than
+        2 cm above the resting height), so that it is conveyed."""
         return bool(transform[2, 3] < self.scene.bar_centre_z + 0.02)
 
     def object_transform(self, name: str, time: float | None = None) -> np.ndarray:
         """Predicted pose (4, 4) of a tracked object at ``time`` (default: now)."""
         track = self.tracks[name]
         transform = track.transform.copy()
-        if self._on_belt(transform):
+        if self.on_belt(transform):
             elapsed = (self.now if time is None else time) - track.stamp
             transform[:3, 3] += self.velocity * elapsed
         return transform

@@ -324,7 +324,7 @@ def _one_trial(
             # the image was taken at `stamp`; compare with the truth predicted back to it
             for name, pose in percept.objects.items():
                 true = truth[name].copy()
-                if adapter.world._on_belt(true):
+                if adapter.world.on_belt(true):
                     true[:3, 3] -= adapter.world.velocity * (robot.now() - stamp)
                 errors.append(pose_error(pose.transform, true))
         return all(name in adapter.world.tracks for name in OBJECTS)

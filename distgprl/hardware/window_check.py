@@ -100,7 +100,7 @@ def repair_window(
     policy sees them in its next observation, as if it had moved them).
     """
     world = adapter.world
-    on_belt = "target_bar" in world.tracks and world._on_belt(world.tracks["target_bar"].transform)
+    on_belt = "target_bar" in world.tracks and world.on_belt(world.tracks["target_bar"].transform)
     movable = movable_via_points(adapter, step)
     result = repair_plan(
         poses,

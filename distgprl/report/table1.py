@@ -1,6 +1,7 @@
 """Table I (simulation) from the runs' ``summary.json`` files: one row per method, per task
 each metric's mean ± sample standard deviation (ddof = 1) over seeds with a 95 % confidence
-interval (Student t over seeds; a single seed has neither), and Table I per run.
+interval (Student t over seeds; a single seed has neither), the IQM of success and collision
+with its stratified-bootstrap interval (`IQM_METRICS`), and Table I per run.
 
 The CSV has all four numbers of every cell. The Markdown and LaTeX tables show the interval,
 as ``0.88 ± 0.06 [0.73, 1.00]``, on the Success and Collision columns only (the table is
@@ -24,7 +25,14 @@ from scipy import stats
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.aggregate import Scores, run_scores
+from distgprl.report.aggregate import (
+    BOOTSTRAP_REPS,
+    BOOTSTRAP_SEED,
+    Estimate,
+    Scores,
+    method_estimate,
+    run_scores,
+)
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import select_runs
 from distgprl.schema import read_csv, read_json
@@ -51,6 +59,12 @@ RATE_BOUNDS = (0.0, 1.0)
 
 INTERVAL_METRICS = ("success_rate", "collision_rate")
 """Metrics whose Markdown and LaTeX cells also show the 95 % interval (clipped to [0, 1])."""
+
+IQM_METRICS = (("success_rate", "Success IQM"), ("collision_rate", "Collision IQM"))
+"""Metrics with a robust-aggregate column per task (issue 33): the interquartile mean over
+seeds with its 95 % stratified-bootstrap interval, the same estimate (same generator) as the
+aggregates table's (`distgprl.report.aggregate.method_estimate`, one stratum: the task). In
+the CSV and the Markdown table; the LaTeX table keeps the paper's layout."""
 
 
 def cell_text(cell: Cell, key: str) -> str:
@@ -228,6 +242,11 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
             row[f"{task}_seeds"] = len(seeds)
             for key, _ in METRICS:
                 row[f"{task}_{key}"] = aggregate([s[key] for s in seeds if key in s])
+            scores = {(task, method): [{k: float(s[k]) for k, _ in IQM_METRICS} for s in seeds]}
+            for key, _ in IQM_METRICS:
+                row[f"{task}_{key}_iqm"] = method_estimate(
+                    scores, [task], method, key, "iqm", BOOTSTRAP_SEED
+                )
         rows.append(row)
     return rows, tasks
 
@@ -239,6 +258,8 @@ def _csv_text(rows: list[dict], tasks: list[str]) -> str:
         fields.append(f"{task}_seeds")
         for key, _ in METRICS:
             fields += [f"{task}_{key}_{part}" for part in ("mean", "std", "ci_low", "ci_high")]
+        for key, _ in IQM_METRICS:
+            fields += [f"{task}_{key}_{part}" for part in ("iqm", "iqm_low", "iqm_high")]
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     for row in rows:
@@ -252,12 +273,38 @@ def _csv_text(rows: list[dict], tasks: list[str]) -> str:
                     if part.startswith("ci_") and key.endswith("_rate"):
                         value = float(np.clip(value, *RATE_BOUNDS))  # NaN stays NaN
                     out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
+            for key, _ in IQM_METRICS:
+                estimate = row.get(f"{task}_{key}_iqm")
+                parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
+                for part, value in zip(("iqm", "iqm_low", "iqm_high"), parts, strict=True):
+                    out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
         writer.writerow(out)
     return buffer.getvalue()
 
 
+def _iqm_parts(estimate: Estimate) -> tuple[float, float, float]:
+    """(IQM, low, high) of an estimate; NaN where it has no runs or no interval."""
+    if not estimate.seeds:
+        return (np.nan, np.nan, np.nan)
+    if not estimate.has_interval:
+        return (estimate.point, np.nan, np.nan)
+    return (estimate.point, estimate.low, estimate.high)
+
+
+def _iqm_text(estimate: Estimate | None) -> str:
+    """``0.88 [0.80, 0.95]``, the IQM alone for one seed, ``–`` without runs."""
+    if estimate is None or not estimate.seeds:
+        return "–"
+    if not estimate.has_interval:
+        return f"{estimate.point:.2f}"
+    return f"{estimate.point:.2f} [{estimate.low:.2f}, {estimate.high:.2f}]"
+
+
 def _markdown(rows: list[dict], tasks: list[str], preset: str, note: str = "") -> str:
-    header = ["Method"] + [f"{t.upper()} {name}" for t in tasks for _, name in METRICS]
+    header = ["Method"]
+    for t in tasks:
+        header += [f"{t.upper()} {name}" for _, name in METRICS]
+        header += [f"{t.upper()} {name}" for _, name in IQM_METRICS]
     table = []
     for row in rows:
         cells = [row["label"]]
@@ -266,11 +313,14 @@ def _markdown(rows: list[dict], tasks: list[str], preset: str, note: str = "") -
             for index, (key, _) in enumerate(METRICS):
                 text = cell_text(row.get(f"{task}_{key}", aggregate([])), key)
                 cells.append(f"{text} [{n}]" if index == 0 and n else text)
+            cells += [_iqm_text(row.get(f"{task}_{key}_iqm")) for key, _ in IQM_METRICS]
         table.append(cells)
     title = (
         f"Table I ({preset} preset): mean ± std over seeds (seeds per cell in brackets after "
         "Success); Success and Collision also give the 95 % t-interval over seeds, "
-        "[low, high] clipped to [0, 1], where there are two or more seeds"
+        "[low, high] clipped to [0, 1], where there are two or more seeds; the IQM columns "
+        "give the interquartile mean over seeds with its 95 % stratified-bootstrap interval "
+        f"({BOOTSTRAP_REPS} replicates)"
     )
     return _markdown_table(title, header, table) + (f"\n{note}.\n" if note else "")
 

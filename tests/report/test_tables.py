@@ -417,3 +417,41 @@ def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):
     assert (out / "table2_paper.md").read_text() == "the paper preset's Table II"
     latex = (out / "table2_ci.tex").read_text()
     assert "95\\,\\% binomial interval" in latex and " % " not in latex
+
+
+def test_table1_iqm_columns_are_the_aggregates_bootstrap_estimates(tmp_path):
+    """Table I's Success / Collision IQM columns are the interquartile mean over seeds (four
+    seeds: the mean of the middle two) with the 95 % stratified-bootstrap interval, the very
+    numbers of the aggregates table (same estimate, same generator); one seed gives the IQM
+    alone."""
+    for seed, success in enumerate((0.6, 0.8, 0.9, 1.0)):
+        path = tmp_path / "p" / "dcp" / "dist-gprl" / f"seed{seed}" / "summary.json"
+        write_json(path, summary(success, 1.0 - success, 0.01))
+    write_json(tmp_path / "p" / "dcp" / "demo" / "seed0" / "summary.json", summary(0.5, 0.4, 0.0))
+    write_tables(tmp_path, "p", tmp_path / "out")
+    with open(tmp_path / "out" / "table1_p.csv", newline="") as handle:
+        rows = {row["method"]: row for row in csv.DictReader(handle)}
+    ours = rows["dist-gprl"]
+    assert float(ours["dcp_success_rate_iqm"]) == pytest.approx(0.85)
+    assert float(ours["dcp_collision_rate_iqm"]) == pytest.approx(0.15)
+    with open(tmp_path / "out" / "aggregates_p.csv", newline="") as handle:
+        aggregates = [
+            r
+            for r in csv.DictReader(handle)
+            if (r["task"], r["method"], r["statistic"]) == ("dcp", "dist-gprl", "iqm")
+        ]
+    by_metric = {r["metric"]: r for r in aggregates}
+    for key in ("success_rate", "collision_rate"):
+        for part, column in (("iqm", "value"), ("iqm_low", "ci_low"), ("iqm_high", "ci_high")):
+            assert float(ours[f"dcp_{key}_{part}"]) == pytest.approx(
+                float(by_metric[key][column]), abs=1e-6
+            )
+    low, high = float(ours["dcp_success_rate_iqm_low"]), float(ours["dcp_success_rate_iqm_high"])
+    assert 0.6 <= low < 0.85 < high <= 1.0
+    markdown = (tmp_path / "out" / "table1_p.md").read_text()
+    assert f"| 0.85 [{low:.2f}, {high:.2f}] |" in markdown
+    assert (
+        rows["demo"]["dcp_success_rate_iqm"] == "0.5"
+        and rows["demo"]["dcp_success_rate_iqm_low"] == ""
+    )
+    assert "stratified-bootstrap" in markdown.splitlines()[0]
