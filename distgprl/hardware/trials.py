@@ -222,6 +222,7 @@ def run_trials(
         "judge": judge,
         "force": force,
         "repair": repair,
+        "repair_push": bool(repair and (repair_config or RepairConfig()).repair),
         "sensor_noise": sensor_noise if backend == "twin" else None,
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},

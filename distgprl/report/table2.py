@@ -33,11 +33,13 @@ class TrialFiles:
     """The hardware trial files Table II of a preset counts, and why others do not.
 
     Attributes:
-        counted: (method, rows) of every counted file, in table order then file name.
+        counted: (method, meta, rows) of every counted file, in table order then file name
+            (``meta``: the file's metadata, which says how its trials ran: backend, repair,
+            twin sensor noise).
         excluded: one line per left-out file of the preset: ``method/file (reason)``.
     """
 
-    counted: tuple[tuple[str, tuple[dict, ...]], ...]
+    counted: tuple[tuple[str, dict, tuple[dict, ...]], ...]
     excluded: tuple[str, ...]
 
     def note(self) -> str:
@@ -77,7 +79,7 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
                 recorded = policy_hash or "not recorded"
                 excluded.append(f"{name} (policy config hash {recorded}, not the current one)")
             else:
-                counted.append((method, tuple(rows)))
+                counted.append((method, meta, tuple(rows)))
     return TrialFiles(tuple(counted), tuple(excluded))
 
 
@@ -94,43 +96,110 @@ def hardware_table(root: str | Path, preset: str) -> list[dict]:
     return hardware_rows(select_trial_files(root, preset))
 
 
+def repair_label(meta: dict) -> str:
+    """How a trial file's plans were handled before execution (its meta): ``off`` (refused
+    at once), ``retime`` (re-timed when too fast, then refused if still unsafe), ``retime +
+    push`` (via-points also pushed along the distance field's gradient); ``–`` for files
+    written before plan repair existed."""
+    if "repair" not in meta:
+        return "–"
+    if not meta["repair"]:
+        return "off"
+    return "retime + push" if meta.get("repair_push") else "retime"
+
+
+def noise_label(meta: dict, backend: str) -> str:
+    """The twin's sensor-noise level of a trial file (``0`` for a twin file without one:
+    the noiseless twin); ``–`` on the real robot."""
+    if backend != "twin":
+        return "–"
+    level = meta.get("sensor_noise")
+    return "0" if level is None else str(level)
+
+
 def hardware_rows(files: TrialFiles) -> list[dict]:
-    """Rows of Table II from the trial files ``files`` counts, one per (method,
-    backend): trials on the real robot (``ur``) and on the digital twin are never mixed.
-    Refused trials (the safety layer's pre-flight check refused a window's plan) count as
-    failures without collision and are also counted on their own. Success and collision
-    rates are over all trials, each with its exact 95 % binomial interval
-    (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of the trials'
-    minimum clearance, only over the ``executed`` trials that moved the robot
+    """Rows of Table II from the trial files ``files`` counts, one per (method, backend,
+    repair, sensor noise): trials on the real robot (``ur``) and on the digital twin are never
+    mixed, nor trials with plan repair on and off (`repair_label`) or at different twin
+    sensor-noise levels (`noise_label`). Refused trials (the safety layer's pre-flight check
+    refused a window's plan) count as failures without collision and are also counted on
+    their own. Success and collision rates are over all trials, each with its exact 95 %
+    binomial interval (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of
+    the trials' minimum clearance, only over the ``executed`` trials that moved the robot
     (`moved_robot`; NaN if none did)."""
-    by_method: dict[str, list[dict]] = {}
-    for method, trial_rows in files.counted:
-        by_method.setdefault(method, []).extend(trial_rows)
+    groups: dict[tuple[str, str, str, str], list[dict]] = {}
+    for method, meta, trial_rows in files.counted:  # counted in table order
+        for row in trial_rows:
+            backend = row.get("backend", "unknown")
+            key = (method, backend, repair_label(meta), noise_label(meta, backend))
+            groups.setdefault(key, []).append(row)
     rows = []
-    for method, trials in by_method.items():  # counted in table order
-        for backend in sorted({r.get("backend", "unknown") for r in trials}):
-            subset = [r for r in trials if r.get("backend", "unknown") == backend]
-            executed = [r for r in subset if moved_robot(r)]
-            clearance = [
-                float(r["min_clearance"])
-                for r in executed
-                if r["min_clearance"] not in ("", "nan") and np.isfinite(float(r["min_clearance"]))
-            ]
-            row = {
-                "method": method,
-                "label": METHODS[method].label,
-                "backend": backend,
-                "trials": len(subset),
-                "refused": sum(r.get("status") == "refused" for r in subset),
-                "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
-                "executed": len(executed),
-            }
-            for key, column in (("success_rate", "success"), ("collision_rate", "collision")):
-                count = int(sum(round(float(r[column])) for r in subset))
-                row[key] = count / len(subset)
-                row[f"{key}_ci_low"], row[f"{key}_ci_high"] = binomial_interval(count, len(subset))
-            rows.append(row)
+    order = sorted(groups, key=lambda k: (TABLE_ORDER.index(k[0]), k[1], k[2], k[3]))
+    for method, backend, repair, noise in order:
+        subset = groups[(method, backend, repair, noise)]
+        executed = [r for r in subset if moved_robot(r)]
+        clearance = [
+            float(r["min_clearance"])
+            for r in executed
+            if r["min_clearance"] not in ("", "nan") and np.isfinite(float(r["min_clearance"]))
+        ]
+        row = {
+            "method": method,
+            "label": METHODS[method].label,
+            "backend": backend,
+            "repair": repair,
+            "sensor_noise": noise,
+            "trials": len(subset),
+            "refused": sum(r.get("status") == "refused" for r in subset),
+            "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
+            "executed": len(executed),
+        }
+        for key, column in (("success_rate", "success"), ("collision_rate", "collision")):
+            count = int(sum(round(float(r[column])) for r in subset))
+            row[key] = count / len(subset)
+            row[f"{key}_ci_low"], row[f"{key}_ci_high"] = binomial_interval(count, len(subset))
+        rows.append(row)
     return rows
+
+
+def rate_text(row: dict, key: str) -> str:
+    """``0.67 [0.09, 0.99]``: a Table II rate with its exact 95 % binomial interval."""
+    return f"{row[key]:.2f} [{row[f'{key}_ci_low']:.2f}, {row[f'{key}_ci_high']:.2f}]"
+
+
+def noise_texts(rows: list[dict], preset: str) -> tuple[str, str] | None:
+    """(CSV, Markdown) of the robustness table: the twin's success and collision rates (exact
+    95 % intervals) per method and repair setting against the sensor-noise level
+    (`distgprl.hardware.twin.SENSOR_NOISE`); None unless some twin policy ran at more than one
+    level."""
+    twin = [r for r in rows if r["backend"] == "twin"]
+    levels = sorted({r["sensor_noise"] for r in twin}, key=int)
+    if len(levels) < 2:
+        return None
+    buffer = io.StringIO()
+    fields = ["method", "repair", "sensor_noise", "trials", *INTERVAL_METRICS]
+    fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
+    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(twin)
+    by_setting: dict[tuple[str, str], dict[str, dict]] = {}
+    for r in twin:
+        by_setting.setdefault((r["method"], r["repair"]), {})[r["sensor_noise"]] = r
+    header = ["Method", "Repair"]
+    header += [f"Noise {level} {name}" for level in levels for name in ("Success", "Collision")]
+    table = []
+    for (method, repair), per_level in by_setting.items():
+        cells = [METHODS[method].label, repair]
+        for level in levels:
+            r = per_level.get(level)
+            cells += ["–", "–"] if r is None else [rate_text(r, k) for k in INTERVAL_METRICS]
+        table.append(cells)
+    caption = (
+        f"Digital twin robustness ({preset} preset policies, DBM): success and collision against "
+        "the sensor-noise level (0 none, 1 mild, 2 strong: image noise, blur, exposure, marker "
+        "corner noise, base-marker calibration error), exact 95 % binomial intervals"
+    )
+    return buffer.getvalue(), _markdown_table(caption, header, table)
 
 
 HARDWARE_COLUMNS = (
@@ -163,7 +232,8 @@ def hardware_min_clearance(row: dict) -> str:
 def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
     buffer = io.StringIO()
-    fields = ["method", "backend", *(key for key, _ in HARDWARE_COLUMNS), "executed"]
+    fields = ["method", "backend", "repair", "sensor_noise"]
+    fields += [*(key for key, _ in HARDWARE_COLUMNS), "executed"]
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -175,16 +245,15 @@ def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, 
         return [
             row["label"],
             row["backend"],
+            row["repair"],
+            row["sensor_noise"],
             str(row["trials"]),
             str(row["refused"]),
-            *(
-                f"{row[key]:.2f} [{row[f'{key}_ci_low']:.2f}, {row[f'{key}_ci_high']:.2f}]"
-                for key in INTERVAL_METRICS
-            ),
+            *(rate_text(row, key) for key in INTERVAL_METRICS),
             hardware_min_clearance(row),
         ]
 
-    header = ["Method", "Backend", *(label for _, label in HARDWARE_COLUMNS)]
+    header = ["Method", "Backend", "Repair", "Noise", *(label for _, label in HARDWARE_COLUMNS)]
     caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"
     markdown = _markdown_table(f"Table II: {caption}", header, [cells(row) for row in rows])
     if note:
@@ -195,7 +264,7 @@ def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, 
         "\\centering",
         f"\\caption{{{latex_caption}}}",
         "\\label{tab:hardware_results}",
-        "\\begin{tabular}{ll" + "c" * len(HARDWARE_COLUMNS) + "}",
+        "\\begin{tabular}{llll" + "c" * len(HARDWARE_COLUMNS) + "}",
         "\\toprule",
         " & ".join(header) + " \\\\",
         "\\midrule",

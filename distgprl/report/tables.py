@@ -47,6 +47,7 @@ from distgprl.report.table2 import (
     hardware_rows,
     hardware_table,
     hardware_texts,
+    noise_texts,
     select_trial_files,
 )
 from distgprl.schema import SCHEMA_VERSION, csv_meta_path, moved_robot
@@ -169,6 +170,13 @@ def write_tables(
         hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
         preset,
         "Table II: hardware trials per method; rates with the exact 95 % binomial interval",
+    )
+    written += _write_or_remove(
+        out_dir / f"table2_noise_{preset}",
+        (".csv", ".md"),
+        noise_texts(hardware, preset),
+        preset,
+        "digital twin success and collision against the sensor-noise level",
     )
     return written
 

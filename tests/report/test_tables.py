@@ -198,26 +198,34 @@ def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp
     out = tmp_path / "out"
     lines = (out / "table2_p.csv").read_text().splitlines()
     assert lines[0] == (
-        "method,backend,trials,refused,success_rate,collision_rate,min_clearance_p5,executed,"
-        "success_rate_ci_low,success_rate_ci_high,collision_rate_ci_low,collision_rate_ci_high"
+        "method,backend,repair,sensor_noise,trials,refused,success_rate,collision_rate,"
+        "min_clearance_p5,executed,success_rate_ci_low,success_rate_ci_high,"
+        "collision_rate_ci_low,collision_rate_ci_high"
     )
     twin = lines[1].split(",")
-    assert twin[:4] == ["dist-gprl", "twin", "3", "1"]
-    assert float(twin[4]) == pytest.approx(2 / 3) and float(twin[5]) == pytest.approx(1 / 3)
-    assert float(twin[6]) == pytest.approx(np.percentile([0.02, -0.01], 5))  # moved only
-    assert twin[7] == "2"
+    assert twin[:6] == ["dist-gprl", "twin", "–", "0", "3", "1"]  # written before repair
+    assert float(twin[6]) == pytest.approx(2 / 3) and float(twin[7]) == pytest.approx(1 / 3)
+    assert float(twin[8]) == pytest.approx(np.percentile([0.02, -0.01], 5))  # moved only
+    assert twin[9] == "2"
     # Clopper-Pearson 95 %: 2 of 3 [0.0943, 0.9916], 1 of 3 [0.0084, 0.9057] (beta quantiles)
-    assert [float(x) for x in twin[8:]] == pytest.approx([0.0943, 0.9916, 0.0084, 0.9057], abs=1e-4)
-    assert lines[2].split(",")[:4] == ["dist-gprl", "ur", "1", "0"]
+    assert [float(x) for x in twin[10:]] == pytest.approx(
+        [0.0943, 0.9916, 0.0084, 0.9057], abs=1e-4
+    )
+    assert lines[2].split(",")[:6] == ["dist-gprl", "ur", "–", "–", "1", "0"]
     markdown = (out / "table2_p.md").read_text()
     assert (
-        "| Dist-GPRL (ours) | twin | 3 | 1 | 0.67 [0.09, 0.99] | 0.33 [0.01, 0.91] | -0.009 (n=2) |"
+        "| Dist-GPRL (ours) | twin | – | 0 | 3 | 1 | 0.67 [0.09, 0.99] | 0.33 [0.01, 0.91] | "
+        "-0.009 (n=2) |"
     ) in markdown
     assert (
-        "| Dist-GPRL (ours) | ur | 1 | 0 | 0.00 [0.00, 0.97] | 0.00 [0.00, 0.97] | 0.030 |"
+        "| Dist-GPRL (ours) | ur | – | – | 1 | 0 | 0.00 [0.00, 0.97] | 0.00 [0.00, 0.97] | 0.030 |"
     ) in markdown
     latex = (out / "table2_p.tex").read_text()
-    assert "Dist-GPRL (ours) & twin & 3 & 1 & 0.67 [0.09, 0.99] & 0.33 [0.01, 0.91] &" in latex
+    assert (
+        "Dist-GPRL (ours) & twin & -- & 0 & 3 & 1 & 0.67 [0.09, 0.99] & 0.33 [0.01, 0.91] &"
+        in latex
+    )
+    assert not (out / "table2_noise_p.md").exists()  # one noise level: no robustness table
     assert latex.count("\\\\") == 3  # header and two rows
 
 
@@ -401,7 +409,7 @@ def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):
     trials("c.csv", [("ok", 0, 1, -0.01)], preset="ci", seed=0, policy=old)
     trials("d.csv", [("ok", 0, 1, -0.01)], preset="paper", seed=0, policy=old)
     selection = select_trial_files(tmp_path, "ci")
-    assert [(method, len(rows)) for method, rows in selection.counted] == [("dist-gprl", 2)]
+    assert [(method, len(rows)) for method, _, rows in selection.counted] == [("dist-gprl", 2)]
     assert selection.excluded == (
         "dist-gprl/b.csv (pre-flight check overridden, --force)",
         "dist-gprl/c.csv (policy config hash 0123456789abcdef, not the current one)",
@@ -455,3 +463,39 @@ def test_table1_iqm_columns_are_the_aggregates_bootstrap_estimates(tmp_path):
         and rows["demo"]["dcp_success_rate_iqm_low"] == ""
     )
     assert "stratified-bootstrap" in markdown.splitlines()[0]
+
+
+def test_table2_keeps_repair_and_noise_apart_and_the_noise_table_pivots_the_twin(tmp_path):
+    """Trial files of one method with plan repair off, retime, and retime at noise levels 1 and
+    2 make four Table II rows (never pooled), and the robustness table shows the twin's
+    retime rows against the noise level, with '–' where a setting did not run at a level."""
+    write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    settings = {  # name: (meta, outcomes)
+        "off.csv": ({"repair": False, "sensor_noise": 0}, [("refused", 0, 0, 0.05)] * 2),
+        "retime.csv": ({"repair": True, "sensor_noise": 0}, [("ok", 1, 0, 0.02)] * 2),
+        "noisy1.csv": ({"repair": True, "sensor_noise": 1}, [("ok", 1, 0, 0.02), ("ok", 0, 1, 0)]),
+        "noisy2.csv": ({"repair": True, "sensor_noise": 2}, [("ok", 0, 1, -0.01)] * 2),
+    }
+    for name, (meta, outcomes) in settings.items():
+        rows = [
+            dict(zip(fields, (k, "twin", *outcome), strict=True))
+            for k, outcome in enumerate(outcomes)
+        ]
+        write_csv(tmp_path / "hardware" / "demo" / name, rows, fields, preset="p", **meta)
+    rows = hardware_table(tmp_path, "p")
+    assert [(r["repair"], r["sensor_noise"], r["trials"]) for r in rows] == [
+        ("off", "0", 2),
+        ("retime", "0", 2),
+        ("retime", "1", 2),
+        ("retime", "2", 2),
+    ]
+    assert [r["success_rate"] for r in rows] == [0.0, 1.0, 0.5, 0.0]
+    write_tables(tmp_path, "p", tmp_path / "out")
+    noise = (tmp_path / "out" / "table2_noise_p.md").read_text()
+    assert "Noise 0 Success | Noise 0 Collision | Noise 1 Success" in noise
+    assert "| Demo (no adaptation) | retime | 1.00 [0.16, 1.00] | 0.00 [0.00, 0.84] | 0.50" in noise
+    assert (
+        "| Demo (no adaptation) | off | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | – | – | – | – |"
+        in (noise)
+    )
