@@ -15,8 +15,8 @@ from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build
 from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
 from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
+from distgprl.envs.clearance import TimedClearance
 from distgprl.methods import MethodSpec, get_method
-from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
@@ -193,17 +193,9 @@ class AdaptationEnv(gym.Env):
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
-        shapes = self.sim.obstacle_shapes()
-        self.field = DistanceField(shapes)
-        if self.config.clearance_timing not in ("predicted", "current"):
-            raise ValueError(
-                f"clearance_timing must be 'predicted' or 'current', "
-                f"got {self.config.clearance_timing!r}"
-            )
-        # Time-indexed clearances (v2): the static obstacles once for all window points, the
-        # (few) moving ones in a small field moved to each via-point's time.
-        self._static_field = DistanceField([s for s in shapes if not s.dynamic])
-        self._moving_field = DistanceField([s for s in shapes if s.dynamic])
+        # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
+        self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
+        self.field = self.clearance.field
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -263,34 +255,14 @@ class AdaptationEnv(gym.Env):
         with ``"current"``, against the obstacles now.
         """
         points = self.window_plan.window_poses(indices)[:, :3]
-        if self.config.clearance_timing == "current":
-            return self.field.distance(points)
         times = self.episode_start_time + self.skill.via_times[indices] * self.skill.duration
-        distance, gradient = self._static_field.distance(points)
-        field = self._moving_field
-        for j, when in enumerate(times):
-            field.update(self.sim.moving_obstacle_shapes(float(when)))
-            d, g = field.distance(points[j : j + 1])
-            if d[0] < distance[j]:
-                distance[j], gradient[j] = d[0], g[0]
-        return distance, gradient
+        return self.clearance.distance(points, times, self.sim.moving_obstacle_shapes)
 
     def moving_obstacle_anchors(self) -> np.ndarray:
-        """The moving obstacles' anchor at every via-point time, shape (N, 3), m.
-
-        As for ``c``: with ``clearance_timing == "predicted"`` where the obstacles will be
-        when the trajectory reaches via-point j, with ``"current"`` where they are now.
-        """
-        if self.config.clearance_timing == "current":
-            anchor = MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes())
-            return np.tile(anchor, (self.config.n_via_points, 1))
+        """The moving obstacles' anchor at every via-point time, shape (N, 3), m (as for
+        ``c``: where they will be when the trajectory reaches via-point j, or now)."""
         times = self.episode_start_time + self.skill.via_times * self.skill.duration
-        return np.stack(
-            [
-                MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes(float(when)))
-                for when in times
-            ]
-        )
+        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes)
 
     def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
@@ -317,7 +289,8 @@ class AdaptationEnv(gym.Env):
         clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
         return clipped / self.config.relative_position_scale
 
-    def _observation(self) -> dict[str, np.ndarray]:
+    def observation(self) -> dict[str, np.ndarray]:
+        """The current observation (``state`` and ``aux``, as returned by `step`)."""
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
         window = self.window_plan.window_poses(indices)
         clearance, _ = self.window_distance(indices)
@@ -365,37 +338,30 @@ class AdaptationEnv(gym.Env):
         return self.window_plan.gamma_initial
 
     def start_plan(self, tc, tcp_pose: np.ndarray, start_time: float) -> None:
-        """Start the plan of an episode on ``tc`` from the TCP pose (6,), m and rad, at the
-        world's time ``start_time`` (s) (`WindowPlan.start`); step 0. Does not touch the
-        world."""
+        """`WindowPlan.start` on ``tc`` from the TCP pose (6,) at ``start_time`` (s); step 0."""
         self.tc = tc
         self.window_plan.start(tc, tcp_pose, start_time)
         self.step_index = 0
 
     def apply_action(self, step: int, action: np.ndarray) -> np.ndarray:
-        """Apply a raw action to step ``step``'s parameters; return Delta Gamma, (A_v, 6)
-        (`WindowPlan.apply`: Eq. transformed_action, Eq. updated_via_points; zero for the
-        methods that train no policy, ``demo`` and ``promp-nominal``)."""
+        """`WindowPlan.apply`: Delta Gamma (A_v, 6) of a raw action, added to Gamma's window
+        (zero for the methods that train no policy, ``demo`` and ``promp-nominal``)."""
         return self.window_plan.apply(step, action)
 
     def segment_tau(self, step: int) -> np.ndarray:
-        """Normalised times tau in (0, 1] of segment ``step``'s control instants, shape (m,)
-        (the end of each control period; multiply by ``skill.duration`` for seconds)."""
+        """Normalised times (m,) of segment ``step``'s control instants (x T for seconds)."""
         return self.window_plan.segment_tau(step)
 
     def segment_poses(self, step: int) -> np.ndarray:
-        """Poses to command for segment ``step`` from the current parameters, shape (m, 6),
-        m and rad, at `segment_tau`; blended from the last commanded pose (continuity)."""
+        """Poses (m, 6) to command at `segment_tau`, continuity-blended (`WindowPlan`)."""
         return self.window_plan.segment_poses(step)
 
     def plan(self, tau: np.ndarray) -> np.ndarray:
-        """Planned poses at normalised times ``tau`` (m,) from the current parameters, shape
-        (m, 6), m and rad (no continuity blend)."""
+        """Planned poses (m, 6), m and rad, at normalised times ``tau`` (m,) (no blend)."""
         return self.window_plan.poses(tau)
 
     def mark_commanded(self, step: int, poses: np.ndarray) -> None:
-        """Record that segment ``step``'s ``poses`` (m, 6) were commanded: the next segment's
-        continuity blend starts from the last of them (nothing happens if m = 0)."""
+        """Record segment ``step``'s commanded ``poses`` (m, 6): the next blend starts there."""
         self.window_plan.mark_commanded(step, poses)
 
     @property
@@ -407,10 +373,6 @@ class AdaptationEnv(gym.Env):
     def episode_start_time(self) -> float:
         """The world's time (s) at the start of the current episode's plan."""
         return self.window_plan.start_time
-
-    def observation(self) -> dict[str, np.ndarray]:
-        """The current observation (``state`` and ``aux``, as returned by `step`)."""
-        return self._observation()
 
     @property
     def tc_generator_state(self) -> dict:
@@ -446,7 +408,7 @@ class AdaptationEnv(gym.Env):
         self._min_clearance = np.inf
         self._peak_joint_speed = 0.0
         self._adaptation_times: list[float] = []
-        return self._observation(), {"tc": tc}
+        return self.observation(), {"tc": tc}
 
     def step(self, action: np.ndarray):
         if self._episode_over:
@@ -525,7 +487,7 @@ class AdaptationEnv(gym.Env):
         self._refresh_field()
         reward = float(sum(terms.values()))
         info.update(terms)
-        return self._observation(), reward, terminated, False, info
+        return self.observation(), reward, terminated, False, info
 
     def render(self):
         if self.render_mode == "rgb_array":
