@@ -12,13 +12,14 @@ import numpy as np
 from gymnasium import spaces
 
 from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build_action_layout
+from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
+from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
+from distgprl.envs.clearance import TimedClearance
 from distgprl.methods import MethodSpec, get_method
-from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
-from distgprl.skill.rotations import nearest_equivalent_rotvec
 
 #: Observed e_o and e_g are clipped to +-this per axis (m) before scaling (a knocked-off
 #: object must not blow the inputs up).
@@ -26,11 +27,14 @@ RELATIVE_POSITION_CLIP = 0.8
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
-
-def min_jerk(u: np.ndarray) -> np.ndarray:
-    """Minimum-jerk blend 10u^3 - 15u^4 + 6u^5 on [0, 1] (clipped)."""
-    u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10 - 15 * u + 6 * u**2)
+__all__ = [
+    "OBSERVATION_SCALE_FLOOR",
+    "REWARD_TERMS",
+    "AdaptationEnv",
+    "build_action_layout",
+    "cosine",
+    "min_jerk",
+]
 
 
 def cosine(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> np.ndarray:
@@ -189,18 +193,9 @@ class AdaptationEnv(gym.Env):
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
-        shapes = self.sim.obstacle_shapes()
-        self.field = DistanceField(shapes)
-        if self.config.clearance_timing not in ("predicted", "current"):
-            raise ValueError(
-                f"clearance_timing must be 'predicted' or 'current', "
-                f"got {self.config.clearance_timing!r}"
-            )
-        # Time-indexed clearances (v2): the static obstacles once for all window points, the
-        # (few) moving ones in a small field moved to each via-point's time.
-        self._static_field = DistanceField([s for s in shapes if not s.dynamic])
-        self._moving_field = DistanceField([s for s in shapes if s.dynamic])
-        self._episode_start_time = 0.0
+        # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
+        self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
+        self.field = self.clearance.field
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -209,11 +204,17 @@ class AdaptationEnv(gym.Env):
         # scale (OBSERVATION_SCALE_FLOOR) so that an axis the demonstration keeps constant
         # (e.g. the tool orientation) does not blow small adaptations up to huge inputs.
         self._via_std = np.maximum(self.skill.via_points.std(axis=0), OBSERVATION_SCALE_FLOOR)
-        self._segment_maps = self._build_segment_maps()
-        mean = self.skill.prior_mean
-        self._gp_bases = [
-            mean[None, :] * (1.0 - m.sum(axis=1))[:, None] for _, m, _, _ in self._segment_maps
-        ]
+        self.gp_trajectory = GPSkillTrajectory(self.skill, self.interaction_index)
+        self.window_plan = WindowPlan(
+            self.trajectory_model(),
+            self.layout,
+            self.skill.duration,
+            self.sim.control_dt,
+            self.config.blend_fraction,
+            self.skill.via_points[0, 3:],
+            self.skill.via_points,
+            trainable=self.method.trainable,
+        )
         if self.method.signature_reward:
             from distgprl.skill.signature import signature_similarity
 
@@ -233,62 +234,18 @@ class AdaptationEnv(gym.Env):
         )
         self.action_space = spaces.Box(-1.0, 1.0, (n_points * 6,), np.float32)
         self._rng = np.random.default_rng()
-        self.gamma = self.skill.via_points.copy()
         self.step_index = 0
         self._episode_over = True  # until reset()
 
-    # -- helpers ---------------------------------------------------------------------------
-    def _build_segment_maps(self):
-        """Per step: control-period times tau (m,) and the position map (m, N) of the segment.
-
-        The executed poses of step k are ``base_k + map_k @ gamma`` with ``base_k`` from
-        `_segment_base` (for the GP skill, mu - map_k mu, a constant).
-        """
-        duration = self.skill.duration
-        dt = self.sim.control_dt
-        n_total = int(round(duration / dt))
-        times = (np.arange(n_total) + 1) * dt  # targets for the end of each control period
-        tau_all = np.clip(times / duration, 0.0, 1.0)
-        maps = []
-        bounds = self.layout.segment_bounds
-        for k in range(self.layout.n_steps):
-            lo, hi = bounds[k], bounds[k + 1]
-            mask = (tau_all > lo + 1e-12) & (tau_all <= hi + 1e-12)
-            tau = tau_all[mask]
-            maps.append((tau, self._parameter_map(tau), lo, hi))
-        return maps
-
-    # -- trajectory representation hooks (the residual baseline overrides these) -----------
-    def _parameter_map(self, tau: np.ndarray) -> np.ndarray:
-        """Linear map from the adapted parameters (N, 6) to poses at ``tau``: (m, N)."""
-        return self.skill.position_map(tau)
-
-    def _segment_base(self, step: int) -> np.ndarray:
-        """Pose offset of step ``step``'s segment, (m, 6): mu - (M 1) mu^T for the GP."""
-        return self._gp_bases[step]
-
-    def _plan(self, tau: np.ndarray) -> np.ndarray:
-        """Planned poses at ``tau`` from the current parameters, shape (m, 6)."""
-        return self.skill.position(self.gamma, tau)
-
-    def _planned_velocity(self, tau: np.ndarray) -> np.ndarray:
-        """Planned velocities at ``tau``, shape (m, 6), m/s and rad/s."""
-        return self.skill.velocity(self.gamma, tau)
-
-    def _window_poses(self, indices: np.ndarray) -> np.ndarray:
-        """Poses that stand for the step's adapted points (the window via-points)."""
-        return self.gamma[indices]
-
-    def _initial_parameters(self, tc) -> np.ndarray:
-        """Parameters at the start of an episode: the TC-conditioned via-points."""
-        return self.conditioned_via_points(tc)
+    # -- the trajectory model (ProMP-RRL's env overrides it) -----------------------------
+    def trajectory_model(self) -> TrajectoryModel:
+        """The trajectory the plan adapts: the GP skill's via-points (`gp_trajectory`)."""
+        return self.gp_trajectory
 
     def conditioned_via_points(self, tc) -> np.ndarray:
-        """Demonstration via-points conditioned on a TC (DESIGN §2), shape (N, 6)."""
-        offset = np.r_[np.asarray(tc.object_offset, dtype=float)[:2], 0.0]
-        gamma = self.skill.condition_on_offset(offset, self.interaction_index)
-        gamma[0] = self._start_pose
-        return gamma
+        """Demonstration via-points conditioned on a TC (DESIGN §2), shape (N, 6), via-point
+        0 the current plan's start pose."""
+        return self.gp_trajectory.condition(tc, self.window_plan.start_pose)
 
     def window_distance(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """EDF distance (L,), m, and unit gradient (L, 3) at the window's poses.
@@ -297,35 +254,15 @@ class AdaptationEnv(gym.Env):
         where they will be when the trajectory reaches it (episode time via_time_j * T);
         with ``"current"``, against the obstacles now.
         """
-        points = self._window_poses(indices)[:, :3]
-        if self.config.clearance_timing == "current":
-            return self.field.distance(points)
-        times = self._episode_start_time + self.skill.via_times[indices] * self.skill.duration
-        distance, gradient = self._static_field.distance(points)
-        field = self._moving_field
-        for j, when in enumerate(times):
-            field.update(self.sim.moving_obstacle_shapes(float(when)))
-            d, g = field.distance(points[j : j + 1])
-            if d[0] < distance[j]:
-                distance[j], gradient[j] = d[0], g[0]
-        return distance, gradient
+        points = self.window_plan.window_poses(indices)[:, :3]
+        times = self.episode_start_time + self.skill.via_times[indices] * self.skill.duration
+        return self.clearance.distance(points, times, self.sim.moving_obstacle_shapes)
 
     def moving_obstacle_anchors(self) -> np.ndarray:
-        """The moving obstacles' anchor at every via-point time, shape (N, 3), m.
-
-        As for ``c``: with ``clearance_timing == "predicted"`` where the obstacles will be
-        when the trajectory reaches via-point j, with ``"current"`` where they are now.
-        """
-        if self.config.clearance_timing == "current":
-            anchor = MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes())
-            return np.tile(anchor, (self.config.n_via_points, 1))
-        times = self._episode_start_time + self.skill.via_times * self.skill.duration
-        return np.stack(
-            [
-                MovingObstacleFilter.anchor(self.sim.moving_obstacle_shapes(float(when)))
-                for when in times
-            ]
-        )
+        """The moving obstacles' anchor at every via-point time, shape (N, 3), m (as for
+        ``c``: where they will be when the trajectory reaches via-point j, or now)."""
+        times = self.episode_start_time + self.skill.via_times * self.skill.duration
+        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes)
 
     def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
@@ -352,9 +289,10 @@ class AdaptationEnv(gym.Env):
         clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
         return clipped / self.config.relative_position_scale
 
-    def _observation(self) -> dict[str, np.ndarray]:
+    def observation(self) -> dict[str, np.ndarray]:
+        """The current observation (``state`` and ``aux``, as returned by `step`)."""
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
-        window = self._window_poses(indices)
+        window = self.window_plan.window_poses(indices)
         clearance, _ = self.window_distance(indices)
         config = self.config
         clip = config.clearance_clip
@@ -371,18 +309,6 @@ class AdaptationEnv(gym.Env):
         anchors = self.moving_obstacle_anchors() if self.method.hap_prior else None
         return {"state": state, "aux": self.aux_layout.pack(self.gamma, self.step_index, anchors)}
 
-    def _segment_poses(self, step: int) -> np.ndarray:
-        """The poses to execute for ``step`` (with continuity blending), shape (m, 6)."""
-        tau, position_map, lo, hi = self._segment_maps[step]
-        poses = self._segment_base(step) + position_map @ self.gamma
-        if len(tau):
-            # Where the re-planned trajectory puts the last commanded control instant.
-            planned_start = self._plan(np.array([self._last_tau]))[0]
-            jump = self._last_commanded - planned_start
-            weight = 1.0 - min_jerk((tau - lo) / max(self.config.blend_fraction * (hi - lo), 1e-9))
-            poses = poses + weight[:, None] * jump
-        return poses
-
     def _refresh_field(self) -> None:
         """Move the EDF's moving obstacles to their current poses (static ones never move)."""
         self.field.update(self.sim.moving_obstacle_shapes())
@@ -396,78 +322,57 @@ class AdaptationEnv(gym.Env):
             np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
         )
 
-    # -- the plan state's public API (the env's steps, the hardware adapter, the bench) ------
-    def start_plan(self, tc, tcp_pose: np.ndarray, start_time: float) -> None:
-        """Start the plan of an episode: condition on ``tc`` from the robot's TCP pose.
+    # -- the plan state's public API (delegated to `window_plan`; hardware adapter, bench) ----
+    @property
+    def gamma(self) -> np.ndarray:
+        """The current parameters Gamma (N, 6): via-points (m, rad) or residual weights."""
+        return self.window_plan.gamma
 
-        Sets the TC, the start pose (``tcp_pose`` (6,), m and rad, its rotation vector made
-        the equivalent nearest the demonstration's first via-point), the episode's start time
-        ``start_time`` (s, the world's clock), the initial parameters (``gamma`` and
-        ``gamma_initial``: the TC-conditioned via-points, or zero residual weights), step 0
-        and the last commanded pose (the start pose). Does not touch the world.
-        """
+    @gamma.setter
+    def gamma(self, value: np.ndarray) -> None:
+        self.window_plan.gamma = value
+
+    @property
+    def gamma_initial(self) -> np.ndarray:
+        """The parameters (N, 6) at the start of the episode."""
+        return self.window_plan.gamma_initial
+
+    def start_plan(self, tc, tcp_pose: np.ndarray, start_time: float) -> None:
+        """`WindowPlan.start` on ``tc`` from the TCP pose (6,) at ``start_time`` (s); step 0."""
         self.tc = tc
-        start = np.array(tcp_pose, dtype=float)
-        start[3:] = nearest_equivalent_rotvec(start[3:], self.skill.via_points[0, 3:])
-        self._start_pose = start
-        self._episode_start_time = float(start_time)
-        self.gamma = self._initial_parameters(tc)
-        self.gamma_initial = self.gamma.copy()
+        self.window_plan.start(tc, tcp_pose, start_time)
         self.step_index = 0
-        self._last_commanded = start.copy()
-        self._last_tau = 0.0
 
     def apply_action(self, step: int, action: np.ndarray) -> np.ndarray:
-        """Apply a raw action to step ``step``'s parameters; return Delta Gamma, (A_v, 6).
-
-        The action (A_v x 6 entries, flattened, in [-1, 1]; clipped) is scaled and
-        correlated by the layout (Delta Gamma = S_W a, Eq. transformed_action) and added to
-        the step's parameters in ``gamma`` (Eq. updated_via_points): the window via-points,
-        or the residual weights of ProMP-RRL. Methods that train no policy (``demo``,
-        ``promp-nominal``) ignore the action: their Delta Gamma is zero.
-        """
-        raw = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
-        if not self.method.trainable:  # references: `demo` executes Gamma_0, `promp-nominal`
-            raw = np.zeros_like(raw)  # the ProMP mean
-        delta = self.layout.delta(step, raw)  # Eq. transformed_action
-        self.gamma[self.layout.indices[step]] += delta  # Eq. updated_via_points
-        return delta
+        """`WindowPlan.apply`: Delta Gamma (A_v, 6) of a raw action, added to Gamma's window
+        (zero for the methods that train no policy, ``demo`` and ``promp-nominal``)."""
+        return self.window_plan.apply(step, action)
 
     def segment_tau(self, step: int) -> np.ndarray:
-        """Normalised times tau in (0, 1] of segment ``step``'s control instants, shape (m,)
-        (the end of each control period; multiply by ``skill.duration`` for seconds)."""
-        return self._segment_maps[step][0].copy()
+        """Normalised times (m,) of segment ``step``'s control instants (x T for seconds)."""
+        return self.window_plan.segment_tau(step)
 
     def segment_poses(self, step: int) -> np.ndarray:
-        """Poses to command for segment ``step`` from the current parameters, shape (m, 6),
-        m and rad, at `segment_tau`; blended from the last commanded pose (continuity)."""
-        return self._segment_poses(step)
+        """Poses (m, 6) to command at `segment_tau`, continuity-blended (`WindowPlan`)."""
+        return self.window_plan.segment_poses(step)
 
     def plan(self, tau: np.ndarray) -> np.ndarray:
-        """Planned poses at normalised times ``tau`` (m,) from the current parameters, shape
-        (m, 6), m and rad (no continuity blend)."""
-        return self._plan(np.asarray(tau, dtype=float))
+        """Planned poses (m, 6), m and rad, at normalised times ``tau`` (m,) (no blend)."""
+        return self.window_plan.poses(tau)
 
     def mark_commanded(self, step: int, poses: np.ndarray) -> None:
-        """Record that segment ``step``'s ``poses`` (m, 6) were commanded: the next segment's
-        continuity blend starts from the last of them (nothing happens if m = 0)."""
-        if len(poses):
-            self._last_commanded = np.array(poses[-1], dtype=float)
-            self._last_tau = float(self._segment_maps[step][0][-1])
+        """Record segment ``step``'s commanded ``poses`` (m, 6): the next blend starts there."""
+        self.window_plan.mark_commanded(step, poses)
 
     @property
     def last_commanded(self) -> np.ndarray:
         """The last commanded pose (6,), m and rad (the start pose before the first segment)."""
-        return self._last_commanded.copy()
+        return self.window_plan.last_commanded
 
     @property
     def episode_start_time(self) -> float:
         """The world's time (s) at the start of the current episode's plan."""
-        return self._episode_start_time
-
-    def observation(self) -> dict[str, np.ndarray]:
-        """The current observation (``state`` and ``aux``, as returned by `step`)."""
-        return self._observation()
+        return self.window_plan.start_time
 
     @property
     def tc_generator_state(self) -> dict:
@@ -503,7 +408,7 @@ class AdaptationEnv(gym.Env):
         self._min_clearance = np.inf
         self._peak_joint_speed = 0.0
         self._adaptation_times: list[float] = []
-        return self._observation(), {"tc": tc}
+        return self.observation(), {"tc": tc}
 
     def step(self, action: np.ndarray):
         if self._episode_over:
@@ -521,7 +426,7 @@ class AdaptationEnv(gym.Env):
         delta = self.apply_action(step, action)  # Eq. transformed_action, updated_via_points
         if self.method.distance_rewards:
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
-        poses = self._segment_poses(step)
+        poses = self.segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
 
         # Execute the segment in chunks; r_sd is evaluated after each chunk.
@@ -547,7 +452,7 @@ class AdaptationEnv(gym.Env):
         if segment_collision:
             terms["r_collision"] = -config.collision_penalty
         if self.method.signature_reward and len(poses) > 1:
-            tau = self._segment_maps[step][0]
+            tau = self.window_plan.segments[step].tau
             reference = self.skill.position(self.skill.via_points, tau)[:, :3]
             terms["r_signature"] = config.signature_weight * float(
                 self._signature_similarity(
@@ -566,7 +471,7 @@ class AdaptationEnv(gym.Env):
             success = completed and not (self._collision and config.collision_ends_episode)
             if success:
                 terms["r_success"] = config.success_bonus
-            velocity = self._planned_velocity(self._retention_tau)
+            velocity = self.window_plan.velocity(self._retention_tau)
             info.update(
                 success=success,
                 completed=completed,
@@ -582,7 +487,7 @@ class AdaptationEnv(gym.Env):
         self._refresh_field()
         reward = float(sum(terms.values()))
         info.update(terms)
-        return self._observation(), reward, terminated, False, info
+        return self.observation(), reward, terminated, False, info
 
     def render(self):
         if self.render_mode == "rgb_array":

@@ -10,11 +10,14 @@ from functools import lru_cache
 
 import numpy as np
 
+from distgprl.adaptation.trajectories import ResidualProMPTrajectory, variance_gate
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.methods import MethodSpec, get_method
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.promp import ObjectCentricProMP
+
+__all__ = ["ResidualEnv", "load_task_promp", "one_demonstration_set", "variance_gate"]
 
 DEMONSTRATION_SOURCES = ("one", "expert")
 
@@ -86,24 +89,6 @@ def load_task_promp(task: str, source: str = "one") -> ObjectCentricProMP:
     return ObjectCentricProMP.fit(demos, offsets)
 
 
-def variance_gate(promp: ObjectCentricProMP, centres: np.ndarray) -> np.ndarray:
-    """Per residual basis centre, how much of the residual acts there, shape (N,), in [0, 1].
-
-    Carvalho et al. use the demonstrations' variability "as a decision variable to reduce
-    the search space for RRL": the residual acts where the ProMP's variance is low (where
-    the demonstrations agree, the task needs precision, and a correction is what the
-    nominal lacks) and is held back where it is high. Here, without a threshold to tune:
-    ``1 - sigma(tau_j) / max_k sigma(tau_k)``, sigma the ProMP's positional standard
-    deviation (the mean over x, y, z) at the basis centre, in the object frame. A ProMP with
-    no variability (sigma = 0 everywhere) gates nothing.
-    """
-    sigma = promp.trajectory_std(np.clip(centres, 0.0, 1.0))[:, :3].mean(axis=1)
-    top = float(sigma.max())
-    if top <= 1e-12:
-        return np.ones(len(centres))
-    return 1.0 - sigma / top
-
-
 class ResidualEnv(AdaptationEnv):
     """Residual RL on the ProMP nominal trajectory, with the Dist-GPRL episode structure.
 
@@ -159,39 +144,18 @@ class ResidualEnv(AdaptationEnv):
         self._gate = variance_gate(self.promp, centres)
         super().__init__(task, spec, config, render_mode=render_mode)
 
+    def trajectory_model(self) -> ResidualProMPTrajectory:
+        """The residual on the ProMP nominal, basis centres at the via-point times."""
+        return ResidualProMPTrajectory(
+            self.promp, self.skill.via_times, self._gate, self.skill.duration
+        )
+
     def residual_basis(self, tau: np.ndarray) -> np.ndarray:
         """The gated, normalised residual basis at normalised times ``tau`` (m,): (m, N);
         the residual's pose offset at ``tau`` is ``residual_basis(tau) @ gamma``."""
-        centres = self.skill.via_times
-        width = centres[1] - centres[0]
-        values = np.exp(-0.5 * ((np.asarray(tau)[:, None] - centres[None, :]) / width) ** 2)
-        return values / values.sum(axis=1, keepdims=True) * self._gate[None, :]
+        return self.window_plan.model.basis(tau)
 
-    def _parameter_map(self, tau: np.ndarray) -> np.ndarray:
-        return self.residual_basis(tau)
-
-    def _nominal(self, tau: np.ndarray) -> np.ndarray:
-        return self._nominal_promp.mean_trajectory(np.clip(tau, 0.0, 1.0), self._object_offset)
-
-    def _segment_base(self, step: int) -> np.ndarray:
-        return self._nominal_bases[step]
-
-    def _plan(self, tau: np.ndarray) -> np.ndarray:
-        return self._nominal(tau) + self.residual_basis(tau) @ self.gamma
-
-    def _planned_velocity(self, tau: np.ndarray) -> np.ndarray:
-        dense = np.linspace(0.0, 1.0, 400)
-        velocity = np.gradient(self._plan(dense), dense * self.skill.duration, axis=0)
-        return np.stack([np.interp(tau, dense, velocity[:, a]) for a in range(6)], axis=1)
-
-    def _window_poses(self, indices: np.ndarray) -> np.ndarray:
-        return self._plan(self.skill.via_times[indices])
-
-    def _initial_parameters(self, tc) -> np.ndarray:
-        self._object_offset = np.r_[np.asarray(tc.object_offset, dtype=float), 0.0]
-        # Nominal: ProMP mean for the observed object, conditioned on the start pose.
-        self._nominal_promp = self.promp.conditioned(
-            0.0, self._start_pose, object_position=self._object_offset
-        )
-        self._nominal_bases = [self._nominal(tau) for tau, _, _, _ in self._segment_maps]
-        return np.zeros((self.skill.n_via_points, 6))
+    def nominal(self, tau: np.ndarray) -> np.ndarray:
+        """The episode's nominal trajectory (the conditioned ProMP mean) at ``tau`` (m,),
+        shape (m, 6), m and rad."""
+        return self.window_plan.model.nominal(tau)

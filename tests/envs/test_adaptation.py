@@ -426,7 +426,7 @@ def test_aux_carries_the_moving_obstacles_anchor_at_each_via_point_time(timing):
     anchors = observation["aux"][n * 6 + env.layout.n_steps :].reshape(n, 3)
     sim = env.sim
     if timing == "predicted":
-        times = env._episode_start_time + env.skill.via_times * env.skill.duration
+        times = env.episode_start_time + env.skill.via_times * env.skill.duration
         expected = [sim.moving_obstacle_shapes(float(t))[0].position for t in times]
     else:
         expected = [sim.moving_obstacle_shapes()[0].position] * n

@@ -27,14 +27,15 @@ def test_zero_action_executes_the_nominal_trajectory(env):
     tc = env.spec_task.evaluation_tcs(2)[1]
     env.reset(options={"tc": tc})
     for step in range(3):
-        tau, _, lo, hi = env._segment_maps[step]
-        poses = env._segment_poses(step)
+        segment = env.window_plan.segments[step]
+        tau, lo, hi = segment.tau, segment.lo, segment.hi
+        poses = env.segment_poses(step)
         # Only the first segment may blend out the robot-vs-ProMP start mismatch; past the
         # blend (and in every later segment) the nominal is executed exactly.
         past_blend = tau >= lo + env.config.blend_fraction * (hi - lo)
-        np.testing.assert_allclose(poses[past_blend], env._nominal(tau[past_blend]), atol=1e-9)
+        np.testing.assert_allclose(poses[past_blend], env.nominal(tau[past_blend]), atol=1e-9)
         if step > 0:
-            np.testing.assert_allclose(poses, env._nominal(tau), atol=1e-9)
+            np.testing.assert_allclose(poses, env.nominal(tau), atol=1e-9)
         env.step(np.zeros(env.action_space.shape))
 
 
@@ -43,10 +44,12 @@ def test_nominal_starts_at_the_robot_and_engages_the_moved_object(env):
     tc_a, tc_b = env.spec_task.evaluation_tcs(2)
     interaction = np.array([env.spec_task.interaction_time])
     env.reset(options={"tc": tc_a})
-    engage_a = env._nominal(interaction)[0, :2]
-    np.testing.assert_allclose(env._nominal(np.zeros(1))[0, :3], env._start_pose[:3], atol=2e-3)
+    engage_a = env.nominal(interaction)[0, :2]
+    np.testing.assert_allclose(
+        env.nominal(np.zeros(1))[0, :3], env.window_plan.start_pose[:3], atol=2e-3
+    )
     env.reset(options={"tc": tc_b})
-    engage_b = env._nominal(interaction)[0, :2]
+    engage_b = env.nominal(interaction)[0, :2]
     shift = np.subtract(tc_b.object_offset, tc_a.object_offset)
     np.testing.assert_allclose(engage_b - engage_a, shift, atol=0.03)
 

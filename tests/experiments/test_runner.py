@@ -380,7 +380,8 @@ def test_checkpoint_pieces_reach_the_disk_before_the_commit_marker(tmp_path, mon
             Path(path).write_bytes(b"buffer")
 
     class Env:
-        _rng, tc = np.random.default_rng(0), None
+        tc = None
+        tc_generator_state = np.random.default_rng(0).bit_generator.state
 
     synced, real_fsync = [], os.fsync
 
