@@ -138,7 +138,7 @@ def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
     between two branches (near-ties, where the first of equals must win)."""
     import ur_analytic_ik
 
-    from distgprl.sim.robot import nearest_branch, nearest_branch_exact
+    from distgprl.sim.ik_branches import nearest_branch, nearest_branch_exact
     from distgprl.sim.transforms import invert_transform
 
     rng = np.random.default_rng(7)
