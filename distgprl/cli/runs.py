@@ -26,6 +26,7 @@ from distgprl.cli.common import (
     user_errors,
 )
 from distgprl.errors import UserInputError
+from distgprl.hardware.table2_trials import TABLE2_TRIALS
 
 
 @user_errors
@@ -51,6 +52,15 @@ def sweep(
     retrain_damaged: Annotated[
         bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
     ] = False,
+    twin_trials: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Digital-twin trials per Table II setting each DBM run gets right after "
+            "training, while its model is on disk (repair on/off; noise levels for "
+            "dist-gprl and the references); 0: none.",
+        ),
+    ] = TABLE2_TRIALS,
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped.
 
@@ -67,13 +77,16 @@ def sweep(
     )
 
     preset = resolve_preset(preset, config)
-    jobs = plan_jobs(preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root)
+    jobs = plan_jobs(
+        preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root, twin_trials
+    )
     if workers is None:
         workers = default_workers()
     typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
+        extra += f"\n  {result.trials}" if result.trials else ""
         typer.echo(
             f"[{finished}/{total}] {result.job.name}: {result.status} "
             f"in {result.seconds:.0f} s{extra}"

@@ -25,6 +25,12 @@
   side by side (e.g. one per CPU core, in different orders), each training what the other
   is not.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
+- With ``twin_trials`` (`distgprl sweep --twin-trials N`), a DBM job also runs the digital-
+  twin trials Table II counts for its policy (`distgprl.hardware.table2_trials`), in the
+  same process, right after training: a policy's weights are not committed, so its trials
+  must run where it was trained. A finished DBM run whose ``model.zip`` is still on disk and
+  whose trials are missing is picked up again for them alone; trials that fail are reported
+  with the job (``trials`` of its result) and leave the run done.
 
 Executors: ``local`` (worker processes on this machine) and ``ray`` (the same job
 function submitted to a Ray cluster; optional extra ``distgprl[ray]``).
@@ -69,6 +75,7 @@ class Job:
     seed: int
     preset: str
     root: str
+    twin_trials: int = 0  # trials per Table II setting after a DBM job (0: none)
 
     @property
     def name(self) -> str:
@@ -82,6 +89,7 @@ class JobResult:
     status: str
     seconds: float
     error: str = ""
+    trials: str = ""  # what the Table II twin trials did (empty: none were due)
 
 
 def plan_jobs(
@@ -90,9 +98,11 @@ def plan_jobs(
     tasks: Sequence[str] | None = None,
     seeds: Sequence[int] = SWEEP_SEEDS,
     root: str | Path = "results",
+    twin_trials: int = 0,
 ) -> list[Job]:
     """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
-    tasks innermost. The `demo` reference runs once (seed 0).
+    tasks innermost. The `demo` reference runs once (seed 0). ``twin_trials``: trials per
+    Table II setting each DBM job runs after training (0: none).
 
     Every name, seed and the preset are validated first (`resolve_run` for every job), so
     a bad request is a `UserInputError` before anything touches the disk."""
@@ -104,6 +114,8 @@ def plan_jobs(
         check_task_name(task)
     if not seeds:
         raise UserInputError("no seeds given")
+    if twin_trials < 0:
+        raise UserInputError(f"twin_trials must be >= 0, got {twin_trials}")
     # a repeated seed: one job
     seeds = list(dict.fromkeys(check_seed(seed) for seed in seeds))
     jobs = []
@@ -121,6 +133,7 @@ def plan_jobs(
                         0 if not get_method(method).trainable else int(seed),
                         preset,
                         str(root),
+                        int(twin_trials),
                     )
                 )
     for job in jobs:
@@ -174,6 +187,8 @@ def run_job(job: Job) -> JobResult:
     start = time.perf_counter()
     finished = finished_result(job)
     if finished is not None:
+        if finished.status == "skipped" and trials_due(job):
+            return replace(finished, trials=run_job_trials(job))
         return finished
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
     busy = JobResult(job, "busy", 0.0, "another process is training this run")
@@ -203,7 +218,24 @@ def run_job(job: Job) -> JobResult:
     error_file = folder / "error.json"
     if error_file.exists():
         error_file.unlink()
-    return JobResult(job, "done", time.perf_counter() - start)
+    trials = run_job_trials(job) if trials_due(job) else ""
+    return JobResult(job, "done", time.perf_counter() - start, trials=trials)
+
+
+def trials_due(job: Job) -> bool:
+    """True if the job should run Table II twin trials now (`table2_trials.trials_due`)."""
+    if job.twin_trials <= 0 or job.task != "dbm":
+        return False
+    from distgprl.hardware.table2_trials import trials_due as due
+
+    return due(job.method, job.seed, job.preset, job.root, job.twin_trials)
+
+
+def run_job_trials(job: Job) -> str:
+    """Run the job's missing Table II twin trials: a report (`table2_trials.run_and_report`)."""
+    from distgprl.hardware.table2_trials import run_and_report
+
+    return run_and_report(job.method, job.seed, job.preset, job.root, job.twin_trials)
 
 
 def record_failure(job: Job, message: str, details: str, seconds: float) -> JobResult:
@@ -425,6 +457,8 @@ def run_sweep(
         if finished is not None and finished.status == "damaged" and retrain_damaged:
             if clear_damaged(job):
                 finished = None
+        if finished is not None and finished.status == "skipped" and trials_due(job):
+            finished = None  # trained, its model still here: `run_job` runs its trials
         if finished is None:
             todo.append(job)
         else:

@@ -141,9 +141,15 @@ class ControlLoop:
             (body, self.exempt_links.get(body)) for body in self.obstacle_bodies
         )
 
-    def clearance(self) -> float:
-        """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff."""
-        best = cutoff = self.clearance_cutoff
+    def clearance(self, below: float | None = None) -> float:
+        """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff.
+
+        ``below`` (m, at most the cutoff): only distances under it matter to the caller
+        (the running minimum of a segment), so the queries look no farther; the result is
+        then the clearance if it is under ``below``, else ``below`` (issue 29).
+        """
+        cutoff = self.clearance_cutoff if below is None else min(below, self.clearance_cutoff)
+        best = cutoff
         closest_points = self.calls.closest_points
         robot_body = self.robot.body
         for body, exempt in self._clearance_queries:
@@ -233,7 +239,7 @@ class ControlLoop:
                         convey_object(time)
                 now += period
                 q_previous = q_target
-                clearance = clearance_now()
+                clearance = clearance_now(min_clearance)  # only a new minimum matters
                 if clearance < min_clearance:
                     min_clearance = clearance
                 executed += 1

@@ -47,6 +47,16 @@ def test_a_bad_seed_or_preset_is_refused_when_the_sweep_is_planned(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_every_planned_job_carries_the_twin_trials_asked_for():
+    """The CLI's ``--twin-trials`` reaches every job (only DBM jobs act on it: `trials_due`);
+    the default plans none, and a negative count is refused."""
+    assert {j.twin_trials for j in sweep.plan_jobs("ci", ["demo", "gprl"], None, [0])} == {0}
+    jobs = sweep.plan_jobs("ci", ["demo", "gprl"], None, [0, 1], twin_trials=3)
+    assert {j.twin_trials for j in jobs} == {3} and len(jobs) == 6
+    with pytest.raises(UserInputError, match="twin_trials"):
+        sweep.plan_jobs("ci", ["gprl"], None, [0], twin_trials=-1)
+
+
 def test_a_repeated_seed_plans_one_job():
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0, 0, 1])
     assert [j.name for j in jobs] == ["dcp/gprl-d/seed0", "dcp/gprl-d/seed1"]

@@ -1,0 +1,168 @@
+"""The digital-twin trials Table II counts for one DBM policy, each setting run once.
+
+Table II v5 (issue 31) has, for every method's v5 policies and every seed where one exists,
+twin trials with plan repair on and off, and for Dist-GPRL and the two references a
+robustness series over the twin's sensor-noise levels. A policy's weights are not kept
+with the committed results (only a run's small files are), so its trials have to be run
+where and when it was trained: `distgprl sweep --twin-trials N` runs the missing settings
+of every DBM run it finishes (or finds finished with its ``model.zip`` still on disk) in
+the same job, and a later sweep fills in what an interrupted one left.
+
+A setting counts as done when a trial file of it exists that Table II would count: the
+twin backend, this preset, neither ``--force`` nor a dry run, pushes off, at least the
+requested number of trials, and (trained methods) the policy's current config hash.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from distgprl.identity import resolve_run
+from distgprl.methods import get_method
+from distgprl.schema import read_csv, run_dir
+
+__all__ = [
+    "ROBUSTNESS_METHODS",
+    "TABLE2_TRIALS",
+    "TrialSetting",
+    "missing_settings",
+    "run_and_report",
+    "run_table2_trials",
+    "table2_settings",
+    "trials_due",
+]
+
+HARDWARE_TASK = "dbm"
+"""The task of the hardware cell (the policies its trials run are trained on it)."""
+
+TABLE2_TRIALS = 10
+"""Trials per setting (the paper's 10 hardware trials per method)."""
+
+ROBUSTNESS_METHODS = ("dist-gprl", "demo", "promp-nominal")
+"""Methods whose trials also run at every sensor-noise level (the robustness table)."""
+
+NOISE_LEVELS = (1, 2)
+"""The twin's sensor-noise levels above none (`distgprl.hardware.twin.SENSOR_NOISE`)."""
+
+
+@dataclass(frozen=True)
+class TrialSetting:
+    """How one trial file's trials run: plan repair (retiming) on or off, twin noise level."""
+
+    repair: bool
+    sensor_noise: int
+
+    def describe(self) -> str:
+        return f"repair {'on' if self.repair else 'off'}, noise {self.sensor_noise}"
+
+
+def table2_settings(method: str) -> tuple[TrialSetting, ...]:
+    """The settings Table II wants for ``method``: repair on and off without sensor noise,
+    and (`ROBUSTNESS_METHODS`) repair on at every noise level."""
+    settings = [TrialSetting(True, 0), TrialSetting(False, 0)]
+    if method in ROBUSTNESS_METHODS:
+        settings += [TrialSetting(True, level) for level in NOISE_LEVELS]
+    return tuple(settings)
+
+
+def model_path(root: str | Path, preset: str, method: str, seed: int) -> Path:
+    """Where the trained DBM run keeps its final policy (`distgprl.experiments.training`)."""
+    return run_dir(root, preset, HARDWARE_TASK, method, seed) / "model.zip"
+
+
+def _done_settings(
+    root: str | Path, preset: str, method: str, seed: int, trials: int
+) -> set[TrialSetting]:
+    """Settings with a trial file Table II counts (module docstring)."""
+    folder = Path(root) / "hardware" / method
+    trainable = get_method(method).trainable
+    current = resolve_run(HARDWARE_TASK, method, seed, preset).hash if trainable else None
+    done = set()
+    for path in sorted(folder.glob(f"trials_twin_seed{seed}_*.csv")) if folder.exists() else []:
+        meta, rows = read_csv(path)
+        if (
+            meta.get("preset") != preset
+            or meta.get("backend") != "twin"
+            or meta.get("force")
+            or meta.get("dry_run")
+            or meta.get("repair_push")
+            or len(rows) < trials
+        ):
+            continue
+        if trainable and (meta.get("policy") or {}).get("run_config_hash") != current:
+            continue
+        done.add(TrialSetting(bool(meta.get("repair")), int(meta.get("sensor_noise") or 0)))
+    return done
+
+
+def missing_settings(
+    root: str | Path, preset: str, method: str, seed: int, trials: int = TABLE2_TRIALS
+) -> tuple[TrialSetting, ...]:
+    """The settings of `table2_settings` without a counted trial file of ``trials`` trials."""
+    done = _done_settings(root, preset, method, seed, trials)
+    return tuple(s for s in table2_settings(method) if s not in done)
+
+
+def run_table2_trials(
+    method: str,
+    seed: int,
+    preset: str,
+    root: str | Path = "results",
+    trials: int = TABLE2_TRIALS,
+    echo: Callable[[str], None] = print,
+) -> list[Path]:
+    """Run the twin trials of every missing setting of the DBM policy (method, seed, preset).
+
+    Returns the trial files written (none if every setting is done).
+
+    Raises:
+        UserInputError: a trained method's DBM model is not on disk (``model.zip``), or the
+            method is not a via-point method the trials can run.
+    """
+    from distgprl.hardware.repair import RepairConfig
+    from distgprl.hardware.trials import run_trials
+
+    written = []
+    for setting in missing_settings(root, preset, method, seed, trials):
+        report = run_trials(
+            trials=trials,
+            method=method,
+            seed=seed,
+            backend="twin",
+            root=root,
+            preset=preset,
+            repair=setting.repair,
+            repair_config=RepairConfig(repair=False),
+            sensor_noise=setting.sensor_noise,
+            echo=lambda line: None,
+        )
+        summary = report.summary
+        echo(
+            f"twin trials {method} seed {seed} ({setting.describe()}): "
+            f"success {summary['success_rate']:.2f}, collision {summary['collision_rate']:.2f}, "
+            f"refused {int(summary['refused'])} of {int(summary['trials'])} -> {report.path}"
+        )
+        written.append(report.path)
+    return written
+
+
+def trials_due(method: str, seed: int, preset: str, root: str | Path, trials: int) -> bool:
+    """True if the DBM policy's trials can and should run now: its model is on disk (a
+    trained method) and a setting is still without ``trials`` counted trials."""
+    if get_method(method).trainable and not model_path(root, preset, method, seed).exists():
+        return False
+    return bool(missing_settings(root, preset, method, seed, trials))
+
+
+def run_and_report(method: str, seed: int, preset: str, root: str | Path, trials: int) -> str:
+    """`run_table2_trials` as a report for a sweep's log: one line per setting run, or what
+    failed (a trial failure never raises here: the run it follows is done, and the next
+    sweep tries again)."""
+    lines: list[str] = []
+    try:
+        written = run_table2_trials(method, seed, preset, root, trials, echo=lines.append)
+    except Exception as exc:  # reported with the job
+        return f"twin trials failed: {type(exc).__name__}: {exc}"
+    return "\n  ".join([f"twin trials: {len(written)} setting(s) run", *lines])

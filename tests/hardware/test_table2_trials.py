@@ -1,0 +1,131 @@
+"""The Table II twin trials of one policy: which settings are due, and the sweep running
+them while the policy is on disk (`distgprl.hardware.table2_trials`, `experiments.sweep`)."""
+
+from __future__ import annotations
+
+import pytest
+
+from distgprl.experiments import sweep
+from distgprl.experiments.results import read_csv, write_json
+from distgprl.hardware.table2_trials import (
+    TrialSetting,
+    missing_settings,
+    model_path,
+    run_table2_trials,
+    table2_settings,
+)
+from distgprl.identity import resolve_run
+from distgprl.schema import TRIAL_FIELDS, write_csv
+
+
+def test_every_method_gets_repair_on_and_off_and_the_robustness_methods_every_noise_level():
+    assert table2_settings("gprl") == (TrialSetting(True, 0), TrialSetting(False, 0))
+    for method in ("dist-gprl", "demo", "promp-nominal"):
+        assert set(table2_settings(method)) == {
+            TrialSetting(True, 0),
+            TrialSetting(False, 0),
+            TrialSetting(True, 1),
+            TrialSetting(True, 2),
+        }
+
+
+def _trial_file(root, method, name, rows=2, **meta):
+    values = {
+        "kind": "hardware-trials",
+        "method": method,
+        "seed": 0,
+        "backend": "twin",
+        "preset": "ci",
+        "dry_run": False,
+        "force": False,
+        "repair": True,
+        "repair_push": False,
+        "sensor_noise": 0,
+        "policy": {"run_config_hash": resolve_run("dbm", method, 0, "ci").hash},
+    }
+    values.update(meta)
+    row = dict.fromkeys(TRIAL_FIELDS, "0")
+    write_csv(root / "hardware" / method / name, [row] * rows, TRIAL_FIELDS, **values)
+
+
+def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
+    """Force, dry runs, pushes, another preset or backend, a stale policy hash and too few
+    trials leave the setting due; a counted file of repair off removes exactly that one."""
+    stale = {"run_config_hash": "0" * 16}
+    for index, meta in enumerate(
+        [
+            {"force": True},
+            {"dry_run": True},
+            {"repair_push": True},
+            {"preset": "paper"},
+            {"backend": "ur"},
+            {"policy": stale},
+            {"repair": False, "rows": 1},
+        ]
+    ):
+        rows = meta.pop("rows", 2)
+        _trial_file(tmp_path, "gprl", f"trials_twin_seed0_{index}.csv", rows=rows, **meta)
+    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == table2_settings("gprl")
+    _trial_file(tmp_path, "gprl", "trials_twin_seed0_counted.csv", repair=False)
+    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == (TrialSetting(True, 0),)
+    # another seed's files do not count for seed 0, and vice versa
+    assert missing_settings(tmp_path, "ci", "gprl", 1, trials=2) == table2_settings("gprl")
+
+
+@pytest.fixture(scope="module")
+def gprl_on_disk(tmp_path_factory):
+    """A results root with an (untrained) DBM ``gprl`` ci policy where its run keeps it."""
+    from test_trials import _untrained_policy
+
+    root = tmp_path_factory.mktemp("results")
+    source = _untrained_policy(tmp_path_factory, "gprl")
+    target = model_path(root, "ci", "gprl", 0)
+    target.parent.mkdir(parents=True)
+    target.write_bytes(source.read_bytes())
+    write_json(
+        target.parent / "config.json",
+        {"config_hash": resolve_run("dbm", "gprl", 0, "ci").hash},
+        kind="config",
+    )
+    return root
+
+
+def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkeypatch):
+    """A finished DBM run with its model on disk is picked up for its trials alone (no
+    training), every setting runs once, and the next sweep finds nothing due."""
+    root = gprl_on_disk
+    job = sweep.Job("dbm", "gprl", 0, "ci", str(root), twin_trials=1)
+    assert sweep.trials_due(job)
+    assert not sweep.trials_due(sweep.Job("dbm", "gprl", 0, "ci", str(root)))  # not asked
+    assert not sweep.trials_due(sweep.Job("dbm", "gprl", 1, "ci", str(root), 1))  # no model
+    assert not sweep.trials_due(sweep.Job("dcp", "gprl", 0, "ci", str(root), 1))  # not DBM
+
+    def already_trained(job):
+        return sweep.JobResult(job, "skipped", 0.0)
+
+    monkeypatch.setattr(sweep, "finished_result", already_trained)
+    monkeypatch.setattr(sweep, "train_run", lambda *a, **k: pytest.fail("trained again"))
+    results = sweep.run_sweep([job], workers=1)
+    assert [r.status for r in results] == ["skipped"]
+    assert results[0].trials.startswith("twin trials: 2 setting(s) run\n")
+    files = sorted((root / "hardware" / "gprl").glob("trials_twin_seed0_*.csv"))
+    metas = [read_csv(path)[0] for path in files]
+    assert {(m["repair"], m["sensor_noise"]) for m in metas} == {(True, 0), (False, 0)}
+    assert all(len(read_csv(path)[1]) == 1 for path in files)
+    assert not sweep.trials_due(job)
+    assert sweep.run_sweep([job], workers=1)[0].trials == ""  # nothing due: nothing run
+    assert run_table2_trials("gprl", 0, "ci", root, trials=1) == []
+
+
+def test_a_failing_trial_is_reported_with_the_job_and_leaves_the_run_done(
+    gprl_on_disk, monkeypatch
+):
+    from distgprl.hardware import table2_trials
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("camera unplugged")
+
+    monkeypatch.setattr(table2_trials, "missing_settings", lambda *a, **k: (TrialSetting(True, 2),))
+    monkeypatch.setattr("distgprl.hardware.trials.run_trials", broken)
+    job = sweep.Job("dbm", "gprl", 0, "ci", str(gprl_on_disk), twin_trials=3)
+    assert sweep.run_job_trials(job) == "twin trials failed: RuntimeError: camera unplugged"
