@@ -44,6 +44,7 @@ import numpy as np
 from distgprl import __version__
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
+from distgprl.machine import machine_info
 
 __all__ = [
     "CSV_META_SUFFIX",
@@ -135,6 +136,7 @@ def result_meta(**extra: Any) -> dict[str, Any]:
         "git_commit": git_commit(),
         "utc_time": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "libraries": library_versions(),
+        "machine": machine_info(),  # what decides the floating-point bits (distgprl.machine)
         **extra,
     }
 

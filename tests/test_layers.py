@@ -203,6 +203,7 @@ LAYERS: tuple[frozenset[str], ...] = tuple(
             "schema",
             "identity",
             "runstate",
+            "machine",
         ),
         ("skill", "safety", "adaptation"),
         ("sim",),

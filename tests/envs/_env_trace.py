@@ -5,7 +5,8 @@ observation, reward, terminated flag and numeric ``info`` value (timings left ou
 simulator's float64 state after every step (joint positions, TCP pose, object pose, clock).
 
 ``python tests/envs/_env_trace.py [OUT.npz]`` writes the trace of `TRACE_RUNS` with this
-machine's `numerics_fingerprint` (default ``tests/envs/data/env_trace_v5_<fingerprint>.npz``).
+machine's `distgprl.machine.numerics_fingerprint` (default
+``tests/envs/data/env_trace_v5_<fingerprint>.npz``).
 ``data/env_trace_v5.npz`` was generated before the issue 28/29 simulation refactor, on the
 machine of session 17 (fingerprint not recorded); ``data/env_trace_v5_<fingerprint>.npz``
 files were recorded later with code that reproduced it bit for bit there (8623cd9), each on a
@@ -14,11 +15,12 @@ CPU whose numerics the first did not share.
 
 from __future__ import annotations
 
-import ctypes
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from distgprl.machine import numerics_fingerprint
 
 DATA = Path(__file__).parent / "data"
 FINGERPRINT_KEY = "__fingerprint__"
@@ -37,48 +39,6 @@ TRACE_RUNS: tuple[tuple[str, str, int], ...] = (
 
 #: info keys that are wall-clock timings (not numerics) or not numbers.
 SKIPPED_INFO = frozenset({"adaptation_time_s", "tc"})
-
-
-def _openblas_cores() -> list[str]:
-    """The kernel families OpenBLAS picked at run time on this CPU (numpy's and scipy's
-    bundled libraries), e.g. ``["Haswell"]``; empty if not found (not Linux, other BLAS)."""
-    import scipy.linalg  # noqa: F401  (loads scipy's OpenBLAS)
-
-    try:
-        with open("/proc/self/maps") as maps:
-            libraries = {line.split()[-1] for line in maps if "openblas" in line.lower()}
-    except OSError:
-        return []
-    cores = set()
-    for path in sorted(libraries):
-        library = ctypes.CDLL(path)
-        for name in (
-            "scipy_openblas_get_corename64_",
-            "scipy_openblas_get_corename",
-            "openblas_get_corename64_",
-            "openblas_get_corename",
-        ):
-            function = getattr(library, name, None)
-            if function is not None:
-                function.restype = ctypes.c_char_p
-                cores.add(function().decode())
-                break
-    return sorted(cores)
-
-
-def numerics_fingerprint() -> str:
-    """What decides this machine's floating-point results beyond the pinned code: the
-    OpenBLAS kernels chosen for the CPU and the SIMD targets numpy dispatches to (e.g.
-    ``openblas-Haswell_numpy-X86_V3+X86_V4+AVX512_ICL``). PyBullet's and the IK's compiled
-    code does not dispatch on the CPU."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-
-        simd = [target for target in __cpu_dispatch__ if __cpu_features__.get(target)]
-    except ImportError:
-        simd = ["unknown"]
-    cores = _openblas_cores() or ["unknown"]
-    return f"openblas-{'+'.join(cores)}_numpy-{'+'.join(simd) or 'baseline'}"
 
 
 def trace_fingerprint(path: Path) -> str | None:

@@ -8,7 +8,7 @@ code shown to reproduce that recording bit for bit (`_env_trace` module docstrin
 What each test expects, and where:
 
 - **On a machine with the numerics of a recording** (same OpenBLAS kernels and numpy SIMD
-  targets, `_env_trace.numerics_fingerprint`): every observation, reward, info value and
+  targets, `distgprl.machine.numerics_fingerprint`): every observation, reward, info value and
   simulator state bit for bit. On a machine whose numerics no trace was recorded with, this
   test is skipped, saying so and how to record one; the next holds there.
 - **On any x86-64 machine**, against every recording: the same episodes — keys, dtypes and
