@@ -159,6 +159,15 @@ def status(
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
     typer.echo(training_left(statuses).describe(workers or default_workers()))
+    finished_dbm = [
+        (entry.job.method, entry.job.seed)
+        for entry in statuses
+        if entry.job.task == "dbm" and entry.state == "done"
+    ]
+    if finished_dbm:
+        from distgprl.hardware.table2_trials import coverage
+
+        typer.echo(coverage(root, preset, finished_dbm).describe())
 
 
 @user_errors

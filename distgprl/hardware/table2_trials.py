@@ -26,7 +26,9 @@ from distgprl.schema import read_csv, run_dir
 __all__ = [
     "ROBUSTNESS_METHODS",
     "TABLE2_TRIALS",
+    "TrialCoverage",
     "TrialSetting",
+    "coverage",
     "missing_settings",
     "run_and_report",
     "run_table2_trials",
@@ -166,3 +168,48 @@ def run_and_report(method: str, seed: int, preset: str, root: str | Path, trials
     except Exception as exc:  # reported with the job
         return f"twin trials failed: {type(exc).__name__}: {exc}"
     return "\n  ".join([f"twin trials: {len(written)} setting(s) run", *lines])
+
+
+@dataclass(frozen=True)
+class TrialCoverage:
+    """How far a sweep's DBM policies have their Table II twin trials.
+
+    Attributes:
+        complete: policies (method/seed) with a counted trial file of every setting.
+        pending: finished policies still on disk that lack settings (the next sweep runs
+            them).
+        lost: finished trained policies lacking settings whose ``model.zip`` is gone (their
+            trials can no longer run: a run committed from another machine).
+    """
+
+    complete: tuple[str, ...]
+    pending: tuple[str, ...]
+    lost: tuple[str, ...]
+
+    def describe(self) -> str:
+        text = (
+            f"Table II twin trials: {len(self.complete)} DBM policies complete, "
+            f"{len(self.pending)} pending"
+        )
+        if self.lost:
+            text += f", {len(self.lost)} without their model on disk ({', '.join(self.lost)})"
+        return text
+
+
+def coverage(
+    root: str | Path,
+    preset: str,
+    finished: list[tuple[str, int]],
+    trials: int = TABLE2_TRIALS,
+) -> TrialCoverage:
+    """`TrialCoverage` of the finished DBM runs ``finished`` ((method, seed) pairs)."""
+    complete, pending, lost = [], [], []
+    for method, seed in finished:
+        name = f"{method}/seed{seed}"
+        if not missing_settings(root, preset, method, seed, trials):
+            complete.append(name)
+        elif get_method(method).trainable and not model_path(root, preset, method, seed).exists():
+            lost.append(name)
+        else:
+            pending.append(name)
+    return TrialCoverage(tuple(complete), tuple(pending), tuple(lost))

@@ -129,3 +129,32 @@ def test_a_failing_trial_is_reported_with_the_job_and_leaves_the_run_done(
     monkeypatch.setattr("distgprl.hardware.trials.run_trials", broken)
     job = sweep.Job("dbm", "gprl", 0, "ci", str(gprl_on_disk), twin_trials=3)
     assert sweep.run_job_trials(job) == "twin trials failed: RuntimeError: camera unplugged"
+
+
+def test_coverage_tells_complete_pending_and_lost_policies_apart(gprl_on_disk, tmp_path):
+    """A policy with every setting is complete; one lacking settings is pending while its
+    model is on disk and lost without it; the references need no model."""
+    from distgprl.hardware.table2_trials import coverage
+
+    root = tmp_path
+    target = model_path(root, "ci", "gprl", 0)
+    target.parent.mkdir(parents=True)
+    target.write_bytes(model_path(gprl_on_disk, "ci", "gprl", 0).read_bytes())
+    for setting in table2_settings("demo"):
+        _trial_file(
+            root,
+            "demo",
+            f"trials_twin_seed0_{setting.repair}{setting.sensor_noise}.csv",
+            repair=setting.repair,
+            sensor_noise=setting.sensor_noise,
+            policy={},
+        )
+    finished = [("demo", 0), ("gprl", 0), ("gprl", 1), ("promp-nominal", 0)]
+    report = coverage(root, "ci", finished, trials=2)
+    assert report.complete == ("demo/seed0",)
+    assert report.pending == ("gprl/seed0", "promp-nominal/seed0")
+    assert report.lost == ("gprl/seed1",)
+    assert report.describe() == (
+        "Table II twin trials: 1 DBM policies complete, 2 pending, "
+        "1 without their model on disk (gprl/seed1)"
+    )
