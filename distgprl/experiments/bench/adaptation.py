@@ -133,9 +133,14 @@ def bench_adaptation(env, model, sizes: BenchSizes) -> dict[str, Any]:
     policy = deterministic_policy(model)
     tcs = env.spec_task.evaluation_tcs(sizes.in_env_episodes)
     rows = [run_episode(env, tc, policy) for tc in tcs]
-    in_env_window = [r[f"adaptation_ms_w{k}"] / 1e3 for r in rows for k in (1, 2, 3)]
+    # Windows an episode did not reach (it ended at a collision: environment v5) have no
+    # time (NaN in the rows): only the windows that ran are timed, and an episode's total
+    # is over its windows that ran.
+    ran = [[r[f"adaptation_ms_w{k}"] for k in (1, 2, 3)] for r in rows]
+    in_env_window = [ms / 1e3 for windows in ran for ms in windows if np.isfinite(ms)]
     in_env_episode = [
-        sum(r[f"adaptation_ms_w{k}"] for k in (1, 2, 3)) / 1e3 + r["policy_ms"] / 1e3 for r in rows
+        sum(ms for ms in windows if np.isfinite(ms)) / 1e3 + r["policy_ms"] / 1e3
+        for windows, r in zip(ran, rows, strict=True)
     ]
 
     n_windows = pipeline.layout.n_steps
