@@ -149,7 +149,10 @@ def collect_scores(root: str | Path, preset: str) -> Scores:
 
 def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
     """One row per run: task, method, seed, the Table I metrics, the training wall time
-    (min, from ``done.json``; empty for `demo`) and the config hash. Task, table order, seed."""
+    (min) and process CPU time per RL step (ms, both from ``done.json``; empty for `demo` and
+    for runs made before it was recorded), the numerics fingerprint of the machine that
+    trained it (`distgprl.machine`; empty before it was recorded) and the config hash. Task,
+    table order, seed."""
     rows = []
     for path in summary_paths(Path(root), preset):
         task, method, seed = path.parts[-4], path.parts[-3], path.parts[-2]
@@ -158,11 +161,16 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         document = read_json(path)
         summary = document["summary"]
         done = path.parent / "done.json"
-        wall = read_json(done).get("train_wall_time_s") if done.exists() else None
+        done_document = read_json(done) if done.exists() else {}
+        wall = done_document.get("train_wall_time_s")
+        cpu = done_document.get("cpu_s_per_step")
         row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
         row.update({key: summary.get(key, "") for key, _ in (*METRICS, *PER_SEED_EXTRA)})
         row.update(late_curve(path.parent / "progress.csv"))
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
+        row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
+        machine = (done_document.get("meta") or {}).get("machine") or {}
+        row["numerics"] = machine.get("numerics", "")
         row["config_hash"] = document["meta"].get("config_hash", "")
         rows.append(row)
     rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
@@ -186,9 +194,10 @@ LATE_CURVE = (
     ("late_curve_success_range", "Late curve range"),
 )
 """Per-run columns from ``progress.csv``: the mean learning-curve success over the last
-`LATE_CURVE_POINTS` evaluations (20 fixed TCs each, deterministic policy of that
-step) and their max - min. Next to the final 100-TC success they show how much the final policy's
-number depends on where training stopped (empty for `demo`, which has no curve)."""
+`LATE_CURVE_POINTS` evaluations (the preset's ``curve_episodes`` fixed TCs each, 50 in
+`paper` since environment v5; deterministic policy of that step) and their max - min. Next
+to the final 100-TC success they show how much the final policy's number depends on where
+training stopped (empty for `demo`, which has no curve)."""
 
 
 def late_curve(path: Path) -> dict[str, float | str]:
@@ -210,12 +219,19 @@ def per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows`."""
     columns = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
     fields = ["task", "method", "seed", *(key for key, _ in columns), "train_wall_min"]
-    fields.append("config_hash")
+    fields += ["train_cpu_ms_per_step", "numerics", "config_hash"]
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
-    header = ["Task", "Method", "Seed", *(label for _, label in columns), "Train wall (min)"]
+    header = [
+        "Task",
+        "Method",
+        "Seed",
+        *(label for _, label in columns),
+        "Train wall (min)",
+        "Train CPU (ms/step)",
+    ]
     table = []
     for row in rows:
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
@@ -223,7 +239,8 @@ def per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
             value = row[key]
             digits = 3 if key in CLEARANCE_METRICS else 2
             cells.append("–" if value == "" else f"{float(value):.{digits}f}")
-        cells.append("–" if row["train_wall_min"] == "" else f"{row['train_wall_min']:.1f}")
+        for key in ("train_wall_min", "train_cpu_ms_per_step"):
+            cells.append("–" if row[key] == "" else f"{row[key]:.1f}")
         table.append(cells)
     return buffer.getvalue(), _markdown_table(f"Table I per run ({preset} preset)", header, table)
 

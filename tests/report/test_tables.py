@@ -10,6 +10,7 @@ import pytest
 
 from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
+from distgprl.machine import machine_info
 from distgprl.report.tables import (
     LATE_CURVE_POINTS,
     aggregate,
@@ -109,7 +110,9 @@ def test_check_flags_success_above_completion_and_rates_past_one(tmp_path):
     assert not any(p.startswith("demo dcp") for p in problems)
 
 
-def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
+def test_per_seed_table_lists_every_run_with_its_wall_and_cpu_time(tmp_path):
+    """Wall time, CPU time per step and the machine's numerics come from ``done.json``; a
+    run made before the CPU time was recorded shows none (the gprl run here)."""
     for method, seeds in (("demo", [0]), ("dist-gprl", [1, 0]), ("gprl", [0])):
         for seed in seeds:
             folder = tmp_path / "p" / "dbm" / method / f"seed{seed}"
@@ -119,7 +122,10 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
                 config_hash=f"h{seed}",
             )
             if method != "demo":
-                write_json(folder / "done.json", {"train_wall_time_s": 600.0 * (seed + 1)})
+                done = {"train_wall_time_s": 600.0 * (seed + 1)}
+                if method == "dist-gprl":
+                    done["cpu_s_per_step"] = 0.0375 * (seed + 1)
+                write_json(folder / "done.json", done)
                 write_csv(
                     folder / "evaluation.csv",
                     [{**dict.fromkeys(EPISODE_FIELDS, 0), "success": 1}],
@@ -135,12 +141,15 @@ def test_per_seed_table_lists_every_run_with_its_wall_time(tmp_path):
     assert rows[2]["success_rate"] == pytest.approx(0.6)
     assert rows[2]["train_wall_min"] == 20.0 and rows[2]["config_hash"] == "h1"
     assert rows[3]["train_wall_min"] == ""
+    assert rows[2]["train_cpu_ms_per_step"] == 75.0 and rows[0]["train_cpu_ms_per_step"] == ""
+    assert rows[2]["numerics"] == machine_info()["numerics"] and rows[3]["numerics"] == ""
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert (
         "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.010 | 0.60 | 0.90 "
-        "| – | – | – | – | 20.0 |" in markdown
+        "| – | – | – | – | 20.0 | 75.0 |" in markdown
     )
+    assert "| DBM | GPRL | 0 |" in markdown and "| 10.0 | – |" in markdown
 
 
 def _curve(path, successes):
