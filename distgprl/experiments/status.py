@@ -45,6 +45,7 @@ class RunStatus:
     seconds_per_step: float | None = None
     cpu_seconds_per_step: float | None = None
     error: str = ""
+    numerics: str = ""  # a finished run's machine (`distgprl.machine`; "" if not recorded)
 
     @property
     def eta_s(self) -> float | None:
@@ -103,15 +104,23 @@ def run_status(job: Job) -> RunStatus:
         return RunStatus(job, "damaged", 0, total, error=state.describe())
     if state.verdict == "done":
         pace = cpu_pace = None
+        numerics = ""
         if trainable:
             try:
                 done = read_json(folder / "done.json")
                 pace = float(done["train_wall_time_s"]) / int(done["steps"])
                 cpu_pace = done.get("cpu_s_per_step")  # runs made before it was recorded: None
+                numerics = (done["meta"].get("machine") or {}).get("numerics", "")
             except Exception:  # noqa: BLE001 - a status report must not fail on one odd file
                 pace = cpu_pace = None
         return RunStatus(
-            job, "done", total, total, seconds_per_step=pace, cpu_seconds_per_step=cpu_pace
+            job,
+            "done",
+            total,
+            total,
+            seconds_per_step=pace,
+            cpu_seconds_per_step=cpu_pace,
+            numerics=numerics,
         )
     if state.verdict in ("stale", "missing"):
         return RunStatus(job, state.verdict, 0, total)
@@ -171,15 +180,23 @@ class TrainingLeft:
         return text
 
 
-def training_left(statuses: Iterable[RunStatus]) -> TrainingLeft:
+def training_left(statuses: Iterable[RunStatus], numerics: str | None = None) -> TrainingLeft:
     """Training time left in the sweep (trainable runs not done), at each started run's
     own pace (`RunStatus.seconds_per_step`), else at the median pace of the finished runs
     of its task. The finished runs' pace includes whatever shared the machine with them
-    (another worker), so this is an estimate at the same load."""
+    (another worker), so this is an estimate at the same load. Where finished runs of a task
+    were trained on a machine of this one's numerics (``numerics``, default this machine's
+    `distgprl.machine.numerics_fingerprint`), only theirs count: runs committed from another
+    machine may be twice as slow or fast."""
+    from distgprl.machine import machine_info
+
     statuses = list(statuses)
+    numerics = machine_info()["numerics"] if numerics is None else numerics
+    local = {s.job.task for s in statuses if s.state == "done" and s.numerics == numerics}
+    statuses_for_pace = [s for s in statuses if s.job.task not in local or s.numerics == numerics]
     paces: dict[str, list[float]] = {}
     cpu_paces: dict[str, list[float]] = {}
-    for status in statuses:
+    for status in statuses_for_pace:
         if status.state == "done" and status.seconds_per_step:
             paces.setdefault(status.job.task, []).append(status.seconds_per_step)
         if status.state == "done" and status.cpu_seconds_per_step:

@@ -141,6 +141,24 @@ def test_training_left_adds_cpu_hours_from_the_finished_runs_cpu_pace(tmp_path):
     assert training_left([*old, RunStatus(jobs[3], "missing", 0, 1000)]).cpu_seconds is None
 
 
+def test_training_left_prefers_the_pace_of_runs_made_on_a_machine_like_this(tmp_path):
+    """Where a task has finished runs of this machine's numerics, only they set its pace (a
+    run committed from another machine may be twice as slow); else every finished run does,
+    and a task without local runs keeps all of its own."""
+    jobs = [sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [s], root=tmp_path)[0] for s in range(4)]
+    dbm = sweep.plan_jobs("ci", ["gprl-d"], ["dbm"], [0, 1], root=tmp_path)
+    statuses = [
+        RunStatus(jobs[0], "done", 1000, 1000, seconds_per_step=2.0, numerics="other"),
+        RunStatus(jobs[1], "done", 1000, 1000, seconds_per_step=2.0, numerics=""),
+        RunStatus(jobs[2], "done", 1000, 1000, seconds_per_step=0.5, numerics="here"),
+        RunStatus(jobs[3], "missing", 0, 1000),
+        RunStatus(dbm[0], "done", 1000, 1000, seconds_per_step=3.0, numerics="other"),
+        RunStatus(dbm[1], "missing", 0, 1000),
+    ]
+    assert training_left(statuses, numerics="here").seconds == pytest.approx(500 + 3000)
+    assert training_left(statuses, numerics="elsewhere").seconds == pytest.approx(2000 + 3000)
+
+
 def test_count_states_lists_done_out_of_all_then_the_others(tmp_path):
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0, 1], root=tmp_path)
     folder = run_dir(tmp_path, "ci", "dbm", "gprl-d", 1)
