@@ -33,7 +33,8 @@ Ranking claims compare IQM intervals of the seven trained methods of Table I (`R
   both. *Reproduced* if no trained method dominates Dist-GPRL and Dist-GPRL dominates at
   least one; *refuted* if some method dominates it; else *inconclusive*.
 
-Every claim is *inconclusive (no runs)* while a method it needs has no run, and
+Every claim is *inconclusive (no runs)* while a method it needs has no run (its detail names
+them), and
 *inconclusive (fewer than 2 seeds)* while one has a task with a single seed (no interval).
 """
 
@@ -42,7 +43,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import (
@@ -263,7 +264,8 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
     for claim in POI_CLAIMS:
         estimate = poi(scores, tasks, PROPOSED, claim.versus, claim.key, seed)
         test = f"PoI of Dist-GPRL over {_label(claim.versus)}, {claim.measure}"
-        verdicts.append(Verdict(claim.claim, test, estimate, poi_verdict(estimate)))
+        verdict = Verdict(claim.claim, test, estimate, poi_verdict(estimate))
+        verdicts.append(_name_the_missing(verdict, scores, tasks, (PROPOSED, claim.versus)))
     rules: list[Callable[[], Verdict]] = [
         lambda: extreme_verdict(
             scores, tasks, PROPOSED, "success_rate", "Dist-GPRL has the best success", seed
@@ -274,8 +276,20 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
             scores, tasks, "gprl", "collision_rate", "GPRL collides most", seed
         ),
     ]
-    verdicts += [rule() for rule in rules]
+    verdicts += [_name_the_missing(rule(), scores, tasks, RANKED) for rule in rules]
     return verdicts
+
+
+def _name_the_missing(
+    verdict: Verdict, scores: Scores, tasks: list[str], needed: tuple[str, ...]
+) -> Verdict:
+    """An `NO_RUNS` verdict with the methods it waits for in its detail (those of ``needed``
+    without a run on any task of ``tasks``: a pooled estimate drops empty task strata)."""
+    if verdict.verdict != NO_RUNS:
+        return verdict
+    missing = [_label(m) for m in needed if all(not scores.get((task, m)) for task in tasks)]
+    note = f"no runs yet: {', '.join(missing)}"
+    return replace(verdict, detail=f"{verdict.detail}; {note}" if verdict.detail else note)
 
 
 CSV_FIELDS = ("claim", "test", "value", "ci_low", "ci_high", "seeds", "verdict", "detail")

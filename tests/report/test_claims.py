@@ -132,6 +132,20 @@ def test_no_runs_and_single_seeds_are_inconclusive_with_the_reason():
     assert verdicts["Dist-GPRL has the best success"].verdict == FEW_SEEDS
 
 
+def test_a_claim_without_runs_names_the_methods_it_waits_for():
+    """ "(no runs)" says which needed methods have no run on any pooled task."""
+    field = {m: r for m, r in FIELD.items() if m not in ("gprl-d", "gprl-h")}
+    verdicts = by_claim(evaluate_claims(scores_of(field), seed=0))
+    hap = verdicts["The HAP prior raises final success"]
+    assert (hap.verdict, hap.detail) == (NO_RUNS, "no runs yet: GPRL-D")
+    best = verdicts["Dist-GPRL has the best success"]
+    assert best.verdict == NO_RUNS and best.detail.endswith("; no runs yet: GPRL-D, GPRL-H")
+    assert verdicts["Windowed adaptation beats global"].verdict != NO_RUNS
+    assert verdicts["Windowed adaptation beats global"].detail == ""
+    nothing = by_claim(evaluate_claims({}, seed=0))["GPRL collides most"]
+    assert nothing.detail.startswith("no runs yet: GPRL, ProMP-RRL, ")
+
+
 def test_claims_are_reproducible_for_a_seed():
     """The same runs and seed give the same table; the bootstrap seed changes intervals."""
     field = {**FIELD, "gprl-d": runs(0.85, 0.12)}
