@@ -439,3 +439,24 @@ def moved_robot(trial: dict[str, Any]) -> bool:
         return True
     execution = trial.get("execution_s", "")
     return execution not in ("", None) and float(execution) > 0.0
+
+
+def trial_file_exclusion(meta: dict[str, Any], current_policy_hash: str | None) -> str | None:
+    """Why Table II does not count a hardware trial file, from its meta; None when it does.
+
+    Not counted: trials run with the pre-flight check overridden (``force``: the safety
+    layer's refusals were not applied, so they are not the method's hardware result), dry
+    runs, and trials of a policy whose recorded config hash is not ``current_policy_hash``
+    (the hash the code resolves now for the policy's run; None where it is not checked: an
+    untrained reference, or a preset this checkout does not know). The one rule both Table II
+    (`distgprl.report.table2`) and the sweep's trial bookkeeping
+    (`distgprl.hardware.table2_trials`) apply."""
+    if meta.get("force"):
+        return "pre-flight check overridden, --force"
+    if meta.get("dry_run"):
+        return "dry run"
+    if current_policy_hash is not None:
+        recorded = (meta.get("policy") or {}).get("run_config_hash")
+        if recorded != current_policy_hash:
+            return f"policy config hash {recorded or 'not recorded'}, not the current one"
+    return None

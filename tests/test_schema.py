@@ -270,3 +270,24 @@ def test_every_committed_csv_of_the_earlier_format_still_reads():
         assert meta["schema_version"] == schema.SCHEMA_VERSION, path
         lines = [line for line in path.read_text().splitlines()[2:] if line]
         assert len(rows) == len(lines), path
+
+
+@pytest.mark.parametrize(
+    ("meta", "current", "reason"),
+    [
+        ({"force": False, "dry_run": False, "policy": {"run_config_hash": "abc"}}, "abc", None),
+        ({"force": True, "policy": {"run_config_hash": "abc"}}, "abc", "--force"),
+        ({"dry_run": True}, None, "dry run"),
+        ({"policy": {"run_config_hash": "old"}}, "abc", "policy config hash old"),
+        ({}, "abc", "not recorded"),
+        ({"policy": {"run_config_hash": "old"}}, None, None),
+    ],
+)
+def test_trial_file_exclusion_names_why_table2_leaves_a_file_out(meta, current, reason):
+    """A forced or dry-run trial file, or one of a policy whose hash is not the current one
+    (checked only where a current hash is given), is excluded with its reason; else counted."""
+    got = schema.trial_file_exclusion(meta, current)
+    if reason is None:
+        assert got is None
+    else:
+        assert got is not None and reason in got

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from distgprl.identity import resolve_run
 from distgprl.methods import get_method
-from distgprl.schema import read_csv, run_dir
+from distgprl.schema import read_csv, run_dir, trial_file_exclusion
 
 __all__ = [
     "ROBUSTNESS_METHODS",
@@ -87,13 +87,10 @@ def _done_settings(
         if (
             meta.get("preset") != preset
             or meta.get("backend") != "twin"
-            or meta.get("force")
-            or meta.get("dry_run")
             or meta.get("repair_push")
             or len(rows) < trials
+            or trial_file_exclusion(meta, current)
         ):
-            continue
-        if trainable and (meta.get("policy") or {}).get("run_config_hash") != current:
             continue
         done.add(TrialSetting(bool(meta.get("repair")), int(meta.get("sensor_noise") or 0)))
     return done

@@ -22,7 +22,7 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
-from distgprl.schema import moved_robot, read_csv
+from distgprl.schema import moved_robot, read_csv, trial_file_exclusion
 
 HARDWARE_TASK = "dbm"
 """The task of the hardware cell (and of the policies its trials run)."""
@@ -65,19 +65,14 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
             if meta.get("preset") != preset:
                 continue
             name = f"{method}/{path.name}"
-            policy_hash = (meta.get("policy") or {}).get("run_config_hash")
-            if meta.get("force"):
-                excluded.append(f"{name} (pre-flight check overridden, --force)")
-            elif meta.get("dry_run"):
-                excluded.append(f"{name} (dry run)")
-            elif (
-                checked
-                and METHODS[method].trainable
-                and policy_hash
-                != current_hash(HARDWARE_TASK, method, int(meta.get("seed", -1)), preset)
-            ):
-                recorded = policy_hash or "not recorded"
-                excluded.append(f"{name} (policy config hash {recorded}, not the current one)")
+            checked_hash = (
+                current_hash(HARDWARE_TASK, method, int(meta.get("seed", -1)), preset)
+                if checked and METHODS[method].trainable
+                else None
+            )
+            reason = trial_file_exclusion(meta, checked_hash)
+            if reason:
+                excluded.append(f"{name} ({reason})")
             else:
                 counted.append((method, meta, tuple(rows)))
     return TrialFiles(tuple(counted), tuple(excluded))
