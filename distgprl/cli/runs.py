@@ -61,6 +61,14 @@ def sweep(
             "dist-gprl and the references); 0: none.",
         ),
     ] = TABLE2_TRIALS,
+    repair_evaluations: Annotated[
+        bool,
+        typer.Option(
+            help="Evaluate each finished run with the hardware safety layer in the loop "
+            "(check only; retime, then refuse), while its model is on disk: the "
+            "'Table I + repair' of `distgprl tables`.",
+        ),
+    ] = True,
 ) -> None:
     """Train and evaluate every (method, task, seed); finished runs are skipped.
 
@@ -78,7 +86,13 @@ def sweep(
 
     preset = resolve_preset(preset, config)
     jobs = plan_jobs(
-        preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root, twin_trials
+        preset,
+        split_list(methods),
+        split_list(tasks),
+        parse_seeds(seeds),
+        root,
+        twin_trials,
+        repair_evaluations,
     )
     if workers is None:
         workers = default_workers()
@@ -87,6 +101,7 @@ def sweep(
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
         extra += f"\n  {result.trials}" if result.trials else ""
+        extra += f"\n  {result.repairs}" if result.repairs else ""
         typer.echo(
             f"[{finished}/{total}] {result.job.name}: {result.status} "
             f"in {result.seconds:.0f} s{extra}"

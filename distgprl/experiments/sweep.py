@@ -31,6 +31,11 @@
   must run where it was trained. A finished DBM run whose ``model.zip`` is still on disk and
   whose trials are missing is picked up again for them alone; trials that fail are reported
   with the job (``trials`` of its result) and leave the run done.
+- With ``repair_evaluations`` (`distgprl sweep --repair-evaluations`, on by default), every
+  finished run is also evaluated with the hardware safety layer in the loop (check only,
+  and retime-then-refuse; `distgprl.experiments.repair_evaluations`), for the same reason
+  and in the same way: right after training, or later for a finished run whose model is
+  still on disk; the report is ``repairs`` of the job's result.
 
 Executors: ``local`` (worker processes on this machine) and ``ray`` (the same job
 function submitted to a Ray cluster; optional extra ``distgprl[ray]``).
@@ -57,6 +62,14 @@ from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.checkpoints import checkpoint_dir
 from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
+    follow_up_due,
+    repairs_due,
+    run_follow_ups,
+    run_job_repairs,
+    run_job_trials,
+    trials_due,
+)
 from distgprl.experiments.results import write_json
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
@@ -76,6 +89,7 @@ class Job:
     preset: str
     root: str
     twin_trials: int = 0  # trials per Table II setting after a DBM job (0: none)
+    repair_evaluations: bool = False  # safety-layer evaluations after the run
 
     @property
     def name(self) -> str:
@@ -90,6 +104,7 @@ class JobResult:
     seconds: float
     error: str = ""
     trials: str = ""  # what the Table II twin trials did (empty: none were due)
+    repairs: str = ""  # what the safety-layer evaluations did (empty: none were due)
 
 
 def plan_jobs(
@@ -99,10 +114,12 @@ def plan_jobs(
     seeds: Sequence[int] = SWEEP_SEEDS,
     root: str | Path = "results",
     twin_trials: int = 0,
+    repair_evaluations: bool = False,
 ) -> list[Job]:
     """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
     tasks innermost. The `demo` reference runs once (seed 0). ``twin_trials``: trials per
-    Table II setting each DBM job runs after training (0: none).
+    Table II setting each DBM job runs after training (0: none); ``repair_evaluations``:
+    each job also evaluates its run with the safety layer in the loop.
 
     Every name, seed and the preset are validated first (`resolve_run` for every job), so
     a bad request is a `UserInputError` before anything touches the disk."""
@@ -134,6 +151,7 @@ def plan_jobs(
                         preset,
                         str(root),
                         int(twin_trials),
+                        bool(repair_evaluations),
                     )
                 )
     for job in jobs:
@@ -187,8 +205,8 @@ def run_job(job: Job) -> JobResult:
     start = time.perf_counter()
     finished = finished_result(job)
     if finished is not None:
-        if finished.status == "skipped" and trials_due(job):
-            return replace(finished, trials=run_job_trials(job))
+        if finished.status == "skipped" and follow_up_due(job):
+            return replace(finished, **run_follow_ups(job))
         return finished
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
     busy = JobResult(job, "busy", 0.0, "another process is training this run")
@@ -218,24 +236,8 @@ def run_job(job: Job) -> JobResult:
     error_file = folder / "error.json"
     if error_file.exists():
         error_file.unlink()
-    trials = run_job_trials(job) if trials_due(job) else ""
-    return JobResult(job, "done", time.perf_counter() - start, trials=trials)
-
-
-def trials_due(job: Job) -> bool:
-    """True if the job should run Table II twin trials now (`table2_trials.trials_due`)."""
-    if job.twin_trials <= 0 or job.task != "dbm":
-        return False
-    from distgprl.hardware.table2_trials import trials_due as due
-
-    return due(job.method, job.seed, job.preset, job.root, job.twin_trials)
-
-
-def run_job_trials(job: Job) -> str:
-    """Run the job's missing Table II twin trials: a report (`table2_trials.run_and_report`)."""
-    from distgprl.hardware.table2_trials import run_and_report
-
-    return run_and_report(job.method, job.seed, job.preset, job.root, job.twin_trials)
+    follow_ups = run_follow_ups(job)
+    return JobResult(job, "done", time.perf_counter() - start, **follow_ups)
 
 
 def record_failure(job: Job, message: str, details: str, seconds: float) -> JobResult:
@@ -457,8 +459,8 @@ def run_sweep(
         if finished is not None and finished.status == "damaged" and retrain_damaged:
             if clear_damaged(job):
                 finished = None
-        if finished is not None and finished.status == "skipped" and trials_due(job):
-            finished = None  # trained, its model still here: `run_job` runs its trials
+        if finished is not None and finished.status == "skipped" and follow_up_due(job):
+            finished = None  # trained, its model still here: `run_job` runs its follow-ups
         if finished is None:
             todo.append(job)
         else:

@@ -30,6 +30,7 @@ from distgprl.report.paired import (
     paired_texts,
     supplementary_sizes,
 )
+from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.runs import select_runs
 from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
@@ -177,6 +178,15 @@ def write_tables(
         noise_texts(hardware, preset),
         preset,
         "digital twin success and collision against the sensor-noise level",
+    )
+    repair_rows, repair_excluded = repair_table(root, preset)
+    written += _write_or_remove(
+        out_dir / f"table1_repair_{preset}",
+        (".csv", ".md"),
+        repair_texts(repair_rows, preset, repair_excluded),
+        preset,
+        "Table I + repair: the hardware safety layer in the loop in simulation "
+        "(distgprl.report.repair)",
     )
     return written
 

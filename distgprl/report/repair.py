@@ -1,0 +1,239 @@
+"""Table I + repair: what the hardware safety layer costs and saves in simulation.
+
+From the runs of the current configuration (`select_runs`) whose folders hold the
+evaluations with the safety layer in the loop in both sweep modes (``check``: refuse every
+unsafe window at once; ``repair``: re-time what is too fast, then refuse what is still
+unsafe; `distgprl.experiments.repair_evaluations`), one row per task and method pooling the
+seeds that have both, beside the plain evaluation of the same seeds and TCs:
+
+- Success / Collision (plain, check, repair) and Refused (check, repair): means over those
+  seeds of the per-run rates on the evaluation TCs (a refused episode is neither a success
+  nor a collision);
+- Retimed: the share of executed-or-refused windows the repair re-timed; Added: mean time
+  added per episode (s);
+- TC by TC against the plain evaluation, summed over the seeds: *gained* (plain failed,
+  repair succeeded), *lost* (plain succeeded, repair did not: refused, or the re-timed
+  motion failed) and *averted* (plain collided, repair did not).
+
+An evaluation whose recorded config hash is not its run's, or whose TCs differ from the plain
+evaluation's, is left out of the row and listed under the table.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+from distgprl.data import task_order
+from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.markdown import markdown_table
+from distgprl.report.runs import select_runs
+from distgprl.schema import (
+    evaluation_file_names,
+    is_safe_success,
+    read_csv,
+    read_json,
+    repair_evaluation_file_names,
+)
+
+MODES = ("check", "repair")
+"""The sweep's modes (`distgprl.experiments.repair_evaluations.SWEEP_REPAIR_MODES`)."""
+
+FIELDS = (
+    "task",
+    "method",
+    "seeds",
+    "n_seeds",
+    "episodes",
+    "plain_success",
+    "plain_collision",
+    "check_success",
+    "check_collision",
+    "check_refused",
+    "repair_success",
+    "repair_collision",
+    "repair_refused",
+    "repair_retimed_windows",
+    "repair_time_added_s",
+    "gained",
+    "lost",
+    "averted",
+)
+
+
+@dataclass(frozen=True)
+class RunOutcomes:
+    """One run's per-TC outcomes in the plain evaluation and each mode, and its summaries."""
+
+    task: str
+    method: str
+    seed: int
+    plain: tuple[tuple[bool, bool], ...]  # (safe success, collision) per TC
+    modes: dict[str, tuple[tuple[bool, bool, bool], ...]]  # + refused
+    summaries: dict[str, dict]
+
+
+TC_COLUMNS = (
+    "episode",
+    "object_offset_x",
+    "object_offset_y",
+    "obstacle_offset_x",
+    "obstacle_offset_y",
+)
+
+
+def _tc(row: dict[str, str]) -> tuple[float, ...]:
+    """A row's TC: its episode index and offsets (m), the columns both evaluations share."""
+    return tuple(round(float(row[name]), 9) for name in TC_COLUMNS)
+
+
+def _outcomes(rows: list[dict[str, str]], refused: bool) -> tuple[tuple, ...]:
+    out = []
+    for row in rows:
+        cell = (is_safe_success(row), int(float(row["collision"])) == 1)
+        out.append((*cell, int(float(row["refused"])) == 1) if refused else cell)
+    return tuple(out)
+
+
+def collect(root: str | Path, preset: str) -> tuple[list[RunOutcomes], list[str]]:
+    """The runs with both modes' evaluations of their configuration, and one line per
+    evaluation left out (its run and why)."""
+    runs, excluded = [], []
+    for folder in sorted(select_runs(root, preset).current):
+        task, method, seed = folder.parts[-3], folder.parts[-2], folder.parts[-1]
+        if method not in METHODS:
+            continue
+        name = f"{task}/{method}/{seed}"
+        paths = {
+            m: [folder / f for f in repair_evaluation_file_names(None, "final", m)] for m in MODES
+        }
+        if not all(summary.exists() for _, summary in paths.values()):
+            continue
+        current = read_json(folder / "config.json").get("config_hash")
+        _, plain_rows = read_csv(folder / evaluation_file_names()[0])
+        modes, summaries, reason = {}, {}, ""
+        for mode, (csv_path, summary_path) in paths.items():
+            meta, rows = read_csv(csv_path)
+            if meta.get("config_hash") != current:
+                reason = (
+                    f"{mode} evaluation of config hash {meta.get('config_hash')}, not the run's"
+                )
+            elif [_tc(r) for r in rows] != [_tc(r) for r in plain_rows]:
+                reason = f"{mode} evaluation on other TCs than the plain one"
+            if reason:
+                break
+            modes[mode] = _outcomes(rows, refused=True)
+            summaries[mode] = read_json(summary_path)["summary"]
+        if reason:
+            excluded.append(f"{name} ({reason})")
+            continue
+        seed_number = int(seed.removeprefix("seed"))
+        plain = _outcomes(plain_rows, refused=False)
+        runs.append(RunOutcomes(task, method, seed_number, plain, modes, summaries))
+    return runs, excluded
+
+
+def _mean(values: list[float]) -> float:
+    return sum(values) / len(values)
+
+
+def repair_rows(runs: list[RunOutcomes]) -> list[dict]:
+    """One row of :data:`FIELDS` per task and method (module docstring), in table order."""
+    groups: dict[tuple[str, str], list[RunOutcomes]] = {}
+    for run in runs:
+        groups.setdefault((run.task, run.method), []).append(run)
+    rows = []
+    for (task, method), group in groups.items():
+        group.sort(key=lambda r: r.seed)
+
+        def rate(outcomes: tuple, index: int) -> float:
+            return sum(o[index] for o in outcomes) / len(outcomes)
+
+        row: dict = {
+            "task": task,
+            "method": method,
+            "seeds": " ".join(str(r.seed) for r in group),
+            "n_seeds": len(group),
+            "episodes": sum(len(r.plain) for r in group),
+            "plain_success": _mean([rate(r.plain, 0) for r in group]),
+            "plain_collision": _mean([rate(r.plain, 1) for r in group]),
+        }
+        for mode in MODES:
+            for index, name in enumerate(("success", "collision", "refused")):
+                row[f"{mode}_{name}"] = _mean([rate(r.modes[mode], index) for r in group])
+        windows = [
+            (s["windows_retimed"], s["windows_none"] + s["windows_retimed"] + s["windows_refused"])
+            for s in (r.summaries["repair"] for r in group)
+        ]
+        row["repair_retimed_windows"] = sum(w for w, _ in windows) / max(
+            sum(t for _, t in windows), 1
+        )
+        row["repair_time_added_s"] = _mean(
+            [r.summaries["repair"]["mean_time_added_s"] for r in group]
+        )
+        pairs = [(p, q) for r in group for p, q in zip(r.plain, r.modes["repair"], strict=True)]
+        row["gained"] = sum(1 for p, q in pairs if not p[0] and q[0])
+        row["lost"] = sum(1 for p, q in pairs if p[0] and not q[0])
+        row["averted"] = sum(1 for p, q in pairs if p[1] and not q[1])
+        rows.append(row)
+    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
+    return rows
+
+
+def repair_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
+    """`repair_rows` of the runs `collect` finds, and what it left out."""
+    runs, excluded = collect(root, preset)
+    return repair_rows(runs), excluded
+
+
+def repair_texts(rows: list[dict], preset: str, excluded: list[str]) -> tuple[str, str] | None:
+    """(CSV, Markdown) of `repair_rows`; None if there are no rows."""
+    if not rows:
+        return None
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()})
+    header = [
+        "Task",
+        "Method",
+        "Seeds",
+        "Plain S / C",
+        "Check S / C / R",
+        "Repair S / C / R",
+        "Retimed",
+        "Added (s)",
+        "Gained / lost / averted",
+    ]
+    table = []
+    for row in rows:
+        table.append(
+            [
+                row["task"].upper(),
+                METHODS[row["method"]].label,
+                row["seeds"],
+                f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
+                " / ".join(f"{row[f'check_{k}']:.2f}" for k in ("success", "collision", "refused")),
+                " / ".join(
+                    f"{row[f'repair_{k}']:.2f}" for k in ("success", "collision", "refused")
+                ),
+                f"{row['repair_retimed_windows']:.2f}",
+                f"{row['repair_time_added_s']:.2f}",
+                f"{row['gained']} / {row['lost']} / {row['averted']}",
+            ]
+        )
+    title = (
+        f"Table I + repair ({preset} preset, simulation): the hardware safety layer in the loop "
+        "on the evaluation TCs; S success, C collision, R refused (means over the seeds listed); "
+        "Check refuses every unsafe window, Repair re-times what is too fast and refuses what is "
+        "still unsafe; Retimed: share of windows re-timed; Added: mean time added per episode; "
+        "gained / lost / averted: TCs (summed over seeds) where Repair succeeds and plain did "
+        "not / plain succeeded and Repair does not / plain collided and Repair does not"
+    )
+    markdown = markdown_table(title, header, table)
+    if excluded:
+        markdown += f"\nNot tabulated ({len(excluded)}): " + "; ".join(excluded) + "\n"
+    return buffer.getvalue(), markdown

@@ -1,0 +1,82 @@
+"""The safety-layer evaluations a sweep runs after each run (`experiments.repair_evaluations`),
+on the ci preset's untrained `demo` reference (no training needed)."""
+
+from __future__ import annotations
+
+import pytest
+
+from distgprl.experiments import repair_evaluations as follow
+from distgprl.experiments import sweep
+from distgprl.experiments.evaluation import evaluate_run
+from distgprl.schema import read_csv, read_json, repair_evaluation_file_names, run_dir, write_json
+
+
+def test_the_modes_are_check_only_and_retime_without_push():
+    check, repair = (follow.mode_config(mode) for mode in follow.SWEEP_REPAIR_MODES)
+    assert (check.retime, check.repair) == (False, False)
+    assert (repair.retime, repair.repair) == (True, False)
+    with pytest.raises(ValueError, match="push"):
+        follow.mode_config("push")
+
+
+@pytest.fixture
+def demo_evaluated(tmp_path):
+    """A results root where the ci DBM `demo` reference has its plain evaluation."""
+    evaluate_run("dbm", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    return tmp_path
+
+
+def test_a_sweep_evaluates_a_finished_run_in_both_modes_once(demo_evaluated, monkeypatch):
+    """A finished run without its safety-layer evaluations is picked up for them alone (not
+    evaluated or trained again), both modes are written for the run's configuration, and the
+    next sweep finds nothing due."""
+    root = demo_evaluated
+    job = sweep.Job("dbm", "demo", 0, "ci", str(root), repair_evaluations=True)
+    assert sweep.repairs_due(job) and sweep.follow_up_due(job)
+    assert not sweep.repairs_due(sweep.Job("dbm", "demo", 0, "ci", str(root)))  # not asked
+    assert not sweep.repairs_due(sweep.Job("dcp", "demo", 0, "ci", str(root), 0, True))  # no run
+    monkeypatch.setattr(sweep, "finished_result", lambda job: sweep.JobResult(job, "skipped", 0))
+    monkeypatch.setattr(sweep, "evaluate_run", lambda *a, **k: pytest.fail("evaluated again"))
+    results = sweep.run_sweep([job], workers=1)
+    assert [r.status for r in results] == ["skipped"]
+    lines = results[0].repairs.split("\n  ")
+    assert [line.split(":")[0] for line in lines] == [
+        "safety layer (check)",
+        "safety layer (repair)",
+    ]
+    folder = run_dir(root, "ci", "dbm", "demo", 0)
+    current = read_json(folder / "config.json")["config_hash"]
+    for mode in follow.SWEEP_REPAIR_MODES:
+        csv_name, summary_name = repair_evaluation_file_names(None, "final", mode)
+        meta, rows = read_csv(folder / csv_name)
+        assert meta["repair_mode"] == mode and meta["config_hash"] == current and len(rows) == 6
+    assert follow.missing_modes(root, "ci", "dbm", "demo", 0) == ()
+    assert not sweep.repairs_due(job)
+    assert sweep.run_sweep([job], workers=1)[0].repairs == ""
+
+
+def test_an_evaluation_of_another_configuration_is_due_again(demo_evaluated):
+    folder = run_dir(demo_evaluated, "ci", "dbm", "demo", 0)
+    for mode in follow.SWEEP_REPAIR_MODES:
+        summary = folder / repair_evaluation_file_names(None, "final", mode)[1]
+        write_json(summary, {"summary": {}}, config_hash="0" * 16 if mode == "check" else None)
+    assert follow.missing_modes(demo_evaluated, "ci", "dbm", "demo", 0) == ("check", "repair")
+
+
+def test_a_trained_run_without_its_model_is_not_due(tmp_path):
+    """Weights are not committed: a finished trained run from elsewhere cannot be evaluated."""
+    folder = run_dir(tmp_path, "ci", "dbm", "gprl", 0)
+    folder.mkdir(parents=True)
+    write_json(folder / "summary.json", {"summary": {}})
+    assert not follow.evaluations_due(tmp_path, "ci", "dbm", "gprl", 0)
+    (folder / "model.zip").write_bytes(b"")
+    assert follow.evaluations_due(tmp_path, "ci", "dbm", "gprl", 0)
+
+
+def test_a_failing_evaluation_is_reported_and_does_not_raise(demo_evaluated, monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("simulator lost")
+
+    monkeypatch.setattr("distgprl.experiments.repaired_evaluation.evaluate_with_repair", broken)
+    report = follow.run_and_report(demo_evaluated, "ci", "dbm", "demo", 0)
+    assert report == "safety-layer evaluation failed: RuntimeError: simulator lost"
