@@ -174,15 +174,20 @@ def status(
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
     typer.echo(training_left(statuses).describe(workers or default_workers()))
-    finished_dbm = [
-        (entry.job.method, entry.job.seed)
+    finished = [
+        (entry.job.task, entry.job.method, entry.job.seed)
         for entry in statuses
-        if entry.job.task == "dbm" and entry.state == "done"
+        if entry.state == "done"
     ]
+    finished_dbm = [(method, seed) for task, method, seed in finished if task == "dbm"]
     if finished_dbm:
         from distgprl.hardware.table2_trials import coverage
 
         typer.echo(coverage(root, preset, finished_dbm).describe())
+    if finished:
+        from distgprl.experiments.repair_evaluations import coverage as repair_coverage
+
+        typer.echo(repair_coverage(root, preset, finished).describe())
 
 
 @user_errors

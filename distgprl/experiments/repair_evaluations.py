@@ -20,6 +20,7 @@ them beside the plain evaluation.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from distgprl.hardware.repair import RepairConfig
@@ -91,3 +92,39 @@ def run_and_report(root: str | Path, preset: str, task: str, method: str, seed: 
     except Exception as exc:  # reported with the job
         lines.append(f"safety-layer evaluation failed: {type(exc).__name__}: {exc}")
     return "\n  ".join(lines)
+
+
+@dataclass(frozen=True)
+class RepairCoverage:
+    """How far a sweep's finished runs have their safety-layer evaluations.
+
+    Attributes:
+        complete: runs (task/method/seed) with both modes of their configuration.
+        pending: runs lacking a mode whose policy is on disk (the next sweep runs it).
+        lost: trained runs lacking a mode whose ``model.zip`` is gone (a run committed
+            from another machine, or trained before the sweep made these evaluations).
+    """
+
+    complete: tuple[str, ...]
+    pending: tuple[str, ...]
+    lost: tuple[str, ...]
+
+    def describe(self) -> str:
+        return (
+            f"Table I + repair evaluations: {len(self.complete)} runs complete, "
+            f"{len(self.pending)} pending, {len(self.lost)} without their model on disk"
+        )
+
+
+def coverage(root: str | Path, preset: str, finished: list[tuple[str, str, int]]) -> RepairCoverage:
+    """`RepairCoverage` of the finished runs ``finished`` ((task, method, seed) triples)."""
+    complete, pending, lost = [], [], []
+    for task, method, seed in finished:
+        name = f"{task}/{method}/seed{seed}"
+        if not missing_modes(root, preset, task, method, seed):
+            complete.append(name)
+        elif evaluations_due(root, preset, task, method, seed):
+            pending.append(name)
+        else:
+            lost.append(name)
+    return RepairCoverage(tuple(complete), tuple(pending), tuple(lost))

@@ -80,3 +80,24 @@ def test_a_failing_evaluation_is_reported_and_does_not_raise(demo_evaluated, mon
     monkeypatch.setattr("distgprl.experiments.repaired_evaluation.evaluate_with_repair", broken)
     report = follow.run_and_report(demo_evaluated, "ci", "dbm", "demo", 0)
     assert report == "safety-layer evaluation failed: RuntimeError: simulator lost"
+
+
+def test_coverage_sorts_finished_runs_into_complete_pending_and_lost(demo_evaluated, tmp_path):
+    """A reference with its plain evaluation is pending until evaluated, then complete; a
+    trained run whose model is gone is lost."""
+    finished = [("dbm", "demo", 0), ("dbm", "gprl", 0)]
+    gone = run_dir(demo_evaluated, "ci", "dbm", "gprl", 0)
+    gone.mkdir(parents=True)
+    write_json(gone / "summary.json", {"summary": {}})
+    state = follow.coverage(demo_evaluated, "ci", finished)
+    assert (state.complete, state.pending, state.lost) == (
+        (),
+        ("dbm/demo/seed0",),
+        ("dbm/gprl/seed0",),
+    )
+    follow.run_and_report(demo_evaluated, "ci", "dbm", "demo", 0)
+    state = follow.coverage(demo_evaluated, "ci", finished)
+    assert state.complete == ("dbm/demo/seed0",) and state.pending == ()
+    assert state.describe() == (
+        "Table I + repair evaluations: 1 runs complete, 0 pending, 1 without their model on disk"
+    )
