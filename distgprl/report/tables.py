@@ -83,7 +83,8 @@ def write_tables(
     learning-curve policy was evaluated, that policy paired with the run's final one
     (``paired_best_vs_final_<preset>``). With ``against`` (another preset), also every run
     paired with the same run of that preset (``paired_<preset>_vs_<against>``, CSV and
-    Markdown; `cross_preset_rows`)."""
+    Markdown; `cross_preset_rows`). Table I + repair (``table1_repair_<preset>``, CSV and
+    Markdown; `distgprl.report.repair`) where runs have their safety-layer evaluations."""
     rows, tasks = simulation_table(root, preset)
     if not rows:
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
