@@ -11,6 +11,7 @@ import numpy as np
 
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap_build import SafeSubspace
+from distgprl.safety.hap_kernels import boxes_block
 from distgprl.safety.shapes import Box, Shape
 
 __all__ = ["MovingObstacleFilter", "filter_with_edf", "safe_mask", "tool_bounds"]
@@ -112,7 +113,7 @@ class MovingObstacleFilter:
         self._axis_aligned = bool(np.allclose(self._rotations, np.eye(3)))
         lower = (self._centres - self._half_extents).min(axis=0) - self.margin
         upper = (self._centres + self._half_extents).max(axis=0) + self.margin
-        self._middle, self._span = (lower + upper) / 2.0, (upper - lower) / 2.0
+        middle, span = (lower + upper) / 2.0, (upper - lower) / 2.0
         # Points further than this from the anchor cannot be blocked (a cheap first cut).
         self.reach = (
             max(
@@ -120,6 +121,8 @@ class MovingObstacleFilter:
             )
             + self.margin
         )
+        # `boxes_block`'s first cut: the common bounding box (axis-aligned) or the reach
+        self._bounds = np.concatenate([[self.reach], middle, span])
 
     @staticmethod
     def anchor(shapes: Sequence[Shape]) -> np.ndarray:
@@ -138,44 +141,38 @@ class MovingObstacleFilter:
         """
         points = np.asarray(points, dtype=float)
         anchors = np.asarray(anchors, dtype=float)
-        if self._axis_aligned:
-            return self._blocked_axis_aligned(points, anchors)
-        relative = (points - anchors[..., None, :]).reshape(-1, 3)
-        out = np.zeros(len(relative), dtype=bool)
-        near = np.flatnonzero(np.einsum("ij,ij->i", relative, relative) < self.reach**2)
-        if near.size:
-            local = relative[near][:, None, :] - self._centres  # (m, boxes, 3)
-            local = np.einsum("mbi,bij->mbj", local, self._rotations)
-            local = np.abs(local, out=local) - self._half_extents
-            np.maximum(local, 0.0, out=local)
-            squared = np.einsum("mbi,mbi->mb", local, local)
-            out[near] = (squared < self.margin**2).any(axis=1)
-        return out.reshape(points.shape[:-1])
+        count = points.shape[-2]
+        flat = points.reshape(-1, 3)
+        index = np.arange(len(flat)).reshape(-1, count)
+        rows = np.broadcast_to(anchors, (*points.shape[:-2], 3)).reshape(-1, 3)
+        return self.blocked_candidates(flat, index, rows)[0].reshape(points.shape[:-1])
 
-    def _blocked_axis_aligned(self, points: np.ndarray, anchors: np.ndarray) -> np.ndarray:
-        """`blocked` for axis-aligned boxes, one coordinate array at a time (no (m, 3) rows):
-        points inside the boxes' common bounding box (grown by the margin), then per box
-        |max(|p - a - c| - h, 0)|^2 < margin^2, summed over the axes in x, y, z order."""
-        relative = [points[..., i] - anchors[..., None, i] for i in range(3)]  # (..., c) each
-        inside = np.abs(relative[0] - self._middle[0]) < self._span[0]
-        for i in (1, 2):
-            inside &= np.abs(relative[i] - self._middle[i]) < self._span[i]
-        out = np.zeros(inside.shape, dtype=bool)
-        near = np.flatnonzero(inside)
-        if near.size:
-            local = [r.reshape(-1)[near] for r in relative]
-            hit = np.zeros(near.size, dtype=bool)
-            for centre, half in zip(self._centres, self._half_extents, strict=True):
-                squared = None
-                for i in range(3):
-                    excess = np.abs(local[i] - centre[i])
-                    excess -= half[i]
-                    np.maximum(excess, 0.0, out=excess)
-                    excess *= excess
-                    squared = excess if squared is None else squared + excess
-                hit |= squared < self.margin**2
-            out.reshape(-1)[near] = hit
-        return out
+    def blocked_candidates(
+        self, points: np.ndarray, index: np.ndarray, anchors: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`blocked` for candidates given by index: the mask (n, c) of ``points[index]`` and
+        the blocked candidates per row (n,).
+
+        Args:
+            points: positions, shape (m, 3), m (e.g. all of C_safe).
+            index: each row's candidates, indices into ``points``, shape (n, c).
+            anchors: the obstacles' anchor per row, shape (n, 3), m.
+
+        One compiled loop (`distgprl.safety.hap_kernels.boxes_block`): points outside the
+        boxes' common bounding box grown by the margin (axis-aligned boxes) or farther than
+        ``reach`` from the anchor (rotated ones) are cut first.
+        """
+        return boxes_block(
+            np.ascontiguousarray(points, dtype=float),
+            np.ascontiguousarray(index),
+            np.ascontiguousarray(anchors, dtype=float),
+            self._centres,
+            self._rotations,
+            self._half_extents,
+            self._axis_aligned,
+            self._bounds,
+            self.margin,
+        )
 
 
 def tool_bounds(tool_points: np.ndarray, rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -38,6 +38,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_kernels import grid_candidates, softmin_with_gradient
 
 __all__ = ["DEFAULT_QUERY_POINTS", "HapPrior", "HapPriorConfig"]
 
@@ -166,7 +167,7 @@ class HapPrior:
         self.points_numpy = points
         # Component-wise storage: gathers of (n, k) index arrays stay contiguous.
         self._coordinates = [torch.as_tensor(points[:, i], dtype=self.dtype) for i in range(3)]
-        self._coordinates_numpy: dict[np.dtype, list[np.ndarray]] = {}
+        self._coordinates_numpy: dict[np.dtype, np.ndarray] = {}
         self.k = min(self.k_requested, len(points))
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
@@ -187,13 +188,10 @@ class HapPrior:
         centres = self._lower + self.resolution * (cells + 0.5)
         _, index = self._tree.query(centres, k=count, workers=-1)
         index = np.asarray(index, dtype=np.int64).reshape(-1, count)
-        # Largest distance from each cell centre to its candidates.
-        self._cell_radius = np.linalg.norm(points[index] - centres[:, None, :], axis=2).max(1)
         # Stored in the smallest integer type that holds the indices: a batch's lookups hit
         # random cells, so a compact table keeps them in cache (int16 for C_safe < 32768).
         small = np.int16 if len(points) <= np.iinfo(np.int16).max else np.int32
         self._table = np.ascontiguousarray(index.astype(small))
-        self._strides = np.array([self._shape[1] * self._shape[2], self._shape[2], 1])
 
     def _exact(self, positions: np.ndarray) -> torch.Tensor:
         _, index = self._tree.query(positions, k=self.k, workers=-1)
@@ -208,16 +206,18 @@ class HapPrior:
         positions = np.asarray(positions, dtype=float).reshape(-1, 3)
         if self.neighbour_search == "kdtree":
             return self._exact(positions)
-        return torch.from_numpy(self._table[self._cells(positions)[1]].astype(np.int64))
+        return torch.from_numpy(self._grid_candidates(positions).astype(np.int64))
 
-    def _cells(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Lookup cells (n, 3) of positions (n, 3), m (clipped to the table), and their flat
-        indices (n,) (grid mode)."""
-        cell = np.floor((positions - self._lower) / self.resolution).astype(np.int64)
-        np.clip(cell, 0, self._shape - 1, out=cell)
-        strides = self._strides
-        flat = cell[:, 0] * strides[0] + cell[:, 1] * strides[1] + cell[:, 2]
-        return cell, flat
+    def _grid_candidates(self, positions: np.ndarray) -> np.ndarray:
+        """The lookup cells' candidates (n, c) of positions (n, 3), m (float64): the cell
+        containing each position, clipped to the table (grid mode)."""
+        return grid_candidates(
+            np.ascontiguousarray(positions, dtype=float),
+            self._lower,
+            self.resolution,
+            self._shape,
+            self._table,
+        )
 
     def _wide_neighbours(self, positions: np.ndarray) -> np.ndarray:
         """The ``fallback_candidates`` nearest C_safe indices (n, c) of positions (n, 3), exact.
@@ -230,23 +230,12 @@ class HapPrior:
         _, wide = self._tree.query(positions, k=count)
         return np.asarray(wide, dtype=np.int64).reshape(len(positions), count)
 
-    def _candidate_radius(
-        self, positions: np.ndarray, index: np.ndarray, cells: tuple | None = None
-    ) -> np.ndarray:
-        """An upper bound (n,), m, on the distance from each query to its candidates
-        (``cells``: `_cells` of the positions, if already computed)."""
-        if self.neighbour_search == "grid":
-            cell, flat = cells if cells is not None else self._cells(positions)
-            offset = positions - (self._lower + self.resolution * (cell + 0.5))
-            return np.sqrt(np.einsum("ij,ij->i", offset, offset)) + self._cell_radius[flat]
-        candidates = np.take(self.points_numpy, index, axis=0)
-        return np.linalg.norm(candidates - positions[:, None, :], axis=2).max(axis=1)
-
-    def _coordinates_as(self, dtype: np.dtype) -> list[np.ndarray]:
-        """The stored C_safe coordinates (3 arrays (m,)) cast to ``dtype`` (cached)."""
+    def _coordinates_as(self, dtype: np.dtype) -> np.ndarray:
+        """The stored C_safe coordinates, one row per axis (3, m), cast to ``dtype`` (cached)."""
         arrays = self._coordinates_numpy.get(dtype)
         if arrays is None:
-            arrays = [c.numpy().astype(dtype) for c in self._coordinates]
+            arrays = np.ascontiguousarray(np.stack([c.numpy() for c in self._coordinates]))
+            arrays = arrays.astype(dtype)
             self._coordinates_numpy[dtype] = arrays
         return arrays
 
@@ -256,50 +245,14 @@ class HapPrior:
         """Soft-min (n,) over the k nearest free candidates and its gradient (n, 3) w.r.t. x.
 
         x (n, 3), m, and the result in x's dtype (C_safe cast to it); index (n, c) candidates;
-        blocked (n, c) or None.
-        Distances as the autograd version computed them (sqrt(|x - y|^2 + 1e-18)); the k
-        smallest are selected with ``np.partition`` (a k-th smallest threshold; rows where
-        distances tie at the threshold keep the first k in candidate order). The gradient is
-        sum_j w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept neighbours. Arrays
-        are candidate-major (c, n) so that the per-query reductions run over contiguous rows.
+        blocked (n, c) or None. Distances sqrt(|x - y|^2 + 1e-18) (as the autograd version
+        computed them); the k smallest are kept (where distances tie, the earlier candidate);
+        the gradient is sum_j w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept
+        neighbours (`distgprl.safety.hap_kernels.softmin_with_gradient`, compiled loops).
         """
-        columns = np.ascontiguousarray(index.T)  # (c, n)
-        query = np.ascontiguousarray(x.T)  # (3, n)
-        dx, dy, dz = (
-            q - c[columns] for q, c in zip(query, self._coordinates_as(x.dtype), strict=True)
+        return softmin_with_gradient(
+            x, self._coordinates_as(x.dtype), index, blocked, self.k, self.temperature
         )
-        distances = dx * dx
-        distances += dy * dy
-        distances += dz * dz
-        distances += 1e-18
-        np.sqrt(distances, out=distances)
-        if blocked is not None:
-            np.copyto(distances, np.inf, where=blocked.T)
-        k, count = self.k, distances.shape[0]
-        keep = None
-        if count > k:
-            rows = np.ascontiguousarray(distances.T)  # (n, c)
-            threshold = np.partition(rows, k - 1, axis=1)[:, k - 1]
-            keep = distances <= threshold  # >= k per query; more only where distances tie
-            if np.count_nonzero(keep) > k * keep.shape[1]:
-                # Equal distances at the threshold: keep the first k (stable order).
-                ties = np.flatnonzero(keep.sum(axis=0) > k)
-                order = np.argsort(rows[ties], axis=1, kind="stable")[:, :k]
-                keep[:, ties] = False
-                keep[order, ties[:, None]] = True
-        tau = self.temperature
-        nearest = distances.min(axis=0)  # finite for every row passed here
-        weights = np.subtract(nearest, distances)
-        weights *= 1.0 / tau
-        np.exp(weights, out=weights)  # exp(-(d - d_min) / tau); 0 where d = inf
-        if keep is not None:
-            weights *= keep
-        total = weights.sum(axis=0)
-        values = nearest - tau * np.log(total)  # Eq. (hap_compact)
-        weights /= total
-        weights /= distances  # w_j / d_j; 0 for blocked (inf) candidates
-        jacobian = np.stack([(weights * d).sum(axis=0) for d in (dx, dy, dz)], axis=1)
-        return values, jacobian
 
     def _softmin(
         self, x: torch.Tensor, index: torch.Tensor, blocked: np.ndarray | None = None
@@ -317,17 +270,6 @@ class HapPrior:
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
         return ValueWithGradient.apply(x, evaluate)
-
-    @staticmethod
-    def _box_distance(moving: MovingObstacleFilter, relative: np.ndarray) -> np.ndarray:
-        """Distance (n,), m, from positions relative to the anchor (n, 3) to the nearest of
-        the filter's grown boxes (0 inside one)."""
-        nearest = np.full(len(relative), np.inf)
-        for box in moving.template:
-            local = (relative - box.position) @ np.asarray(box.rotation)  # box frame
-            excess = np.maximum(np.abs(local) - box.half_extents, 0.0)
-            np.minimum(nearest, np.sqrt(np.einsum("ij,ij->i", excess, excess)), out=nearest)
-        return nearest
 
     def per_point(
         self,
@@ -369,10 +311,8 @@ class HapPrior:
         query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd)."""
         positions = np.asarray(x, dtype=float).reshape(-1, 3)
         x = x.reshape(-1, 3)
-        cells = None
         if self.neighbour_search == "grid":
-            cells = self._cells(positions)
-            index = self._table[cells[1]].astype(np.intp)
+            index = self._grid_candidates(positions)
         else:
             index = self._exact(positions).numpy()
         if moving is None:
@@ -383,20 +323,7 @@ class HapPrior:
         anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
         if len(anchors) != len(positions):
             raise ValueError(f"{len(anchors)} anchors for {len(positions)} query positions")
-        # Only rows whose candidates can reach the obstacles need the test: all candidates
-        # lie within the row's candidate radius R of the query, so a row whose query is
-        # further than R + margin from every (grown) box at its anchor has none blocked.
-        blocked = np.zeros(index.shape, dtype=bool)
-        radius = self._candidate_radius(positions, index, cells)
-        near = np.flatnonzero(
-            self._box_distance(moving, positions - anchors) < radius + moving.margin + 1e-9
-        )
-        counts = np.zeros(len(x))  # blocked candidates per query
-        if near.size:
-            points = np.take(self.points_numpy, index[near], axis=0)  # (rows, c, 3)
-            rows_blocked = moving.blocked(points, anchors[near])
-            blocked[near] = rows_blocked
-            counts[near] = rows_blocked.astype(float) @ np.ones(index.shape[1])
+        blocked, counts = moving.blocked_candidates(self.points_numpy, index, anchors)
         short = counts > index.shape[1] - self.k
         rows = np.flatnonzero(short)
         if not rows.size:  # the common case: every query keeps at least k candidates
@@ -412,7 +339,7 @@ class HapPrior:
         no_free = 0
         if rows.size:
             wide = self._wide_neighbours(positions[rows])
-            wide_blocked = moving.blocked(np.take(self.points_numpy, wide, axis=0), anchors[rows])
+            wide_blocked, _ = moving.blocked_candidates(self.points_numpy, wide, anchors[rows])
             free = ~wide_blocked.all(axis=1)
             no_free = int((~free).sum())
             keep = rows[free]

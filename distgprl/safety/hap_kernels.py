@@ -1,0 +1,232 @@
+"""Compiled loops of L_hap (issue 29): the soft-min with its gradient, and the moving-obstacle
+box test, one query at a time (numba, no Python per element).
+
+Both are the only implementations of what they compute; `distgprl.safety.hap_loss.HapPrior`
+and `distgprl.safety.hap_filter.MovingObstacleFilter` call them. The arithmetic is in the
+queries' dtype in the order NumPy's vectorised code used before (distances
+sqrt(dx^2 + dy^2 + dz^2 + 1e-18), sums over candidates in candidate order), so results agree
+with that code to rounding (float32 ``exp``/``log`` come from libm here, from NumPy's SIMD
+loops there: an ulp apart at most); the box test is in float64 and bit-identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["boxes_block", "grid_candidates", "softmin_with_gradient"]
+
+
+def softmin_with_gradient(
+    query: np.ndarray,
+    coordinates: np.ndarray,
+    index: np.ndarray,
+    blocked: np.ndarray | None,
+    k: int,
+    temperature: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Soft-min over the k nearest free candidates of each query, and its gradient.
+
+    Args:
+        query: query positions, shape (n, 3), m, dtype D (float32 or float64).
+        coordinates: C_safe coordinates per axis, shape (3, m), dtype D.
+        index: candidate C_safe indices per query, shape (n, c), integer.
+        blocked: shape (n, c) bool, candidates to leave out, or None.
+        k: neighbours kept per query: the k smallest distances (where distances tie, the
+            earlier candidate).
+        temperature: tau, m.
+
+    Returns:
+        values (n,), dtype D: -tau log sum_kept exp(-d_j / tau) (Eq. hap_compact), computed as
+        d_min - tau log sum_kept exp((d_min - d_j) / tau); jacobian (n, 3): sum_kept
+        w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept candidates. Blocked
+        candidates have d = inf and weight 0. Distances are sqrt(|x - y|^2 + 1e-18).
+
+    Candidate-major (c, n) arrays, so that the loops over queries vectorise; ``exp`` and
+    ``log`` are NumPy's (its SIMD loops) between the two compiled passes.
+    """
+    dtype = query.dtype
+    constants = np.array([1.0 / temperature, 1e-18], dtype=dtype)
+    no_blocked = blocked is None
+    distances, exponent, keep, offsets = _candidate_distances(
+        np.ascontiguousarray(query.T),
+        coordinates,
+        np.ascontiguousarray(index.T),
+        np.zeros((0, 0), dtype=bool) if no_blocked else np.ascontiguousarray(blocked.T),
+        not no_blocked,
+        k,
+        constants,
+    )
+    np.exp(exponent, out=exponent)  # exp((d_min - d_j) / tau); 0 where d = inf
+    total, jacobian = _weighted_sums(exponent, keep, distances, offsets)
+    values = distances.min(axis=0) - dtype.type(temperature) * np.log(total)
+    return values, jacobian
+
+
+@njit(cache=True, nogil=True)
+def _candidate_distances(query, coordinates, index, blocked, use_blocked, k, constants):
+    """First pass of `softmin_with_gradient`, candidate-major: distances (c, n),
+    (d_min - d) / tau (c, n), the kept candidates (c, n) and the offsets x - y (3, c, n)."""
+    count, n = index.shape
+    inverse_tau, tiny = constants[0], constants[1]
+    distances = np.empty((count, n), dtype=query.dtype)
+    offsets = np.empty((3, count, n), dtype=query.dtype)
+    for j in range(count):
+        for i in range(n):
+            point = index[j, i]
+            dx = query[0, i] - coordinates[0, point]
+            dy = query[1, i] - coordinates[1, point]
+            dz = query[2, i] - coordinates[2, point]
+            offsets[0, j, i] = dx
+            offsets[1, j, i] = dy
+            offsets[2, j, i] = dz
+            squared = dx * dx
+            squared += dy * dy
+            squared += dz * dz
+            squared += tiny
+            distances[j, i] = np.sqrt(squared)
+    if use_blocked:
+        infinity = query.dtype.type(np.inf)
+        for j in range(count):
+            for i in range(n):
+                if blocked[j, i]:
+                    distances[j, i] = infinity
+    nearest = distances[0].copy()
+    for j in range(1, count):
+        for i in range(n):
+            if distances[j, i] < nearest[i]:
+                nearest[i] = distances[j, i]
+    # keep the k smallest by (distance, candidate order): a candidate's rank counts the
+    # candidates before it in that order
+    keep = np.ones((count, n), dtype=np.bool_)
+    if count > k:
+        rank = np.empty(n, dtype=np.int32)
+        for j in range(count):
+            rank[:] = 0
+            for other in range(count):
+                if other < j:
+                    for i in range(n):
+                        rank[i] += distances[other, i] <= distances[j, i]
+                elif other > j:
+                    for i in range(n):
+                        rank[i] += distances[other, i] < distances[j, i]
+            for i in range(n):
+                keep[j, i] = rank[i] < k
+    exponent = np.empty((count, n), dtype=query.dtype)
+    for j in range(count):
+        for i in range(n):
+            exponent[j, i] = (nearest[i] - distances[j, i]) * inverse_tau
+    return distances, exponent, keep, offsets
+
+
+@njit(cache=True, nogil=True)
+def _weighted_sums(weights, keep, distances, offsets):
+    """Second pass of `softmin_with_gradient`: the kept weights' sum (n,) and the soft-min's
+    gradient (n, 3), summed over candidates in candidate order. ``weights`` (c, n) is
+    overwritten."""
+    count, n = weights.shape
+    zero = weights.dtype.type(0.0)
+    total = np.zeros(n, dtype=weights.dtype)
+    for j in range(count):
+        for i in range(n):
+            if not keep[j, i]:
+                weights[j, i] = zero
+            total[i] += weights[j, i]
+    jacobian = np.zeros((n, 3), dtype=weights.dtype)
+    for j in range(count):
+        for i in range(n):
+            weight = weights[j, i] / total[i] / distances[j, i]
+            jacobian[i, 0] += weight * offsets[0, j, i]
+            jacobian[i, 1] += weight * offsets[1, j, i]
+            jacobian[i, 2] += weight * offsets[2, j, i]
+    return total, jacobian
+
+
+@njit(cache=True, nogil=True)
+def boxes_block(
+    points, index, anchors, centres, rotations, half_extents, axis_aligned, bounds, margin
+):
+    """Which candidate points the moving boxes block: mask (n, c) bool and the blocked
+    candidates per row (n,) (float64 arithmetic).
+
+    A point p is blocked when |max(|R_b^T (p - a - c_b)| - h_b, 0)| < margin for a box b
+    (anchor a of its row; centres c_b, rotations R_b, grown half extents h_b of the
+    template).
+
+    Args:
+        points: positions, shape (m, 3), m.
+        index: the candidates of each row, indices into ``points``, shape (n, c).
+        anchors: the obstacles' anchor per row, shape (n, 3), m.
+        centres, rotations, half_extents: the template boxes, (b, 3), (b, 3, 3), (b, 3).
+        axis_aligned: every rotation is the identity (the test then skips the rotation).
+        bounds: a cheap first cut, shape (7,): axis-aligned, the middle (3,) and half span
+            (3,) of the boxes' common bounding box grown by the margin (points outside are
+            not blocked); otherwise its first entry is the reach: points farther than it from
+            the anchor are not blocked.
+        margin: required clearance, m.
+    """
+    n, count = index.shape
+    boxes = centres.shape[0]
+    limit = margin * margin
+    out = np.zeros((n, count), dtype=np.bool_)
+    counts = np.zeros(n, dtype=np.int64)
+    local = np.empty(3)
+    for i in range(n):
+        for j in range(count):
+            point = index[i, j]
+            rx = points[point, 0] - anchors[i, 0]
+            ry = points[point, 1] - anchors[i, 1]
+            rz = points[point, 2] - anchors[i, 2]
+            if axis_aligned:
+                if not (
+                    abs(rx - bounds[1]) < bounds[4]
+                    and abs(ry - bounds[2]) < bounds[5]
+                    and abs(rz - bounds[3]) < bounds[6]
+                ):
+                    continue
+            elif not rx * rx + ry * ry + rz * rz < bounds[0] * bounds[0]:
+                continue
+            for b in range(boxes):
+                ex = rx - centres[b, 0]
+                ey = ry - centres[b, 1]
+                ez = rz - centres[b, 2]
+                if axis_aligned:
+                    local[0], local[1], local[2] = ex, ey, ez
+                else:
+                    for a in range(3):
+                        local[a] = (
+                            ex * rotations[b, 0, a] + ey * rotations[b, 1, a]
+                        ) + ez * rotations[b, 2, a]
+                squared = 0.0
+                for a in range(3):
+                    excess = abs(local[a]) - half_extents[b, a]
+                    if excess < 0.0:
+                        excess = 0.0
+                    squared += excess * excess
+                if squared < limit:
+                    out[i, j] = True
+                    counts[i] += 1
+                    break
+    return out, counts
+
+
+@njit(cache=True, nogil=True)
+def grid_candidates(positions, lower, resolution, shape, table):
+    """The lookup table's candidates (n, c) of each position (n, 3), m: the cell
+    floor((p - lower) / resolution), clipped to the table's ``shape`` (3,), of a table
+    (cells, c) stored in C order over the cells."""
+    n = positions.shape[0]
+    count = table.shape[1]
+    out = np.empty((n, count), dtype=table.dtype)
+    for i in range(n):
+        flat = 0
+        for a in range(3):
+            cell = np.int64(np.floor((positions[i, a] - lower[a]) / resolution))
+            if cell < 0:
+                cell = 0
+            elif cell > shape[a] - 1:
+                cell = shape[a] - 1
+            flat = flat * shape[a] + cell
+        for j in range(count):
+            out[i, j] = table[flat, j]
+    return out
