@@ -26,12 +26,18 @@ _CORENAME_FUNCTIONS = (
 
 
 def openblas_cores() -> list[str]:
-    """The kernel families the OpenBLAS libraries loaded in this process picked for this CPU
-    (numpy's, and scipy's once imported), e.g. ``["Haswell"]``; empty where they cannot be
-    asked (not Linux, another BLAS)."""
+    """The kernel families numpy's and scipy's OpenBLAS libraries, where loaded in this
+    process, picked for this CPU, e.g. ``["Haswell"]``; empty where they cannot be asked (not
+    Linux, another BLAS). Other packages' own copies (OpenCV bundles one, which picks
+    ``Prescott`` on a SkylakeX CPU) do not compute the results and are left out, so the
+    answer does not depend on what else was imported first."""
     try:
         with open("/proc/self/maps") as maps:
-            libraries = {line.split()[-1] for line in maps if "openblas" in line.lower()}
+            libraries = {
+                path
+                for path in (line.split()[-1] for line in maps)
+                if "openblas" in path.lower() and ("numpy" in path or "scipy" in path)
+            }
     except OSError:
         return []
     cores = set()
@@ -53,6 +59,7 @@ def numerics_fingerprint() -> str:
     """OpenBLAS kernels and numpy SIMD targets in use, e.g.
     ``openblas-Haswell_numpy-X86_V3+X86_V4+AVX512_ICL`` (module docstring)."""
     import numpy  # noqa: F401  (loads numpy's OpenBLAS)
+    import scipy.linalg  # noqa: F401  (and scipy's: the same name whatever was imported before)
 
     try:
         from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__

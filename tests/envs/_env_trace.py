@@ -10,7 +10,9 @@ machine's `distgprl.machine.numerics_fingerprint` (default
 ``data/env_trace_v5.npz`` was generated before the issue 28/29 simulation refactor, on the
 machine of session 17 (fingerprint not recorded); ``data/env_trace_v5_<fingerprint>.npz``
 files were recorded later with code that reproduced it bit for bit there (8623cd9), each on a
-CPU whose numerics the first did not share.
+CPU whose numerics the first did not share: ``Haswell`` (AMD EPYC) with 8623cd9, ``SkylakeX``
+(Intel Xeon, session 21) with the environment code of e7fbbc7, which passed the Haswell
+recording bit for bit.
 """
 
 from __future__ import annotations
@@ -128,7 +130,10 @@ def record_all() -> dict[str, np.ndarray]:
 
 
 if __name__ == "__main__":
+    trace = record_all()
+    # after the episodes: every OpenBLAS the test process loads (numpy's, scipy's) is loaded
+    # by then, and the fingerprint names them all
     fingerprint = numerics_fingerprint()
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else DATA / f"env_trace_v5_{fingerprint}.npz"
-    np.savez_compressed(out, **record_all(), **{FINGERPRINT_KEY: np.array(fingerprint)})
+    np.savez_compressed(out, **trace, **{FINGERPRINT_KEY: np.array(fingerprint)})
     print(f"wrote {out} ({fingerprint})")
