@@ -76,7 +76,8 @@ class Verdict:
         test: the statistic that tests it, in words.
         estimate: its value and 95 % interval (empty seeds with no runs).
         verdict: `REPRODUCED`, `REFUTED` or an `INCONCLUSIVE` text (module docstring rules).
-        detail: what else the rule looked at (empty for a PoI claim).
+        detail: what else the rule looked at (for a PoI claim pooling two tasks, the PoI on
+            each task alone, `per_task_poi`).
     """
 
     claim: str
@@ -264,7 +265,8 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
     for claim in POI_CLAIMS:
         estimate = poi(scores, tasks, PROPOSED, claim.versus, claim.key, seed)
         test = f"PoI of Dist-GPRL over {_label(claim.versus)}, {claim.measure}"
-        verdict = Verdict(claim.claim, test, estimate, poi_verdict(estimate))
+        detail = per_task_poi(scores, tasks, claim, seed) if len(tasks) > 1 else ""
+        verdict = Verdict(claim.claim, test, estimate, poi_verdict(estimate), detail)
         verdicts.append(_name_the_missing(verdict, scores, tasks, (PROPOSED, claim.versus)))
     rules: list[Callable[[], Verdict]] = [
         lambda: extreme_verdict(
@@ -278,6 +280,26 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
     ]
     verdicts += [_name_the_missing(rule(), scores, tasks, RANKED) for rule in rules]
     return verdicts
+
+
+TASKS_DISAGREE = "the tasks disagree"
+"""Said after the per-task PoIs when one task's interval lies above 0.5 and another's below:
+the pooled PoI then averages opposite effects (its interval may still contain 0.5)."""
+
+
+def per_task_poi(scores: Scores, tasks: list[str], claim: PoiClaim, seed: int) -> str:
+    """The detail of a pooled PoI claim: the same PoI on each task alone (``DCP 1.00 [1.00,
+    1.00]; DBM 0.00 [0.00, 0.00]``), and `TASKS_DISAGREE` where the tasks' intervals lie on
+    opposite sides of 0.5. Information beside the verdict; the rule stays the pooled one."""
+    estimates = {t: poi(scores, [t], PROPOSED, claim.versus, claim.key, seed) for t in tasks}
+    parts = [f"{t.upper()} {e.text()}" for t, e in estimates.items() if e.seeds]
+    if not parts:
+        return ""
+    text = "per task: " + "; ".join(parts)
+    verdicts = {poi_verdict(e) for e in estimates.values()}
+    if {REPRODUCED, REFUTED} <= verdicts:
+        text += f" ({TASKS_DISAGREE})"
+    return text
 
 
 def _name_the_missing(
