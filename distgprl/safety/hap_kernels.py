@@ -48,7 +48,7 @@ def softmin_with_gradient(
     dtype = query.dtype
     constants = np.array([1.0 / temperature, 1e-18], dtype=dtype)
     no_blocked = blocked is None
-    distances, exponent, keep, offsets = _candidate_distances(
+    distances, nearest, exponent, keep, offsets = _candidate_distances(
         np.ascontiguousarray(query.T),
         coordinates,
         np.ascontiguousarray(index.T),
@@ -59,14 +59,15 @@ def softmin_with_gradient(
     )
     np.exp(exponent, out=exponent)  # exp((d_min - d_j) / tau); 0 where d = inf
     total, jacobian = _weighted_sums(exponent, keep, distances, offsets)
-    values = distances.min(axis=0) - dtype.type(temperature) * np.log(total)
+    values = nearest - dtype.type(temperature) * np.log(total)
     return values, jacobian
 
 
 @njit(cache=True, nogil=True)
 def _candidate_distances(query, coordinates, index, blocked, use_blocked, k, constants):
-    """First pass of `softmin_with_gradient`, candidate-major: distances (c, n),
-    (d_min - d) / tau (c, n), the kept candidates (c, n) and the offsets x - y (3, c, n)."""
+    """First pass of `softmin_with_gradient`, candidate-major: distances (c, n), their
+    minimum d_min (n,), (d_min - d) / tau (c, n), the kept candidates (c, n) and the offsets
+    x - y (3, c, n)."""
     count, n = index.shape
     inverse_tau, tiny = constants[0], constants[1]
     distances = np.empty((count, n), dtype=query.dtype)
@@ -116,7 +117,7 @@ def _candidate_distances(query, coordinates, index, blocked, use_blocked, k, con
     for j in range(count):
         for i in range(n):
             exponent[j, i] = (nearest[i] - distances[j, i]) * inverse_tau
-    return distances, exponent, keep, offsets
+    return distances, nearest, exponent, keep, offsets
 
 
 @njit(cache=True, nogil=True)

@@ -165,9 +165,12 @@ class HapPrior:
         if len(points) == 0:
             raise ValueError("C_safe is empty")
         self.points_numpy = points
-        # Component-wise storage: gathers of (n, k) index arrays stay contiguous.
-        self._coordinates = [torch.as_tensor(points[:, i], dtype=self.dtype) for i in range(3)]
-        self._coordinates_numpy: dict[np.dtype, np.ndarray] = {}
+        # One row per axis (3, m), in the stored dtype (float32 to match the networks), and
+        # its casts to other query dtypes (`_coordinates_as`).
+        stored = np.ascontiguousarray(points.T).astype(
+            torch.empty((), dtype=self.dtype).numpy().dtype
+        )
+        self._coordinates_numpy: dict[np.dtype, np.ndarray] = {stored.dtype: stored}
         self.k = min(self.k_requested, len(points))
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
@@ -232,11 +235,10 @@ class HapPrior:
 
     def _coordinates_as(self, dtype: np.dtype) -> np.ndarray:
         """The stored C_safe coordinates, one row per axis (3, m), cast to ``dtype`` (cached)."""
-        arrays = self._coordinates_numpy.get(dtype)
+        arrays = self._coordinates_numpy.get(np.dtype(dtype))
         if arrays is None:
-            arrays = np.ascontiguousarray(np.stack([c.numpy() for c in self._coordinates]))
-            arrays = arrays.astype(dtype)
-            self._coordinates_numpy[dtype] = arrays
+            stored = next(iter(self._coordinates_numpy.values()))  # the first: stored dtype
+            arrays = self._coordinates_numpy[np.dtype(dtype)] = stored.astype(dtype)
         return arrays
 
     def _softmin_values(
