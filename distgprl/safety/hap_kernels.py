@@ -1,12 +1,14 @@
-"""Compiled loops of L_hap (issue 29): the soft-min with its gradient, and the moving-obstacle
-box test, one query at a time (numba, no Python per element).
+"""Compiled loops of L_hap (issue 29): the soft-min with its gradient, the grid look-up of
+candidates and the moving-obstacle box test, one query at a time (numba, no Python per
+element).
 
-Both are the only implementations of what they compute; `distgprl.safety.hap_loss.HapPrior`
+They are the only implementations of what they compute; `distgprl.safety.hap_loss.HapPrior`
 and `distgprl.safety.hap_filter.MovingObstacleFilter` call them. The arithmetic is in the
 queries' dtype in the order NumPy's vectorised code used before (distances
-sqrt(dx^2 + dy^2 + dz^2 + 1e-18), sums over candidates in candidate order), so results agree
-with that code to rounding (float32 ``exp``/``log`` come from libm here, from NumPy's SIMD
-loops there: an ulp apart at most); the box test is in float64 and bit-identical.
+sqrt(dx^2 + dy^2 + dz^2 + 1e-18), sums over candidates in candidate order), and ``exp`` and
+``log`` are still NumPy's (its SIMD loops, called between the two compiled passes), so the
+results are bit-identical to that code in float32 and float64 (tested against it, kept in
+``tests/safety/_reference_numpy_softmin.py``); the box test is in float64, also bit-identical.
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 within the joint limits, each branch wrapped by multiples of 2 pi (`distgprl.sim.robot.UR5e`
 calls it for every pose the control loop commands).
 
-`nearest_branch_exact` is the rule; `nearest_branch` makes the same choice faster, starting
-from a hinted branch (the previous pose's) whose distance bounds the others (tested from every
-hint, near-ties included).
+`nearest_branch_exact` is the rule; `nearest_branch` makes the same choice faster: compiled
+(numba, issue 29), starting from a hinted branch (the previous pose's) whose distance bounds
+the others (tested against the rule from every hint, near-ties included, bit for bit).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 TWO_PI = 2.0 * math.pi
 
@@ -51,55 +52,85 @@ def nearest_branch_exact(
     return best
 
 
-def _wrapped_branch(
-    row: list[float],
-    reference: list[float],
-    limits: Sequence[tuple[float, float]],
-    bound: float,
-) -> tuple[list[float], float] | None:
-    """One branch of `nearest_branch_exact`'s rule: (wrapped joints, squared distance), or
-    None if it leaves the limits, is singular, or its distance exceeds ``bound``."""
-    candidate = []
+@njit(cache=True, nogil=True)
+def _wrapped_branch(row, reference, lower, upper, bound, out):  # pragma: no cover - compiled
+    """One branch (6,) of `nearest_branch_exact`'s rule wrapped into ``out`` (6,); returns
+    its squared distance, or -1.0 if it leaves the limits, is singular, or its partial
+    distance exceeds ``bound``. Same operations, in the same order, as the rule (``rint`` is
+    Python's ``round``: halves to even)."""
     distance = 0.0
-    for value, ref, (lower, upper) in zip(row, reference, limits, strict=True):
+    for joint in range(row.shape[0]):
+        value = row[joint]
         if value != value:  # NaN: singular branch
-            return None
-        value -= TWO_PI * round((value - ref) / TWO_PI)
-        if value > upper:
+            return -1.0
+        ref = reference[joint]
+        turns = np.rint((value - ref) / TWO_PI) + 0.0  # + 0.0: -0.0 -> 0.0, as int(round())
+        value -= TWO_PI * turns
+        if value > upper[joint]:
             value -= TWO_PI
-        elif value < lower:
+        elif value < lower[joint]:
             value += TWO_PI
-        if value < lower or value > upper:
-            return None
-        candidate.append(value)
-        distance += (value - ref) ** 2
+        if value < lower[joint] or value > upper[joint]:
+            return -1.0
+        out[joint] = value
+        difference = value - ref
+        distance += difference * difference
         if distance > bound:  # partial sums only grow: it cannot be the nearest
-            return None
-    return candidate, distance
+            return -1.0
+    return distance
+
+
+@njit(cache=True, nogil=True)
+def _nearest_branch(solutions, reference, lower, upper, hint, best):  # pragma: no cover
+    """Index of the chosen branch of ``solutions`` (k, 6), wrapped into ``best`` (6,), or
+    -1 if none fits the limits."""
+    count = solutions.shape[0]
+    scratch = np.empty(solutions.shape[1])
+    bound = np.inf
+    hinted = -1.0
+    if hint < count:
+        hinted = _wrapped_branch(solutions[hint], reference, lower, upper, np.inf, best)
+        if hinted >= 0.0:
+            bound = hinted
+    chosen = -1
+    best_distance = np.inf
+    for index in range(count):
+        if index == hint:
+            distance = hinted
+        else:
+            distance = _wrapped_branch(solutions[index], reference, lower, upper, bound, scratch)
+        if distance >= 0.0 and distance < best_distance:
+            best_distance = distance
+            if index != hint:
+                best[:] = scratch
+            elif chosen >= 0:  # an earlier branch overwrote the hint's wrap: wrap it again
+                _wrapped_branch(solutions[index], reference, lower, upper, np.inf, best)
+            chosen = index
+    return chosen
 
 
 def nearest_branch(
-    solutions: Sequence[np.ndarray],
-    reference: list[float],
-    limits: Sequence[tuple[float, float]],
+    solutions: np.ndarray,
+    reference: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
     hint: int = 0,
-) -> tuple[list[float] | None, int]:
-    """`nearest_branch_exact`'s choice, computed faster: (the branch, its index).
+) -> tuple[np.ndarray | None, int]:
+    """`nearest_branch_exact`'s choice, computed faster: (the branch (6,), rad, its index).
 
-    Branch ``hint`` (e.g. the one chosen for the previous pose) is wrapped first; its
-    distance bounds the others, each dropped as soon as its partial squared distance
-    exceeds it (partial sums of squares never decrease, so a dropped branch is farther
-    than the hint, and a branch tying the hint is kept: the first of equals still wins).
+    Args:
+        solutions: the IK branches, shape (k, 6), rad, float64 (k may be 0).
+        reference: the configuration to be near, shape (6,), rad, float64.
+        lower, upper: joint limits, shape (6,), rad, float64.
+        hint: the branch to wrap first (e.g. the one chosen for the previous pose).
+
+    The hinted branch's distance bounds the others, each dropped as soon as its partial
+    squared distance exceeds it (partial sums of squares never decrease, so a dropped branch
+    is farther than the hint, and a branch tying the hint is kept: the first of equals still
+    wins). Returns (None, ``hint``) when no branch fits the limits.
     """
-    rows = [solution.tolist() for solution in solutions]
-    hinted = _wrapped_branch(rows[hint], reference, limits, math.inf) if hint < len(rows) else None
-    bound = math.inf if hinted is None else hinted[1]
-    best: list[float] | None = None
-    best_index = hint
-    best_distance = math.inf
-    for index, row in enumerate(rows):
-        branch = hinted if index == hint else _wrapped_branch(row, reference, limits, bound)
-        if branch is not None and branch[1] < best_distance:
-            best, best_distance = branch
-            best_index = index
-    return best, best_index
+    best = np.empty(6)
+    if len(solutions) == 0:
+        return None, hint
+    chosen = _nearest_branch(solutions, reference, lower, upper, hint, best)
+    return (None, hint) if chosen < 0 else (best, chosen)

@@ -319,9 +319,6 @@ class UR5e:
         self.upper_limits = np.asarray(upper)
         self.max_forces = np.asarray(forces)
         self.link_index = links
-        self._limits = tuple(
-            zip(self.lower_limits.tolist(), self.upper_limits.tolist(), strict=True)
-        )
         self._last_branch = 0  # `ik_nearest`'s first guess: the branch it chose last
         self.tool_link = links["tool"]
         self.tcp_link = links["tcp"]
@@ -379,10 +376,16 @@ class UR5e:
         # Called once per control period (issue 29): the scalar rule, with the distance of
         # the branch chosen last time as a bound that cuts the other branches short.
         solutions = _inverse_kinematics(tcp_transform @ self._tcp_from_tool0)
+        if not solutions:
+            return None
         best, self._last_branch = nearest_branch(
-            solutions, [float(v) for v in q_reference], self._limits, self._last_branch
+            np.array(solutions),
+            np.array(q_reference, dtype=float),
+            self.lower_limits,
+            self.upper_limits,
+            self._last_branch,
         )
-        return None if best is None else np.array(best)
+        return best
 
     # ------------------------------------------------------------------ state and control
     def reset_joints(self, q: np.ndarray) -> None:

@@ -155,7 +155,18 @@ def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
         branches = ur_analytic_ik.ur5e.inverse_kinematics(tcp @ tcp_from_tool0)
         expected = nearest_branch_exact(branches, reference.tolist(), limits)
         for hint in range(len(branches) + 1):
-            assert nearest_branch(branches, reference.tolist(), limits, hint)[0] == expected
+            chosen = nearest_branch(
+                np.array(branches).reshape(-1, 6),
+                reference,
+                robot.lower_limits,
+                robot.upper_limits,
+                hint,
+            )[0]
+            if expected is None:
+                assert chosen is None
+            else:  # the same floats, signed zeros included
+                assert chosen.tolist() == expected
+                assert np.array_equal(np.signbit(chosen), np.signbit(expected))
         found = robot.ik_nearest(tcp, reference)
         if expected is None:
             assert found is None
