@@ -57,10 +57,18 @@ def fit(
             for axis, a in window["axes"].items()
         )
         typer.echo(f"  S_W via-points {window['via_points']}: {spectrum}")
-    for scale, spectrum in correlation["candidates"].items():
+    for scale, candidate in correlation["candidates"].items():
+        reach = ", ".join(
+            f"{axis} {1000 * value:.0f} {'mm' if axis in ('x', 'y', 'z') else 'mrad'}"
+            for axis, value in candidate["reach"].items()
+        )
+        if scale == "none":
+            typer.echo(f"  no transform (S_W = I): one step's reach per via-point {reach}")
+            continue
         typer.echo(
             f"  candidate K scale {scale!r}: S_W eigenvalues "
-            f"{spectrum['eigenvalue_min']:.3f}-{spectrum['eigenvalue_max']:.3f}"
+            f"{candidate['eigenvalue_min']:.3f}-{candidate['eigenvalue_max']:.3f}; "
+            f"one step's reach per via-point {reach}"
         )
 
 

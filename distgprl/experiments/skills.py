@@ -42,14 +42,22 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     by side. When every eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the
     identity: the transform then barely correlates the update (see docs/FINDINGS.md).
 
+    The *reach* of an axis is the largest displacement one step's action can give one
+    via-point along it: every raw action entry saturated at +-1 with the signs of S_W's row,
+    max_i sum_j |S_W[i, j]| times the action's scale on that axis (m for x, y, z; rad for
+    rx, ry, rz). Without the transform (``dist-gprl-nocov``) it is the action scale itself;
+    a via-point shared by two windows can move by the sum of both.
+
     Returns:
         A JSON-ready dict: ``correlation_lambda``, ``covariance_scale``, ``length_scale`` (of K:
         the fitted one unless ``env_config.correlation_length_scale`` sets it),
         ``via_point_spacing`` (normalised time), ``neighbour_correlation``, ``windows``: one dict
         per window with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max``,
-        ``max_off_diagonal`` and ``axes`` (the same three per axis x..rz), and ``candidates``:
-        per scale, ``eigenvalue_min`` / ``eigenvalue_max`` over all windows and axes (absent
-        for a scale the skill cannot build, e.g. ``"signal"`` without its axis scale).
+        ``max_off_diagonal`` and ``axes`` (the same three, and ``reach``, per axis x..rz),
+        ``reach``: per axis, the largest reach over the windows, and ``candidates``: per scale,
+        ``eigenvalue_min`` / ``eigenvalue_max`` over all windows and axes and ``reach`` per
+        axis (absent for a scale the skill cannot build, e.g. ``"signal"`` without its axis
+        scale), and ``"none"`` (no transform: S_W = I) with its ``reach``.
     """
     from distgprl.adaptation.layout import COVARIANCE_SCALES, build_action_layout
     from distgprl.methods import get_method
@@ -64,13 +72,14 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         windows = []
         for indices, operators in zip(layout.indices, layout.operators, strict=True):
             axes = {}
-            for axis, operator in zip(AXES, operators, strict=True):
+            for axis, operator, scale in zip(AXES, operators, layout.scale, strict=True):
                 eigenvalues = np.linalg.eigvalsh(0.5 * (operator + operator.T))
                 off_diagonal = operator - np.diag(np.diag(operator))
                 axes[axis] = {
                     "eigenvalue_min": float(eigenvalues.min()),
                     "eigenvalue_max": float(eigenvalues.max()),
                     "max_off_diagonal": float(np.abs(off_diagonal).max()),
+                    "reach": float(np.abs(operator).sum(axis=1).max() * scale),
                 }
             windows.append(
                 {
@@ -96,7 +105,10 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         candidates[scale] = {
             "eigenvalue_min": min(w["eigenvalue_min"] for w in windows),
             "eigenvalue_max": max(w["eigenvalue_max"] for w in windows),
+            "reach": largest_reach(windows),
         }
+    scale = build_action_layout(skill, env_config, get_method("dist-gprl-nocov")).scale
+    candidates["none"] = {"reach": dict(zip(AXES, (float(v) for v in scale), strict=True))}
     return {
         "correlation_lambda": float(env_config.correlation_lambda),
         "covariance_scale": env_config.covariance_scale,
@@ -104,8 +116,14 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         "via_point_spacing": spacing,
         "neighbour_correlation": float(np.exp(-(spacing**2) / (2 * length_scale**2))),
         "windows": chosen,
+        "reach": largest_reach(chosen),
         "candidates": candidates,
     }
+
+
+def largest_reach(windows: list[dict]) -> dict[str, float]:
+    """Per axis, the largest ``reach`` over `correlation_summary`'s ``windows``."""
+    return {axis: max(w["axes"][axis]["reach"] for w in windows) for axis in AXES}
 
 
 def fit_demonstration(

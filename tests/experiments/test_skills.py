@@ -143,7 +143,7 @@ def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units
             assert reported["axes"][axis]["eigenvalue_max"] == pytest.approx(eigenvalues.max())
     axes = summary["windows"][0]["axes"]
     assert axes["x"]["eigenvalue_max"] < axes["z"]["eigenvalue_max"] < axes["y"]["eigenvalue_max"]
-    assert set(summary["candidates"]) == {"signal", "unit"}
+    assert set(summary["candidates"]) == {"signal", "unit", "none"}
     assert summary["candidates"]["unit"]["eigenvalue_min"] > 0.9
 
 
@@ -163,4 +163,35 @@ def test_a_skill_without_axis_scale_cannot_build_the_signal_operator():
     skill = dataclasses.replace(make_skill(0.06), axis_scale=None)
     with pytest.raises(ValueError, match="axis_scale"):
         correlation_summary(skill, EnvConfig())
-    assert set(correlation_summary(skill, UNIT)["candidates"]) == {"unit"}
+    assert set(correlation_summary(skill, UNIT)["candidates"]) == {"unit", "none"}
+
+
+def test_reach_is_the_largest_via_point_move_of_a_saturated_action():
+    """An axis's reach is max_i sum_j |S_W[i, j]| times the action scale: what the raw action
+    with entries sign(S_W[i, j]) (all saturated) moves via-point i by, and no action in
+    [-1, 1] moves a via-point farther (checked with random saturated actions). Without the
+    transform it is the action scale; under the v5 operator it is smaller."""
+    from distgprl.adaptation.layout import build_action_layout
+    from distgprl.methods import get_method
+
+    skill, config = make_skill(0.06), EnvConfig()
+    summary = correlation_summary(skill, config)
+    layout = build_action_layout(skill, config, get_method("dist-gprl"))
+    rng = np.random.default_rng(3)
+    for step, window in enumerate(summary["windows"]):
+        for a, axis in enumerate(("x", "y", "z", "rx", "ry", "rz")):
+            operator = layout.operators[step, a]
+            row = int(np.abs(operator).sum(axis=1).argmax())
+            raw = np.zeros((len(window["via_points"]), 6))
+            raw[:, a] = np.sign(operator[row])
+            best = abs(layout.delta(step, raw.ravel())[row, a])
+            assert window["axes"][axis]["reach"] == pytest.approx(best)
+            random = rng.choice([-1.0, 1.0], size=(200, *raw.shape))
+            moves = [np.abs(layout.delta(step, r.ravel())[:, a]).max() for r in random]
+            assert max(moves) <= window["axes"][axis]["reach"] + 1e-12
+    scale = dict(zip(("x", "y", "z", "rx", "ry", "rz"), layout.scale, strict=True))
+    assert summary["candidates"]["none"]["reach"] == pytest.approx(scale)
+    assert summary["reach"] == summary["candidates"]["signal"]["reach"]
+    for axis in scale:
+        assert summary["reach"][axis] < scale[axis]
+        assert summary["reach"][axis] == max(w["axes"][axis]["reach"] for w in summary["windows"])
