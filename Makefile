@@ -17,8 +17,12 @@ setup: $(BIN)/python
 	$(BIN)/pip install -q -c constraints.txt $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) torch==2.13.0
 	$(BIN)/pip install -q -c constraints.txt -e ".[dev,ray]"
 
+# Tests run on TEST_WORKERS processes (pytest-xdist), each test file whole on one worker so a
+# file's module-scoped fixtures are built once; TEST_WORKERS=0 runs them in this process.
+TEST_WORKERS ?= 2
+
 test:
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint:
 	$(BIN)/ruff check distgprl tests scripts benchmarks
