@@ -74,6 +74,12 @@ def test_run_benchmarks_tiny(tmp_path):
     assert [r["n_via_points"] for r in scaling["via_points"]] == list(bench.TINY_SIZES.via_points)
     assert [r["n_obstacles"] for r in scaling["obstacles"]] == list(bench.TINY_SIZES.obstacles)
     assert [r["workers"] for r in scaling["workers"]] == list(bench.TINY_SIZES.workers)
+    # Every worker count, one included, is measured by that many worker processes (the same
+    # uninstrumented code), so the speed-up is like for like.
+    for row in scaling["workers"]:
+        assert len(row["steps_per_s_each"]) == row["workers"]
+        assert row["aggregate_steps_per_s"] == pytest.approx(sum(row["steps_per_s_each"]))
+    assert scaling["workers"][0]["speedup_vs_one"] == 1.0
     # Issue 29's headline keys: env step over the physics in it, the suite's cost.
     for task in bench.TINY_SIZES.tasks:
         environment = document["environment"][task]

@@ -98,7 +98,8 @@ def markdown_table(document: dict[str, Any]) -> str:
         )
     training = document["training"]
     lines.append(
-        f"| training throughput ({training['task']}/{training['method']}, 1 process), steps/s | "
+        f"| training throughput ({training['task']}/{training['method']}, 1 process, with the "
+        f"breakdown's section timers), steps/s | "
         f"{training['steps_per_s']:.1f} |"
     )
     for row in document["scaling"]["workers"]:

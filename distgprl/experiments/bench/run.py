@@ -75,7 +75,7 @@ def run_benchmarks(
     say("training throughput and breakdown")
     training = bench_training(sizes)
     say("training throughput vs workers")
-    workers = bench_workers(sizes, training["steps_per_s"])
+    workers = bench_workers(sizes)
     say("suite cost: a training step of every method and task")
     suite = bench_suite(sizes)
     document = {

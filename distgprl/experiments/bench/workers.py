@@ -54,50 +54,58 @@ def _read_marker(process: subprocess.Popen, marker: str) -> str:
     raise RuntimeError(f"benchmark worker exited (code {process.wait()}) before {marker}")
 
 
-def bench_workers(sizes: BenchSizes, single: float, task: str = BENCH_TASK) -> list[dict[str, Any]]:
+def _worker_rates(count: int, sizes: BenchSizes, task: str) -> list[float]:
+    """Steps per second of ``count`` fresh worker processes training at the same time."""
+    command = [sys.executable, "-m", "distgprl.experiments.bench", "--worker", task]
+    command += [str(sizes.learning_starts), str(sizes.worker_steps)]
+    with tempfile.TemporaryFile("w+") as errors:
+        processes = [
+            subprocess.Popen(
+                command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=errors,
+                text=True,
+            )
+            for _ in range(count)
+        ]
+        try:
+            for process in processes:
+                _read_marker(process, WORKER_READY)
+            for process in processes:
+                assert process.stdin is not None
+                process.stdin.write("go\n")
+                process.stdin.flush()
+            rates = [float(_read_marker(process, WORKER_RATE)) for process in processes]
+            for process in processes:
+                process.wait(timeout=120)
+        except BaseException as exc:
+            for process in processes:
+                process.kill()
+            errors.seek(0)
+            raise RuntimeError(f"{exc}; worker stderr tail:\n{errors.read()[-2000:]}") from exc
+    return rates
+
+
+def bench_workers(sizes: BenchSizes, task: str = BENCH_TASK) -> list[dict[str, Any]]:
     """Section 5c: aggregate training throughput of independent training processes.
 
-    One process is the in-process run of `bench_training` (``single`` steps/s, same code path);
-    for N >= 2, N fresh Python processes set up, wait until all are ready, then train
-    ``sizes.worker_steps`` steps at the same time; their rates are summed.
+    For every N in ``sizes.workers`` (1 included), N fresh Python processes set up, wait
+    until all are ready, then train ``sizes.worker_steps`` steps at the same time; their
+    rates are summed. Every N runs the same uninstrumented code, so ``speedup_vs_one`` is a
+    like-for-like ratio (the in-process run of `bench_training` carries its section timers,
+    which cost a few milliseconds per step, and is not the reference).
     """
-    out = [{"workers": 1, "steps_per_s_each": [single], "aggregate_steps_per_s": single}]
-    for count in (c for c in sizes.workers if c > 1):
-        command = [sys.executable, "-m", "distgprl.experiments.bench", "--worker", task]
-        command += [str(sizes.learning_starts), str(sizes.worker_steps)]
-        with tempfile.TemporaryFile("w+") as errors:
-            processes = [
-                subprocess.Popen(
-                    command,
-                    stdin=subprocess.PIPE,
-                    stdout=subprocess.PIPE,
-                    stderr=errors,
-                    text=True,
-                )
-                for _ in range(count)
-            ]
-            try:
-                for process in processes:
-                    _read_marker(process, WORKER_READY)
-                for process in processes:
-                    assert process.stdin is not None
-                    process.stdin.write("go\n")
-                    process.stdin.flush()
-                rates = [float(_read_marker(process, WORKER_RATE)) for process in processes]
-                for process in processes:
-                    process.wait(timeout=120)
-            except BaseException as exc:
-                for process in processes:
-                    process.kill()
-                errors.seek(0)
-                raise RuntimeError(f"{exc}; worker stderr tail:\n{errors.read()[-2000:]}") from exc
-        out.append(
-            {
-                "workers": count,
-                "steps_per_s_each": rates,
-                "aggregate_steps_per_s": float(sum(rates)),
-            }
-        )
+    out = [
+        {
+            "workers": count,
+            "steps_per_s_each": rates,
+            "aggregate_steps_per_s": float(sum(rates)),
+        }
+        for count in sizes.workers
+        for rates in [_worker_rates(count, sizes, task)]
+    ]
+    single = next((row["aggregate_steps_per_s"] for row in out if row["workers"] == 1), None)
     for row in out:
-        row["speedup_vs_one"] = row["aggregate_steps_per_s"] / single
+        row["speedup_vs_one"] = None if single is None else row["aggregate_steps_per_s"] / single
     return out
