@@ -59,19 +59,19 @@ def main() -> None:
             entry = parts.setdefault(name, {"calls": 0, "cpu_s": 0.0})
             entry["calls"] += calls
             entry["cpu_s"] += cumulative
-    measured = sum(value["cpu_s"] for value in parts.values())
+    # imports, building the environments and the agent, saving the final model
+    rest = total - sum(value["cpu_s"] for value in parts.values())
+    labelled = {PARTS[name]: value for name, value in parts.items()}
     report = {
         "task": args.task,
         "method": args.method,
         "steps": args.steps,
         "total_cpu_s": total,
-        "parts": {PARTS[name]: value for name, value in parts.items()},
-        # imports, building the environments and the agent, saving the final model
-        "rest_cpu_s": total - measured,
+        "parts": labelled,
+        "rest_cpu_s": rest,
+        "shares": {label: value["cpu_s"] / total for label, value in labelled.items()}
+        | {"the rest (imports, environments, agent, final save)": rest / total},
     }
-    report["shares"] = {
-        label: value["cpu_s"] / total for label, value in report["parts"].items()
-    } | {"the rest (imports, environments, agent, final save)": (total - measured) / total}
     print(json.dumps(report, indent=1))
     if args.out is not None:
         from distgprl.experiments.results import write_json

@@ -96,15 +96,16 @@ def bench_workers(sizes: BenchSizes, task: str = BENCH_TASK) -> list[dict[str, A
     like-for-like ratio (the in-process run of `bench_training` carries its section timers,
     which cost a few milliseconds per step, and is not the reference).
     """
-    out = [
-        {
-            "workers": count,
-            "steps_per_s_each": rates,
-            "aggregate_steps_per_s": float(sum(rates)),
-        }
-        for count in sizes.workers
-        for rates in [_worker_rates(count, sizes, task)]
-    ]
+    out = []
+    for count in sizes.workers:
+        rates = _worker_rates(count, sizes, task)
+        out.append(
+            {
+                "workers": count,
+                "steps_per_s_each": rates,
+                "aggregate_steps_per_s": float(sum(rates)),
+            }
+        )
     single = next((row["aggregate_steps_per_s"] for row in out if row["workers"] == 1), None)
     for row in out:
         row["speedup_vs_one"] = None if single is None else row["aggregate_steps_per_s"] / single
