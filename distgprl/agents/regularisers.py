@@ -5,8 +5,9 @@ adapted via-points exactly as the environment does (scale, S_W, frozen rows), an
 adapted trajectory is read through the GP's linear maps, so gradients reach the actor.
 
 Speed (issue 29): the whole action -> (velocity, acceleration, L_hap positions) read-out is one
-precomputed matrix applied to the batch in one product (`ActorRegulariser.readout`), and with a
-`HapPrior` the loss and its gradient w.r.t. the actions are computed together by hand and
+precomputed matrix applied to the batch in one batched product per axis (`ActorRegulariser.
+readout`, axis-major), and with a `HapPrior` the loss and its gradient w.r.t. the actions are
+computed together by hand (L_sim in one compiled pass, `distgprl.agents.similarity`) and
 attached to autograd as a single node (`ActorRegulariser._fused`). Values and gradients equal
 the earlier per-window autograd implementation to 1e-9 in float64 (tests/agents).
 """
@@ -20,6 +21,7 @@ import torch
 from torch import nn
 
 from distgprl.adaptation.layout import ActionLayout, AuxLayout
+from distgprl.agents.similarity import similarity_with_gradient
 from distgprl.config import SACConfig
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import ValueWithGradient
@@ -134,7 +136,7 @@ class ActorRegulariser(nn.Module):
                         [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
 
         for each axis j (D_s,j from axis j's S_W, environment v5): one batched
-        (B, 6, N + S*A_v) x (6, N + S*A_v, 2T + N_q) product for the batch.
+        (6, B, N + S*A_v) x (6, N + S*A_v, 2T + N_q) product for the batch (axis-major).
         Products are taken in float64 from the module's own (float32) buffers, so they are
         exact images of the maps that the per-window code applies.
         """
@@ -169,7 +171,8 @@ class ActorRegulariser(nn.Module):
         self._cast: dict[tuple, tuple[torch.Tensor, ...]] = {}
 
     def _flat(self, like: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """readout_map, readout_bias, demo_direction, scale, prior_mean as ``like`` (cached)."""
+        """readout_map, readout_bias, demo_direction, scale, prior_mean as ``like`` (cached),
+        and the action rows of the read-out map transposed, (6, 2T + N_q, S A_v)."""
         key = (like.dtype, like.device, self.readout_map.device, self.readout_map.data_ptr())
         cached = self._cast.get(key)
         if cached is None:
@@ -183,20 +186,22 @@ class ActorRegulariser(nn.Module):
                     self.prior_mean,
                 )
             )
+            actions_map = cached[0][:, self.n_via_points :].transpose(1, 2).contiguous()
+            cached = (*cached, actions_map)
             self._cast = {key: cached}
         return cached
 
     def readout(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Velocities, accelerations minus the demo's, positions of the adapted trajectory.
 
-        One matrix product (see `_build_flat_maps`). Shape (B, 6, 2T + N_q), axis-major:
-        ``[:, :, :T]`` velocities (m/s or rad/s: the skill's maps are per second), ``[:, :, T:2T]``
-        accelerations minus the demonstration's, ``[:, :3, 2T:]`` positions, m (rows 3-5 of
-        that block are the orientation components, unused).
+        One batched matrix product (see `_build_flat_maps`). Shape (6, B, 2T + N_q),
+        axis-major: ``[:, :, :T]`` velocities (m/s or rad/s: the skill's maps are per
+        second), ``[:, :, T:2T]`` accelerations minus the demonstration's, ``[:3, :, 2T:]``
+        positions, m (rows 3-5 of that block are the orientation components, unused).
         """
         batch = aux.shape[0]
         n, steps = self.n_via_points, self.n_steps
-        readout_map, bias, _, scale, prior_mean = self._flat(actions)
+        readout_map, bias, _, scale, prior_mean, _ = self._flat(actions)
         centered = aux[:, self.aux_layout.gamma].reshape(batch, n, 6).to(actions.dtype)
         centered = centered - prior_mean
         step = aux[:, self.aux_layout.step].argmax(dim=1)
@@ -204,8 +209,8 @@ class ActorRegulariser(nn.Module):
         raw = actions.reshape(batch, self.points_per_step, 6) * scale
         selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
         stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)
-        columns = stacked.transpose(1, 2)  # (B, 6, N + S A_v)
-        return torch.einsum("bjk,jkq->bjq", columns, readout_map) + bias
+        columns = stacked.permute(2, 0, 1)  # (6, B, N + S A_v)
+        return torch.baddbmm(bias.unsqueeze(1), columns, readout_map)
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""
@@ -234,13 +239,13 @@ class ActorRegulariser(nn.Module):
 
     def _similarity_from_readout(self, out: torch.Tensor) -> torch.Tensor:
         """Batch mean of L_sim (Eq. sim_compact) from `readout`'s output, a scalar."""
-        batch, t = out.shape[0], self._n_similarity
-        _, _, direction, _, _ = self._flat(out)
-        velocity = out[:, :, :t]  # (B, 6, T)
+        batch, t = out.shape[1], self._n_similarity
+        direction = self._flat(out)[2].unsqueeze(1)  # (6, 1, T)
+        velocity = out[:, :, :t]  # (6, B, T)
         # cos = v . d / (|v| |d|), d/|d| precomputed (torch's cosine_similarity clamps the
         # norms at 1e-8 likewise).
-        cos = (velocity * direction).sum(1) / velocity.square().sum(1).sqrt().clamp_min(1e-8)
-        l1 = out[:, :, t : 2 * t].abs().sum()  # sum over B, the 6 axes and T
+        cos = (velocity * direction).sum(0) / velocity.square().sum(0).sqrt().clamp_min(1e-8)
+        l1 = out[:, :, t : 2 * t].abs().sum()  # sum over the 6 axes, B and T
         samples = t * batch
         return self.weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
             self.acceleration_weight * l1 / samples
@@ -275,7 +280,7 @@ class ActorRegulariser(nn.Module):
             l_sim = self._similarity_from_readout(out)
             total = total + self.weights.lambda_sim * l_sim
             terms["l_sim"] = float(l_sim.detach())
-        positions = out[:, :3, 2 * self._n_similarity :].transpose(1, 2)  # (B, N_q, 3)
+        positions = out[:3, :, 2 * self._n_similarity :].permute(1, 2, 0)  # (B, N_q, 3)
         if self.moving_filter is None:
             l_hap = self.hap_prior.loss(positions)
         else:
@@ -289,78 +294,59 @@ class ActorRegulariser(nn.Module):
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Total (scalar) and d total / d actions (B, A), no autograd; fills ``terms``.
 
-        Gradients by hand through `readout` (linear): d out for L_sim (Eq. sim_compact:
-        d cos / d v = (d_hat - cos v_hat) / |v|, d |e| / d e = sign e) and for L_hap (the
-        soft-min's own gradient, `HapPrior.values_and_gradient`), then d columns =
+        Gradients by hand through `readout` (linear): d out for L_sim (Eq. sim_compact, one
+        compiled pass: `distgprl.agents.similarity.similarity_with_gradient`) and for L_hap
+        (the soft-min's own gradient, `HapPrior.values_and_gradient`), then d columns =
         d out @ readout_map^T, of which the sample's step block times the scale is d actions.
         """
         batch, t = actions.shape[0], self._n_similarity
-        readout_map, _, direction, scale, _ = self._flat(actions)
-        out = self.readout(aux, actions)  # (B, 6, 2T + N_q)
-        grad_out = torch.zeros_like(out)
-        total = out.new_zeros(())
+        direction = self._flat(actions)[2]
+        out = self.readout(aux, actions).detach().cpu().numpy()  # (6, B, 2T + N_q)
+        gradient = np.zeros(out.shape, dtype=out.dtype)
+        total = 0.0
         weights = self.weights
         if weights.lambda_sim > 0:
-            samples = t * batch
-            velocity = out[:, :, :t]  # (B, 6, T)
-            norm = velocity.square().sum(1).sqrt_().clamp_min_(1e-8)  # (B, T)
-            cos = (velocity * direction).sum(1).div_(norm)
-            error = out[:, :, t : 2 * t]
-            l_sim = weights.lambda_velocity * (1.0 - cos.sum() / samples) + (
-                self.acceleration_weight * error.abs().sum() / samples
-            )
-            total = total + weights.lambda_sim * l_sim
-            terms["l_sim"] = float(l_sim)
-            factor = -weights.lambda_sim * weights.lambda_velocity / samples
-            grad_velocity = grad_out[:, :, :t]  # written in place (views of grad_out)
-            torch.mul(velocity, (cos / norm).unsqueeze(1), out=grad_velocity)
-            torch.sub(direction, grad_velocity, out=grad_velocity)
-            grad_velocity.mul_((factor / norm).unsqueeze(1))
-            grad_error = grad_out[:, :, t : 2 * t]
-            torch.sign(error, out=grad_error)
-            grad_error.mul_(weights.lambda_sim * self.acceleration_weight / samples)
+            l_sim = similarity_with_gradient(
+                out, direction.cpu().numpy(), t, weights.lambda_velocity,
+                self.acceleration_weight, weights.lambda_sim, gradient,
+            )  # fmt: skip
+            total += weights.lambda_sim * l_sim
+            terms["l_sim"] = l_sim
         if self.hap_prior is not None:
-            positions = (
-                out[:, :3, 2 * t :].transpose(1, 2).contiguous().cpu().numpy()
-            )  # (B, N_q, 3)
+            positions = out[:3, :, 2 * t :].transpose(1, 2, 0).reshape(-1, 3)  # (B N_q, 3)
             anchors = None
             if self.moving_filter is not None:
                 anchors = self._anchors(aux).cpu().numpy()
             values, jacobian = self.hap_prior.values_and_gradient(
-                positions.reshape(-1, 3), anchors, self.moving_filter
+                positions, anchors, self.moving_filter
             )
-            l_hap = values.mean(dtype=np.float64)
-            total = total + weights.lambda_hap * float(l_hap)
-            terms["l_hap"] = float(l_hap)
-            grad_positions = torch.from_numpy(jacobian).to(out.device).reshape(batch, -1, 3)
-            grad_out[:, :3, 2 * t :] = grad_positions.transpose(1, 2) * (
+            l_hap = float(values.mean(dtype=np.float64))
+            total += weights.lambda_hap * l_hap
+            terms["l_hap"] = l_hap
+            gradient[:3, :, 2 * t :] = jacobian.reshape(batch, -1, 3).transpose(2, 0, 1) * (
                 weights.lambda_hap / len(values)
             )
+        grad_out = torch.from_numpy(gradient).to(actions.device)
         if self.split_gradients is not None:  # `term_gradients`: each term's own gradient
-            self.split_gradients["l_sim"] = self._to_actions(
-                aux, grad_out[:, :, : 2 * t], readout_map[:, :, : 2 * t], scale
-            )
-            self.split_gradients["l_hap"] = self._to_actions(
-                aux, grad_out[:, :, 2 * t :], readout_map[:, :, 2 * t :], scale
-            )
-        return total.to(actions.dtype), self._to_actions(aux, grad_out, readout_map, scale)
+            self.split_gradients["l_sim"] = self._to_actions(aux, grad_out, 0, 2 * t)
+            self.split_gradients["l_hap"] = self._to_actions(aux, grad_out, 2 * t, out.shape[2])
+        total_tensor = torch.tensor(total, dtype=actions.dtype, device=actions.device)
+        return total_tensor, self._to_actions(aux, grad_out, 0, out.shape[2])
 
     def _to_actions(
-        self,
-        aux: torch.Tensor,
-        grad_out: torch.Tensor,
-        readout_map: torch.Tensor,
-        scale: torch.Tensor,
+        self, aux: torch.Tensor, grad_out: torch.Tensor, first: int, stop: int
     ) -> torch.Tensor:
-        """d loss / d actions (B, A) from d loss / d `readout` (B, 6, Q) over readout columns
-        Q (``readout_map`` restricted to the same columns): d columns = d out @ map^T, of which
-        the sample's step block times the scale is d actions."""
-        batch, n, steps = grad_out.shape[0], self.n_via_points, self.n_steps
-        grad_columns = torch.einsum("bjq,jkq->bjk", grad_out, readout_map)  # (B, 6, N + S A_v)
-        grad_selected = grad_columns[:, :, n:].reshape(batch, 6, steps, -1)  # (B, 6, S, A_v)
+        """d loss / d actions (B, A) from d loss / d `readout` (6, B, Q) over the read-out
+        columns ``first:stop``: d columns = d out @ map^T for the action columns of the map
+        (6, Q, S A_v), of which the sample's step block times the scale is d actions."""
+        batch, steps = grad_out.shape[1], self.n_steps
+        flat = self._flat(grad_out)
+        scale, actions_map = flat[3], flat[5]
+        grad_selected = torch.bmm(grad_out[:, :, first:stop], actions_map[:, first:stop])
+        grad_selected = grad_selected.reshape(6, batch, steps, -1)  # (6, B, S, A_v)
         step = aux[:, self.aux_layout.step].argmax(dim=1)
-        grad_raw = grad_selected[torch.arange(batch), :, step]  # (B, 6, A_v)
-        return (grad_raw * scale.unsqueeze(-1)).transpose(1, 2).reshape(batch, -1)
+        grad_raw = grad_selected[:, torch.arange(batch), step]  # (6, B, A_v)
+        return (grad_raw * scale[:, None, None]).permute(1, 2, 0).reshape(batch, -1)
 
     def term_gradients(self, aux: torch.Tensor, actions: torch.Tensor) -> dict[str, torch.Tensor]:
         """Each weighted term's gradient w.r.t. the actions, ``{"l_sim": (B, A), "l_hap": (B,

@@ -144,8 +144,9 @@ def test_under_no_grad_the_value_is_the_same_and_carries_no_graph():
 
 @pytest.mark.parametrize(("method", "frozen"), LAYOUTS)
 def test_readout_equals_the_per_window_maps(method, frozen):
-    """`readout` equals V, A (minus the demo's) and H applied to the adapted via-points of
-    the reference (`adapted_via_points`, scatter of S_W (scale * a)), for every step."""
+    """`readout` (axis-major, (6, B, Q)) equals V, A (minus the demo's) and H applied to the
+    adapted via-points of the reference (`adapted_via_points`, scatter of S_W (scale * a)),
+    for every step."""
     weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.0)
     skill, layout, new, old = _pair(method, frozen, weights, False, False)
     aux, actions = _batch(skill, layout, np.random.default_rng(1), anchors=False)
@@ -157,9 +158,10 @@ def test_readout_equals_the_per_window_maps(method, frozen):
         old.acceleration_map @ centered - old.demo_acceleration,
         (old.hap_map @ centered + old.prior_mean)[..., :3],
     ]
-    parts = [out[:, :, :t], out[:, :, t : 2 * t], out[:, :3, 2 * t :]]
+    assert out.shape == (6, BATCH, 2 * t + old.hap_map.shape[0])
+    parts = [out[:, :, :t], out[:, :, t : 2 * t], out[:3, :, 2 * t :]]
     for part, reference in zip(parts, expected, strict=True):
-        np.testing.assert_allclose(part.transpose(1, 2), reference, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(part.permute(1, 2, 0), reference, rtol=0, atol=1e-10)
 
 
 def test_float32_regulariser_agrees_with_the_reference_to_float_precision():
