@@ -209,8 +209,8 @@ class ActorRegulariser(nn.Module):
         raw = actions.reshape(batch, self.points_per_step, 6) * scale
         selected = one_hot[:, :, None, None] * raw.unsqueeze(1)  # (B, S, A_v, 6)
         stacked = torch.cat([centered, selected.reshape(batch, -1, 6)], 1)  # (B, N + S A_v, 6)
-        columns = stacked.permute(2, 0, 1)  # (6, B, N + S A_v)
-        return torch.baddbmm(bias.unsqueeze(1), columns, readout_map)
+        columns = stacked.permute(2, 0, 1).contiguous()  # (6, B, N + S A_v)
+        return torch.bmm(columns, readout_map).add_(bias.unsqueeze(1))
 
     def adapted_via_points(self, aux: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Gamma + Delta Gamma for a batch, shape (B, N, 6) (Eqs. transformed/updated)."""

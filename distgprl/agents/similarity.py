@@ -53,32 +53,35 @@ def similarity_with_gradient(
     axes, batch = out.shape[0], out.shape[1]
     dtype = out.dtype
     samples = count * batch
-    norm = np.zeros((batch, count), dtype=dtype)
-    cosine = np.zeros((batch, count), dtype=dtype)
-    for a in range(axes):
-        for b in range(batch):
-            for t in range(count):
-                velocity = out[a, b, t]
-                norm[b, t] += velocity * velocity
-                cosine[b, t] += velocity * direction[a, t]
+    # per sample, over its T times: |v|^2 then factor / |v|, v . d_hat then cos / |v|
+    norm = np.empty(count, dtype=dtype)
+    cosine = np.empty(count, dtype=dtype)
+    ratio = np.empty(count, dtype=dtype)
     floor = dtype.type(NORM_FLOOR)
+    zero = dtype.type(0.0)
     factor = dtype.type(-gradient_scale * lambda_velocity / samples)
+    step = dtype.type(gradient_scale * acceleration_weight / samples)
     cosine_sums = np.zeros(count)
+    error_sums = np.zeros(count)
     for b in range(batch):
         for t in range(count):
-            length = max(np.sqrt(norm[b, t]), floor)
-            cosine[b, t] = cosine[b, t] / length
-            cosine_sums[t] += cosine[b, t]
-            norm[b, t] = length
-    step = dtype.type(gradient_scale * acceleration_weight / samples)
-    error_sums = np.zeros(count)
-    for a in range(axes):
-        for b in range(batch):
+            norm[t] = zero
+            cosine[t] = zero
+        for a in range(axes):
+            for t in range(count):
+                velocity = out[a, b, t]
+                norm[t] += velocity * velocity
+                cosine[t] += velocity * direction[a, t]
+        for t in range(count):
+            length = np.sqrt(norm[t])
+            length = length if length > floor else floor
+            value = cosine[t] / length
+            cosine_sums[t] += value
+            ratio[t] = value / length
+            norm[t] = factor / length
+        for a in range(axes):
             for t in range(count):  # (d_hat - cos v_hat) / |v|, Eq. sim_compact's cosine
-                length = norm[b, t]
-                gradient[a, b, t] = (direction[a, t] - out[a, b, t] * (cosine[b, t] / length)) * (
-                    factor / length
-                )
+                gradient[a, b, t] = (direction[a, t] - out[a, b, t] * ratio[t]) * norm[t]
             for t in range(count):  # sign of the acceleration error, its L1 term
                 error = out[a, b, count + t]
                 error_sums[t] += abs(error)
