@@ -173,43 +173,61 @@ def boxes_block(
     limit = margin * margin
     out = np.zeros((n, count), dtype=np.bool_)
     counts = np.zeros(n, dtype=np.int64)
-    local = np.empty(3)
+    # one row at a time, its candidates in branch-free loops (they vectorise): the first cut,
+    # then, if any candidate passes it, every box for every candidate
+    rx, ry, rz = np.empty(count), np.empty(count), np.empty(count)
+    near = np.empty(count, dtype=np.bool_)
+    hit = np.empty(count, dtype=np.bool_)
+    reach = bounds[0] * bounds[0]
     for i in range(n):
+        any_near = False
         for j in range(count):
             point = index[i, j]
-            rx = points[point, 0] - anchors[i, 0]
-            ry = points[point, 1] - anchors[i, 1]
-            rz = points[point, 2] - anchors[i, 2]
+            x = points[point, 0] - anchors[i, 0]
+            y = points[point, 1] - anchors[i, 1]
+            z = points[point, 2] - anchors[i, 2]
+            rx[j], ry[j], rz[j] = x, y, z
             if axis_aligned:
-                if not (
-                    abs(rx - bounds[1]) < bounds[4]
-                    and abs(ry - bounds[2]) < bounds[5]
-                    and abs(rz - bounds[3]) < bounds[6]
-                ):
-                    continue
-            elif not rx * rx + ry * ry + rz * rz < bounds[0] * bounds[0]:
-                continue
-            for b in range(boxes):
-                ex = rx - centres[b, 0]
-                ey = ry - centres[b, 1]
-                ez = rz - centres[b, 2]
-                if axis_aligned:
-                    local[0], local[1], local[2] = ex, ey, ez
-                else:
-                    for a in range(3):
-                        local[a] = (
-                            ex * rotations[b, 0, a] + ey * rotations[b, 1, a]
-                        ) + ez * rotations[b, 2, a]
+                inside = (
+                    (abs(x - bounds[1]) < bounds[4])
+                    & (abs(y - bounds[2]) < bounds[5])
+                    & (abs(z - bounds[3]) < bounds[6])
+                )
+            else:
+                inside = x * x + y * y + z * z < reach
+            near[j] = inside
+            any_near |= inside
+        if not any_near:
+            continue
+        hit[:] = False
+        for b in range(boxes):
+            for j in range(count):
+                ex = rx[j] - centres[b, 0]
+                ey = ry[j] - centres[b, 1]
+                ez = rz[j] - centres[b, 2]
+                if not axis_aligned:
+                    ex, ey, ez = (
+                        (ex * rotations[b, 0, 0] + ey * rotations[b, 1, 0])
+                        + ez * rotations[b, 2, 0],
+                        (ex * rotations[b, 0, 1] + ey * rotations[b, 1, 1])
+                        + ez * rotations[b, 2, 1],
+                        (ex * rotations[b, 0, 2] + ey * rotations[b, 1, 2])
+                        + ez * rotations[b, 2, 2],
+                    )
+                excess_x = max(abs(ex) - half_extents[b, 0], 0.0)
+                excess_y = max(abs(ey) - half_extents[b, 1], 0.0)
+                excess_z = max(abs(ez) - half_extents[b, 2], 0.0)
                 squared = 0.0
-                for a in range(3):
-                    excess = abs(local[a]) - half_extents[b, a]
-                    if excess < 0.0:
-                        excess = 0.0
-                    squared += excess * excess
-                if squared < limit:
-                    out[i, j] = True
-                    counts[i] += 1
-                    break
+                squared += excess_x * excess_x
+                squared += excess_y * excess_y
+                squared += excess_z * excess_z
+                hit[j] |= squared < limit
+        blocked = 0
+        for j in range(count):
+            value = hit[j] & near[j]
+            out[i, j] = value
+            blocked += value
+        counts[i] = blocked
     return out, counts
 
 
