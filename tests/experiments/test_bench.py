@@ -91,6 +91,17 @@ def test_run_benchmarks_tiny(tmp_path):
     suite = document["suite"]
     assert len(suite["methods"]) == 7 and "demo" not in suite["methods"]
     assert suite["hours_two_idle_cores"] == pytest.approx(suite["cpu_hours"] / 2)
+    # The floor: the products of a plain update and the bare physics of section 2b.
+    floor = suite["floor"]
+    assert floor["hours_idle_cores"] == pytest.approx(floor["cpu_hours"] / 2)
+    assert set(floor["physics_cpu_ms_per_step"]) == set(bench.TINY_SIZES.tasks)
+    for task in bench.TINY_SIZES.tasks:
+        assert (
+            floor["physics_cpu_ms_per_step"][task]
+            == document["environment"][task]["bare_physics_cpu_ms"]
+        )
+    assert floor["sac_update"]["calls_per_update"] == 49
+    assert 0 < floor["sac_update"]["matrix_product_share"] < 1
     breakdown = document["training"]["breakdown"]
     assert sum(part["fraction"] for part in breakdown.values()) == pytest.approx(1.0)
     agreements = ("edf_pybullet_max_abs_difference_m", "policy_numpy_vs_torch_max_abs_difference")
@@ -105,7 +116,7 @@ def test_run_benchmarks_tiny(tmp_path):
         else:
             assert value > 0, where
     table = bench.markdown_table(document)
-    assert table.count("|") > 40 and "per episode" in table
+    assert table.count("|") > 40 and "per episode" in table and "its floor" in table
 
 
 def test_suite_cpu_hours_is_seeds_times_steps_times_cost():

@@ -19,6 +19,9 @@ Sections of `run_benchmarks` (all measured in one process, so ratios compare lik
    number of worker processes.
 6. The paper suite's CPU-hours from a timed training step of every trainable method on every
    task (``suite.cpu_hours``, ``suite.hours_two_idle_cores``).
+7. The suite's floor (``suite.floor``): the matrix products of a plain SAC update, timed inside
+   real updates by a torch dispatch mode, plus the bare physics of section 2b, summed over the
+   suite's runs; what any implementation of the same algorithm pays on this machine.
 
 Every timing is wall time of the calling process; the machine's load average is recorded
 before and after, because other processes sharing the cores inflate every figure.
@@ -31,7 +34,7 @@ Modules (one per section, plus what they share; every name below is re-exported 
 - `pipeline`: `AdaptationPipeline`; `baselines`: `BulletDistance` and the naive pipeline.
 - `adaptation` (1, and `bench_gp`), `simulation` (2), `environment` (2b), `training` (3, 4),
   `scaling` (5a, 5b), `workers` (5c, and the worker protocol of ``python -m
-  distgprl.experiments.bench --worker``), `suite` (6).
+  distgprl.experiments.bench --worker``), `suite` (6), `floor` (7).
 - `markdown`, `plots`: the README table and the figure; `run`: `run_benchmarks`,
   `load_results`; `cli`: the argparse `main` of ``python -m distgprl.experiments.bench``.
 """
@@ -49,6 +52,12 @@ from distgprl.experiments.bench.adaptation import (
 from distgprl.experiments.bench.baselines import BulletDistance, naive_pipeline
 from distgprl.experiments.bench.cli import main
 from distgprl.experiments.bench.environment import bench_env_step
+from distgprl.experiments.bench.floor import (
+    MatrixProductClock,
+    bench_floor,
+    sac_update_matrix_products,
+    suite_floor,
+)
 from distgprl.experiments.bench.markdown import markdown_table
 from distgprl.experiments.bench.pipeline import AdaptationPipeline
 from distgprl.experiments.bench.plots import plot_results
@@ -101,11 +110,13 @@ __all__ = [
     "AdaptationPipeline",
     "BenchSizes",
     "BulletDistance",
+    "MatrixProductClock",
     "NumpyActor",
     "SectionTimers",
     "Timing",
     "bench_adaptation",
     "bench_env_step",
+    "bench_floor",
     "bench_gp",
     "bench_obstacle_scaling",
     "bench_sac_step",
@@ -125,8 +136,10 @@ __all__ = [
     "random_boxes",
     "run_benchmarks",
     "run_spec",
+    "sac_update_matrix_products",
     "sizes_for",
     "suite_cpu_hours",
+    "suite_floor",
     "training_breakdown",
     "training_worker",
 ]

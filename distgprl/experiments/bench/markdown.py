@@ -114,6 +114,19 @@ def markdown_table(document: dict[str, Any]) -> str:
             f"{suite['seeds']} seeds), CPU-hours (hours on two idle cores) | "
             f"{suite['cpu_hours']:.1f} ({suite['hours_two_idle_cores']:.1f}) |"
         )
+        if "floor" in suite:
+            floor = suite["floor"]
+            update = floor["sac_update"]
+            physics = ", ".join(
+                f"{task} {ms:.1f} ms" for task, ms in floor["physics_cpu_ms_per_step"].items()
+            )
+            lines.append(
+                f"| its floor: matrix products of a plain SAC update "
+                f"({update['matrix_products_ms']:.1f} ms, {update['gflop_per_update']:.2f} GFLOP "
+                f"at {update['gflops']:.0f} GFLOP/s) + bare physics per step ({physics}), "
+                f"CPU-hours (hours on two idle cores) | "
+                f"{floor['cpu_hours']:.1f} ({floor['hours_idle_cores']:.1f}) |"
+            )
     lines += ["", "| Where a training step's time goes | ms/step | share |", "|---|---|---|"]
     for name, part in sorted(training["breakdown"].items(), key=lambda kv: -kv[1]["fraction"]):
         lines.append(f"| {name} | {part['ms_per_step']:.2f} | {100 * part['fraction']:.0f}% |")

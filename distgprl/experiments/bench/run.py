@@ -11,6 +11,7 @@ from typing import Any
 
 from distgprl.experiments.bench.adaptation import bench_adaptation
 from distgprl.experiments.bench.environment import bench_env_step
+from distgprl.experiments.bench.floor import bench_floor, sac_update_matrix_products
 from distgprl.experiments.bench.plots import plot_results
 from distgprl.experiments.bench.scaling import bench_obstacle_scaling, bench_via_point_scaling
 from distgprl.experiments.bench.simulation import bench_simulation
@@ -63,6 +64,8 @@ def run_benchmarks(
         obstacles = bench_obstacle_scaling(env, model, sizes)
         say("SAC gradient step")
         sac_step = bench_sac_step(env, model, sizes.sac_repeats)
+        say("matrix products of a plain SAC update (the suite's floor)")
+        update_floor = sac_update_matrix_products(model, sizes.sac_repeats)
         env.close()
         say("adaptation vs via-points")
         via_points = bench_via_point_scaling(sizes)
@@ -78,6 +81,7 @@ def run_benchmarks(
     workers = bench_workers(sizes)
     say("suite cost: a training step of every method and task")
     suite = bench_suite(sizes)
+    suite["floor"] = bench_floor(update_floor, environment)
     document = {
         "quick": bool(quick),
         "sizes": asdict(sizes),

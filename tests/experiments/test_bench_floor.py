@@ -1,0 +1,93 @@
+"""The suite's floor (`distgprl.experiments.bench.floor`): the dispatch-mode clock sees exactly
+the matrix products an update runs, forward and backward, with their exact FLOPs; a plain SAC
+update of the paper's networks runs the products the algorithm needs and no others; the
+floor's arithmetic is checkable by hand."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from distgprl.experiments import bench
+
+
+def test_clock_counts_linear_forward_and_backward_products():
+    """nn.Linear(8, 4) on a (5, 8) input that needs its gradient: one addmm forward, two mm
+    backward (input and weight gradients), 2 x 5 x 8 x 4 FLOPs each; a bmm (3, 2, 4) @ (3, 4, 6)
+    adds 2 x 3 x 2 x 4 x 6; the element-wise ops in between are not counted."""
+    torch.manual_seed(0)
+    linear = torch.nn.Linear(8, 4)
+    x = torch.randn(5, 8, requires_grad=True)
+    with bench.MatrixProductClock() as clock:
+        linear(x).relu().square().sum().backward()
+        torch.bmm(torch.randn(3, 2, 4), torch.randn(3, 4, 6))
+    assert clock.calls == 4
+    assert clock.flops == 3 * 2 * 5 * 8 * 4 + 2 * 3 * 2 * 4 * 6
+    assert clock.seconds > 0
+    # Outside the `with`, nothing is counted.
+    linear(x).sum().backward()
+    assert clock.calls == 4
+
+
+def _sac_flops_per_sample(state: int, action: int, hidden: int) -> int:
+    """Multiply-adds per batch sample of one SB3 SAC update, two hidden layers of ``hidden``,
+    two critics, the actor loss through critics whose parameters are frozen."""
+    latent = state * hidden + hidden * hidden  # actor's two hidden layers
+    head = hidden * action  # mean or log-std head
+    critic = (state + action) * hidden + hidden * hidden + hidden  # one Q network
+    return (
+        2 * (latent + 2 * head)  # actor on observations and on next observations
+        + 2
+        * critic
+        * 5  # target on next; on replay actions, fwd + weight grads; on pi, fwd + input grads
+        + 2 * (hidden * hidden + hidden)  # critic loss: input grads of layers 2 and 3
+        + (latent + 2 * head)  # actor's weight gradients
+        + 2 * head
+        + hidden * hidden  # actor's input gradients below the heads
+    )
+
+
+def test_plain_sac_update_runs_the_products_of_the_algorithm():
+    """On the paper preset's DCP model (batch 256, 256 x 256 networks): 49 products per update
+    (26 addmm forward, 23 mm backward) and exactly the FLOPs of the SAC update's layers;
+    they are part of the update's time (share in (0, 1)); the regulariser is put back."""
+    from stable_baselines3.common.logger import configure
+
+    from distgprl.experiments.bench.training import _fill_replay_buffer
+    from distgprl.experiments.runner import make_agent, make_env
+
+    run = bench.run_spec("dcp")
+    env = make_env(run)
+    try:
+        model = make_agent(env, run)
+        model.set_logger(configure(None, []))
+        _fill_replay_buffer(model, env, 300)
+        regulariser = model.regulariser
+        assert regulariser is not None
+        result = bench.sac_update_matrix_products(model, updates=2, warmup=1)
+        assert model.regulariser is regulariser
+        state = env.observation_space["state"].shape[0]
+        action = env.action_space.shape[0]
+    finally:
+        env.close()
+    assert result["calls_per_update"] == 49
+    expected = 2 * 256 * _sac_flops_per_sample(state, action, 256)
+    assert result["gflop_per_update"] * 1e9 == pytest.approx(expected, rel=1e-12)
+    assert 0 < result["matrix_product_share"] < 1
+    assert 0 < result["matrix_products_ms"] < result["update_ms_with_clock"]
+
+
+def test_suite_floor_by_hand():
+    """Two tasks: 4 runs of 10 steps (2 before learning) at 0.5 s of physics per step and 3 s
+    of products per update: 4 (10 x 0.5 + 8 x 3) = 116 s; 4 runs of 20 steps (5 before) at
+    1 s: 4 (20 x 1 + 15 x 3) = 260 s; 376 s in all, half of it on two cores."""
+    floor = bench.suite_floor(
+        3.0, {"a": 0.5, "b": 1.0}, {"a": 10, "b": 20}, {"a": 2, "b": 5}, {"a": 4, "b": 4}, 2
+    )
+    assert floor["cpu_hours"] == pytest.approx(376 / 3600)
+    assert floor["hours_idle_cores"] == pytest.approx(188 / 3600)
+    assert floor["per_task"]["a"]["physics_cpu_hours"] == pytest.approx(20 / 3600)
+    assert floor["per_task"]["b"]["matrix_product_cpu_hours"] == pytest.approx(180 / 3600)
+    # learning_starts beyond the run: no update, physics only
+    alone = bench.suite_floor(3.0, {"a": 0.5}, {"a": 10}, {"a": 50}, {"a": 1}, 1)
+    assert alone["cpu_hours"] == pytest.approx(5 / 3600)
