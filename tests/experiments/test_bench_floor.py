@@ -35,15 +35,19 @@ def _sac_flops_per_sample(state: int, action: int, hidden: int) -> int:
     latent = state * hidden + hidden * hidden  # actor's two hidden layers
     head = hidden * action  # mean or log-std head
     critic = (state + action) * hidden + hidden * hidden + hidden  # one Q network
+    actor = latent + 2 * head  # actor forward, or its weight gradients
     return (
-        2 * (latent + 2 * head)  # actor on observations and on next observations
-        + 2
-        * critic
-        * 5  # target on next; on replay actions, fwd + weight grads; on pi, fwd + input grads
-        + 2 * (hidden * hidden + hidden)  # critic loss: input grads of layers 2 and 3
-        + (latent + 2 * head)  # actor's weight gradients
+        # actor on observations and on next observations
+        2 * actor
+        # critics: target on next; on replay actions, forward + weight gradients;
+        # on the actor's actions, forward + input gradients
+        + 5 * 2 * critic
+        # critic loss: input gradients of layers 2 and 3
+        + 2 * (hidden * hidden + hidden)
+        # actor loss: weight gradients, input gradients below the heads
+        + actor
         + 2 * head
-        + hidden * hidden  # actor's input gradients below the heads
+        + hidden * hidden
     )
 
 

@@ -157,36 +157,30 @@ def suite_floor(
 
 
 def bench_floor(
-    update: Mapping[str, Any], environment: Mapping[str, Mapping[str, Any]]
+    update: Mapping[str, Any],
+    environment: Mapping[str, Mapping[str, Any]],
+    suite: Mapping[str, Any],
 ) -> dict[str, Any]:
-    """Section 7: the paper suite's floor from the measured pieces.
+    """Section 7: the paper suite's floor from the measured pieces, over the runs of section 6.
 
     Args:
         update: `sac_update_matrix_products` of the bench's model.
-        environment: section 2b by task (`bench_env_step`: ``bare_physics_cpu_ms``); the floor
-            covers the tasks measured there (all of them in the full and quick benches).
+        environment: section 2b by task (`bench_env_step`: ``bare_physics_cpu_ms``).
+        suite: section 6 (`bench_suite`): its ``methods``, ``seeds`` and per-task
+            ``total_steps`` are the runs the floor covers.
     """
     from distgprl.config import load_config
     from distgprl.experiments.bench.suite import IDLE_CORES
-    from distgprl.identity import SWEEP_SEEDS
-    from distgprl.methods import TABLE_ORDER, get_method
 
-    tasks = list(environment)
-    configs = {task: load_config("paper", task) for task in tasks}
-    runs = sum(get_method(name).trainable for name in TABLE_ORDER) * len(SWEEP_SEEDS)
+    tasks = list(suite["total_steps"])
+    runs = len(suite["methods"]) * suite["seeds"]
+    physics_ms = {task: environment[task]["bare_physics_cpu_ms"] for task in tasks}
     floor = suite_floor(
         update["matrix_products_ms"] / 1e3,
-        {task: environment[task]["bare_physics_cpu_ms"] / 1e3 for task in tasks},
-        {task: configs[task].run.total_steps for task in tasks},
-        {task: configs[task].sac.learning_starts for task in tasks},
+        {task: ms / 1e3 for task, ms in physics_ms.items()},
+        suite["total_steps"],
+        {task: load_config("paper", task).sac.learning_starts for task in tasks},
         {task: runs for task in tasks},
         IDLE_CORES,
     )
-    return {
-        "sac_update": dict(update),
-        "physics_cpu_ms_per_step": {
-            task: environment[task]["bare_physics_cpu_ms"] for task in tasks
-        },
-        "seeds": len(SWEEP_SEEDS),
-        **floor,
-    }
+    return {"sac_update": dict(update), "physics_cpu_ms_per_step": physics_ms, **floor}

@@ -81,7 +81,7 @@ def run_benchmarks(
     workers = bench_workers(sizes)
     say("suite cost: a training step of every method and task")
     suite = bench_suite(sizes)
-    suite["floor"] = bench_floor(update_floor, environment)
+    suite["floor"] = bench_floor(update_floor, environment, suite)
     document = {
         "quick": bool(quick),
         "sizes": asdict(sizes),
