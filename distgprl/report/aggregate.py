@@ -21,14 +21,30 @@ rliable's ``StratifiedBootstrap``, ``StratifiedIndependentBootstrap`` and ``metr
   "lower is better" scores are negated first;
 - the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates.
 
+A PoI's interval is never narrower than the data allow. When every run pair agrees (PoI 0
+or 1 on a task), every bootstrap replicate agrees too and the percentile interval has zero
+width, although five runs per method cannot show a certain effect. So the PoI interval is
+the hull of the percentile interval and a score interval that depends only on the PoI and
+the runs per method: Newcombe's (2006, *Stat. Med.* 25, 559, method 5) Wilson-type interval
+for the Mann-Whitney effect size, the set of θ with (θ̂ − θ)² ≤ z² V(θ), V the Hanley-McNeil
+variance with exponential approximations (`newcombe_interval`). For 5 against 5 runs that all
+agree it is [0.65, 1], as decisive as the exact Mann-Whitney test (p = 0.008) and no more.
+Pooled over tasks, the PoI's interval is the hull of the percentile interval and the mean of
+the per-task score bounds: two tasks with opposite decisive effects (1 and 0) pool to 0.5
+with an interval as wide as the tasks' own, not to [0.5, 0.5].
+
 Unlike rliable's matrices, strata may hold different numbers of runs (runs still
 accumulating). A stratum of fewer than two runs has no interval (`Estimate.text` says so).
 Randomness is passed in: each estimate draws from its own generator, seeded by the table's
 seed and the estimate's name (`estimate_rng`), so adding a method or a run of another
 method leaves every other interval unchanged.
 
-Learning-curve measures per run (`curve_measures`, from ``progress.csv``; the claims table's,
-fixed before any v5 run was looked at) are scored here too (`run_scores`).
+Learning-curve measures per run (`curve_measures`, from ``progress.csv``) are scored here too
+(`run_scores`). They are measured against the start of learning, the untrained policy's
+curve success (step 0, same fixed curve TCs), never against the run's own final value, so
+that a curve that does not learn neither converges fast nor counts as stable (definitions
+and the reason for each in `curve_measures`; issue 47 replaced the v5 measures ``steps_to_80``,
+``late_variance`` and ``curve_auc``, which rewarded flat curves).
 """
 
 from __future__ import annotations
@@ -43,6 +59,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy import stats
+from scipy.optimize import brentq
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
@@ -73,18 +90,23 @@ RATES = (("success_rate", "Success"), ("collision_rate", "Collision"))
 HIGHER_IS_BETTER: dict[str, bool] = {
     "success_rate": True,
     "collision_rate": False,
-    "steps_to_80": False,
-    "late_variance": False,
-    "curve_auc": True,
+    "steps_to_gain": False,
+    "learned_drop": False,
+    "learning_auc": True,
     "mean_kinematic_retention": True,
 }
 """Every score `run_scores` gives, and whether a higher value is an improvement."""
 
-CONVERGENCE_FRACTION = 0.8
-"""`curve_measures`' ``steps_to_80``: the share of the run's final curve success to reach."""
+GAIN_MARGIN = 0.2
+"""`curve_measures`: the rise in curve success above the untrained policy's that counts as
+learning. Two standard errors of the difference of two curve points at p = 1/2 on the paper's
+50 curve TCs: 2 √(2 · 0.25 / 50) = 0.2. A curve that only wanders by binomial noise crosses
+it at one point with probability ≈ 0.02, and at two consecutive points (`GAIN_POINTS`)
+almost never."""
 
-LATE_FRACTION = 1.0 / 3.0
-"""`curve_measures`' ``late_variance``: the share of the last curve points it is over."""
+GAIN_POINTS = 2
+"""`curve_measures`: consecutive curve points that must all lie `GAIN_MARGIN` above the
+start for the run to count as having learned (one point could be noise)."""
 
 Strata = Sequence[np.ndarray]
 """One 1-D array of per-run scores per stratum (task)."""
@@ -99,14 +121,17 @@ class Estimate:
 
     Attributes:
         point: the statistic on the data (nan with no runs).
-        low, high: the `CONFIDENCE` percentile interval (nan if a stratum has < 2 runs).
+        low, high: the `CONFIDENCE` interval (nan if a stratum has < 2 runs): the bootstrap
+            percentile interval, for a PoI widened to its score bound (module docstring).
         seeds: runs per stratum (for a PoI, the smaller of the two methods' per stratum).
+        pairs: for a PoI, the run pairs (n_X n_Y) per stratum; empty otherwise.
     """
 
     point: float
     low: float
     high: float
     seeds: tuple[int, ...]
+    pairs: tuple[int, ...] = ()
 
     @property
     def has_interval(self) -> bool:
@@ -121,6 +146,15 @@ class Estimate:
         if not self.has_interval:
             return f"{self.point:.{digits}f} ({min(self.seeds)} seed: no interval)"
         return f"{self.point:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+
+    def pairs_text(self) -> str:
+        """For a PoI on one stratum, the run pairs that favour X (ties count half), e.g.
+        ``25/25 run pairs``; empty otherwise."""
+        if len(self.pairs) != 1 or not self.seeds:
+            return ""
+        won = self.point * self.pairs[0]
+        count = f"{won:.0f}" if abs(won - round(won)) < 1e-9 else f"{won:.1f}"
+        return f"{count}/{self.pairs[0]} run pairs"
 
 
 def estimate_rng(seed: int, *names: str) -> np.random.Generator:
@@ -175,6 +209,32 @@ def interval_estimate(
     return Estimate(point, low, high, seeds)
 
 
+def _hanley_mcneil_variance(theta: float, n_x: int, n_y: int) -> float:
+    """Newcombe's (2006) method-5 variance of a Mann-Whitney effect size ``theta`` for
+    samples of ``n_x`` and ``n_y``: Hanley-McNeil's with Q1 = θ/(2-θ), Q2 = 2θ²/(1+θ) and both
+    sample sizes replaced by their mean N, V = θ(1-θ)[1 + (N-1)(1-θ)/(2-θ) + (N-1)θ/(1+θ)]
+    / (n_x n_y)."""
+    n = (n_x + n_y) / 2.0
+    shape = 1.0 + (n - 1.0) * (1.0 - theta) / (2.0 - theta) + (n - 1.0) * theta / (1.0 + theta)
+    return theta * (1.0 - theta) * shape / (n_x * n_y)
+
+
+def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
+    """The `CONFIDENCE` score interval of a PoI ``theta`` (in [0, 1]) of ``n_x`` runs
+    against ``n_y``: every θ with (theta - θ)² <= z² V(θ) (`_hanley_mcneil_variance`), the
+    Wilson construction, so it is not degenerate at 0 or 1 (5 vs 5 runs at 1: [0.65, 1])."""
+    z = stats.norm.ppf(0.5 + CONFIDENCE / 2.0)
+
+    def outside(candidate: float) -> float:  # > 0 where candidate lies outside the interval
+        return (theta - candidate) ** 2 - z**2 * _hanley_mcneil_variance(candidate, n_x, n_y)
+
+    # At theta = 0 or 1 the variance vanishes there, so search from just inside the range.
+    inner = min(max(theta, 1e-12), 1.0 - 1e-12)
+    low = 0.0 if outside(0.0) <= 0.0 else brentq(outside, 0.0, inner)
+    high = 1.0 if outside(1.0) <= 0.0 else brentq(outside, inner, 1.0)
+    return float(low), float(high)
+
+
 def probability_of_improvement(
     x_strata: Strata,
     y_strata: Strata,
@@ -184,7 +244,9 @@ def probability_of_improvement(
 ) -> Estimate:
     """The PoI of X over Y (module docstring), averaged over the strata where both have
     runs, with its independent stratified-bootstrap interval (rliable
-    ``get_interval_estimates`` on ``[scores_x, scores_y]``)."""
+    ``get_interval_estimates`` on ``[scores_x, scores_y]``) widened to the mean of the
+    strata's `newcombe_interval` bounds (module docstring: never narrower than the data
+    allow)."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))
@@ -194,29 +256,45 @@ def probability_of_improvement(
     if not pairs:
         return Estimate(math.nan, math.nan, math.nan, ())
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
-    point = float(np.mean([_improvement(x[None, :], y[None, :])[0] for x, y in pairs]))
+    sizes = tuple(len(x) * len(y) for x, y in pairs)
+    per_stratum = [float(_improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
+    point = float(np.mean(per_stratum))
     if min(seeds) < 2:
-        return Estimate(point, math.nan, math.nan, seeds)
+        return Estimate(point, math.nan, math.nan, seeds, sizes)
     replicates = np.mean(
         [_improvement(_resample(x, reps, rng), _resample(y, reps, rng)) for x, y in pairs],
         axis=0,
     )
     low, high = _percentiles(replicates)
-    return Estimate(point, low, high, seeds)
+    bounds = [
+        newcombe_interval(p, len(x), len(y)) for p, (x, y) in zip(per_stratum, pairs, strict=True)
+    ]
+    score_low = float(np.mean([b[0] for b in bounds]))
+    score_high = float(np.mean([b[1] for b in bounds]))
+    return Estimate(point, min(low, score_low), max(high, score_high), seeds, sizes)
 
 
 def curve_measures(path: Path) -> dict[str, float]:
-    """Learning-curve measures of one run's ``progress.csv`` (points: step, curve success
-    on the fixed curve TCs); empty if it has none or fewer than two trained points.
+    """Learning-curve measures of one run's ``progress.csv`` (points: step, curve success on
+    the fixed curve TCs), each against the run's start ``s0``, the untrained policy's curve
+    success at step 0; empty without a step-0 point or with fewer than two trained points.
 
-    - ``steps_to_80``: the first step > 0 whose curve success reaches `CONVERGENCE_FRACTION`
-      of the last point's (the final curve success); the last step if the final curve
-      success is 0 (never converged). Lower is better (faster convergence).
-    - ``late_variance``: the variance (ddof = 0) of curve success over the last
-      `LATE_FRACTION` of the trained points (at least two). Lower is better (stability).
-    - ``curve_auc``: the area under curve success over steps, all points (step 0 too),
-      divided by the steps covered: a mean success in [0, 1]. Higher is better (sample
-      efficiency).
+    - ``learning_auc`` (sample efficiency, "better performance earlier in training"): the
+      area under (curve success - s0) over steps, all points, divided by the steps covered:
+      the mean gain over the untrained policy during training, in [-1, 1]. A flat curve
+      scores 0 and a curve that falls below its start scores below 0, so staying where the
+      untrained policy is earns nothing, and learning early earns more than learning late.
+      Higher is better.
+    - ``steps_to_gain`` (convergence speed, "accelerates convergence"): the first trained
+      step from which `GAIN_POINTS` consecutive points all reach s0 + `GAIN_MARGIN`; a run
+      that never does is censored one curve period past its last step (it ranks behind every
+      run that learned and ties with the others that did not). A flat curve never converges.
+      Lower is better.
+    - ``learned_drop`` (stability, "improves stability"): from that step on, the mean drop
+      of curve success per curve period, mean(max(0, s_k - s_k+1)): how much of what was
+      learned is lost again. Rising steadily scores 0; oscillating or collapsing scores high;
+      a run that never learned scores +inf, the worst, because a flat curve is not stable
+      learning. Lower is better.
     """
     if not path.exists():
         return {}
@@ -224,22 +302,21 @@ def curve_measures(path: Path) -> dict[str, float]:
     steps = np.array([float(r["step"]) for r in rows])
     success = np.array([float(r["success_rate"]) for r in rows])
     trained = steps > 0
-    if trained.sum() < 2:
+    if trained.sum() < 2 or not np.any(steps == 0):
         return {}
+    start = float(success[np.flatnonzero(steps == 0)[0]])
     t_steps, t_success = steps[trained], success[trained]
-    final = t_success[-1]
-    if final > 0:
-        reached = np.flatnonzero(t_success >= CONVERGENCE_FRACTION * final)[0]
-        steps_to = float(t_steps[reached])
+    auc = np.trapezoid(success - start, steps) / (steps[-1] - steps[0])  # mean gain
+    above = t_success >= start + GAIN_MARGIN - 1e-12
+    runs = np.lib.stride_tricks.sliding_window_view(above, GAIN_POINTS).all(axis=1)
+    if runs.any():
+        first = int(np.flatnonzero(runs)[0])
+        steps_to = float(t_steps[first])
+        drop = float(np.mean(np.maximum(0.0, -np.diff(t_success[first:]))))
     else:
-        steps_to = float(t_steps[-1])
-    late = max(2, math.ceil(len(t_success) * LATE_FRACTION))
-    auc = np.trapezoid(success, steps) / (steps[-1] - steps[0])  # mean success over steps
-    return {
-        "steps_to_80": steps_to,
-        "late_variance": float(np.var(t_success[-late:])),
-        "curve_auc": float(auc),
-    }
+        steps_to = float(t_steps[-1] + (t_steps[-1] - t_steps[-2]))  # censored: never
+        drop = math.inf
+    return {"learning_auc": float(auc), "steps_to_gain": steps_to, "learned_drop": drop}
 
 
 def run_scores(folder: Path, summary: Mapping[str, float]) -> dict[str, float]:

@@ -18,6 +18,7 @@ from distgprl.report.aggregate import (
     interval_estimate,
     iqm,
     mean_of_strata,
+    newcombe_interval,
     probability_of_improvement,
 )
 
@@ -121,16 +122,79 @@ def _curve(path, successes, step=1000):
 
 
 def test_curve_measures_follow_their_stated_definitions(tmp_path):
-    """steps_to_80: first trained step at >= 80 % of the final point; late variance over the
-    last third of the trained points; AUC the trapezoid area over the steps covered."""
+    """Against the start s0 (step 0): learning_auc the trapezoid mean of (curve - s0);
+    steps_to_gain the first step from which two points hold s0 + 0.2; learned_drop the mean
+    drop per period from there."""
     path = tmp_path / "progress.csv"
     assert curve_measures(path) == {}
-    curve = [0.0, 0.2, 0.5, 0.8, 0.6, 1.0, 0.9]  # steps 0..6000; final 0.9 -> threshold 0.72
+    curve = [0.1, 0.2, 0.35, 0.5, 0.4, 0.7, 0.6]  # steps 0..6000; 0.3 first at 2000 then 3000
     _curve(path, curve)
     measures = curve_measures(path)
-    assert measures["steps_to_80"] == 3000.0
-    assert measures["late_variance"] == pytest.approx(np.var([1.0, 0.9]))  # ceil(6/3) = 2
-    expected_auc = np.trapezoid(curve, np.arange(7) * 1000.0) / 6000.0
-    assert measures["curve_auc"] == pytest.approx(expected_auc)
-    _curve(path, [0.5, 0.0, 0.0, 0.0])  # never succeeds: converges at the last step
-    assert curve_measures(path)["steps_to_80"] == 3000.0
+    expected_auc = np.trapezoid(np.array(curve) - 0.1, np.arange(7) * 1000.0) / 6000.0
+    assert measures["learning_auc"] == pytest.approx(expected_auc)
+    assert measures["steps_to_gain"] == 2000.0
+    assert measures["learned_drop"] == pytest.approx((0.1 + 0.1) / 4)  # 4 periods from 2000
+
+
+def test_a_flat_curve_neither_converges_nor_counts_as_stable(tmp_path):
+    """A curve that stays at its start (or wanders within the margin) has no area above it,
+    is censored one period past its last step and is the least stable (+inf); a curve that
+    falls below its start has a negative area; a single point above the margin is noise."""
+    path = tmp_path / "progress.csv"
+    _curve(path, [0.44, 0.44, 0.44, 0.44, 0.44])
+    flat = curve_measures(path)
+    assert flat == {"learning_auc": 0.0, "steps_to_gain": 5000.0, "learned_drop": math.inf}
+    _curve(path, [0.4, 0.5, 0.3, 0.55, 0.45, 0.5])
+    wander = curve_measures(path)
+    assert wander["steps_to_gain"] == 6000.0 and wander["learned_drop"] == math.inf
+    _curve(path, [0.3, 0.0, 0.0, 0.0])
+    assert curve_measures(path)["learning_auc"] < 0
+    _curve(path, [0.1, 0.1, 0.5, 0.1, 0.1])  # one point above 0.3: not learned
+    assert curve_measures(path)["learned_drop"] == math.inf
+
+
+def test_a_steady_riser_is_stable_and_earlier_learning_scores_more(tmp_path):
+    """A curve rising without a drop has learned_drop 0; the same rise one period earlier has
+    the larger area and the earlier steps_to_gain."""
+    path = tmp_path / "progress.csv"
+    _curve(path, [0.1, 0.2, 0.4, 0.6, 0.8, 0.8])
+    late = curve_measures(path)
+    assert late["learned_drop"] == 0.0
+    _curve(path, [0.1, 0.4, 0.6, 0.8, 0.8, 0.8])
+    early = curve_measures(path)
+    assert early["learning_auc"] > late["learning_auc"]
+    assert early["steps_to_gain"] < late["steps_to_gain"]
+
+
+def test_newcombe_interval_is_wilson_like():
+    """The score interval of a PoI: never degenerate at 0 or 1 for finite samples
+    (5 vs 5 at 1: lower bound about 0.64, above 1/2 like the exact Mann-Whitney test at
+    p = 0.008; 2 vs 2 at 1: not above 1/2, like the exact p = 0.33), symmetric under
+    θ -> 1 - θ, containing the estimate, narrowing as runs grow."""
+    low, high = newcombe_interval(1.0, 5, 5)
+    assert high == 1.0 and 0.6 < low < 0.7
+    assert stats.mannwhitneyu([1, 2, 3, 4, 5], [-1, -2, -3, -4, -5]).pvalue < 0.01
+    assert newcombe_interval(1.0, 2, 2)[0] < 0.5
+    mirrored = newcombe_interval(0.0, 5, 5)
+    assert mirrored == pytest.approx((1.0 - high, 1.0 - low))
+    for theta in (0.1, 0.5, 0.8):
+        low, high = newcombe_interval(theta, 5, 5)
+        assert low < theta < high
+    assert np.diff(newcombe_interval(0.8, 20, 20)) < np.diff(newcombe_interval(0.8, 5, 5))
+
+
+def test_a_poi_interval_is_never_narrower_than_its_score_bound():
+    """All 25 run pairs agreeing: the bootstrap percentile interval alone is [1, 1]; the
+    PoI's interval is the Newcombe bound instead. Two strata with opposite decisive effects
+    pool to 1/2 with an interval as wide as the strata's own, not [0.5, 0.5]."""
+    rng = np.random.default_rng(0)
+    x, y = np.array(CLEAR), np.array(WEAK)
+    one = probability_of_improvement([x], [y], rng)
+    assert one.point == 1.0 and one.pairs == (25,)
+    assert (one.low, one.high) == pytest.approx(newcombe_interval(1.0, 5, 5))
+    assert one.pairs_text() == "25/25 run pairs"
+    both = probability_of_improvement([x, y], [y, x], np.random.default_rng(0))
+    assert both.point == 0.5
+    own_width = 1.0 - newcombe_interval(1.0, 5, 5)[0]
+    assert both.low < 0.5 < both.high
+    assert both.high - both.low == pytest.approx(own_width)

@@ -7,12 +7,16 @@ import numpy as np
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.claims import (
+    BALANCE,
     FEW_SEEDS,
     INCONCLUSIVE,
     NO_RUNS,
     POI_CLAIMS,
     REFUTED,
     REPRODUCED,
+    TASKS_DISAGREE,
+    TaskVerdict,
+    combine,
     evaluate_claims,
 )
 from distgprl.report.tables import write_tables
@@ -51,8 +55,7 @@ FIELD = {  # every trained method; Dist-GPRL best, GPRL collides most, ProMP-RRL
     "gprl-h": runs(0.6, 0.35, retention=0.6),
     "dist-gprl": runs(0.9, 0.1, retention=0.7),
     "dist-gprl-nocov": runs(0.7, 0.15, retention=0.7),
-}  # Dist-GPRL dominates GPRL, Global, GPRL-D/H on (collision, retention); nobody dominates it
-BALANCE = "Dist-GPRL balances collisions and kinematic retention"
+}  # Dist-GPRL dominates every other method on (success, collision, retention)
 
 
 def test_a_clear_improvement_is_reproduced():
@@ -60,8 +63,12 @@ def test_a_clear_improvement_is_reproduced():
     0.5, "reproduced"; so are the ranking claims the field was built to satisfy."""
     verdicts = by_claim(evaluate_claims(scores_of(FIELD), seed=0))
     windowed = verdicts["Windowed adaptation beats global"]
-    assert windowed.estimate.point == 1.0 and windowed.estimate.low > 0.5
-    assert windowed.estimate.seeds == (SEEDS, SEEDS)
+    assert [t.task for t in windowed.per_task] == ["dcp", "dbm"]
+    for task in windowed.per_task:
+        assert task.estimate.point == 1.0 and task.estimate.low > 0.5
+        assert task.estimate.seeds == (SEEDS,) and task.verdict == REPRODUCED
+        assert task.detail == "25/25 run pairs favour Dist-GPRL"
+    assert windowed.pooled.estimate.seeds == (SEEDS, SEEDS)
     assert windowed.verdict == REPRODUCED
     assert verdicts["The distance rewards lower collisions"].verdict == REPRODUCED
     assert verdicts["Dist-GPRL has the best success"].verdict == REPRODUCED
@@ -72,16 +79,33 @@ def test_a_clear_improvement_is_reproduced():
     assert verdicts[BALANCE].verdict == REPRODUCED
 
 
-def test_balance_is_refuted_by_a_dominating_method_and_inconclusive_without_dominance():
-    """A method with fewer collisions *and* more kinematic retention (both intervals apart)
-    refutes "balances"; when every method overlaps Dist-GPRL on one of the two scores, no
-    one dominates anyone and the claim is inconclusive."""
-    field = {**FIELD, "promp-rrl": runs(0.2, 0.05, retention=0.9)}
+def test_a_method_better_on_all_three_axes_dominates_and_refutes_balance():
+    """A method with more success, fewer collisions and more kinematic retention (intervals
+    apart) dominates Dist-GPRL: "balances" is refuted and Dist-GPRL leaves the
+    non-dominated set."""
+    field = {**FIELD, "promp-rrl": runs(0.95, 0.02, retention=0.9)}
     verdict = by_claim(evaluate_claims(scores_of(field), seed=0))[BALANCE]
-    assert verdict.verdict == REFUTED and "dominated by ProMP-RRL" in verdict.detail
+    assert verdict.verdict == REFUTED
+    for task in verdict.per_task:
+        assert "dominated by ProMP-RRL" in task.detail
+        assert task.detail.endswith("non-dominated: ProMP-RRL")
+
+
+def test_balance_counts_success():
+    """Equal collisions and retention but decisively more success is dominance: a rival
+    better on success alone (ties elsewhere) refutes the balance, which a rule over
+    collisions and retention only could not see."""
+    field = {**FIELD, "gprl-d": runs(0.99, 0.1, retention=0.7)}
+    assert by_claim(evaluate_claims(scores_of(field), seed=0))[BALANCE].verdict == REFUTED
+
+
+def test_balance_is_inconclusive_when_nobody_is_apart():
+    """Every method overlapping Dist-GPRL on every axis: no one dominates anyone, and a
+    non-dominated Dist-GPRL that dominates no one does not "balance" anything."""
     flat = {m: runs(0.5, 0.2, retention=0.5) for m in FIELD}
-    flat["dist-gprl"] = runs(0.9, 0.2, retention=0.5)
-    assert by_claim(evaluate_claims(scores_of(flat), seed=0))[BALANCE].verdict == INCONCLUSIVE
+    verdict = by_claim(evaluate_claims(scores_of(flat), seed=0))[BALANCE]
+    assert verdict.verdict == INCONCLUSIVE
+    assert "dominates none; dominated by none" in verdict.per_task[0].detail
 
 
 def test_identical_distributions_are_inconclusive():
@@ -90,7 +114,8 @@ def test_identical_distributions_are_inconclusive():
     field = {**FIELD, "gprl-d": FIELD["dist-gprl"]}
     verdicts = by_claim(evaluate_claims(scores_of(field), seed=0))
     hap = verdicts["The HAP prior raises final success"]
-    assert hap.estimate.point == 0.5 and hap.verdict == INCONCLUSIVE
+    assert hap.on("dcp").estimate.point == 0.5 and hap.verdict == INCONCLUSIVE
+    assert hap.on("dcp").estimate.low < 0.5 < hap.on("dcp").estimate.high
     assert verdicts["Dist-GPRL has the best success"].verdict == INCONCLUSIVE
 
 
@@ -105,9 +130,10 @@ def test_a_clear_deterioration_is_refuted():
 
 
 def test_learning_curve_claims_use_their_measures():
-    """Fewer steps to 80 % and lower late variance are improvements; a higher AUC is."""
-    fast = {"steps_to_80": 3000.0, "late_variance": 0.001, "curve_auc": 0.8}
-    slow = {"steps_to_80": 9000.0, "late_variance": 0.02, "curve_auc": 0.4}
+    """Fewer steps to the gain and a smaller drop once learned are improvements; a larger
+    learning area is; never learning (drop +inf) is the worst stability."""
+    fast = {"steps_to_gain": 3000.0, "learned_drop": 0.001, "learning_auc": 0.4}
+    slow = {"steps_to_gain": 9000.0, "learned_drop": float("inf"), "learning_auc": 0.0}
     field = {**FIELD, "dist-gprl": runs(0.9, 0.1, fast)}
     field["gprl-d"] = runs(0.6, 0.2, slow)
     field["dist-gprl-nocov"] = runs(0.7, 0.15, slow)
@@ -133,13 +159,17 @@ def test_no_runs_and_single_seeds_are_inconclusive_with_the_reason():
 
 
 def test_a_claim_without_runs_names_the_methods_it_waits_for():
-    """ "(no runs)" says which needed methods have no run on any pooled task."""
+    """ "(no runs)" says which needed methods have no run, and on which task when they
+    have runs on another."""
     field = {m: r for m, r in FIELD.items() if m not in ("gprl-d", "gprl-h")}
     verdicts = by_claim(evaluate_claims(scores_of(field), seed=0))
     hap = verdicts["The HAP prior raises final success"]
     assert (hap.verdict, hap.detail) == (NO_RUNS, "no runs yet: GPRL-D")
     best = verdicts["Dist-GPRL has the best success"]
-    assert best.verdict == NO_RUNS and best.detail.endswith("; no runs yet: GPRL-D, GPRL-H")
+    assert (best.verdict, best.detail) == (NO_RUNS, "no runs yet: GPRL-D, GPRL-H")
+    partial = {**scores_of(field), ("dbm", "gprl-d"): FIELD["gprl-d"]}
+    hap = by_claim(evaluate_claims(partial, seed=0))["The HAP prior raises final success"]
+    assert (hap.verdict, hap.detail) == (NO_RUNS, "no runs yet: GPRL-D (DCP)")
     assert verdicts["Windowed adaptation beats global"].verdict != NO_RUNS
     assert "no runs" not in verdicts["Windowed adaptation beats global"].detail
     nothing = by_claim(evaluate_claims({}, seed=0))["GPRL collides most"]
@@ -181,37 +211,75 @@ def test_write_tables_writes_the_aggregates_and_the_claims_from_a_result_tree(tm
         assert {f"{stem}.csv", f"{stem}.csv.meta.json", f"{stem}.md"} <= written
     meta, rows = read_csv(tmp_path / "out" / "claims_p.csv")
     assert meta["kind"] == "table"
-    windowed = next(r for r in rows if r["claim"] == "Windowed adaptation beats global")
-    assert windowed["verdict"] == REPRODUCED and float(windowed["ci_low"]) > 0.5
-    assert windowed["seeds"] == "5;5"
+    windowed = [r for r in rows if r["claim"] == "Windowed adaptation beats global"]
+    assert [r["task"] for r in windowed] == ["dcp", "dbm", "all"]
+    assert {r["verdict"] for r in windowed} == {REPRODUCED}
+    assert all(float(r["ci_low"]) > 0.5 for r in windowed)
+    assert windowed[-1]["seeds"] == "5;5" and windowed[-1]["pairs"] == "25;25"
     markdown = (tmp_path / "out" / "claims_p.md").read_text()
-    assert markdown.count("| inconclusive (no runs) |") == 9  # every other claim
+    assert markdown.count("| **inconclusive (no runs)** |") == 9  # every other claim
     _, aggregates = read_csv(tmp_path / "out" / "aggregates_p.csv")
     pooled = [r for r in aggregates if r["task"] == "all" and r["statistic"] == "poi"]
     assert {r["versus"] for r in pooled} == {"dist-gprl-global"}
 
 
-def test_a_pooled_poi_names_each_tasks_poi_and_says_when_the_tasks_disagree():
-    """Dist-GPRL's curve area far above NoCov's on DCP and far below on DBM: the pooled PoI
-    averages 1 and 0 (0.50 with no width), which alone reads as "no effect"; the detail
-    gives each task's PoI and says the tasks disagree. The verdict stays the pooled rule's;
-    where the tasks agree the detail says nothing more."""
-    from distgprl.report.claims import TASKS_DISAGREE
-
+def test_opposite_decisive_effects_read_tasks_disagree_with_a_real_interval():
+    """Dist-GPRL's learning area far above NoCov's on DCP and far below on DBM: each task
+    decides its own way (25/25 and 0/25 run pairs), the overall verdict is "the tasks
+    disagree", and the pooled PoI beside them is 0.5 with an interval as wide as a task's,
+    not [0.5, 0.5]. No interval has zero width although every seed pair agrees."""
     field = dict(FIELD)
-    field["dist-gprl"] = runs(0.9, 0.1, curve={"curve_auc": 0.5})
-    field["dist-gprl-nocov"] = runs(0.7, 0.15, curve={"curve_auc": 0.9})
+    field["dist-gprl"] = runs(0.9, 0.1, curve={"learning_auc": 0.5})
+    field["dist-gprl-nocov"] = runs(0.7, 0.15, curve={"learning_auc": 0.9})
     scores = scores_of(field)
-    scores[("dcp", "dist-gprl-nocov")] = runs(0.7, 0.15, curve={"curve_auc": 0.1})
+    scores[("dcp", "dist-gprl-nocov")] = runs(0.7, 0.15, curve={"learning_auc": 0.1})
     verdicts = by_claim(evaluate_claims(scores, seed=0))
     efficiency = verdicts["The covariance transform improves sample efficiency"]
-    assert efficiency.estimate.point == 0.5 and efficiency.verdict == INCONCLUSIVE
-    assert efficiency.detail == (
-        f"per task: DCP 1.00 [1.00, 1.00]; DBM 0.00 [0.00, 0.00] ({TASKS_DISAGREE})"
-    )
-    windowed = verdicts["Windowed adaptation beats global"]
-    assert windowed.verdict == REPRODUCED
-    assert windowed.detail == "per task: DCP 1.00 [1.00, 1.00]; DBM 1.00 [1.00, 1.00]"
+    assert efficiency.verdict == TASKS_DISAGREE
+    assert (efficiency.on("dcp").verdict, efficiency.on("dbm").verdict) == (REPRODUCED, REFUTED)
+    assert efficiency.on("dcp").detail.startswith("25/25 run pairs")
+    assert efficiency.on("dbm").detail.startswith("0/25 run pairs")
+    pooled = efficiency.pooled.estimate
+    assert pooled.point == 0.5 and pooled.high - pooled.low > 0.3
+    for task in (*efficiency.per_task, efficiency.pooled):
+        assert task.estimate.high - task.estimate.low > 0.3
     one_task = {key: value for key, value in scores.items() if key[0] == "dcp"}
     single = by_claim(evaluate_claims(one_task, seed=0))["Windowed adaptation beats global"]
-    assert single.detail == ""
+    assert single.pooled is None and single.verdict == REPRODUCED
+
+
+def _task(task, verdict):
+    return TaskVerdict(task, None, verdict)
+
+
+def test_the_overall_rule_combines_the_tasks():
+    """Reproduced only where every task reproduces; "reproduced on T" where the others are
+    inconclusive; the same for refuted; one each way disagrees; missing runs win."""
+    assert combine([_task("dcp", REPRODUCED), _task("dbm", REPRODUCED)]) == REPRODUCED
+    assert combine([_task("dcp", REPRODUCED), _task("dbm", INCONCLUSIVE)]) == ("reproduced on DCP")
+    assert combine([_task("dcp", INCONCLUSIVE), _task("dbm", REFUTED)]) == "refuted on DBM"
+    assert combine([_task("dcp", REFUTED), _task("dbm", REFUTED)]) == REFUTED
+    assert combine([_task("dcp", REPRODUCED), _task("dbm", REFUTED)]) == TASKS_DISAGREE
+    assert combine([_task("dcp", INCONCLUSIVE), _task("dbm", INCONCLUSIVE)]) == INCONCLUSIVE
+    assert combine([_task("dcp", REPRODUCED), _task("dbm", FEW_SEEDS)]) == FEW_SEEDS
+    assert combine([_task("dcp", NO_RUNS), _task("dbm", FEW_SEEDS)]) == NO_RUNS
+
+
+def test_flat_curves_cannot_reproduce_the_curve_claims(tmp_path):
+    """End to end from progress files: Dist-GPRL's curves flat at the demo's level, NoCov's
+    falling to 0 and then learning to 0.8. The old measures scored the flat curve as fast
+    and stable; now Dist-GPRL has learned nothing (0/5 runs), so stability and sample
+    efficiency are refuted, not reproduced."""
+    for task in ("dcp", "dbm"):
+        for seed in range(SEEDS):
+            flat = [0.44] * 11
+            riser = [0.3, 0.0, 0.0, 0.2, 0.4, 0.6, 0.8, 0.8, 0.8, 0.8, 0.8]
+            _write_run(tmp_path, task, "dist-gprl", seed, 0.44, flat)
+            _write_run(tmp_path, task, "dist-gprl-nocov", seed, 0.8 + JITTER[seed], riser)
+    write_tables(tmp_path, "p", tmp_path / "out")
+    _, rows = read_csv(tmp_path / "out" / "claims_p.csv")
+    overall = {r["claim"]: r for r in rows if r["task"] == "all"}
+    assert overall["The covariance transform improves stability"]["verdict"] == REFUTED
+    assert overall["The covariance transform improves sample efficiency"]["verdict"] == REFUTED
+    dcp = next(r for r in rows if r["task"] == "dcp" and r["claim"].endswith("sample efficiency"))
+    assert "runs that learned: Dist-GPRL 0/5, Dist-GPRL-NoCov 5/5" in dcp["detail"]

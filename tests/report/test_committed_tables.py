@@ -49,3 +49,9 @@ def test_the_readme_shows_the_committed_hardware_and_repair_tables():
     for name in ("table2_paper.md", "table2_noise_paper.md", "table1_repair_paper.md"):
         if (FIGURES / name).exists():
             assert (FIGURES / name).read_text().strip() in readme, f"README's {name} is stale"
+
+
+def test_the_readme_shows_the_committed_claims_table():
+    """The README's claims table is the committed one, so its verdicts cannot go stale."""
+    table = (FIGURES / "claims_paper.md").read_text().strip()
+    assert table in (REPOSITORY / "README.md").read_text()
