@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__version__ = "0.1.0"
+from distgprl.version import __version__
 
 _API = ("Policy", "evaluate", "fit_skill", "load_policy", "make_env", "train")
 __all__ = ["__version__", *_API]

@@ -41,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from distgprl import __version__
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 from distgprl.machine import machine_info
+from distgprl.version import __version__
 
 __all__ = [
     "CSV_META_SUFFIX",

@@ -104,6 +104,7 @@ def test_sim_never_imports_torch():
 @pytest.mark.parametrize(
     "module",
     [
+        "distgprl.version",
         "distgprl.io",
         "distgprl.errors",
         "distgprl.schema",
@@ -136,11 +137,13 @@ def test_ground_floor_imports_nothing_above_it(module):
     assert offending(module, forbidden) == []
 
 
-def test_io_uses_only_the_standard_library():
-    """distgprl.io is the ground floor: no third-party or package import at all."""
+@pytest.mark.parametrize("module", ["distgprl.io", "distgprl.version"])
+def test_io_uses_only_the_standard_library(module):
+    """distgprl.io and distgprl.version are the ground floor: no third-party or package
+    import at all."""
     import sys
 
-    assert {name.split(".")[0] for name in imports("distgprl.io")} <= set(sys.stdlib_module_names)
+    assert {name.split(".")[0] for name in imports(module)} <= set(sys.stdlib_module_names)
 
 
 def test_report_does_not_import_the_runner_or_hardware():
@@ -188,12 +191,37 @@ def test_no_import_cycle_inside_sim():
     assert find_cycle(graph) == []
 
 
+def package_graph() -> dict[str, set[str]]:
+    """Every distgprl module -> the package modules it imports (top-level, in a function or
+    under ``TYPE_CHECKING``: each is an edge)."""
+    return {m: {t for t in imports(m) if t in modules() and t != m} for m in modules()}
+
+
+def test_no_import_cycle_in_the_package():
+    """No circle among all the package's modules, counting every import, lazy ones and the
+    package's own lazy re-export of the API (``distgprl`` -> ``distgprl.api``) included: e.g.
+    not sweep <-> follow_ups over `Job` (now `distgprl.experiments.jobs`), nor ``distgprl`` ->
+    api -> ... -> schema -> ``distgprl`` over the version (now `distgprl.version`)."""
+    graph = package_graph()
+    assert "distgprl.api" in graph["distgprl"]  # the lazy __getattr__ is seen
+    assert "distgprl.experiments.jobs" in graph["distgprl.experiments.follow_ups"]
+    assert find_cycle(graph) == []
+
+
+def test_cli_never_imports_the_simulator():
+    """The CLI parses and calls library functions (`distgprl.experiments`, `distgprl.api`,
+    ...); none of its modules imports distgprl.sim, at the top or inside a command."""
+    assert "distgprl.experiments.skills" in imports("distgprl.cli.skills")  # lazy, in `hap`
+    assert offending("distgprl.cli", ("distgprl.sim",)) == []
+
+
 #: The package's layers, lowest first (docs/DESIGN.md §1): top-level modules or subpackages.
 LAYERS: tuple[frozenset[str], ...] = tuple(
     frozenset(layer)
     for layer in (
         (
             "distgprl",
+            "version",
             "io",
             "errors",
             "data",

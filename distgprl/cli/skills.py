@@ -80,21 +80,11 @@ def hap(
     ] = None,
 ) -> None:
     """Build (or load) the task's HAP safe subspace; report it and plot C_safe."""
-    from distgprl.data import check_task_name
-    from distgprl.envs.tasks import load_task_subspace
-    from distgprl.safety.hap import plot_subspace
-    from distgprl.sim.tasks import get_task
+    from distgprl.experiments.skills import plot_task_subspace
 
-    check_task_name(task)
-    subspace, loaded = load_task_subspace(task)
-    stats = subspace.stats
     out = out or Path("results/hap") / f"{task}.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    sim = get_task(task).make_sim()
-    try:
-        plot_subspace(subspace, sim.obstacle_shapes(), out, title=f"{task.upper()} C_safe")
-    finally:
-        sim.close()
+    subspace, loaded = plot_task_subspace(task, out)
+    stats = subspace.stats
     typer.echo(
         f"{task}: C_safe {len(subspace.unique_positions)} positions "
         f"({stats.n_mapped}/{stats.n_reachable} reachable poses mapped), "

@@ -11,10 +11,7 @@ picks a finished run up again for them alone when they are due. Each report is a
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from distgprl.experiments.sweep import Job
+from distgprl.experiments.jobs import Job
 
 
 def follow_up_due(job: Job) -> bool:

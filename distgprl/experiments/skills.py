@@ -1,10 +1,12 @@
-"""`distgprl fit`: fit the GP skill to a demonstration and write its result files."""
+"""`distgprl fit` and `hap`: fit the GP skill to a demonstration and write its result files;
+build (or load) a task's HAP safe subspace and plot it."""
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,6 +15,9 @@ from distgprl.experiments.results import read_json, write_json
 from distgprl.io import atomic_write_bytes
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
+
+if TYPE_CHECKING:
+    from distgprl.safety.hap import SafeSubspace
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -218,3 +223,27 @@ def plot_fit(skill: GPSkill, demo: Demonstration, out_path: str | Path) -> Path:
     fig.savefig(buffer, format="png", dpi=80)
     plt.close(fig)
     return atomic_write_bytes(out_path, buffer.getvalue())
+
+
+def plot_task_subspace(task: str, out_path: str | Path) -> tuple[SafeSubspace, bool]:
+    """Build (or load from the cache) the task's HAP safe subspace and write its C_safe
+    figure with all the task's obstacles, static and dynamic (`distgprl hap`).
+
+    Returns:
+        The subspace, and True if it was loaded from the cache rather than built.
+    """
+    from distgprl.data import check_task_name
+    from distgprl.envs.tasks import load_task_subspace
+    from distgprl.safety.hap import plot_subspace
+    from distgprl.sim.tasks import get_task
+
+    check_task_name(task)
+    subspace, loaded = load_task_subspace(task)
+    out_path = Path(out_path)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    sim = get_task(task).make_sim()
+    try:
+        plot_subspace(subspace, sim.obstacle_shapes(), out_path, title=f"{task.upper()} C_safe")
+    finally:
+        sim.close()
+    return subspace, loaded

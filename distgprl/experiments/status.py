@@ -21,8 +21,8 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from distgprl.experiments.jobs import Job
 from distgprl.experiments.results import read_csv, read_json
-from distgprl.experiments.sweep import Job
 from distgprl.identity import resolve_run
 from distgprl.methods import get_method
 from distgprl.runstate import VERDICTS, job_state

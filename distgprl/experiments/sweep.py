@@ -70,6 +70,7 @@ from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
     run_job_trials,
     trials_due,
 )
+from distgprl.experiments.jobs import Job
 from distgprl.experiments.results import write_json
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
@@ -77,23 +78,6 @@ from distgprl.io import is_locked
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
 from distgprl.schema import run_dir
-
-
-@dataclass(frozen=True)
-class Job:
-    """One (task, method, seed) of a sweep."""
-
-    task: str
-    method: str
-    seed: int
-    preset: str
-    root: str
-    twin_trials: int = 0  # trials per Table II setting after a DBM job (0: none)
-    repair_evaluations: bool = False  # safety-layer evaluations after the run
-
-    @property
-    def name(self) -> str:
-        return f"{self.task}/{self.method}/seed{self.seed}"
 
 
 @dataclass(frozen=True)
