@@ -102,6 +102,14 @@ def test_run_benchmarks_tiny(tmp_path):
         )
     assert floor["sac_update"]["calls_per_update"] == 49
     assert 0 < floor["sac_update"]["matrix_product_share"] < 1
+    # Issue 49's keys: the suite over its floor, the update's framework work beside its products.
+    assert document["ratios"]["suite_over_floor"] == pytest.approx(
+        suite["cpu_hours"] / floor["cpu_hours"]
+    )
+    update = floor["sac_update"]
+    assert update["non_product_ms"] == pytest.approx(
+        update["update_ms"] - update["matrix_products_ms"]
+    )
     breakdown = document["training"]["breakdown"]
     assert sum(part["fraction"] for part in breakdown.values()) == pytest.approx(1.0)
     agreements = ("edf_pybullet_max_abs_difference_m", "policy_numpy_vs_torch_max_abs_difference")
@@ -117,6 +125,7 @@ def test_run_benchmarks_tiny(tmp_path):
             assert value > 0, where
     table = bench.markdown_table(document)
     assert table.count("|") > 40 and "per episode" in table and "its floor" in table
+    assert "over its floor" in table and "framework work" in table
 
 
 def test_suite_cpu_hours_is_seeds_times_steps_times_cost():

@@ -54,7 +54,8 @@ def _sac_flops_per_sample(state: int, action: int, hidden: int) -> int:
 def test_plain_sac_update_runs_the_products_of_the_algorithm():
     """On the paper preset's DCP model (batch 256, 256 x 256 networks): 49 products per update
     (26 addmm forward, 23 mm backward) and exactly the FLOPs of the SAC update's layers;
-    they are part of the update's time (share in (0, 1)); the regulariser is put back."""
+    they are part of the update's time (share in (0, 1)), the uninstrumented update costs less than
+    the clocked one and ``non_product_ms`` is the rest; the regulariser is put back."""
     from stable_baselines3.common.logger import configure
 
     from distgprl.experiments.bench.training import _fill_replay_buffer
@@ -78,6 +79,14 @@ def test_plain_sac_update_runs_the_products_of_the_algorithm():
     expected = 2 * 256 * _sac_flops_per_sample(state, action, 256)
     assert result["gflop_per_update"] * 1e9 == pytest.approx(expected, rel=1e-12)
     assert 0 < result["matrix_product_share"] < 1
+    # The uninstrumented updates: their time holds the products; the rest is framework work.
+    assert result["non_product_ms"] == pytest.approx(
+        result["update_ms"] - result["matrix_products_ms"]
+    )
+    assert result["matrix_product_share"] == pytest.approx(
+        result["matrix_products_ms"] / result["update_ms"]
+    )
+    assert result["update_ms"] < result["update_ms_with_clock"]
     assert 0 < result["matrix_products_ms"] < result["update_ms_with_clock"]
 
 

@@ -21,7 +21,10 @@ Sections of `run_benchmarks` (all measured in one process, so ratios compare lik
    task (``suite.cpu_hours``, ``suite.hours_two_idle_cores``).
 7. The suite's floor (``suite.floor``): the matrix products of a plain SAC update, timed inside
    real updates by a torch dispatch mode, plus the bare physics of section 2b, summed over the
-   suite's runs; what any implementation of the same algorithm pays on this machine.
+   suite's runs; what any implementation of the same algorithm pays on this machine. Beside
+   the products, the same plain updates timed without the clock give the update's framework
+   work (``suite.floor.sac_update.non_product_ms``), and ``ratios.suite_over_floor`` is
+   section 6's CPU-hours over the floor's (issue 49).
 
 Every timing is wall time of the calling process; the machine's load average is recorded
 before and after, because other processes sharing the cores inflate every figure.

@@ -127,6 +127,15 @@ def markdown_table(document: dict[str, Any]) -> str:
                 f"CPU-hours (hours on two idle cores) | "
                 f"{floor['cpu_hours']:.1f} ({floor['hours_idle_cores']:.1f}) |"
             )
+            if "non_product_ms" in update:  # issue 49 on
+                lines.append(
+                    f"| plain SAC update, process CPU, ms: whole / matrix products / the rest "
+                    f"(framework work) | {update['update_ms']:.1f} / "
+                    f"{update['matrix_products_ms']:.1f} / {update['non_product_ms']:.1f} |"
+                )
+            ratio = document["ratios"].get("suite_over_floor")
+            if ratio is not None:
+                lines.append(f"| suite CPU-hours over its floor's | {ratio:.2f} |")
     lines += ["", "| Where a training step's time goes | ms/step | share |", "|---|---|---|"]
     for name, part in sorted(training["breakdown"].items(), key=lambda kv: -kv[1]["fraction"]):
         lines.append(f"| {name} | {part['ms_per_step']:.2f} | {100 * part['fraction']:.0f}% |")

@@ -99,6 +99,8 @@ def run_benchmarks(
             "env_step_over_bare_physics": {
                 task: section["env_step_over_bare_physics"] for task, section in environment.items()
             },
+            # The suite's measured CPU-hours over its floor's (section 6 over section 7).
+            "suite_over_floor": suite["cpu_hours"] / suite["floor"]["cpu_hours"],
         },
         "suite": suite,
         "training": training,
