@@ -24,9 +24,11 @@ TEST_WORKERS ?= 2
 test:
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
+# mypy: its files and settings are pyproject.toml's [tool.mypy] (strict on the numerics core)
 lint:
 	$(BIN)/ruff check distgprl tests scripts benchmarks
 	$(BIN)/ruff format --check distgprl tests scripts benchmarks
+	$(BIN)/mypy
 
 format:
 	$(BIN)/ruff check --fix distgprl tests scripts benchmarks

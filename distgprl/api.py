@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -96,6 +96,7 @@ class Policy:
         if self.model is None:
             return np.zeros(self.action_shape, dtype=np.float32)
         if deterministic:
+            assert self._actor is not None, "a Policy with a model has its actor (load_policy)"
             return np.asarray(self._actor(obs), dtype=np.float32)
         action, _ = self.model.predict(obs, deterministic=False)
         return np.asarray(action, dtype=np.float32)
@@ -228,7 +229,7 @@ def fit_skill(
 
     if (task is None) == (demo is None):
         raise UserInputError("give exactly one of task or demo")
-    source = demo_path(task) if task is not None else Path(demo)
+    source = demo_path(task) if task is not None else Path(cast("str | Path", demo))  # one of them
     return fit_demonstration(
         source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points)
     )

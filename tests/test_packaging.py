@@ -60,6 +60,14 @@ def test_wheel_holds_every_run_time_file_of_the_package(wheel):
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
 
 
+def test_wheel_ships_the_pep_561_marker(wheel):
+    """``distgprl/py.typed`` is in the wheel (pyproject package-data), so type checkers of a
+    project that installs distgprl read its annotations (PEP 561); it is the empty marker."""
+    assert (REPO / "distgprl" / "py.typed").is_file()
+    assert "distgprl/py.typed" in wheel.namelist()
+    assert wheel.read("distgprl/py.typed") == b""
+
+
 def test_wheel_urdf_comes_from_airo_models_which_it_requires(wheel):
     """The package ships no URDF of its own: the UR5e's (and its meshes) are airo-models'
     package data, a declared dependency; the tool is appended at run time (sim/robot.py)."""

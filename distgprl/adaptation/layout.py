@@ -66,7 +66,8 @@ class ActionLayout:
     def delta(self, step: int, raw_action: np.ndarray) -> np.ndarray:
         """Delta Gamma for the step's via-points, shape (A_v, 6) (Eq. transformed_action)."""
         scaled = raw_action.reshape(self.points_per_step, 6) * self.scale
-        delta = np.einsum("aij,ja->ia", self.operators[step], scaled)  # per axis a: S_W,a x_a
+        # per axis a: S_W,a x_a
+        delta: np.ndarray = np.einsum("aij,ja->ia", self.operators[step], scaled)
         for index in self.frozen:
             delta[self.indices[step] == index] = 0.0
         return delta
@@ -164,7 +165,7 @@ class AuxLayout:
     @property
     def size(self) -> int:
         """Length of the ``aux`` vector."""
-        return self.anchor.stop
+        return int(self.anchor.stop)
 
     def pack(self, gamma: np.ndarray, step: int, anchors: np.ndarray | None = None) -> np.ndarray:
         """The ``aux`` vector, shape (size,), float32.

@@ -22,13 +22,30 @@ import numpy as np
 from distgprl.adaptation.layout import ActionLayout
 from distgprl.skill.rotations import nearest_equivalent_rotvec
 
-__all__ = ["Segment", "TrajectoryModel", "WindowPlan", "min_jerk", "segment_instants"]
+__all__ = [
+    "Segment",
+    "TaskConfigLike",
+    "TrajectoryModel",
+    "WindowPlan",
+    "min_jerk",
+    "segment_instants",
+]
 
 
 def min_jerk(u: np.ndarray) -> np.ndarray:
     """Minimum-jerk blend 10u^3 - 15u^4 + 6u^5 on [0, 1] (clipped)."""
     u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10 - 15 * u + 6 * u**2)
+    blend: np.ndarray = u**3 * (10 - 15 * u + 6 * u**2)
+    return blend
+
+
+class TaskConfigLike(Protocol):
+    """What a trajectory model is conditioned on: a task configuration's start offset of the
+    manipulated object, (dx, dy) in m (`distgprl.sim.tasks.TaskConfig`, which this layer
+    does not import)."""
+
+    @property
+    def object_offset(self) -> tuple[float, float]: ...
 
 
 class TrajectoryModel(Protocol):
@@ -40,7 +57,7 @@ class TrajectoryModel(Protocol):
         """The linear map from Gamma (N, 6) to the poses at ``tau`` (m,): shape (m, N)."""
         ...
 
-    def condition(self, tc, start_pose: np.ndarray) -> np.ndarray:
+    def condition(self, tc: TaskConfigLike, start_pose: np.ndarray) -> np.ndarray:
         """Condition the model on a task configuration ``tc`` and the start pose (6,), m and
         rad; return the episode's initial Gamma (N, 6). TC-dependent parts of `offset` and
         `position` follow the last call."""
@@ -142,13 +159,13 @@ class WindowPlan:
         self._offsets: list[np.ndarray] | None = None  # per segment, set by start()
         self.gamma = np.array(parameters, dtype=float, copy=True)
         self.gamma_initial = self.gamma.copy()
-        self.tc = None
+        self.tc: TaskConfigLike | None = None
         self.start_pose = np.zeros(6)
         self.start_time = 0.0
         self._last_commanded = np.zeros(6)
         self._last_tau = 0.0
 
-    def start(self, tc, tcp_pose: np.ndarray, start_time: float) -> None:
+    def start(self, tc: TaskConfigLike, tcp_pose: np.ndarray, start_time: float) -> None:
         """Start an episode: condition on ``tc`` from the TCP pose (6,), m and rad, at the
         world's time ``start_time`` (s). The start pose's rotation vector is made the
         equivalent nearest ``reference_rotvec``; Gamma and ``gamma_initial`` are the model's
@@ -187,7 +204,7 @@ class WindowPlan:
             raise RuntimeError("start() the plan before asking for segment poses")
         segment = self.segments[step]
         tau, lo, hi = segment.tau, segment.lo, segment.hi
-        poses = self._offsets[step] + segment.parameter_map @ self.gamma
+        poses: np.ndarray = self._offsets[step] + segment.parameter_map @ self.gamma
         if len(tau):
             # Where the re-planned trajectory puts the last commanded control instant.
             planned_start = self.poses(np.array([self._last_tau]))[0]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from distgprl.adaptation.plan import TaskConfigLike
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.promp import ObjectCentricProMP
 
@@ -34,7 +35,7 @@ class GPSkillTrajectory:
         """M(tau), (m, N): the GP's position map."""
         return self.skill.position_map(tau)
 
-    def condition(self, tc, start_pose: np.ndarray) -> np.ndarray:
+    def condition(self, tc: TaskConfigLike, start_pose: np.ndarray) -> np.ndarray:
         """Demonstration via-points conditioned on ``tc`` (DESIGN §2), via-point 0 the start
         pose (6,): shape (N, 6)."""
         offset = np.r_[np.asarray(tc.object_offset, dtype=float)[:2], 0.0]
@@ -45,7 +46,8 @@ class GPSkillTrajectory:
     def offset(self, tau: np.ndarray, parameter_map: np.ndarray) -> np.ndarray:
         """mu - (M 1) mu^T at ``tau``, (m, 6) (independent of the TC)."""
         mean = self.skill.prior_mean
-        return mean[None, :] * (1.0 - parameter_map.sum(axis=1))[:, None]
+        offset: np.ndarray = mean[None, :] * (1.0 - parameter_map.sum(axis=1))[:, None]
+        return offset
 
     def position(self, parameters: np.ndarray, tau: np.ndarray) -> np.ndarray:
         return self.skill.position(parameters, tau)
@@ -55,7 +57,8 @@ class GPSkillTrajectory:
 
     def window_poses(self, parameters: np.ndarray, indices: np.ndarray) -> np.ndarray:
         """The window's via-points themselves, (L, 6)."""
-        return parameters[indices]
+        window: np.ndarray = parameters[indices]
+        return window
 
 
 def variance_gate(promp: ObjectCentricProMP, centres: np.ndarray) -> np.ndarray:
@@ -73,7 +76,8 @@ def variance_gate(promp: ObjectCentricProMP, centres: np.ndarray) -> np.ndarray:
     top = float(sigma.max())
     if top <= 1e-12:
         return np.ones(len(centres))
-    return 1.0 - sigma / top
+    gate: np.ndarray = 1.0 - sigma / top
+    return gate
 
 
 class ResidualProMPTrajectory:
@@ -105,7 +109,8 @@ class ResidualProMPTrajectory:
         centres = self.centres
         width = centres[1] - centres[0]
         values = np.exp(-0.5 * ((np.asarray(tau)[:, None] - centres[None, :]) / width) ** 2)
-        return values / values.sum(axis=1, keepdims=True) * self.gate[None, :]
+        basis: np.ndarray = values / values.sum(axis=1, keepdims=True) * self.gate[None, :]
+        return basis
 
     def nominal(self, tau: np.ndarray) -> np.ndarray:
         """The conditioned ProMP mean at ``tau`` (m,), (m, 6) (after `condition`)."""
@@ -116,7 +121,7 @@ class ResidualProMPTrajectory:
     def parameter_map(self, tau: np.ndarray) -> np.ndarray:
         return self.basis(tau)
 
-    def condition(self, tc, start_pose: np.ndarray) -> np.ndarray:
+    def condition(self, tc: TaskConfigLike, start_pose: np.ndarray) -> np.ndarray:
         """Nominal: the ProMP mean for the TC's object offset, conditioned on the start pose
         (6,); returns zero residual weights (N, 6)."""
         self._object_offset = np.r_[np.asarray(tc.object_offset, dtype=float), 0.0]
@@ -130,7 +135,8 @@ class ResidualProMPTrajectory:
         return self.nominal(tau)
 
     def position(self, parameters: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        return self.nominal(tau) + self.basis(tau) @ parameters
+        poses: np.ndarray = self.nominal(tau) + self.basis(tau) @ parameters
+        return poses
 
     def velocity(self, parameters: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Finite-difference velocity of the planned poses on 400 points, interpolated."""

@@ -15,6 +15,7 @@ the earlier per-window autograd implementation to 1e-9 in float64 (tests/agents)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, cast
 
 import numpy as np
 import torch
@@ -29,6 +30,31 @@ from distgprl.skill.gp import GPSkill
 
 ACCELERATION_REFERENCE_FLOOR = 1e-3
 """Smallest demonstration mean L1 acceleration (m/s^2) the L1 term is divided by."""
+
+
+class HapLoss(Protocol):
+    """What `ActorRegulariser` needs of its HAP prior: L_hap of query positions (B, N_q, 3),
+    m, differentiable w.r.t. them (`distgprl.safety.hap_loss.HapPrior.loss`, or any module
+    with such a ``loss``)."""
+
+    def loss(
+        self,
+        x: torch.Tensor,
+        anchors: torch.Tensor | np.ndarray | None = None,
+        moving: MovingObstacleFilter | None = None,
+    ) -> torch.Tensor: ...
+
+
+class FusedHapLoss(HapLoss, Protocol):
+    """A `HapLoss` that also gives its values and gradient without autograd
+    (`HapPrior.values_and_gradient`): the regulariser then computes its gradient by hand."""
+
+    def values_and_gradient(
+        self,
+        x: np.ndarray,
+        anchors: np.ndarray | None = None,
+        moving: MovingObstacleFilter | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
@@ -63,12 +89,28 @@ class ActorRegulariser(nn.Module):
             block at x_q's time (anchor interpolated linearly between via-point times).
     """
 
+    # buffers (`register_buffer`), see __init__ and `_build_flat_maps`
+    indices: torch.Tensor
+    operators: torch.Tensor
+    scale: torch.Tensor
+    mask: torch.Tensor
+    prior_mean: torch.Tensor
+    velocity_map: torch.Tensor
+    acceleration_map: torch.Tensor
+    demo_velocity: torch.Tensor
+    demo_acceleration: torch.Tensor
+    hap_map: torch.Tensor
+    anchor_map: torch.Tensor
+    readout_map: torch.Tensor
+    readout_bias: torch.Tensor
+    demo_direction: torch.Tensor
+
     def __init__(
         self,
         skill: GPSkill,
         layout: ActionLayout,
         weights: RegulariserWeights,
-        hap_prior: nn.Module | None = None,
+        hap_prior: HapLoss | None = None,
         n_similarity_samples: int = 50,
         n_hap_queries: int = 20,
         moving_filter: MovingObstacleFilter | None = None,
@@ -82,7 +124,7 @@ class ActorRegulariser(nn.Module):
             raise ValueError("lambda_hap > 0 needs a hap_prior")
         self.hap_prior = hap_prior if weights.lambda_hap > 0 else None
 
-        def buffer(name: str, value: np.ndarray, dtype=torch.float32) -> None:
+        def buffer(name: str, value: np.ndarray, dtype: torch.dtype = torch.float32) -> None:
             self.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=dtype))
 
         mask = np.ones(layout.indices.shape)
@@ -317,7 +359,8 @@ class ActorRegulariser(nn.Module):
             anchors = None
             if self.moving_filter is not None:
                 anchors = self._anchors(aux).cpu().numpy()
-            values, jacobian = self.hap_prior.values_and_gradient(
+            # `loss` comes here only for a prior with `values_and_gradient`
+            values, jacobian = cast(FusedHapLoss, self.hap_prior).values_and_gradient(
                 positions, anchors, self.moving_filter
             )
             l_hap = float(values.mean(dtype=np.float64))

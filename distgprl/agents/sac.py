@@ -26,16 +26,21 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
+from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.utils import polyak_update
 from torch.nn import functional as F
+
+if TYPE_CHECKING:
+    from distgprl.agents.regularisers import ActorRegulariser
 
 SB3_VERSION_COPIED = "2.9.2"
 
@@ -107,7 +112,7 @@ class EpisodeLogCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         rewards = np.asarray(self.locals["rewards"], dtype=np.float64)
-        if self._returns is None:
+        if self._returns is None or self._lengths is None:  # set together, at the first step
             self._returns = np.zeros_like(rewards)
             self._lengths = np.zeros(rewards.shape, dtype=np.int64)
         self._returns += rewards
@@ -131,7 +136,8 @@ class StateOnlyExtractor(BaseFeaturesExtractor):
     """Features = the ``state`` entry of a Dict observation (``aux`` is ignored)."""
 
     def __init__(self, observation_space: gym.spaces.Dict) -> None:
-        super().__init__(observation_space, features_dim=observation_space["state"].shape[0])
+        shape = cast("tuple[int, ...]", observation_space["state"].shape)  # a Box's
+        super().__init__(observation_space, features_dim=shape[0])
 
     def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
         return observations["state"]
@@ -313,9 +319,9 @@ class RegularisedSAC(SAC):
             # distgprl: + lambda_sim L_sim + lambda_hap L_hap (Eq. actor_final_compact),
             # from the actor's sampled actions so the gradients reach the actor.
             if self.regulariser is not None:
-                regularisation, terms = self.regulariser(
-                    replay_data.observations["aux"], actions_pi
-                )
+                # Dict observations: SB3's DictReplayBuffer samples a dict of tensors
+                observations = cast("dict[str, th.Tensor]", replay_data.observations)
+                regularisation, terms = self.regulariser(observations["aux"], actions_pi)
                 actor_loss = actor_loss + regularisation
                 for key, value in terms.items():
                     regulariser_logs.setdefault(key, []).append(value)
@@ -360,7 +366,8 @@ class RegularisedSAC(SAC):
         times the batch size, so every norm is per sample). Raw action units. Empty before
         the replay buffer holds a transition.
         """
-        buffer = self.replay_buffer
+        # Dict observations: SB3 made a DictReplayBuffer (`_setup_model`)
+        buffer = cast(DictReplayBuffer, self.replay_buffer)
         size = buffer.buffer_size if buffer.full else buffer.pos
         if size == 0:
             return {}
@@ -382,11 +389,12 @@ class RegularisedSAC(SAC):
             self.critic.requires_grad_(True)
         norms = {"grad_q": float(grad_q.norm(dim=1).mean())}
         if self.regulariser is not None and hasattr(self.regulariser, "term_gradients"):
-            terms = self.regulariser.term_gradients(observations["aux"], actions.detach())
-            weights = self.regulariser.weights
+            regulariser = cast("ActorRegulariser", self.regulariser)  # has its interface
+            terms = regulariser.term_gradients(observations["aux"], actions.detach())
+            weights = regulariser.weights
             for name, key, weight in (
                 ("l_sim", "grad_sim", weights.lambda_sim),
-                ("l_hap", "grad_hap", weights.lambda_hap if self.regulariser.hap_prior else 0.0),
+                ("l_hap", "grad_hap", weights.lambda_hap if regulariser.hap_prior else 0.0),
             ):
                 if weight > 0 and name in terms:
                     norms[key] = float((terms[name] * batch_size).norm(dim=1).mean())

@@ -1,8 +1,6 @@
 """`python -m distgprl.cli`: the same CLI as the `distgprl` console script."""
 
-import sys
-
 from distgprl.cli import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()  # exits (typer's standalone mode): with 0, or the command's code

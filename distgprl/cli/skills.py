@@ -4,7 +4,7 @@ task's HAP safe subspace."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, cast
 
 import typer
 
@@ -32,7 +32,7 @@ def fit(
 
     if (task is None) == (demo is None):
         raise UserInputError("give exactly one of --task or --demo")
-    source = demo_path(task) if task is not None else demo
+    source = demo_path(task) if task is not None else cast("Path", demo)  # one of them
     output = fit_demonstration(
         source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points)
     )

@@ -6,6 +6,8 @@ Env ids: ``DistGPRL-DCP-v5`` and ``DistGPRL-DBM-v5`` (registered in `distgprl.en
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -375,7 +377,7 @@ class AdaptationEnv(gym.Env):
         return self.window_plan.start_time
 
     @property
-    def tc_generator_state(self) -> dict:
+    def tc_generator_state(self) -> Mapping[str, Any]:
         """The state of the generator that draws the training TCs at ``reset()`` (NumPy
         ``bit_generator.state``; a training checkpoint saves and restores it)."""
         return self._rng.bit_generator.state

@@ -156,7 +156,9 @@ def _panel(
         image = DEMO_FADE * image + (1.0 - DEMO_FADE) * 255.0
     image = np.ascontiguousarray(image.astype(np.uint8))
     height, width = image.shape[:2]
-    colour = (120, 120, 120) if window < 0 else WINDOW_COLOURS[window % len(WINDOW_COLOURS)]
+    colour: tuple[int, ...] = (
+        (120, 120, 120) if window < 0 else WINDOW_COLOURS[window % len(WINDOW_COLOURS)]
+    )
     if fade:
         colour = tuple(int(DEMO_FADE * c + (1.0 - DEMO_FADE) * 255) for c in colour)
     cv2.rectangle(image, (0, 0), (width - 1, height - 1), colour, 8)

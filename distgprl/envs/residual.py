@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from functools import lru_cache
+from typing import cast
 
 import numpy as np
 
@@ -153,9 +154,9 @@ class ResidualEnv(AdaptationEnv):
     def residual_basis(self, tau: np.ndarray) -> np.ndarray:
         """The gated, normalised residual basis at normalised times ``tau`` (m,): (m, N);
         the residual's pose offset at ``tau`` is ``residual_basis(tau) @ gamma``."""
-        return self.window_plan.model.basis(tau)
+        return cast(ResidualProMPTrajectory, self.window_plan.model).basis(tau)
 
     def nominal(self, tau: np.ndarray) -> np.ndarray:
         """The episode's nominal trajectory (the conditioned ProMP mean) at ``tau`` (m,),
         shape (m, 6), m and rad."""
-        return self.window_plan.model.nominal(tau)
+        return cast(ResidualProMPTrajectory, self.window_plan.model).nominal(tau)

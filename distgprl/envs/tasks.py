@@ -80,15 +80,21 @@ def task_hap_config(task: str, n_via_points: int = 15) -> HapConfig:
     lower[2] = max(lower[2], 0.02)
     base = Rotation.from_rotvec(skill.via_points[0, 3:])
     orientations = tuple(
-        tuple(float(v) for v in (Rotation.from_euler("z", yaw) * base).as_rotvec())
+        _xyz((Rotation.from_euler("z", yaw) * base).as_rotvec())
         for yaw in (-np.pi / 4, 0.0, np.pi / 4)
     )
     return HapConfig(
-        workspace_lower=tuple(float(v) for v in lower),
-        workspace_upper=tuple(float(v) for v in upper),
+        workspace_lower=_xyz(lower),
+        workspace_upper=_xyz(upper),
         orientations=orientations,
-        root_position=tuple(float(v) for v in positions[0]),
+        root_position=_xyz(positions[0]),
     )
+
+
+def _xyz(values: np.ndarray) -> tuple[float, float, float]:
+    """A 3-vector as a tuple of floats (HapConfig's fields)."""
+    x, y, z = values
+    return (float(x), float(y), float(z))
 
 
 def hap_robot_id(robot: str, tool: str, task: str, scene_revision: int) -> str:

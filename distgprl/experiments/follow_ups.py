@@ -11,7 +11,17 @@ picks a finished run up again for them alone when they are due. Each report is a
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 from distgprl.experiments.jobs import Job
+
+
+class FollowUpReports(TypedDict):
+    """What `run_follow_ups` did, as the `JobResult` fields of the same names (empty: none
+    was due)."""
+
+    trials: str
+    repairs: str
 
 
 def follow_up_due(job: Job) -> bool:
@@ -21,7 +31,7 @@ def follow_up_due(job: Job) -> bool:
     return trials_due(job) or repairs_due(job)
 
 
-def run_follow_ups(job: Job) -> dict[str, str]:
+def run_follow_ups(job: Job) -> FollowUpReports:
     """Run the job's due follow-ups; their reports as `JobResult` fields."""
     return {
         "trials": run_job_trials(job) if trials_due(job) else "",

@@ -132,7 +132,8 @@ def run_repaired_episode(
     q = sim.joint_positions()
     velocity = np.zeros(6)
     shift = np.zeros(3)
-    collision, refused, refused_window = False, False, ""
+    collision, refused = False, False
+    refused_window: int | str = ""  # the refused window (1-based); "" if none was
     refused_limits, reason = "", ""
     min_clearance = np.inf
     planned = np.inf
@@ -257,7 +258,7 @@ def summarise_repaired(rows: list[dict[str, Any]]) -> dict[str, float]:
         summary[f"windows_{decision}"] = decisions.count(decision)
     if moved:
         summary["min_clearance_p5"] = float(np.percentile(moved, 5))
-    limits = {}
+    limits: dict[str, int] = {}
     for row in rows:
         for name in filter(None, str(row["refused_limits"]).split(",")):
             limits[name] = limits.get(name, 0) + 1

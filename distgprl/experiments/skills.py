@@ -112,8 +112,8 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
             "eigenvalue_max": max(w["eigenvalue_max"] for w in windows),
             "reach": largest_reach(windows),
         }
-    scale = build_action_layout(skill, env_config, get_method("dist-gprl-nocov")).scale
-    candidates["none"] = {"reach": dict(zip(AXES, (float(v) for v in scale), strict=True))}
+    raw_scale = build_action_layout(skill, env_config, get_method("dist-gprl-nocov")).scale
+    candidates["none"] = {"reach": dict(zip(AXES, (float(v) for v in raw_scale), strict=True))}
     return {
         "correlation_lambda": float(env_config.correlation_lambda),
         "covariance_scale": env_config.covariance_scale,

@@ -52,11 +52,12 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import asdict, dataclass, replace
 from multiprocessing import get_context
 from multiprocessing.connection import wait as wait_for_any
 from pathlib import Path
+from typing import cast
 
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
@@ -319,7 +320,7 @@ def _job_process(job: Job, parent_pid: int, stop, connection) -> None:
     connection.close()
 
 
-def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
+def _run_local(jobs: list[Job], workers: int) -> Generator[JobResult, None, None]:
     """Run ``jobs`` here: in this process one after the other (``workers <= 1``), else each
     in a spawned process of its own, at most ``workers`` at a time. A process that ends
     without sending a result (it crashed or was killed) fails its job only."""
@@ -345,7 +346,8 @@ def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
                 sender.close()  # the child's copy stays open: EOF once it ends
                 running[process.sentinel] = (process, receiver, job, time.perf_counter())
             for sentinel in wait_for_any(list(running)):
-                process, receiver, job, started = running.pop(sentinel)
+                # wait() returns the sentinels it was given
+                process, receiver, job, started = running.pop(cast(int, sentinel))
                 result = None
                 try:
                     if receiver.poll():
@@ -376,7 +378,9 @@ def _run_local(jobs: list[Job], workers: int) -> Iterable[JobResult]:
         raise
 
 
-def _run_ray(jobs: list[Job], workers: int, address: str | None) -> Iterable[JobResult]:
+def _run_ray(
+    jobs: list[Job], workers: int, address: str | None
+) -> Generator[JobResult, None, None]:
     try:
         import ray
     except ImportError:
@@ -453,19 +457,19 @@ def run_sweep(
     for result in results:
         if on_result:
             on_result(result, len(results), total)
-    finished: set[Job] = set()
+    completed: set[Job] = set()
     stop = threading.Event()
     if on_tick is not None and todo:
 
         def tick() -> None:
             while not stop.wait(tick_s):
-                on_tick([job for job in todo if job not in finished])
+                on_tick([job for job in todo if job not in completed])
 
         threading.Thread(target=tick, name="sweep-heartbeat", daemon=True).start()
     stream = _run_local(todo, workers) if executor == "local" else _run_ray(todo, workers, address)
     try:
         for result in stream:
-            finished.add(result.job)
+            completed.add(result.job)
             results.append(result)
             if on_result:
                 on_result(result, len(results), total)

@@ -12,6 +12,7 @@ comes from a :class:`PerceivedScene` filled by the perception and the robot back
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from distgprl.envs.residual import ResidualEnv
 from distgprl.hardware.perception import OBJECTS, Percept
 from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape
-from distgprl.sim.tasks.base import TaskConfig
+from distgprl.sim.tasks.base import TaskConfig, TaskSim
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
 
 
@@ -134,7 +135,13 @@ class PerceivedScene:
         """Nothing to release (the env's close() calls it)."""
 
 
-class _PerceivedWorld:
+if TYPE_CHECKING:  # the mixin's host, for the type checker only (at run time: object)
+    _Host = AdaptationEnv
+else:
+    _Host = object
+
+
+class _PerceivedWorld(_Host):
     """The perceived-world half of a trial adapter, shared by the two environment kinds.
 
     Mixed into an environment class (:class:`AdaptationEnv` or its residual subclass) after
@@ -142,7 +149,10 @@ class _PerceivedWorld:
     model and makes the observation read the perceived world instead.
     """
 
-    def _attach_world(self, conveyor_velocity) -> None:
+    model: TaskSim  # the environment's own simulation, kept as the kinematic model
+    sim: Any  # after `_attach_world`: the `PerceivedScene` (the TaskSim subset it reads)
+
+    def _attach_world(self, conveyor_velocity: Any) -> None:
         self.model = self.sim
         static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
         self.world = PerceivedScene(static, np.asarray(conveyor_velocity, dtype=float))
@@ -193,7 +203,8 @@ class _PerceivedWorld:
         conditioned demonstration (the ProMP nominal).
         """
         step = self.step_index
-        raw = np.zeros(self.action_space.shape) if action is None else action
+        shape = cast("tuple[int, ...]", self.action_space.shape)  # a Box's
+        raw = np.zeros(shape) if action is None else action
         self.apply_action(step, raw)
         return self.segment_poses(step)
 

@@ -160,7 +160,7 @@ def _marker_list(entries: Any, where: str) -> tuple[MarkerSpec, ...]:
             raise UserInputError(f"{where}[{k}]: pose must be 6 finite numbers (x y z rx ry rz)")
         if not 0.0 < size < 1.0:
             raise UserInputError(f"{where}[{k}]: size {size} m is not a marker side length")
-        out.append(MarkerSpec(marker_id, size, pose))  # type: ignore[arg-type]
+        out.append(MarkerSpec(marker_id, size, pose))
     return tuple(out)
 
 
@@ -215,7 +215,7 @@ def calibration_from_dict(data: Any, where: str = "calibration") -> CellCalibrat
         dictionary,
         base,
         objects,
-        velocity,  # type: ignore[arg-type]
+        velocity,
     )
 
 

@@ -262,6 +262,7 @@ def repair_plan(
         config.repair and via_points is not None and k > 0 and gradient_at is not None
     ) and clearance_at is not None
     if can_push and "clearance" in violated_limits(current.check):
+        assert via_points is not None and gradient_at is not None  # as can_push says
         base = np.asarray(via_points.replan(zero), dtype=float)
         influence_base = via_points.influence(base)  # (n, k), rows at plan instants 1..n
         rows = np.vstack([np.zeros((1, k)), influence_base])  # row 0: the fixed start

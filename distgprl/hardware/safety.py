@@ -196,7 +196,7 @@ def check_plan(
         j_upper = np.asarray(limits.joint_upper) - limits.joint_margin
         excess = np.maximum(j_lower - joints, joints - j_upper)
         if excess.max() > 0:
-            k, j = np.unravel_index(int(np.argmax(excess)), excess.shape)
+            k, j = (int(i) for i in np.unravel_index(int(np.argmax(excess)), excess.shape))
             violations.append(
                 Violation(
                     "joint_limits", float(joints[k, j]), float(j_upper[j]), int(k), f"joint {j}"

@@ -74,7 +74,7 @@ def _load_policy(method: str, seed: int, preset: str, root, model_path, env):
             f"--seed {seed} --preset {preset}` first (or pass --model)"
         )
     model = load_model(path, env, "dbm", method)
-    provenance = {"model": str(path), "model_sha256": file_sha256(path)}
+    provenance: dict[str, Any] = {"model": str(path), "model_sha256": file_sha256(path)}
     config_path = path.parent / "config.json"
     if config_path.exists():
         provenance["run_config_hash"] = read_json(config_path).get("config_hash")
@@ -196,10 +196,12 @@ def run_trials(
             if hasattr(camera, "capture"):
                 robot.camera = camera
             else:
+                assert camera is not None  # the ur backend checked it above
                 robot.camera = OpenCVCamera(camera, robot.now, (cal.width, cal.height))
     except BaseException:
         adapter.close()
         raise
+    perception: MarkerPerception
     if backend == "twin" and twin_config.noise.corner_noise_px > 0:
         from distgprl.hardware.twin import NoisyCornerPerception
 
@@ -292,7 +294,8 @@ def _one_trial(
     twin = robot.name == "twin"
     row: dict[str, Any] = dict.fromkeys(TRIAL_FIELDS, "")
     row.update(trial=index, status="ok", images=0)
-    timings = {"perception": [], "policy": 0.0, "check": 0.0, "execution": 0.0}
+    # seconds, but "perception": the detections' times (ms) (`trial_rows.finish_row`)
+    timings: dict[str, Any] = {"perception": [], "policy": 0.0, "check": 0.0, "execution": 0.0}
     errors: list[tuple[float, float]] = []
     planned = np.inf
 
@@ -403,11 +406,11 @@ def _one_trial(
             if repaired.decision != "none" or dry_run:
                 echo(f"trial {index + 1}, window {step + 1}: {describe_repair(repaired)}")
             if repaired.decision == "refused" and not force:
-                refused = UnsafePlanError(repaired.remaining)
+                refusal = UnsafePlanError(repaired.remaining)
                 row.update(
                     status="refused",
                     refused_limits=",".join(repaired.refused_limits),
-                    stop_reason=f"after retiming and repair: {refused}",
+                    stop_reason=f"after retiming and repair: {refusal}",
                 )
                 break
             check, poses, path_poses = repaired.check, repaired.poses, repaired.path_poses

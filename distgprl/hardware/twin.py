@@ -146,10 +146,16 @@ def miscalibrated(
     centre = np.mean([np.asarray(m.pose[:3]) for m in calibration.base_markers], axis=0)
     error = make_transform(rotation, centre + translation) @ make_transform(np.eye(3), -centre)
     markers = tuple(
-        replace(m, pose=tuple(float(v) for v in matrix_to_pose(error @ pose_to_matrix(m.pose))))
+        replace(m, pose=_pose_tuple(matrix_to_pose(error @ pose_to_matrix(m.pose))))
         for m in calibration.base_markers
     )
     return replace(calibration, base_markers=markers)
+
+
+def _pose_tuple(pose: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """A pose (6,) as a `MarkerSpec` pose: six floats."""
+    x, y, z, rx, ry, rz = (float(v) for v in pose)
+    return (x, y, z, rx, ry, rz)
 
 
 class NoisyCornerPerception(MarkerPerception):

@@ -132,5 +132,6 @@ def describe_repair(result: RepairResult) -> str:
     text = f"{result.decision}: +{result.time_added:.2f} s"
     if result.decision == "repaired":
         text += f", via-points moved up to {1000.0 * result.max_displacement:.1f} mm"
+    assert result.original is not None  # a retimed or repaired window keeps its original check
     original = ", ".join(f"{v.limit} {v.value:.4g}" for v in result.original.violations)
     return f"{text} (was: {original}; now min clearance {result.check.min_clearance:.4f} m)"

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,10 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
 from distgprl.report.runs import select_runs
 from distgprl.schema import read_csv
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
 PANELS = (
     ("success_rate", "success rate"),
@@ -58,7 +63,9 @@ FIGURES = {
 }
 
 
-def load_curves(root: str | Path, preset: str, task: str, method: str):
+def load_curves(
+    root: str | Path, preset: str, task: str, method: str
+) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
     """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
     configuration (`select_runs`), on their common steps. Runs still in progress are left
     out."""
@@ -78,7 +85,7 @@ def load_curves(root: str | Path, preset: str, task: str, method: str):
     common = sorted(set.intersection(*[{int(r["step"]) for r in rows} for rows in series]))
     if not common:
         return None
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for key, _ in PANELS:
         out[key] = np.array(
             [
@@ -122,7 +129,9 @@ def _seed_note(seeds: dict[str, int]) -> str:
     return ", ".join(f"{task.upper()} {n}" for task, n in seeds.items()) + " seeds"
 
 
-def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], title: str):
+def plot_figure(
+    root: str | Path, preset: str, tasks: list[str], methods: tuple[str, ...], title: str
+) -> tuple[Figure, int]:
     """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
     entry, one legend below the panels. Returns (figure, number of (task, method) curves
     drawn)."""
@@ -133,7 +142,7 @@ def plot_figure(root, preset: str, tasks: list[str], methods: tuple[str, ...], t
 
     fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     drawn = 0
-    handles: dict[str, object] = {}
+    handles: dict[str, Line2D] = {}
     seeds_of: dict[str, dict[str, int]] = {}
     for row, task in enumerate(tasks):
         for method in methods:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import csv
 import io
 from pathlib import Path
+from typing import Any
 
 from scipy import stats
 
@@ -87,7 +88,9 @@ def _outcomes(rows: list[dict[str, str]]) -> dict[str, list[int]]:
     }
 
 
-def _check_same_tcs(run: Path, reference: Path, run_rows: list, reference_rows: list) -> None:
+def _check_same_tcs(
+    run: Path, reference: Path, run_rows: list[dict[str, str]], reference_rows: list[dict[str, str]]
+) -> None:
     """Raise ValueError unless both files hold the same TCs in the same order."""
     if len(run_rows) != len(reference_rows):
         raise ValueError(
@@ -115,7 +118,7 @@ def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
 
 def paired_rows(
     root: str | Path, preset: str, reference: str = UNADAPTED, episodes: int | None = None
-) -> list[dict]:
+) -> list[dict[str, Any]]:
     """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
     on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
     run has been evaluated (both among the runs that count, `select_runs`); the reference's
@@ -144,7 +147,7 @@ def paired_rows(
     return _paired_files(pairs)
 
 
-def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict]:
+def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict[str, Any]]:
     """`FIELDS` rows pairing every run of ``preset`` (the "run" columns) with the run of the
     same task, method and seed in ``base_preset`` (the "reference" columns), both among the
     runs that count (`select_runs`), on the preset's evaluation TCs: an exploration preset
@@ -176,7 +179,7 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
         ) from None
 
 
-def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
+def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
     """`FIELDS` rows pairing, per run that has one, the evaluation of its best
     learning-curve policy (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the
     "run" columns) with its own final policy's on the same TCs (``evaluation.csv``; the
@@ -197,7 +200,7 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict]:
     return _paired_files(pairs)
 
 
-def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict]:
+def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
     """`FIELDS` rows (`_sorted`) of each (run, reference) pair of evaluation files of runs
     ``.../<task>/<method>/seed<k>/``, TC by TC; a reference shared by several runs is read
     once.
@@ -205,7 +208,7 @@ def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict]:
     Raises:
         ValueError: the two files of a pair hold different TCs.
     """
-    references: dict[Path, tuple[list, dict[str, list[int]]]] = {}
+    references: dict[Path, tuple[list[dict[str, str]], dict[str, list[int]]]] = {}
     rows = []
     for run_file, reference_file in pairs:
         if reference_file not in references:
@@ -226,7 +229,7 @@ def _pair(
     seed: int,
     run_rows: list[dict[str, str]],
     reference_outcomes: dict[str, list[int]],
-) -> list[dict]:
+) -> list[dict[str, Any]]:
     """One `FIELDS` row per outcome: a run's episodes against the reference's, TC by TC."""
     outcomes = _outcomes(run_rows)
     n = len(run_rows)
@@ -252,7 +255,7 @@ def _pair(
     return rows
 
 
-def _sorted(rows: list[dict]) -> list[dict]:
+def _sorted(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Rows in task, table and seed order, outcomes in `OUTCOMES` order."""
     outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
     rows.sort(
@@ -268,7 +271,7 @@ def _sorted(rows: list[dict]) -> list[dict]:
 
 
 def paired_texts(
-    rows: list[dict],
+    rows: list[dict[str, Any]],
     preset: str,
     reference: str = UNADAPTED,
     episodes: int | None = None,

@@ -25,6 +25,7 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
@@ -70,9 +71,9 @@ class RunOutcomes:
     task: str
     method: str
     seed: int
-    plain: tuple[tuple[bool, bool], ...]  # (safe success, collision) per TC
-    modes: dict[str, tuple[tuple[bool, bool, bool], ...]]  # + refused
-    summaries: dict[str, dict]
+    plain: tuple[tuple[bool, ...], ...]  # (safe success, collision) per TC
+    modes: dict[str, tuple[tuple[bool, ...], ...]]  # (safe success, collision, refused)
+    summaries: dict[str, dict[str, Any]]
 
 
 TC_COLUMNS = (
@@ -89,7 +90,7 @@ def _tc(row: dict[str, str]) -> tuple[float, ...]:
     return tuple(round(float(row[name]), 9) for name in TC_COLUMNS)
 
 
-def _outcomes(rows: list[dict[str, str]], refused: bool) -> tuple[tuple, ...]:
+def _outcomes(rows: list[dict[str, str]], refused: bool) -> tuple[tuple[bool, ...], ...]:
     out = []
     for row in rows:
         cell = (is_safe_success(row), int(float(row["collision"])) == 1)
@@ -139,7 +140,7 @@ def _mean(values: list[float]) -> float:
     return sum(values) / len(values)
 
 
-def repair_rows(runs: list[RunOutcomes]) -> list[dict]:
+def repair_rows(runs: list[RunOutcomes]) -> list[dict[str, Any]]:
     """One row of :data:`FIELDS` per task and method (module docstring), in table order."""
     groups: dict[tuple[str, str], list[RunOutcomes]] = {}
     for run in runs:
@@ -148,10 +149,10 @@ def repair_rows(runs: list[RunOutcomes]) -> list[dict]:
     for (task, method), group in groups.items():
         group.sort(key=lambda r: r.seed)
 
-        def rate(outcomes: tuple, index: int) -> float:
+        def rate(outcomes: tuple[tuple[bool, ...], ...], index: int) -> float:
             return sum(o[index] for o in outcomes) / len(outcomes)
 
-        row: dict = {
+        row: dict[str, Any] = {
             "task": task,
             "method": method,
             "seeds": " ".join(str(r.seed) for r in group),
@@ -182,13 +183,15 @@ def repair_rows(runs: list[RunOutcomes]) -> list[dict]:
     return rows
 
 
-def repair_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
+def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
     """`repair_rows` of the runs `collect` finds, and what it left out."""
     runs, excluded = collect(root, preset)
     return repair_rows(runs), excluded
 
 
-def repair_texts(rows: list[dict], preset: str, excluded: list[str]) -> tuple[str, str] | None:
+def repair_texts(
+    rows: list[dict[str, Any]], preset: str, excluded: list[str]
+) -> tuple[str, str] | None:
     """(CSV, Markdown) of `repair_rows`; None if there are no rows."""
     if not rows:
         return None

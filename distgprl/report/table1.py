@@ -19,6 +19,7 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -127,9 +128,9 @@ def summary_paths(root: Path, preset: str) -> list[Path]:
     )
 
 
-def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict]]:
+def collect_summaries(root: Path, preset: str) -> dict[tuple[str, str], list[dict[str, Any]]]:
     """{(task, method): [summary per seed]} from ``<root>/<preset>/<task>/<method>/seed*/``."""
-    out: dict[tuple[str, str], list[dict]] = {}
+    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for path in summary_paths(root, preset):
         task, method = path.parts[-4], path.parts[-3]
         out.setdefault((task, method), []).append(read_json(path)["summary"])
@@ -147,7 +148,7 @@ def collect_scores(root: str | Path, preset: str) -> Scores:
     return out
 
 
-def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
+def per_seed_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
     """One row per run: task, method, seed, the Table I metrics, the training wall time
     (min) and process CPU time per RL step (ms, both from ``done.json``; empty for `demo` and
     for runs made before it was recorded), the numerics fingerprint of the machine that
@@ -164,7 +165,11 @@ def per_seed_rows(root: str | Path, preset: str) -> list[dict]:
         done_document = read_json(done) if done.exists() else {}
         wall = done_document.get("train_wall_time_s")
         cpu = done_document.get("cpu_s_per_step")
-        row = {"task": task, "method": method, "seed": int(seed.removeprefix("seed"))}
+        row: dict[str, Any] = {
+            "task": task,
+            "method": method,
+            "seed": int(seed.removeprefix("seed")),
+        }
         row.update({key: summary.get(key, "") for key, _ in (*METRICS, *PER_SEED_EXTRA)})
         row.update(late_curve(path.parent / "progress.csv"))
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
@@ -215,7 +220,7 @@ def late_curve(path: Path) -> dict[str, float | str]:
     }
 
 
-def per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
+def per_seed_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows`."""
     columns = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
     fields = ["task", "method", "seed", *(key for key, _ in columns), "train_wall_min"]
@@ -245,7 +250,7 @@ def per_seed_texts(rows: list[dict], preset: str) -> tuple[str, str]:
     return buffer.getvalue(), _markdown_table(f"Table I per run ({preset} preset)", header, table)
 
 
-def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[str]]:
+def simulation_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
     """Rows of Table I: one per (method), columns per task and metric."""
     summaries = collect_summaries(Path(root), preset)
     tasks = sorted({task for task, _ in summaries}, key=task_order)
@@ -253,7 +258,7 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
     for method in TABLE_ORDER:
         if not any((task, method) in summaries for task in tasks):
             continue
-        row = {"method": method, "label": METHODS[method].label}
+        row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
         for task in tasks:
             seeds = summaries.get((task, method), [])
             row[f"{task}_seeds"] = len(seeds)
@@ -268,7 +273,7 @@ def simulation_table(root: str | Path, preset: str) -> tuple[list[dict], list[st
     return rows, tasks
 
 
-def _csv_text(rows: list[dict], tasks: list[str]) -> str:
+def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
     buffer = io.StringIO()
     fields = ["method", "label"]
     for task in tasks:
@@ -317,7 +322,7 @@ def _iqm_text(estimate: Estimate | None) -> str:
     return f"{estimate.point:.2f} [{estimate.low:.2f}, {estimate.high:.2f}]"
 
 
-def _markdown(rows: list[dict], tasks: list[str], preset: str, note: str = "") -> str:
+def _markdown(rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str = "") -> str:
     header = ["Method"]
     for t in tasks:
         header += [f"{t.upper()} {name}" for _, name in METRICS]
@@ -342,7 +347,7 @@ def _markdown(rows: list[dict], tasks: list[str], preset: str, note: str = "") -
     return _markdown_table(title, header, table) + (f"\n{note}.\n" if note else "")
 
 
-def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
+def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str) -> str:
     columns = "l" + "c" * (len(tasks) * len(METRICS))
     lines = [
         "\\begin{table}[htb]",
@@ -371,7 +376,7 @@ def _latex(rows: list[dict], tasks: list[str], preset: str) -> str:
 
 
 def table1_texts(
-    rows: list[dict], tasks: list[str], preset: str, note: str = ""
+    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str = ""
 ) -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table I from `simulation_table`'s rows and tasks; ``note``
     (the runs left out, `select_runs`) goes under the Markdown table."""

@@ -14,6 +14,7 @@ import csv
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -39,7 +40,7 @@ class TrialFiles:
         excluded: one line per left-out file of the preset: ``method/file (reason)``.
     """
 
-    counted: tuple[tuple[str, dict, tuple[dict, ...]], ...]
+    counted: tuple[tuple[str, dict[str, Any], tuple[dict[str, Any], ...]], ...]
     excluded: tuple[str, ...]
 
     def note(self) -> str:
@@ -86,12 +87,12 @@ def binomial_interval(successes: int, trials: int, level: float = 0.95) -> tuple
     return float(low), float(high)
 
 
-def hardware_table(root: str | Path, preset: str) -> list[dict]:
+def hardware_table(root: str | Path, preset: str) -> list[dict[str, Any]]:
     """Rows of Table II from the trial files `select_trial_files` counts (`hardware_rows`)."""
     return hardware_rows(select_trial_files(root, preset))
 
 
-def repair_label(meta: dict) -> str:
+def repair_label(meta: dict[str, Any]) -> str:
     """How a trial file's plans were handled before execution (its meta): ``off`` (refused
     at once), ``retime`` (re-timed when too fast, then refused if still unsafe), ``retime +
     push`` (via-points also pushed along the distance field's gradient); ``–`` for files
@@ -103,7 +104,7 @@ def repair_label(meta: dict) -> str:
     return "retime + push" if meta.get("repair_push") else "retime"
 
 
-def noise_label(meta: dict, backend: str) -> str:
+def noise_label(meta: dict[str, Any], backend: str) -> str:
     """The twin's sensor-noise level of a trial file (``0`` for a twin file without one:
     the noiseless twin); ``–`` on the real robot."""
     if backend != "twin":
@@ -112,7 +113,7 @@ def noise_label(meta: dict, backend: str) -> str:
     return "0" if level is None else str(level)
 
 
-def hardware_rows(files: TrialFiles) -> list[dict]:
+def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
     """Rows of Table II from the trial files ``files`` counts, one per (method, backend,
     repair, sensor noise): trials on the real robot (``ur``) and on the digital twin are never
     mixed, nor trials with plan repair on and off (`repair_label`) or at different twin
@@ -122,12 +123,12 @@ def hardware_rows(files: TrialFiles) -> list[dict]:
     binomial interval (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of
     the trials' minimum clearance, only over the ``executed`` trials that moved the robot
     (`moved_robot`; NaN if none did)."""
-    groups: dict[tuple[str, str, str, str], list[dict]] = {}
+    groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
     for method, meta, trial_rows in files.counted:  # counted in table order
         for row in trial_rows:
             backend = row.get("backend", "unknown")
-            key = (method, backend, repair_label(meta), noise_label(meta, backend))
-            groups.setdefault(key, []).append(row)
+            setting = (method, backend, repair_label(meta), noise_label(meta, backend))
+            groups.setdefault(setting, []).append(row)
     rows = []
     order = sorted(groups, key=lambda k: (TABLE_ORDER.index(k[0]), k[1], k[2], k[3]))
     for method, backend, repair, noise in order:
@@ -157,12 +158,12 @@ def hardware_rows(files: TrialFiles) -> list[dict]:
     return rows
 
 
-def rate_text(row: dict, key: str) -> str:
+def rate_text(row: dict[str, Any], key: str) -> str:
     """``0.67 [0.09, 0.99]``: a Table II rate with its exact 95 % binomial interval."""
     return f"{row[key]:.2f} [{row[f'{key}_ci_low']:.2f}, {row[f'{key}_ci_high']:.2f}]"
 
 
-def noise_texts(rows: list[dict], preset: str) -> tuple[str, str] | None:
+def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | None:
     """(CSV, Markdown) of the robustness table: the twin's success and collision rates (exact
     95 % intervals) per method and repair setting against the sensor-noise level
     (`distgprl.hardware.twin.SENSOR_NOISE`); None unless some twin policy ran at more than one
@@ -177,7 +178,7 @@ def noise_texts(rows: list[dict], preset: str) -> tuple[str, str] | None:
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     writer.writerows(twin)
-    by_setting: dict[tuple[str, str], dict[str, dict]] = {}
+    by_setting: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
     for r in twin:
         by_setting.setdefault((r["method"], r["repair"]), {})[r["sensor_noise"]] = r
     header = ["Method", "Repair"]
@@ -186,8 +187,10 @@ def noise_texts(rows: list[dict], preset: str) -> tuple[str, str] | None:
     for (method, repair), per_level in by_setting.items():
         cells = [METHODS[method].label, repair]
         for level in levels:
-            r = per_level.get(level)
-            cells += ["–", "–"] if r is None else [rate_text(r, k) for k in INTERVAL_METRICS]
+            found = per_level.get(level)
+            cells += (
+                ["–", "–"] if found is None else [rate_text(found, k) for k in INTERVAL_METRICS]
+            )
         table.append(cells)
     caption = (
         f"Digital twin robustness ({preset} preset policies, DBM): success and collision against "
@@ -215,7 +218,7 @@ HARDWARE_CAPTION = (
 )
 
 
-def hardware_min_clearance(row: dict) -> str:
+def hardware_min_clearance(row: dict[str, Any]) -> str:
     """The MinCl cell: the value, ``(n=k)`` if only k of the trials moved the robot."""
     value = row["min_clearance_p5"]
     text = "–" if np.isnan(value) else f"{value:.3f}"
@@ -224,7 +227,7 @@ def hardware_min_clearance(row: dict) -> str:
     return text
 
 
-def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, str, str]:
+def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
     buffer = io.StringIO()
     fields = ["method", "backend", "repair", "sensor_noise"]
@@ -236,7 +239,7 @@ def hardware_texts(rows: list[dict], preset: str, note: str = "") -> tuple[str, 
         value = row["min_clearance_p5"]
         writer.writerow({**row, "min_clearance_p5": "" if np.isnan(value) else value})
 
-    def cells(row: dict) -> list[str]:
+    def cells(row: dict[str, Any]) -> list[str]:
         return [
             row["label"],
             row["backend"],

@@ -84,9 +84,9 @@ class DistanceField:
                 raise TypeError(f"unsupported shape type {type(s).__name__}")
         # Column order: planes and boxes first (plain folding), cylinders last (a contiguous
         # slice gets the radial folding).
-        ordered = [s for s in shapes if not isinstance(s, Cylinder)]
+        ordered: list[Shape] = [s for s in shapes if not isinstance(s, Cylinder)]
         ordered += [s for s in shapes if isinstance(s, Cylinder)]
-        self._records: list[Shape] = ordered
+        self._records = ordered
         self._names = tuple(s.name for s in ordered)
         self._index = {name: i for i, name in enumerate(self._names)}
         self._kinds = tuple(type(s) for s in ordered)
@@ -122,6 +122,7 @@ class DistanceField:
             raise TypeError(
                 f"{shape.name} was a {self._kinds[i].__name__}, got {type(shape).__name__}"
             )
+        half: tuple[float, float, float] | np.ndarray  # half extents along the local axes, m
         if isinstance(shape, Plane):
             rotation = frame_from_normal(shape.normal)
             centre = np.asarray(shape.position, dtype=float) - _PLANE_DEPTH * rotation[:, 2]
@@ -214,7 +215,8 @@ class DistanceField:
         points = np.asarray(points, dtype=float).reshape(-1, 3)
         if not self._names:
             return np.full(len(points), np.inf)
-        return self._signed(self._excess(points)[1])[0].min(axis=0)
+        nearest: np.ndarray = self._signed(self._excess(points)[1])[0].min(axis=0)
+        return nearest
 
     def distance(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance to the nearest obstacle and its gradient.

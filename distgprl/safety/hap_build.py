@@ -45,10 +45,14 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = [
     "ALGORITHM_VERSION",
@@ -68,6 +72,9 @@ ALGORITHM_VERSION = 1
 IkFunction = Callable[[np.ndarray], np.ndarray]
 CollisionFunction = Callable[[np.ndarray], bool]
 ProgressFunction = Callable[[str, int, int], None]
+#: A root's expansion (`_Builder.expand`): pose index -> (configuration (6,), joint path cost
+#: from the root, parent pose index or -1).
+Mapped = dict[int, tuple[np.ndarray, float, int]]
 
 _TWO_PI = 2.0 * np.pi
 # Tool pointing down (tool z = -world z): rotation vector (pi, 0, 0), UR convention.
@@ -76,7 +83,8 @@ _DOWN = (np.pi, 0.0, 0.0)
 
 def _down_with_yaw(yaw: float) -> tuple[float, float, float]:
     rotation = Rotation.from_euler("z", yaw) * Rotation.from_rotvec(_DOWN)
-    return tuple(float(v) for v in rotation.as_rotvec())
+    x, y, z = rotation.as_rotvec()
+    return (float(x), float(y), float(z))
 
 
 @dataclass(frozen=True)
@@ -202,7 +210,8 @@ class SafeSubspace:
 # ---------------------------------------------------------------------------- build
 def _wrap_towards(solutions: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Shift each joint of ``solutions`` (k, 6) by multiples of 2 pi nearest ``reference``."""
-    return solutions + _TWO_PI * np.round((reference - solutions) / _TWO_PI)
+    wrapped: np.ndarray = solutions + _TWO_PI * np.round((reference - solutions) / _TWO_PI)
+    return wrapped
 
 
 class _Builder:
@@ -292,13 +301,13 @@ class _Builder:
         self._edge_cache[key] = free
         return free
 
-    def expand(self, root: int, root_solution: np.ndarray) -> tuple[dict, float]:
+    def expand(self, root: int, root_solution: np.ndarray) -> tuple[Mapped, float]:
         """Step 4: Dijkstra-like expansion from (root pose, IK solution).
 
         Returns ``mapped`` = {pose: (configuration (6,), cost, parent pose)} and the total cost.
         """
         epsilon = self.config.epsilon
-        mapped: dict[int, tuple[np.ndarray, float, int]] = {}
+        mapped: Mapped = {}
         counter = 0
         heap: list[tuple[float, int, int, np.ndarray, int]] = [(0.0, 0, root, root_solution, -1)]
         while heap:
@@ -382,7 +391,7 @@ def build_subspace(
     builder.build_graph()
     roots = builder.root_candidates() if len(builder.reachable) else np.zeros(0, dtype=int)
     jobs = [(int(root), q) for root in roots for q in builder.solutions[root]]
-    best: tuple[dict, float, int] | None = None
+    best: tuple[Mapped, float, int] | None = None
     for k, (root, q) in enumerate(jobs):
         mapped, total = builder.expand(root, q)
         if best is None or total < best[1] - 1e-9:
@@ -417,7 +426,7 @@ def build_subspace(
     )
 
 
-def tqdm_progress(file=None, **options) -> ProgressFunction:
+def tqdm_progress(file: TextIO | None = None, **options: Any) -> ProgressFunction:
     """A :data:`ProgressFunction` drawing one tqdm bar per build stage (``ik``: poses solved,
     ``expand``: root expansions) on ``file`` (default stderr).
 
@@ -426,7 +435,7 @@ def tqdm_progress(file=None, **options) -> ProgressFunction:
     a terminal. ``options`` are passed on to ``tqdm`` (e.g. ``leave=True``).
     """
 
-    bars: dict = {}
+    bars: dict[str, tqdm[NoReturn]] = {}
 
     def report(stage: str, done: int, total: int) -> None:
         from tqdm import tqdm

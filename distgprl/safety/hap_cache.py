@@ -12,6 +12,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -33,11 +34,16 @@ __all__ = ["build_or_load", "load_subspace", "save_subspace", "subspace_cache_ke
 _TWO_PI = 2.0 * np.pi
 
 
-def _shape_record(shape: Shape) -> dict:
-    def numbers(value: object) -> list:
-        return np.round(np.asarray(value, dtype=float), 9).ravel().tolist()
+def _shape_record(shape: Shape) -> dict[str, Any]:
+    def numbers(value: object) -> list[float]:
+        rounded: list[float] = np.round(np.asarray(value, dtype=float), 9).ravel().tolist()
+        return rounded
 
-    record: dict = {"kind": type(shape).__name__, "name": shape.name, "dynamic": shape.dynamic}
+    record: dict[str, Any] = {
+        "kind": type(shape).__name__,
+        "name": shape.name,
+        "dynamic": shape.dynamic,
+    }
     record["position"] = numbers(shape.position)
     if isinstance(shape, Plane):
         record["normal"] = numbers(shape.normal)
@@ -74,8 +80,8 @@ def subspace_cache_key(
     return sha256_hex(text)
 
 
-def _config_from_json(data: dict) -> HapConfig:
-    def tupled(value: object) -> object:
+def _config_from_json(data: dict[str, Any]) -> HapConfig:
+    def tupled(value: Any) -> Any:  # a JSON value; its lists as tuples
         if isinstance(value, list):
             return tuple(tupled(v) for v in value)
         return value

@@ -31,7 +31,8 @@ def safe_mask(
         per_shape = per_shape[:, field.dynamic_mask]
     if per_shape.shape[1] == 0:
         return np.ones(len(positions), dtype=bool)
-    return per_shape.min(axis=1) >= margin
+    mask: np.ndarray = per_shape.min(axis=1) >= margin
+    return mask
 
 
 def filter_with_edf(
@@ -50,7 +51,8 @@ def filter_with_edf(
     """
     positions = subspace.unique_positions if isinstance(subspace, SafeSubspace) else subspace
     positions = np.asarray(positions, dtype=float).reshape(-1, 3)
-    return positions[safe_mask(positions, field, margin, dynamic_only=dynamic_only)]
+    kept: np.ndarray = positions[safe_mask(positions, field, margin, dynamic_only=dynamic_only)]
+    return kept
 
 
 class MovingObstacleFilter:

@@ -13,10 +13,21 @@ results are bit-identical to that code in float32 and float64 (tested against it
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, TypeVar, cast
+
 import numpy as np
 from numba import njit
 
 __all__ = ["boxes_block", "grid_candidates", "softmin_with_gradient"]
+
+_Function = TypeVar("_Function", bound=Callable[..., Any])
+
+
+def _compiled(function: _Function) -> _Function:
+    """``numba.njit(cache=True, nogil=True)``, keeping the function's signature for type
+    checkers (numba has no type information: its dispatcher would be ``Any``)."""
+    return cast(_Function, njit(cache=True, nogil=True)(function))
 
 
 def softmin_with_gradient(
@@ -54,7 +65,7 @@ def softmin_with_gradient(
         np.ascontiguousarray(query.T),
         coordinates,
         np.ascontiguousarray(index.T),
-        np.zeros((0, 0), dtype=bool) if no_blocked else np.ascontiguousarray(blocked.T),
+        np.zeros((0, 0), dtype=bool) if blocked is None else np.ascontiguousarray(blocked.T),
         not no_blocked,
         k,
         constants,
@@ -65,8 +76,16 @@ def softmin_with_gradient(
     return values, jacobian
 
 
-@njit(cache=True, nogil=True)
-def _candidate_distances(query, coordinates, index, blocked, use_blocked, k, constants):
+@_compiled
+def _candidate_distances(
+    query: np.ndarray,
+    coordinates: np.ndarray,
+    index: np.ndarray,
+    blocked: np.ndarray,
+    use_blocked: bool,
+    k: int,
+    constants: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """First pass of `softmin_with_gradient`, candidate-major: distances (c, n), their
     minimum d_min (n,), (d_min - d) / tau (c, n), the kept candidates (c, n) and the offsets
     x - y (3, c, n)."""
@@ -122,8 +141,10 @@ def _candidate_distances(query, coordinates, index, blocked, use_blocked, k, con
     return distances, nearest, exponent, keep, offsets
 
 
-@njit(cache=True, nogil=True)
-def _weighted_sums(weights, keep, distances, offsets):
+@_compiled
+def _weighted_sums(
+    weights: np.ndarray, keep: np.ndarray, distances: np.ndarray, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Second pass of `softmin_with_gradient`: the kept weights' sum (n,) and the soft-min's
     gradient (n, 3), summed over candidates in candidate order. ``weights`` (c, n) is
     overwritten."""
@@ -145,10 +166,18 @@ def _weighted_sums(weights, keep, distances, offsets):
     return total, jacobian
 
 
-@njit(cache=True, nogil=True)
+@_compiled
 def boxes_block(
-    points, index, anchors, centres, rotations, half_extents, axis_aligned, bounds, margin
-):
+    points: np.ndarray,
+    index: np.ndarray,
+    anchors: np.ndarray,
+    centres: np.ndarray,
+    rotations: np.ndarray,
+    half_extents: np.ndarray,
+    axis_aligned: bool,
+    bounds: np.ndarray,
+    margin: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Which candidate points the moving boxes block: mask (n, c) bool and the blocked
     candidates per row (n,) (float64 arithmetic).
 
@@ -231,8 +260,14 @@ def boxes_block(
     return out, counts
 
 
-@njit(cache=True, nogil=True)
-def grid_candidates(positions, lower, resolution, shape, table):
+@_compiled
+def grid_candidates(
+    positions: np.ndarray,
+    lower: np.ndarray,
+    resolution: float,
+    shape: np.ndarray,
+    table: np.ndarray,
+) -> np.ndarray:
     """The lookup table's candidates (n, c) of each position (n, 3), m: the cell
     floor((p - lower) / resolution), clipped to the table's ``shape`` (3,), of a table
     (cells, c) stored in C order over the cells."""
@@ -242,7 +277,7 @@ def grid_candidates(positions, lower, resolution, shape, table):
     for i in range(n):
         flat = 0
         for a in range(3):
-            cell = np.int64(np.floor((positions[i, a] - lower[a]) / resolution))
+            cell: np.int64 | int = np.int64(np.floor((positions[i, a] - lower[a]) / resolution))
             if cell < 0:
                 cell = 0
             elif cell > shape[a] - 1:

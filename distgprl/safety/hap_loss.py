@@ -31,11 +31,13 @@ Defaults (DESIGN leaves them open):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 from scipy.spatial import cKDTree
+from torch.autograd.function import BackwardCFunction, FunctionCtx
 
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_kernels import grid_candidates, softmin_with_gradient
@@ -43,6 +45,9 @@ from distgprl.safety.hap_kernels import grid_candidates, softmin_with_gradient
 __all__ = ["DEFAULT_QUERY_POINTS", "HapPrior", "HapPriorConfig"]
 
 DEFAULT_QUERY_POINTS = 20
+
+#: What `ValueWithGradient` calls in its forward: () -> (values, gradient).
+Evaluate = Callable[[], tuple[torch.Tensor, torch.Tensor]]
 
 
 class ValueWithGradient(torch.autograd.Function):
@@ -55,16 +60,23 @@ class ValueWithGradient(torch.autograd.Function):
     """
 
     @staticmethod
-    def forward(ctx, x: torch.Tensor, evaluate):  # noqa: ANN001 - autograd signature
+    def forward(ctx: FunctionCtx, x: torch.Tensor, evaluate: Evaluate) -> torch.Tensor:
         values, gradient = evaluate()
         ctx.save_for_backward(gradient)
         return values
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor):  # noqa: ANN001 - autograd signature
+    def backward(ctx: BackwardCFunction, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
         (gradient,) = ctx.saved_tensors
         extra = gradient.dim() - grad.dim()
         return grad.reshape(*grad.shape, *([1] * extra)) * gradient, None
+
+    @classmethod
+    def of(cls, x: torch.Tensor, evaluate: Evaluate) -> torch.Tensor:
+        """``apply(x, evaluate)``, typed."""
+        # torch declares `Function.apply(cls, *args, **kwargs)` without annotations
+        values: torch.Tensor = cls.apply(x, evaluate)  # type: ignore[no-untyped-call]
+        return values
 
 
 @dataclass(frozen=True)
@@ -271,7 +283,7 @@ class HapPrior:
             )
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
-        return ValueWithGradient.apply(x, evaluate)
+        return ValueWithGradient.of(x, evaluate)
 
     def per_point(
         self,
@@ -301,7 +313,7 @@ class HapPrior:
             )
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
-        return ValueWithGradient.apply(flat, evaluate).reshape(x.shape[:-1])
+        return ValueWithGradient.of(flat, evaluate).reshape(x.shape[:-1])
 
     def values_and_gradient(
         self,

@@ -6,16 +6,20 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from distgprl.safety.hap_build import SafeSubspace
 from distgprl.safety.shapes import Box, Cylinder, Plane, Shape
 
+if TYPE_CHECKING:
+    from mpl_toolkits.mplot3d import Axes3D
+
 __all__ = ["plot_subspace"]
 
 
-def _draw_shape(axes, shape: Shape, extent: np.ndarray) -> None:
+def _draw_shape(axes: Axes3D, shape: Shape, extent: np.ndarray) -> None:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     colour = "tab:red" if shape.dynamic else "dimgray"

@@ -204,6 +204,7 @@ def _shape_arrays(
         "visualFrameOrientations": [],
     }
     for shape in shapes:
+        half: np.ndarray | tuple[float, float, float]
         if isinstance(shape, Box):
             kind, radius, half, length = pybullet.GEOM_BOX, 0.0, shape.half_extents, 0.0
         else:

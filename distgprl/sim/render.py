@@ -8,10 +8,10 @@ import numpy as np
 
 from distgprl.errors import UserInputError
 from distgprl.sim.tasks import get_task
-from distgprl.sim.tasks.base import condition_by_translation, resample_to_control
+from distgprl.sim.tasks.base import TaskConfig, condition_by_translation, resample_to_control
 
 
-def demo_poses_for_tc(task_name: str, tc_index: int | None) -> tuple[np.ndarray, object]:
+def demo_poses_for_tc(task_name: str, tc_index: int | None) -> tuple[np.ndarray, TaskConfig]:
     """Control-rate TCP poses (k, 6) of the shipped demo conditioned on an evaluation TC.
 
     ``tc_index`` None means the nominal TC. Conditioning uses the translation stand-in

@@ -165,7 +165,7 @@ class Robot(Protocol):
         ...
 
     def ik_nearest(
-        self, tcp_transform: np.ndarray, q_reference: Sequence[float]
+        self, tcp_transform: np.ndarray, q_reference: Sequence[float] | np.ndarray
     ) -> np.ndarray | None:
         """The IK solution nearest ``q_reference`` (n_joints,), or None if unreachable."""
         ...
@@ -174,7 +174,9 @@ class Robot(Protocol):
         """Teleport the joints to ``q`` at rest and hold them there."""
         ...
 
-    def command(self, q_target: Sequence[float], qd_target: Sequence[float]) -> None:
+    def command(
+        self, q_target: Sequence[float] | np.ndarray, qd_target: Sequence[float] | np.ndarray
+    ) -> None:
         """Joint position targets (rad) with feed-forward velocities (rad/s) for the next
         physics step."""
         ...
@@ -267,7 +269,7 @@ def tool_urdf_path(tool: ToolSpec) -> str:
     return str(path)
 
 
-def _float_list(values: Sequence[float]) -> list[float]:
+def _float_list(values: Sequence[float] | np.ndarray) -> list[float]:
     """``values`` as a list of floats (a list is passed through: the control loop's)."""
     return values if isinstance(values, list) else np.asarray(values, dtype=float).tolist()
 
@@ -365,7 +367,7 @@ class UR5e:
         return branches[keep]
 
     def ik_nearest(
-        self, tcp_transform: np.ndarray, q_reference: Sequence[float]
+        self, tcp_transform: np.ndarray, q_reference: Sequence[float] | np.ndarray
     ) -> np.ndarray | None:
         """The IK solution (6,), rad, nearest to ``q_reference`` (6,), or None if unreachable.
 
@@ -394,7 +396,9 @@ class UR5e:
             self.client.resetJointState(self.body, index, float(value), 0.0)
         self.command(np.asarray(q, dtype=float), np.zeros(6))
 
-    def command(self, q_target: Sequence[float], qd_target: Sequence[float]) -> None:
+    def command(
+        self, q_target: Sequence[float] | np.ndarray, qd_target: Sequence[float] | np.ndarray
+    ) -> None:
         """Position-control targets (6,), rad, with feed-forward velocities (6,), rad/s
         (arrays or lists of floats)."""
         self._set_motors(

@@ -8,6 +8,7 @@ PyBullet's ``(x, y, z, w)``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -94,7 +95,7 @@ def rotvec_to_quaternion(rotvec: np.ndarray) -> np.ndarray:
     return np.array([*(axis * math.sin(angle / 2.0)), math.cos(angle / 2.0)])
 
 
-def pose_to_matrix(pose: np.ndarray) -> np.ndarray:
+def pose_to_matrix(pose: np.ndarray | Sequence[float]) -> np.ndarray:
     """Homogeneous transform (4, 4) of a pose (6,) ``(x, y, z, rx, ry, rz)``."""
     # One array from plain floats: called once per control period (issue 29).
     values = pose.tolist() if isinstance(pose, np.ndarray) else [float(v) for v in pose]

@@ -52,7 +52,8 @@ class Demonstration:
     @property
     def normalised_times(self) -> np.ndarray:
         """Times mapped to tau in [0, 1], shape (n,)."""
-        return (self.times - self.times[0]) / self.duration
+        tau: np.ndarray = (self.times - self.times[0]) / self.duration
+        return tau
 
 
 def load_demonstration(path: str | Path, min_rows: int = 2) -> Demonstration:

@@ -31,13 +31,14 @@ lambda = 1e-2, S_W is close to the identity; `distgprl fit` reports how close
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.optimize import minimize
+from scipy.optimize import OptimizeResult, minimize
 
 from distgprl.skill.demos import Demonstration
 
@@ -83,26 +84,37 @@ class FitConfig:
     min_noise_variance: float = 1e-6
 
 
-def se_kernel(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+def se_kernel(
+    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
+) -> np.ndarray:
     """k(a, b), shape (len(a), len(b))."""
     diff = a[:, None] - b[None, :]
-    return variance * np.exp(-0.5 * (diff / length_scale) ** 2)
+    k: np.ndarray = variance * np.exp(-0.5 * (diff / length_scale) ** 2)
+    return k
 
 
-def se_kernel_d1(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+def se_kernel_d1(
+    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
+) -> np.ndarray:
     """d k(a, b) / d a, shape (len(a), len(b))."""
     diff = a[:, None] - b[None, :]
-    return -diff / length_scale**2 * se_kernel(a, b, length_scale, variance)
+    d1: np.ndarray = -diff / length_scale**2 * se_kernel(a, b, length_scale, variance)
+    return d1
 
 
-def se_kernel_d2(a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0):
+def se_kernel_d2(
+    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
+) -> np.ndarray:
     """d^2 k(a, b) / d a^2, shape (len(a), len(b))."""
     diff = a[:, None] - b[None, :]
     l2 = length_scale**2
-    return (diff**2 / l2**2 - 1.0 / l2) * se_kernel(a, b, length_scale, variance)
+    d2: np.ndarray = (diff**2 / l2**2 - 1.0 / l2) * se_kernel(a, b, length_scale, variance)
+    return d2
 
 
-def _negative_log_marginal_likelihood(log_params: np.ndarray, tau: np.ndarray, y: np.ndarray):
+def _negative_log_marginal_likelihood(
+    log_params: np.ndarray, tau: np.ndarray, y: np.ndarray
+) -> tuple[float, np.ndarray]:
     """Sum over axes of -log p(y_axis | tau, theta) and its gradient w.r.t. log params."""
     length_scale, signal_variance, noise_variance = np.exp(log_params)
     n, n_axes = y.shape
@@ -146,7 +158,7 @@ def fit_kernel(
     """
     y = standardise(values)[0]
     lo, hi = length_scale_bounds
-    best = None
+    best: OptimizeResult | None = None
     # A few starts across the admissible length-scale range: the likelihood is multimodal.
     for start_length in np.geomspace(max(lo, 1e-3), hi, 4):
         x0 = np.log([start_length, 1.0, max(1e-4, min_noise_variance)])
@@ -164,6 +176,7 @@ def fit_kernel(
         )
         if best is None or result.fun < best.fun:
             best = result
+    assert best is not None  # the four starts above
     length_scale, signal_variance, noise_variance = np.exp(best.x)
     return KernelParams(float(length_scale), float(signal_variance), float(noise_variance))
 
@@ -199,7 +212,9 @@ class GPSkill:
     duration: float
     name: str = "skill"
     axis_scale: np.ndarray | None = None
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    _cache: dict[tuple[str, float, float], np.ndarray] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     @property
     def n_via_points(self) -> int:
@@ -218,7 +233,8 @@ class GPSkill:
         """M, shape (m, N): position(tau) = mu + M (Gamma - mu)."""
         k = self.kernel
         cross = se_kernel(np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance)
-        return cross @ self._inverse_gram
+        position: np.ndarray = cross @ self._inverse_gram
+        return position
 
     def velocity_map(self, tau: np.ndarray) -> np.ndarray:
         """dM, shape (m, N): velocity(tau) = dM (Gamma - mu), per second."""
@@ -226,7 +242,8 @@ class GPSkill:
         cross = se_kernel_d1(
             np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance
         )
-        return cross @ self._inverse_gram / self.duration
+        velocity: np.ndarray = cross @ self._inverse_gram / self.duration
+        return velocity
 
     def acceleration_map(self, tau: np.ndarray) -> np.ndarray:
         """ddM, shape (m, N): acceleration(tau) = ddM (Gamma - mu), per second squared."""
@@ -234,7 +251,8 @@ class GPSkill:
         cross = se_kernel_d2(
             np.asarray(tau, float), self.via_times, k.length_scale, k.signal_variance
         )
-        return cross @ self._inverse_gram / self.duration**2
+        acceleration: np.ndarray = cross @ self._inverse_gram / self.duration**2
+        return acceleration
 
     def maps(self, tau: np.ndarray) -> TrajectoryMaps:
         """All three maps at the query times, bundled for repeated evaluation."""
@@ -250,22 +268,27 @@ class GPSkill:
     # -- evaluation -------------------------------------------------------------------------
     def position(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Trajectory poses at ``tau`` for via-points (N, 6): shape (m, 6), m and rad."""
-        return self.prior_mean + self.position_map(tau) @ (via_points - self.prior_mean)
+        poses: np.ndarray = self.prior_mean + self.position_map(tau) @ (
+            via_points - self.prior_mean
+        )
+        return poses
 
     def velocity(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Velocities at ``tau``: shape (m, 6), m/s and rad/s."""
-        return self.velocity_map(tau) @ (via_points - self.prior_mean)
+        velocities: np.ndarray = self.velocity_map(tau) @ (via_points - self.prior_mean)
+        return velocities
 
     def acceleration(self, via_points: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Accelerations at ``tau``: shape (m, 6), m/s^2 and rad/s^2."""
-        return self.acceleration_map(tau) @ (via_points - self.prior_mean)
+        accelerations: np.ndarray = self.acceleration_map(tau) @ (via_points - self.prior_mean)
+        return accelerations
 
     # -- correlation operator ---------------------------------------------------------------
     def correlation_operator(
         self,
         correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA,
         length_scale: float | None = None,
-    ):
+    ) -> np.ndarray:
         """S = K (K + lambda I)^{-1}, shape (N, N) (Eq. global_S).
 
         K is the kernel's correlation matrix (unit variance) at the via-point times, so
@@ -290,7 +313,7 @@ class GPSkill:
 
     def window_operator(
         self,
-        indices: Sequence[int],
+        indices: Sequence[int] | np.ndarray,
         correlation_lambda: float = DEFAULT_CORRELATION_LAMBDA,
         length_scale: float | None = None,
     ) -> np.ndarray:
@@ -298,7 +321,8 @@ class GPSkill:
         (``length_scale``: as in `correlation_operator`)."""
         idx = np.asarray(indices, dtype=int)
         operator = self.correlation_operator(correlation_lambda, length_scale)
-        return operator[np.ix_(idx, idx)].copy()
+        block: np.ndarray = operator[np.ix_(idx, idx)].copy()
+        return block
 
     def signal_variance_per_axis(self, axis_floor: np.ndarray) -> np.ndarray:
         """The GP prior variance of each axis in via-point units, shape (6,), m^2 / rad^2.
@@ -314,11 +338,12 @@ class GPSkill:
                 f"skill {self.name!r} has no axis_scale (saved before it was recorded); refit it"
             )
         scale = np.maximum(np.asarray(self.axis_scale, dtype=float), axis_floor)
-        return self.kernel.signal_variance * scale**2
+        variance: np.ndarray = self.kernel.signal_variance * scale**2
+        return variance
 
     def axis_window_operators(
         self,
-        indices: Sequence[int],
+        indices: Sequence[int] | np.ndarray,
         correlation_lambda: float,
         axis_variance: np.ndarray,
         length_scale: float | None = None,
@@ -371,7 +396,7 @@ class GPSkill:
         return gamma
 
     # -- serialisation ---------------------------------------------------------------------
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "name": self.name,
             "kernel": {
@@ -391,7 +416,7 @@ class GPSkill:
         }
 
     @classmethod
-    def from_dict(cls, data: dict) -> GPSkill:
+    def from_dict(cls, data: Mapping[str, Any]) -> GPSkill:
         return cls(
             kernel=KernelParams(**data["kernel"]),
             via_times=np.asarray(data["via_times"], dtype=float),
@@ -417,7 +442,8 @@ class TrajectoryMaps:
 
     def positions(self, via_points: np.ndarray) -> np.ndarray:
         """(m, 6) poses for via-points (N, 6)."""
-        return self.prior_mean + self.position @ (via_points - self.prior_mean)
+        poses: np.ndarray = self.prior_mean + self.position @ (via_points - self.prior_mean)
+        return poses
 
 
 def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:

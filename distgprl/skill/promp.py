@@ -168,12 +168,11 @@ class ObjectCentricProMP:
             The fitted ProMP.
         """
         config = config or ProMPConfig()
-        overrides = {
-            name: value
-            for name, value in (("n_basis", n_basis), ("ridge", ridge))
-            if value is not None
-        }
-        config = dataclasses.replace(config, **overrides)
+        config = dataclasses.replace(
+            config,
+            n_basis=config.n_basis if n_basis is None else n_basis,
+            ridge=config.ridge if ridge is None else ridge,
+        )
         object_positions = np.asarray(object_positions, dtype=np.float64)
         if len(demos) < 1:
             raise ValueError("need at least one demonstration")
@@ -226,7 +225,8 @@ class ObjectCentricProMP:
         """
         basis = self.basis(phase)
         poses = basis @ self._channel_weights(self.weight_mean)
-        return poses + _position_offset(object_position)
+        world: np.ndarray = poses + _position_offset(object_position)
+        return world
 
     def mean_velocity(self, phase: np.ndarray, duration: float | None = None) -> np.ndarray:
         """Mean pose rates at the given phases, shape (m, 6), m/s and rad/s.
@@ -240,7 +240,8 @@ class ObjectCentricProMP:
         if not (np.isfinite(duration) and duration > 0):
             raise ValueError(f"duration must be positive, got {duration}")
         derivative = _basis_derivative(_validated_phase(phase), self.config)
-        return derivative @ self._channel_weights(self.weight_mean) / duration
+        rates: np.ndarray = derivative @ self._channel_weights(self.weight_mean) / duration
+        return rates
 
     def trajectory_std(self, phase: np.ndarray) -> np.ndarray:
         """Marginal standard deviation of each pose channel, shape (m, 6), m and rad."""
@@ -339,7 +340,8 @@ class ObjectCentricProMP:
         basis = self.basis(phase)  # (m, N)
         channel_weights = weights.reshape(n_samples, POSE_CHANNELS, self.config.n_basis)
         poses = np.einsum("mn,scn->smc", basis, channel_weights)
-        return poses + _position_offset(object_position)
+        world: np.ndarray = poses + _position_offset(object_position)
+        return world
 
     # ------------------------------------------------------------------ persistence
 
@@ -386,13 +388,15 @@ def _basis_centres(config: ProMPConfig) -> np.ndarray:
 
 def _unnormalised_basis(phase: np.ndarray, config: ProMPConfig) -> np.ndarray:
     offsets = phase[:, None] - _basis_centres(config)[None, :]
-    return np.exp(-0.5 * (offsets / config.width) ** 2)
+    values: np.ndarray = np.exp(-0.5 * (offsets / config.width) ** 2)
+    return values
 
 
 def _basis(phase: np.ndarray, config: ProMPConfig) -> np.ndarray:
     """Normalised Gaussian basis, (m,) -> (m, N); rows sum to 1."""
     values = _unnormalised_basis(phase, config)
-    return values / values.sum(axis=1, keepdims=True)
+    normalised: np.ndarray = values / values.sum(axis=1, keepdims=True)
+    return normalised
 
 
 def _basis_derivative(phase: np.ndarray, config: ProMPConfig) -> np.ndarray:
@@ -402,7 +406,8 @@ def _basis_derivative(phase: np.ndarray, config: ProMPConfig) -> np.ndarray:
     derivatives = -offsets / config.width**2 * values
     total = values.sum(axis=1, keepdims=True)
     total_derivative = derivatives.sum(axis=1, keepdims=True)
-    return (derivatives * total - values * total_derivative) / total**2
+    quotient: np.ndarray = (derivatives * total - values * total_derivative) / total**2
+    return quotient
 
 
 def _validated_phase(phase: np.ndarray) -> np.ndarray:

@@ -40,11 +40,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 import numpy as np
 import torch
 
-ArrayOrTensor = np.ndarray | torch.Tensor
+#: A numpy array or a torch tensor: the signature's algebra is written once for both, each
+#: call staying in one of them (a constrained type variable, not a union).
+ArrayOrTensor = TypeVar("ArrayOrTensor", np.ndarray, torch.Tensor)
 
 
 def signature_dimension(channels: int, depth: int) -> int:
@@ -360,7 +363,8 @@ def _check_scale(scale: float | Sequence[float] | np.ndarray, channels: int) -> 
 def _outer_flat(left: ArrayOrTensor, right: ArrayOrTensor) -> ArrayOrTensor:
     """Flattened outer product of the last axes: (..., p), (..., q) -> (..., p * q)."""
     product = left[..., :, None] * right[..., None, :]
-    return product.reshape(tuple(product.shape[:-2]) + (-1,))
+    flat: ArrayOrTensor = product.reshape(tuple(product.shape[:-2]) + (-1,))
+    return flat
 
 
 def _segment_exponentials(increments: ArrayOrTensor, depth: int) -> list[ArrayOrTensor]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -61,9 +61,12 @@ def bench_via_point_scaling(sizes: BenchSizes, task: str = BENCH_TASK) -> list[d
                 pipeline.restart()
                 pipeline.gp_conditioning(step, action)
 
+            def edf_window(p: AdaptationPipeline = pipeline) -> object:
+                return p.edf(1)
+
             timings = {
                 "episode": measure(pipeline.episode, 3 * sizes.scaling_repeats, 3, 1),
-                "edf_window": measure(lambda p=pipeline: p.edf(1), sizes.scaling_repeats, 3),
+                "edf_window": measure(edf_window, sizes.scaling_repeats, 3),
                 "gp_window": measure(gp, sizes.scaling_repeats, 3, sizes.inner),
                 "policy_window": measure(pipeline.policy, sizes.scaling_repeats, 3, sizes.inner),
             }
@@ -71,7 +74,7 @@ def bench_via_point_scaling(sizes: BenchSizes, task: str = BENCH_TASK) -> list[d
                 {
                     "n_via_points": n,
                     "window_size": n // 3,
-                    "action_size": int(env.action_space.shape[0]),
+                    "action_size": int(cast("tuple[int, ...]", env.action_space.shape)[0]),
                     "segment_samples": int(len(env.segment_tau(1))),
                     **{name: t.to_dict() for name, t in timings.items()},
                 }
@@ -115,13 +118,14 @@ def bench_obstacle_scaling(env, model, sizes: BenchSizes) -> list[dict[str, Any]
             points = np.concatenate(
                 (env.gamma[pipeline.layout.indices[1], :3], pipeline.tool_points)
             )
-            paired = measure_interleaved(
-                {
-                    "edf": lambda p=pipeline: p.edf(1),
-                    "pybullet": lambda b=bullet, x=points: b.distance(x),
-                },
-                sizes.scaling_repeats,
-            )
+
+            def edf(p: AdaptationPipeline = pipeline) -> object:
+                return p.edf(1)
+
+            def pybullet(b: BulletDistance = bullet, x: np.ndarray = points) -> object:
+                return b.distance(x)
+
+            paired = measure_interleaved({"edf": edf, "pybullet": pybullet}, sizes.scaling_repeats)
             episode = measure(pipeline.episode, 3 * sizes.scaling_repeats, 3, 1)
         finally:
             bullet.close()

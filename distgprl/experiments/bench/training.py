@@ -4,6 +4,7 @@ short real training run with where its time goes."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -62,7 +63,7 @@ def bench_sac_step(env, model, repeats: int) -> dict[str, Any]:
             model.regulariser = None
             model.train(gradient_steps=1, batch_size=batch)
 
-        steps = {"regularised": regularised, "plain": plain}
+        steps: dict[str, Callable[[], object]] = {"regularised": regularised, "plain": plain}
         timings = measure_interleaved(steps, repeats)
         cpu = measure_interleaved(steps, repeats, clock=time.process_time)
         model.regulariser = regulariser
@@ -107,7 +108,12 @@ def _instrument(env, model) -> SectionTimers:
 def training_breakdown(timers: SectionTimers, wall: float, steps: int) -> dict[str, Any]:
     """Exclusive time per piece (ms per training step and fraction of the wall time)."""
     s = timers.seconds
-    sim_children = ("physics_step", "contact_query", "clearance_query", "kinematic_obstacles")
+    sim_children: tuple[str, ...] = (
+        "physics_step",
+        "contact_query",
+        "clearance_query",
+        "kinematic_obstacles",
+    )
     sim_children += ("joint_commands", "ik")
     parts = {
         "simulation: physics (stepSimulation)": s["physics_step"],

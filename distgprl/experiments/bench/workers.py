@@ -96,7 +96,7 @@ def bench_workers(sizes: BenchSizes, task: str = BENCH_TASK) -> list[dict[str, A
     like-for-like ratio (the in-process run of `bench_training` carries its section timers,
     which cost a few milliseconds per step, and is not the reference).
     """
-    out = []
+    out: list[dict[str, Any]] = []
     for count in sizes.workers:
         rates = _worker_rates(count, sizes, task)
         out.append(

@@ -241,7 +241,8 @@ class TaskSim:
         self._place(tc)
         self._object_velocity_list = self._object_velocity.tolist()
         x0, y0, z0 = self._object_start.tolist()
-        self._conveyor = (x0, y0, z0, *self._object_velocity_list[:2])
+        vx, vy = self._object_velocity_list[:2]
+        self._conveyor = (x0, y0, z0, vx, vy)
         self.convey_object(0.0)
         self.move_kinematic(0.0)
 
@@ -360,7 +361,7 @@ class TaskSim:
                 self.client.disconnect()
             except Exception:  # noqa: BLE001 - already disconnected
                 pass
-            self.client = None  # type: ignore[assignment]
+            self.client = None
 
     def __enter__(self) -> TaskSim:
         return self

@@ -169,9 +169,9 @@ class DBMSim(TaskSim):
     def _build_scene(self) -> None:
         scene = self.scene
         client = self.client
-        self.start_joint_positions = self.robot.ik_nearest(
-            pose_to_matrix(np.asarray(scene.start_pose)), HOME
-        )
+        start = self.robot.ik_nearest(pose_to_matrix(np.asarray(scene.start_pose)), HOME)
+        assert start is not None, "the scene's start pose has no IK solution"
+        self.start_joint_positions = start
         roller_z = scene.roller_top - scene.roller_radius
         first = -scene.roller_pitch * (scene.roller_count - 1) / 2.0
         self._rollers = tuple(
@@ -228,7 +228,8 @@ class DBMSim(TaskSim):
         self.dynamic_obstacle_bodies = (self.other_bar_body,)
         self.exempt_links = {}
         self._other_start = other_centre
-        self._other_position = other_centre.copy()
+        # (3,), m: an array here, plain floats from `move_kinematic`
+        self._other_position: np.ndarray | tuple[float, float, float] = other_centre.copy()
         self._object_rest = target_centre
 
     def _place(self, tc: TaskConfig) -> None:

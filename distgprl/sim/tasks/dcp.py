@@ -104,9 +104,9 @@ class DCPSim(TaskSim):
 
     def _build_scene(self) -> None:
         scene = self.scene
-        self.start_joint_positions = self.robot.ik_nearest(
-            pose_to_matrix(np.asarray(scene.start_pose)), HOME
-        )
+        start = self.robot.ik_nearest(pose_to_matrix(np.asarray(scene.start_pose)), HOME)
+        assert start is not None, "the scene's start pose has no IK solution"
+        self.start_joint_positions = start
         client = self.client
         self._table = Box(
             "table",
@@ -155,7 +155,10 @@ class DCPSim(TaskSim):
         self.obstacle_bodies = (self.table_body, self.wall_body, self.obstacle_body)
         self.dynamic_obstacle_bodies = (self.obstacle_body,)
         self.exempt_links = {}
-        self._obstacle_position = np.array([*scene.obstacle_centre, scene.obstacle_half])
+        # (3,), m: an array here, plain floats from `move_kinematic`
+        self._obstacle_position: np.ndarray | tuple[float, float, float] = np.array(
+            [*scene.obstacle_centre, scene.obstacle_half]
+        )
         self._obstacle_line = np.array(scene.obstacle_centre)
         self._start_cube_xy = np.array(scene.cube_start)
 
