@@ -12,7 +12,7 @@ from typing import Literal
 
 from distgprl.errors import UserInputError
 
-ActionMode = Literal["window", "global", "residual", "none"]
+ActionMode = Literal["window", "global", "residual", "residual-control", "none"]
 EntropyMode = Literal["auto", "anneal"]
 
 
@@ -24,8 +24,10 @@ class MethodSpec:
         name: registry key (CLI name).
         label: name used in tables and figures.
         action_mode: ``window`` (L via-points per RL step), ``global`` (all adaptable
-            via-points every step), ``residual`` (ProMP-RRL residual on a nominal
-            trajectory), ``none`` (no learning).
+            via-points every step), ``residual`` (ProMP-RRL residual weights on a nominal
+            trajectory, at the windowed steps), ``residual-control`` (ProMP-RRL as residual
+            RL: a Cartesian residual at 10 Hz, `distgprl.envs.residual_rl`), ``none`` (no
+            learning).
         covariance_transform: apply Delta Gamma = S_W a (Eq. transformed_action).
         distance_rewards: add r_sd and lambda_ga r_ga (Eq. total_reward).
         hap_prior: add lambda_hap L_hap to the actor loss (Eq. actor_final_compact).
@@ -34,7 +36,8 @@ class MethodSpec:
         signature_reward: add GPRL's signature-similarity reward.
         entropy: ``auto`` (SAC's automatic temperature) or ``anneal`` (GPRL schedule).
         trainable: whether the method trains a policy.
-        demonstrations: what a residual method's ProMP is fitted to: ``one`` — the one
+        demonstrations: what a residual method's ProMP is fitted to (for
+            ``residual-control``, the ProMP whose variance gates the residual): ``one`` — the one
             demonstration every method gets (conditioned on training TCs), ``expert`` — 20
             TC-aware expert demonstrations (an exploration variant with more information).
         episode_range: a global action's per-step scale is the configured one divided by
@@ -134,6 +137,7 @@ METHODS: dict[str, MethodSpec] = {
         ),
         MethodSpec("demo", "Demo (no adaptation)", "none", trainable=False),
         MethodSpec("promp-nominal", "ProMP nominal (no residual)", "residual", trainable=False),
+        MethodSpec("promp-rrl-residual", "ProMP-RRL (residual)", "residual-control"),
     )
 }
 
@@ -150,9 +154,11 @@ TABLE_ORDER: tuple[str, ...] = (
     "promp-nominal",
 )
 
-EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-expert",)
-"""Methods with more information than Table I's (20 TC-aware expert demonstrations instead
-of one): run them by name; they are not in Table I or in a default sweep."""
+EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-expert", "promp-rrl-residual")
+"""Methods outside Table I and the default sweep (run them by name): ``promp-rrl-expert`` has
+more information than Table I's methods (20 TC-aware expert demonstrations instead of one);
+``promp-rrl-residual`` (ProMP-RRL as residual RL, issue 48 item 4) is not yet a Table I
+row."""
 
 
 def get_method(name: str) -> MethodSpec:

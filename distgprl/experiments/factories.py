@@ -11,7 +11,12 @@ from distgprl.identity import RunSpec
 
 
 def make_env(run: RunSpec):
-    """The adaptation environment for a run (ProMP-RRL uses its residual environment)."""
+    """The adaptation environment for a run (ProMP-RRL uses its residual environment, the
+    residual-RL variant `ResidualRLEnv`)."""
+    if run.method.action_mode == "residual-control":
+        from distgprl.envs.residual_rl import ResidualRLEnv
+
+        return ResidualRLEnv(run.task, run.method, run.config.env)
     if run.method.action_mode == "residual":
         from distgprl.envs.residual import ResidualEnv
 
