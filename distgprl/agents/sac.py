@@ -26,21 +26,19 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
 
 import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
-from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.sac.policies import MultiInputPolicy
 from torch.nn import functional as F
 
-if TYPE_CHECKING:
-    from distgprl.agents.regularisers import ActorRegulariser
+from distgprl.agents.update import ReplaySampler, polyak_lerp, squashed_gaussian_sample
 
 SB3_VERSION_COPIED = "2.9.2"
 
@@ -112,7 +110,7 @@ class EpisodeLogCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         rewards = np.asarray(self.locals["rewards"], dtype=np.float64)
-        if self._returns is None or self._lengths is None:  # set together, at the first step
+        if self._returns is None:
             self._returns = np.zeros_like(rewards)
             self._lengths = np.zeros(rewards.shape, dtype=np.int64)
         self._returns += rewards
@@ -136,8 +134,7 @@ class StateOnlyExtractor(BaseFeaturesExtractor):
     """Features = the ``state`` entry of a Dict observation (``aux`` is ignored)."""
 
     def __init__(self, observation_space: gym.spaces.Dict) -> None:
-        shape = cast("tuple[int, ...]", observation_space["state"].shape)  # a Box's
-        super().__init__(observation_space, features_dim=shape[0])
+        super().__init__(observation_space, features_dim=observation_space["state"].shape[0])
 
     def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
         return observations["state"]
@@ -201,6 +198,20 @@ class NumpyActor:
         return np.tanh(x, out=x)
 
 
+class RegularisedSACPolicy(MultiInputPolicy):
+    """SB3's ``MultiInputPolicy`` whose training flag is set on a cached module list (issue
+    49): SB3's recursive ``train(mode)`` costs ~0.15 ms, twice per training step (the update
+    and the rollout); no module of these networks behaves differently in training mode."""
+
+    def set_training_mode(self, mode: bool) -> None:
+        modules = self.__dict__.get("_training_modules")
+        if modules is None:
+            modules = self.__dict__["_training_modules"] = list(self.modules())
+        for module in modules:
+            module.training = mode
+        self.training = mode
+
+
 class RegularisedSAC(SAC):
     """SB3 SAC whose actor loss adds the Dist-GPRL regularisers.
 
@@ -211,6 +222,12 @@ class RegularisedSAC(SAC):
         total_training_steps: steps over which the schedule's progress runs 0 -> 1.
         All other arguments go to `stable_baselines3.SAC`.
     """
+
+    policy_aliases = {**SAC.policy_aliases, "MultiInputPolicy": RegularisedSACPolicy}
+
+    freeze_critic_in_actor_loss = True
+    """Freeze the critic's parameters in the actor loss's backward (False: SB3's original,
+    which computes their unused weight gradients; the tests compare the two)."""
 
     def __init__(
         self,
@@ -238,8 +255,40 @@ class RegularisedSAC(SAC):
             return float(th.exp(self.log_ent_coef.detach()))
         return float(self.ent_coef_tensor)
 
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        # distgprl (issue 49): the entropy coefficient's Adam fused like the networks' (one
+        # kernel instead of a dozen ops for its one scalar).
+        if self.ent_coef_optimizer is not None:
+            self.ent_coef_optimizer = th.optim.Adam(
+                [self.log_ent_coef], lr=self.lr_schedule(1), fused=True
+            )
+
+    def _update_parts(self) -> tuple:
+        """The update's cached pieces: the replay sampler (or None: SB3's sample) and the
+        critic's, the target critic's and the actor's parameter lists (rebuilt if the
+        policy or the buffer was replaced, e.g. by a checkpoint load)."""
+        parts = getattr(self, "_update_cache", None)
+        if parts is None or parts[0][0] is not self.policy or parts[0][1] is not self.replay_buffer:
+            sampler = None
+            if ReplaySampler.supports(self.replay_buffer, self._vec_normalize_env):
+                sampler = ReplaySampler(self.replay_buffer)
+            parts = (
+                (self.policy, self.replay_buffer),
+                sampler,
+                list(self.critic.parameters()),
+                list(self.critic_target.parameters()),
+            )
+            self._update_cache = parts
+        return parts
+
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
-        # Copied from stable_baselines3 2.9.2 SAC.train; changes marked "distgprl:".
+        # Adapted from stable_baselines3 2.9.2 SAC.train; changes marked "distgprl:". Issue 49
+        # cut its framework work: the replay batch gathered into preallocated tensors, the
+        # actor's action and log-probability without a torch.distributions object, the
+        # critic frozen through a cached parameter list and the target update one foreach
+        # lerp (the losses' .item() stays: on the CPU it is no synchronisation, and one
+        # stacked read-back measured slower).
         self.policy.set_training_mode(True)
         optimizers = [self.actor.optimizer, self.critic.optimizer]
         if self.ent_coef_optimizer is not None:
@@ -250,18 +299,23 @@ class RegularisedSAC(SAC):
         if self.entropy_schedule is not None:
             self.ent_coef_tensor = th.tensor(self.current_entropy_coefficient(), device=self.device)
 
+        _, sampler, critic_parameters, target_parameters = self._update_parts()
+        fast_actor = not self.use_sde
         ent_coef_losses, ent_coefs = [], []
         actor_losses, critic_losses = [], []
         regulariser_logs: dict[str, list[float]] = {}
 
         for gradient_step in range(gradient_steps):
-            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+            if sampler is not None:  # distgprl: same draws and values as SB3's sample
+                replay_data = sampler.sample(batch_size)
+            else:
+                replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
             if self.use_sde:
                 self.actor.reset_noise()
 
-            actions_pi, log_prob = self.actor.action_log_prob(replay_data.observations)
+            actions_pi, log_prob = self._action_log_prob(replay_data.observations, fast_actor)
             log_prob = log_prob.reshape(-1, 1)
 
             ent_coef_loss = None
@@ -283,8 +337,8 @@ class RegularisedSAC(SAC):
                 self.ent_coef_optimizer.step()
 
             with th.no_grad():
-                next_actions, next_log_prob = self.actor.action_log_prob(
-                    replay_data.next_observations
+                next_actions, next_log_prob = self._action_log_prob(
+                    replay_data.next_observations, fast_actor
                 )
                 next_q_values = th.cat(
                     self.critic_target(replay_data.next_observations, next_actions), dim=1
@@ -309,9 +363,12 @@ class RegularisedSAC(SAC):
             # distgprl: the actor loss needs dQ/da only; with the critic's parameters frozen
             # its backward skips their weight gradients (which the next critic update zeroes
             # anyway), so the update is numerically unchanged and cheaper.
-            self.critic.requires_grad_(False)
+            frozen = critic_parameters if self.freeze_critic_in_actor_loss else []
+            for parameter in frozen:
+                parameter.requires_grad_(False)
             q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
-            self.critic.requires_grad_(True)
+            for parameter in frozen:
+                parameter.requires_grad_(True)
             min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
             actor_losses.append(actor_loss.item())
@@ -319,9 +376,9 @@ class RegularisedSAC(SAC):
             # distgprl: + lambda_sim L_sim + lambda_hap L_hap (Eq. actor_final_compact),
             # from the actor's sampled actions so the gradients reach the actor.
             if self.regulariser is not None:
-                # Dict observations: SB3's DictReplayBuffer samples a dict of tensors
-                observations = cast("dict[str, th.Tensor]", replay_data.observations)
-                regularisation, terms = self.regulariser(observations["aux"], actions_pi)
+                regularisation, terms = self.regulariser(
+                    replay_data.observations["aux"], actions_pi
+                )
                 actor_loss = actor_loss + regularisation
                 for key, value in terms.items():
                     regulariser_logs.setdefault(key, []).append(value)
@@ -331,8 +388,9 @@ class RegularisedSAC(SAC):
             self.actor.optimizer.step()
 
             if gradient_step % self.target_update_interval == 0:
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+                polyak_lerp(critic_parameters, target_parameters, self.tau)
+                if self.batch_norm_stats:
+                    polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
 
         self._n_updates += gradient_steps
 
@@ -352,6 +410,15 @@ class RegularisedSAC(SAC):
             ent_coef=float(np.mean(ent_coefs)),
         )
 
+    def _action_log_prob(self, observations, fast: bool) -> tuple[th.Tensor, th.Tensor]:
+        """The actor's sampled action (B, A) and its log-probability (B,): SB3's
+        ``actor.action_log_prob``, or (``fast``, no gSDE) `squashed_gaussian_sample` on the
+        actor's mean and clamped log-std (the same noise draw)."""
+        if not fast:
+            return self.actor.action_log_prob(observations)
+        mean, log_std, _ = self.actor.get_action_dist_params(observations)
+        return squashed_gaussian_sample(mean, log_std)
+
     def actor_loss_gradient_norms(self, batch_size: int = 256, seed: int = 0) -> dict[str, float]:
         """How strongly each actor-loss term pulls on the actor's output (issue 30's check
         that L_sim reaches the actor at a scale comparable to the Q term).
@@ -366,8 +433,7 @@ class RegularisedSAC(SAC):
         times the batch size, so every norm is per sample). Raw action units. Empty before
         the replay buffer holds a transition.
         """
-        # Dict observations: SB3 made a DictReplayBuffer (`_setup_model`)
-        buffer = cast(DictReplayBuffer, self.replay_buffer)
+        buffer = self.replay_buffer
         size = buffer.buffer_size if buffer.full else buffer.pos
         if size == 0:
             return {}
@@ -389,12 +455,11 @@ class RegularisedSAC(SAC):
             self.critic.requires_grad_(True)
         norms = {"grad_q": float(grad_q.norm(dim=1).mean())}
         if self.regulariser is not None and hasattr(self.regulariser, "term_gradients"):
-            regulariser = cast("ActorRegulariser", self.regulariser)  # has its interface
-            terms = regulariser.term_gradients(observations["aux"], actions.detach())
-            weights = regulariser.weights
+            terms = self.regulariser.term_gradients(observations["aux"], actions.detach())
+            weights = self.regulariser.weights
             for name, key, weight in (
                 ("l_sim", "grad_sim", weights.lambda_sim),
-                ("l_hap", "grad_hap", weights.lambda_hap if regulariser.hap_prior else 0.0),
+                ("l_hap", "grad_hap", weights.lambda_hap if self.regulariser.hap_prior else 0.0),
             ):
                 if weight > 0 and name in terms:
                     norms[key] = float((terms[name] * batch_size).norm(dim=1).mean())
@@ -409,7 +474,12 @@ class RegularisedSAC(SAC):
 
     def _excluded_save_params(self) -> list[str]:
         # The regulariser is rebuilt from the task and config, never pickled.
-        return [*super()._excluded_save_params(), "regulariser", "entropy_schedule"]
+        return [
+            *super()._excluded_save_params(),
+            "regulariser",
+            "entropy_schedule",
+            "_update_cache",
+        ]
 
     @classmethod
     def load_saved(cls, path, env=None) -> RegularisedSAC:

@@ -254,8 +254,7 @@ def test_critic_frozen_in_the_actor_loss_leaves_the_update_unchanged():
         run = resolve_run("dcp", "dist-gprl", 0, "ci")
         model = make_agent(make_env(run), run)
         model.learning_starts = 12
-        if not freeze:  # SB3's original: the critic keeps requires_grad throughout
-            model.critic.requires_grad_ = lambda *args, **kwargs: model.critic
+        model.freeze_critic_in_actor_loss = freeze  # False: SB3's original
         model.learn(18)
         model.train(gradient_steps=3, batch_size=8)
         assert all(p.requires_grad for p in model.critic.parameters())
