@@ -93,9 +93,14 @@ def config_hash(config: Mapping[str, Any]) -> str:
     return sha256_hex(blob)[:16]
 
 
-def file_sha256(path: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    return sha256_hex(Path(path).read_bytes())
+def file_sha256(path: str | Path, chunk_bytes: int = 1 << 20) -> str:
+    """Hex SHA-256 of a file's bytes, read ``chunk_bytes`` at a time (a replay buffer of
+    gigabytes is never held in memory whole)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while chunk := handle.read(chunk_bytes):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 def is_locked(folder: str | Path) -> bool:

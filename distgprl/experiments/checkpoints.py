@@ -1,7 +1,16 @@
 """A run's checkpoint (model, replay buffer and RNG state), saved as one transaction: a kill
 at any point leaves either the previous checkpoint or the new one (`save_checkpoint`,
 `settle_checkpoint`), and a resumed run continues exactly where it stopped
-(`load_checkpoint`)."""
+(`load_checkpoint`).
+
+Two generations are kept: the newest in the checkpoint folder, the one before it in its
+``previous/`` folder (hard links where the file system allows, so rotating copies nothing;
+the disk holds up to two replay buffers). Each generation has a ``manifest.json``: its step
+and the size and SHA-256 of each of its three files, written atomically after the files.
+A resume verifies the newest generation against its manifest and loads it; a damaged one (a
+file missing, truncated, empty, not matching its manifest or not loadable) is discarded and
+the previous generation is tried; with none left the run restarts from step 0
+(`CheckpointLoad.describe` says which, in one line)."""
 
 from __future__ import annotations
 
@@ -9,15 +18,16 @@ import json
 import os
 import pickle
 import random
+import shutil
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from distgprl.errors import UserInputError
 from distgprl.experiments.factories import make_agent
 from distgprl.identity import RunSpec
-from distgprl.io import atomic_write_bytes, atomic_write_text
+from distgprl.io import atomic_write_bytes, atomic_write_text, file_sha256
 from distgprl.schema import read_csv
 
 
@@ -33,16 +43,25 @@ def checkpoint_dir(folder: Path) -> Path:
     return Path(root) / folder.resolve().relative_to(folder.resolve().anchor) / "checkpoints"
 
 
+#: The files of one checkpoint generation, by piece.
+PIECE_FILES = {"model": "model.zip", "buffer": "replay_buffer.pkl", "state": "state.pkl"}
+
+MANIFEST_NAME = "manifest.json"
+"""A generation's manifest: ``{"format": 1, "num_timesteps": N, "files": {name: {"bytes":
+size, "sha256": hex}}}`` over the three `PIECE_FILES`."""
+
+
 def checkpoint_paths(folder: Path) -> dict[str, Path]:
-    """The checkpoint's folder (``dir``), its pieces (``model``, ``buffer``, ``state``) and
-    the commit marker (``commit``) of `save_checkpoint`."""
+    """The checkpoint's folder (``dir``), its newest generation's pieces (``model``,
+    ``buffer``, ``state``) and ``manifest``, the commit marker (``commit``) of
+    `save_checkpoint` and the folder of the generation before (``previous``)."""
     ckpt = checkpoint_dir(folder)
     return {
         "dir": ckpt,
-        "model": ckpt / "model.zip",
-        "buffer": ckpt / "replay_buffer.pkl",
-        "state": ckpt / "state.pkl",
+        **{piece: ckpt / name for piece, name in PIECE_FILES.items()},
+        "manifest": ckpt / MANIFEST_NAME,
         "commit": ckpt / "commit.json",
+        "previous": ckpt / "previous",
     }
 
 
@@ -54,12 +73,59 @@ CHECKPOINT_PIECES = (
 )
 
 
+def _read_manifest(path: Path) -> dict[str, Any] | None:
+    """The manifest at ``path`` (None if absent, unreadable or not a manifest)."""
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
+        return None
+    return manifest
+
+
+def rotate_generations(paths: dict[str, Path]) -> None:
+    """Make the newest generation the ``previous`` one (which it replaces), leaving its files
+    in place for `install_checkpoint` to replace: they are linked (or copied) into a
+    temporary folder that is then renamed to ``previous``."""
+    staging, old = paths["dir"] / ".previous.tmp", paths["dir"] / ".previous.old"
+    for leftover in (staging, old):  # of a rotation a kill interrupted
+        shutil.rmtree(leftover, ignore_errors=True)
+    staging.mkdir()
+    for name in (*PIECE_FILES.values(), MANIFEST_NAME):
+        source = paths["dir"] / name
+        if source.exists():
+            try:
+                os.link(source, staging / name)
+            except OSError:  # a file system without hard links
+                shutil.copy2(source, staging / name)
+    if paths["previous"].exists():
+        paths["previous"].rename(old)
+    staging.rename(paths["previous"])
+    shutil.rmtree(old, ignore_errors=True)
+
+
 def install_checkpoint(paths: dict[str, Path]) -> None:
-    """Move every written piece into place, then drop the commit marker (idempotent)."""
+    """Roll the committed checkpoint forward (idempotent): rotate the newest generation to
+    ``previous`` unless that was done already, move every written piece into place, write
+    the new manifest, then drop the commit marker.
+
+    The commit marker holds the new manifest: the newest generation's manifest equal to it
+    means the pieces are in place; the previous generation's manifest equal to the newest's
+    means the rotation was done (pieces are replaced only after it)."""
+    commit = _read_manifest(paths["commit"])  # None: a marker of a version before manifests
+    current = _read_manifest(paths["manifest"])
+    if commit is not None and current is not None and current != commit:
+        if _read_manifest(paths["previous"] / MANIFEST_NAME) != current:
+            rotate_generations(paths)
     for piece, temporary in CHECKPOINT_PIECES:
         staged = paths["dir"] / temporary
         if staged.exists():
             staged.replace(paths[piece])
+    if commit is not None:
+        atomic_write_text(paths["manifest"], json.dumps(commit, sort_keys=True))
+    else:  # no manifest describes these pieces
+        paths["manifest"].unlink(missing_ok=True)
     paths["commit"].unlink(missing_ok=True)
 
 
@@ -87,12 +153,22 @@ def trained_steps(progress: Path) -> int:
     return max((int(row["step"]) for row in rows), default=0)
 
 
+def _generations(paths: dict[str, Path]) -> list[Path]:
+    """The folders of the checkpoint generations that hold any piece, newest first."""
+    return [
+        directory
+        for directory in (paths["dir"], paths["previous"])
+        if any((directory / name).exists() for name in PIECE_FILES.values())
+    ]
+
+
 def has_checkpoint(folder: Path) -> bool:
-    """Whether the run has a checkpoint to resume from (settling an interrupted save)."""
+    """Whether the run has a checkpoint to resume from, good or damaged (settling an
+    interrupted save first)."""
     paths = checkpoint_paths(folder)
     if paths["dir"].exists():
         settle_checkpoint(paths)
-    return paths["state"].exists()
+    return bool(_generations(paths))
 
 
 def rng_state(model, env) -> dict[str, Any]:
@@ -130,8 +206,10 @@ def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
     """Model, replay buffer and RNG state, replaced together: a kill at any point leaves
     either the previous checkpoint or this one, never a mix of the two (`has_checkpoint`).
 
-    The three pieces are written under temporary names, then a commit marker is written
-    atomically, then the pieces are moved into place and the marker removed."""
+    The three pieces are written under temporary names, then a commit marker holding their
+    manifest is written atomically, then the newest generation becomes ``previous``, the
+    pieces are moved into place, the manifest is written and the marker removed
+    (`install_checkpoint`)."""
     paths = checkpoint_paths(folder)
     paths["dir"].mkdir(parents=True, exist_ok=True)
     staged = {piece: paths["dir"] / temporary for piece, temporary in CHECKPOINT_PIECES}
@@ -141,34 +219,185 @@ def save_checkpoint(folder: Path, model, env, extra: dict[str, Any]) -> None:
         fsync_file(staged[piece])
     state = {**rng_state(model, env), **extra}
     atomic_write_bytes(staged["state"], pickle.dumps(state))
-    atomic_write_text(paths["commit"], json.dumps({"num_timesteps": int(model.num_timesteps)}))
+    manifest = {
+        "format": 1,
+        "num_timesteps": int(model.num_timesteps),
+        "files": {
+            PIECE_FILES[piece]: {
+                "bytes": staged[piece].stat().st_size,
+                "sha256": file_sha256(staged[piece]),
+            }
+            for piece in PIECE_FILES
+        },
+    }
+    atomic_write_text(paths["commit"], json.dumps(manifest, sort_keys=True))
     install_checkpoint(paths)
 
 
-def load_checkpoint(folder: Path, env, run: RunSpec):
-    """(model, state) from the run's checkpoint; a clear error if it is unusable."""
-    import torch
+@dataclass(frozen=True)
+class CheckpointDamage:
+    """A checkpoint file a run cannot resume from.
 
+    Attributes:
+        file: the damaged (or missing) file.
+        reason: why, one line.
+    """
+
+    file: Path
+    reason: str
+
+    def describe(self) -> str:
+        """``"<file> <reason>"``."""
+        return f"{self.file} {self.reason}"
+
+
+class _Damaged(Exception):
+    """A checkpoint generation is unusable; ``damage`` says which file and why."""
+
+    def __init__(self, file: Path, reason: str):
+        super().__init__(f"{file} {reason}")
+        self.damage = CheckpointDamage(file, " ".join(reason.split()))
+
+
+@dataclass(frozen=True)
+class CheckpointLoad:
+    """What `load_checkpoint` found.
+
+    Attributes:
+        model: the resumed model, or None if no generation was usable.
+        state: the loaded RNG and bookkeeping state (empty without ``model``).
+        damaged: the damaged generations' first damaged files, newest first (empty: the
+            newest checkpoint was good).
+    """
+
+    model: Any
+    state: dict[str, Any]
+    damaged: tuple[CheckpointDamage, ...]
+
+    def describe(self, folder: Path, reached: int) -> str:
+        """The one line a resume prints when a checkpoint was damaged (empty if none was):
+        which file, and whether the run resumed from the previous checkpoint or restarts
+        (``reached``: the step the run's learning curve had reached)."""
+        if not self.damaged:
+            return ""
+        first = self.damaged[0].describe()
+        if self.model is not None:
+            return (
+                f"warning: {folder}: damaged checkpoint, {first}; resumed from the previous "
+                f"checkpoint (step {self.model.num_timesteps})"
+            )
+        also = "".join(f"; so is the previous one, {d.describe()}" for d in self.damaged[1:])
+        return (
+            f"warning: {folder}: damaged checkpoint, {first}{also}; no good checkpoint is "
+            f"left, so the run (which had reached step {reached}) restarts from step 0"
+        )
+
+
+def _verify(directory: Path, manifest: dict[str, Any]) -> None:
+    """Raise `_Damaged` for the first of the generation's files that its manifest does not
+    describe exactly (missing, another size, another SHA-256)."""
+    manifest_path = directory / MANIFEST_NAME
+    for name in PIECE_FILES.values():
+        record = manifest["files"].get(name)
+        if not isinstance(record, dict) or not {"bytes", "sha256"} <= set(record):
+            raise _Damaged(manifest_path, f"has no size and SHA-256 of {name}")
+        path = directory / name
+        if not path.is_file():
+            raise _Damaged(path, "is missing")
+        size = path.stat().st_size
+        if size != record["bytes"]:
+            what = "is empty (0 bytes)" if size == 0 else f"has {size} bytes"
+            raise _Damaged(path, f"{what}, its manifest records {record['bytes']}")
+        digest = file_sha256(path)
+        if digest != record["sha256"]:
+            raise _Damaged(
+                path,
+                f"has SHA-256 {digest[:12]}..., its manifest records {record['sha256'][:12]}...",
+            )
+
+
+def _load_generation(directory: Path, env, strict: bool):
+    """(model, state) of one checkpoint generation, verified against its manifest (a
+    generation written before manifests, ``strict`` False, only by loading); `_Damaged`
+    naming the first unusable file otherwise."""
     from distgprl.agents.sac import RegularisedSAC
 
-    paths = checkpoint_paths(folder)
+    files = {piece: directory / name for piece, name in PIECE_FILES.items()}
+    manifest_path = directory / MANIFEST_NAME
+    manifest = _read_manifest(manifest_path)
+    if manifest is not None:
+        _verify(directory, manifest)
+    elif manifest_path.exists():
+        raise _Damaged(manifest_path, "is not a readable checkpoint manifest")
+    elif strict:
+        raise _Damaged(manifest_path, "is missing (the checkpoint was being replaced)")
+    for path in files.values():
+        if not path.is_file():
+            raise _Damaged(path, "is missing")
+
+    def unreadable(exc: Exception) -> str:
+        return f"cannot be loaded ({type(exc).__name__}: {exc})"
+
     try:
-        state = pickle.loads(paths["state"].read_bytes())
-        model = RegularisedSAC.load_saved(paths["model"], env=env)
-        model.load_replay_buffer(paths["buffer"])
-    except Exception as exc:  # any unreadable piece makes the checkpoint unusable
-        raise UserInputError(
-            f"{paths['dir']}: corrupt or incompatible checkpoint ({type(exc).__name__}: {exc}); "
-            "delete the run folder to start over"
-        ) from None
+        state = pickle.loads(files["state"].read_bytes())
+    except Exception as exc:  # an unreadable pickle raises almost anything
+        raise _Damaged(files["state"], unreadable(exc)) from None
+    if not isinstance(state, dict) or not isinstance(state.get("num_timesteps"), int):
+        raise _Damaged(files["state"], "is not a checkpoint state")
+    try:
+        model = RegularisedSAC.load_saved(files["model"], env=env)
+    except Exception as exc:  # any unloadable model makes the generation unusable
+        raise _Damaged(files["model"], unreadable(exc)) from None
+    try:
+        model.load_replay_buffer(files["buffer"])
+    except Exception as exc:
+        raise _Damaged(files["buffer"], unreadable(exc)) from None
     if model.num_timesteps != state["num_timesteps"]:
-        raise UserInputError(
-            f"{paths['dir']}: model (step {model.num_timesteps}) and state "
-            f"(step {state['num_timesteps']}) are from different checkpoints; "
-            "delete the run folder to start over"
+        raise _Damaged(
+            files["model"],
+            f"is from step {model.num_timesteps} and {files['state'].name} from step "
+            f"{state['num_timesteps']}: pieces of different checkpoints",
         )
-    if model.replay_buffer.size() < min(state["num_timesteps"], model.buffer_size):
-        raise UserInputError(f"{paths['buffer']}: replay buffer is shorter than the checkpoint")
+    needed = min(state["num_timesteps"], model.buffer_size)
+    held = model.replay_buffer.size() if model.replay_buffer is not None else 0
+    if held < needed:
+        raise _Damaged(files["buffer"], f"holds {held} transitions, the checkpoint needs {needed}")
+    return model, state
+
+
+def _discard_newest(paths: dict[str, Path]) -> None:
+    """Remove the damaged newest generation, manifest first, so that a later save never
+    rotates it over the good previous one (`install_checkpoint` rotates only a generation
+    with a manifest)."""
+    for path in (paths["manifest"], *(paths[piece] for piece in PIECE_FILES)):
+        path.unlink(missing_ok=True)
+
+
+def load_checkpoint(folder: Path, env, run: RunSpec) -> CheckpointLoad:
+    """The run's newest good checkpoint generation, ready to train on (`CheckpointLoad`).
+
+    The newest generation is tried first, then the previous one; a damaged newest one is
+    removed once the previous one loads. The newest generation must have a manifest when a
+    previous one exists (else it is the remnant of a save or a removal a kill interrupted).
+    """
+    import torch
+
+    paths = checkpoint_paths(folder)
+    damaged: list[CheckpointDamage] = []
+    loaded = None
+    for directory in _generations(paths):
+        strict = directory == paths["dir"] and paths["previous"].is_dir()
+        try:
+            loaded = _load_generation(directory, env, strict)
+        except _Damaged as error:
+            damaged.append(error.damage)
+            continue
+        if directory != paths["dir"]:
+            _discard_newest(paths)
+        break
+    if loaded is None:
+        return CheckpointLoad(None, {}, tuple(damaged))
+    model, state = loaded
     fresh = make_agent(env, run)  # rebuild the non-pickled parts from the task and config
     model.regulariser = fresh.regulariser
     model.entropy_schedule = fresh.entropy_schedule
@@ -185,4 +414,4 @@ def load_checkpoint(folder: Path, env, run: RunSpec):
     torch.set_rng_state(state["torch"])
     env.tc_generator_state = state["env_rng"]
     model.action_space.np_random.bit_generator.state = state["action_space"]
-    return model, state
+    return CheckpointLoad(model, state, tuple(damaged))

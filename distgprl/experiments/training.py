@@ -181,21 +181,28 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
     # Where the run was resumed, and whether exactly (older checkpoints lack the pending TC
     # and NumPy's generator: their resumes restart the TC sequence); recorded in done.json.
     resumes: list[dict[str, Any]] = []
-    if resume and has_checkpoint(folder):
-        model, state = load_checkpoint(folder, env, run)
+    # A damaged checkpoint falls back to the previous one, or restarts the run: one line
+    # says which file was damaged and what was done, and done.json records it.
+    loaded = load_checkpoint(folder, env, run) if resume and has_checkpoint(folder) else None
+    damaged = [d.describe() for d in loaded.damaged] if loaded is not None else []
+    lost = trained_steps(folder / "progress.csv") if resume else 0
+    if loaded is not None and damaged:
+        print(loaded.describe(folder, lost), file=sys.stderr)
+    if loaded is not None and loaded.model is not None:
+        model, state = loaded.model, loaded.state
         wall_offset = state.get("wall_time_s", 0.0)
         cpu_offset = state.get("cpu_time_s", 0.0)  # absent in checkpoints before it was kept
+        entry = {"step": int(state["num_timesteps"]), "exact": "pending_tc" in state}
         resumes = [
             *state.get("resumes", []),
-            {"step": int(state["num_timesteps"]), "exact": "pending_tc" in state},
+            {**entry, **({"damaged": damaged} if damaged else {})},
         ]
         if (folder / "progress.csv").exists():
             _, progress_rows = read_csv(folder / "progress.csv")
             progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
         drop_curve_policies_after(folder, model.num_timesteps)
     else:
-        lost = trained_steps(folder / "progress.csv") if resume else 0
-        if lost:
+        if lost and not damaged:
             # Nothing to resume from although the run had trained (checkpoints are not kept
             # with the results, e.g. a new machine): it restarts, visibly and on record.
             print(
@@ -203,7 +210,9 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
                 f"{lost} and restarts from step 0",
                 file=sys.stderr,
             )
-            resumes = [{"step": 0, "exact": False, "restarted_after_step": lost}]
+        if lost or damaged:
+            restart = {"step": 0, "exact": False, "restarted_after_step": lost}
+            resumes = [{**restart, **({"damaged": damaged} if damaged else {})}]
         progress = folder / "progress.csv"
         for stale in (progress, csv_meta_path(progress), paths["dir"]):
             if stale.is_dir():
