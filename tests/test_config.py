@@ -87,7 +87,7 @@ def test_valid_values_convert_as_before(preset_dir):
     strings) for float fields become floats and lists become tuples, so a preset
     spelling a default value gives exactly the default configuration (and its hash)."""
     preset = preset_dir(
-        "env:\n  correlation_lambda: 1e-2\n  sd_beta: 2.0e-4\n  progress_weight: 10\n"
+        "env:\n  correlation_lambda: 1e-2\n  sd_beta: 2.5e-3\n  progress_weight: 1\n"
         "sac:\n  net_arch: [256, 256]\n"
     )
     config = load_config(preset)
@@ -138,7 +138,13 @@ def test_shipped_presets_are_package_data_not_files_of_the_checkout():
     """The presets live inside the package (what a wheel ships), read via importlib.resources."""
     from importlib import resources
 
-    assert config_module.shipped_presets() == ("ci", "correlated", "paper", "unit-covariance")
+    assert config_module.shipped_presets() == (
+        "ci",
+        "operator-correlation",
+        "operator-signal",
+        "operator-unit",
+        "paper",
+    )
     shipped = resources.files("distgprl") / "presets" / "ci.yaml"
     assert shipped.is_file()
     assert load_config("ci").run.total_steps == 240

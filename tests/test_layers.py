@@ -226,6 +226,7 @@ LAYERS: tuple[frozenset[str], ...] = tuple(
             "errors",
             "data",
             "config",
+            "config_types",
             "methods",
             "limits",
             "schema",

@@ -16,6 +16,7 @@ import numpy as np
 from distgprl.config import EnvConfig
 from distgprl.methods import MethodSpec
 from distgprl.skill.gp import GPSkill
+from distgprl.skill.operator import axis_operator, row_gains, row_normalised
 
 __all__ = [
     "COVARIANCE_SCALES",
@@ -30,8 +31,9 @@ __all__ = [
 #: (and, environment v5, the scale of an axis the demonstration keeps constant in S's K).
 OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
-COVARIANCE_SCALES = ("signal", "unit")
-"""The scales of K in S (`EnvConfig.covariance_scale`)."""
+COVARIANCE_SCALES = ("zero-mean", "signal", "unit", "correlation")
+"""The readings of K in S (`EnvConfig.covariance_scale`): ``zero-mean`` is Table I's
+(environment v6), the others the operator study's (docs/FINDINGS.md "Protocol v6")."""
 
 
 @dataclass(frozen=True)
@@ -76,32 +78,85 @@ class ActionLayout:
 def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> np.ndarray:
     """S_W per axis for one window, shape (6, L, L) (Eq. global_S, Eq. transformed_action).
 
-    ``config.covariance_scale``: ``"signal"`` (v5) — K_tt is the GP's covariance matrix in
-    the via-points' units, axis a's ``sigma_f^2 s_a^2 R`` (`GPSkill.signal_variance_per_axis`,
-    s_a floored at `OBSERVATION_SCALE_FLOOR`); ``"unit"`` (v4, the ablation preset
-    ``unit-covariance``) — the unit-variance correlation matrix R for every axis.
+    ``config.covariance_scale``: ``"zero-mean"`` (environment v6, Table I) — K_tt is the
+    covariance matrix of the paper's zero-mean GP (Eq. 1), per axis (`GPSkill.axis_kernels`,
+    `distgprl.skill.operator`); ``"correlation"`` — that operator with each row divided by its
+    row sum (reach without shrink); ``"signal"`` (v5) — K_tt is the standardised GP's
+    covariance in the via-points' units, axis a's ``sigma_f^2 s_a^2 R``
+    (`GPSkill.signal_variance_per_axis`, s_a floored at `OBSERVATION_SCALE_FLOOR`); ``"unit"``
+    (v4) — the unit-variance correlation matrix R for every axis.
     """
     length_scale = config.correlation_length_scale or None  # 0: the fitted one
-    if config.covariance_scale == "unit":
+    scale = config.covariance_scale
+    if scale not in COVARIANCE_SCALES:
+        raise ValueError(f"covariance_scale must be one of {COVARIANCE_SCALES}, got {scale!r}")
+    if scale == "unit":
         operator = skill.window_operator(window, config.correlation_lambda, length_scale)
         return np.tile(operator, (6, 1, 1))
-    if config.covariance_scale != "signal":
-        raise ValueError(
-            f"covariance_scale must be one of {COVARIANCE_SCALES}, got {config.covariance_scale!r}"
+    if scale == "signal":
+        variance = skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
+        return skill.axis_window_operators(
+            window, config.correlation_lambda, variance, length_scale
         )
-    variance = skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
-    return skill.axis_window_operators(window, config.correlation_lambda, variance, length_scale)
+    if skill.axis_kernels is None:
+        raise ValueError(f"skill {skill.name!r} has no axis_kernels (saved before v6); refit it")
+    index = np.ix_(np.asarray(window), np.asarray(window))
+    blocks = np.stack(
+        [
+            axis_operator(skill.via_times, kernel, config.correlation_lambda)[index]
+            for kernel in skill.axis_kernels
+        ]
+    )
+    return row_normalised(blocks) if scale == "correlation" else blocks
+
+
+def _windows(config: EnvConfig) -> np.ndarray:
+    """The windows' via-point indices (n_windows, L): W_k = 1 + k (L - 1) + (0..L-1)."""
+    length = config.window_size
+    starts = [1 + k * (length - 1) for k in range(config.n_windows)]
+    return np.array([np.arange(s, s + length) for s in starts])
+
+
+def reach_scales(skill: GPSkill, config: EnvConfig, tc_range: np.ndarray) -> np.ndarray:
+    """The per-axis raw-action scale of rule ``"reach"`` (environment v6), shape (6,), m and
+    rad per unit action: scale_a = max(R_a, r_0) / min_i sum_j |S_W,ij| over every window's
+    via-points i, S_W the Table I (``zero-mean``) operator whatever operator the run uses, so
+    that every windowed via-point can move max(R_a, r_0) in the one step that adapts it.
+    ``tc_range`` (3,) is the task's TC range per position axis (m; 0 where the TCs do not
+    vary it); r_0 is ``minimum_position_reach`` / ``minimum_rotation_reach``."""
+    table_one = EnvConfig(
+        n_via_points=config.n_via_points,
+        window_size=config.window_size,
+        n_windows=config.n_windows,
+        correlation_lambda=config.correlation_lambda,
+        covariance_scale="zero-mean",
+    )
+    gains = np.stack([window_operators(skill, table_one, w) for w in _windows(config)])
+    smallest = row_gains(gains).min(axis=(0, 2))  # (6,): over windows and rows
+    reach = np.r_[
+        np.maximum(np.asarray(tc_range, dtype=float), config.minimum_position_reach),
+        [config.minimum_rotation_reach] * 3,
+    ]
+    scales: np.ndarray = reach / smallest
+    return scales
 
 
 def build_action_layout(
-    skill: GPSkill, config: EnvConfig, method: MethodSpec, frozen: tuple[int, ...] = ()
+    skill: GPSkill,
+    config: EnvConfig,
+    method: MethodSpec,
+    frozen: tuple[int, ...] = (),
+    tc_range: np.ndarray | None = None,
 ) -> ActionLayout:
     """Windows W_k = {1 + k (L - 1), ..., 1 + k (L - 1) + L - 1} (one-point overlap).
 
     Windowed methods adapt W_k at step k; global methods adapt all interior via-points
     1..N-2 at every step (with ``episode_range``: at 1/steps of the scale, the same total
     range per episode). Segment k runs from the first via-point of W_k (0 for k = 0)
-    to the first via-point of W_{k+1} (1 for the last).
+    to the first via-point of W_{k+1} (1 for the last). The raw action's scale is
+    `reach_scales` for ``config.action_scale_rule == "reach"`` (``tc_range`` (3,), m, the
+    task's TC range per position axis, required then), the configured constants for
+    ``"fixed"``; every method of a task gets the same scales.
     """
     n, length, steps = config.n_via_points, config.window_size, config.n_windows
     if n != skill.n_via_points:
@@ -121,7 +176,14 @@ def build_action_layout(
             operators = np.stack([window_operators(skill, config, w) for w in windows])
         else:
             operators = np.tile(np.eye(length), (steps, 6, 1, 1))
-    scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
+    if config.action_scale_rule == "reach":
+        if tc_range is None:
+            raise ValueError('action_scale_rule "reach" needs the task\'s tc_range')
+        scale = reach_scales(skill, config, tc_range)
+    elif config.action_scale_rule == "fixed":
+        scale = np.array([config.position_action_scale] * 3 + [config.rotation_action_scale] * 3)
+    else:
+        raise ValueError(f"unknown action_scale_rule {config.action_scale_rule!r}")
     if method.action_mode == "global" and method.episode_range:
         scale = scale / steps  # the same per-episode range as a windowed via-point
     return ActionLayout(indices, operators, bounds, scale, tuple(frozen))

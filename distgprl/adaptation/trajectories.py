@@ -2,7 +2,8 @@
 (:class:`~distgprl.adaptation.plan.TrajectoryModel`).
 
 :class:`GPSkillTrajectory`: the GP skill's via-points Gamma (N, 6), conditioned on the TC by
-moving the interaction via-point and its successors with the object (DESIGN §2).
+moving the interaction via-point and its successors with the object, weighted by
+`distgprl.skill.conditioning.conditioning_weights` (DESIGN §2, §8).
 :class:`ResidualProMPTrajectory`: ProMP-RRL's residual weights Gamma (N, 6) on the
 object-centric ProMP's nominal (`distgprl.envs.residual.ResidualEnv`).
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from distgprl.adaptation.plan import TaskConfigLike
+from distgprl.skill.conditioning import conditioning_weights
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.promp import ObjectCentricProMP
 
@@ -25,11 +27,19 @@ class GPSkillTrajectory:
         skill: the task's GP skill.
         interaction_index: the via-point nearest the interaction time (the first one moved
             with the object by the TC conditioning).
+        goal_fixed_in_world: the task's goal stays put when the object moves (DCP): the
+            via-points after the interaction return linearly to the demonstration's end
+            (environment v6; False keeps them all moved, v5's rule and DBM's).
     """
 
-    def __init__(self, skill: GPSkill, interaction_index: int) -> None:
+    def __init__(
+        self, skill: GPSkill, interaction_index: int, goal_fixed_in_world: bool = False
+    ) -> None:
         self.skill = skill
         self.interaction_index = int(interaction_index)
+        self.weights = conditioning_weights(
+            skill.via_times, float(skill.via_times[self.interaction_index]), goal_fixed_in_world
+        )
 
     def parameter_map(self, tau: np.ndarray) -> np.ndarray:
         """M(tau), (m, N): the GP's position map."""
@@ -39,7 +49,8 @@ class GPSkillTrajectory:
         """Demonstration via-points conditioned on ``tc`` (DESIGN §2), via-point 0 the start
         pose (6,): shape (N, 6)."""
         offset = np.r_[np.asarray(tc.object_offset, dtype=float)[:2], 0.0]
-        gamma = self.skill.condition_on_offset(offset, self.interaction_index)
+        gamma = self.skill.via_points.copy()
+        gamma[:, :3] += self.weights[:, None] * offset  # w(tau_i) per via-point
         gamma[0] = start_pose
         return gamma
 

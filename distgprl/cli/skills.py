@@ -34,7 +34,7 @@ def fit(
         raise UserInputError("give exactly one of --task or --demo")
     source = demo_path(task) if task is not None else cast("Path", demo)  # one of them
     output = fit_demonstration(
-        source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points)
+        source, out_dir, name=task, config=FitConfig(n_via_points=n_via_points), task=task
     )
     worst = max(output.rmse["position"][:3])
     typer.echo(
@@ -43,8 +43,13 @@ def fit(
     )
     correlation = output.correlation
     windows = correlation["windows"]
+    scales = ", ".join(
+        f"{axis} {value:.3f} {'m' if axis in ('x', 'y', 'z') else 'rad'}"
+        for axis, value in correlation["action_scale"].items()
+    )
+    typer.echo(f"action scale per unit raw action ({correlation['action_scale_rule']}): {scales}")
     typer.echo(
-        f"covariance transform (lambda {correlation['correlation_lambda']:g}, K scale "
+        f"Table I operator (lambda {correlation['correlation_lambda']:g}, K "
         f"{correlation['covariance_scale']!r}): neighbouring via-points correlate "
         f"{correlation['neighbour_correlation']:.2f} in the kernel; S_W eigenvalues "
         f"{min(w['eigenvalue_min'] for w in windows):.3f}-"
@@ -57,18 +62,24 @@ def fit(
             for axis, a in window["axes"].items()
         )
         typer.echo(f"  S_W via-points {window['via_points']}: {spectrum}")
-    for scale, candidate in correlation["candidates"].items():
-        reach = ", ".join(
-            f"{axis} {1000 * value:.0f} {'mm' if axis in ('x', 'y', 'z') else 'mrad'}"
-            for axis, value in candidate["reach"].items()
+
+    def reach_text(candidate: dict) -> str:
+        low, high = candidate.get("reach_min", candidate["reach"]), candidate["reach"]
+        return ", ".join(
+            f"{axis} {1000 * low[axis]:.0f}-{1000 * high[axis]:.0f} "
+            f"{'mm' if axis in ('x', 'y', 'z') else 'mrad'}"
+            for axis in high
         )
+
+    for scale, candidate in correlation["candidates"].items():
         if scale == "none":
-            typer.echo(f"  no transform (S_W = I): one step's reach per via-point {reach}")
+            typer.echo(f"  no transform (S_W = I): one step's reach {reach_text(candidate)}")
             continue
+        role = "Table I" if scale == correlation["covariance_scale"] else "study"
         typer.echo(
-            f"  candidate K scale {scale!r}: S_W eigenvalues "
+            f"  {role} operator K {scale!r}: S_W eigenvalues "
             f"{candidate['eigenvalue_min']:.3f}-{candidate['eigenvalue_max']:.3f}; "
-            f"one step's reach per via-point {reach}"
+            f"one step's reach per via-point {reach_text(candidate)}"
         )
 
 

@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v5`` and ``DistGPRL-DBM-v5`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v6`` and ``DistGPRL-DBM-v6`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -138,7 +138,16 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v5 — (a) a collision ends the episode (protective stop) and success is
+    **Versions**: v6 (pre-registered, docs/FINDINGS.md "Protocol v6") — (a) r_tc in units
+    of one task (``progress_weight``, ``success_bonus``, ``collision_penalty`` 1; v5: 10) and
+    beta = eps / 4 (one tool point at contact for a whole segment costs the collision
+    penalty); (b) S_W from the paper's zero-mean GP (Eq. 1) fitted per axis to the raw
+    demonstration (``covariance_scale="zero-mean"``); (c) the raw action's scale per task and
+    axis from the reach rule (``action_scale_rule="reach"``: every window via-point reaches
+    max(TC range, 0.1 m) in one step under that S); (d) TC conditioning by
+    `distgprl.skill.conditioning.conditioning_weights`: where the goal is fixed in the world
+    (DCP) the via-points after the interaction return linearly to the demonstration's end.
+    v5 — (a) a collision ends the episode (protective stop) and success is
     completion without collision (``completed`` keeps v4's success); (b) S_W is built per
     axis from the GP's covariance in via-point units (``covariance_scale="signal"``; v4's
     unit-variance K made S_W nearly the identity); (c) DBM's bars vary across the belt too
@@ -151,25 +160,10 @@ class AdaptationEnv(gym.Env):
     anchors, with which L_hap leaves out the C_safe points the moving obstacles block
     (v3's L_hap used the static C_safe only). Methods without distance rewards or HAP
     prior (GPRL, the ``demo`` reference) behave exactly as in v3.
-    v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m; global
-    methods with ``episode_range`` — GPRL, Dist-GPRL-Global — 0.1 / 3 m per step): with
-    3 cm a windowed via-point could move at most 3 cm (6 cm for an overlap point), while the
-    TCs shift the objects by up to 20 cm and the approach via-points before the interaction
-    via-point stay where the demonstration had them; DBM collisions had a floor the policy
-    could not get under (a scripted TC-aware correction: collision 0.28 at 3 cm, 0.16 at
-    10 cm). v2 — (a) the window via-points' clearances ``c`` and the r_ga gradients
-    are taken against the obstacles predicted at each via-point's time along their known
-    paths (``clearance_timing="predicted"``; ``"current"`` keeps v1's observation
-    instant, at which, with obstacles moving 4 cm/s (DBM belt) or oscillating with a
-    15 cm amplitude (DCP), a via-point reached 2 s later was scored against an obstacle
-    8 cm or half a period away from where it would be); (b) every state input is O(1):
-    ``c`` is divided by ``clearance_scale`` (5 cm) and e_o, e_g by
-    ``relative_position_scale`` (10 cm) — in v1 they were raw metres, so the centimetre
-    differences that decide a collision or a missed handle moved the inputs by ~0.01.
-    v1 — observed via-points are standardised with a floored scale (v0 used
-    a 1e-3 floor, so axes the demonstration keeps constant, such as the tool orientation,
-    turned millimetre adaptations into inputs of magnitude ~50 and saturated the policy).
-    v0 — first release.
+    v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m). v2 — clearances and
+    r_ga gradients against the obstacles predicted at each via-point's time; every state
+    input O(1). v1 — observed via-points standardised with a floored scale. v0 — first
+    release. (CHANGELOG.md gives each version in full.)
     """
 
     metadata = {"render_modes": ["rgb_array"]}
@@ -194,7 +188,9 @@ class AdaptationEnv(gym.Env):
         self.render_mode = render_mode
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
-        self.layout = build_action_layout(self.skill, self.config, self.method, frozen)
+        self.layout = build_action_layout(
+            self.skill, self.config, self.method, frozen, np.asarray(self.spec_task.tc_range)
+        )
         # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
         self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
         self.field = self.clearance.field
@@ -206,7 +202,9 @@ class AdaptationEnv(gym.Env):
         # scale (OBSERVATION_SCALE_FLOOR) so that an axis the demonstration keeps constant
         # (e.g. the tool orientation) does not blow small adaptations up to huge inputs.
         self._via_std = np.maximum(self.skill.via_points.std(axis=0), OBSERVATION_SCALE_FLOOR)
-        self.gp_trajectory = GPSkillTrajectory(self.skill, self.interaction_index)
+        self.gp_trajectory = GPSkillTrajectory(
+            self.skill, self.interaction_index, self.spec_task.goal_fixed_in_world
+        )
         self.window_plan = WindowPlan(
             self.trajectory_model(),
             self.layout,

@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v5`` and ``ProMPRRL-DBM-v5``.
+Env ids: ``ProMPRRL-DCP-v6`` and ``ProMPRRL-DBM-v6``.
 """
 
 from __future__ import annotations
@@ -51,7 +51,13 @@ def one_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]
     demos, offsets = [], []
     for _ in range(ONE_DEMONSTRATION_SET_SIZE):
         offset = np.asarray(spec.sample_tc(rng).object_offset, dtype=float)
-        poses = condition_by_translation(demo.times, demo.poses, offset, spec.interaction_time)
+        poses = condition_by_translation(
+            demo.times,
+            demo.poses,
+            offset,
+            spec.interaction_time,
+            goal_fixed_in_world=spec.goal_fixed_in_world,
+        )
         demos.append((demo.times, poses))
         offsets.append([*offset, 0.0])
     return demos, np.asarray(offsets)

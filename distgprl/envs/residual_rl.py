@@ -55,12 +55,12 @@ __all__ = [
 REWARD_TERMS = ("r_progress", "r_success", "r_collision")
 """The task-completion terms of `AdaptationEnv` (r_tc); no distance shaping."""
 
-GATE_MODE: GateMode = "uncertain"
+GATE_MODE: GateMode = "certain"
 """Which reading of the variance gate the env uses (`residual_control.GATE_MODES`):
-``uncertain`` (the residual passes where the ProMP's variance is high), as issue 48 item 4
-was briefed. v5's ProMP-RRL read Carvalho et al.'s "variability as a decision variable" the
-other way (``certain``; docs/FINDINGS.md "Environment v5", item 5): flipping this constant is
-the whole change."""
+``certain`` — Carvalho et al. use the demonstrations' variability "as a decision variable to
+reduce the search space for RRL": the residual acts where the ProMP's variance is low (the
+demonstrations agree, the task needs precision there) and is held back where it is high, as
+v5's ProMP-RRL read it (docs/FINDINGS.md "Environment v5", item 5)."""
 
 ROTATION_ERROR_CLIP = 4.0
 """The observed orientation error is clipped to +-this many rotation ranges per axis."""
@@ -132,12 +132,12 @@ class ResidualRLEnv(gym.Env):
     T over which `AdaptationEnv` blends its first segment's start; the mismatch is under
     1 mm on both tasks).
 
-    **Gate** (per control instant t_k): g_k = sigma(t_k) / max_i sigma(t_i), sigma(t) the
+    **Gate** (per control instant t_k): g_k = 1 - sigma(t_k) / max_i sigma(t_i), sigma(t) the
     mean over x, y, z of the marginal positional standard deviation of the ProMP fitted to
     the one demonstration conditioned on 20 training TCs (`load_task_promp`, in the object
-    frame), the maximum over the episode's control instants: where the ProMP is certain
-    the residual is scaled down, a zero-variance instant passes none of it
-    (`residual_control.variance_gate`, mode ``GATE_MODE`` = ``"uncertain"``). One gate for
+    frame), the maximum over the episode's control instants: where the demonstrations vary
+    most the residual is held back, where they agree it passes whole (Carvalho et al.)
+    (`residual_control.variance_gate`, mode ``GATE_MODE`` = ``"certain"``). One gate for
     all six channels: the tasks vary only the object's position, so the ProMP's orientation
     variance is its covariance jitter and carries no information.
 

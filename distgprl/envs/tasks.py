@@ -38,8 +38,8 @@ def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
 
     config = FitConfig(n_via_points=n_via_points)
     key = config_hash(
-        {"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 2}
-    )  # v2: axis_scale
+        {"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 5}
+    )  # v2: axis_scale; v5: axis_kernels (environment v6)
     path = cache_root() / "skills" / f"{task}_{key}.json"
     if path.exists():
         try:

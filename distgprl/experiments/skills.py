@@ -33,7 +33,9 @@ class FitOutput:
     correlation: dict
 
 
-def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> dict:
+def correlation_summary(
+    skill: GPSkill, env_config: EnvConfig | None = None, tc_range: np.ndarray | None = None
+) -> dict:
     """How strongly the covariance transform acts on this skill's windows.
 
     Builds the windows' S_W exactly as the adaptation env does (Eq. transformed_action,
@@ -51,7 +53,12 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     via-point along it: every raw action entry saturated at +-1 with the signs of S_W's row,
     max_i sum_j |S_W[i, j]| times the action's scale on that axis (m for x, y, z; rad for
     rx, ry, rz). Without the transform (``dist-gprl-nocov``) it is the action scale itself;
-    a via-point shared by two windows can move by the sum of both.
+    a via-point shared by two windows can move by the sum of both. ``reach_min`` is the
+    smallest reach over the window via-points: environment v6's action scales
+    (``action_scale_rule="reach"``, needing the task's ``tc_range`` (3,), m) make it
+    max(TC range, minimum reach) on every axis under the Table I operator; without a
+    ``tc_range`` the summary uses the configured fixed scales (``action_scale_rule``
+    ``"fixed"``) and says so.
 
     Returns:
         A JSON-ready dict: ``correlation_lambda``, ``covariance_scale``, ``length_scale`` (of K:
@@ -68,12 +75,14 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
     from distgprl.methods import get_method
 
     env_config = env_config or EnvConfig()
+    if tc_range is None and env_config.action_scale_rule == "reach":
+        env_config = dataclasses.replace(env_config, action_scale_rule="fixed")
     spacing = float(np.min(np.diff(skill.via_times)))
     length_scale = float(env_config.correlation_length_scale or skill.kernel.length_scale)
     method = get_method("dist-gprl")
 
     def describe(config: EnvConfig) -> list[dict]:
-        layout = build_action_layout(skill, config, method)
+        layout = build_action_layout(skill, config, method, tc_range=tc_range)
         windows = []
         for indices, operators in zip(layout.indices, layout.operators, strict=True):
             axes = {}
@@ -85,6 +94,7 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
                     "eigenvalue_max": float(eigenvalues.max()),
                     "max_off_diagonal": float(np.abs(off_diagonal).max()),
                     "reach": float(np.abs(operator).sum(axis=1).max() * scale),
+                    "reach_min": float(np.abs(operator).sum(axis=1).min() * scale),
                 }
             windows.append(
                 {
@@ -111,8 +121,11 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
             "eigenvalue_min": min(w["eigenvalue_min"] for w in windows),
             "eigenvalue_max": max(w["eigenvalue_max"] for w in windows),
             "reach": largest_reach(windows),
+            "reach_min": smallest_reach(windows),
         }
-    raw_scale = build_action_layout(skill, env_config, get_method("dist-gprl-nocov")).scale
+    raw_scale = build_action_layout(
+        skill, env_config, get_method("dist-gprl-nocov"), tc_range=tc_range
+    ).scale
     candidates["none"] = {"reach": dict(zip(AXES, (float(v) for v in raw_scale), strict=True))}
     return {
         "correlation_lambda": float(env_config.correlation_lambda),
@@ -120,8 +133,11 @@ def correlation_summary(skill: GPSkill, env_config: EnvConfig | None = None) -> 
         "length_scale": length_scale,
         "via_point_spacing": spacing,
         "neighbour_correlation": float(np.exp(-(spacing**2) / (2 * length_scale**2))),
+        "action_scale_rule": env_config.action_scale_rule,
+        "action_scale": dict(zip(AXES, (float(v) for v in raw_scale), strict=True)),
         "windows": chosen,
         "reach": largest_reach(chosen),
+        "reach_min": smallest_reach(chosen),
         "candidates": candidates,
     }
 
@@ -131,15 +147,23 @@ def largest_reach(windows: list[dict]) -> dict[str, float]:
     return {axis: max(w["axes"][axis]["reach"] for w in windows) for axis in AXES}
 
 
+def smallest_reach(windows: list[dict]) -> dict[str, float]:
+    """Per axis, the smallest ``reach_min`` over `correlation_summary`'s ``windows``."""
+    return {axis: min(w["axes"][axis]["reach_min"] for w in windows) for axis in AXES}
+
+
 def fit_demonstration(
     demo_file: str | Path,
     out_dir: str | Path = "results/skills",
     name: str | None = None,
     config: FitConfig | None = None,
+    task: str | None = None,
 ) -> FitOutput:
     """Fit a skill to a demonstration CSV; write ``<name>.json`` and ``<name>.png``.
 
     The demonstration is validated first (a `UserInputError` leaves nothing written).
+    ``task`` (the demonstration's task, if it has one) gives the TC range from which the
+    action scales and reach are reported (`correlation_summary`).
     """
     config = config or FitConfig()
     demo = load_demonstration(demo_file, min_rows=config.n_via_points)
@@ -147,7 +171,12 @@ def fit_demonstration(
     skill = fit_skill(demo, config)
     skill = dataclasses.replace(skill, name=name)
     rmse = reconstruction_error(skill, demo)
-    correlation = correlation_summary(skill)
+    tc_range = None
+    if task is not None:
+        from distgprl.sim.tasks import get_task
+
+        tc_range = np.asarray(get_task(task).tc_range)
+    correlation = correlation_summary(skill, tc_range=tc_range)
     out_dir = Path(out_dir)
     figure_path = plot_fit(skill, demo, out_dir / f"{name}.png")
     json_path = write_json(

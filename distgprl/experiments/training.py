@@ -96,7 +96,10 @@ def train_run(
                 path.rmdir()
             except OSError:
                 break
-        raise failed.__cause__ from None
+        cause = failed.__cause__
+        if cause is None:  # _StartFailed is always raised `from` the start's error
+            raise
+        raise cause from None
 
 
 class _StartFailed(Exception):

@@ -56,6 +56,7 @@ import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -166,12 +167,16 @@ def estimate_rng(seed: int, *names: str) -> np.random.Generator:
 
 def mean_of_strata(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_mean``: the mean over strata of each stratum's mean run."""
-    return np.mean([s.mean(axis=1) for s in samples], axis=0)
+    means: np.ndarray = np.mean([s.mean(axis=1) for s in samples], axis=0)
+    return means
 
 
 def iqm(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_iqm``: the 25 % trimmed mean of all runs of all strata."""
-    return stats.trim_mean(np.concatenate(samples, axis=1), proportiontocut=0.25, axis=1)
+    trimmed: np.ndarray = stats.trim_mean(
+        np.concatenate(samples, axis=1), proportiontocut=0.25, axis=1
+    )
+    return trimmed
 
 
 def _improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -179,7 +184,8 @@ def _improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     -> (reps,). Equals rliable's U / (n_x n_y), and 1/2 for identical samples."""
     greater = (x[:, :, None] > y[:, None, :]).mean(axis=(1, 2))
     equal = (x[:, :, None] == y[:, None, :]).mean(axis=(1, 2))
-    return greater + 0.5 * equal
+    probability: np.ndarray = greater + 0.5 * equal
+    return probability
 
 
 def _resample(values: np.ndarray, reps: int, rng: np.random.Generator) -> np.ndarray:
@@ -372,21 +378,23 @@ def method_estimate(
     return interval_estimate(strata(scores, tasks, method, key), function, rng)
 
 
-CSV_FIELDS = ("task", "method", "versus", "metric", "statistic", "value", "ci_low", "ci_high")
-CSV_FIELDS += ("seeds",)
+CSV_FIELDS: tuple[str, ...] = ("task", "method", "versus", "metric", "statistic", "value")
+CSV_FIELDS += ("ci_low", "ci_high", "seeds")
 """Columns of ``aggregates_<preset>.csv``, one row per estimate: ``statistic`` is ``mean``,
 ``iqm`` or ``poi`` (of ``method`` over ``versus``, on ``metric``: collision's PoI is that of
 fewer collisions); ``seeds`` the runs per task stratum, ``;``-separated; the interval is
 empty below two runs in a stratum."""
 
 
-def aggregate_rows(scores: Scores, seed: int) -> list[dict]:
+def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
     """Every estimate of the aggregates table (`CSV_FIELDS`): per task group and method
     (table order) the mean and IQM of each rate, then per task group the PoI of
     `PROPOSED` over each of `PARTNERS` that both have runs of."""
-    rows = []
+    rows: list[dict[str, Any]] = []
 
-    def row(task, method, versus, key, statistic, estimate):
+    def row(
+        task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
+    ) -> None:
         interval = estimate.has_interval
         rows.append(
             {

@@ -20,7 +20,7 @@ from pathlib import Path
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 from distgprl.report.aggregate import aggregate_texts
-from distgprl.report.claims import claims_texts
+from distgprl.report.claims_table import claims_texts
 from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,

@@ -39,7 +39,11 @@ def demo_outcomes(task_name: str, episodes: int = 100) -> list[EpisodeOutcome]:
     try:
         for tc in spec.evaluation_tcs(episodes):
             poses = condition_by_translation(
-                demo.times, demo.poses, np.asarray(tc.object_offset), spec.interaction_time
+                demo.times,
+                demo.poses,
+                np.asarray(tc.object_offset),
+                spec.interaction_time,
+                goal_fixed_in_world=spec.goal_fixed_in_world,
             )
             sim.reset(tc)
             result = sim.execute(resample_to_control(demo.times, poses, sim.control_dt))

@@ -30,7 +30,11 @@ def demo_poses_for_tc(task_name: str, tc_index: int | None) -> tuple[np.ndarray,
         tc = tcs[tc_index]
     demo = load_demonstration(spec.demo_path)
     poses = condition_by_translation(
-        demo.times, demo.poses, np.asarray(tc.object_offset), spec.interaction_time
+        demo.times,
+        demo.poses,
+        np.asarray(tc.object_offset),
+        spec.interaction_time,
+        goal_fixed_in_world=spec.goal_fixed_in_world,
     )
     return poses, tc
 

@@ -21,45 +21,38 @@ query times are therefore affine maps of Gamma; this module precomputes the matr
     velocity     =      dM  (Gamma - mu)         # m/s, rad/s
     acceleration =      ddM (Gamma - mu)         # m/s^2, rad/s^2
 
-The correlation operator S = K (K + lambda I)^{-1} (Eq. global_S) uses the kernel's
-correlation matrix (unit signal variance) at the via-point times, so lambda is a
-scale-free ratio; a window uses its principal sub-block S_W (Eq. transformed_action).
-With the demonstrations' fitted length scales (just under the via-point spacing) and
-lambda = 1e-2, S_W is close to the identity; `distgprl fit` reports how close
-(docs/FINDINGS.md, "Covariance transform").
+The correlation operator S = K (K + lambda I)^{-1} (Eq. global_S): `correlation_operator`
+builds it from the kernel's unit-variance correlation matrix (v4's reading), and
+`axis_window_operators` per axis at a given prior variance (v5's); environment v6's Table I
+operator takes K from the zero-mean GP of Eq. 1 fitted per axis to the raw demonstration
+(``axis_kernels``, `distgprl.skill.operator`). `distgprl.adaptation.layout.window_operators`
+chooses between them (docs/FINDINGS.md "Protocol v6").
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.optimize import OptimizeResult, minimize
 
 from distgprl.skill.demos import Demonstration
+from distgprl.skill.kernels import (
+    KernelParams,
+    fit_kernel,
+    se_kernel,
+    se_kernel_d1,
+    se_kernel_d2,
+    standardise,
+)
+from distgprl.skill.operator import fit_zero_mean_axes
 
 N_AXES = 6
 DEFAULT_N_VIA_POINTS = 15
 DEFAULT_CORRELATION_LAMBDA = 1e-2
-
-
-@dataclass(frozen=True)
-class KernelParams:
-    """Squared-exponential kernel hyperparameters, in normalised time.
-
-    Attributes:
-        length_scale: correlation length in normalised time tau (dimensionless).
-        signal_variance: prior variance of the standardised signal.
-        noise_variance: observation-noise variance of the standardised signal.
-    """
-
-    length_scale: float
-    signal_variance: float = 1.0
-    noise_variance: float = 1e-6
 
 
 @dataclass(frozen=True)
@@ -84,110 +77,6 @@ class FitConfig:
     min_noise_variance: float = 1e-6
 
 
-def se_kernel(
-    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
-) -> np.ndarray:
-    """k(a, b), shape (len(a), len(b))."""
-    diff = a[:, None] - b[None, :]
-    k: np.ndarray = variance * np.exp(-0.5 * (diff / length_scale) ** 2)
-    return k
-
-
-def se_kernel_d1(
-    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
-) -> np.ndarray:
-    """d k(a, b) / d a, shape (len(a), len(b))."""
-    diff = a[:, None] - b[None, :]
-    d1: np.ndarray = -diff / length_scale**2 * se_kernel(a, b, length_scale, variance)
-    return d1
-
-
-def se_kernel_d2(
-    a: np.ndarray, b: np.ndarray, length_scale: float, variance: float = 1.0
-) -> np.ndarray:
-    """d^2 k(a, b) / d a^2, shape (len(a), len(b))."""
-    diff = a[:, None] - b[None, :]
-    l2 = length_scale**2
-    d2: np.ndarray = (diff**2 / l2**2 - 1.0 / l2) * se_kernel(a, b, length_scale, variance)
-    return d2
-
-
-def _negative_log_marginal_likelihood(
-    log_params: np.ndarray, tau: np.ndarray, y: np.ndarray
-) -> tuple[float, np.ndarray]:
-    """Sum over axes of -log p(y_axis | tau, theta) and its gradient w.r.t. log params."""
-    length_scale, signal_variance, noise_variance = np.exp(log_params)
-    n, n_axes = y.shape
-    base = se_kernel(tau, tau, length_scale, 1.0)
-    k_signal = signal_variance * base
-    k = k_signal + noise_variance * np.eye(n)
-    try:
-        factor = cho_factor(k, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        return 1e12, np.zeros(3)
-    alpha = cho_solve(factor, y, check_finite=False)  # (n, axes)
-    log_det = 2.0 * np.sum(np.log(np.diag(factor[0])))
-    nll = 0.5 * np.sum(y * alpha) + 0.5 * n_axes * log_det + 0.5 * n * n_axes * np.log(2 * np.pi)
-    # d nll / d theta = -0.5 tr((alpha alpha^T - axes K^-1) dK/dtheta), summed over axes.
-    inner = alpha @ alpha.T - n_axes * cho_solve(factor, np.eye(n), check_finite=False)
-    diff2 = (tau[:, None] - tau[None, :]) ** 2
-    d_length = k_signal * diff2 / length_scale**2  # dK / dlog(l)
-    d_signal = k_signal  # dK / dlog(sf2)
-    d_noise = noise_variance * np.eye(n)  # dK / dlog(sn2)
-    grad = np.array([-0.5 * np.sum(inner * d) for d in (d_length, d_signal, d_noise)])
-    return nll, grad
-
-
-def fit_kernel(
-    tau: np.ndarray,
-    values: np.ndarray,
-    length_scale_bounds: tuple[float, float] = (1e-3, 2.0),
-    min_noise_variance: float = 1e-8,
-) -> KernelParams:
-    """Fit shared SE hyperparameters to standardised multi-axis data by marginal likelihood.
-
-    Args:
-        tau: shape (n,), normalised times in [0, 1].
-        values: shape (n, d); each axis is standardised (zero mean, unit std) before fitting.
-        length_scale_bounds: (min, max) length scale, normalised time.
-        min_noise_variance: jitter floor for the standardised noise variance (it also
-            bounds how strongly a via-point change can overshoot between via-points).
-
-    Returns:
-        The maximum-likelihood `KernelParams` (for the standardised signal).
-    """
-    y = standardise(values)[0]
-    lo, hi = length_scale_bounds
-    best: OptimizeResult | None = None
-    # A few starts across the admissible length-scale range: the likelihood is multimodal.
-    for start_length in np.geomspace(max(lo, 1e-3), hi, 4):
-        x0 = np.log([start_length, 1.0, max(1e-4, min_noise_variance)])
-        result = minimize(
-            _negative_log_marginal_likelihood,
-            x0,
-            args=(tau, y),
-            jac=True,
-            method="L-BFGS-B",
-            bounds=[
-                (np.log(lo), np.log(hi)),
-                (np.log(1e-2), np.log(1e3)),
-                (np.log(min_noise_variance), np.log(1.0)),
-            ],
-        )
-        if best is None or result.fun < best.fun:
-            best = result
-    assert best is not None  # the four starts above
-    length_scale, signal_variance, noise_variance = np.exp(best.x)
-    return KernelParams(float(length_scale), float(signal_variance), float(noise_variance))
-
-
-def standardise(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-axis (values - mean) / std; returns (standardised, mean, std); std floored at 1e-9."""
-    mean = values.mean(axis=0)
-    std = np.maximum(values.std(axis=0), 1e-9)
-    return (values - mean) / std, mean, std
-
-
 @dataclass(frozen=True)
 class GPSkill:
     """A fitted via-point skill: kernel, via-point times, demonstration via-points.
@@ -203,6 +92,9 @@ class GPSkill:
             the scale by which each axis was standardised for the kernel fit, so the GP's
             covariance of axis a in via-point units is ``axis_scale[a]**2 * K`` (None for a
             skill saved before it was recorded).
+        axis_kernels: six `KernelParams`, the paper's zero-mean GP of each axis fitted to the
+            raw demonstration (`distgprl.skill.operator`; environment v6's K of S, m² and
+            rad²); None for a skill saved before they were recorded.
     """
 
     kernel: KernelParams
@@ -212,6 +104,7 @@ class GPSkill:
     duration: float
     name: str = "skill"
     axis_scale: np.ndarray | None = None
+    axis_kernels: tuple[KernelParams, ...] | None = None
     _cache: dict[tuple[str, float, float], np.ndarray] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -413,6 +306,11 @@ class GPSkill:
                 if self.axis_scale is None
                 else {"axis_scale": np.asarray(self.axis_scale).tolist()}
             ),
+            **(
+                {}
+                if self.axis_kernels is None
+                else {"axis_kernels": [asdict(k) for k in self.axis_kernels]}
+            ),
         }
 
     @classmethod
@@ -426,6 +324,11 @@ class GPSkill:
             name=data.get("name", "skill"),
             axis_scale=(
                 None if "axis_scale" not in data else np.asarray(data["axis_scale"], dtype=float)
+            ),
+            axis_kernels=(
+                tuple(KernelParams(**k) for k in data["axis_kernels"])
+                if "axis_kernels" in data
+                else None
             ),
         )
 
@@ -452,6 +355,8 @@ def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
     1. Standardise each axis and fit the shared kernel by marginal likelihood on at most
        ``config.max_fit_samples`` evenly subsampled samples.
     2. Via-points Gamma_0 = GP posterior mean of the demonstration at N evenly spaced tau.
+    3. Per axis, the zero-mean GP of Eq. 1 on the raw samples (``axis_kernels``, the K of
+       environment v6's S; `distgprl.skill.operator.fit_zero_mean_axes`).
 
     Raises:
         ValueError: if the demonstration has fewer samples than via-points.
@@ -469,10 +374,11 @@ def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
     step = max(1, int(np.ceil(len(tau) / config.max_fit_samples)))
     sub = np.unique(np.r_[np.arange(0, len(tau), step), len(tau) - 1])
     spacing = 1.0 / (n_via - 1)
+    bounds = (config.min_length_scale_fraction * spacing, config.max_length_scale)
     kernel = fit_kernel(
         tau[sub],
         poses[sub],
-        length_scale_bounds=(config.min_length_scale_fraction * spacing, config.max_length_scale),
+        length_scale_bounds=bounds,
         min_noise_variance=config.min_noise_variance,
     )
     standardised, mean, std = standardise(poses[sub])
@@ -494,6 +400,7 @@ def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
         duration=demo.duration,
         name=demo.name,
         axis_scale=poses.std(axis=0),
+        axis_kernels=fit_zero_mean_axes(tau[sub], poses[sub], bounds, kernel.length_scale),
     )
 
 

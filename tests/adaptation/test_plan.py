@@ -15,6 +15,10 @@ from distgprl.config import EnvConfig
 from distgprl.methods import get_method
 from distgprl.skill.gp import GPSkill, KernelParams
 
+# v5's operator and fixed scales: these tests check the plumbing, not the v6 reading
+# (tests/adaptation/test_layout.py checks the Table I operator and the reach rule).
+V5_OPERATOR = EnvConfig(covariance_scale="signal", action_scale_rule="fixed")
+
 DT = 0.02
 
 
@@ -27,7 +31,7 @@ def skill() -> GPSkill:
 def make_plan(method: str = "dist-gprl") -> tuple[WindowPlan, GPSkill]:
     s = skill()
     spec = get_method(method)
-    layout = build_action_layout(s, EnvConfig(), spec)
+    layout = build_action_layout(s, V5_OPERATOR, spec)
     model = GPSkillTrajectory(s, s.nearest_via_index(0.5))
     plan = WindowPlan(
         model, layout, s.duration, DT, 0.3, s.via_points[0, 3:], s.via_points, spec.trainable

@@ -24,6 +24,10 @@ from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box
 
+# v5's operator and fixed scales: these tests check the plumbing, not the v6 reading
+# (tests/adaptation/test_layout.py checks the Table I operator and the reach rule).
+V5_OPERATOR = EnvConfig(covariance_scale="signal", action_scale_rule="fixed")
+
 BATCH = 256
 # Every layout a regularised method uses (and GPRL's frozen TC via-point).
 LAYOUTS = [
@@ -71,7 +75,7 @@ def _evaluate(module, aux, actions):
 
 def _pair(method, frozen, weights, hap, moving):
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method(method), frozen=frozen)
+    layout = build_action_layout(skill, V5_OPERATOR, get_method(method), frozen=frozen)
     prior = HapPrior(_c_safe(), dtype=torch.float64) if hap else None
     kwargs = dict(hap_prior=prior, moving_filter=_moving_filter() if moving else None)
     new = ActorRegulariser(skill, layout, weights, **kwargs).double()
@@ -115,7 +119,7 @@ def test_a_generic_prior_module_goes_through_autograd_and_equals_the_reference(m
     """A prior that is not a `HapPrior` (a module with a differentiable ``loss(x)``) takes the
     autograd path: total, terms and gradient equal the reference to 1e-9 (float64)."""
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method(method), frozen=frozen)
+    layout = build_action_layout(skill, V5_OPERATOR, get_method(method), frozen=frozen)
     weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.2)
     prior = QuadraticPrior().double()
     new = ActorRegulariser(skill, layout, weights, hap_prior=prior).double()
@@ -167,7 +171,7 @@ def test_readout_equals_the_per_window_maps(method, frozen):
 def test_float32_regulariser_agrees_with_the_reference_to_float_precision():
     """In training's float32 (buffers as built), total and gradient agree to ~1e-5 relative."""
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method("dist-gprl"))
+    layout = build_action_layout(skill, V5_OPERATOR, get_method("dist-gprl"))
     weights = RegulariserWeights()
     prior = HapPrior(_c_safe())
     new = ActorRegulariser(skill, layout, weights, hap_prior=prior)
@@ -186,7 +190,7 @@ def test_acceleration_term_is_the_relative_l1_error():
     demonstration with twice the motion, adapted twice as much, has the same L_sim (both
     terms are dimensionless)."""
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method("dist-gprl"))
+    layout = build_action_layout(skill, V5_OPERATOR, get_method("dist-gprl"))
     weights = RegulariserWeights(lambda_sim=0.5, lambda_hap=0.0, lambda_acceleration=0.7)
     module = ActorRegulariser(skill, layout, weights).double()
     tau = np.linspace(0.0, 1.0, 50)

@@ -16,6 +16,10 @@ from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box
 from distgprl.skill.gp import GPSkill, KernelParams
 
+# v5's operator and fixed scales: these tests check the plumbing, not the v6 reading
+# (tests/adaptation/test_layout.py checks the Table I operator and the reach rule).
+V5_OPERATOR = EnvConfig(covariance_scale="signal", action_scale_rule="fixed")
+
 
 def small_skill(seed=0) -> GPSkill:
     rng = np.random.default_rng(seed)
@@ -54,7 +58,7 @@ class QuadraticPrior(torch.nn.Module):
 
 def regulariser(method="dist-gprl", lambda_sim=0.5, lambda_hap=0.2, frozen=()):
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method(method), frozen=frozen)
+    layout = build_action_layout(skill, V5_OPERATOR, get_method(method), frozen=frozen)
     weights = RegulariserWeights(lambda_sim=lambda_sim, lambda_hap=lambda_hap)
     prior = QuadraticPrior() if lambda_hap > 0 else None
     return skill, layout, ActorRegulariser(skill, layout, weights, hap_prior=prior)
@@ -227,7 +231,7 @@ def test_zero_weights_give_zero_loss_and_no_gradient():
 
 def test_gprl_frozen_via_point_receives_no_update():
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method("gprl"), frozen=(6,))
+    layout = build_action_layout(skill, V5_OPERATOR, get_method("gprl"), frozen=(6,))
     delta = layout.delta(0, np.ones(layout.points_per_step * 6))
     assert np.all(delta[layout.indices[0] == 6] == 0)
     assert np.all(delta[layout.indices[0] != 6] != 0)
@@ -401,7 +405,7 @@ def test_l_hap_filters_c_safe_with_the_moving_obstacles_anchors_from_aux():
     raises L_hap, one far away leaves it as without the filter; the gradient still reaches the
     actions; an aux without anchors is a clear error."""
     skill = small_skill()
-    layout = build_action_layout(skill, EnvConfig(), get_method("dist-gprl"))
+    layout = build_action_layout(skill, V5_OPERATOR, get_method("dist-gprl"))
     axes = [np.arange(0.3, 0.71, 0.1), np.arange(-0.3, 0.31, 0.1), np.arange(0.1, 0.41, 0.1)]
     c_safe = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     prior = HapPrior(c_safe)

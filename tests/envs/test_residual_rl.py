@@ -100,19 +100,21 @@ def test_nominal_is_the_promp_conditioned_by_the_tc_rule(env):
 
 
 def test_gate_is_the_promps_own_normalised_std(env):
-    """The gate at each control instant is sigma / max sigma, sigma the ProMP's positional
-    std there (mean over x, y, z): a larger variance passes more of the residual."""
+    """The gate at each control instant is 1 - sigma / max sigma, sigma the ProMP's positional
+    std there (mean over x, y, z): Carvalho et al.'s variability as a decision variable, the
+    residual acting where the demonstrations agree (precision) and held back where they
+    vary; a larger variance passes less of the residual."""
     sigma = env.promp.trajectory_std(env.schedule.tau)[:, :3].mean(axis=1)
-    np.testing.assert_allclose(env.gate, sigma / sigma.max())
+    np.testing.assert_allclose(env.gate, 1.0 - sigma / sigma.max())
     order = np.argsort(sigma, kind="stable")
-    assert np.all(np.diff(env.gate[order]) >= 0)
-    assert env.gate.max() == 1.0 and env.gate.min() < 0.05
+    assert np.all(np.diff(env.gate[order]) <= 0)
+    assert env.gate.min() == 0.0 and env.gate.max() > 0.95
 
 
 def test_executed_residual_is_the_target_scaled_by_the_gate():
     """With a constant action, once the slew limit has brought the residual to its target,
     the commanded pose differs from the nominal by gate(t) x target at every control period,
-    so instants of larger ProMP variance pass more of it (x, y, z each). (Collisions do not
+    so instants of larger ProMP variance pass less of it (x, y, z each). (Collisions do not
     stop this episode, so it covers the whole trajectory.)"""
     dcp = ResidualRLEnv("dcp", config=EnvConfig(collision_ends_episode=False))
     action = np.array([0.5, -0.4, 0.3, 0.0, 0.0, 0.0])
@@ -133,7 +135,7 @@ def test_executed_residual_is_the_target_scaled_by_the_gate():
         offsets.append(calls[step][:, :3] - dcp.nominal_poses[indices + 1, :3])
     instants, offsets = np.concatenate(instants), np.concatenate(offsets)
     np.testing.assert_allclose(offsets, dcp.gate[instants, None] * target[None, :3], atol=1e-12)
-    expected = (sigma[instants] / sigma.max())[:, None] * target[None, :3]
+    expected = (1.0 - sigma[instants] / sigma.max())[:, None] * target[None, :3]
     np.testing.assert_allclose(offsets, expected, atol=1e-12)
     assert np.ptp(sigma[instants]) > 0.5 * sigma.max()  # from certain to uncertain instants
 

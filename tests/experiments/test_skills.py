@@ -16,6 +16,8 @@ PAPER_WINDOWS = ([1, 2, 3, 4, 5], [5, 6, 7, 8, 9], [9, 10, 11, 12, 13])
 
 AXIS_SCALE = np.array([0.06, 0.2, 0.09, 0.0, 0.0, 0.0])  # like the DCP demonstration's
 UNIT = EnvConfig(covariance_scale="unit")
+SIGNAL = EnvConfig(covariance_scale="signal", action_scale_rule="fixed")
+"""v5's operator (the ``operator-signal`` study reading) with v5's fixed action scales."""
 
 
 def make_skill(length_scale: float) -> GPSkill:
@@ -132,7 +134,7 @@ def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units
     from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR
 
     skill = make_skill(0.06)
-    summary = correlation_summary(skill, EnvConfig())
+    summary = correlation_summary(skill, SIGNAL)
     assert summary["covariance_scale"] == "signal"
     variance = 0.3 * np.maximum(AXIS_SCALE, OBSERVATION_SCALE_FLOOR) ** 2
     for window, reported in zip(PAPER_WINDOWS, summary["windows"], strict=True):
@@ -153,7 +155,7 @@ def test_shipped_skills_are_correlated_under_the_v5_operator():
     from distgprl.envs.tasks import load_task_skill
 
     for task in ("dcp", "dbm"):
-        summary = correlation_summary(load_task_skill(task), EnvConfig())
+        summary = correlation_summary(load_task_skill(task), SIGNAL)
         low = min(w["eigenvalue_min"] for w in summary["windows"])
         high = max(w["eigenvalue_max"] for w in summary["windows"])
         assert low <= 0.9 and high < 1.0, (task, low, high)
@@ -162,7 +164,7 @@ def test_shipped_skills_are_correlated_under_the_v5_operator():
 def test_a_skill_without_axis_scale_cannot_build_the_signal_operator():
     skill = dataclasses.replace(make_skill(0.06), axis_scale=None)
     with pytest.raises(ValueError, match="axis_scale"):
-        correlation_summary(skill, EnvConfig())
+        correlation_summary(skill, SIGNAL)
     assert set(correlation_summary(skill, UNIT)["candidates"]) == {"unit", "none"}
 
 
@@ -174,7 +176,7 @@ def test_reach_is_the_largest_via_point_move_of_a_saturated_action():
     from distgprl.adaptation.layout import build_action_layout
     from distgprl.methods import get_method
 
-    skill, config = make_skill(0.06), EnvConfig()
+    skill, config = make_skill(0.06), SIGNAL
     summary = correlation_summary(skill, config)
     layout = build_action_layout(skill, config, get_method("dist-gprl"))
     rng = np.random.default_rng(3)
@@ -195,3 +197,24 @@ def test_reach_is_the_largest_via_point_move_of_a_saturated_action():
     for axis in scale:
         assert summary["reach"][axis] < scale[axis]
         assert summary["reach"][axis] == max(w["axes"][axis]["reach"] for w in summary["windows"])
+
+
+def test_shipped_skills_reach_their_tc_range_under_the_table_one_operator():
+    """Environment v6 (rule "reach"): with each task's TC range, `correlation_summary`
+    reports the Table I (zero-mean) operator, and every window via-point's one-step reach is
+    at least max(TC range, 0.1 m) on x, y and z (0.05 rad on rotations); NoCov's reach is the
+    action scale itself, at least as large."""
+    from distgprl.envs.tasks import load_task_skill
+    from distgprl.sim.tasks import get_task
+
+    for task in ("dcp", "dbm"):
+        tc_range = np.asarray(get_task(task).tc_range)
+        summary = correlation_summary(load_task_skill(task), EnvConfig(), tc_range=tc_range)
+        assert summary["covariance_scale"] == "zero-mean"
+        assert summary["action_scale_rule"] == "reach"
+        needed = dict(zip(("x", "y", "z"), np.maximum(tc_range, 0.1), strict=True))
+        needed.update(rx=0.05, ry=0.05, rz=0.05)
+        for axis, value in needed.items():
+            assert summary["reach_min"][axis] == pytest.approx(value, rel=1e-9), (task, axis)
+            assert summary["candidates"]["none"]["reach"][axis] >= value - 1e-12
+        assert set(summary["candidates"]) == {"zero-mean", "signal", "unit", "correlation", "none"}

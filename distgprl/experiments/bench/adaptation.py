@@ -32,7 +32,8 @@ def bench_gp(n_query: int = 200, n_via_points: int = 15, seed: int = 0) -> dict[
     Compared with the naive alternative (rebuilding the conditioning maps from the kernel,
     i.e. re-solving the GP, on every evaluation).
     """
-    from distgprl.skill.gp import GPSkill, KernelParams
+    from distgprl.skill.gp import GPSkill
+    from distgprl.skill.kernels import KernelParams
 
     rng = np.random.default_rng(seed)
     skill = GPSkill(

@@ -28,7 +28,11 @@ def bench_simulation(task: str, episodes: int) -> dict[str, Any]:
             resample_to_control(
                 demo.times,
                 condition_by_translation(
-                    demo.times, demo.poses, np.asarray(tc.object_offset), spec.interaction_time
+                    demo.times,
+                    demo.poses,
+                    np.asarray(tc.object_offset),
+                    spec.interaction_time,
+                    goal_fixed_in_world=spec.goal_fixed_in_world,
                 ),
                 sim.control_dt,
             )

@@ -31,6 +31,7 @@ from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 from distgprl.sim.bullet import PhysicsConfig, make_client
 from distgprl.sim.control import BulletCalls, ControlLoop, SegmentResult
 from distgprl.sim.robot import Robot, RobotFactory, ToolSpec, UR5e
+from distgprl.skill.conditioning import conditioning_weights, smooth_step
 
 
 def _as_xy(value: object, name: str) -> tuple[float, float]:
@@ -93,6 +94,13 @@ class TaskSpec:
             shipped demonstrations (`distgprl.sim.experts`).
         scene_revision: the revision of the simulated scene (`distgprl.data.SCENE_REVISIONS`,
             the pybullet-free catalogue the config hashes read).
+        tc_range: the largest object offset the TCs draw on each position axis (x, y, z), m
+            (environment v6's reach rule: every adaptive method must be able to correct
+            that far; docs/FINDINGS.md "Protocol v6").
+        goal_fixed_in_world: whether the task's goal stays where it is when the object is
+            offset (DCP's goal region) or moves with the object (DBM's lift above the bar):
+            the TC conditioning then brings the post-interaction via-points back to the
+            demonstration's end (`conditioning_weights`).
     """
 
     name: str
@@ -106,6 +114,8 @@ class TaskSpec:
     make_sim: Callable[..., TaskSim]
     expert: Callable[[TaskConfig], tuple[np.ndarray, np.ndarray]]
     scene_revision: int
+    tc_range: tuple[float, float, float] = (0.2, 0.2, 0.0)
+    goal_fixed_in_world: bool = False
 
     def sample_tc(self, rng: np.random.Generator) -> TaskConfig:
         """One random TC drawn with ``rng`` (task-specific ranges, see the task module)."""
@@ -383,24 +393,20 @@ class TaskSim:
         )
 
 
-def smooth_step(x: np.ndarray) -> np.ndarray:
-    """Minimum-jerk blend 10x^3 - 15x^4 + 6x^5 of x clipped to [0, 1]."""
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
-
-
 def condition_by_translation(
     times: np.ndarray,
     poses: np.ndarray,
     object_offset: np.ndarray,
     interaction_time: float,
     blend: float = 0.15,
+    goal_fixed_in_world: bool = False,
 ) -> np.ndarray:
-    """Approximate TC conditioning of a demonstration (stand-in for the GP skill).
+    """TC conditioning of a dense demonstration by the rule of `distgprl.skill.conditioning`.
 
-    Samples at normalised time tau >= ``interaction_time`` are translated by the object
-    offset (dx, dy, 0); before it the translation ramps in with a minimum-jerk blend over
-    ``blend`` (in tau), so the start pose stays put.
+    Samples are translated by the object offset (dx, dy, 0) weighted by w(tau): 1 at
+    ``interaction_time``, ramping in with a minimum-jerk blend over ``blend`` (in tau) before
+    it (the start pose stays put), and after it falling linearly to 0 at the end if
+    ``goal_fixed_in_world`` (environment v6; the push ends at the goal), else staying 1.
 
     Args:
         times: (n,) s. poses: (n, 6). object_offset: (2,) m.
@@ -408,7 +414,7 @@ def condition_by_translation(
         The conditioned poses (n, 6).
     """
     tau = (times - times[0]) / (times[-1] - times[0])
-    weight = smooth_step((tau - (interaction_time - blend)) / blend)
+    weight = conditioning_weights(tau, interaction_time, goal_fixed_in_world, ramp=blend)
     shifted = np.array(poses, dtype=float, copy=True)
     shifted[:, 0] += weight * float(object_offset[0])
     shifted[:, 1] += weight * float(object_offset[1])

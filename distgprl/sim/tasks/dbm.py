@@ -337,5 +337,7 @@ TASK = TaskSpec(
     make_sim=DBMSim,
     expert=dbm_expert,
     scene_revision=SCENE_REVISIONS["dbm"],
+    tc_range=(SCENE.lateral_range, SCENE.offset_range, 0.0),
+    goal_fixed_in_world=False,
 )
 """The DBM task's registration (`distgprl.sim.tasks.TASKS` reads it)."""

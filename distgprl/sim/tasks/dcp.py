@@ -280,5 +280,7 @@ TASK = TaskSpec(
     make_sim=DCPSim,
     expert=dcp_expert,
     scene_revision=SCENE_REVISIONS["dcp"],
+    tc_range=(SCENE.object_offset_radius, SCENE.object_offset_radius, 0.0),
+    goal_fixed_in_world=True,
 )
 """The DCP task's registration (`distgprl.sim.tasks.TASKS` reads it)."""

@@ -1,0 +1,227 @@
+"""The configuration's types: frozen dataclasses with the paper's defaults (one source for
+each default), and the environment version every run records. `distgprl.config` loads them
+from presets and validates them; import them from there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+__all__ = [
+    "ENVIRONMENT_VERSION",
+    "HASH_STABLE_DEFAULTS",
+    "Config",
+    "EnvConfig",
+    "RunConfig",
+    "SACConfig",
+]
+
+ENVIRONMENT_VERSION = 6
+"""The environment version every run records (it enters the config hash, so runs of an
+older version are stale). v6 (docs/FINDINGS.md "Protocol v6", pre-registered): every reward
+and actor-loss term in a natural unit (r_tc in units of one task, beta = eps / 4, L_hap
+hinged and in grid steps, SAC's temperature scaled with the rewards); S from the zero-mean
+GP of Eq. 1; action scales from the task's reach; conditioning keeps a fixed goal fixed;
+ProMP-RRL is residual RL; MinCl over collision-free episodes; Table I from the best policy.
+v5 (docs/FINDINGS.md "Environment v5"): a collision ends the episode and success is
+completion without collision; DBM's bars vary in the xy-plane; S's K is the GP's covariance
+in via-point units; MinCl is a distance (>= 0); ProMP-RRL gets the one demonstration the GP
+methods get."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """The adaptation MDP (paper §IV, DESIGN §3).
+
+    Attributes:
+        n_via_points: N (paper: 15).
+        window_size: L (paper: 5); windows overlap by one via-point.
+        n_windows: RL steps per episode (paper: 3; the results schema records exactly three,
+            `distgprl.schema.N_WINDOWS`).
+        correlation_lambda: lambda of S = K (K + lambda I)^-1 (paper: 1e-2).
+        correlation_length_scale: length scale (normalised time) of the kernel matrix K in
+            S only; 0 (default) = the kernel fitted to the demonstration, as in every
+            `paper` run. The paper gives no K beyond Eq. global_S; with the fitted length
+            scales (just under the via-point spacing) S_W is nearly the identity
+            (docs/FINDINGS.md, "Covariance transform"), so this lets a run use a K that
+            does correlate neighbouring via-points. The trajectory GP is unchanged.
+        covariance_scale: the K of S (`distgprl.adaptation.layout.COVARIANCE_SCALES`).
+            ``"zero-mean"`` (environment v6, Table I) — K_tt is the covariance matrix of the
+            paper's zero-mean GP (Eq. 1), per axis fitted by marginal likelihood to the raw
+            demonstration (constant axes: 0.2 rad scale); ``"signal"`` (v5, study preset
+            ``operator-signal``) — the standardised GP's variance times the axis's
+            demonstration variance; ``"unit"`` (v4, ``operator-unit``) — the unit-variance
+            correlation matrix; ``"correlation"`` (``operator-correlation``) — the
+            zero-mean operator with each row divided by its row sum (reach without shrink).
+        action_scale_rule: how the raw action's per-axis scale is set (the paper does not
+            give it). ``"reach"`` (environment v6): per task and axis, so that under the
+            Table I operator (``covariance_scale="zero-mean"``, whatever operator the run
+            uses) every windowed via-point can move max(TC range on that axis, minimum
+            reach) in the one step that adapts it (`distgprl.adaptation.layout.reach_scales`;
+            docs/FINDINGS.md "Protocol v6", rule 2); ``"fixed"`` (v3-v5): the two scales
+            below.
+        minimum_position_reach: the least one-step reach (m) rule ``"reach"`` gives a
+            position axis (v3's argument: approach via-points must follow the objects by
+            about 10 cm).
+        minimum_rotation_reach: likewise for a rotation axis, rad (v3-v5's scale).
+        position_action_scale: m of via-point change per unit raw action with rule
+            ``"fixed"`` (env v3-v5: 0.1 m; v0-v2: 0.03 m).
+        rotation_action_scale: rad of via-point change per unit raw action (rule
+            ``"fixed"``).
+        lambda_ga: weight of the gradient-alignment reward (paper: 0.2).
+        progress_weight: r_tc weight of the change in task progress (in [0, 1]); environment
+            v6: r_tc is in units of one task (the whole progress is worth 1; v5: 10).
+        success_bonus: r_tc bonus on success at the end of the episode (v6: 1; v5: 10).
+        collision_penalty: r_tc penalty for a segment with a collision (v6: 1; v5: 10).
+        collision_ends_episode: a collision stops execution at that control period and
+            ends the episode, as a protective stop ends a hardware trial; success is then
+            task completion without collision (environment v5; False = v4: execution
+            pushes on through kinematic obstacles and success ignores collisions).
+        sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward). Environment
+            v6: eps / sd_samples_per_segment = 0.0025, so one tool point held at distance d
+            for a whole segment costs eps / (d + eps): 1 (the collision penalty) at contact,
+            0.25 at d_min (v5: 2e-4, with r_tc ten times larger).
+        sd_d_min: d_min of Eq. safety_reward, m.
+        sd_epsilon: epsilon of Eq. safety_reward, m.
+        sd_samples_per_segment: instants per executed segment at which the tool points
+            are checked against the EDF for r_sd (the segment is executed in as many
+            chunks).
+        blend_fraction: fraction of a segment over which a jump between the robot's
+            pose and the re-planned trajectory (caused by updating the overlap
+            via-point) is blended out with a minimum-jerk weight.
+        clearance_clip: observed EDF clearances are clipped to this value, m.
+        clearance_scale: observed clearances are divided by this, m (env v2).
+        relative_position_scale: observed e_o and e_g are divided by this, m (env v2).
+        clearance_timing: when the obstacles are taken for the window via-points' EDF
+            clearances and gradients (state ``c`` and r_ga): ``"predicted"`` (default,
+            env v2) at the time the trajectory reaches each via-point, along the moving
+            obstacles' known paths; ``"current"`` (env v1, the paper read literally) at
+            the observation instant.
+        signature_weight: GPRL's signature-similarity reward weight (v6: 0.1, scaled with
+            r_tc; v5: 1.0).
+        signature_depth: truncation level of the path signature (GPRL).
+        signature_scale: distance scale of the signature similarity (GPRL).
+    """
+
+    n_via_points: int = 15
+    window_size: int = 5
+    n_windows: int = 3
+    correlation_lambda: float = 1e-2
+    correlation_length_scale: float = 0.0
+    covariance_scale: str = "zero-mean"
+    action_scale_rule: str = "reach"
+    minimum_position_reach: float = 0.1
+    minimum_rotation_reach: float = 0.05
+    position_action_scale: float = 0.1
+    rotation_action_scale: float = 0.05
+    lambda_ga: float = 0.2
+    progress_weight: float = 1.0
+    success_bonus: float = 1.0
+    collision_penalty: float = 1.0
+    collision_ends_episode: bool = True
+    sd_beta: float = 0.0025
+    sd_d_min: float = 0.03
+    sd_epsilon: float = 0.01
+    sd_samples_per_segment: int = 4
+    blend_fraction: float = 0.3
+    clearance_clip: float = 0.3
+    clearance_scale: float = 0.05
+    relative_position_scale: float = 0.1
+    clearance_timing: str = "predicted"
+    signature_weight: float = 0.1
+    signature_depth: int = 3
+    signature_scale: float = 0.05
+
+
+@dataclass(frozen=True)
+class SACConfig:
+    """SAC (Haarnoja et al. 2018 defaults) and the regularised actor loss.
+
+    Attributes:
+        lambda_sim: weight of L_sim (paper: 0.5).
+        lambda_hap: weight of L_hap (paper: 0.2).
+        lambda_velocity: lambda_v of Eq. sim_compact (the paper does not give it; set once,
+            never tuned).
+        lambda_acceleration: lambda_a of Eq. sim_compact, per unit of *relative* L1
+            acceleration error (the L1 term divided by the demonstration's mean L1
+            acceleration, so both terms are dimensionless; environment v5). The paper gives
+            neither lambda_v nor lambda_a, only lambda_sim: equal unit weights of two
+            dimensionless terms, set from the units before any v5 run, never tuned.
+        n_similarity_samples: T, trajectory samples for L_sim.
+        hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
+        anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
+            from start to end over the run (v6: 0.02 -> 0.0002, scaled with the rewards;
+            v5: 0.2 -> 0.002).
+        ent_coef_init: initial value of SAC's automatically tuned entropy coefficient
+            (SB3 ``ent_coef="auto_<init>"``). SB3's default 1.0 makes the entropy bonus of a
+            30-D action dwarf this task's rewards for the first ~15k steps; 0.1 keeps the
+            automatic tuning of Haarnoja et al. but starts at the scale of the rewards
+            (environment v6: 0.01, the rewards being ten times smaller than v5's).
+    """
+
+    learning_rate: float = 3e-4
+    buffer_size: int = 1_000_000
+    batch_size: int = 256
+    gamma: float = 0.99
+    tau: float = 0.005
+    learning_starts: int = 1000
+    train_freq: int = 1
+    gradient_steps: int = 1
+    net_arch: tuple[int, ...] = (256, 256)
+    lambda_sim: float = 0.5
+    lambda_hap: float = 0.2
+    lambda_velocity: float = 1.0
+    lambda_acceleration: float = 1.0
+    n_similarity_samples: int = 50
+    hap_k: int = 8
+    hap_temperature: float = 0.05
+    hap_n_query: int = 20
+    anneal_start: float = 0.02
+    anneal_end: float = 0.0002
+    ent_coef_init: float = 0.01
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Training and evaluation sizes.
+
+    Attributes:
+        total_steps: RL steps (3 per episode).
+        eval_every: learning-curve evaluation period, steps.
+        curve_episodes: TCs of the fixed learning-curve set evaluated each time.
+        eval_episodes: evaluation TCs for the final evaluation (paper: 100).
+        checkpoint_every: checkpoint period (model + replay buffer), steps.
+        torch_threads: torch intra-op threads per run.
+    """
+
+    total_steps: int = 30_000
+    eval_every: int = 1_500
+    curve_episodes: int = 20
+    eval_episodes: int = 100
+    checkpoint_every: int = 3_000
+    torch_threads: int = 1
+
+
+@dataclass(frozen=True)
+class Config:
+    """A resolved configuration (what `config.json` of a run records)."""
+
+    preset: str = "paper"
+    env: EnvConfig = field(default_factory=EnvConfig)
+    sac: SACConfig = field(default_factory=SACConfig)
+    run: RunConfig = field(default_factory=RunConfig)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The configuration as a dict (what `config.json` records and the run's config hash
+        covers). Fields added after results were committed appear only when they differ from
+        the default that reproduces the old behaviour, so that those runs keep their hash."""
+        data = asdict(self)
+        for (section, key), default in HASH_STABLE_DEFAULTS.items():
+            if data[section][key] == default:
+                del data[section][key]
+        return data
+
+
+#: Fields added to the configuration after committed results, with their old-behaviour default.
+HASH_STABLE_DEFAULTS: dict[tuple[str, str], Any] = {("env", "correlation_length_scale"): 0.0}

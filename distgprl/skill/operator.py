@@ -1,0 +1,142 @@
+"""The covariance operator's K read as the paper's zero-mean GP (Eq. 1; environment v6).
+
+The paper's skill is a GP ζ(t) ~ GP(0, k) (Eq. 1), and K_tt in S = K_tt (K_tt + λI)⁻¹
+(Eq. global_S) is "the covariance matrix" of that GP at the via-point times. So, per axis a,
+K_a = σ_a² R(ℓ_a) with σ_a², ℓ_a and the noise fitted by maximum marginal likelihood to the
+*raw* demonstration samples of that axis (m, rad), with zero mean: not mean-centred, not
+standardised, not one variance shared with the other axes (docs/FINDINGS.md "Protocol v6",
+rule 3). An axis the demonstration keeps constant (the tool's rotation vector: 0 throughout)
+has no signal of its own, and its ML variance collapses to the lower bound, which would make
+S_a = 0 (no adaptation on that axis at all); such an axis takes K_a = s² R(ℓ_skill), s its
+physical scale (`CONSTANT_AXIS_SCALE`) and ℓ_skill the skill's fitted length scale.
+
+`fit_zero_mean_axes` fits the six axes (called by `distgprl.skill.gp.fit_skill`, stored on
+the skill as ``axis_kernels``); `axis_operator` builds S_a; `row_gains` is a window
+operator's one-step reach per unit action (the row sums of |S_W|).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import minimize
+
+from distgprl.skill.kernels import KernelParams, negative_log_marginal_likelihood, se_kernel
+
+__all__ = [
+    "CONSTANT_AXIS_SCALE",
+    "axis_operator",
+    "fit_zero_mean_axes",
+    "row_gains",
+    "row_normalised",
+]
+
+CONSTANT_AXIS_SCALE = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
+"""Physical scale (m, m, m, rad, rad, rad) of an axis the demonstration keeps constant: the
+prior standard deviation its K takes (the observation floor, v5's rule for such axes)."""
+
+MIN_SIGNAL_VARIANCE = 1e-8
+"""Lower bound of the zero-mean fit's signal variance (m², rad²). A fit that ends within a
+factor 10 of it found no signal: the axis is treated as constant."""
+
+
+def _fit_axis(
+    tau: np.ndarray, values: np.ndarray, bounds: tuple[float, float], min_noise: float
+) -> KernelParams:
+    """Zero-mean SE hyperparameters of one axis ``values`` (n,) at ``tau`` (n,) by ML."""
+    y = np.asarray(values, dtype=float)[:, None]
+    lo, hi = bounds
+    best = None
+    start_variance = max(float(np.mean(y**2)), 1e-4)
+    # The jitter floor relative to the signal's mean square, as the skill fit's is relative
+    # to its standardised unit variance: an absolute 1e-10 makes K numerically singular.
+    min_noise = min_noise * start_variance
+    for start_length in np.geomspace(max(lo, 1e-3), hi, 4):  # the likelihood is multimodal
+        x0 = np.log([start_length, start_variance, max(1e-4, min_noise)])
+        result = minimize(
+            negative_log_marginal_likelihood,
+            x0,
+            args=(tau, y),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=[
+                (np.log(lo), np.log(hi)),
+                (np.log(MIN_SIGNAL_VARIANCE), np.log(1e3)),
+                (np.log(min_noise), np.log(1.0)),
+            ],
+        )
+        if best is None or result.fun < best.fun:
+            best = result
+    assert best is not None
+    length_scale, signal_variance, noise_variance = np.exp(best.x)
+    return KernelParams(float(length_scale), float(signal_variance), float(noise_variance))
+
+
+def fit_zero_mean_axes(
+    tau: np.ndarray,
+    poses: np.ndarray,
+    length_scale_bounds: tuple[float, float],
+    skill_length_scale: float,
+    min_noise_variance: float = 1e-6,
+) -> tuple[KernelParams, ...]:
+    """Per axis, the zero-mean GP's kernel (module docstring), six `KernelParams`.
+
+    Args:
+        tau: (n,) normalised times of the demonstration samples.
+        poses: (n, 6) raw samples, m and rad.
+        length_scale_bounds: (min, max) length scale, normalised time (the skill fit's).
+        skill_length_scale: the skill's fitted length scale, for constant axes.
+        min_noise_variance: lower bound of the noise variance, relative to the axis's mean
+            square (the skill fit's default jitter, 1e-6).
+
+    Returns:
+        Six kernels; a constant axis gets (skill_length_scale, `CONSTANT_AXIS_SCALE`², 0).
+    """
+    kernels = []
+    for axis in range(6):
+        column = np.asarray(poses, dtype=float)[:, axis]
+        if np.ptp(column) <= 1e-12:
+            fitted = None
+        else:
+            fitted = _fit_axis(tau, column, length_scale_bounds, min_noise_variance)
+        if fitted is None or fitted.signal_variance <= 10.0 * MIN_SIGNAL_VARIANCE:
+            scale = float(CONSTANT_AXIS_SCALE[axis])
+            fitted = KernelParams(float(skill_length_scale), scale**2, 0.0)
+        kernels.append(fitted)
+    return tuple(kernels)
+
+
+def axis_operator(
+    via_times: np.ndarray, kernel: KernelParams, correlation_lambda: float
+) -> np.ndarray:
+    """S_a = K_a (K_a + λ I)⁻¹ at the via-point times (N, N), K_a = σ_a² R(ℓ_a) (Eq. global_S);
+    symmetric, eigenvalues μ / (μ + λ) in (0, 1)."""
+    if correlation_lambda <= 0:
+        raise ValueError("correlation_lambda must be > 0")
+    k = se_kernel(via_times, via_times, kernel.length_scale, kernel.signal_variance)
+    n = len(via_times)
+    s = np.eye(n) - correlation_lambda * np.linalg.inv(k + correlation_lambda * np.eye(n))
+    return 0.5 * (s + s.T)
+
+
+def row_gains(operator: np.ndarray) -> np.ndarray:
+    """One-step reach per unit raw action of each row's via-point: Σ_j |S_ij|, shape (L,) for
+    an (L, L) operator, or (..., L) for a stack (the largest change a raw action in [-1, 1]^L
+    can make to that via-point)."""
+    gains: np.ndarray = np.abs(np.asarray(operator)).sum(axis=-1)
+    return gains
+
+
+def row_normalised(operator: np.ndarray) -> np.ndarray:
+    """The operator with each row divided by its row gain (`row_gains`): every via-point's
+    reach equals the action scale, the correlation between neighbours is kept (the
+    ``operator-correlation`` study reading: the transform without its shrink)."""
+    operator = np.asarray(operator, dtype=float)
+    normalised: np.ndarray = operator / row_gains(operator)[..., :, None]
+    return normalised
+
+
+def window_blocks(operator: np.ndarray, windows: Sequence[Sequence[int]]) -> list[np.ndarray]:
+    """The principal sub-blocks S_W of an (N, N) operator for each window's indices."""
+    return [operator[np.ix_(list(w), list(w))].copy() for w in windows]
