@@ -150,6 +150,10 @@ class SACConfig:
             dimensionless terms, set from the units before any v5 run, never tuned.
         n_similarity_samples: T, trajectory samples for L_sim.
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
+        hap_hinge: environment v6's L_hap in natural units: each query's soft-min hinged at
+            its value at the centre of a fully safe grid cell and divided by the HAP grid step
+            (0 inside C_safe, about 1 a grid step outside; docs/FINDINGS.md "Protocol v6");
+            False keeps v5's offset soft-min in metres.
         anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
             from start to end over the run (v6: 0.02 -> 0.0002, scaled with the rewards;
             v5: 0.2 -> 0.002).
@@ -177,6 +181,7 @@ class SACConfig:
     hap_k: int = 8
     hap_temperature: float = 0.05
     hap_n_query: int = 20
+    hap_hinge: bool = True
     anneal_start: float = 0.02
     anneal_end: float = 0.0002
     ent_coef_init: float = 0.01

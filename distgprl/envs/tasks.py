@@ -134,13 +134,16 @@ def load_task_subspace(task: str, progress=None) -> tuple[SafeSubspace, bool]:
 
 
 @lru_cache(maxsize=8)
-def _hap_prior_cached(task: str, k: int, temperature: float):
+def _hap_prior_cached(task: str, k: int, temperature: float, hinge: bool):
     from distgprl.safety.hap_loss import HapPrior
 
     subspace, _ = load_task_subspace(task)
-    return HapPrior(subspace.unique_positions, k=k, temperature=temperature)
+    step = task_hap_config(task).grid_step if hinge else 0.0
+    return HapPrior(subspace.unique_positions, k=k, temperature=temperature, hinge_step=step)
 
 
-def load_task_hap_prior(task: str, k: int = 8, temperature: float = 0.05):
-    """The L_hap prior (Eq. hap_compact) over the task's static C_safe."""
-    return _hap_prior_cached(task, int(k), float(temperature))
+def load_task_hap_prior(task: str, k: int = 8, temperature: float = 0.05, hinge: bool = True):
+    """The L_hap prior (Eq. hap_compact) over the task's static C_safe; ``hinge``
+    (environment v6): hinged at a safe cell's soft-min and in units of the task's HAP grid
+    step (`distgprl.safety.hap_loss.HapPrior`'s ``hinge_step``)."""
+    return _hap_prior_cached(task, int(k), float(temperature), bool(hinge))

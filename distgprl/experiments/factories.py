@@ -37,7 +37,9 @@ def build_regulariser(env, run: RunSpec):
     if method.hap_prior:
         from distgprl.envs.tasks import load_task_hap_prior
 
-        hap_prior = load_task_hap_prior(run.task, k=sac.hap_k, temperature=sac.hap_temperature)
+        hap_prior = load_task_hap_prior(
+            run.task, k=sac.hap_k, temperature=sac.hap_temperature, hinge=sac.hap_hinge
+        )
     weights = RegulariserWeights(
         lambda_sim=sac.lambda_sim if method.similarity_loss else 0.0,
         lambda_hap=sac.lambda_hap if method.hap_prior else 0.0,

@@ -98,6 +98,21 @@ class HapPriorConfig:
     neighbour_search: str = "grid"
 
 
+def interior_softmin_bound(step: float, temperature: float, k: int, samples: int = 21) -> float:
+    """The largest soft-min (Eq. hap_compact, k nearest points) of any position inside an
+    unbounded, fully safe cubic grid of spacing ``step`` (m): the maximum over a
+    ``samples``^3 lattice of positions in one cell, with the exact k nearest nodes of the
+    surrounding 6^3 nodes. (The cell's centre is not the maximum: with k = 8 the face
+    centres' soft-min exceeds it by 0.04 of a step.) Environment v6's hinge of L_hap."""
+    axis = (np.arange(6) - 2.0) * step
+    nodes = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    cell = np.linspace(0.0, step, samples)
+    queries = np.stack(np.meshgrid(cell, cell, cell, indexing="ij"), axis=-1).reshape(-1, 3)
+    distances = np.sort(np.linalg.norm(queries[:, None] - nodes[None], axis=-1), axis=1)[:, :k]
+    values = -temperature * np.log(np.exp(-distances / temperature).sum(axis=1))
+    return float(values.max())
+
+
 class HapPrior:
     """Soft-min distance of query positions to the safe subspace C_safe (Eq. hap_compact).
 
@@ -120,6 +135,11 @@ class HapPrior:
         k: neighbours per query (clipped to m).
         temperature: tau, m.
         subtract_offset: see the module docstring.
+        hinge_step: environment v6's hinge (> 0: the HAP grid step h, m): each query's value
+            is max(0, softmin - c) / h with c = `interior_softmin_bound`, the largest soft-min
+            anywhere inside a fully safe grid, so the prior is 0 and pulls nowhere inside
+            C_safe and about 1 a grid step outside it (dimensionless; the offset b of
+            ``subtract_offset`` is not used). 0 keeps v5's offset soft-min (m).
         neighbour_search: ``"grid"`` or ``"kdtree"``.
         resolution: lookup cell size, m (grid mode).
         margin: the lookup box extends this far beyond C_safe, m (grid mode).
@@ -136,6 +156,7 @@ class HapPrior:
         temperature: float = 0.05,
         *,
         subtract_offset: bool = True,
+        hinge_step: float = 0.0,
         neighbour_search: str = "grid",
         resolution: float = 0.025,
         margin: float = 0.2,
@@ -150,6 +171,9 @@ class HapPrior:
         self.k_requested = int(k)
         self.temperature = float(temperature)
         self.subtract_offset = subtract_offset
+        if hinge_step < 0:
+            raise ValueError("hinge_step must be >= 0")
+        self.hinge_step = float(hinge_step)
         self.neighbour_search = neighbour_search
         self.resolution = float(resolution)
         self.margin = float(margin)
@@ -188,7 +212,9 @@ class HapPrior:
         if self.neighbour_search == "grid":
             self._build_table(points)
         self.offset = 0.0
-        if self.subtract_offset:
+        if self.hinge_step > 0:  # v6: the largest soft-min inside a fully safe grid
+            self.offset = interior_softmin_bound(self.hinge_step, self.temperature, self.k)
+        elif self.subtract_offset:
             # b = mean soft-min at the C_safe points themselves (exact neighbours).
             at_points = torch.as_tensor(points, dtype=torch.float64)
             self.offset = float(self._softmin(at_points, self._exact(points)).mean())
@@ -322,7 +348,25 @@ class HapPrior:
         moving: MovingObstacleFilter | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """`per_point` without torch: values (n,), m, and each value's gradient w.r.t. its own
-        query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd)."""
+        query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd).
+        With ``hinge_step`` (environment v6): max(0, softmin - c) / h and its gradient."""
+        values, jacobian = self._offset_values_and_gradient(x, anchors, moving)
+        if self.hinge_step <= 0:
+            return values, jacobian
+        active = values > 0
+        scale = np.asarray(1.0 / self.hinge_step, dtype=values.dtype)
+        hinged = np.where(active, values * scale, np.zeros((), dtype=values.dtype))
+        gradient = np.where(active[:, None], jacobian * scale, np.zeros((), dtype=jacobian.dtype))
+        return hinged.astype(values.dtype), gradient.astype(jacobian.dtype)
+
+    def _offset_values_and_gradient(
+        self,
+        x: np.ndarray,
+        anchors: np.ndarray | None = None,
+        moving: MovingObstacleFilter | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The soft-min minus `offset` and its gradient (`values_and_gradient` before the
+        hinge)."""
         positions = np.asarray(x, dtype=float).reshape(-1, 3)
         x = x.reshape(-1, 3)
         if self.neighbour_search == "grid":

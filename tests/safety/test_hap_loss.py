@@ -261,3 +261,38 @@ def test_float32_loss_agrees_with_the_reference_to_float_precision(c_safe):
         results.append((float(loss.detach()), leaf.grad.numpy()))
     assert results[0][0] == pytest.approx(results[1][0], abs=1e-6)
     np.testing.assert_allclose(results[0][1], results[1][1], rtol=0, atol=1e-8)
+
+
+def _cube_grid(step: float = 0.1, n: int = 6) -> np.ndarray:
+    """A fully safe n^3 grid of C_safe points with spacing ``step`` (m)."""
+    axis = np.arange(n) * step
+    return np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def test_the_v6_hinge_is_zero_inside_c_safe_and_a_grid_step_outside_costs_about_one():
+    """Environment v6: with ``hinge_step`` h, L_hap per query is max(0, softmin - c) / h, c the
+    soft-min at a safe cell's centre: 0 with no gradient at the nodes and cell centres deep
+    inside a fully safe grid (no pull towards the lattice), positive and growing outside,
+    about 1 a grid step beyond the subspace's face, and the gradient is that of the
+    hinged value (finite differences)."""
+    from distgprl.safety.hap_loss import HapPrior
+
+    points = _cube_grid()
+    prior = HapPrior(points, k=8, temperature=0.05, hinge_step=0.1, dtype=torch.float64)
+    inside = np.array([[0.2, 0.2, 0.2], [0.25, 0.25, 0.25], [0.3, 0.25, 0.2]])
+    values, gradient = prior.values_and_gradient(inside)
+    np.testing.assert_array_equal(values, 0.0)
+    np.testing.assert_array_equal(gradient, 0.0)
+    outside = np.array([[0.23, 0.31, 0.5 + 0.1 * k] for k in (1, 2, 3)])  # no kNN ties
+    values, gradient = prior.values_and_gradient(outside)
+    assert np.all(np.diff(values) > 0.5)  # about one per grid step
+    assert 0.5 < values[0] < 1.5
+    eps = 1e-6
+    for axis in range(3):
+        shift = np.zeros(3)
+        shift[axis] = eps
+        up, _ = prior.values_and_gradient(outside + shift)
+        down, _ = prior.values_and_gradient(outside - shift)
+        np.testing.assert_allclose(gradient[:, axis], (up - down) / (2 * eps), atol=1e-5)
+    plain = HapPrior(points, k=8, temperature=0.05, dtype=torch.float64)
+    assert np.abs(plain.values_and_gradient(inside)[1]).sum() > 0.01  # v5 pulls to nodes
