@@ -256,13 +256,20 @@ class AdaptationEnv(gym.Env):
         """
         points = self.window_plan.window_poses(indices)[:, :3]
         times = self.episode_start_time + self.skill.via_times[indices] * self.skill.duration
-        return self.clearance.distance(points, times, self.sim.moving_obstacle_shapes)
+        return self.clearance.distance(
+            points, times, self.sim.moving_obstacle_shapes, self._anchors_at()
+        )
 
     def moving_obstacle_anchors(self) -> np.ndarray:
         """The moving obstacles' anchor at every via-point time, shape (N, 3), m (as for
         ``c``: where they will be when the trajectory reaches via-point j, or now)."""
         times = self.episode_start_time + self.skill.via_times * self.skill.duration
-        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes)
+        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes, self._anchors_at())
+
+    def _anchors_at(self):
+        """The simulator's vectorised ``moving_obstacle_anchors_at`` (None if it has none,
+        e.g. a perceived scene: the anchors are then read shape by shape)."""
+        return getattr(self.sim, "moving_obstacle_anchors_at", None)
 
     def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
@@ -316,7 +323,7 @@ class AdaptationEnv(gym.Env):
     def _clearance_penalty(self) -> float:
         """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""
         self._refresh_field()
-        d, _ = self.field.distance(self.sim.tool_points())
+        d = self.field.clearance(self.sim.tool_points())  # the distances only (same values)
         close = d < self.config.sd_d_min
         return -self.config.sd_beta * float(
             np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))

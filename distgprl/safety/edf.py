@@ -98,6 +98,9 @@ class DistanceField:
         self._rotations_stack = np.zeros((3 * n_shapes, 3))  # row k * S + s = (R_s[:, k])^T
         self._half_extents = np.zeros((3, n_shapes, 1))
         self._dynamic = np.array([bool(s.dynamic) for s in ordered], dtype=bool)
+        # Rows k * S + s of the packed transform that belong to a dynamic shape s (the shifted
+        # queries of `distance`).
+        self._dynamic_rows = np.flatnonzero(np.tile(self._dynamic, 3))
         for i, s in enumerate(ordered):
             self._write(i, s)
 
@@ -166,15 +169,22 @@ class DistanceField:
             self._write(i, with_pose(self._records[i], position, rotation))
 
     # ------------------------------------------------------------------ queries
-    def _excess(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def _excess(
+        self, points: np.ndarray, dynamic_shift: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Local coordinates L and folded-box excess q = a - h, both (3, S, n) (component, shape,
-        point), and the cylinders' radial distance r, shape (C, n)."""
+        point), and the cylinders' radial distance r, shape (C, n); with ``dynamic_shift``
+        (n, 3) the dynamic shapes see point i at x_i - shift_i."""
         n_shapes = len(self._names)
         homogeneous = np.empty((4, len(points)))
         homogeneous[:3] = points.T
         homogeneous[3] = 1.0
         # Eq. of §III-C evaluated per shape in its frame: L = R^T (x - c), all shapes at once.
-        local = (self._local_transform @ homogeneous).reshape(3, n_shapes, -1)
+        flat = self._local_transform @ homogeneous
+        if dynamic_shift is not None and self._dynamic_rows.size:
+            rows = self._dynamic_rows  # R^T (x - shift - c) = R^T (x - c) - R^T shift
+            flat[rows] -= self._rotations_stack[rows] @ np.asarray(dynamic_shift, float).T
+        local = flat.reshape(3, n_shapes, -1)
         excess = np.abs(local)
         c = self._first_cylinder
         radial = None
@@ -218,11 +228,17 @@ class DistanceField:
         nearest: np.ndarray = self._signed(self._excess(points)[1])[0].min(axis=0)
         return nearest
 
-    def distance(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def distance(
+        self, points: np.ndarray, dynamic_shift: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance to the nearest obstacle and its gradient.
 
         Args:
             points: query points, shape (n, 3), m (world frame).
+            dynamic_shift: optional (n, 3), m: the dynamic shapes are taken as translated by
+                ``shift_i`` for point i (point i is measured against the dynamic shapes at
+                x_i - shift_i, against the static ones at x_i): one query for points that see
+                rigidly moving obstacles at different times (`distgprl.envs.clearance`).
 
         Returns:
             d: signed distance, shape (n,), m (module docstring: negative inside an obstacle;
@@ -233,7 +249,7 @@ class DistanceField:
         n = len(points)
         if not self._names:
             return np.full(n, np.inf), np.zeros((n, 3))
-        local, excess, radial = self._excess(points)
+        local, excess, radial = self._excess(points, dynamic_shift)
         per_shape, outside, positive, largest = self._signed(excess)
         columns = np.arange(n)
         nearest = per_shape.argmin(axis=0)

@@ -224,6 +224,14 @@ class TaskSim:
         """The moving (``dynamic``) obstacles of :meth:`obstacle_shapes` (same ``time``)."""
         return tuple(s for s in self.obstacle_shapes(time) if s.dynamic)
 
+    def moving_obstacle_anchors_at(self, times: np.ndarray) -> np.ndarray:
+        """The moving obstacles' anchor (the position of their first shape) at each of
+        ``times`` (n,), s, shape (n, 3), m; the tasks override it with one vectorised
+        formula (the observation's time-indexed clearances, issue 49)."""
+        return np.stack(
+            [np.asarray(self.moving_obstacle_shapes(float(t))[0].position, float) for t in times]
+        )
+
     def task_progress(self) -> float:
         """Dense task progress in [0, 1]."""
         raise NotImplementedError

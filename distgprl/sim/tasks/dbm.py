@@ -254,6 +254,12 @@ class DBMSim(TaskSim):
         """Base-box centre (3,), m, of the other bar at ``time`` s for the current TC."""
         return self._other_start + np.array([0.0, self.scene.belt_speed * time, 0.0])
 
+    def moving_obstacle_anchors_at(self, times: np.ndarray) -> np.ndarray:
+        """`other_bar_position_at` at each of ``times`` (n,), s, at once, shape (n, 3), m."""
+        anchors = np.tile(np.asarray(self._other_start, dtype=float), (np.size(times), 1))
+        anchors[:, 1] += self.scene.belt_speed * np.asarray(times, dtype=float)
+        return anchors
+
     def move_kinematic(self, time: float) -> None:
         """Put the other bar where the belt carries it at ``time`` (s)."""
         start = self._other_start

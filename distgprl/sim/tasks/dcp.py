@@ -185,6 +185,17 @@ class DCPSim(TaskSim):
             ]
         )
 
+    def moving_obstacle_anchors_at(self, times: np.ndarray) -> np.ndarray:
+        """`obstacle_position_at` at each of ``times`` (n,), s, at once, shape (n, 3), m."""
+        scene = self.scene
+        times = np.asarray(times, dtype=float)
+        phase = 2.0 * math.pi * times / scene.obstacle_period + scene.obstacle_phase
+        anchors = np.empty((phase.size, 3))
+        anchors[:, 0] = self._obstacle_line[0] + scene.obstacle_amplitude * np.sin(phase)
+        anchors[:, 1] = self._obstacle_line[1]
+        anchors[:, 2] = scene.obstacle_half + 1e-4
+        return anchors
+
     def move_kinematic(self, time: float) -> None:
         """Put the obstacle cube at `obstacle_position_at` ``time`` (s) (plain floats: this
         runs every physics step)."""
