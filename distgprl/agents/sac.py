@@ -200,16 +200,18 @@ class NumpyActor:
 
 class RegularisedSACPolicy(MultiInputPolicy):
     """SB3's ``MultiInputPolicy`` whose training flag is set on a cached module list (issue
-    49): SB3's recursive ``train(mode)`` costs ~0.15 ms, twice per training step (the update
-    and the rollout); no module of these networks behaves differently in training mode."""
+    49): SB3's recursive ``train(mode)`` costs ~0.25 ms, twice per training step (the update
+    and the rollout), this ~0.01 ms; the same flags end up set."""
 
     def set_training_mode(self, mode: bool) -> None:
         modules = self.__dict__.get("_training_modules")
         if modules is None:
-            modules = self.__dict__["_training_modules"] = list(self.modules())
-        for module in modules:
-            module.training = mode
-        self.training = mode
+            # SB3's SACPolicy.set_training_mode: the actor, the critic and the policy itself
+            # (the target critic stays in evaluation mode)
+            modules = [self, *self.actor.modules(), *self.critic.modules()]
+            self.__dict__["_training_modules"] = modules
+        for module in modules:  # nn.Module keeps ``training`` in its __dict__ (no hooks)
+            module.__dict__["training"] = mode
 
 
 class RegularisedSAC(SAC):

@@ -174,10 +174,16 @@ def test_training_mode_is_set_on_every_module(agent):
     from distgprl.agents.sac import RegularisedSACPolicy
 
     assert isinstance(agent.policy, RegularisedSACPolicy)
+    from stable_baselines3.sac.policies import SACPolicy
+
     agent.policy.set_training_mode(False)
     model = copy.deepcopy(agent)
-    model.policy.set_training_mode(True)
-    assert all(module.training for module in model.policy.modules())
+    reference = copy.deepcopy(agent)
+    for mode in (True, False, True):
+        model.policy.set_training_mode(mode)
+        # SB3's own (SACPolicy's: actor, critic, the policy; the target critic left alone)
+        SACPolicy.set_training_mode(reference.policy, mode)
+        flags = [m.training for m in model.policy.modules()]
+        assert flags == [m.training for m in reference.policy.modules()]
+        assert not any(m.training for m in model.critic_target.modules())
     assert not any(module.training for module in agent.policy.modules())
-    model.policy.set_training_mode(False)
-    assert not any(module.training for module in model.policy.modules())
