@@ -331,34 +331,101 @@ class ActorRegulariser(nn.Module):
         terms["l_hap"] = float(l_hap.detach())
         return total, terms
 
+    def _numpy_maps(self, dtype: np.dtype) -> dict[str, np.ndarray]:
+        """The read-out's pieces as NumPy arrays of ``dtype`` (cached): ``centered`` (6, N, Q)
+        and, per step s, ``actions`` [s] (6, A_v, Q) and its transpose ``actions_t`` [s]
+        (6, Q, A_v) (the rows of `readout_map`), ``bias`` (6, 1, Q), ``direction`` (6, T),
+        ``scale`` (6,), ``prior_mean`` (6,) and ``anchor_map`` (N_q, N)."""
+        key = (np.dtype(dtype).str, self.readout_map.data_ptr())
+        cached = self.__dict__.get("_numpy_cache")
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        n, per_step = self.n_via_points, self.points_per_step
+
+        def numpy(tensor: torch.Tensor) -> np.ndarray:
+            return np.ascontiguousarray(tensor.detach().cpu().numpy().astype(dtype))
+
+        readout_map = numpy(self.readout_map)  # (6, N + S A_v, Q)
+        blocks = [
+            readout_map[:, n + s * per_step : n + (s + 1) * per_step] for s in range(self.n_steps)
+        ]
+        maps = {
+            "centered": np.ascontiguousarray(readout_map[:, :n]),
+            "actions": np.stack([np.ascontiguousarray(b) for b in blocks]),
+            "actions_t": np.stack([np.ascontiguousarray(b.transpose(0, 2, 1)) for b in blocks]),
+            "bias": numpy(self.readout_bias)[:, None, :],
+            "direction": numpy(self.demo_direction),
+            "scale": numpy(self.scale),
+            "prior_mean": numpy(self.prior_mean),
+            "anchor_map": numpy(self.anchor_map),
+        }
+        self.__dict__["_numpy_cache"] = (key, maps)
+        return maps
+
+    def _numpy_readout(
+        self, aux: np.ndarray, actions: np.ndarray
+    ) -> tuple[np.ndarray, list[slice]]:
+        """`readout` in NumPy (issue 49), (6, B, 2T + N_q), of samples sorted by step (the
+        caller sorts ``aux`` and ``actions``), and each step's slice of samples.
+
+        The action columns of a sample are those of its own step only, so instead of one
+        product over all S step blocks (zeros but one) each step's samples are multiplied by
+        their block: half the products and no scattered copy of the actions.
+        """
+        batch, n = aux.shape[0], self.n_via_points
+        maps = self._numpy_maps(actions.dtype)
+        centered = aux[:, self.aux_layout.gamma].reshape(batch, n, 6) - maps["prior_mean"]
+        # (6, B, N) contiguous: NumPy's batched matmul reaches BLAS only for contiguous rows
+        out = np.matmul(np.ascontiguousarray(centered.transpose(2, 0, 1)), maps["centered"])
+        out += maps["bias"]
+        raw = np.ascontiguousarray(
+            (actions.reshape(batch, self.points_per_step, 6) * maps["scale"]).transpose(2, 0, 1)
+        )
+        counts = np.bincount(aux[:, self.aux_layout.step].argmax(axis=1), minlength=self.n_steps)
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        groups = [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        for s, rows in enumerate(groups):
+            if rows.stop > rows.start:
+                out[:, rows] += np.matmul(raw[:, rows], maps["actions"][s])
+        return out, groups
+
     def _fused(
         self, aux: torch.Tensor, actions: torch.Tensor, terms: dict[str, float]
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Total (scalar) and d total / d actions (B, A), no autograd; fills ``terms``.
 
-        Gradients by hand through `readout` (linear): d out for L_sim (Eq. sim_compact, one
-        compiled pass: `distgprl.agents.similarity.similarity_with_gradient`) and for L_hap
-        (the soft-min's own gradient, `HapPrior.values_and_gradient`), then d columns =
-        d out @ readout_map^T, of which the sample's step block times the scale is d actions.
+        Gradients by hand through the read-out (linear; `_numpy_readout`): d out for L_sim
+        (Eq. sim_compact, one compiled pass: `distgprl.agents.similarity.
+        similarity_with_gradient`) and for L_hap (the soft-min's own gradient,
+        `HapPrior.values_and_gradient`), then d actions = d out @ (the sample's step block of
+        the map)^T times the scale (`_numpy_to_actions`). All in NumPy (issue 49: the torch
+        version's small ops cost more than their arithmetic).
         """
         batch, t = actions.shape[0], self._n_similarity
-        direction = self._flat(actions)[2]
-        out = self.readout(aux, actions).detach().cpu().numpy()  # (6, B, 2T + N_q)
-        gradient = np.zeros(out.shape, dtype=out.dtype)
+        aux_np = aux.detach().cpu().numpy()
+        # samples sorted by step (stable): each step's samples are one slice
+        order = np.argsort(aux_np[:, self.aux_layout.step].argmax(axis=1), kind="stable")
+        aux_np = aux_np[order]
+        out, groups = self._numpy_readout(aux_np, actions.detach().cpu().numpy()[order])
+        maps = self._numpy_maps(out.dtype)
+        gradient = np.empty(out.shape, dtype=out.dtype)
+        gradient[3:, :, 2 * t :] = 0.0  # orientation rows of the L_hap block: unused
         total = 0.0
         weights = self.weights
         if weights.lambda_sim > 0:
             l_sim = similarity_with_gradient(
-                out, direction.cpu().numpy(), t, weights.lambda_velocity,
+                out, maps["direction"], t, weights.lambda_velocity,
                 self.acceleration_weight, weights.lambda_sim, gradient,
             )  # fmt: skip
             total += weights.lambda_sim * l_sim
             terms["l_sim"] = l_sim
+        else:
+            gradient[:, :, : 2 * t] = 0.0
         if self.hap_prior is not None:
             positions = out[:3, :, 2 * t :].transpose(1, 2, 0).reshape(-1, 3)  # (B N_q, 3)
             anchors = None
             if self.moving_filter is not None:
-                anchors = self._anchors(aux).cpu().numpy()
+                anchors = self._numpy_anchors(aux_np, maps["anchor_map"])
             # `loss` comes here only for a prior with `values_and_gradient`
             values, jacobian = cast(FusedHapLoss, self.hap_prior).values_and_gradient(
                 positions, anchors, self.moving_filter
@@ -369,27 +436,53 @@ class ActorRegulariser(nn.Module):
             gradient[:3, :, 2 * t :] = jacobian.reshape(batch, -1, 3).transpose(2, 0, 1) * (
                 weights.lambda_hap / len(values)
             )
-        grad_out = torch.from_numpy(gradient).to(actions.device)
+        else:
+            gradient[:3, :, 2 * t :] = 0.0
         if self.split_gradients is not None:  # `term_gradients`: each term's own gradient
-            self.split_gradients["l_sim"] = self._to_actions(aux, grad_out, 0, 2 * t)
-            self.split_gradients["l_hap"] = self._to_actions(aux, grad_out, 2 * t, out.shape[2])
+            for name, first, stop in (("l_sim", 0, 2 * t), ("l_hap", 2 * t, out.shape[2])):
+                split = self._numpy_to_actions(gradient, groups, order, first, stop)
+                self.split_gradients[name] = torch.from_numpy(split).to(actions.device)
         total_tensor = torch.tensor(total, dtype=actions.dtype, device=actions.device)
-        return total_tensor, self._to_actions(aux, grad_out, 0, out.shape[2])
+        grad_actions = self._numpy_to_actions(gradient, groups, order, 0, out.shape[2])
+        return total_tensor, torch.from_numpy(grad_actions).to(actions.device)
 
-    def _to_actions(
-        self, aux: torch.Tensor, grad_out: torch.Tensor, first: int, stop: int
-    ) -> torch.Tensor:
-        """d loss / d actions (B, A) from d loss / d `readout` (6, B, Q) over the read-out
-        columns ``first:stop``: d columns = d out @ map^T for the action columns of the map
-        (6, Q, S A_v), of which the sample's step block times the scale is d actions."""
-        batch, steps = grad_out.shape[1], self.n_steps
-        flat = self._flat(grad_out)
-        scale, actions_map = flat[3], flat[5]
-        grad_selected = torch.bmm(grad_out[:, :, first:stop], actions_map[:, first:stop])
-        grad_selected = grad_selected.reshape(6, batch, steps, -1)  # (6, B, S, A_v)
-        step = aux[:, self.aux_layout.step].argmax(dim=1)
-        grad_raw = grad_selected[:, torch.arange(batch), step]  # (6, B, A_v)
-        return (grad_raw * scale[:, None, None]).permute(1, 2, 0).reshape(batch, -1)
+    def _numpy_anchors(self, aux: np.ndarray, anchor_map: np.ndarray) -> np.ndarray:
+        """`_anchors` in NumPy: the anchors at the L_hap query times (B, N_q, 3), m, as one
+        (N_q, N) x (N, 3B) product."""
+        n = self.n_via_points
+        if aux.shape[1] != self.aux_layout.size:
+            self._anchors(torch.from_numpy(aux))  # raises the size error
+        batch = aux.shape[0]
+        anchor = aux[:, self.aux_layout.anchor].reshape(batch, n, 3).astype(anchor_map.dtype)
+        at_queries = anchor_map @ anchor.transpose(1, 0, 2).reshape(n, 3 * batch)
+        return np.ascontiguousarray(at_queries.reshape(-1, batch, 3).transpose(1, 0, 2))
+
+    def _numpy_to_actions(
+        self,
+        grad_out: np.ndarray,
+        groups: list[slice],
+        order: np.ndarray,
+        first: int,
+        stop: int,
+    ) -> np.ndarray:
+        """d loss / d actions (B, A), in the batch's order, from d loss / d read-out
+        (6, B, Q) of the samples sorted by step (``order``: the sorted samples' indices) over
+        the columns ``first:stop``: each step's samples times the transpose of their block,
+        times the scale."""
+        batch = grad_out.shape[1]
+        maps = self._numpy_maps(grad_out.dtype)
+        grad_raw = np.empty((6, batch, self.points_per_step), dtype=grad_out.dtype)
+        for s, rows in enumerate(groups):
+            if rows.stop > rows.start:
+                np.matmul(
+                    grad_out[:, rows, first:stop],
+                    maps["actions_t"][s][:, first:stop],
+                    out=grad_raw[:, rows],
+                )
+        grad_raw *= maps["scale"][:, None, None]
+        grad_actions = np.empty((batch, grad_raw.shape[2] * 6), dtype=grad_out.dtype)
+        grad_actions[order] = grad_raw.transpose(1, 2, 0).reshape(batch, -1)
+        return grad_actions
 
     def term_gradients(self, aux: torch.Tensor, actions: torch.Tensor) -> dict[str, torch.Tensor]:
         """Each weighted term's gradient w.r.t. the actions, ``{"l_sim": (B, A), "l_hap": (B,
