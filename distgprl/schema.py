@@ -60,6 +60,7 @@ __all__ = [
     "TRAINING_CURVE_SEED",
     "TRIAL_FIELDS",
     "SchemaVersionError",
+    "collision_free_min_clearance_p5",
     "csv_meta_path",
     "evaluation_file_names",
     "git_commit",
@@ -383,6 +384,17 @@ def safe_success_rate(rows: list[dict[str, Any]]) -> float:
     whose success ignores collisions: in simulation a colliding robot pushes on through
     kinematic obstacles, where a real arm would stop or knock them away)."""
     return float(np.mean([is_safe_success(r) for r in rows]))
+
+
+def collision_free_min_clearance_p5(rows: Sequence[Mapping[str, Any]]) -> tuple[float | None, int]:
+    """MinCl as pre-registered for environment v6 (docs/FINDINGS.md "Protocol v6", rule 5) and
+    the number of episodes it is over: the 5th percentile (linear interpolation), over the
+    episodes *without* a collision, of the episode-wise minimum clearance (``min_clearance``:
+    robot links and tool vs the obstacles, m, clamped at 0 as v4 rows hold the signed value).
+    ``(None, 0)`` where every episode collided: MinCl is then undefined, not 0 (a colliding
+    episode's clearance is 0 by definition and already counted by the collision rate)."""
+    free = [max(float(r["min_clearance"]), 0.0) for r in rows if int(float(r["collision"])) == 0]
+    return (float(np.percentile(free, 5)) if free else None), len(free)
 
 
 # -- evaluation protocol ----------------------------------------------------------------------

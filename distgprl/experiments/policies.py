@@ -1,6 +1,6 @@
 """The policies a trained run keeps: the actors of its best-so-far learning-curve points
-(Algorithm 1's "best policy", ranked by `curve_rank`) and the loading of a trained run's
-final or best policy (`load_trained_policy`)."""
+(Algorithm 1's "best policy", ranked by `curve_rank`, ties to the later point) and the
+loading of a trained run's final or best policy (`load_trained_policy`)."""
 
 from __future__ import annotations
 
@@ -27,30 +27,33 @@ def curve_policy_path(folder: Path, step: int) -> Path:
     return curve_policy_dir(folder) / f"step{int(step)}.pt"
 
 
-def curve_rank(row: dict[str, Any]) -> tuple[float, float, float]:
-    """How learning-curve points are ordered when Algorithm 1's "best policy" is selected:
-    higher success rate on the learning-curve TCs, then lower collision rate, then higher
-    mean return. The curve TCs are drawn from their own stream, never the evaluation TCs, so
-    selecting on them and evaluating on the evaluation TCs is an honest model selection."""
-    return (
-        float(row["success_rate"]),
-        -float(row["collision_rate"]),
-        float(row["mean_return"]),
-    )
+def curve_rank(row: dict[str, Any]) -> tuple[float, ...]:
+    """How learning-curve points are ordered when Algorithm 1's "best policy" is selected,
+    as pre-registered (docs/FINDINGS.md "Protocol v6", rule 6): by the success rate on the
+    learning-curve TCs alone; equal ones go to the later point (`best_curve_row`). The curve
+    TCs are drawn from their own stream, disjoint from the evaluation TCs, so selecting on
+    them and evaluating on the evaluation TCs is an honest model selection."""
+    return (float(row["success_rate"]),)
 
 
 def best_curve_row(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The best learning-curve point (`curve_rank`; the earliest of equal ones)."""
+    """The best learning-curve point: the highest `curve_rank`, the latest of equal ones
+    (``rows`` in the order of their steps, as ``progress.csv`` holds them)."""
     if not rows:
         raise UserInputError("no learning-curve points to select the best policy from")
-    return max(rows, key=curve_rank)  # max keeps the first of equal ones
+    best = rows[0]
+    for row in rows[1:]:
+        if curve_rank(row) >= curve_rank(best):  # a tie goes to the later point
+            best = row
+    return best
 
 
 def beats_every_earlier(earlier: list[dict[str, Any]], row: dict[str, Any]) -> bool:
-    """Whether learning-curve point ``row`` ranks above every point of ``earlier``
-    (`curve_rank`; the first point does): training keeps its actor then."""
+    """Whether learning-curve point ``row`` ranks at least as high as every point of
+    ``earlier`` (`curve_rank`; the first point does): training keeps its actor then, so the
+    point `best_curve_row` selects (a tie goes to the later one) always has its actor."""
     best_before = max((curve_rank(point) for point in earlier), default=None)
-    return best_before is None or curve_rank(row) > best_before
+    return best_before is None or curve_rank(row) >= best_before
 
 
 def save_curve_policy(folder: Path, model) -> None:

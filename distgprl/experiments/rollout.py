@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from distgprl.schema import safe_success_rate
+from distgprl.schema import collision_free_min_clearance_p5, safe_success_rate
 
 
 def run_episode(env, tc, policy=None) -> dict[str, Any]:
@@ -47,9 +47,13 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
     }
 
 
-def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Success rate, collision rate, MinCl = 5th percentile of episode min clearance
-    (clamped at 0: a distance), safe success (success without collision; equal to success
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate, collision rate, MinCl as pre-registered for environment v6
+    (``min_clearance_p5_collision_free``: the 5th percentile of the episode-wise minimum
+    clearance over the ``collision_free_episodes`` episodes without a collision, None where
+    every episode collided; `collision_free_min_clearance_p5`), v5's MinCl over all episodes
+    (``min_clearance_p5``: the 5th percentile of episode min clearance, clamped at 0: a
+    distance), safe success (success without collision; equal to success
     from environment v5 on), for v5 rows the completion rate (v4's success) and the 5th
     percentile of the signed minimum clearance (negative: penetration), means of the
     per-episode columns and, for
@@ -65,15 +69,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, float]:
         np.stack([column(f"adaptation_ms_w{k}") for k in (1, 2, 3)], axis=1), axis=1
     )
     distance = np.maximum(column("min_clearance"), 0.0)  # v4 rows hold the signed value
-    summary = {
+    collision_free_p5, collision_free = collision_free_min_clearance_p5(rows)
+    summary: dict[str, Any] = {
         "episodes": len(rows),
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
         "safe_success_rate": safe_success_rate(rows),
-        # MinCl as the paper defines it: a distance, >= 0 (v5); the signed minimum
-        # (negative = penetration depth) separately.
+        # v5's MinCl, over all episodes: a distance, >= 0 (from v6 a secondary column); the
+        # signed minimum (negative = penetration depth) separately.
         "min_clearance_p5": float(np.percentile(distance, 5)),
         "mean_min_clearance": float(distance.mean()),
+        # MinCl of environment v6 (FINDINGS "Protocol v6", rule 5): collision-free episodes.
+        "min_clearance_p5_collision_free": collision_free_p5,
+        "collision_free_episodes": collision_free,
         "mean_return": float(column("return").mean()),
         "mean_kinematic_retention": float(column("kinematic_retention").mean()),
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),

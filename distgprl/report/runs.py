@@ -14,6 +14,13 @@ and the curves alike, never a run quietly left out.
 So a report is a function of the result files and, for this checkout's presets, of the
 configuration the code resolves for them (presets and method revisions): a change to a
 preset or to a part of the method changes which runs count, not their figures.
+
+**Which evaluation** (`run_evaluations`): a trained run has two, its final policy's
+(``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
+(``evaluation_best.csv`` / ``summary_best.json``); an untrained reference (`demo`,
+`promp-nominal`) has one, used for both. Table I, its per-run table, the aggregates and the
+claims report :data:`TABLE_POLICY`, the best policy: Algorithm 1's output (docs/FINDINGS.md
+"Protocol v6", rule 6); the final policy's Table I is written beside it.
 """
 
 from __future__ import annotations
@@ -25,7 +32,17 @@ from pathlib import Path
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS
 from distgprl.runstate import run_state
-from distgprl.schema import read_json
+from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
+
+TABLE_POLICY = "best"
+"""The policy whose evaluation Table I (``table1_<preset>``) reports, and with it the per-run
+table, the aggregates and the claims (`distgprl.report.table1.collect_scores`): the best
+learning-curve policy, Algorithm 1's output ("query GP updated by best policy"; FINDINGS
+"Protocol v6", rule 6). The one switch between the two evaluations: the final policy's
+Table I (``table1_final_<preset>``) is written beside it."""
+
+UNTRAINED = "untrained"
+"""`RunEvaluation.policy` of an untrained reference: its only evaluation, in both tables."""
 
 
 @dataclass(frozen=True)
@@ -106,3 +123,96 @@ def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> 
                 continue
         current.add(folder)
     return RunSelection(frozenset(current), tuple(excluded), checked)
+
+
+@dataclass(frozen=True)
+class RunEvaluation:
+    """One run's evaluation a table reports.
+
+    Attributes:
+        folder: the run folder (``<root>/<preset>/<task>/<method>/seed<k>``).
+        policy: the policy evaluated: ``"best"``, ``"final"`` or :data:`UNTRAINED`.
+        summary: its summary file (``summary[_best].json``).
+        episodes: its per-episode rows (``evaluation[_best].csv``; may be absent).
+    """
+
+    folder: Path
+    policy: str
+    summary: Path
+    episodes: Path
+
+    @property
+    def task(self) -> str:
+        return self.folder.parent.parent.name
+
+    @property
+    def method(self) -> str:
+        return self.folder.parent.name
+
+    @property
+    def seed(self) -> int:
+        return int(self.folder.name.removeprefix("seed"))
+
+
+@dataclass(frozen=True)
+class EvaluationSelection:
+    """The evaluations of the runs that count (`run_evaluations`) and what stands in.
+
+    Attributes:
+        evaluations: one per run that counts, sorted by folder.
+        substituted: one line per trained run shown with its final policy because its best
+            policy has no evaluation of the run's configuration (``policy="best"`` only).
+        runs: the `select_runs` selection they come from.
+    """
+
+    evaluations: tuple[RunEvaluation, ...]
+    substituted: tuple[str, ...]
+    runs: RunSelection
+
+    def note(self) -> str:
+        """`RunSelection.note` and the substituted runs (empty if neither)."""
+        parts = [self.runs.note()] if self.runs.note() else []
+        if self.substituted:
+            parts.append(
+                f"Final policy in place of the best ({len(self.substituted)}; no best-policy "
+                "evaluation, `distgprl evaluate --policy best`): " + "; ".join(self.substituted)
+            )
+        return ". ".join(parts)
+
+
+def run_evaluations(
+    root: str | Path, preset: str, policy: str = TABLE_POLICY
+) -> EvaluationSelection:
+    """The evaluation of ``policy`` (``"best"`` or ``"final"``) of each run that counts
+    (`select_runs`: evaluated, current configuration). An untrained reference has only one
+    evaluation, used for either policy. A trained run whose best policy has no evaluation, or
+    one recorded under another config hash than its final evaluation's, is shown with its
+    final policy and listed (`EvaluationSelection.substituted`), never left out silently."""
+    if policy not in POLICY_CHOICES:
+        raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
+    runs = select_runs(root, preset)
+    final_csv, final_summary = evaluation_file_names(None, "final")
+    best_csv, best_summary = evaluation_file_names(None, "best")
+    evaluations, substituted = [], []
+    for folder in sorted(runs.current):
+        final = RunEvaluation(folder, "final", folder / final_summary, folder / final_csv)
+        if not METHODS[folder.parent.name].trainable:
+            evaluations.append(RunEvaluation(folder, UNTRAINED, final.summary, final.episodes))
+        elif policy == "final":
+            evaluations.append(final)
+        elif _same_configuration(folder / best_summary, final.summary):
+            evaluations.append(
+                RunEvaluation(folder, "best", folder / best_summary, folder / best_csv)
+            )
+        else:
+            evaluations.append(final)
+            substituted.append(f"{final.task}/{final.method}/{folder.name}")
+    return EvaluationSelection(tuple(evaluations), tuple(substituted), runs)
+
+
+def _same_configuration(best: Path, final: Path) -> bool:
+    """Whether the best-policy summary exists and records the final summary's config hash."""
+    if not best.exists():
+        return False
+    recorded = read_json(best)["meta"].get("config_hash")
+    return bool(recorded == read_json(final)["meta"].get("config_hash"))

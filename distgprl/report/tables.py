@@ -6,9 +6,16 @@ aggregates with stratified-bootstrap intervals (`distgprl.report.aggregate`) and
 table (`distgprl.report.claims`).
 
 The tables themselves are made by `distgprl.report.table1` (Table I: cells over seeds, the
-per-run table) and `distgprl.report.table2` (Table II: the hardware trial files); this
-module writes them, with a metadata sidecar per CSV (`table_meta_text`), and removes a
-table the results no longer make. Pure functions of the files they read.
+per-run table; texts `distgprl.report.table1_text`) and `distgprl.report.table2` (Table II:
+the hardware trial files); this module writes them, with a metadata sidecar per CSV
+(`table_meta_text`), and removes a table the results no longer make. Pure functions of the
+files they read.
+
+**Which policy** (FINDINGS "Protocol v6", rule 6): Table I (``table1_<preset>``), its
+per-run table, the aggregates and the claims report each run's best learning-curve policy,
+Algorithm 1's output (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
+policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An
+untrained reference's one evaluation is in both.
 """
 
 from __future__ import annotations
@@ -31,7 +38,7 @@ from distgprl.report.paired import (
     supplementary_sizes,
 )
 from distgprl.report.repair import repair_table, repair_texts
-from distgprl.report.runs import select_runs
+from distgprl.report.runs import TABLE_POLICY, run_evaluations
 from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
     RATE_BOUNDS,
@@ -39,10 +46,9 @@ from distgprl.report.table1 import (
     collect_scores,
     late_curve,
     per_seed_rows,
-    per_seed_texts,
     simulation_table,
-    table1_texts,
 )
+from distgprl.report.table1_text import per_seed_texts, table1_texts
 from distgprl.report.table2 import (
     binomial_interval,
     hardware_rows,
@@ -71,12 +77,14 @@ __all__ = [  # the tables' functions, importable from here as before the split
 def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
-    """Write Table I (and Table II when hardware trials exist) as CSV, Markdown, LaTeX,
-    Table I per run (``table1_<preset>_per_seed``: every seed's numbers and wall time), the
+    """Write Table I of the best policy (``table1_<preset>``, `TABLE_POLICY`) and of the
+    final policy (``table1_final_<preset>``), each with its table per run
+    (``..._per_seed``: every seed's numbers and wall time), and Table II when hardware
+    trials exist, as CSV, Markdown, LaTeX; the
     stratified-bootstrap aggregates (``aggregates_<preset>``: mean, IQM and Dist-GPRL's
     probability of improvement, `distgprl.report.aggregate`) and the claims table
-    (``claims_<preset>``: a verdict per paper claim, `distgprl.report.claims`), CSV and
-    Markdown, and
+    (``claims_<preset>``: a verdict per paper claim, `distgprl.report.claims`), both on
+    Table I's evaluations (`collect_scores` with `TABLE_POLICY`), CSV and Markdown, and
     every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
     seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
     ``..._n<N>`` for supplementary evaluations on N TCs), and, for runs whose best
@@ -85,7 +93,7 @@ def write_tables(
     paired with the same run of that preset (``paired_<preset>_vs_<against>``, CSV and
     Markdown; `cross_preset_rows`). Table I + repair (``table1_repair_<preset>``, CSV and
     Markdown; `distgprl.report.repair`) where runs have their safety-layer evaluations."""
-    rows, tasks = simulation_table(root, preset)
+    rows, tasks = simulation_table(root, preset, TABLE_POLICY)
     if not rows:
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
     cross = None  # computed first: a refused pairing writes nothing
@@ -97,27 +105,10 @@ def write_tables(
                 f"counterpart (same task, method and seed) under {Path(root) / against}"
             )
     out_dir = Path(out_dir)
-    stem = f"table1_{preset}"
-    note = select_runs(root, preset).note()
-    table_one = (
-        "Table I: per task, each metric's mean, sample std and 95 % t-interval over seeds "
-        "(ci_low, ci_high; empty for one seed)"
-    )
-    written = _write_or_remove(
-        out_dir / stem,
-        (".csv", ".md", ".tex"),
-        table1_texts(rows, tasks, preset, note),
-        preset,
-        table_one,
-    )
-    written += _write_or_remove(
-        out_dir / f"{stem}_per_seed",
-        (".csv", ".md"),
-        per_seed_texts(per_seed_rows(root, preset), preset),
-        preset,
-        "Table I per run: every seed's metrics, late learning-curve means and training wall time",
-    )
-    scores = collect_scores(root, preset)
+    written: list[Path] = []
+    for policy in (TABLE_POLICY, "final"):
+        written += _write_table_one(root, preset, out_dir, policy)
+    scores = collect_scores(root, preset, TABLE_POLICY)  # the claims follow Table I
     written += _write_or_remove(
         out_dir / f"aggregates_{preset}",
         (".csv", ".md"),
@@ -188,6 +179,35 @@ def write_tables(
         preset,
         "Table I + repair: the hardware safety layer in the loop in simulation "
         "(distgprl.report.repair)",
+    )
+    return written
+
+
+def _write_table_one(root: str | Path, preset: str, out_dir: Path, policy: str) -> list[Path]:
+    """Table I and Table I per run of the ``policy`` evaluations: ``table1_<preset>`` for
+    `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other."""
+    stem = out_dir / (f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}")
+    rows, tasks = simulation_table(root, preset, policy)
+    note = run_evaluations(root, preset, policy).note()
+    which = "best learning-curve policy" if policy == "best" else f"{policy} policy"
+    table_one = (
+        f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
+        "over seeds (ci_low, ci_high; empty for one seed)"
+    )
+    written = _write_or_remove(
+        stem,
+        (".csv", ".md", ".tex"),
+        table1_texts(rows, tasks, preset, note, policy),
+        preset,
+        table_one,
+    )
+    written += _write_or_remove(
+        Path(f"{stem}_per_seed"),
+        (".csv", ".md"),
+        per_seed_texts(per_seed_rows(root, preset, policy), preset, policy),
+        preset,
+        f"Table I per run ({which}): every seed's metrics, late learning-curve means and "
+        "training wall time",
     )
     return written
 

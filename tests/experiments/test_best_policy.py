@@ -43,30 +43,39 @@ def row(success, collision, ret, step=0):
     return {"step": step, "success_rate": success, "collision_rate": collision, "mean_return": ret}
 
 
-def test_best_point_ranks_success_then_collision_then_return_earliest_first():
+def test_best_point_is_the_highest_curve_success_ties_to_the_later_point():
+    """As pre-registered (FINDINGS "Protocol v6", rule 6): the highest curve success alone
+    (collision rate and return do not break ties), and of equal ones the later point."""
     rows = [
         row(0.5, 0.0, 9.0, 0),
-        row(0.8, 0.4, 1.0, 1),
-        row(0.8, 0.2, 0.0, 2),
-        row(0.8, 0.2, 5.0, 3),
-        row(0.8, 0.2, 5.0, 4),
-        row(0.7, 0.0, 99.0, 5),
+        row(0.8, 0.0, 99.0, 1),  # the same success with fewer collisions and more return...
+        row(0.8, 0.4, 1.0, 2),
+        row(0.8, 0.6, 0.0, 3),  # ...loses to the latest point of that success
+        row(0.7, 0.0, 99.0, 4),
     ]
     assert runner.best_curve_row(rows)["step"] == 3
     as_read = [{k: str(v) for k, v in r.items()} for r in rows]  # progress.csv gives strings
     assert runner.best_curve_row(as_read)["step"] == "3"
+    assert runner.best_curve_row(rows[:1])["step"] == 0
+    assert runner.best_curve_row([row(0.3, 0, 0, s) for s in range(4)])["step"] == 3  # all tie
+    assert runner.best_curve_row([row(0.9, 0, 0, 0), row(0.3, 0, 0, 1)])["step"] == 0
     with pytest.raises(UserInputError, match="no learning-curve points"):
         runner.best_curve_row([])
 
 
-def test_a_point_beats_every_earlier_one_only_when_it_ranks_above_all_of_them():
-    """The first point is kept; a later one only if it ranks strictly above every earlier
-    one (a tie keeps the earlier actor, as `best_curve_row` selects the earliest)."""
-    first, better, tie = row(0.5, 0.0, 1.0, 0), row(0.6, 0.0, 0.0, 1), row(0.6, 0.0, 0.0, 2)
+def test_a_point_is_kept_when_it_ranks_at_least_as_high_as_every_earlier_one():
+    """The first point is kept; a later one if it ranks at least as high as every earlier
+    one: a tie keeps the later actor too, as `best_curve_row` selects the later of equal
+    points, so the selected point always has its actor."""
+    first, better, tie = row(0.5, 0.0, 1.0, 0), row(0.6, 0.0, 0.0, 1), row(0.6, 0.9, -5.0, 2)
     assert policies.beats_every_earlier([], first)
     assert policies.beats_every_earlier([first], better)
-    assert not policies.beats_every_earlier([first, better], tie)
+    assert policies.beats_every_earlier([first, better], tie)
     assert not policies.beats_every_earlier([better], first)
+    curve = [row(*point, step) for step, point in enumerate([(0.5, 0, 0), (0.4, 0, 0)])]
+    curve += [row(0.6, 0.0, 0.0, 2), row(0.6, 0.9, -5.0, 3), row(0.55, 0.0, 0.0, 4)]
+    kept = [r["step"] for i, r in enumerate(curve) if policies.beats_every_earlier(curve[:i], r)]
+    assert kept == [0, 2, 3] and runner.best_curve_row(curve)["step"] == kept[-1]
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +88,7 @@ def test_a_curve_policy_is_kept_exactly_where_a_point_beats_every_earlier_one(tr
     _, progress = read_csv(trained / "progress.csv")
     expected, best = [], None
     for r in progress:
-        if best is None or runner.curve_rank(r) > best:
+        if best is None or runner.curve_rank(r) >= best:
             expected.append(int(r["step"]))
             best = runner.curve_rank(r)
     assert kept_steps(trained) == expected
@@ -245,3 +254,30 @@ def test_cli_evaluates_the_best_policy(trained):
     assert result.exit_code == 0, result.output
     assert '"policy": "best"' in result.output
     assert (trained / "summary_best.json").exists()
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_the_learning_curve_tcs_are_disjoint_from_the_evaluation_tcs(task):
+    """The best policy is chosen on the learning-curve TCs (FINDINGS "Protocol v6", rule 6),
+    so none of them may be an evaluation TC: compared exactly (every offset, as floats), the
+    `paper` preset's 50 curve TCs — and the stream's first 1000, more than any preset
+    draws — share none with the 100 evaluation TCs, nor with the first 1000 (the
+    supplementary evaluations)."""
+    from distgprl.config import load_config
+    from distgprl.sim.tasks import get_task
+    from distgprl.sim.tasks.base import TaskConfig
+
+    def offsets(tc: TaskConfig) -> tuple[float, ...]:
+        return (*tc.object_offset, *tc.obstacle_offset)
+
+    spec = get_task(task)
+    run = load_config("paper", task).run  # as training and evaluation resolve it
+    assert (run.curve_episodes, run.eval_episodes) == (50, 100)
+    curve = [offsets(tc) for tc in spec.training_curve_tcs(run.curve_episodes)]
+    evaluation = [offsets(tc) for tc in spec.evaluation_tcs(run.eval_episodes)]
+    assert len(set(curve)) == 50 and len(set(evaluation)) == 100  # draws, not one repeated TC
+    assert not set(curve) & set(evaluation)
+    long_curve = {offsets(tc) for tc in spec.training_curve_tcs(1000)}
+    long_evaluation = {offsets(tc) for tc in spec.evaluation_tcs(1000)}
+    assert set(curve) <= long_curve and set(evaluation) <= long_evaluation  # prefixes
+    assert not long_curve & long_evaluation

@@ -131,3 +131,49 @@ def test_summarise_of_a_single_episode_is_that_episode():
 def test_summarise_refuses_an_empty_evaluation():
     with pytest.raises(ValueError, match="no episodes"):
         summarise([])
+
+
+@pytest.mark.parametrize("as_text", [False, True], ids=["numbers", "csv-strings"])
+def test_mincl_is_over_the_collision_free_episodes_and_differs_where_5_percent_collide(as_text):
+    """Environment v6's MinCl (FINDINGS "Protocol v6", rule 5): the 5th percentile of the
+    episode-wise minimum clearance over the episodes without a collision, with their count.
+    Here 3 of 10 collide (>= 5 %): MinCl over all episodes is 0 (v5's, kept beside it
+    unchanged), over the collision-free ones it is positive."""
+    summary = summarise(rows(as_text))
+    free = [e[2] for e in EPISODES if e[1] == 0]  # 0.031, 0.012, 0.025, 0.008, 0.040, ...
+    assert summary["collision_free_episodes"] == len(free) == 7
+    # sorted: 0.008, 0.012, ...; position 0.05 * 6 = 0.3
+    expected = 0.008 + 0.3 * (0.012 - 0.008)
+    assert percentile_by_hand(free, 5) == pytest.approx(expected)
+    assert summary["min_clearance_p5_collision_free"] == pytest.approx(expected)  # 0.0092
+    assert summary["min_clearance_p5"] == 0.0 < summary["min_clearance_p5_collision_free"]
+
+
+def test_mincl_of_an_evaluation_where_every_episode_collided_is_undefined_not_zero():
+    """No collision-free episode: MinCl is None (JSON null) with a count of 0, the reason
+    the tables state; the all-episode MinCl stays 0. No collision at all: both agree."""
+    colliding = [r for r in rows() if int(r["collision"]) == 1]
+    summary = summarise(colliding)
+    assert summary["min_clearance_p5_collision_free"] is None
+    assert summary["collision_free_episodes"] == 0
+    assert summary["min_clearance_p5"] == 0.0
+    clean = [r for r in rows() if int(r["collision"]) == 0]
+    summary = summarise(clean)
+    assert summary["collision_free_episodes"] == len(clean)
+    assert summary["min_clearance_p5_collision_free"] == pytest.approx(summary["min_clearance_p5"])
+
+
+def test_summarise_keeps_every_v5_field_and_adds_only_the_collision_free_mincl():
+    """The v6 MinCl is an added field: every field of a v5 summary is still there with its
+    meaning (MinCl over all episodes under its old name ``min_clearance_p5``: 0 here)."""
+    v5_fields = {
+        "episodes", "success_rate", "collision_rate", "safe_success_rate", "min_clearance_p5",
+        "mean_min_clearance", "mean_return", "mean_kinematic_retention",
+        "median_adaptation_ms_per_episode", "median_policy_ms_per_episode", "completion_rate",
+        "min_signed_clearance_p5", "peak_joint_speed_p95", "joint_speed_over_limit_rate",
+    }  # fmt: skip
+    summary = summarise(rows())
+    assert v5_fields | {"min_clearance_p5_collision_free", "collision_free_episodes"} <= set(
+        summary
+    )
+    assert summary["min_clearance_p5"] == 0.0

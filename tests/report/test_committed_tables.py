@@ -1,6 +1,9 @@
 """The committed tables under ``paper_figures/`` are exactly what ``make tables`` makes from
 the committed ``results/``: no table in the repository (or the README's copy of Table I) is
-stale or edited by hand, and none is left that the results no longer make."""
+stale or edited by hand, and none is left that the results no longer make. Before a preset
+has any evaluated run (environment v6: the v5 runs are archived in ``results/archive/env-v5``
+and the v6 runs pending) ``make tables`` makes none of its tables, so none may be committed,
+and the README must point to the archive instead of showing a Table I."""
 
 from __future__ import annotations
 
@@ -15,10 +18,18 @@ MAKE_TABLES = {"paper": None}  # environment v5: the correlated probes are archi
 """The ``distgprl tables --preset P [--against Q]`` calls of ``make tables`` (P: Q)."""
 
 
+def has_runs(preset: str) -> bool:
+    """Whether ``results/<preset>`` holds an evaluated run (else its tables are pending)."""
+    return any((RESULTS / preset).glob("*/*/seed*/summary.json"))
+
+
 def test_committed_tables_are_regenerated_byte_for_byte(tmp_path):
+    """Every table made from results/ is committed unchanged, and every committed table is
+    made: with no evaluated run yet (the v6 runs pending), paper_figures/ holds no table."""
     made = []
     for preset, against in MAKE_TABLES.items():
-        made += write_tables(RESULTS, preset, tmp_path, against)
+        if has_runs(preset):  # without runs `distgprl tables` refuses: nothing is made
+            made += write_tables(RESULTS, preset, tmp_path, against)
     for path in made:
         committed = FIGURES / path.name
         assert committed.exists(), f"{path.name} is made from results/ but not committed"
@@ -38,8 +49,16 @@ def test_the_makefile_makes_these_tables():
 
 
 def test_the_readme_shows_the_committed_table_one():
-    table = (FIGURES / "table1_paper.md").read_text().strip()
-    assert table in (REPOSITORY / "README.md").read_text()
+    """The README's Table I is the committed one (the best policy's, Algorithm 1's output);
+    before the paper preset has runs, there is none, and the README points to the archived
+    environment-v5 tables instead."""
+    readme = (REPOSITORY / "README.md").read_text()
+    table = FIGURES / "table1_paper.md"
+    assert table.exists() == has_runs("paper")
+    if table.exists():
+        assert table.read_text().strip() in readme
+    else:
+        assert "results/archive/env-v5" in readme
 
 
 def test_the_readme_shows_the_committed_hardware_and_repair_tables():

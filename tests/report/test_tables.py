@@ -36,10 +36,11 @@ def test_aggregate_mean_std_and_t_interval():
     assert aggregate([]).text() == "–"
 
 
-def summary(success, collision, clearance):
+def summary(success, collision, clearance, free=None):
     """A v5 summary: completion as success (no episode completed before a collision), the
-    signed clearance percentile as MinCl's."""
-    return {
+    signed clearance percentile as MinCl's over all episodes; with ``free`` a v6 one, whose
+    MinCl over the collision-free episodes is ``free``."""
+    document = {
         "summary": {
             "success_rate": success,
             "collision_rate": collision,
@@ -49,6 +50,10 @@ def summary(success, collision, clearance):
             "mean_kinematic_retention": 0.9,
         }
     }
+    if free is not None:
+        document["summary"]["min_clearance_p5_collision_free"] = free
+        document["summary"]["collision_free_episodes"] = 10
+    return document
 
 
 def test_rows_follow_the_paper_order_with_the_demo_last(tmp_path):
@@ -145,9 +150,9 @@ def test_per_seed_table_lists_every_run_with_its_wall_and_cpu_time(tmp_path):
     assert rows[2]["numerics"] == machine_info()["numerics"] and rows[3]["numerics"] == ""
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
-    assert (
-        "| DBM | Dist-GPRL (ours) | 1 | 0.60 | 0.10 | 0.010 | 0.010 | 0.60 | 0.90 "
-        "| – | – | – | – | 20.0 | 75.0 |" in markdown
+    assert (  # no best-policy evaluation: the final policy's, listed under Table I
+        "| DBM | Dist-GPRL (ours) | 1 | final | – | 0.60 | 0.10 | – | 0.010 | 0.010 | 0.60 "
+        "| 0.90 | – | – | – | – | 20.0 | 75.0 |" in markdown
     )
     assert "| DBM | GPRL | 0 |" in markdown and "| 10.0 | – |" in markdown
 
@@ -183,7 +188,7 @@ def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path)
     write_tables(tmp_path, "p", tmp_path / "out")
     markdown = (tmp_path / "out" / "table1_p_per_seed.md").read_text()
     assert "Late curve succ | Late curve range |" in markdown
-    assert "| 0.74 | 0.06 | 0.000 |" in markdown and "| 0.82 | 0.20 |" in markdown
+    assert "| 0.74 | 0.06 | – | 0.000 |" in markdown and "| 0.82 | 0.20 |" in markdown
 
 
 def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp_path):
@@ -262,12 +267,14 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
     the caption says so, and the CSV's rate intervals are clipped to [0, 1] too (its other
     intervals are not: MinCl's may fall below zero)."""
     seeds = {
-        0: summary(0.80, 0.10, 0.010),
-        1: summary(0.90, 0.20, 0.020),
-        2: summary(1.00, 0.30, 0.030),
+        0: summary(0.80, 0.10, 0.010, free=0.020),
+        1: summary(0.90, 0.20, 0.020, free=0.030),
+        2: summary(1.00, 0.30, 0.030, free=0.040),
     }
     for seed, document in seeds.items():
-        write_json(tmp_path / "p" / "dcp" / "dist-gprl" / f"seed{seed}" / "summary.json", document)
+        folder = tmp_path / "p" / "dcp" / "dist-gprl" / f"seed{seed}"
+        write_json(folder / "summary_best.json", document)
+        write_json(folder / "summary.json", summary(0.1, 0.9, 0.0, free=0.0))  # final: not shown
     write_json(tmp_path / "p" / "dcp" / "demo" / "seed0" / "summary.json", summary(0.5, 0.4, 0.0))
     write_tables(tmp_path, "p", tmp_path / "out")
     half = 4.302652729911275 * 0.1 / np.sqrt(3)  # t_{0.975, 2}; both rates' sample std 0.1
@@ -276,10 +283,12 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
     collision = "0.20 ± 0.10 [0.00, 0.45]"  # t-interval [-0.05, 0.45]
     markdown = (tmp_path / "out" / "table1_p.md").read_text()
     assert (
-        f"| Dist-GPRL (ours) | {success} [3] | {collision} | 0.020 ± 0.010 | 0.020 ± 0.010 | "
-        "0.90 ± 0.10 | 0.90 ± 0.00 |" in markdown
+        f"| Dist-GPRL (ours) | {success} [3] | {collision} | 0.030 ± 0.010 | 0.020 ± 0.010 | "
+        "0.020 ± 0.010 | 0.90 ± 0.10 | 0.90 ± 0.00 |" in markdown
     )
-    assert "| Demo (no adaptation) | 0.50 [1] | 0.40 | 0.000 | 0.000 | 0.50 | 0.90 |" in markdown
+    assert (
+        "| Demo (no adaptation) | 0.50 [1] | 0.40 | – | 0.000 | 0.000 | 0.50 | 0.90 |" in markdown
+    )
     assert "95 % t-interval" in markdown.splitlines()[0]
     latex = (tmp_path / "out" / "table1_p.tex").read_text()
     pm = "$\\pm$"
@@ -287,10 +296,10 @@ def test_table1_markdown_and_latex_show_the_95_percent_interval_on_success_and_c
         f"Dist-GPRL (ours) & 0.90 {pm} 0.10 [0.65, 1.00] & 0.20 {pm} 0.10 [0.00, 0.45] &" in latex
     )
     assert (
-        f"[0.00, 0.45] & 0.020 {pm} 0.010 & 0.020 {pm} 0.010 & 0.90 {pm} 0.10 & 0.90 {pm} 0.00"
-        in latex
+        f"[0.00, 0.45] & 0.030 {pm} 0.010 & 0.020 {pm} 0.010 & 0.020 {pm} 0.010 & 0.90 {pm} 0.10 "
+        f"& 0.90 {pm} 0.00" in latex
     )
-    assert "Demo (no adaptation) & 0.50 & 0.40 & 0.000 &" in latex
+    assert "Demo (no adaptation) & 0.50 & 0.40 & -- & 0.000 &" in latex
     assert "95\\,\\% t-interval" in latex
     with open(tmp_path / "out" / "table1_p.csv", newline="") as handle:
         ours = {row["method"]: row for row in csv.DictReader(handle)}["dist-gprl"]
