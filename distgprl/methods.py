@@ -88,7 +88,8 @@ METHODS: dict[str, MethodSpec] = {
             entropy="anneal",
             episode_range=True,
         ),
-        MethodSpec("promp-rrl", "ProMP-RRL", "residual"),
+        MethodSpec("promp-rrl", "ProMP-RRL", "residual-control"),
+        MethodSpec("promp-rrl-windowed", "ProMP-RRL (windowed weights)", "residual"),
         MethodSpec(
             "promp-rrl-expert", "ProMP-RRL (20 expert demos)", "residual", demonstrations="expert"
         ),
@@ -136,8 +137,9 @@ METHODS: dict[str, MethodSpec] = {
             similarity_loss=True,
         ),
         MethodSpec("demo", "Demo (no adaptation)", "none", trainable=False),
-        MethodSpec("promp-nominal", "ProMP nominal (no residual)", "residual", trainable=False),
-        MethodSpec("promp-rrl-residual", "ProMP-RRL (residual)", "residual-control"),
+        MethodSpec(
+            "promp-nominal", "ProMP nominal (no residual)", "residual-control", trainable=False
+        ),
     )
 }
 
@@ -154,11 +156,27 @@ TABLE_ORDER: tuple[str, ...] = (
     "promp-nominal",
 )
 
-EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-expert", "promp-rrl-residual")
-"""Methods outside Table I and the default sweep (run them by name): ``promp-rrl-expert`` has
-more information than Table I's methods (20 TC-aware expert demonstrations instead of one);
-``promp-rrl-residual`` (ProMP-RRL as residual RL, issue 48 item 4) is not yet a Table I
-row."""
+EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-windowed", "promp-rrl-expert")
+"""Methods outside Table I and the default sweep (run them by name): ``promp-rrl-windowed`` is
+environment v5's ProMP-RRL (residual ProMP weights at the three windowed steps, not residual
+RL; issue 48 item 4); ``promp-rrl-expert`` the same with more information than Table I's
+methods (20 TC-aware expert demonstrations instead of one). Environment v6's ``promp-rrl`` is
+residual RL (`distgprl.envs.residual_rl`)."""
+
+
+NO_SAFETY_LAYER = (
+    "the hardware safety layer (plan check, retiming, plan repair) and the twin trials work on "
+    "a via-point plan; a residual-control method (environment v6's promp-rrl, promp-nominal) "
+    "commands a 10 Hz residual with no plan to check ahead: not implemented yet (issue 50, "
+    "Table II v6)"
+)
+"""Why `has_via_point_plan` methods are the only ones the safety layer and Table II run."""
+
+
+def has_via_point_plan(spec: MethodSpec) -> bool:
+    """Whether ``spec`` plans an episode as via-points or residual weights the hardware safety
+    layer can check and repair before execution (every action mode but ``residual-control``)."""
+    return spec.action_mode != "residual-control"
 
 
 def get_method(name: str) -> MethodSpec:

@@ -24,8 +24,10 @@ def test_fit_demo_writes_json_and_figure(tmp_path, smooth_demo_file):
     correlation = document["correlation_operator"]
     assert correlation["correlation_lambda"] == 0.01
     assert [w["via_points"][0] for w in correlation["windows"]] == [1, 5, 9]
-    assert "covariance transform (lambda 0.01, K scale 'signal')" in result.output
-    assert "candidate K scale 'unit'" in result.output  # both candidates' spectra (v5)
+    assert "Table I operator (lambda 0.01, K 'zero-mean')" in result.output  # v6
+    for reading in ("signal", "unit", "correlation"):  # every study operator's spectrum
+        assert f"study operator K '{reading}'" in result.output
+    assert "action scale per unit raw action (fixed)" in result.output  # no task: no TC range
 
 
 @pytest.mark.parametrize(

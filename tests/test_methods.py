@@ -35,7 +35,8 @@ def test_registry_matches_the_design_table():
         assert got == row, name
     assert METHODS["gprl"].hold_tc_via_point and METHODS["gprl"].signature_reward
     assert METHODS["gprl"].entropy == "anneal"
-    assert METHODS["promp-rrl"].action_mode == "residual"
+    assert METHODS["promp-rrl"].action_mode == "residual-control"  # v6: residual RL
+    assert METHODS["promp-rrl-windowed"].action_mode == "residual"
     assert not METHODS["demo"].trainable
 
 

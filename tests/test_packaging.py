@@ -47,7 +47,7 @@ def test_wheel_holds_every_run_time_file_of_the_package(wheel):
     for required in (
         "distgprl/presets/paper.yaml",
         "distgprl/presets/ci.yaml",
-        "distgprl/presets/correlated.yaml",
+        "distgprl/presets/operator-unit.yaml",
         "distgprl/data/demos/dcp.csv",
         "distgprl/data/demos/dbm.csv",
         "distgprl/data/demos/dcp_varied/tcs.json",

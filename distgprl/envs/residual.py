@@ -140,7 +140,7 @@ class ResidualEnv(AdaptationEnv):
         task: str,
         config: EnvConfig | None = None,
         render_mode=None,
-        method: str | MethodSpec = "promp-rrl",
+        method: str | MethodSpec = "promp-rrl-windowed",
     ) -> None:
         spec = method if isinstance(method, MethodSpec) else get_method(method)
         if spec.action_mode != "residual":

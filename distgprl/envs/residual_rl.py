@@ -2,8 +2,9 @@
 (Johannink et al. 2018; Carvalho et al. 2022; issue 48 item 4, Protocol v6 rule 4).
 
 The numerics (schedule, range, gate, hold, composition) are `distgprl.adaptation.
-residual_control`; this module adds the simulator, the nominal and the MDP. Method
-``promp-rrl-residual`` (action mode ``residual-control``).
+residual_control`; this module adds the simulator, the nominal and the MDP. Methods
+``promp-rrl`` (Table I's ProMP-RRL, environment v6) and the ``promp-nominal`` reference (its
+nominal, zero residual), action mode ``residual-control``.
 """
 
 from __future__ import annotations
@@ -223,7 +224,7 @@ class ResidualRLEnv(gym.Env):
     def __init__(
         self,
         task: str,
-        method: str | MethodSpec = "promp-rrl-residual",
+        method: str | MethodSpec = "promp-rrl",
         config: EnvConfig | None = None,
         render_mode: str | None = None,
         promp: ObjectCentricProMP | None = None,
@@ -291,6 +292,8 @@ class ResidualRLEnv(gym.Env):
         ``raw`` (6,) in [-1, 1]: the target ``raw * residual_scale`` approached from the
         previous step's residual at the slew limit (`residual_control.slew_limited`)."""
         target = np.clip(np.asarray(raw, dtype=float).reshape(6), -1.0, 1.0) * self.residual_scale
+        if not self.method.trainable:  # the promp-nominal reference ignores the action
+            target = np.zeros(6)
         duration = float(self.schedule.step_duration[step])
         return slew_limited(self._previous_residual(step), target, self.residual_scale, duration)
 

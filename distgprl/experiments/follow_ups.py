@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import TypedDict
 
 from distgprl.experiments.jobs import Job
+from distgprl.methods import get_method, has_via_point_plan
 
 
 class FollowUpReports(TypedDict):
@@ -42,8 +43,8 @@ def run_follow_ups(job: Job) -> FollowUpReports:
 def repairs_due(job: Job) -> bool:
     """True if the job should evaluate its run with the safety layer now
     (`repair_evaluations.evaluations_due`)."""
-    if not job.repair_evaluations:
-        return False
+    if not job.repair_evaluations or not has_via_point_plan(get_method(job.method)):
+        return False  # methods.NO_SAFETY_LAYER: not implemented for residual-control methods
     from distgprl.experiments.repair_evaluations import evaluations_due
 
     return evaluations_due(job.root, job.preset, job.task, job.method, job.seed)
@@ -61,6 +62,8 @@ def trials_due(job: Job) -> bool:
     """True if the job should run Table II twin trials now (`table2_trials.trials_due`)."""
     if job.twin_trials <= 0 or job.task != "dbm":
         return False
+    if not has_via_point_plan(get_method(job.method)):
+        return False  # methods.NO_SAFETY_LAYER: not implemented for residual-control methods
     from distgprl.hardware.table2_trials import trials_due as due
 
     return due(job.method, job.seed, job.preset, job.root, job.twin_trials)

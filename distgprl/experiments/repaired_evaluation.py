@@ -293,7 +293,14 @@ def evaluate_with_repair(
         config: the repair settings (default :class:`RepairConfig`: retime, no push).
         limits: the limits (default `simulation_safety_limits`).
         show_progress: a progress bar on stderr.
+
+    Raises:
+        UserInputError: for a residual-control method (`distgprl.methods.NO_SAFETY_LAYER`).
     """
+    from distgprl.methods import NO_SAFETY_LAYER, get_method, has_via_point_plan
+
+    if not has_via_point_plan(get_method(method)):
+        raise UserInputError(f"{method}: {NO_SAFETY_LAYER}")
     from distgprl.experiments.runner import (
         deterministic_policy,
         load_trained_policy,

@@ -18,8 +18,9 @@ import numpy as np
 
 from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.envs.residual import ResidualEnv
+from distgprl.errors import UserInputError
 from distgprl.hardware.perception import OBJECTS, Percept
-from distgprl.methods import get_method
+from distgprl.methods import NO_SAFETY_LAYER, get_method, has_via_point_plan
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.tasks.base import TaskConfig, TaskSim
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
@@ -247,7 +248,7 @@ class PerceivedResidual(_PerceivedWorld, ResidualEnv):
     """
 
     def __init__(
-        self, method: str = "promp-rrl", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
+        self, method: str = "promp-rrl-windowed", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
     ) -> None:
         ResidualEnv.__init__(self, "dbm", config, method=method)
         self._attach_world(conveyor_velocity)
@@ -258,6 +259,9 @@ def perceived_env(
 ) -> PerceivedAdaptation | PerceivedResidual:
     """The trial adapter for ``method``: residual for the ProMP methods (`promp-rrl`,
     `promp-rrl-expert`, the `promp-nominal` reference), via-points otherwise."""
-    if get_method(method).action_mode == "residual":
+    spec = get_method(method)
+    if not has_via_point_plan(spec):
+        raise UserInputError(f"{method}: {NO_SAFETY_LAYER}")
+    if spec.action_mode == "residual":
         return PerceivedResidual(method, config, conveyor_velocity)
     return PerceivedAdaptation(method, config, conveyor_velocity)

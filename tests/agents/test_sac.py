@@ -351,7 +351,12 @@ def test_real_agent_regulariser_gradient_reaches_every_actor_parameter(dist_gprl
 
 @pytest.mark.parametrize(
     ("method", "expected"),
-    [("gprl", None), ("promp-rrl", None), ("gprl-d", {"l_sim"}), ("gprl-h", {"l_sim", "l_hap"})],
+    [
+        ("gprl", None),
+        ("promp-rrl-windowed", None),
+        ("gprl-d", {"l_sim"}),
+        ("gprl-h", {"l_sim", "l_hap"}),
+    ],
 )
 def test_real_agent_regulariser_only_has_the_terms_the_method_weights(method, expected):
     """build_regulariser / make_agent: GPRL and ProMP-RRL (no L_sim, no L_hap) get no

@@ -9,10 +9,11 @@ from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR, REWARD_TERMS, AdaptationEnv
+from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.sim.tasks import TaskConfig
+from distgprl.skill.operator import axis_operator
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +36,7 @@ def rollout(env, tc, actions):
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v5", method="dist-gprl").unwrapped
+    env = gym.make("DistGPRL-DCP-v6", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
     env.close()
 
@@ -149,7 +150,7 @@ def test_reward_terms_have_their_specified_values(method, monkeypatch):
         "nominal": (env.spec_task.nominal_tc, np.zeros((3, n))),
         "down": (env.spec_task.nominal_tc, np.tile(down.ravel(), (3, 1))),
         "random": (
-            env.spec_task.evaluation_tcs(3)[1],
+            env.spec_task.evaluation_tcs(3)[0],  # v6: the unadapted demo collides on it
             np.random.default_rng(0).uniform(-1, 1, size=(3, n)),
         ),
     }
@@ -227,12 +228,12 @@ def test_window_update_applies_the_covariance_transform(dcp_env):
     dcp_env.step(action)
     window = dcp_env.layout.indices[0]
     scaled = action.reshape(5, 6) * dcp_env.layout.scale
-    # v5: per axis a, S_W,a from K_a = the GP's covariance of axis a in via-point units
-    variance = dcp_env.skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
+    # v6: per axis a, S_W,a from K_a = the covariance of the axis's zero-mean GP (Eq. 1)
+    index = np.ix_(window, window)
     expected = np.stack(
         [
-            dcp_env.skill.window_operator(window, 1e-2 / variance[a]) @ scaled[:, a]
-            for a in range(6)
+            axis_operator(dcp_env.skill.via_times, kernel, 1e-2)[index] @ scaled[:, a]
+            for a, kernel in enumerate(dcp_env.skill.axis_kernels)
         ],
         axis=1,
     )

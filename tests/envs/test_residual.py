@@ -74,23 +74,34 @@ def test_promp_rrl_gets_only_the_one_demonstration_conditioned_on_training_tcs()
     for (times, poses), offset in zip(demos, offsets, strict=True):
         np.testing.assert_array_equal(times, demo.times)
         expected = condition_by_translation(
-            demo.times, demo.poses, offset[:2], spec.interaction_time
+            demo.times,
+            demo.poses,
+            offset[:2],
+            spec.interaction_time,
+            goal_fixed_in_world=spec.goal_fixed_in_world,
         )
         np.testing.assert_array_equal(poses, expected)
 
 
-def test_one_demonstration_promp_varies_only_before_the_interaction():
-    """In the object frame the conditioned copies coincide after the interaction time and
-    differ before it: the ProMP's positional std is ~0 late and > 1 cm at the start; the
-    variance gate therefore lets the residual act fully late and not at the start."""
-    promp = load_task_promp("dcp", "one")
-    interaction = get_task("dcp").interaction_time
-    late = np.linspace(interaction + 0.05, 1.0, 10)
-    assert promp.trajectory_std(late)[:, :3].max() < 2e-3
-    assert promp.trajectory_std(np.zeros(1))[0, :2].min() > 0.01
-    gate = variance_gate(promp, np.linspace(0.0, 1.0, 15))
-    assert gate.min() == pytest.approx(0.0) and gate[-1] > 0.9
-    assert np.all((gate >= 0.0) & (gate <= 1.0))
+def test_one_demonstration_promp_varies_where_the_conditioning_weight_is_not_one():
+    """In the object frame the conditioned copies coincide where the TC conditioning moves
+    the skill whole with the object (weight 1) and differ elsewhere: on DBM (goal moves with
+    the bar) everywhere after the interaction; on DCP (goal fixed, environment v6) only at
+    the interaction, the push returning to the world-fixed goal after it. Before the
+    interaction both differ (> 1 cm at the start). The variance gate follows: it lets the
+    residual act fully where the copies coincide and not at the start."""
+    for task, late_coincides in (("dbm", True), ("dcp", False)):
+        promp = load_task_promp(task, "one")
+        interaction = get_task(task).interaction_time
+        late = np.linspace(interaction + 0.05, 1.0, 10)
+        late_std = promp.trajectory_std(late)[:, :3].max()
+        assert (late_std < 2e-3) == late_coincides, (task, late_std)
+        assert promp.trajectory_std(np.zeros(1))[0, :2].min() > 0.01
+        gate = variance_gate(promp, np.linspace(0.0, 1.0, 15))
+        assert gate.min() == pytest.approx(0.0)
+        assert np.all((gate >= 0.0) & (gate <= 1.0))
+        at = variance_gate(promp, np.r_[np.linspace(0.0, 1.0, 15), interaction])[-1]
+        assert at > 0.9, (task, at)
 
 
 def test_residual_basis_is_normalised_so_the_total_range_is_the_gp_methods():
@@ -112,14 +123,12 @@ def test_residual_basis_is_normalised_so_the_total_range_is_the_gp_methods():
 
 
 def test_expert_variant_and_nominal_reference():
-    """``promp-rrl-expert`` fits the 20 shipped expert demonstrations; ``promp-nominal``
-    ignores its actions (the ProMP mean is executed as is)."""
+    """``promp-rrl-expert`` fits the 20 shipped expert demonstrations; environment v6's
+    ``promp-nominal`` reference is the residual-RL env's nominal (residual-control, not this
+    windowed env, which refuses it)."""
     expert = ResidualEnv("dcp", method="promp-rrl-expert")
     assert expert.promp.demonstration_count == 20
     assert not np.allclose(expert.promp.weight_mean, load_task_promp("dcp", "one").weight_mean)
     expert.close()
-    nominal = ResidualEnv("dcp", method="promp-nominal")
-    nominal.reset(options={"tc": nominal.spec_task.nominal_tc})
-    nominal.step(np.ones(nominal.action_space.shape))
-    assert np.all(nominal.gamma == 0)
-    nominal.close()
+    with pytest.raises(ValueError, match="not a residual method"):
+        ResidualEnv("dcp", method="promp-nominal")

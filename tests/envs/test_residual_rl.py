@@ -159,9 +159,10 @@ def test_commanded_residual_moves_linearly_within_an_rl_step(dcp):
         np.testing.assert_allclose(commanded[-1], residuals[step, :3], atol=1e-10)
 
 
-def test_a_promp_without_variance_passes_no_residual():
-    """A ProMP with zero variance everywhere (one demonstration, no jitter) gates the
-    residual to 0 at every instant: full actions execute the nominal exactly."""
+def test_a_promp_without_variance_passes_the_whole_residual():
+    """A ProMP with zero variance everywhere (one demonstration, no jitter) gives the gate
+    nothing to decide on: it passes the residual whole at every instant (gate 1), so full
+    actions move every commanded pose after the first step away from the nominal."""
     from distgprl.envs.residual_rl import load_nominal_promp
 
     nominal = load_nominal_promp("dcp")
@@ -172,11 +173,13 @@ def test_a_promp_without_variance_passes_no_residual():
         nominal.duration,
         1,
     )
-    env = ResidualRLEnv("dcp", promp=flat)
+    env = ResidualRLEnv("dcp", config=EnvConfig(collision_ends_episode=False), promp=flat)
     try:
-        assert np.all(env.gate == 0.0)
+        assert np.all(env.gate == 1.0)
         calls, _, _, _ = run(env, lambda step: np.ones(6), env.spec_task.nominal_tc)
-        np.testing.assert_array_equal(np.concatenate(calls), env.nominal_poses[1:])
+        commanded = np.concatenate(calls[1:])
+        planned = env.nominal_poses[1 + len(calls[0]) :][: len(commanded)]
+        assert np.all(np.abs(commanded[:, :3] - planned[:, :3]).max(axis=1) > 1e-3)
     finally:
         env.close()
 
@@ -262,27 +265,29 @@ def test_observation_is_finite_and_of_the_documented_size(env):
 
 
 def test_method_is_registered_outside_table_one_and_built_by_the_factory():
-    """``promp-rrl-residual`` is its own method (action mode ``residual-control``), not a
-    Table I row yet; `make_env` builds its environment; ``promp-rrl`` is unchanged."""
+    """Environment v6: ``promp-rrl`` (Table I's ProMP-RRL) and the ``promp-nominal`` reference
+    are residual-control methods; `make_env` builds their environment; v5's windowed-weights
+    residual is the exploration method ``promp-rrl-windowed``, which this env refuses."""
     from distgprl.experiments.factories import make_env
     from distgprl.identity import resolve_run
     from distgprl.methods import METHODS, TABLE_ORDER
 
-    spec = METHODS["promp-rrl-residual"]
-    assert spec.action_mode == "residual-control" and spec.label == "ProMP-RRL (residual)"
-    assert "promp-rrl-residual" not in TABLE_ORDER
-    assert METHODS["promp-rrl"].action_mode == "residual"
-    env = make_env(resolve_run("dbm", "promp-rrl-residual", 0, "ci"))
+    spec = METHODS["promp-rrl"]
+    assert spec.action_mode == "residual-control" and spec.label == "ProMP-RRL"
+    assert "promp-rrl" in TABLE_ORDER and "promp-rrl-windowed" not in TABLE_ORDER
+    assert METHODS["promp-nominal"].action_mode == "residual-control"
+    assert METHODS["promp-rrl-windowed"].action_mode == "residual"
+    env = make_env(resolve_run("dbm", "promp-rrl", 0, "ci"))
     try:
         assert isinstance(env, ResidualRLEnv) and env.n_steps == 50
     finally:
         env.close()
     with pytest.raises(ValueError, match="not a residual-control method"):
-        ResidualRLEnv("dcp", method="promp-rrl")
+        ResidualRLEnv("dcp", method="promp-rrl-windowed")
 
 
 def test_ci_training_runs_end_to_end(tmp_path):
-    """`distgprl train --preset ci --method promp-rrl-residual` trains 240 RL steps (five
+    """`distgprl train --preset ci --method promp-rrl` trains 240 RL steps (five
     DCP episodes), records its learning curve at 0, 120 and 240, and evaluates its final and
     best policies on the preset's six evaluation TCs."""
     from typer.testing import CliRunner
@@ -290,13 +295,25 @@ def test_ci_training_runs_end_to_end(tmp_path):
     from distgprl.cli import app
     from distgprl.schema import read_csv, read_json
 
-    args = ["train", "--preset", "ci", "--task", "dcp", "--method", "promp-rrl-residual"]
+    args = ["train", "--preset", "ci", "--task", "dcp", "--method", "promp-rrl"]
     result = CliRunner().invoke(app, [*args, "--seed", "0", "--root", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    folder = tmp_path / "ci" / "dcp" / "promp-rrl-residual" / "seed0"
+    folder = tmp_path / "ci" / "dcp" / "promp-rrl" / "seed0"
     _, progress = read_csv(folder / "progress.csv")
     assert [int(row["step"]) for row in progress] == [0, 120, 240]
     _, rows = read_csv(folder / "evaluation.csv")
     assert len(rows) == 6
     assert read_json(folder / "summary.json")["summary"]["episodes"] == 6
     assert (folder / "summary_best.json").exists() and (folder / "done.json").exists()
+
+
+def test_the_nominal_reference_ignores_its_actions():
+    """``promp-nominal`` (untrained reference) executes the nominal whatever it is given, as
+    the ``demo`` reference ignores its actions."""
+    env = ResidualRLEnv("dcp", method="promp-nominal")
+    try:
+        calls, _, _, _ = run(env, lambda step: np.ones(6), env.spec_task.nominal_tc)
+        commanded = np.concatenate(calls)
+        np.testing.assert_array_equal(commanded, env.nominal_poses[1 : 1 + len(commanded)])
+    finally:
+        env.close()

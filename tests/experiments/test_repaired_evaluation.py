@@ -42,7 +42,7 @@ def first_tc(dbm_demo):
     return dbm_demo.spec_task.evaluation_tcs(1)[0]
 
 
-@pytest.mark.parametrize("method", ["demo", "promp-nominal"])
+@pytest.mark.parametrize("method", ["demo", "promp-rrl-windowed"])
 def test_windows_that_pass_are_executed_exactly_as_the_env_steps_them(method):
     """With limits no plan violates, every executed window's decision is ``none`` and the episode's
     success, collision, signed clearance and peak joint speed equal the plain evaluation's
@@ -176,3 +176,20 @@ def test_repair_mode_follows_the_configuration():
     assert repaired.repair_mode(RepairConfig()) == "repair"
     assert repaired.repair_mode(RepairConfig(repair=True)) == "push"
     assert repaired.repair_mode(RepairConfig(retime=False)) == "check"
+
+
+def test_residual_control_methods_get_no_safety_layer_evaluation_nor_follow_ups(tmp_path):
+    """The safety-layer evaluation refuses environment v6's residual-control methods with the
+    stated reason, and the sweep's follow-ups are not due for them (no twin trials, no
+    repair evaluations), while they stay due for a via-point method."""
+    from distgprl.errors import UserInputError
+    from distgprl.experiments.follow_ups import repairs_due, trials_due
+    from distgprl.experiments.jobs import Job
+    from distgprl.methods import NO_SAFETY_LAYER
+
+    with pytest.raises(UserInputError) as raised:
+        repaired.evaluate_with_repair("dbm", "promp-rrl", 0, "ci", root=tmp_path)
+    assert str(raised.value) == f"promp-rrl: {NO_SAFETY_LAYER}"
+    for method in ("promp-rrl", "promp-nominal"):
+        job = Job("dbm", method, 0, "ci", str(tmp_path), twin_trials=2, repair_evaluations=True)
+        assert not trials_due(job) and not repairs_due(job)

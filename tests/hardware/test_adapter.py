@@ -32,7 +32,7 @@ def _bar_transform(position: np.ndarray) -> np.ndarray:
     ("method", "kind"),
     [
         ("dist-gprl", PerceivedAdaptation),
-        ("promp-rrl", PerceivedResidual),
+        ("promp-rrl-windowed", PerceivedResidual),
         ("demo", PerceivedAdaptation),
     ],
 )
@@ -138,17 +138,20 @@ def test_the_demo_reference_ignores_the_action():
 
 
 def test_the_residual_adapter_is_built_for_the_requested_promp_method():
-    """`perceived_env` builds the residual adapter with the method it is asked for: the
-    `promp-nominal` reference ignores actions (executes the ProMP mean), `promp-rrl-expert`
-    fits the 20 expert demonstrations (it used to build `promp-rrl` for every one)."""
+    """`perceived_env` builds the residual adapter with the method it is asked for:
+    `promp-rrl-windowed` and `promp-rrl-expert` (the latter fits the 20 expert
+    demonstrations); environment v6's residual-control methods have no adapter yet."""
+    from distgprl.errors import UserInputError
     from distgprl.hardware.adapter import perceived_env
 
-    nominal = perceived_env("promp-nominal")
+    windowed = perceived_env("promp-rrl-windowed")
     expert = perceived_env("promp-rrl-expert")
     try:
-        assert nominal.method.name == "promp-nominal" and not nominal.method.trainable
+        assert windowed.method.name == "promp-rrl-windowed"
         assert expert.method.name == "promp-rrl-expert"
         assert expert.promp.demonstration_count == 20
     finally:
-        nominal.close()
+        windowed.close()
         expert.close()
+    with pytest.raises(UserInputError, match="residual-control"):
+        perceived_env("promp-nominal")

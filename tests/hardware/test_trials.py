@@ -9,6 +9,7 @@ from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_csv, write_json
 from distgprl.hardware.trials import TRIAL_FIELDS, run_trials
 from distgprl.hardware.twin import TwinConfig, TwinSim, twin_calibration
+from distgprl.methods import TABLE_ORDER
 
 SMALL = TwinConfig(width=640, height=480)
 
@@ -46,7 +47,8 @@ def _untrained_policy(tmp_path_factory, method: str):
     return path
 
 
-@pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl"])  # via-points; residual ProMP
+# via-points; residual ProMP weights (v5's ProMP-RRL)
+@pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl-windowed"])
 def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
     from distgprl.report.tables import hardware_table
 
@@ -77,10 +79,13 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         assert int(row["images"]) >= 1 and float(row["trial_s"]) > 0
         # the perceived TC agrees with the true one to within the perception error
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
+    assert report.summary["judged"] == 2
+    if method not in TABLE_ORDER:  # an exploration method is no Table II row
+        assert all(row["method"] != method for row in hardware_table(tmp_path, "ci"))
+        return
     table = hardware_table(tmp_path, "ci")
     assert table[0]["method"] == method and table[0]["trials"] == 2
     assert table[0]["refused"] == sum(row["status"] == "refused" for row in rows)
-    assert report.summary["judged"] == 2
 
 
 def test_operator_judge_and_forced_plans(tmp_path):
@@ -318,19 +323,25 @@ def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
     assert runner.invoke(app, ["hardware", "--sensor-noise", "3"]).exit_code != 0
 
 
-def test_the_promp_nominal_reference_runs_trials_without_a_trained_model(tmp_path):
-    """`promp-nominal` is a reference (no policy): a twin trial runs the ProMP mean without
-    looking for a model, as `demo` runs the conditioned demonstration."""
+@pytest.mark.parametrize("method", ["promp-nominal", "promp-rrl"])
+def test_residual_control_methods_are_refused_by_the_trials_with_the_reason(tmp_path, method):
+    """Environment v6's `promp-rrl` and `promp-nominal` command a 10 Hz residual with no
+    via-point plan for the safety layer to check: a twin trial stops before anything runs
+    with one `UserInputError` naming why (`methods.NO_SAFETY_LAYER`), never a traceback
+    from deeper down and never a trial of a different method."""
+    from distgprl.errors import UserInputError
     from distgprl.hardware.trials import run_trials
+    from distgprl.methods import NO_SAFETY_LAYER
 
-    report = run_trials(
-        trials=1,
-        method="promp-nominal",
-        seed=0,
-        backend="twin",
-        root=tmp_path,
-        preset="ci",
-        echo=lambda *_: None,
-    )
-    assert len(report.rows) == 1 and report.rows[0]["status"] in ("ok", "refused", "stopped")
-    assert report.rows[0]["backend"] == "twin"
+    with pytest.raises(UserInputError) as raised:
+        run_trials(
+            trials=1,
+            method=method,
+            seed=0,
+            backend="twin",
+            root=tmp_path,
+            preset="ci",
+            echo=lambda *_: None,
+        )
+    assert str(raised.value) == f"{method}: {NO_SAFETY_LAYER}"
+    assert not (tmp_path / "hardware" / method).exists()

@@ -71,6 +71,14 @@ def test_the_readme_shows_the_committed_hardware_and_repair_tables():
 
 
 def test_the_readme_shows_the_committed_claims_table():
-    """The README's claims table is the committed one, so its verdicts cannot go stale."""
-    table = (FIGURES / "claims_paper.md").read_text().strip()
-    assert table in (REPOSITORY / "README.md").read_text()
+    """The claims table a README shows is the committed one, so its verdicts cannot go stale:
+    the README's for the current environment's runs once they exist, and the archived
+    environment-v5 README's for the archived v5 runs (always)."""
+    archive = REPOSITORY / "results" / "archive" / "env-v5"
+    archived = (archive / "paper_figures" / "claims_paper.md").read_text().strip()
+    assert archived in (archive / "README.md").read_text()
+    current = FIGURES / "claims_paper.md"
+    if current.exists():
+        assert current.read_text().strip() in (REPOSITORY / "README.md").read_text()
+    else:
+        assert "results/archive/env-v5/README.md" in (REPOSITORY / "README.md").read_text()

@@ -33,6 +33,7 @@ def _scaled_skill(skill, n_via_points: int):
         skill.duration,
         skill.name,
         axis_scale=skill.axis_scale,
+        axis_kernels=skill.axis_kernels,  # the zero-mean kernels do not depend on N
     )
 
 
