@@ -138,15 +138,10 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v6 (pre-registered, docs/FINDINGS.md "Protocol v6") — (a) r_tc in units
-    of one task (``progress_weight``, ``success_bonus``, ``collision_penalty`` 1; v5: 10) and
-    beta = eps / 4 (one tool point at contact for a whole segment costs the collision
-    penalty); (b) S_W from the paper's zero-mean GP (Eq. 1) fitted per axis to the raw
-    demonstration (``covariance_scale="zero-mean"``); (c) the raw action's scale per task and
-    axis from the reach rule (``action_scale_rule="reach"``: every window via-point reaches
-    max(TC range, 0.1 m) in one step under that S); (d) TC conditioning by
-    `distgprl.skill.conditioning.conditioning_weights`: where the goal is fixed in the world
-    (DCP) the via-points after the interaction return linearly to the demonstration's end.
+    **Versions**: v6 (docs/FINDINGS.md "Protocol v6") — (a) r_tc in units of one task and
+    beta = eps / 4; (b) S_W from the zero-mean GP of Eq. 1 per axis; (c) action scales from
+    the reach rule; (d) TC conditioning by `distgprl.skill.conditioning` (DCP's push ends at
+    the world-fixed goal).
     v5 — (a) a collision ends the episode (protective stop) and success is
     completion without collision (``completed`` keeps v4's success); (b) S_W is built per
     axis from the GP's covariance in via-point units (``covariance_scale="signal"``; v4's
