@@ -288,9 +288,14 @@ PROGRESS_FIELDS = (
     "grad_q",
     "grad_sim",
     "grad_hap",
+    "grad_hap_active",
+    "hap_active_fraction",
 )
 """``grad_*`` (environment v5): each actor-loss term's mean per-sample gradient norm on the
-actor's output at the curve point (`RegularisedSAC.actor_loss_gradient_norms`)."""
+actor's output at the curve point (`RegularisedSAC.actor_loss_gradient_norms`);
+``grad_hap_active`` (environment v6, the mechanism table) the same for lambda_hap L_hap over
+the samples where L_hap > 0 (outside C_safe; empty where none is), ``hap_active_fraction`` the
+share of those samples. Rows written before these columns lack them (reader: missing)."""
 EVALUATION_FIELDS = (
     "episode",
     "object_offset_x",
@@ -303,6 +308,9 @@ EVALUATION_FIELDS = (
     "min_clearance",
     "min_signed_clearance",
     "return",
+    "return_tc",
+    "return_sd",
+    "return_ga",
     "kinematic_retention",
     "adaptation_ms_w1",
     "adaptation_ms_w2",
@@ -310,6 +318,11 @@ EVALUATION_FIELDS = (
     "policy_ms",
     "peak_joint_speed",
 )
+"""Columns of an evaluation CSV (one row per episode, `distgprl.experiments.rollout.
+run_episode`). ``return`` is the episode's return, ``return_tc`` / ``return_sd`` /
+``return_ga`` (environment v6, the mechanism table) its r_tc, r_sd and lambda_ga r_ga parts
+(one task's unit); files written before these columns lack them (an additive change: the
+schema version stays, and readers treat them as not recorded)."""
 
 
 REPAIR_EVALUATION_FIELDS = (

@@ -433,7 +433,8 @@ class RegularisedSAC(SAC):
         not depend on the squashed action), ``grad_sim`` for lambda_sim L_sim and ``grad_hap``
         for lambda_hap L_hap (only the terms the method uses; each batch-mean loss's gradient
         times the batch size, so every norm is per sample). Raw action units. Empty before
-        the replay buffer holds a transition.
+        the replay buffer holds a transition. With L_hap also where it acts (0 inside
+        C_safe): ``hap_active_fraction`` and ``grad_hap_active`` (`active_hap_norms`).
         """
         buffer = self.replay_buffer
         size = buffer.buffer_size if buffer.full else buffer.pos
@@ -465,6 +466,10 @@ class RegularisedSAC(SAC):
             ):
                 if weight > 0 and name in terms:
                     norms[key] = float((terms[name] * batch_size).norm(dim=1).mean())
+            if "grad_hap" in norms:
+                from distgprl.agents.gradient_norms import active_hap_norms
+
+                norms.update(active_hap_norms(terms["l_hap"], batch_size))
         return norms
 
     def _setup_learn(self, *args, **kwargs):

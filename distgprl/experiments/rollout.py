@@ -11,11 +11,26 @@ import numpy as np
 
 from distgprl.schema import collision_free_min_clearance_p5, safe_success_rate
 
+#: The reward terms (``info`` keys of `AdaptationEnv` / `ResidualRLEnv`) summed into each
+#: ``return_*`` column of an episode row: r_tc = r_progress + r_success + r_collision, r_sd,
+#: and lambda_ga r_ga (``info["r_ga"]`` already includes lambda_ga). An env without a term
+#: (the residual-RL env has only r_tc's) contributes 0 to its column.
+RETURN_TERMS: dict[str, tuple[str, ...]] = {
+    "return_tc": ("r_progress", "r_success", "r_collision"),
+    "return_sd": ("r_sd",),
+    "return_ga": ("r_ga",),
+}
+
 
 def run_episode(env, tc, policy=None) -> dict[str, Any]:
-    """One episode on a given TC; ``policy(obs) -> action`` or None (zero action)."""
+    """One episode on a given TC; ``policy(obs) -> action`` or None (zero action).
+
+    The row's ``return`` is the episode's undiscounted return; ``return_tc``, ``return_sd``
+    and ``return_ga`` are its parts (`RETURN_TERMS`, summed over the steps' ``info``), in
+    the reward's unit (one task); GPRL's r_signature is in ``return`` only."""
     obs, _ = env.reset(options={"tc": tc})
     total, policy_time = 0.0, 0.0
+    parts = dict.fromkeys(RETURN_TERMS, 0.0)
     while True:
         start = time.perf_counter()
         action = (
@@ -24,6 +39,8 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
         policy_time += time.perf_counter() - start
         obs, reward, terminated, truncated, info = env.step(action)
         total += reward
+        for column, terms in RETURN_TERMS.items():
+            parts[column] += sum(float(info.get(term, 0.0)) for term in terms)
         if terminated or truncated:
             break
     adaptation = [1000 * t for t in info.get("adaptation_time_s", [])] + [np.nan] * 3
@@ -38,6 +55,7 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
         "min_clearance": float(info["min_clearance"]),
         "min_signed_clearance": float(info["min_signed_clearance"]),
         "return": float(total),
+        **parts,
         "kinematic_retention": float(info["kinematic_retention"]),
         "adaptation_ms_w1": adaptation[0],
         "adaptation_ms_w2": adaptation[1],

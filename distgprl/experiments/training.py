@@ -202,7 +202,12 @@ def _start(run: RunSpec, folder: Path, resume: bool, paths: dict[str, Path]) -> 
         ]
         if (folder / "progress.csv").exists():
             _, progress_rows = read_csv(folder / "progress.csv")
-            progress_rows = [r for r in progress_rows if int(r["step"]) <= model.num_timesteps]
+            # Rows written before a column was added get it empty (the schema's additions).
+            progress_rows = [
+                {**dict.fromkeys(PROGRESS_FIELDS, ""), **r}
+                for r in progress_rows
+                if int(r["step"]) <= model.num_timesteps
+            ]
         drop_curve_policies_after(folder, model.num_timesteps)
     else:
         if lost and not damaged:
@@ -308,6 +313,8 @@ class _TrainingLoop:
                 "grad_q": norms.get("grad_q", ""),
                 "grad_sim": norms.get("grad_sim", ""),
                 "grad_hap": norms.get("grad_hap", ""),
+                "grad_hap_active": norms.get("grad_hap_active", ""),
+                "hap_active_fraction": norms.get("hap_active_fraction", ""),
             }
         )
         for key, value in progress_rows[-1].items():

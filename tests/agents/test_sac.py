@@ -471,16 +471,69 @@ def test_actor_loss_gradient_norms_are_per_term_and_leave_the_random_streams_alo
     assert model.actor_loss_gradient_norms() == {}
     rng = np.random.default_rng(0)
     buffer = model.replay_buffer
+    available = observations["state"].shape[0]  # an episode a collision ends is shorter
     for index in range(6):
-        obs = {key: value[index : index + 1].numpy() for key, value in observations.items()}
+        row = index % available
+        obs = {key: value[row : row + 1].numpy() for key, value in observations.items()}
         action = rng.uniform(-1, 1, (1, env.action_space.shape[0])).astype(np.float32)
         buffer.add(obs, obs, action, np.array([1.0]), np.array([False]), [{}])
     torch_state, numpy_state = torch.get_rng_state(), np.random.get_state()  # noqa: NPY002
     first = model.actor_loss_gradient_norms(batch_size=16, seed=3)
-    assert set(first) == {"grad_q", "grad_sim", "grad_hap"}
-    assert all(np.isfinite(v) and v > 0 for v in first.values()), first
+    terms = {"grad_q", "grad_sim", "grad_hap", "hap_active_fraction"}
+    assert terms <= set(first) <= terms | {"grad_hap_active"}
+    assert all(np.isfinite(v) and v >= 0 for v in first.values()), first
+    assert all(first[key] > 0 for key in ("grad_q", "grad_sim", "grad_hap")), first
+    # L_hap pulls only outside C_safe: the batch mean is the active samples' mean times
+    # their share (the other samples' gradient is exactly 0).
+    assert 0 < first["hap_active_fraction"] <= 1
+    assert first["grad_hap"] == pytest.approx(
+        first["grad_hap_active"] * first["hap_active_fraction"], rel=1e-6
+    )
     assert model.actor_loss_gradient_norms(batch_size=16, seed=3) == first
     assert torch.equal(torch.get_rng_state(), torch_state)
     after = np.random.get_state()  # noqa: NPY002
     assert np.array_equal(after[1], numpy_state[1]) and after[2] == numpy_state[2]
     buffer.reset()
+
+
+def test_l_hap_gradient_rows_are_zero_exactly_where_the_sample_is_inside_c_safe(
+    dist_gprl_agent,
+):
+    """What `distgprl.agents.gradient_norms` relies on: a sample's L_hap gradient row
+    (`term_gradients`) is 0 exactly where its own L_hap (the forward pass on it alone) is 0 —
+    on the ci agent's real observations (all outside the task's C_safe somewhere), and on a
+    grid C_safe holding the whole trajectory with half the batch's via-points moved 2 m out
+    of it (both sides)."""
+    env, model, observations = dist_gprl_agent
+    aux = observations["aux"].double()
+    actions = np.random.default_rng(7).uniform(-1, 1, (aux.shape[0], env.action_space.shape[0]))
+    skill = small_skill()
+    layout = build_action_layout(skill, V5_OPERATOR, get_method("dist-gprl"))
+    axes = [np.arange(0.0, 1.01, 0.1), np.arange(-0.5, 0.51, 0.1), np.arange(-0.2, 0.71, 0.1)]
+    c_safe = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    prior = HapPrior(c_safe, hinge_step=0.1)
+    weights = RegulariserWeights(lambda_sim=0.0, lambda_hap=1.0)
+    grid = ActorRegulariser(skill, layout, weights, hap_prior=prior)
+    moved = aux_batch(skill, layout, batch=6).double()
+    moved[3:, : skill.n_via_points * 6 : 6] += 2.0  # x of every via-point
+    small = 0.01 * np.random.default_rng(8).uniform(-1, 1, (6, layout.points_per_step * 6))
+    inside = 0
+    for reg, a, b in ((model.regulariser, aux, actions), (grid, moved, small)):
+        b = torch.as_tensor(b)
+        rows = reg.term_gradients(a, b)["l_hap"].norm(dim=1).numpy()
+        alone = np.array([reg(a[i : i + 1], b[i : i + 1])[1]["l_hap"] for i in range(len(a))])
+        np.testing.assert_array_equal(rows > 0, alone > 0)
+        assert np.any(alone > 0)
+        inside += int(np.sum(alone == 0))
+    assert inside == 3
+
+
+def test_active_hap_norms_average_over_the_samples_outside_c_safe():
+    """`active_hap_norms` by hand: of three samples, two with a gradient (norms 3 and 5 per
+    sample after the batch-size factor), one inside C_safe; none active -> only the share."""
+    from distgprl.agents.gradient_norms import active_hap_norms
+
+    gradient = torch.tensor([[3.0, 0.0], [0.0, 0.0], [3.0, 4.0]]) / 3  # batch-mean's gradient
+    out = active_hap_norms(gradient, 3)
+    assert out == pytest.approx({"hap_active_fraction": 2 / 3, "grad_hap_active": 4.0})
+    assert active_hap_norms(gradient * 0, 3) == {"hap_active_fraction": 0.0}

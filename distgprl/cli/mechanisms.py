@@ -1,0 +1,29 @@
+"""`distgprl mechanisms`: the mechanism table of a preset's runs (Protocol v6 rule 7)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from distgprl.cli.common import ConfigOption, PresetOption, RootOption, resolve_preset, user_errors
+
+
+@user_errors
+def mechanisms(
+    preset: PresetOption = None,
+    config: ConfigOption = None,
+    root: RootOption = Path("results"),
+    out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
+) -> None:
+    """The mechanism table: reach vs TC range, shaping and regulariser shares (CSV, Markdown)."""
+    from distgprl.experiments.mechanisms import reach_rows
+    from distgprl.report.mechanisms import write_mechanisms
+
+    preset = resolve_preset(preset, config)
+    written, verdicts = write_mechanisms(root, preset, out_dir, reach_rows(root, preset))
+    for line in verdicts:
+        typer.echo(line)
+    for path in written:
+        typer.echo(f"wrote {path}")

@@ -1,0 +1,154 @@
+"""The mechanism table (docs/FINDINGS.md "Protocol v6", rule 7; issue 48 item 7).
+
+Whether the paper's mechanisms act, for a preset's runs, in three parts:
+
+1. **Reach** per trainable method, task and position axis: one-step and one-episode reach (m)
+   of a raw action in [-1, 1] against the task's TC range, and whether the smallest
+   one-episode reach covers the TC range on x and y. Computed from the methods' environments
+   by `distgprl.experiments.mechanisms.reach_rows` and passed in as rows (this module reads
+   result files only).
+2. **Shaping shares of the return**, per method with distance rewards and policy (final,
+   best): over the evaluation episodes that pass within d_min (``min_clearance`` <
+   ``sd_d_min`` of the run's config), the per-episode |sum r_sd| / |sum r_tc| and
+   |sum lambda_ga r_ga| / |sum r_tc| (``return_sd``, ``return_ga``, ``return_tc`` of the
+   evaluation rows), their mean and median over the episodes of every seed. An episode whose
+   r_tc sums to 0 has no ratio: it is counted and left out. Evaluation files written before
+   these columns: "not recorded".
+3. **Regulariser shares of the actor gradient**, per method with L_sim or L_hap: at the
+   first, middle and last learning-curve points that recorded gradients (``grad_q`` > 0 in
+   ``progress.csv``), grad_sim / grad_q and grad_hap / grad_q, and L_hap's share where it
+   acts (``grad_hap_active`` / grad_q over the samples outside C_safe, with the share of
+   such samples ``hap_active_fraction``), each the mean over seeds.
+
+Each share is marked against the pre-registered criterion (`CRITERION`: ≥ 5 %; for L_hap
+outside C_safe) and each term gets a one-line verdict. Written as
+``mechanisms_<preset>.csv`` (with its metadata sidecar, as `distgprl.report.tables` writes
+tables) and ``.md``. The cells are computed by `distgprl.report.mechanism_shares` (pure
+functions of rows), the texts by `distgprl.report.mechanisms_text`; this module reads the
+files. Imports neither torch nor pybullet.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from distgprl.config_types import EnvConfig
+from distgprl.errors import UserInputError
+from distgprl.io import atomic_write_text
+from distgprl.methods import METHODS
+from distgprl.report.mechanism_shares import (
+    CRITERION,
+    NOT_RECORDED,
+    POINTS,
+    GradientCell,
+    MechanismTable,
+    ReturnCell,
+    episode_ratios,
+    gradient_cells,
+    gradient_points,
+    return_cells,
+)
+from distgprl.report.mechanisms_text import mechanism_texts
+from distgprl.report.runs import select_runs
+from distgprl.schema import SCHEMA_VERSION, csv_meta_path, evaluation_file_names, read_csv
+
+__all__ = [
+    "CRITERION",
+    "NOT_RECORDED",
+    "POINTS",
+    "GradientCell",
+    "MechanismTable",
+    "ReturnCell",
+    "episode_ratios",
+    "gradient_cells",
+    "gradient_points",
+    "mechanism_table",
+    "return_cells",
+    "write_mechanisms",
+]
+
+
+def _d_min(folder: Path) -> float:
+    """``sd_d_min`` (m) of the run's recorded config (`EnvConfig`'s default if absent)."""
+    document = json.loads((folder / "config.json").read_text())
+    env = document.get("run", {}).get("config", {}).get("env", {})
+    return float(env.get("sd_d_min", EnvConfig.sd_d_min))
+
+
+def _key(folder: Path) -> tuple[str, str]:
+    return folder.parent.parent.name, folder.parent.name
+
+
+def mechanism_table(
+    root: str | Path, preset: str, reach: Sequence[Mapping[str, Any]]
+) -> MechanismTable:
+    """The `MechanismTable` of the preset's runs under ``root`` (evaluated runs of the
+    current configuration for the return shares, trained ones for the gradient shares:
+    `distgprl.report.runs.select_runs`), with the ``reach`` rows of
+    `distgprl.experiments.mechanisms.reach_rows`."""
+    evaluated = select_runs(root, preset)
+    trained = select_runs(root, preset, marker="done.json")
+    returns: list[ReturnCell] = []
+    by_method: dict[tuple[str, str], list[Path]] = {}
+    for folder in sorted(evaluated.current):
+        if METHODS[_key(folder)[1]].distance_rewards:
+            by_method.setdefault(_key(folder), []).append(folder)
+    for (task, method), folders in sorted(by_method.items()):
+        for policy in ("final", "best"):
+            name = evaluation_file_names(None, policy)[0]
+            runs = [(read_csv(f / name)[1], _d_min(f)) for f in folders if (f / name).exists()]
+            if runs:
+                returns += return_cells(task, method, policy, runs)
+    gradients: list[GradientCell] = []
+    progress: dict[tuple[str, str], list[Path]] = {}
+    for folder in sorted(trained.current):
+        spec = METHODS[_key(folder)[1]]
+        if spec.trainable and (spec.similarity_loss or spec.hap_prior):
+            progress.setdefault(_key(folder), []).append(folder)
+    for (task, method), folders in sorted(progress.items()):
+        runs_rows = [read_csv(f / "progress.csv")[1] for f in folders]
+        gradients += gradient_cells(task, method, runs_rows)
+    if not (reach or returns or gradients):
+        raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
+    note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
+    return MechanismTable(preset, tuple(reach), tuple(returns), tuple(gradients), note)
+
+
+DESCRIPTION = (
+    "the mechanism table (FINDINGS Protocol v6 rule 7): reach against the TC range, shaping "
+    "shares of the return, regulariser shares of the actor gradient (distgprl.report.mechanisms)"
+)
+
+
+def _meta_text(csv_text: str, preset: str) -> str:
+    """The CSV's metadata sidecar in the tables' convention (`distgprl.report.tables.
+    table_meta_text`): only what the results determine, so the file is reproducible."""
+    columns = csv_text.split("\n", 1)[0].split(",")
+    meta = {
+        "schema_version": SCHEMA_VERSION,
+        "kind": "table",
+        "preset": preset,
+        "description": DESCRIPTION,
+        "criterion": CRITERION,
+    }
+    return json.dumps({"meta": meta, "columns": columns}, indent=2) + "\n"
+
+
+def write_mechanisms(
+    root: str | Path, preset: str, out_dir: str | Path, reach: Sequence[Mapping[str, Any]]
+) -> tuple[list[Path], list[str]]:
+    """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar) and ``.md``; returns
+    (the paths written, the one-line verdicts per term)."""
+    table = mechanism_table(root, preset, reach)
+    csv_text, markdown, verdicts = mechanism_texts(table)
+    stem = Path(out_dir) / f"mechanisms_{preset}"
+    csv_path = Path(f"{stem}.csv")
+    written = [
+        atomic_write_text(csv_path, csv_text),
+        atomic_write_text(csv_meta_path(csv_path), _meta_text(csv_text, preset)),
+        atomic_write_text(Path(f"{stem}.md"), markdown),
+    ]
+    return written, verdicts

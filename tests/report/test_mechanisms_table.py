@@ -1,0 +1,235 @@
+"""The mechanism table's shares (`distgprl.report.mechanism_shares`) from synthetic result
+rows, and the table written from a synthetic results tree (`distgprl.report.mechanisms`):
+an episode that never comes within d_min is left out, one with r_tc = 0 is counted and left
+out, files that predate the columns say "not recorded", and the writer imports neither torch
+nor pybullet."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from distgprl.identity import resolve_run
+from distgprl.report.mechanism_shares import (
+    NOT_RECORDED,
+    episode_ratios,
+    gradient_cells,
+    gradient_points,
+    return_cells,
+)
+from distgprl.report.mechanisms import write_mechanisms
+from distgprl.schema import EVALUATION_FIELDS, PROGRESS_FIELDS, read_csv, write_csv, write_json
+
+ROOT = Path(__file__).resolve().parents[2]
+D_MIN = 0.03
+
+
+def episode(clearance, tc, sd, ga):
+    """An evaluation row: min clearance (m), the summed r_tc, r_sd and lambda_ga r_ga."""
+    return {
+        **dict.fromkeys(EVALUATION_FIELDS, 0),
+        "min_clearance": clearance,
+        "return": tc + sd + ga,
+        "return_tc": tc,
+        "return_sd": sd,
+        "return_ga": ga,
+    }
+
+
+EPISODES = [
+    episode(0.010, 2.0, -0.5, 0.2),  # within d_min: r_sd 25 %, r_ga 10 %
+    episode(0.020, -1.0, -0.3, 0.05),  # within: 30 %, 5 %
+    episode(0.100, 1.0, -5.0, 0.6),  # never within d_min: left out whatever its shares
+    episode(0.029, 0.0, -0.1, 0.1),  # within, r_tc = 0: no ratio, counted
+]
+
+
+def test_episode_ratios_use_the_episodes_within_d_min_with_a_task_return():
+    ratios = episode_ratios(EPISODES, D_MIN)
+    assert ratios is not None
+    assert (ratios.episodes, ratios.within, ratios.zero_tc) == (4, 3, 1)
+    assert ratios.ratios["r_sd"] == pytest.approx([0.25, 0.3])
+    assert ratios.ratios["r_ga"] == pytest.approx([0.1, 0.05])
+
+
+def test_episode_ratios_of_rows_without_the_return_parts_are_not_recorded():
+    old = [{k: v for k, v in row.items() if not k.startswith("return_")} for row in EPISODES]
+    assert episode_ratios(old, D_MIN) is None
+    assert episode_ratios([{**EPISODES[0], "return_sd": ""}], D_MIN) is None
+
+
+def test_return_cells_pool_the_seeds_and_judge_the_mean_against_five_percent():
+    """Seed 0: the four episodes above; seed 1: one episode within d_min (r_sd 0, r_ga 2 %):
+    r_sd's mean (0.25 + 0.3 + 0) / 3 passes, r_ga's (0.1 + 0.05 + 0.02) / 3 = 5.7 % too; with
+    seed 1 alone r_ga is 2 %: below."""
+    second = [episode(0.0, 1.0, 0.0, 0.02)]
+    sd, ga = return_cells("dcp", "dist-gprl", "final", [(EPISODES, D_MIN), (second, D_MIN)])
+    assert (sd.term, ga.term) == ("r_sd", "r_ga")
+    assert (sd.seeds, sd.recorded, sd.episodes, sd.within, sd.zero_tc) == (2, 2, 5, 4, 1)
+    assert sd.mean == pytest.approx(0.55 / 3) and sd.median == pytest.approx(0.25)
+    assert ga.mean == pytest.approx(0.17 / 3) and sd.verdict == ga.verdict == "yes"
+    (_, alone) = return_cells("dcp", "dist-gprl", "final", [(second, D_MIN)])
+    assert alone.verdict == "no"
+    far = [episode(0.2, 1.0, 0.0, 0.1)]
+    assert return_cells("dcp", "dist-gprl", "final", [(far, D_MIN)])[0].verdict == "n/a"
+    old = [{k: v for k, v in row.items() if k != "return_tc"} for row in EPISODES]
+    cell = return_cells("dcp", "dist-gprl", "best", [(old, D_MIN)])[0]
+    assert cell.verdict == NOT_RECORDED and cell.mean is None
+
+
+def progress(step, grad_q, grad_sim, grad_hap, active="", fraction=""):
+    row = dict.fromkeys(PROGRESS_FIELDS, "")
+    row.update(step=step, grad_q=grad_q, grad_sim=grad_sim, grad_hap=grad_hap)
+    row.update(grad_hap_active=active, hap_active_fraction=fraction)
+    return row
+
+
+CURVE = [
+    progress(0, "", "", ""),  # step 0: no transition, no gradient
+    progress(120, 1.0, 0.2, 0.01, 0.02, 0.5),
+    progress(240, 2.0, 0.2, 0.04, 0.08, 0.5),
+    progress(360, 4.0, 0.1, 0.0, "", 0.0),  # every sample inside C_safe
+]
+
+
+def test_gradient_points_are_the_first_middle_and_last_with_a_gradient():
+    points = gradient_points(list(reversed(CURVE)))
+    assert {p: int(r["step"]) for p, r in points.items()} == {
+        "first": 120,
+        "middle": 240,
+        "last": 360,
+    }
+    assert gradient_points(CURVE[:1]) == {}
+
+
+def test_gradient_cells_share_of_the_q_term_per_point_over_seeds():
+    """Dist-GPRL: L_sim 20 % / 10 % / 2.5 %, L_hap outside C_safe 2 %, 4 %, then inactive;
+    a second seed's 5 % L_sim and inactive L_hap at every point average in. GPRL-D has L_sim
+    only; an old file without grad_hap_active says "not recorded" for L_hap outside C_safe."""
+    other = [progress(120 * k, 1.0, 0.05, 0.0, "", 0.0) for k in (1, 2, 3)]
+    cells = {(c.item, c.point): c for c in gradient_cells("dcp", "dist-gprl", [CURVE, other])}
+    assert set(cells) == {
+        (item, point)
+        for item in ("l_sim", "l_hap", "l_hap_active")
+        for point in ("first", "middle", "last")
+    }
+    assert cells["l_sim", "first"].mean == pytest.approx(0.125)
+    assert cells["l_sim", "last"].mean == pytest.approx((0.025 + 0.05) / 2)
+    assert cells["l_sim", "first"].verdict == "yes" and cells["l_sim", "last"].verdict == "no"
+    assert cells["l_sim", "middle"].steps == (240, 240)
+    everywhere = cells["l_hap", "middle"]
+    assert everywhere.shares == pytest.approx((0.02, 0.0)) and everywhere.verdict == "n/a"
+    active = cells["l_hap_active", "middle"]
+    assert active.shares == pytest.approx((0.04,)) and active.inactive == 1
+    assert active.verdict == "no" and active.active_fraction == (0.5, 0.0)
+    assert cells["l_hap_active", "last"].verdict == "inactive"
+    assert {c.item for c in gradient_cells("dcp", "gprl-d", [CURVE])} == {"l_sim"}
+    dropped = ("grad_hap_active", "hap_active_fraction")
+    old = [{k: v for k, v in row.items() if k not in dropped} for row in CURVE]
+    stale = gradient_cells("dcp", "gprl-h", [old])
+    assert {c.verdict for c in stale if c.item == "l_hap_active"} == {NOT_RECORDED}
+
+
+REACH = [
+    {
+        "task": "dcp",
+        "method": method,
+        "axis": axis,
+        "kind": kind,
+        "one_step_min_m": low,
+        "one_step_max_m": low * 1.2,
+        "episode_min_m": episode_low,
+        "episode_max_m": 2 * low,
+        "tc_range_m": tc,
+        "gate_max": gate,
+    }
+    for method, kind, low, episode_low, gate in (
+        ("dist-gprl", "via-point", 0.2, 0.2, None),
+        ("promp-rrl", "residual", 0.04, 0.1, 0.9),
+    )
+    for axis, tc in (("x", 0.2), ("y", 0.2), ("z", 0.0))
+]
+"""Dist-GPRL covers DCP's 0.2 m on x and y, ProMP-RRL's 0.1 m does not."""
+
+
+def make_tree(root: Path) -> Path:
+    """A ci results tree: dist-gprl seed 0 with the new columns, gprl-d seed 0 written before
+    them (no return parts, no grad_hap_active), gprl (no mechanism but reach)."""
+    for method, new in (("dist-gprl", True), ("gprl-d", False), ("gprl", True)):
+        folder = root / "ci" / "dcp" / method / "seed0"
+        run_hash = resolve_run("dcp", method, 0, "ci").hash
+        config = {"config": {"env": {"sd_d_min": D_MIN}}}
+        write_json(folder / "config.json", {"run": config}, config_hash=run_hash)
+        write_json(folder / "summary.json", {"summary": {}}, config_hash=run_hash)
+        write_json(folder / "done.json", {"steps": 240}, config_hash=run_hash)
+        fields = EVALUATION_FIELDS if new else [f for f in EVALUATION_FIELDS if "return_" not in f]
+        write_csv(folder / "evaluation.csv", EPISODES, fields)
+        progress_fields = PROGRESS_FIELDS
+        if not new:
+            progress_fields = tuple(f for f in PROGRESS_FIELDS if "hap_" not in f)
+        write_csv(folder / "progress.csv", CURVE, progress_fields)
+    return root
+
+
+def test_the_table_marks_each_cell_and_says_what_was_not_recorded(tmp_path):
+    written, verdicts = write_mechanisms(make_tree(tmp_path), "ci", tmp_path / "out", REACH)
+    names = sorted(p.name for p in written)
+    assert names == ["mechanisms_ci.csv", "mechanisms_ci.csv.meta.json", "mechanisms_ci.md"]
+    meta, rows = read_csv(tmp_path / "out" / "mechanisms_ci.csv")
+    assert meta["kind"] == "table" and meta["preset"] == "ci"
+    reach = {(r["method"], r["item"]): r for r in rows if r["section"] == "reach"}
+    assert reach["dist-gprl", "x"]["covers_tc_range"] == "yes"
+    assert reach["promp-rrl", "y"]["covers_tc_range"] == "no"
+    shares = {(r["method"], r["item"]): r for r in rows if r["section"] == "return_share"}
+    assert set(shares) == {(m, t) for m in ("dist-gprl", "gprl-d") for t in ("r_sd", "r_ga")}
+    assert float(shares["dist-gprl", "r_sd"]["share_mean"]) == pytest.approx(0.275)
+    assert shares["dist-gprl", "r_sd"]["episodes_within_d_min"] == "3"
+    assert shares["dist-gprl", "r_sd"]["episodes_zero_tc"] == "1"
+    assert shares["gprl-d", "r_ga"]["meets_criterion"] == NOT_RECORDED
+    gradients = [r for r in rows if r["section"] == "gradient_share"]
+    assert {r["method"] for r in gradients} == {"dist-gprl", "gprl-d"}
+    markdown = (tmp_path / "out" / "mechanisms_ci.md").read_text()
+    assert "27.5 % (median 27.5 %) ✓" in markdown  # dist-gprl r_sd
+    assert "7.5 % (median 7.5 %) ✓" in markdown  # dist-gprl r_ga
+    assert NOT_RECORDED in markdown and "inactive" in markdown
+    assert "| DCP | ProMP-RRL | residual, × gate ≤ 0.90 |" in markdown
+    assert len(verdicts) == 5 and all(f"- {line}" in markdown for line in verdicts)
+    assert verdicts[0].startswith("Reach: the one-episode reach covers the TC range on x and y")
+    assert "for 1 of 2 method–task pairs; not for dcp/promp-rrl" in verdicts[0]
+    assert verdicts[1].startswith("r_sd / r_tc (episodes within d_min): meets the criterion")
+    assert "not recorded: 1" in verdicts[1]
+    assert "λ_hap L_hap / Q outside C_safe: does not meet the criterion" in verdicts[4]
+
+
+def test_the_writer_imports_neither_torch_nor_pybullet(tmp_path):
+    """In a process where importing torch, pybullet, stable_baselines3 or gymnasium raises,
+    the table is written from the same tree, byte for byte the same."""
+    make_tree(tmp_path)
+    write_mechanisms(tmp_path, "ci", tmp_path / "here", REACH)
+    code = textwrap.dedent(
+        f"""
+        import sys
+
+        class Blocker:
+            def find_spec(self, name, path=None, target=None):
+                if name.split(".")[0] in ("torch", "pybullet", "stable_baselines3", "gymnasium"):
+                    raise ImportError(name)
+                return None
+
+        sys.meta_path.insert(0, Blocker())
+        from distgprl.report.mechanisms import write_mechanisms
+        write_mechanisms({str(tmp_path)!r}, "ci", {str(tmp_path / "blocked")!r}, {REACH!r})
+        """
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    for name in ("mechanisms_ci.csv", "mechanisms_ci.csv.meta.json", "mechanisms_ci.md"):
+        assert (tmp_path / "blocked" / name).read_text() == (tmp_path / "here" / name).read_text()
