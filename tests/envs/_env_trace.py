@@ -6,13 +6,10 @@ simulator's float64 state after every step (joint positions, TCP pose, object po
 
 ``python tests/envs/_env_trace.py [OUT.npz]`` writes the trace of `TRACE_RUNS` with this
 machine's `distgprl.machine.numerics_fingerprint` (default
-``tests/envs/data/env_trace_v5_<fingerprint>.npz``).
-``data/env_trace_v5.npz`` was generated before the issue 28/29 simulation refactor, on the
-machine of session 17 (fingerprint not recorded); ``data/env_trace_v5_<fingerprint>.npz``
-files were recorded later with code that reproduced it bit for bit there (8623cd9), each on a
-CPU whose numerics the first did not share: ``Haswell`` (AMD EPYC) with 8623cd9, ``SkylakeX``
-(Intel Xeon, session 21) with the environment code of e7fbbc7, which passed the Haswell
-recording bit for bit.
+``tests/envs/data/env_trace_v<ENVIRONMENT_VERSION>_<fingerprint>.npz``). Environment v6 changed
+every bit (docs/FINDINGS.md "Protocol v6"), so its trace was recorded anew, with the code the
+v6 runs are made with, on this project's machine; the v5 traces are in git history (up to
+commit a42426d). A CPU with other numerics records its own trace with the same code.
 """
 
 from __future__ import annotations
@@ -22,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from distgprl.config import ENVIRONMENT_VERSION
 from distgprl.machine import numerics_fingerprint
 
 DATA = Path(__file__).parent / "data"
@@ -30,8 +28,8 @@ FINGERPRINT_KEY = "__fingerprint__"
 TRACE_RUNS: tuple[tuple[str, str, int], ...] = (
     ("dcp", "dist-gprl", 10),
     ("dbm", "dist-gprl", 10),
-    ("dcp", "promp-rrl", 3),
-    ("dbm", "promp-rrl", 3),
+    ("dcp", "promp-rrl", 1),  # v6: residual RL, ~50 RL steps per episode
+    ("dbm", "promp-rrl", 1),
     ("dcp", "gprl", 2),
     ("dbm", "gprl", 2),
     ("dcp", "demo", 2),
@@ -83,7 +81,7 @@ def record_trace(task: str, method: str, episodes: int) -> dict[str, np.ndarray]
             rng = np.random.default_rng(1000 + episode)
             obs, _ = env.reset(seed=100 + episode)
             states.append(obs["state"])
-            auxes.append(obs["aux"])
+            auxes.append(obs.get("aux", np.zeros(0, dtype=np.float32)))  # none: residual RL
             sims.append(_sim_state(sim))
             done = False
             while not done:
@@ -91,7 +89,7 @@ def record_trace(task: str, method: str, episodes: int) -> dict[str, np.ndarray]
                 obs, reward, terminated, truncated, info = env.step(action)
                 done = terminated or truncated
                 states.append(obs["state"])
-                auxes.append(obs["aux"])
+                auxes.append(obs.get("aux", np.zeros(0, dtype=np.float32)))
                 sims.append(_sim_state(sim))
                 rewards.append(reward)
                 terminated_flags.append(terminated)
@@ -134,6 +132,7 @@ if __name__ == "__main__":
     # after the episodes: every OpenBLAS the test process loads (numpy's, scipy's) is loaded
     # by then, and the fingerprint names them all
     fingerprint = numerics_fingerprint()
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else DATA / f"env_trace_v5_{fingerprint}.npz"
+    default = DATA / f"env_trace_v{ENVIRONMENT_VERSION}_{fingerprint}.npz"
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else default
     np.savez_compressed(out, **trace, **{FINGERPRINT_KEY: np.array(fingerprint)})
     print(f"wrote {out} ({fingerprint})")

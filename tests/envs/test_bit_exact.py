@@ -1,9 +1,9 @@
 """The environments' numerics are those of the code the committed runs were made with.
 
-``data/env_trace_v5*.npz`` hold paper-preset episodes of dist-gprl, promp-rrl, gprl and demo
-on both tasks with fixed seeds and fixed pseudo-random actions (`_env_trace.record_trace`),
-recorded before the issue 28/29 simulation refactor or, on CPUs with other numerics, with
-code shown to reproduce that recording bit for bit (`_env_trace` module docstring).
+``data/env_trace_v<ENVIRONMENT_VERSION>*.npz`` hold paper-preset episodes of dist-gprl,
+promp-rrl, gprl and demo on both tasks with fixed seeds and fixed pseudo-random actions
+(`_env_trace.record_trace`), recorded with the code the runs of that environment version are
+made with, one file per CPU numerics (`_env_trace` module docstring).
 
 What each test expects, and where:
 
@@ -34,7 +34,9 @@ from _env_trace import (
     trace_fingerprint,
 )
 
-TRACES = sorted(DATA.glob("env_trace_v5*.npz"))
+from distgprl.config import ENVIRONMENT_VERSION
+
+TRACES = sorted(DATA.glob(f"env_trace_v{ENVIRONMENT_VERSION}*.npz"))
 OUTCOMES = ("terminated", "info/success", "info/collision")
 
 
@@ -52,7 +54,7 @@ def test_the_trace_files_are_of_distinct_machines():
     assert TRACES and len(set(fingerprints)) == len(fingerprints)
     for path, fingerprint in zip(TRACES, fingerprints, strict=True):
         if fingerprint is not None:  # the file name says which machine it is of
-            assert path.name == f"env_trace_v5_{fingerprint}.npz"
+            assert path.name == f"env_trace_v{ENVIRONMENT_VERSION}_{fingerprint}.npz"
 
 
 @pytest.mark.parametrize(("task", "method", "episodes"), TRACE_RUNS)
