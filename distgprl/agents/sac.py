@@ -26,6 +26,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -38,9 +39,21 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.sac.policies import MultiInputPolicy
 from torch.nn import functional as F
 
+from distgprl.agents.numpy_actor import NumpyActor
 from distgprl.agents.update import ReplaySampler, polyak_lerp, squashed_gaussian_sample
 
 SB3_VERSION_COPIED = "2.9.2"
+
+__all__ = [
+    "EpisodeLogCallback",
+    "NumpyActor",
+    "RegularisedSAC",
+    "RegularisedSACPolicy",
+    "StateOnlyExtractor",
+    "exponential_anneal",
+    "tensorboard_available",
+    "training_logger",
+]
 
 
 _TENSORBOARD_NOTE_SHOWN = False
@@ -110,23 +123,24 @@ class EpisodeLogCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         rewards = np.asarray(self.locals["rewards"], dtype=np.float64)
-        if self._returns is None:
+        if self._returns is None or self._lengths is None:
             self._returns = np.zeros_like(rewards)
             self._lengths = np.zeros(rewards.shape, dtype=np.int64)
-        self._returns += rewards
-        self._lengths += 1
+        returns, lengths = self._returns, self._lengths
+        returns += rewards
+        lengths += 1
         for index, done in enumerate(np.asarray(self.locals["dones"])):
             if not done:
                 continue
             info = self.locals["infos"][index]
-            self.logger.record("rollout/episode_return", float(self._returns[index]))
-            self.logger.record("rollout/episode_length", int(self._lengths[index]))
+            self.logger.record("rollout/episode_return", float(returns[index]))
+            self.logger.record("rollout/episode_length", int(lengths[index]))
             for key in ("success", "collision"):
                 if key in info:
                     self.logger.record(f"rollout/episode_{key}", float(info[key]))
             self.logger.dump(step=self.num_timesteps)
-            self._returns[index] = 0.0
-            self._lengths[index] = 0
+            returns[index] = 0.0
+            lengths[index] = 0
         return True
 
 
@@ -134,7 +148,9 @@ class StateOnlyExtractor(BaseFeaturesExtractor):
     """Features = the ``state`` entry of a Dict observation (``aux`` is ignored)."""
 
     def __init__(self, observation_space: gym.spaces.Dict) -> None:
-        super().__init__(observation_space, features_dim=observation_space["state"].shape[0])
+        state_shape = observation_space["state"].shape
+        assert state_shape is not None  # a Box
+        super().__init__(observation_space, features_dim=int(state_shape[0]))
 
     def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
         return observations["state"]
@@ -153,49 +169,6 @@ def exponential_anneal(start: float, end: float) -> Callable[[float], float]:
         return float(start * (end / start) ** min(max(progress, 0.0), 1.0))
 
     return schedule
-
-
-class NumpyActor:
-    """The deterministic action of an SB3 SAC actor, evaluated with NumPy (float32).
-
-    SB3's deterministic SAC action is ``tanh(mu(latent_pi(state)))``; for one observation the
-    torch call overhead dominates, so the same weights are run as three small matrix products.
-    Only MLP actors with ReLU activations and no gSDE are supported.
-
-    Args:
-        actor: ``model.actor`` of a `RegularisedSAC` (weights are copied, not shared).
-    """
-
-    def __init__(self, actor) -> None:
-        from torch import nn
-
-        if getattr(actor, "use_sde", False):
-            raise ValueError("gSDE actors are not supported")
-        self.layers: list[tuple[np.ndarray, np.ndarray]] = []
-        for module in actor.latent_pi:
-            if isinstance(module, nn.Linear):
-                self.layers.append(self._weights(module))
-            elif not isinstance(module, nn.ReLU):
-                raise ValueError(f"unsupported actor layer {type(module).__name__}")
-        self.mu = self._weights(actor.mu)
-
-    @staticmethod
-    def _weights(linear) -> tuple[np.ndarray, np.ndarray]:
-        weight = linear.weight.detach().cpu().numpy().astype(np.float32)
-        bias = linear.bias.detach().cpu().numpy().astype(np.float32)
-        return np.ascontiguousarray(weight.T), bias
-
-    def __call__(self, state: np.ndarray) -> np.ndarray:
-        """Action in [-1, 1] for one ``state`` (D,) or a batch (B, D)."""
-        x = np.asarray(state, dtype=np.float32)
-        for weight, bias in self.layers:
-            x = x @ weight
-            x += bias
-            np.maximum(x, 0.0, out=x)
-        weight, bias = self.mu
-        x = x @ weight
-        x += bias
-        return np.tanh(x, out=x)
 
 
 class RegularisedSACPolicy(MultiInputPolicy):
@@ -262,6 +235,7 @@ class RegularisedSAC(SAC):
         # distgprl (issue 49): the entropy coefficient's Adam fused like the networks' (one
         # kernel instead of a dozen ops for its one scalar).
         if self.ent_coef_optimizer is not None:
+            assert self.log_ent_coef is not None  # set with the optimizer
             self.ent_coef_optimizer = th.optim.Adam(
                 [self.log_ent_coef], lr=self.lr_schedule(1), fused=True
             )
@@ -437,14 +411,16 @@ class RegularisedSAC(SAC):
         C_safe): ``hap_active_fraction`` and ``grad_hap_active`` (`active_hap_norms`).
         """
         buffer = self.replay_buffer
+        assert buffer is not None  # set up with the model
         size = buffer.buffer_size if buffer.full else buffer.pos
         if size == 0:
             return {}
         rng = np.random.default_rng(seed)
         indices = rng.integers(0, size, batch_size)
+        stored = cast("dict[str, np.ndarray]", buffer.observations)  # a Dict replay buffer
         observations = {
             key: th.as_tensor(values[indices, 0], device=self.device)
-            for key, values in buffer.observations.items()
+            for key, values in stored.items()
         }
         with th.no_grad():
             mean_actions = self.actor(observations, deterministic=True)
@@ -457,12 +433,13 @@ class RegularisedSAC(SAC):
         finally:
             self.critic.requires_grad_(True)
         norms = {"grad_q": float(grad_q.norm(dim=1).mean())}
-        if self.regulariser is not None and hasattr(self.regulariser, "term_gradients"):
-            terms = self.regulariser.term_gradients(observations["aux"], actions.detach())
-            weights = self.regulariser.weights
+        regulariser: Any = self.regulariser  # an ActorRegulariser (duck-typed: term_gradients)
+        if regulariser is not None and hasattr(regulariser, "term_gradients"):
+            terms = regulariser.term_gradients(observations["aux"], actions.detach())
+            weights = regulariser.weights
             for name, key, weight in (
                 ("l_sim", "grad_sim", weights.lambda_sim),
-                ("l_hap", "grad_hap", weights.lambda_hap if self.regulariser.hap_prior else 0.0),
+                ("l_hap", "grad_hap", weights.lambda_hap if regulariser.hap_prior else 0.0),
             ):
                 if weight > 0 and name in terms:
                     norms[key] = float((terms[name] * batch_size).norm(dim=1).mean())
