@@ -97,6 +97,40 @@ def load_curve_policy(folder: Path, model, step: int) -> None:
         ) from None
 
 
+SHIPPED_POLICY = "policy_best.pt"
+"""The actor Table I evaluates (Algorithm 1's best policy), committed with a v6 run's small
+files (weights only: no critic, optimiser state or replay buffer); its step and SHA-256 are in
+`SHIPPED_POLICY_RECORD`."""
+
+SHIPPED_POLICY_RECORD = "policy_best.json"
+
+
+def ship_best_policy(folder: Path) -> Path:
+    """Copy a finished run's best learning-curve actor (`best_curve_row` of its
+    ``progress.csv``, kept by training in the checkpoint folder) into the run folder as
+    `SHIPPED_POLICY`, and record its step, size and SHA-256 in `SHIPPED_POLICY_RECORD`
+    (versioned JSON), so the policy survives the machine that trained it. A kept actor that is
+    missing is a `UserInputError`; the record is written after the weights (atomic both).
+
+    Returns:
+        The shipped weights' path.
+    """
+    from distgprl.io import file_sha256
+    from distgprl.schema import write_json
+
+    _, curve = read_csv(folder / "progress.csv")
+    step = int(best_curve_row(curve)["step"])
+    source = curve_policy_path(folder, step)
+    if not source.exists():
+        raise UserInputError(f"{source}: the best curve point (step {step}) has no kept actor")
+    target = folder / SHIPPED_POLICY
+    atomic_write_bytes(target, source.read_bytes())
+    record = {"policy": "best", "step": step, "bytes": target.stat().st_size}
+    record["sha256"] = file_sha256(target)
+    write_json(folder / SHIPPED_POLICY_RECORD, record, kind="policy")
+    return target
+
+
 @dataclass(frozen=True)
 class TrainedPolicy:
     """A trained run's policy, loaded by `load_trained_policy`.

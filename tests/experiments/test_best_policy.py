@@ -281,3 +281,36 @@ def test_the_learning_curve_tcs_are_disjoint_from_the_evaluation_tcs(task):
     long_evaluation = {offsets(tc) for tc in spec.evaluation_tcs(1000)}
     assert set(curve) <= long_curve and set(evaluation) <= long_evaluation  # prefixes
     assert not long_curve & long_evaluation
+
+
+def test_ship_best_policy_copies_the_best_actor_with_its_hash(tmp_path, monkeypatch):
+    """`ship_best_policy` puts the kept actor of the best curve point (ties: the later) into
+    the run folder, byte for byte, with its step and SHA-256 recorded; a missing kept actor
+    is a `UserInputError`, not a silently different policy."""
+    import hashlib
+
+    from distgprl.errors import UserInputError
+    from distgprl.experiments import policies
+    from distgprl.experiments.results import write_csv
+    from distgprl.experiments.runner import PROGRESS_FIELDS
+    from distgprl.schema import read_json
+
+    monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", str(tmp_path / "ckpt"))
+    folder = tmp_path / "run"
+    rows = []
+    for step, success in ((0, 0.1), (100, 0.6), (200, 0.6), (300, 0.2)):
+        row = dict.fromkeys(PROGRESS_FIELDS, "")
+        row.update(step=step, success_rate=success, collision_rate=0.0)
+        rows.append(row)
+    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS)
+    with pytest.raises(UserInputError, match="step 200"):
+        policies.ship_best_policy(folder)
+    kept = policies.curve_policy_path(folder, 200)
+    kept.parent.mkdir(parents=True)
+    kept.write_bytes(b"actor weights")
+    shipped = policies.ship_best_policy(folder)
+    assert shipped == folder / policies.SHIPPED_POLICY
+    assert shipped.read_bytes() == b"actor weights"
+    record = read_json(folder / policies.SHIPPED_POLICY_RECORD)
+    assert record["step"] == 200 and record["bytes"] == len(b"actor weights")
+    assert record["sha256"] == hashlib.sha256(b"actor weights").hexdigest()
