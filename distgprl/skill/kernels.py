@@ -19,6 +19,7 @@ from scipy.optimize import OptimizeResult, minimize
 __all__ = [
     "KernelParams",
     "fit_kernel",
+    "maximum_likelihood_kernel",
     "negative_log_marginal_likelihood",
     "se_kernel",
     "se_kernel_d1",
@@ -115,11 +116,26 @@ def fit_kernel(
         The maximum-likelihood `KernelParams` (for the standardised signal).
     """
     y = standardise(values)[0]
+    return maximum_likelihood_kernel(
+        tau, y, length_scale_bounds, (1e-2, 1e3), 1.0, min_noise_variance
+    )
+
+
+def maximum_likelihood_kernel(
+    tau: np.ndarray,
+    y: np.ndarray,
+    length_scale_bounds: tuple[float, float],
+    signal_variance_bounds: tuple[float, float],
+    start_variance: float,
+    min_noise_variance: float,
+) -> KernelParams:
+    """The SE hyperparameters maximising the marginal likelihood of ``y`` (n, d) at ``tau``
+    (n,) under one shared kernel, by L-BFGS-B from four starts across the length-scale range
+    (the likelihood is multimodal), the signal variance started at ``start_variance``."""
     lo, hi = length_scale_bounds
     best: OptimizeResult | None = None
-    # A few starts across the admissible length-scale range: the likelihood is multimodal.
     for start_length in np.geomspace(max(lo, 1e-3), hi, 4):
-        x0 = np.log([start_length, 1.0, max(1e-4, min_noise_variance)])
+        x0 = np.log([start_length, start_variance, max(1e-4, min_noise_variance)])
         result = minimize(
             negative_log_marginal_likelihood,
             x0,
@@ -128,7 +144,7 @@ def fit_kernel(
             method="L-BFGS-B",
             bounds=[
                 (np.log(lo), np.log(hi)),
-                (np.log(1e-2), np.log(1e3)),
+                tuple(np.log(signal_variance_bounds)),
                 (np.log(min_noise_variance), np.log(1.0)),
             ],
         )

@@ -20,9 +20,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import minimize
 
-from distgprl.skill.kernels import KernelParams, negative_log_marginal_likelihood, se_kernel
+from distgprl.skill.kernels import KernelParams, maximum_likelihood_kernel, se_kernel
 
 __all__ = [
     "CONSTANT_AXIS_SCALE",
@@ -46,31 +45,12 @@ def _fit_axis(
 ) -> KernelParams:
     """Zero-mean SE hyperparameters of one axis ``values`` (n,) at ``tau`` (n,) by ML."""
     y = np.asarray(values, dtype=float)[:, None]
-    lo, hi = bounds
-    best = None
     start_variance = max(float(np.mean(y**2)), 1e-4)
     # The jitter floor relative to the signal's mean square, as the skill fit's is relative
     # to its standardised unit variance: an absolute 1e-10 makes K numerically singular.
-    min_noise = min_noise * start_variance
-    for start_length in np.geomspace(max(lo, 1e-3), hi, 4):  # the likelihood is multimodal
-        x0 = np.log([start_length, start_variance, max(1e-4, min_noise)])
-        result = minimize(
-            negative_log_marginal_likelihood,
-            x0,
-            args=(tau, y),
-            jac=True,
-            method="L-BFGS-B",
-            bounds=[
-                (np.log(lo), np.log(hi)),
-                (np.log(MIN_SIGNAL_VARIANCE), np.log(1e3)),
-                (np.log(min_noise), np.log(1.0)),
-            ],
-        )
-        if best is None or result.fun < best.fun:
-            best = result
-    assert best is not None
-    length_scale, signal_variance, noise_variance = np.exp(best.x)
-    return KernelParams(float(length_scale), float(signal_variance), float(noise_variance))
+    return maximum_likelihood_kernel(
+        tau, y, bounds, (MIN_SIGNAL_VARIANCE, 1e3), start_variance, min_noise * start_variance
+    )
 
 
 def fit_zero_mean_axes(
