@@ -17,9 +17,12 @@ __all__ = [
     "SACConfig",
 ]
 
-ENVIRONMENT_VERSION = 6
+ENVIRONMENT_VERSION = 7
 """The environment version every run records (it enters the config hash, so runs of an
-older version are stale). v6 (docs/FINDINGS.md "Protocol v6", pre-registered): every reward
+older version are stale). v7 (docs/FINDINGS.md "Environment v7", pre-registered): r_sd's
+beta = eps / (samples per segment x tool points), so that the whole tool held at contact
+for a segment costs the collision penalty, as v6's rule intended (v6 charged it once per
+tool point, ~50 times over). v6 (docs/FINDINGS.md "Protocol v6", pre-registered): every reward
 and actor-loss term in a natural unit (r_tc in units of one task, beta = eps / 4, L_hap
 hinged and in grid steps, SAC's temperature scaled with the rewards); S from the zero-mean
 GP of Eq. 1; action scales from the task's reach; conditioning keeps a fixed goal fixed;
@@ -79,9 +82,12 @@ class EnvConfig:
             task completion without collision (environment v5; False = v4: execution
             pushes on through kinematic obstacles and success ignores collisions).
         sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward). Environment
-            v6: eps / sd_samples_per_segment = 0.0025, so one tool point held at distance d
-            for a whole segment costs eps / (d + eps): 1 (the collision penalty) at contact,
-            0.25 at d_min (v5: 2e-4, with r_tc ten times larger).
+            v7: eps / (sd_samples_per_segment x 50 tool points) = 5e-5, so the whole tool
+            held at distance d for a whole segment costs eps / (d + eps): 1 (the collision
+            penalty) at contact, 0.25 at d_min; one tool point 1/50 of that (v6: eps / 4 =
+            0.0025 charged every one of the ~50 points the full amount, so a tool that
+            works near the table cost up to 50 collisions per segment; v5: 2e-4, with r_tc
+            ten times larger).
         sd_d_min: d_min of Eq. safety_reward, m.
         sd_epsilon: epsilon of Eq. safety_reward, m.
         sd_samples_per_segment: instants per executed segment at which the tool points
@@ -120,7 +126,7 @@ class EnvConfig:
     success_bonus: float = 1.0
     collision_penalty: float = 1.0
     collision_ends_episode: bool = True
-    sd_beta: float = 0.0025
+    sd_beta: float = 5e-5  # eps / (4 instants x 50 tool points), environment v7
     sd_d_min: float = 0.03
     sd_epsilon: float = 0.01
     sd_samples_per_segment: int = 4

@@ -18,6 +18,7 @@ from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 from distgprl.identity import SWEEP_SEEDS
 from distgprl.methods import METHODS
+from distgprl.studies import STUDIES
 
 
 def _plain_flags(params: list) -> list:
@@ -99,6 +100,16 @@ PresetOption = Annotated[
     typer.Option(
         metavar="NAME",
         help=f"Shipped preset: {PRESETS_HELP} (default paper).",
+        show_default=False,
+    ),
+]
+SweepPresetOption = Annotated[
+    str | None,
+    typer.Option(
+        "--preset",
+        metavar="NAME",
+        help=f"Shipped preset: {PRESETS_HELP} (default paper), or a study: "
+        f"{' | '.join(STUDIES)} (its readings' presets, distgprl.studies).",
         show_default=False,
     ),
 ]

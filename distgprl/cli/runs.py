@@ -17,6 +17,7 @@ from distgprl.cli.common import (
     PresetOption,
     RootOption,
     SeedsOption,
+    SweepPresetOption,
     TaskOption,
     TasksOption,
     parse_seeds,
@@ -27,11 +28,12 @@ from distgprl.cli.common import (
 )
 from distgprl.errors import UserInputError
 from distgprl.hardware.table2_trials import TABLE2_TRIALS
+from distgprl.studies import get_study, is_study
 
 
 @user_errors
 def sweep(
-    preset: PresetOption = None,
+    preset: SweepPresetOption = None,
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
@@ -96,6 +98,12 @@ def sweep(
     )
     if workers is None:
         workers = default_workers()
+    if is_study(preset):
+        from distgprl.experiments.operator_study import write_study_reach
+
+        study = get_study(preset)
+        typer.echo(f"study {study.name}: readings {', '.join(study.presets)}; {study.question}")
+        typer.echo(f"wrote {write_study_reach(root, study)}")
     typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
 
     def report(result, finished, total):
@@ -148,7 +156,7 @@ def sweep(
 
 @user_errors
 def status(
-    preset: PresetOption = None,
+    preset: SweepPresetOption = None,
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
@@ -179,6 +187,8 @@ def status(
         for entry in statuses
         if entry.state == "done"
     ]
+    if is_study(preset):  # a study's runs have no follow-ups (twin trials, repair evaluations)
+        return
     finished_dbm = [(method, seed) for task, method, seed in finished if task == "dbm"]
     if finished_dbm:
         from distgprl.hardware.table2_trials import coverage

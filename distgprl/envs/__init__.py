@@ -2,8 +2,8 @@
 
 Registered ids (``gymnasium.make(id, method=...)``):
 
-- ``DistGPRL-DCP-v6``, ``DistGPRL-DBM-v6``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v6``, ``ProMPRRL-DBM-v6``: `distgprl.envs.residual.ResidualEnv`.
+- ``DistGPRL-DCP-v7``, ``DistGPRL-DBM-v7``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v7``, ``ProMPRRL-DBM-v7``: `distgprl.envs.residual.ResidualEnv`.
 
 Both follow `distgprl.config.ENVIRONMENT_VERSION` (the residual env skipped v4).
 """

@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v6`` and ``DistGPRL-DBM-v6`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v7`` and ``DistGPRL-DBM-v7`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -138,7 +138,9 @@ class AdaptationEnv(gym.Env):
     The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
     action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
 
-    **Versions**: v6 (docs/FINDINGS.md "Protocol v6") — (a) r_tc in units of one task and
+    **Versions**: v7 — r_sd's beta = eps / (instants x tool points): the whole tool at
+    contact for a segment costs one collision penalty (docs/FINDINGS.md "Environment v7").
+    v6 (docs/FINDINGS.md "Protocol v6") — (a) r_tc in units of one task and
     beta = eps / 4; (b) S_W from the zero-mean GP of Eq. 1 per axis; (c) action scales from
     the reach rule; (d) TC conditioning by `distgprl.skill.conditioning` (DCP's push ends at
     the world-fixed goal).
@@ -155,10 +157,8 @@ class AdaptationEnv(gym.Env):
     anchors, with which L_hap leaves out the C_safe points the moving obstacles block
     (v3's L_hap used the static C_safe only). Methods without distance rewards or HAP
     prior (GPRL, the ``demo`` reference) behave exactly as in v3.
-    v3 — ``position_action_scale`` 0.1 m per unit action (was 0.03 m). v2 — clearances and
-    r_ga gradients against the obstacles predicted at each via-point's time; every state
-    input O(1). v1 — observed via-points standardised with a floored scale. v0 — first
-    release. (CHANGELOG.md gives each version in full.)
+    v3 — position action scale 0.1 m. v2 — time-indexed clearances and r_ga gradients; O(1)
+    state inputs. v1 — floored via-point scale. v0 — first release. (CHANGELOG.md: in full.)
     """
 
     metadata = {"render_modes": ["rgb_array"]}

@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v6`` and ``ProMPRRL-DBM-v6``.
+Env ids: ``ProMPRRL-DCP-v7`` and ``ProMPRRL-DBM-v7``.
 """
 
 from __future__ import annotations
@@ -126,7 +126,9 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v5 — the ProMP is fitted to the one demonstration the GP methods get (v4:
+    **Versions**: v6, v7 — no change of its own (the exploration method
+    ``promp-rrl-windowed``; see `AdaptationEnv` for what those versions changed).
+    v5 — the ProMP is fitted to the one demonstration the GP methods get (v4:
     20 TC-aware expert demonstrations, now ``promp-rrl-expert``); normalised residual basis;
     the variance gate; the AdaptationEnv v5 outcome semantics. v4 was not released for
     this env (its ids went from v3 to v5).

@@ -215,8 +215,9 @@ class ResidualRLEnv(gym.Env):
     evaluation's three columns add up to the episode's) and ``final_parameters`` (the
     residuals r_j, shape (n, 6), m and rad; 0 for steps not reached).
 
-    **Versions**: v6 — first release (environment v6, Protocol v6 rule 4; no gymnasium id
-    registered yet).
+    **Versions**: v7 — unchanged (environment v7 changes r_sd, which this env does not
+    compute; its runs carry v7 in their config hash). v6 — first release (environment v6,
+    Protocol v6 rule 4; no gymnasium id registered yet).
     """
 
     metadata = {"render_modes": ["rgb_array"]}

@@ -21,7 +21,9 @@ class Job:
     root: str
     twin_trials: int = 0  # trials per Table II setting after a DBM job (0: none)
     repair_evaluations: bool = False  # safety-layer evaluations after the run
+    named_with_preset: bool = False  # a study's job: its name says which preset (reading)
 
     @property
     def name(self) -> str:
-        return f"{self.task}/{self.method}/seed{self.seed}"
+        run = f"{self.task}/{self.method}/seed{self.seed}"
+        return f"{self.preset}/{run}" if self.named_with_preset else run

@@ -79,6 +79,7 @@ from distgprl.io import is_locked
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
 from distgprl.schema import run_dir
+from distgprl.studies import get_study, is_study
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,22 @@ def plan_jobs(
     each job also evaluates its run with the safety layer in the loop.
 
     Every name, seed and the preset are validated first (`resolve_run` for every job), so
-    a bad request is a `UserInputError` before anything touches the disk."""
+    a bad request is a `UserInputError` before anything touches the disk.
+
+    ``preset`` may name a study (`distgprl.studies`): the jobs are then its readings' presets'
+    for the study's methods (or ``methods``), seed by seed across the readings, with no
+    follow-ups (the twin trials and safety-layer evaluations are Table I's, not a study's)."""
+    if is_study(preset):
+        study = get_study(preset)
+        planned: dict[tuple[str, str, str, int], Job] = {}
+        for seed in seeds or ():
+            for member in study.presets:
+                for job in plan_jobs(member, methods or study.methods, tasks, [seed], root):
+                    key = (job.preset, job.task, job.method, job.seed)
+                    planned.setdefault(key, replace(job, named_with_preset=True))
+        if not planned:
+            raise UserInputError("no seeds given")
+        return list(planned.values())
     methods = list(methods or TABLE_ORDER)
     tasks = list(tasks or TASK_NAMES)
     for method in methods:

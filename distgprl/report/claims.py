@@ -129,6 +129,7 @@ class Verdict:
             per-task ones; None with a single task.
         verdict: the overall verdict, `combine` of the per-task ones.
         detail: what the overall verdict waits for (methods without runs), if anything.
+        needs: the methods whose runs the test reads.
     """
 
     claim: str
@@ -137,6 +138,7 @@ class Verdict:
     pooled: TaskVerdict | None
     verdict: str
     detail: str = ""
+    needs: tuple[str, ...] = ()
 
     def on(self, task: str) -> TaskVerdict:
         """The verdict on ``task`` (`ALL_TASKS`: the pooled one)."""
@@ -387,7 +389,7 @@ def _claim(
     tasks = tasks_of(scores)
     per_task = tuple(rule([task]) for task in tasks)
     pooled = rule(tasks) if len(tasks) > 1 else None
-    verdict = Verdict(claim, test, per_task, pooled, combine(per_task))
+    verdict = Verdict(claim, test, per_task, pooled, combine(per_task), needs=needed)
     return _name_the_missing(verdict, scores, tasks, needed)
 
 

@@ -27,7 +27,10 @@ from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
 from distgprl.report.runs import select_runs
+from distgprl.report.sensitivity import write_sensitivity
+from distgprl.report.table1 import collect_scores
 from distgprl.schema import read_csv
+from distgprl.studies import studies_of
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -197,7 +200,8 @@ def plot_figure(
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF.
+    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF, and
+    the sensitivity figure of each study read beside ``preset`` (`distgprl.report.sensitivity`).
 
     A figure none of whose methods has a finished run is not drawn, and an earlier file of
     it is removed (figures are functions of the current results only).
@@ -238,4 +242,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
             for suffix in ("png", "pdf"):
                 (Path(out_dir) / f"{name}_{preset}.{suffix}").unlink(missing_ok=True)
         plt.close(fig)
+    for study in studies_of(preset):  # the study's sensitivity figure (its readings' runs)
+        scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
+        written += write_sensitivity(root, study, scores_of, out_dir)
     return written

@@ -38,6 +38,7 @@ from distgprl.report.paired import (
     supplementary_sizes,
 )
 from distgprl.report.repair import repair_table, repair_texts
+from distgprl.report.robustness import robustness_texts, study_verdicts
 from distgprl.report.runs import TABLE_POLICY, run_evaluations
 from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
@@ -58,6 +59,7 @@ from distgprl.report.table2 import (
     select_trial_files,
 )
 from distgprl.schema import SCHEMA_VERSION, csv_meta_path, moved_robot
+from distgprl.studies import studies_of
 
 __all__ = [  # the tables' functions, importable from here as before the split
     "LATE_CURVE_POINTS",
@@ -125,6 +127,16 @@ def write_tables(
         "each claim of the paper, the statistic testing it and the verdict "
         "(rules: distgprl.report.claims)",
     )
+    for study in studies_of(preset):  # each claim under every reading of the study
+        results = study_verdicts(study, scores, lambda p: collect_scores(root, p, TABLE_POLICY))
+        written += _write_or_remove(
+            out_dir / f"claims_robustness_{preset}",
+            (".csv", ".md"),
+            robustness_texts(results, preset),
+            preset,
+            f"each claim's verdict under every reading of the {study.name} study "
+            "(rules: distgprl.report.robustness)",
+        )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:
         for episodes in (None, *sizes):

@@ -8,7 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
-from distgprl.config import EnvConfig
+from distgprl.config import ENVIRONMENT_VERSION, EnvConfig
 from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter
@@ -36,7 +36,7 @@ def rollout(env, tc, actions):
 
 
 def test_passes_gymnasium_check_env():
-    env = gym.make("DistGPRL-DCP-v6", method="dist-gprl").unwrapped
+    env = gym.make(f"DistGPRL-DCP-v{ENVIRONMENT_VERSION}", method="dist-gprl").unwrapped
     check_env(env, skip_render_check=True)
     env.close()
 
@@ -454,3 +454,19 @@ def test_moving_obstacle_filter_blocks_poses_whose_tool_would_touch_the_obstacle
     centre, half = dcp_env.tool_box()
     world = dcp_env.sim.robot.tool_points() - tcp[:3, 3]
     assert np.all(np.abs(world - centre) <= half + 0.02)  # current orientation ~ the demo's
+
+
+@pytest.mark.parametrize("tool", ["SHOVEL", "HOOK"])
+def test_r_sd_charges_the_whole_tool_at_contact_one_collision_per_segment(tool):
+    """Environment v7: beta = eps / (instants x tool points), so the whole tool held at
+    contact (d = 0) for a segment costs exactly the collision penalty, and at d_min a quarter
+    of it (v6 charged each of the tool's points that much)."""
+    from distgprl.sim import robot
+
+    config = EnvConfig()
+    points = sum(getattr(robot, tool).surface_points_per_box)
+    per_segment = config.sd_samples_per_segment * points
+    at_contact = config.sd_beta * per_segment / config.sd_epsilon
+    assert at_contact == pytest.approx(config.collision_penalty, rel=1e-12)
+    at_margin = config.sd_beta * per_segment / (config.sd_d_min + config.sd_epsilon)
+    assert at_margin == pytest.approx(0.25 * config.collision_penalty, rel=1e-12)

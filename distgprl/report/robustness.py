@@ -1,0 +1,198 @@
+"""Claims per reading: each claim's verdict under Table I's operator and each study reading.
+
+For a study (`distgprl.studies`) read beside a preset's Table I, every claim of
+`distgprl.report.claims` is tested once per reading, with the same rules and the same
+bootstrap seed, on that reading's runs:
+
+- the reference reading (Table I's) uses the reference preset's runs as they are;
+- a study reading replaces every method the studied constant acts on (for the operator study:
+  each method with the covariance transform, `MethodSpec.covariance_transform`) by its runs
+  under the reading's preset, and keeps the reference preset's runs of every other method,
+  which the reading does not change (their environment and scores are the same under every
+  reading of the operator);
+- a method the constant acts on with no run under a reading is *not* borrowed from Table I (its
+  numbers would be those of another operator): every claim whose test reads it is
+  `NOT_RUN` under that reading, naming the methods to run.
+
+Across the readings (`across_readings`), with R the readings:
+
+- *reproduced under every reading* only if every reading's verdict is *reproduced* (likewise
+  *refuted under every reading*, and "<v> under every reading" for any other common verdict,
+  e.g. "reproduced on DCP");
+- *reading-dependent* when two readings reach different decided verdicts, naming the readings
+  of each verdict; a claim reproduced under one reading and inconclusive under another is
+  reading-dependent;
+- *incomplete* while a reading has no verdict yet (no runs, fewer than two seeds, not run),
+  with the agreeing verdict so far and the readings awaited.
+
+Written as ``claims_robustness_<preset>.csv`` (one row per claim and reading, then the
+claim's ``across`` row) and ``.md`` (a column per reading) by `robustness_texts`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+from distgprl.methods import METHODS
+from distgprl.report.aggregate import BOOTSTRAP_SEED, Scores
+from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
+from distgprl.report.markdown import markdown_table
+from distgprl.studies import Reading, Study
+
+__all__ = [
+    "CSV_FIELDS",
+    "NOT_RUN",
+    "ReadingVerdicts",
+    "across_readings",
+    "acted_on",
+    "reading_scores",
+    "robustness_texts",
+    "study_verdicts",
+]
+
+NOT_RUN = "not run under this reading"
+"""A reading's verdict for a claim whose test reads a method the reading acts on and that has
+no run under it."""
+
+PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
+"""Verdicts that decide nothing yet."""
+
+CSV_FIELDS = ("claim", "reading", "preset", "verdict", "detail")
+"""Columns of ``claims_robustness_<preset>.csv``: one row per claim and reading (its overall
+verdict over the tasks, `distgprl.report.claims.combine`), then one row per claim with reading
+``across`` and the verdict across the readings (`across_readings`)."""
+
+
+def _label(method: str) -> str:
+    return METHODS[method].label.removesuffix(" (ours)")
+
+
+def acted_on(method: str) -> bool:
+    """Whether the operator study's constant acts on ``method``'s runs (it applies S_W)."""
+    return METHODS[method].covariance_transform
+
+
+@dataclass(frozen=True)
+class ReadingVerdicts:
+    """Every claim's verdict under one reading.
+
+    Attributes:
+        reading: the reading.
+        verdicts: `evaluate_claims` on the reading's scores, in the claims' order, with
+            `NOT_RUN` where a needed method the reading acts on has no run under it.
+        not_run: the methods the reading acts on that have no run under it (sorted).
+    """
+
+    reading: Reading
+    verdicts: tuple[Verdict, ...]
+    not_run: tuple[str, ...]
+
+
+def reading_scores(
+    reference: Scores, reading_runs: Scores, acts_on: Callable[[str], bool] = acted_on
+) -> tuple[Scores, tuple[str, ...]]:
+    """(scores, methods not run) of a study reading: ``reference``'s runs of every method
+    ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (module
+    docstring). The methods not run are those acted on with reference runs and none under
+    the reading."""
+    scores: dict[tuple[str, str], Sequence[Mapping[str, float]]] = {
+        key: runs for key, runs in reference.items() if not acts_on(key[1])
+    }
+    scores.update({key: runs for key, runs in reading_runs.items() if acts_on(key[1]) and runs})
+    have = {method for _, method in scores}
+    missing = sorted({m for _, m in reference if acts_on(m) and m not in have})
+    return scores, tuple(missing)
+
+
+def study_verdicts(
+    study: Study,
+    reference: Scores,
+    runs_of: Callable[[str], Scores],
+    seed: int = BOOTSTRAP_SEED,
+    acts_on: Callable[[str], bool] = acted_on,
+) -> list[ReadingVerdicts]:
+    """Every claim under every reading of ``study``, the reference first. ``runs_of(preset)``
+    gives a study preset's scores (`distgprl.report.table1.collect_scores`)."""
+    out = [ReadingVerdicts(study.reference, tuple(evaluate_claims(reference, seed)), ())]
+    for reading in study.readings:
+        scores, not_run = reading_scores(reference, runs_of(reading.preset), acts_on)
+        verdicts = []
+        for verdict in evaluate_claims(scores, seed):
+            lacking = [m for m in verdict.needs if m in not_run]
+            if lacking:
+                names = ", ".join(map(_label, lacking))
+                detail = f"{names} under {reading.preset}: the operator acts on it; run it"
+                verdict = Verdict(
+                    verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs
+                )
+            verdicts.append(verdict)
+        out.append(ReadingVerdicts(reading, tuple(verdicts), not_run))
+    return out
+
+
+def across_readings(verdicts: Sequence[tuple[str, str]]) -> str:
+    """The verdict across readings from (reading label, verdict) pairs (module docstring)."""
+    decided = [(label, v) for label, v in verdicts if v not in PENDING]
+    pending = [label for label, v in verdicts if v in PENDING]
+    distinct = list(dict.fromkeys(v for _, v in decided))
+    if len(distinct) > 1:
+        groups = [f"{v} under {', '.join(lab for lab, w in decided if w == v)}" for v in distinct]
+        return "reading-dependent: " + "; ".join(groups)
+    if pending:
+        so_far = (
+            f"{distinct[0]} under {len(decided)} of {len(verdicts)} readings; " if decided else ""
+        )
+        return f"incomplete: {so_far}awaiting {', '.join(pending)}"
+    return f"{distinct[0]} under every reading"
+
+
+def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[str, str]:
+    """(CSV, Markdown) of the claims per reading (`CSV_FIELDS`; Markdown: a column per
+    reading, the verdict across them last)."""
+    claims = [v.claim for v in results[0].verdicts]
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    rows = []
+    for index, claim in enumerate(claims):
+        pairs = [(r.reading.label, r.verdicts[index].verdict) for r in results]
+        for result in results:
+            verdict = result.verdicts[index]
+            writer.writerow(
+                {
+                    "claim": claim,
+                    "reading": result.reading.label,
+                    "preset": result.reading.preset,
+                    "verdict": verdict.verdict,
+                    "detail": verdict.detail,
+                }
+            )
+        across = across_readings(pairs)
+        writer.writerow(
+            {"claim": claim, "reading": "across", "preset": "", "verdict": across, "detail": ""}
+        )
+        rows.append([claim, *(f"{v}" for _, v in pairs), f"**{across}**"])
+    header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
+    header.append("Across readings")
+    missing = [
+        f"{r.reading.label}: {', '.join(map(_label, r.not_run))}" for r in results if r.not_run
+    ]
+    intro = (
+        f"Claims per reading of the operator ({preset} preset beside its studies): each claim's "
+        "overall verdict (`distgprl.report.claims`) under Table I's operator and under each "
+        "study reading, where a study reading replaces the methods with the covariance "
+        "transform by their runs under its preset and keeps the other methods' Table I runs "
+        "(the operator does not act on them). A claim counts as reproduced only where it is "
+        "reproduced under every reading; a verdict that changes with the reading is "
+        "reading-dependent (rules: `distgprl.report.robustness`)."
+    )
+    markdown = markdown_table(intro, header, rows)
+    if missing:
+        markdown += (
+            "\nMethods the operator acts on without runs under a reading (the claims reading "
+            "them are not run there): " + "; ".join(missing) + ".\n"
+        )
+    return buffer.getvalue(), markdown

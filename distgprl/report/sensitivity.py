@@ -1,0 +1,198 @@
+"""The sensitivity figure of a study: the studied method's scores per reading (issue 50 item 4).
+
+One row of panels per task, one panel per score — success, collision and kinematic retention
+(the mean velocity cosine to the demonstration) on the 100 evaluation TCs, Table I's policy
+(`distgprl.report.runs.TABLE_POLICY`) — with one point per reading of the study at x = the
+reading's mean operator gain on a raw action (``mean_gain`` of
+`distgprl.experiments.operator_study`, averaged over the position axes the task's TCs vary:
+1 for an operator that passes a raw action through, below 1 where it shrinks it), the mean
+over seeds with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one
+stratum: the task). The references are horizontal lines with their intervals as bands:
+Dist-GPRL-NoCov (no operator) and the demonstration (no adaptation), from the reference
+preset's runs.
+
+Reads ``<root>/<study>/reach.json`` (written by the study's sweep) and the runs' result files
+only; without the reach file or any run of the studied method there is nothing to draw.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from distgprl.io import atomic_write_bytes
+from distgprl.methods import METHODS
+from distgprl.report.aggregate import BOOTSTRAP_SEED, Estimate, Scores, method_estimate
+from distgprl.schema import read_json
+from distgprl.studies import Study
+
+__all__ = ["PANELS", "REFERENCES", "reading_gains", "sensitivity_points", "write_sensitivity"]
+
+PANELS = (
+    ("success_rate", "success rate"),
+    ("collision_rate", "collision rate"),
+    ("mean_kinematic_retention", "kinematic retention"),
+)
+"""(score, axis label) per panel."""
+
+REFERENCES = ("dist-gprl-nocov", "demo")
+"""Methods drawn as horizontal reference bands, from the reference preset's runs."""
+
+PNG_DPI = 150
+
+
+def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], float]:
+    """{(preset, task): mean operator gain of ``method`` over the axes the task's TCs vary}
+    from a study's reach document."""
+    gains: dict[tuple[str, str], list[float]] = {}
+    for row in reach["rows"]:
+        if row["method"] == method and row["tc_range_m"] > 0:
+            gains.setdefault((row["preset"], row["task"]), []).append(row["mean_gain"])
+    return {key: float(np.mean(values)) for key, values in gains.items()}
+
+
+def sensitivity_points(
+    study: Study,
+    method: str,
+    scores_of: dict[str, Scores],
+    gains: dict[tuple[str, str], float],
+    tasks: list[str],
+    seed: int = BOOTSTRAP_SEED,
+) -> list[dict[str, Any]]:
+    """One entry per reading, task and score with runs: ``preset``, ``reading``, ``task``,
+    ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
+    points = []
+    for reading in study.all_readings:
+        scores = scores_of.get(reading.preset, {})
+        for task in tasks:
+            if not scores.get((task, method)) or (reading.preset, task) not in gains:
+                continue
+            for key, _ in PANELS:
+                estimate = method_estimate(scores, [task], method, key, "mean", seed)
+                if estimate.seeds and min(estimate.seeds) > 0:
+                    points.append(
+                        {
+                            "preset": reading.preset,
+                            "reading": reading.label,
+                            "task": task,
+                            "score": key,
+                            "gain": gains[(reading.preset, task)],
+                            "estimate": estimate,
+                        }
+                    )
+    return points
+
+
+def _reference(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
+    if not scores.get((task, method)):
+        return None
+    estimate = method_estimate(scores, [task], method, key, "mean", seed)
+    return estimate if estimate.seeds and min(estimate.seeds) > 0 else None
+
+
+def write_sensitivity(
+    root: str | Path,
+    study: Study,
+    scores_of: dict[str, Scores],
+    out_dir: str | Path,
+    seed: int = BOOTSTRAP_SEED,
+) -> list[Path]:
+    """Draw the study's sensitivity figure (module docstring) into
+    ``<out_dir>/sensitivity_<study>_<reference preset>.{png,pdf}``; with nothing to draw,
+    remove an earlier one. ``scores_of`` maps each reading's preset to its scores
+    (`distgprl.report.table1.collect_scores`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
+    reach_path = Path(root) / study.name / "reach.json"
+    method = study.methods[0]
+    tasks = sorted({task for scores in scores_of.values() for task, _ in scores})
+    points: list[dict[str, Any]] = []
+    if reach_path.exists():
+        gains = reading_gains(read_json(reach_path), method)
+        tasks = [t for t in ("dcp", "dbm") if t in tasks] + [
+            t for t in tasks if t not in ("dcp", "dbm")
+        ]
+        points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
+    if not points:
+        for suffix in ("png", "pdf"):
+            Path(f"{stem}.{suffix}").unlink(missing_ok=True)
+        return []
+    tasks = [t for t in tasks if any(p["task"] == t for p in points)]
+    reference = scores_of.get(study.reference.preset, {})
+    fig, axes = plt.subplots(
+        len(tasks), len(PANELS), figsize=(4.2 * len(PANELS), 3.2 * len(tasks)), squeeze=False
+    )
+    markers = {r.preset: m for r, m in zip(study.all_readings, "o^sDvP", strict=False)}
+    for row, task in enumerate(tasks):
+        for col, (key, label) in enumerate(PANELS):
+            ax = axes[row][col]
+            for index, ref in enumerate(REFERENCES):
+                estimate = _reference(reference, task, ref, key, seed)
+                if estimate is None:
+                    continue
+                color = f"C{index + 1}"
+                name = METHODS[ref].label
+                ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=name)
+                if estimate.has_interval:
+                    ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
+            for reading in study.all_readings:
+                for point in points:
+                    if (point["task"], point["score"], point["preset"]) != (
+                        task,
+                        key,
+                        reading.preset,
+                    ):
+                        continue
+                    estimate = point["estimate"]
+                    yerr = None
+                    if estimate.has_interval:
+                        yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
+                    seeds = min(estimate.seeds)
+                    ax.errorbar(
+                        [point["gain"]],
+                        [estimate.point],
+                        yerr=yerr,
+                        fmt=markers.get(reading.preset, "o"),
+                        color="black",
+                        capsize=3,
+                        label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
+                        f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
+                    )
+            if key != "mean_kinematic_retention":
+                ax.set_ylim(-0.02, 1.02)
+            ax.set_xlabel("mean operator gain on a raw action")
+            ax.set_ylabel(label)
+            ax.set_title(f"{task.upper()}: {label}")
+            ax.grid(alpha=0.3)
+    handles, labels = [], []
+    for ax in axes.flat:
+        for handle, text in zip(*ax.get_legend_handles_labels(), strict=True):
+            if text not in labels:
+                handles.append(handle)
+                labels.append(text)
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
+    fig.suptitle(
+        f"Operator study: {METHODS[method].label.removesuffix(' (ours)')} per reading of K_tt "
+        f"(means over seeds, 95 % bootstrap intervals; {study.reference.preset} preset's "
+        "references dashed)",
+        fontsize=10,
+    )
+    legend_rows = (len(labels) + 2) // 3
+    fig.tight_layout(rect=(0.0, 0.04 + 0.035 * legend_rows, 1.0, 0.95))
+    written = []
+    for suffix in ("png", "pdf"):
+        buffer = io.BytesIO()
+        metadata = (
+            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
+        )
+        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
+        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
+    plt.close(fig)
+    return written

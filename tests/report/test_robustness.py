@@ -1,0 +1,111 @@
+"""Claims per reading (`distgprl.report.robustness`): which runs each reading reads, the
+verdict across readings, and the claims_robustness files `write_tables` writes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from distgprl.report.claims import NO_RUNS, REFUTED, REPRODUCED
+from distgprl.report.robustness import (
+    NOT_RUN,
+    across_readings,
+    reading_scores,
+    robustness_texts,
+    study_verdicts,
+)
+from distgprl.studies import get_study
+
+JITTER = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])
+
+
+def runs(success, collision, retention=0.5):
+    return [
+        {
+            "success_rate": success + j,
+            "collision_rate": collision + j,
+            "mean_kinematic_retention": retention + j,
+        }
+        for j in JITTER
+    ]
+
+
+def both_tasks(methods):
+    return {(task, m): r for task in ("dcp", "dbm") for m, r in methods.items()}
+
+
+FIELD = {
+    "gprl": runs(0.4, 0.5, 0.4),
+    "promp-rrl": runs(0.2, 0.05, 0.3),
+    "dist-gprl-global": runs(0.3, 0.3, 0.5),
+    "gprl-d": runs(0.6, 0.2, 0.6),
+    "gprl-h": runs(0.6, 0.35, 0.6),
+    "dist-gprl": runs(0.9, 0.1, 0.7),
+    "dist-gprl-nocov": runs(0.7, 0.15, 0.7),
+}
+GLOBAL = "Windowed adaptation beats global"
+HAP = "The HAP prior raises final success"
+
+
+def test_a_reading_replaces_only_the_methods_the_operator_acts_on():
+    """Under a study reading Dist-GPRL's runs are the reading's, NoCov's and Global's Table
+    I's (no operator), and GPRL-D/GPRL-H (operator, no run under the reading) are not
+    borrowed from Table I but reported as not run."""
+    reference = both_tasks(FIELD)
+    study_runs = both_tasks({"dist-gprl": runs(0.1, 0.8)})
+    scores, not_run = reading_scores(reference, study_runs)
+    assert scores[("dcp", "dist-gprl")] is study_runs[("dcp", "dist-gprl")]
+    assert scores[("dcp", "dist-gprl-nocov")] is reference[("dcp", "dist-gprl-nocov")]
+    assert ("dcp", "gprl-d") not in scores and ("dbm", "gprl-h") not in scores
+    assert not_run == ("gprl-d", "gprl-h")
+
+
+def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
+    """Dist-GPRL beats Global under Table I's operator (0.9 vs 0.3) and loses under one study
+    reading (0.1): the claim is reproduced there, refuted here, and reading-dependent across;
+    a claim needing GPRL-D is not run under the study readings, so it is never robust."""
+    study = get_study("operators")
+    reference = both_tasks(FIELD)
+    worse = both_tasks({"dist-gprl": runs(0.1, 0.8)})
+    same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
+    runs_of = {
+        "operator-unit": same,
+        "operator-signal": worse,
+        "operator-correlation": same,
+    }
+    results = study_verdicts(study, reference, runs_of.__getitem__, seed=0)
+    assert [r.reading.preset for r in results] == ["paper", *study.presets]
+    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    assert verdict["paper"][GLOBAL].verdict == REPRODUCED
+    assert verdict["operator-unit"][GLOBAL].verdict == REPRODUCED
+    assert verdict["operator-signal"][GLOBAL].verdict == REFUTED
+    assert verdict["paper"][HAP].verdict == REPRODUCED
+    assert verdict["operator-unit"][HAP].verdict == NOT_RUN
+    assert "GPRL-D under operator-unit" in verdict["operator-unit"][HAP].detail
+    csv_text, markdown = robustness_texts(results, "paper")
+    across = {line.split(",")[0]: line for line in csv_text.splitlines() if ",across,," in line}
+    assert (
+        "reading-dependent: reproduced under zero-mean GP (Table I), unit variance (v4)"
+        in (across[GLOBAL])
+    )
+    assert "refuted under per-axis signal (v5)" in across[GLOBAL]
+    assert "incomplete: reproduced under 1 of 4 readings" in across[HAP]
+    assert markdown.count("\n| ") == 1 + len(results[0].verdicts)  # header + one row per claim
+    assert "unit variance (v4): GPRL-D, GPRL-H" in markdown
+
+
+def test_the_rule_across_readings():
+    """Every reading alike: that verdict under every reading; a decided disagreement is
+    reading-dependent even while another reading waits; otherwise incomplete."""
+    assert across_readings([("a", REPRODUCED), ("b", REPRODUCED)]) == (
+        "reproduced under every reading"
+    )
+    assert across_readings([("a", "reproduced on DCP"), ("b", "reproduced on DCP")]) == (
+        "reproduced on DCP under every reading"
+    )
+    assert across_readings([("a", REPRODUCED), ("b", "inconclusive"), ("c", NO_RUNS)]) == (
+        "reading-dependent: reproduced under a; inconclusive under b"
+    )
+    assert across_readings([("a", REFUTED), ("b", NOT_RUN)]) == (
+        "incomplete: refuted under 1 of 2 readings; awaiting b"
+    )
+    assert across_readings([("a", NO_RUNS), ("b", NOT_RUN)]) == "incomplete: awaiting a, b"
