@@ -53,7 +53,12 @@ def hardware(
     ] = True,
     sensor_noise: Annotated[
         int,
-        typer.Option(min=0, max=2, help="Twin sensor noise: 0 none, 1 mild, 2 strong."),
+        typer.Option(
+            min=0,
+            max=4,  # distgprl.hardware.twin.SENSOR_NOISE's levels (tested)
+            help="Twin sensor noise: 0 none, 1 mild, 2 strong, 3-4 strong with a 2x / 4x "
+            "worse calibration.",
+        ),
     ] = 0,
     repair_push: Annotated[
         bool,

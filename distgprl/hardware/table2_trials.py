@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from distgprl.identity import resolve_run
-from distgprl.methods import get_method
+from distgprl.methods import METHODS, TABLE_ORDER, get_method, has_via_point_plan
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
 
 __all__ = [
@@ -42,10 +42,13 @@ HARDWARE_TASK = "dbm"
 TABLE2_TRIALS = 10
 """Trials per setting (the paper's 10 hardware trials per method)."""
 
-ROBUSTNESS_METHODS = ("dist-gprl", "demo", "promp-nominal")
-"""Methods whose trials also run at every sensor-noise level (the robustness table)."""
+ROBUSTNESS_METHODS = tuple(m for m in TABLE_ORDER if has_via_point_plan(METHODS[m]))
+"""Methods whose trials also run at every sensor-noise level (the robustness table and its
+curve): every method of Table I with a via-point plan the twin can execute (issue 50 item 5:
+where does each policy break?); environment v6's residual-control methods have no safety
+layer yet (`distgprl.methods.NO_SAFETY_LAYER`)."""
 
-NOISE_LEVELS = (1, 2)
+NOISE_LEVELS = (1, 2, 3, 4)
 """The twin's sensor-noise levels above none (`distgprl.hardware.twin.SENSOR_NOISE`)."""
 
 

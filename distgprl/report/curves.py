@@ -26,9 +26,11 @@ import numpy as np
 from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
+from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.runs import select_runs
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
+from distgprl.report.table2 import hardware_rows, select_trial_files
 from distgprl.schema import read_csv
 from distgprl.studies import studies_of
 
@@ -201,7 +203,9 @@ def plot_figure(
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF, and
-    the sensitivity figure of each study read beside ``preset`` (`distgprl.report.sensitivity`).
+    the sensitivity figure of each study read beside ``preset`` (`distgprl.report.sensitivity`)
+    and Table II's noise curve where twin trials ran at several noise levels
+    (`distgprl.report.noise_curve`).
 
     A figure none of whose methods has a finished run is not drawn, and an earlier file of
     it is removed (figures are functions of the current results only).
@@ -245,4 +249,6 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     for study in studies_of(preset):  # the study's sensitivity figure (its readings' runs)
         scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
         written += write_sensitivity(root, study, scores_of, out_dir)
+    # Table II's noise curve: twin success and collision against the perception error
+    written += write_noise_curve(hardware_rows(select_trial_files(root, preset)), out_dir, preset)
     return written

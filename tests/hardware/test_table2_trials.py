@@ -19,14 +19,31 @@ from distgprl.schema import TRIAL_FIELDS, write_csv
 
 
 def test_every_method_gets_repair_on_and_off_and_the_robustness_methods_every_noise_level():
-    assert table2_settings("gprl") == (TrialSetting(True, 0), TrialSetting(False, 0))
-    for method in ("dist-gprl", "demo", "promp-nominal"):
+    """Every via-point method of Table I (and the demo) also runs at every sensor-noise level
+    (issue 50 item 5: where does each policy break?); the residual-control ones have no twin
+    trials at all (no safety layer yet), so none is due."""
+    from distgprl.hardware.twin import SENSOR_NOISE
+
+    noisy = {TrialSetting(True, level) for level in SENSOR_NOISE if level > 0}
+    for method in ("gprl", "dist-gprl", "dist-gprl-nocov", "demo"):
         assert set(table2_settings(method)) == {
             TrialSetting(True, 0),
             TrialSetting(False, 0),
-            TrialSetting(True, 1),
-            TrialSetting(True, 2),
+            *noisy,
         }
+    assert len(noisy) == 4
+    for method in ("promp-rrl", "promp-nominal"):
+        assert table2_settings(method) == (TrialSetting(True, 0), TrialSetting(False, 0))
+
+
+def test_the_cli_admits_every_twin_noise_level():
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+    from distgprl.hardware.twin import SENSOR_NOISE
+
+    result = CliRunner().invoke(app, ["hardware", "--help"])
+    assert f"0<=x<={max(SENSOR_NOISE)}" in result.output.replace(" ", "")
 
 
 def _trial_file(root, method, name, rows=2, **meta):
@@ -67,7 +84,8 @@ def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
         _trial_file(tmp_path, "gprl", f"trials_twin_seed0_{index}.csv", rows=rows, **meta)
     assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == table2_settings("gprl")
     _trial_file(tmp_path, "gprl", "trials_twin_seed0_counted.csv", repair=False)
-    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == (TrialSetting(True, 0),)
+    due = tuple(s for s in table2_settings("gprl") if s != TrialSetting(False, 0))
+    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == due
     # another seed's files do not count for seed 0, and vice versa
     assert missing_settings(tmp_path, "ci", "gprl", 1, trials=2) == table2_settings("gprl")
 
@@ -107,10 +125,13 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
     monkeypatch.setattr(sweep, "train_run", lambda *a, **k: pytest.fail("trained again"))
     results = sweep.run_sweep([job], workers=1)
     assert [r.status for r in results] == ["skipped"]
-    assert results[0].trials.startswith("twin trials: 2 setting(s) run\n")
+    settings = table2_settings("gprl")
+    assert results[0].trials.startswith(f"twin trials: {len(settings)} setting(s) run\n")
     files = sorted((root / "hardware" / "gprl").glob("trials_twin_seed0_*.csv"))
     metas = [read_csv(path)[0] for path in files]
-    assert {(m["repair"], m["sensor_noise"]) for m in metas} == {(True, 0), (False, 0)}
+    assert {(m["repair"], m["sensor_noise"]) for m in metas} == {
+        (s.repair, s.sensor_noise) for s in settings
+    }
     assert all(len(read_csv(path)[1]) == 1 for path in files)
     assert not sweep.trials_due(job)
     assert sweep.run_sweep([job], workers=1)[0].trials == ""  # nothing due: nothing run

@@ -320,7 +320,7 @@ def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
     assert seen["repair"] is False and seen["sensor_noise"] == 2
     assert runner.invoke(app, ["hardware"]).exit_code == 0
     assert seen["repair"] is True and seen["sensor_noise"] == 0
-    assert runner.invoke(app, ["hardware", "--sensor-noise", "3"]).exit_code != 0
+    assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
 
 
 @pytest.mark.parametrize("method", ["promp-nominal", "promp-rrl"])

@@ -490,11 +490,15 @@ def test_table2_keeps_repair_and_noise_apart_and_the_noise_table_pivots_the_twin
     retime rows against the noise level, with '–' where a setting did not run at a level."""
     write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
     fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+    fields += ["perception_error_mm"]
     settings = {  # name: (meta, outcomes)
-        "off.csv": ({"repair": False, "sensor_noise": 0}, [("refused", 0, 0, 0.05)] * 2),
-        "retime.csv": ({"repair": True, "sensor_noise": 0}, [("ok", 1, 0, 0.02)] * 2),
-        "noisy1.csv": ({"repair": True, "sensor_noise": 1}, [("ok", 1, 0, 0.02), ("ok", 0, 1, 0)]),
-        "noisy2.csv": ({"repair": True, "sensor_noise": 2}, [("ok", 0, 1, -0.01)] * 2),
+        "off.csv": ({"repair": False, "sensor_noise": 0}, [("refused", 0, 0, 0.05, 2)] * 2),
+        "retime.csv": ({"repair": True, "sensor_noise": 0}, [("ok", 1, 0, 0.02, 3)] * 2),
+        "noisy1.csv": (
+            {"repair": True, "sensor_noise": 1},
+            [("ok", 1, 0, 0.02, 6), ("ok", 0, 1, 0, 10)],
+        ),
+        "noisy2.csv": ({"repair": True, "sensor_noise": 2}, [("ok", 0, 1, -0.01, 20)] * 2),
     }
     for name, (meta, outcomes) in settings.items():
         rows = [
@@ -510,11 +514,22 @@ def test_table2_keeps_repair_and_noise_apart_and_the_noise_table_pivots_the_twin
         ("retime", "2", 2),
     ]
     assert [r["success_rate"] for r in rows] == [0.0, 1.0, 0.5, 0.0]
+    assert [r["perception_error_mm_median"] for r in rows] == [2.0, 3.0, 8.0, 20.0]
     write_tables(tmp_path, "p", tmp_path / "out")
     noise = (tmp_path / "out" / "table2_noise_p.md").read_text()
-    assert "Noise 0 Success | Noise 0 Collision | Noise 1 Success" in noise
-    assert "| Demo (no adaptation) | retime | 1.00 [0.16, 1.00] | 0.00 [0.00, 0.84] | 0.50" in noise
+    assert "Noise 0 Success | Noise 0 Collision | Noise 1 error (mm) | Noise 1 Success" in noise
     assert (
-        "| Demo (no adaptation) | off | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | – | – | – | – |"
-        in (noise)
+        "| Demo (no adaptation) | retime | 3 | 1.00 [0.16, 1.00] | 0.00 [0.00, 0.84] | 8 | 0.50"
+        in noise
     )
+    assert (
+        "| Demo (no adaptation) | off | 2 | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | – | – | – | – "
+        "| – | – |" in noise
+    )
+    # the noise curve: the repair-on twin rows against the median perception error
+    from distgprl.report.curves import write_curves
+    from distgprl.report.noise_curve import curve_series
+
+    assert [r["sensor_noise"] for r in curve_series(rows)["demo"]] == ["0", "1", "2"]
+    names = {p.name for p in write_curves(tmp_path, "p", tmp_path / "out")}
+    assert {"table2_noise_p.png", "table2_noise_p.pdf"} <= names

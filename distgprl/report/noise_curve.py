@@ -1,0 +1,112 @@
+"""Where does each policy break? Twin success and collision against the perception error.
+
+One figure per preset (``table2_noise_<preset>.png`` / ``.pdf``, issue 50 item 5): for every
+method with twin trials at two or more sensor-noise levels (plan repair on, the setting every
+noise level runs with, `distgprl.hardware.table2_trials`), its success and collision rates at
+each level, with their exact 95 % binomial intervals, against the median over that level's
+trials of each trial's largest marker position error (mm; `report.table2.hardware_rows`). The
+noise levels are labelled at their points. A level whose trials recorded no perception error
+is left out (the real robot has no ground truth).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from distgprl.io import atomic_write_bytes
+from distgprl.methods import METHODS, TABLE_ORDER
+
+__all__ = ["curve_series", "write_noise_curve"]
+
+PNG_DPI = 150
+REPAIR = "retime"
+"""The repair setting every noise level runs with."""
+
+
+def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    """{method: its twin rows of `REPAIR` with a perception error, by increasing error} for
+    every method with at least two such levels (table order)."""
+    series: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        error = row.get("perception_error_mm_median", float("nan"))
+        if row["backend"] == "twin" and row["repair"] == REPAIR and np.isfinite(error):
+            series.setdefault(row["method"], []).append(row)
+    ordered = sorted(series, key=lambda m: TABLE_ORDER.index(m) if m in TABLE_ORDER else 99)
+    return {
+        method: sorted(series[method], key=lambda r: r["perception_error_mm_median"])
+        for method in ordered
+        if len(series[method]) >= 2
+    }
+
+
+def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: str) -> list[Path]:
+    """Draw `curve_series` of Table II's ``rows`` into ``<out_dir>/table2_noise_<preset>``
+    (PNG, PDF); with no method at two levels, remove an earlier figure instead."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    stem = Path(out_dir) / f"table2_noise_{preset}"
+    series = curve_series(rows)
+    if not series:
+        for suffix in ("png", "pdf"):
+            Path(f"{stem}.{suffix}").unlink(missing_ok=True)
+        return []
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
+    for index, (method, points) in enumerate(series.items()):
+        color = "black" if method == "dist-gprl" else f"C{index % 10}"
+        x = np.array([p["perception_error_mm_median"] for p in points])
+        for ax, key in zip(axes[0], ("success_rate", "collision_rate"), strict=True):
+            y = np.array([p[key] for p in points])
+            low = y - np.array([p[f"{key}_ci_low"] for p in points])
+            high = np.array([p[f"{key}_ci_high"] for p in points]) - y
+            ax.errorbar(
+                x,
+                y,
+                yerr=[low, high],
+                marker="o",
+                color=color,
+                capsize=2,
+                lw=1.5 if method == "dist-gprl" else 1.0,
+                label=METHODS[method].label,
+            )
+            if index == 0:
+                for point, xi, yi in zip(points, x, y, strict=True):
+                    ax.annotate(
+                        f"{point['sensor_noise']}",
+                        (xi, yi),
+                        xytext=(4, 4),
+                        textcoords="offset points",
+                        fontsize=7,
+                        alpha=0.6,
+                    )
+    for ax, label in zip(axes[0], ("twin success rate", "twin collision rate"), strict=True):
+        ax.set_xlabel("median perception error (mm)")
+        ax.set_ylabel(label)
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+    trials = sorted({int(p["trials"]) for points in series.values() for p in points})
+    fig.suptitle(
+        f"Digital twin (DBM, {preset} preset policies, plan repair on): where each policy "
+        f"breaks ({'/'.join(map(str, trials))} trials per point, exact 95 % intervals; "
+        "numbers: sensor-noise level)",
+        fontsize=9,
+    )
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.08 + 0.04 * (len(labels) // 4), 1.0, 0.93))
+    written = []
+    for suffix in ("png", "pdf"):
+        buffer = io.BytesIO()
+        metadata = (
+            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
+        )
+        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
+        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
+    plt.close(fig)
+    return written
