@@ -22,9 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from distgprl.errors import UserInputError
-from distgprl.methods import METHODS
+from distgprl.methods import EXPLORATION_METHODS, METHODS
 
-__all__ = ["STUDIES", "Reading", "Study", "get_study", "is_study", "studies_of"]
+__all__ = ["STUDIES", "TRAINED", "Reading", "Study", "get_study", "is_study", "studies_of"]
 
 
 @dataclass(frozen=True)
@@ -34,13 +34,14 @@ class Reading:
     Attributes:
         preset: the preset whose runs are this reading's (``paper`` for Table I's).
         label: short name used in tables and figures.
-        covariance_scale: the `EnvConfig.covariance_scale` the preset sets (documentation and
-            a consistency test; the preset file is the one source of the value).
+        changes: the (``section.field``, value) pairs in which the preset's configuration
+            differs from the reference preset's — documentation and a consistency test (the
+            preset file is the one source of the values; empty for the reference).
     """
 
     preset: str
     label: str
-    covariance_scale: str
+    changes: tuple[tuple[str, object], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,9 @@ class Study:
         readings: the study's own readings, each a preset run for ``methods``.
         methods: the methods the study trains under each of ``readings``.
         question: one sentence: what the study answers.
+        acts_on: the `MethodSpec` flag that marks the methods whose runs a reading changes
+            (``covariance_transform``: the operator acts on the methods that apply S_W;
+            ``trainable``: a reward unit changes every trained method).
     """
 
     name: str
@@ -60,6 +64,17 @@ class Study:
     readings: tuple[Reading, ...]
     methods: tuple[str, ...]
     question: str
+    acts_on: str = "covariance_transform"
+
+    @property
+    def reads_the_operator(self) -> bool:
+        """Whether the readings are covariance operators (their reach is measured and the
+        sensitivity figure drawn against it)."""
+        return self.acts_on == "covariance_transform"
+
+    def acted_on(self, method: str) -> bool:
+        """Whether a reading of this study changes ``method``'s runs."""
+        return bool(getattr(METHODS[method], self.acts_on))
 
     @property
     def presets(self) -> tuple[str, ...]:
@@ -72,21 +87,55 @@ class Study:
         return (self.reference, *self.readings)
 
 
+TRAINED = tuple(name for name, spec in METHODS.items() if spec.trainable)
+
 STUDIES: dict[str, Study] = {
     "operators": Study(
         name="operators",
-        reference=Reading("paper", "zero-mean GP (Table I)", "zero-mean"),
+        reference=Reading("paper", "zero-mean GP (Table I)"),
         readings=(
-            Reading("operator-unit", "unit variance (v4)", "unit"),
-            Reading("operator-signal", "per-axis signal (v5)", "signal"),
-            Reading("operator-correlation", "correlation only", "correlation"),
+            Reading("operator-unit", "unit variance (v4)", (("env.covariance_scale", "unit"),)),
+            Reading(
+                "operator-signal", "per-axis signal (v5)", (("env.covariance_scale", "signal"),)
+            ),
+            Reading(
+                "operator-correlation",
+                "correlation only",
+                (("env.covariance_scale", "correlation"),),
+            ),
         ),
         methods=("dist-gprl",),
         question=(
             "Is a claim the paper's, or one reading of K_tt in the covariance operator "
             "S = K (K + lambda I)^-1 the paper leaves open?"
         ),
-    )
+    ),
+    "reward-unit": Study(
+        name="reward-unit",
+        reference=Reading("paper", "r_tc in units of one task (Table I)"),
+        readings=(
+            Reading(
+                "reward-unit-10",
+                "r_tc in tenths of a task (v5's unit)",
+                (
+                    ("env.progress_weight", 10.0),
+                    ("env.success_bonus", 10.0),
+                    ("env.collision_penalty", 10.0),
+                    ("env.sd_beta", 5e-4),
+                    ("env.signature_weight", 1.0),
+                    ("sac.ent_coef_init", 0.1),
+                    ("sac.anneal_start", 0.2),
+                    ("sac.anneal_end", 0.002),
+                ),
+            ),
+        ),
+        methods=tuple(m for m in TRAINED if m not in EXPLORATION_METHODS),
+        question=(
+            "Is a claim the paper's, or the unit of r_tc the paper leaves open, which sets "
+            "what lambda_ga = 0.2, lambda_sim = 0.5 and lambda_hap = 0.2 weigh against the task?"
+        ),
+        acts_on="trainable",
+    ),
 }
 """Every study, by name."""
 

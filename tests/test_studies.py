@@ -3,6 +3,8 @@ a study name plans its readings' runs — and only those — for sweep and statu
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import pytest
 from typer.testing import CliRunner
 
@@ -14,12 +16,25 @@ from distgprl.studies import STUDIES, get_study
 
 
 @pytest.mark.parametrize("name", sorted(STUDIES))
-def test_every_reading_is_a_shipped_preset_with_its_operator(name):
+def test_every_reading_differs_from_the_reference_in_exactly_its_stated_changes(name):
+    """Each reading's preset is shipped and its configuration equals the reference preset's
+    but for the (section.field, value) pairs the study states, on both tasks."""
     study = get_study(name)
+    assert name not in shipped_presets()  # a study is not a preset: no run folder of its own
     for reading in study.all_readings:
         assert reading.preset in shipped_presets()
-        assert load_config(reading.preset).env.covariance_scale == reading.covariance_scale
-    assert name not in shipped_presets()  # a study is not a preset: no run folder of its own
+        for task in ("dcp", "dbm"):
+            reference = asdict(load_config(study.reference.preset, task))
+            config = asdict(load_config(reading.preset, task))
+            stated = {}
+            for key, value in reading.changes:
+                section, field = key.split(".")
+                assert config[section][field] == value, (reading.preset, key)
+                stated[(section, field)] = value
+            for section in ("env", "sac", "run"):
+                for field, value in reference[section].items():
+                    if (section, field) not in stated:
+                        assert config[section][field] == value, (reading.preset, field)
 
 
 def test_a_study_plans_its_methods_under_each_reading_seed_by_seed(tmp_path):

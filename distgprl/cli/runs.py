@@ -103,7 +103,8 @@ def sweep(
 
         study = get_study(preset)
         typer.echo(f"study {study.name}: readings {', '.join(study.presets)}; {study.question}")
-        typer.echo(f"wrote {write_study_reach(root, study)}")
+        if study.reads_the_operator:
+            typer.echo(f"wrote {write_study_reach(root, study)}")
     typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
 
     def report(result, finished, total):

@@ -246,7 +246,9 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
             for suffix in ("png", "pdf"):
                 (Path(out_dir) / f"{name}_{preset}.{suffix}").unlink(missing_ok=True)
         plt.close(fig)
-    for study in studies_of(preset):  # the study's sensitivity figure (its readings' runs)
+    for study in studies_of(preset):  # an operator study's sensitivity figure
+        if not study.reads_the_operator:
+            continue
         scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
         written += write_sensitivity(root, study, scores_of, out_dir)
     # Table II's noise curve: twin success and collision against the perception error

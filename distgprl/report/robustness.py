@@ -1,18 +1,18 @@
-"""Claims per reading: each claim's verdict under Table I's operator and each study reading.
+"""Claims per reading: each claim's verdict under Table I's readings and every study reading.
 
-For a study (`distgprl.studies`) read beside a preset's Table I, every claim of
-`distgprl.report.claims` is tested once per reading, with the same rules and the same
-bootstrap seed, on that reading's runs:
+For the studies (`distgprl.studies`) read beside a preset's Table I — the covariance operator's
+readings, the unit of r_tc — every claim of `distgprl.report.claims` is tested once per
+reading, with the same rules and the same bootstrap seed, on that reading's runs:
 
 - the reference reading (Table I's) uses the reference preset's runs as they are;
-- a study reading replaces every method the studied constant acts on (for the operator study:
-  each method with the covariance transform, `MethodSpec.covariance_transform`) by its runs
-  under the reading's preset, and keeps the reference preset's runs of every other method,
-  which the reading does not change (their environment and scores are the same under every
-  reading of the operator);
-- a method the constant acts on with no run under a reading is *not* borrowed from Table I (its
-  numbers would be those of another operator): every claim whose test reads it is
-  `NOT_RUN` under that reading, naming the methods to run.
+- a study reading replaces every method the reading acts on (`Study.acted_on`: for the
+  operator study each method with the covariance transform, for the reward unit every trained
+  method) by its runs under the reading's preset, and keeps the reference preset's runs of
+  every other method, which the reading does not change (their environment and scores are the
+  same under it);
+- a method a reading acts on with no run under it is *not* borrowed from Table I (its numbers
+  would be those of another reading): every claim whose test reads it is `NOT_RUN` under that
+  reading, naming the methods to run.
 
 Across the readings (`across_readings`), with R the readings:
 
@@ -47,7 +47,6 @@ __all__ = [
     "NOT_RUN",
     "ReadingVerdicts",
     "across_readings",
-    "acted_on",
     "reading_scores",
     "robustness_texts",
     "study_verdicts",
@@ -70,11 +69,6 @@ def _label(method: str) -> str:
     return METHODS[method].label.removesuffix(" (ours)")
 
 
-def acted_on(method: str) -> bool:
-    """Whether the operator study's constant acts on ``method``'s runs (it applies S_W)."""
-    return METHODS[method].covariance_transform
-
-
 @dataclass(frozen=True)
 class ReadingVerdicts:
     """Every claim's verdict under one reading.
@@ -92,7 +86,7 @@ class ReadingVerdicts:
 
 
 def reading_scores(
-    reference: Scores, reading_runs: Scores, acts_on: Callable[[str], bool] = acted_on
+    reference: Scores, reading_runs: Scores, acts_on: Callable[[str], bool]
 ) -> tuple[Scores, tuple[str, ...]]:
     """(scores, methods not run) of a study reading: ``reference``'s runs of every method
     ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (module
@@ -108,28 +102,32 @@ def reading_scores(
 
 
 def study_verdicts(
-    study: Study,
+    studies: Sequence[Study],
     reference: Scores,
     runs_of: Callable[[str], Scores],
     seed: int = BOOTSTRAP_SEED,
-    acts_on: Callable[[str], bool] = acted_on,
 ) -> list[ReadingVerdicts]:
-    """Every claim under every reading of ``study``, the reference first. ``runs_of(preset)``
-    gives a study preset's scores (`distgprl.report.table1.collect_scores`)."""
-    out = [ReadingVerdicts(study.reference, tuple(evaluate_claims(reference, seed)), ())]
-    for reading in study.readings:
-        scores, not_run = reading_scores(reference, runs_of(reading.preset), acts_on)
-        verdicts = []
-        for verdict in evaluate_claims(scores, seed):
-            lacking = [m for m in verdict.needs if m in not_run]
-            if lacking:
-                names = ", ".join(map(_label, lacking))
-                detail = f"{names} under {reading.preset}: the operator acts on it; run it"
-                verdict = Verdict(
-                    verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs
-                )
-            verdicts.append(verdict)
-        out.append(ReadingVerdicts(reading, tuple(verdicts), not_run))
+    """Every claim under the reference reading (first; the studies share it) and every
+    reading of each of ``studies``, each study's readings acting on the methods its
+    `Study.acted_on` names. ``runs_of(preset)`` gives a study preset's scores
+    (`distgprl.report.table1.collect_scores`)."""
+    if not studies:
+        raise ValueError("no study to read")
+    out = [ReadingVerdicts(studies[0].reference, tuple(evaluate_claims(reference, seed)), ())]
+    for study in studies:
+        for reading in study.readings:
+            scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
+            verdicts = []
+            for verdict in evaluate_claims(scores, seed):
+                lacking = [m for m in verdict.needs if m in not_run]
+                if lacking:
+                    names = ", ".join(map(_label, lacking))
+                    detail = f"{names} under {reading.preset}: the reading changes it; run it"
+                    verdict = Verdict(
+                        verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs
+                    )
+                verdicts.append(verdict)
+            out.append(ReadingVerdicts(reading, tuple(verdicts), not_run))
     return out
 
 
@@ -181,18 +179,18 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
         f"{r.reading.label}: {', '.join(map(_label, r.not_run))}" for r in results if r.not_run
     ]
     intro = (
-        f"Claims per reading of the operator ({preset} preset beside its studies): each claim's "
-        "overall verdict (`distgprl.report.claims`) under Table I's operator and under each "
-        "study reading, where a study reading replaces the methods with the covariance "
-        "transform by their runs under its preset and keeps the other methods' Table I runs "
-        "(the operator does not act on them). A claim counts as reproduced only where it is "
-        "reproduced under every reading; a verdict that changes with the reading is "
-        "reading-dependent (rules: `distgprl.report.robustness`)."
+        f"Claims per reading ({preset} preset beside its studies): each claim's overall "
+        "verdict (`distgprl.report.claims`) under Table I's readings and under each study "
+        "reading, where a study reading replaces the methods it acts on (the operator: those "
+        "with the covariance transform; the unit of r_tc: every trained method) by their runs "
+        "under its preset and keeps the other methods' Table I runs. A claim counts as "
+        "reproduced only where it is reproduced under every reading; a verdict that changes "
+        "with the reading is reading-dependent (rules: `distgprl.report.robustness`)."
     )
     markdown = markdown_table(intro, header, rows)
     if missing:
         markdown += (
-            "\nMethods the operator acts on without runs under a reading (the claims reading "
+            "\nMethods a reading acts on without runs under it (the claims reading "
             "them are not run there): " + "; ".join(missing) + ".\n"
         )
     return buffer.getvalue(), markdown

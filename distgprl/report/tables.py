@@ -127,15 +127,16 @@ def write_tables(
         "each claim of the paper, the statistic testing it and the verdict "
         "(rules: distgprl.report.claims)",
     )
-    for study in studies_of(preset):  # each claim under every reading of the study
-        results = study_verdicts(study, scores, lambda p: collect_scores(root, p, TABLE_POLICY))
+    studies = studies_of(preset)
+    if studies:  # each claim under every reading of every study read beside this preset
+        results = study_verdicts(studies, scores, lambda p: collect_scores(root, p, TABLE_POLICY))
         written += _write_or_remove(
             out_dir / f"claims_robustness_{preset}",
             (".csv", ".md"),
             robustness_texts(results, preset),
             preset,
-            f"each claim's verdict under every reading of the {study.name} study "
-            "(rules: distgprl.report.robustness)",
+            "each claim's verdict under every reading of "
+            f"{', '.join(s.name for s in studies)} (rules: distgprl.report.robustness)",
         )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:

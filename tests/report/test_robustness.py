@@ -52,7 +52,7 @@ def test_a_reading_replaces_only_the_methods_the_operator_acts_on():
     borrowed from Table I but reported as not run."""
     reference = both_tasks(FIELD)
     study_runs = both_tasks({"dist-gprl": runs(0.1, 0.8)})
-    scores, not_run = reading_scores(reference, study_runs)
+    scores, not_run = reading_scores(reference, study_runs, get_study("operators").acted_on)
     assert scores[("dcp", "dist-gprl")] is study_runs[("dcp", "dist-gprl")]
     assert scores[("dcp", "dist-gprl-nocov")] is reference[("dcp", "dist-gprl-nocov")]
     assert ("dcp", "gprl-d") not in scores and ("dbm", "gprl-h") not in scores
@@ -72,7 +72,7 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "operator-signal": worse,
         "operator-correlation": same,
     }
-    results = study_verdicts(study, reference, runs_of.__getitem__, seed=0)
+    results = study_verdicts([study], reference, runs_of.__getitem__, seed=0)
     assert [r.reading.preset for r in results] == ["paper", *study.presets]
     verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
     assert verdict["paper"][GLOBAL].verdict == REPRODUCED
@@ -109,3 +109,24 @@ def test_the_rule_across_readings():
         "incomplete: refuted under 1 of 2 readings; awaiting b"
     )
     assert across_readings([("a", NO_RUNS), ("b", NOT_RUN)]) == "incomplete: awaiting a, b"
+
+
+def test_a_reward_unit_reading_replaces_every_trained_method():
+    """The reward unit changes every trained method's rewards: under its reading no Table I
+    run of a trained method is kept (the references are), and a method without a run under it
+    makes its claims not run."""
+    study = get_study("reward-unit")
+    reference = both_tasks({**FIELD, "demo": runs(0.5, 0.3)})
+    reading_runs = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
+    scores, not_run = reading_scores(reference, reading_runs, study.acted_on)
+    assert {m for _, m in scores} == {"dist-gprl", "demo"}
+    assert set(not_run) == set(FIELD) - {"dist-gprl"}
+    results = study_verdicts([get_study("operators"), study], reference, lambda p: {}, seed=0)
+    assert [r.reading.preset for r in results] == [
+        "paper",
+        "operator-unit",
+        "operator-signal",
+        "operator-correlation",
+        "reward-unit-10",
+    ]
+    assert {v.verdict for v in results[-1].verdicts} == {NOT_RUN}
