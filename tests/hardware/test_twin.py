@@ -118,4 +118,4 @@ def test_base_calibration_error_is_one_rigid_seeded_move():
 
 def test_unknown_level_is_a_user_error():
     with pytest.raises(UserInputError, match="sensor noise level"):
-        sensor_noise_level(3)
+        sensor_noise_level(5)
