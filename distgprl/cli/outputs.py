@@ -95,8 +95,13 @@ def render(
     config: ConfigOption = None,
     root: RootOption = Path("results"),
     policy: Annotated[
-        str, typer.Option(metavar="final|best", help="The run's final or best policy.")
-    ] = "final",
+        str,
+        typer.Option(
+            metavar="best|final",
+            help="The run's best policy (Table I's, shipped with the run: no training needed "
+            "on a fresh clone) or its final one (needs the run's model.zip).",
+        ),
+    ] = "best",
 ) -> None:
     """Render an episode (headless): the GP skill, or a trained policy's adaptation."""
     from distgprl.data import check_task_name

@@ -57,8 +57,10 @@ def build_regulariser(env, run: RunSpec):
     )
 
 
-def make_agent(env, run: RunSpec):
-    """A `RegularisedSAC` configured from the run's shared SAC configuration."""
+def make_agent(env, run: RunSpec, regularised: bool = True):
+    """A `RegularisedSAC` configured from the run's shared SAC configuration; with
+    ``regularised=False`` without its actor regulariser (an agent that only acts, e.g. to hold
+    a shipped actor: no HAP subspace is built)."""
     from distgprl.agents.sac import RegularisedSAC, StateOnlyExtractor, exponential_anneal
 
     sac = run.config.sac
@@ -86,7 +88,7 @@ def make_agent(env, run: RunSpec):
         seed=run.seed,
         device="cpu",
         verbose=0,
-        regulariser=build_regulariser(env, run),
+        regulariser=build_regulariser(env, run) if regularised else None,
         entropy_schedule=exponential_anneal(sac.anneal_start, sac.anneal_end) if anneal else None,
         total_training_steps=run.config.run.total_steps,
     )

@@ -131,6 +131,18 @@ def ship_best_policy(folder: Path) -> Path:
     return target
 
 
+def ship_if_missing(folder: Path) -> Path | None:
+    """`ship_best_policy` for a finished run that does not ship its best actor yet and whose
+    kept curve actor is on this machine; None where there is nothing to do or nothing to
+    ship from (its checkpoints are on another machine)."""
+    if (folder / SHIPPED_POLICY_RECORD).exists() or not (folder / "progress.csv").exists():
+        return None
+    _, curve = read_csv(folder / "progress.csv")
+    if not curve or not curve_policy_path(folder, int(best_curve_row(curve)["step"])).exists():
+        return None
+    return ship_best_policy(folder)
+
+
 @dataclass(frozen=True)
 class TrainedPolicy:
     """A trained run's policy, loaded by `load_trained_policy`.
@@ -148,21 +160,36 @@ class TrainedPolicy:
     selected: dict[str, Any]
 
 
-def load_trained_policy(run: RunSpec, folder: Path, env, policy: str = "final") -> TrainedPolicy:
-    """Load the final (``policy="final"``, ``model.zip``) or best learning-curve
-    (``policy="best"``) policy of the trained run in ``folder``.
+def verified_shipped_policy(folder: Path) -> tuple[Path, dict[str, Any]]:
+    """The run's shipped actor (`SHIPPED_POLICY`) and its record, after checking that its
+    SHA-256 is the recorded one.
 
-    The run is taken with the configuration it was trained with (its ``total_steps``
-    included), which must still be what the code resolves; a model of an older
-    configuration, or one whose spaces do not match ``env``'s, is a `UserInputError`.
+    Raises:
+        UserInputError: the weights or the record is missing, or the hash does not match (a
+            changed or damaged file is never loaded, and never silently retrained).
     """
-    task, method, seed, preset = run.task, run.method.name, run.seed, run.config.preset
-    model_path = folder / "model.zip"
-    if not model_path.exists():
+    from distgprl.io import file_sha256
+
+    path, record_path = folder / SHIPPED_POLICY, folder / SHIPPED_POLICY_RECORD
+    missing = [p.name for p in (path, record_path) if not p.exists()]
+    if missing:
+        raise UserInputError(f"{folder}: no shipped policy ({' and '.join(missing)} missing)")
+    record = read_json(record_path)
+    digest = file_sha256(path)
+    if digest != record.get("sha256"):
         raise UserInputError(
-            f"{model_path}: no trained model; run `distgprl train --method {method} "
-            f"--task {task} --seed {seed} --preset {preset}` first"
+            f"{path}: SHA-256 {digest} does not match the {record.get('sha256')} recorded in "
+            f"{record_path.name}: the shipped policy was changed or damaged; restore it "
+            "(git checkout) or retrain the run"
         )
+    return path, record
+
+
+def _as_trained(run: RunSpec, folder: Path, what: Path) -> RunSpec:
+    """``run`` with the configuration the run in ``folder`` was trained with (its
+    ``total_steps`` included), which must still be what the code resolves (``what``: the file
+    about to be loaded, for the error)."""
+    task, method, seed, preset = run.task, run.method.name, run.seed, run.config.preset
     trained = read_json(folder / "config.json") if (folder / "config.json").exists() else {}
     steps = trained.get("run", {}).get("config", {}).get("run", {}).get("total_steps")
     if steps is not None and steps != run.config.run.total_steps:  # trained with --steps
@@ -170,20 +197,92 @@ def load_trained_policy(run: RunSpec, folder: Path, env, policy: str = "final") 
     recorded = trained.get("config_hash")
     if recorded != run.hash:
         raise UserInputError(
-            f"{model_path}: trained with configuration {recorded}, the code now resolves "
+            f"{what}: trained with configuration {recorded}, the code now resolves "
             f"{run.hash} for this run; re-train it (evaluating would mislabel the model)"
         )
-    model = load_model(model_path, env, task, method)
-    selected: dict[str, Any] = {}
+    return run
+
+
+def _selected(best: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "policy": "best",
+        "policy_step": int(best["step"]),
+        "curve_success_rate": float(best["success_rate"]),
+        "curve_collision_rate": float(best["collision_rate"]),
+        "curve_mean_return": float(best["mean_return"]),
+    }
+
+
+def load_trained_policy(run: RunSpec, folder: Path, env, policy: str = "final") -> TrainedPolicy:
+    """Load the final (``policy="final"``, ``model.zip``) or best learning-curve
+    (``policy="best"``) policy of the trained run in ``folder``.
+
+    The run is taken with the configuration it was trained with (its ``total_steps``
+    included), which must still be what the code resolves; a model of an older
+    configuration, or one whose spaces do not match ``env``'s, is a `UserInputError`.
+
+    The best policy comes from the checkpoint folder of the machine that trained the run
+    (``model.zip`` and the kept curve actor) where they are, otherwise from the actor the run
+    ships (`SHIPPED_POLICY`, committed with its small files: a fresh clone evaluates, renders
+    and runs Table I's policy without training), after its SHA-256 is checked
+    (`verified_shipped_policy`) and its step is the run's best curve point. The final policy
+    is not shipped: without ``model.zip`` it is an error naming what to do.
+    """
+    task, method, seed, preset = run.task, run.method.name, run.seed, run.config.preset
+    model_path = folder / "model.zip"
+    shipped = folder / SHIPPED_POLICY
+    train = f"`distgprl train --method {method} --task {task} --seed {seed} --preset {preset}`"
     if policy == "best":
         _, curve = read_csv(folder / "progress.csv")
         best = best_curve_row(curve)
-        load_curve_policy(folder, model, int(best["step"]))
-        selected = {
-            "policy": "best",
-            "policy_step": int(best["step"]),
-            "curve_success_rate": float(best["success_rate"]),
-            "curve_collision_rate": float(best["collision_rate"]),
-            "curve_mean_return": float(best["mean_return"]),
-        }
+        step = int(best["step"])
+        if model_path.exists() and curve_policy_path(folder, step).exists():
+            run = _as_trained(run, folder, model_path)
+            model = load_model(model_path, env, task, method)
+            load_curve_policy(folder, model, step)
+            return TrainedPolicy(run, model, _selected(best))
+        if shipped.exists() or (folder / SHIPPED_POLICY_RECORD).exists():
+            return _load_shipped(run, folder, env, step, best)
+        raise UserInputError(
+            f"{folder}: neither the trained model with its kept curve actor (checkpoints stay "
+            f"on the machine that trained the run) nor a shipped {SHIPPED_POLICY}; run {train}"
+        )
+    if not model_path.exists():
+        ships = f" (it ships only its best policy, {SHIPPED_POLICY}: --policy best)"
+        raise UserInputError(
+            f"{model_path}: no trained model{ships if shipped.exists() else ''}; run {train} first"
+        )
+    run = _as_trained(run, folder, model_path)
+    return TrainedPolicy(run, load_model(model_path, env, task, method), {})
+
+
+def _load_shipped(
+    run: RunSpec, folder: Path, env, step: int, best: dict[str, Any]
+) -> TrainedPolicy:
+    """The run's shipped best actor in a fresh `RegularisedSAC` of the run's configuration,
+    without its regulariser (its critics untrained and unused: only the actor acts)."""
+    import torch
+
+    from distgprl.experiments.factories import make_agent
+
+    path, record = verified_shipped_policy(folder)
+    if int(record.get("step", -1)) != step:
+        raise UserInputError(
+            f"{path}: shipped from curve step {record.get('step')}, but the run's best curve "
+            f"point (progress.csv) is step {step}; re-ship it (experiments.policies."
+            "ship_best_policy) on the machine that trained the run"
+        )
+    run = _as_trained(run, folder, path)
+    model = make_agent(env, run, regularised=False)  # it only acts
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        model.actor.load_state_dict(state)
+    except Exception as exc:
+        raise UserInputError(
+            f"{path}: cannot load the shipped policy ({type(exc).__name__}: {exc})"
+        ) from None
+    selected = _selected(best) | {
+        "policy_source": SHIPPED_POLICY,
+        "policy_sha256": record["sha256"],
+    }
     return TrainedPolicy(run, model, selected)

@@ -72,6 +72,7 @@ from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
     trials_due,
 )
 from distgprl.experiments.jobs import Job
+from distgprl.experiments.policies import ship_best_policy, ship_if_missing
 from distgprl.experiments.results import write_json
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
@@ -206,6 +207,8 @@ def run_job(job: Job) -> JobResult:
     start = time.perf_counter()
     finished = finished_result(job)
     if finished is not None:
+        if finished.status == "skipped" and get_method(job.method).trainable:
+            ship_if_missing(run_dir(job.root, job.preset, job.task, job.method, job.seed))
         if finished.status == "skipped" and follow_up_due(job):
             return replace(finished, **run_follow_ups(job))
         return finished
@@ -225,6 +228,7 @@ def run_job(job: Job) -> JobResult:
                 root=job.root,
                 show_progress=False,
             )
+            ship_best_policy(folder)  # Table I's actor, committed with the run's small files
         else:
             evaluate_run(
                 job.task, job.method, job.seed, job.preset, root=job.root, show_progress=False

@@ -203,11 +203,12 @@ def test_training_skips_the_best_policy_evaluation_it_cannot_do_and_says_so(
 
 
 def test_a_best_point_without_its_kept_policy_is_a_clear_error(tmp_path):
-    """Runs trained before curve policies were kept (or on another machine) are refused."""
+    """Runs trained before curve policies were kept (or on another machine), that ship no
+    best actor either, are refused, naming what is missing."""
     folder = train(tmp_path, steps=120, evaluate_after=False)
     for path in runner.curve_policy_dir(folder).glob("*.pt"):
         path.unlink()
-    with pytest.raises(UserInputError, match=r"has no kept policy"):
+    with pytest.raises(UserInputError, match=r"neither the trained model with its kept curve"):
         runner.evaluate_run(
             "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
         )
