@@ -35,7 +35,9 @@ def main() -> int:
         path = REPOSITORY / "paper_figures" / name
         if path.exists():
             parts.append(f"{title} (`paper_figures/{name}`):\n\n{path.read_text().strip()}\n")
-    body = "\n".join(parts) if parts else "No table yet: the runs of this environment are pending.\n"
+    body = (
+        "\n".join(parts) if parts else "No table yet: the runs of this environment are pending.\n"
+    )
     head, rest = text.split(START, 1)
     _, tail = rest.split(END, 1)
     readme.write_text(f"{head}{START}\n{body}{END}{tail}")
