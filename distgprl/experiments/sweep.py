@@ -72,7 +72,7 @@ from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
     trials_due,
 )
 from distgprl.experiments.jobs import Job
-from distgprl.experiments.policies import ship_best_policy, ship_if_missing
+from distgprl.experiments.policies import ship_if_missing
 from distgprl.experiments.results import write_json
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
@@ -228,7 +228,7 @@ def run_job(job: Job) -> JobResult:
                 root=job.root,
                 show_progress=False,
             )
-            ship_best_policy(folder)  # Table I's actor, committed with the run's small files
+            ship_if_missing(folder)  # Table I's actor, committed with the run's small files
         else:
             evaluate_run(
                 job.task, job.method, job.seed, job.preset, root=job.root, show_progress=False
