@@ -37,6 +37,7 @@ format:
 tables:
 	$(BIN)/distgprl tables --preset paper
 	$(BIN)/distgprl curves --preset paper
+	$(BIN)/distgprl tables --preset reward-unit-10
 
 
 reproduce:

@@ -14,7 +14,7 @@ from distgprl.report.tables import write_tables
 REPOSITORY = Path(__file__).resolve().parents[2]
 RESULTS, FIGURES = REPOSITORY / "results", REPOSITORY / "paper_figures"
 
-MAKE_TABLES = {"paper": None}  # environment v5: the correlated probes are archived (v4)
+MAKE_TABLES = {"paper": None, "reward-unit-10": None}  # the reward-unit study's own Table I
 """The ``distgprl tables --preset P [--against Q]`` calls of ``make tables`` (P: Q)."""
 
 
