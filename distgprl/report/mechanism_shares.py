@@ -282,6 +282,68 @@ def return_cells(
     ]
 
 
+IDLE_PROGRESS = 0.05
+"""`plateau_cell`: an episode whose r_tc is below this share of the task's progress weight
+(and that neither succeeded nor collided) made no task progress worth the name."""
+
+
+@dataclass(frozen=True)
+class PlateauCell:
+    """How often a distance-reward method's policy idles on the r_ga plateau: evaluation
+    episodes with no success, no collision and r_tc < `IDLE_PROGRESS` of the task's progress
+    weight, pooled over seeds, and the mean lambda_ga r_ga they collect (the alignment reward
+    paid for moving away from the obstacles instead of doing the task; FINDINGS "The first v7
+    runs").
+
+    Attributes:
+        task, method, policy: what the cell is.
+        seeds, episodes: runs pooled and their evaluation episodes.
+        idle: the idle episodes; ``idle_ga``: their lambda_ga r_ga values.
+    """
+
+    task: str
+    method: str
+    policy: str
+    seeds: int
+    episodes: int
+    idle: int
+    idle_ga: tuple[float, ...]
+
+    @property
+    def share(self) -> float | None:
+        return self.idle / self.episodes if self.episodes else None
+
+    @property
+    def mean_ga(self) -> float | None:
+        return float(np.mean(self.idle_ga)) if self.idle_ga else None
+
+
+def plateau_cell(
+    task: str,
+    method: str,
+    policy: str,
+    runs: Sequence[tuple[Sequence[Mapping[str, Any]], float]],
+) -> PlateauCell | None:
+    """The `PlateauCell` of ``runs``: (evaluation rows, the run's progress weight) per seed;
+    None if no run records the return's parts."""
+    episodes, idle_ga, seeds = 0, [], 0
+    for rows, progress_weight in runs:
+        recorded = [r for r in rows if _number(r.get("return_tc")) is not None]
+        if not recorded:
+            continue
+        seeds += 1
+        episodes += len(recorded)
+        for row in recorded:
+            tc = _number(row["return_tc"])
+            ga = _number(row.get("return_ga"))
+            done = bool(round(float(row["success"]))) or bool(round(float(row["collision"])))
+            if not done and tc is not None and tc < IDLE_PROGRESS * progress_weight:
+                idle_ga.append(ga if ga is not None else 0.0)
+    if not seeds:
+        return None
+    return PlateauCell(task, method, policy, seeds, episodes, len(idle_ga), tuple(idle_ga))
+
+
 @dataclass(frozen=True)
 class MechanismTable:
     """The mechanism table's three parts and the runs left out.
@@ -295,6 +357,7 @@ class MechanismTable:
         returns: the shaping shares of the return (`return_cells`).
         gradients: the regulariser shares of the actor gradient (`gradient_cells`).
         note: which runs were left out (`distgprl.report.runs.RunSelection.note`).
+        plateau: the idle episodes on the r_ga plateau (`plateau_cell`).
     """
 
     preset: str
@@ -302,3 +365,4 @@ class MechanismTable:
     returns: tuple[ReturnCell, ...]
     gradients: tuple[GradientCell, ...]
     note: str = ""
+    plateau: tuple[PlateauCell, ...] = ()

@@ -45,10 +45,12 @@ from distgprl.report.mechanism_shares import (
     POINTS,
     GradientCell,
     MechanismTable,
+    PlateauCell,
     ReturnCell,
     episode_ratios,
     gradient_cells,
     gradient_points,
+    plateau_cell,
     return_cells,
 )
 from distgprl.report.mechanisms_text import mechanism_texts
@@ -71,11 +73,16 @@ __all__ = [
 ]
 
 
-def _d_min(folder: Path) -> float:
-    """``sd_d_min`` (m) of the run's recorded config (`EnvConfig`'s default if absent)."""
+def _env(folder: Path, field: str) -> float:
+    """An `EnvConfig` field of the run's recorded config (its default if absent)."""
     document = json.loads((folder / "config.json").read_text())
     env = document.get("run", {}).get("config", {}).get("env", {})
-    return float(env.get("sd_d_min", EnvConfig.sd_d_min))
+    return float(env.get(field, getattr(EnvConfig, field)))
+
+
+def _d_min(folder: Path) -> float:
+    """``sd_d_min`` (m) of the run's recorded config (`EnvConfig`'s default if absent)."""
+    return _env(folder, "sd_d_min")
 
 
 def _key(folder: Path) -> tuple[str, str]:
@@ -96,12 +103,20 @@ def mechanism_table(
     for folder in sorted(evaluated.current):
         if METHODS[_key(folder)[1]].distance_rewards:
             by_method.setdefault(_key(folder), []).append(folder)
+    plateau: list[PlateauCell] = []
     for (task, method), folders in sorted(by_method.items()):
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
-            runs = [(read_csv(f / name)[1], _d_min(f)) for f in folders if (f / name).exists()]
+            found = [f for f in folders if (f / name).exists()]
+            rows = {f: read_csv(f / name)[1] for f in found}
+            runs = [(rows[f], _d_min(f)) for f in found]
             if runs:
                 returns += return_cells(task, method, policy, runs)
+            cell = plateau_cell(
+                task, method, policy, [(rows[f], _env(f, "progress_weight")) for f in found]
+            )
+            if cell is not None:
+                plateau.append(cell)
     gradients: list[GradientCell] = []
     progress: dict[tuple[str, str], list[Path]] = {}
     for folder in sorted(trained.current):
@@ -114,7 +129,9 @@ def mechanism_table(
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
-    return MechanismTable(preset, tuple(reach), tuple(returns), tuple(gradients), note)
+    return MechanismTable(
+        preset, tuple(reach), tuple(returns), tuple(gradients), note, tuple(plateau)
+    )
 
 
 DESCRIPTION = (

@@ -392,6 +392,37 @@ def verdict_lines(table: MechanismTable) -> list[str]:
     return lines
 
 
+def _plateau_markdown(table: MechanismTable) -> str:
+    """The idle episodes on the r_ga plateau per distance-reward method (no verdict: a
+    description of where the alignment reward is paid for not doing the task)."""
+    if not table.plateau:
+        return ""
+    rows = [
+        [
+            cell.task.upper(),
+            _label(cell.method),
+            cell.policy,
+            str(cell.seeds),
+            f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
+            "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
+        ]
+        for cell in sorted(table.plateau, key=lambda c: (_order(c.task, c.method), c.policy))
+    ]
+    header = ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
+    lines = ["### The r_ga plateau", "", "| " + " | ".join(header) + " |"]
+    lines.append("|" + "---|" * len(header))
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines += [
+        "",
+        "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
+        "task's progress weight — the policy did not do the task; the alignment reward it "
+        'still collects is paid for moving the via-points along ∇d (docs/FINDINGS.md "The '
+        'first v7 runs").',
+        "",
+    ]
+    return "\n".join(lines) + "\n"
+
+
 def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
     """(CSV text, Markdown text, verdict lines) of the table."""
     verdicts = verdict_lines(table)
@@ -425,6 +456,7 @@ def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
         "learning-curve points with a gradient, mean over seeds; only the outside-C_safe "
         "share is judged.",
         "",
+        _plateau_markdown(table),
         "### Verdicts",
         "",
         *(f"- {line}" for line in verdicts),

@@ -233,3 +233,22 @@ def test_the_writer_imports_neither_torch_nor_pybullet(tmp_path):
     assert result.returncode == 0, result.stderr
     for name in ("mechanisms_ci.csv", "mechanisms_ci.csv.meta.json", "mechanisms_ci.md"):
         assert (tmp_path / "blocked" / name).read_text() == (tmp_path / "here" / name).read_text()
+
+
+def test_the_plateau_counts_idle_episodes_and_the_alignment_reward_they_collect():
+    """Idle = no success, no collision, r_tc below 5 % of the progress weight; their mean
+    lambda_ga r_ga is reported; runs without the return's parts are left out."""
+    from distgprl.report.mechanism_shares import plateau_cell
+
+    def row(success, collision, tc, ga):
+        return {"success": success, "collision": collision, "return_tc": tc, "return_ga": ga}
+
+    seed0 = [row(0, 0, 0.0, 0.55), row(1, 0, 2.0, 0.3), row(0, 1, -1.0, 0.1), row(0, 0, 0.04, 0.5)]
+    seed1 = [row(0, 0, 0.2, 0.4), row(0, 0, 0.0, 0.6)]
+    old = [{"success": 0, "collision": 0, "return_tc": "", "return_ga": ""}]
+    cell = plateau_cell("dcp", "dist-gprl", "best", [(seed0, 1.0), (seed1, 1.0), (old, 1.0)])
+    assert (cell.seeds, cell.episodes, cell.idle) == (2, 6, 3)
+    assert cell.share == 0.5 and abs(cell.mean_ga - (0.55 + 0.5 + 0.6) / 3) < 1e-12
+    # under a progress weight of 10 (the reward-unit study) 0.2 is still idle
+    assert plateau_cell("dcp", "dist-gprl", "best", [(seed1, 10.0)]).idle == 2
+    assert plateau_cell("dcp", "dist-gprl", "best", [(old, 1.0)]) is None
