@@ -70,10 +70,11 @@ RESULT_TABLES: tuple[tuple[str, str], ...] = (
 table of ``paper_figures/`` not listed here still appears, under "Other tables"."""
 
 RESULT_FIGURES: tuple[tuple[str, str], ...] = (
-    ("all_methods_paper.png", "Learning curves of every method (curve TCs, best policy marked)"),
+    ("all_methods_paper.png", "Learning curves of every method (on the curve TCs)"),
     ("hap_effect_paper.png", "The HAP prior's effect: Dist-GPRL against GPRL-D"),
     ("covariance_effect_paper.png", "The covariance transform's effect: Dist-GPRL against NoCov"),
     ("table2_noise_paper.png", "Twin success and collision against the perception error"),
+    ("sensitivity_operators_paper.png", "The operator study: Dist-GPRL per reading of S"),
     ("dcp_scene.png", "The DCP scene"),
     ("dbm_scene.png", "The DBM scene"),
 )
