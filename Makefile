@@ -3,7 +3,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 export MPLBACKEND := Agg
 
-.PHONY: setup test lint format tables reproduce bench ci
+.PHONY: setup test lint format docs tables reproduce bench ci
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -15,7 +15,7 @@ TORCH_INDEX ?=
 setup: $(BIN)/python
 	# torch first and pinned: an unpinned torch would pull a multi-GB CUDA build
 	$(BIN)/pip install -q -c constraints.txt $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) torch==2.13.0
-	$(BIN)/pip install -q -c constraints.txt -e ".[dev,ray]"
+	$(BIN)/pip install -q -c constraints.txt -e ".[dev,ray,docs]"
 
 # Tests run on TEST_WORKERS processes (pytest-xdist), each test file whole on one worker so a
 # file's module-scoped fixtures are built once; TEST_WORKERS=0 runs them in this process.
@@ -29,6 +29,12 @@ lint:
 	$(BIN)/ruff check distgprl tests scripts benchmarks
 	$(BIN)/ruff format --check distgprl tests scripts benchmarks
 	$(BIN)/mypy
+
+# The documentation site into site/ (mkdocs.yml; docs/ and the pages scripts/docs_pages.py
+# generates from the package, paper_figures/ and CHANGELOG.md); --strict: a broken link or
+# reference, or any other warning, fails the build. `$(BIN)/mkdocs serve` to browse it.
+docs:
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 format:
 	$(BIN)/ruff check --fix distgprl tests scripts benchmarks

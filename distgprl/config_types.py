@@ -145,6 +145,15 @@ class SACConfig:
     """SAC (Haarnoja et al. 2018 defaults) and the regularised actor loss.
 
     Attributes:
+        learning_rate: Adam step size of the actor, the critics and the entropy coefficient.
+        buffer_size: replay buffer capacity, transitions (RL steps).
+        batch_size: transitions per gradient step.
+        gamma: discount per RL step (one window).
+        tau: Polyak coefficient of the target critics' soft update, per gradient step.
+        learning_starts: RL steps of uniformly random actions before the first update.
+        train_freq: RL steps between updates.
+        gradient_steps: gradient steps per update.
+        net_arch: hidden units per layer of the actor and of each critic.
         lambda_sim: weight of L_sim (paper: 0.5).
         lambda_hap: weight of L_hap (paper: 0.2).
         lambda_velocity: lambda_v of Eq. sim_compact (the paper does not give it; set once,
@@ -216,7 +225,14 @@ class RunConfig:
 
 @dataclass(frozen=True)
 class Config:
-    """A resolved configuration (what `config.json` of a run records)."""
+    """A resolved configuration (what `config.json` of a run records).
+
+    Attributes:
+        preset: the preset's name (a shipped preset, or the stem of a ``--config`` file).
+        env: the adaptation MDP (`EnvConfig`).
+        sac: SAC and the regularised actor loss (`SACConfig`).
+        run: training and evaluation sizes (`RunConfig`).
+    """
 
     preset: str = "paper"
     env: EnvConfig = field(default_factory=EnvConfig)

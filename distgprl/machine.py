@@ -4,9 +4,9 @@ The pinned code and libraries fix the arithmetic up to what the libraries choose
 from the CPU: the OpenBLAS kernels (``Haswell``, ``SkylakeX``, ``Zen``, ...) and the SIMD
 targets numpy dispatches its loops to. Two machines with the same `numerics_fingerprint`
 give the same bits for the same computation; between fingerprints results agree only up to
-rounding, which contact physics and training amplify (README "Reproducibility"). PyBullet's
-and the analytic IK's compiled code does not dispatch on the CPU. Every result file records
-`machine_info` in its metadata (`distgprl.schema.result_meta`).
+rounding, which contact physics and training amplify (docs/findings/reproducibility.md).
+PyBullet's and the analytic IK's compiled code does not dispatch on the CPU. Every result file
+records `machine_info` in its metadata (`distgprl.schema.result_meta`).
 """
 
 from __future__ import annotations

@@ -195,7 +195,8 @@ class RegularisedSAC(SAC):
         entropy_schedule: ``progress -> alpha`` used instead of a fixed ``ent_coef``
             (requires a numeric ``ent_coef``), or None.
         total_training_steps: steps over which the schedule's progress runs 0 -> 1.
-        All other arguments go to `stable_baselines3.SAC`.
+
+    All other arguments go to `stable_baselines3.SAC`.
     """
 
     policy_aliases = {**SAC.policy_aliases, "MultiInputPolicy": RegularisedSACPolicy}

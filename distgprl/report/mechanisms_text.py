@@ -416,8 +416,8 @@ def _plateau_markdown(table: MechanismTable) -> str:
         "",
         "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
-        'still collects is paid for moving the via-points along ∇d (docs/FINDINGS.md "The '
-        'first v7 runs").',
+        "still collects is paid for moving the via-points along ∇d "
+        '(docs/FINDINGS.md "The first v7 runs").',
         "",
     ]
     return "\n".join(lines) + "\n"

@@ -3,8 +3,8 @@ seeds, CSV and Markdown of the table per run, for the best or the final policy's
 
 The CSV has all four numbers of every cell. The Markdown and LaTeX tables show the interval,
 as ``0.88 ± 0.06 [0.73, 1.00]``, on the Success and Collision columns only (the table is
-copied into the README, and ten columns of intervals would make it unreadable); their
-caption says so. Those displayed intervals, and the CSV's intervals of every rate
+shown on the documentation site's results page, and ten columns of intervals would make it
+unreadable); their caption says so. Those displayed intervals, and the CSV's intervals of every rate
 (`RATE_BOUNDS`), are clipped to [0, 1], the range of a rate; cells of a single seed stay
 ``mean`` and the seed count follows the Success cell in brackets, e.g. ``[3]``. MinCl's
 cells say over how many seeds they are where a seed's every episode collided

@@ -3,7 +3,7 @@ implementation: official kinematics, real joint limits, a rigidly attached tool)
 
 A task simulation (`distgprl.sim.tasks.base.TaskSim`) is given a `RobotFactory` (default
 `UR5e`) and calls only what `Robot` declares; the control loop (`distgprl.sim.control`)
-likewise. A new robot is one module implementing `Robot` (README "Extending: a new robot").
+likewise. A new robot is one module implementing `Robot` (docs/guides/extending.md "A new robot").
 
 Frames:
 - **world** = the UR controller's ``base`` frame (the frame ``ur_rtde`` reports poses

@@ -1,13 +1,16 @@
 """The committed tables under ``paper_figures/`` are exactly what ``make tables`` makes from
-the committed ``results/``: no table in the repository (or the README's copy of Table I) is
-stale or edited by hand, and none is left that the results no longer make. Before a preset
-has any evaluated run (environment v6: the v5 runs are archived in ``results/archive/env-v5``
-and the v6 runs pending) ``make tables`` makes none of its tables, so none may be committed,
-and the README must point to the archive instead of showing a Table I."""
+the committed ``results/``: no table in the repository (nor the README's short Table I, nor
+the documentation site's results page, which copies them) is stale or edited by hand, and
+none is left that the results no longer make. Before a preset has any evaluated run (e.g. a
+new environment's, its predecessor's runs archived under ``results/archive/``) ``make
+tables`` makes none of its tables, so none may be committed, and the README must point to
+the archive instead of showing a Table I."""
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
+from types import ModuleType
 
 from distgprl.report.tables import write_tables
 
@@ -16,6 +19,21 @@ RESULTS, FIGURES = REPOSITORY / "results", REPOSITORY / "paper_figures"
 
 MAKE_TABLES = {"paper": None, "reward-unit-10": None}  # the reward-unit study's own Table I
 """The ``distgprl tables --preset P [--against Q]`` calls of ``make tables`` (P: Q)."""
+
+
+def load_script(name: str) -> ModuleType:
+    """A module of ``scripts/`` (``readme_results``, ``docs_pages``), loaded from its file."""
+    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "scripts" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def results_page() -> str:
+    """The documentation site's results page as the build writes it (scripts/docs_pages.py
+    copies the committed tables of paper_figures/ into it)."""
+    return load_script("docs_pages").generated_pages()["results/index.md"]
 
 
 def has_runs(preset: str) -> bool:
@@ -49,36 +67,54 @@ def test_the_makefile_makes_these_tables():
 
 
 def test_the_readme_shows_the_committed_table_one():
-    """The README's Table I is the committed one (the best policy's, Algorithm 1's output);
-    before the paper preset has runs, there is none, and the README points to the archived
-    environment-v5 tables instead."""
+    """The README's short Table I (success and collision per method and task) is made from
+    the committed one (the best policy's, Algorithm 1's output) by scripts/readme_results.py,
+    and the site's results page shows the committed table itself; before the paper preset has
+    runs there is none, and the README points to the archived environments' tables instead."""
     readme = (REPOSITORY / "README.md").read_text()
     table = FIGURES / "table1_paper.md"
     assert table.exists() == has_runs("paper")
+    short = load_script("readme_results").short_table()
+    start, end = "<!-- results:start -->\n", "<!-- results:end -->"
+    assert f"{start}{short}{end}" in readme, "README's Table I is stale: scripts/readme_results.py"
     if table.exists():
-        assert table.read_text().strip() in readme
+        assert table.read_text().strip() in results_page()
     else:
         assert "results/archive/env-v5" in readme
 
 
-def test_the_readme_shows_the_committed_hardware_and_repair_tables():
-    """The README's copies of Table II, the twin robustness table and Table I + repair are
-    the committed ones (where they exist)."""
-    readme = (REPOSITORY / "README.md").read_text()
+def test_the_short_table_is_table_one_in_brief(tmp_path):
+    """Each row of the README's short table is the method's success (with its seeds) and
+    collision per task, as the committed Table I's Markdown shows them."""
+    csv_text = (
+        "method,label,dcp_seeds,dcp_success_rate_mean,dcp_collision_rate_mean,dbm_seeds,"
+        "dbm_success_rate_mean,dbm_collision_rate_mean\n"
+        "gprl,GPRL,2,0.465,0.1,0,,\n"
+    )
+    (tmp_path / "table1_paper.csv").write_text(csv_text)
+    short = load_script("readme_results").short_table(tmp_path)
+    assert "| GPRL | 0.47 [2] | 0.10 | – | – |" in short
+    assert "No Table I" in load_script("readme_results").short_table(tmp_path / "none")
+
+
+def test_the_site_shows_the_committed_hardware_and_repair_tables():
+    """The site's copies of Table II, the twin robustness table and Table I + repair are the
+    committed ones (where they exist)."""
+    page = results_page()
     for name in ("table2_paper.md", "table2_noise_paper.md", "table1_repair_paper.md"):
         if (FIGURES / name).exists():
-            assert (FIGURES / name).read_text().strip() in readme, f"README's {name} is stale"
+            assert (FIGURES / name).read_text().strip() in page, f"the site's {name} is stale"
 
 
-def test_the_readme_shows_the_committed_claims_table():
-    """The claims table a README shows is the committed one, so its verdicts cannot go stale:
-    the README's for the current environment's runs once they exist, and the archived
+def test_the_site_shows_the_committed_claims_table():
+    """The claims table the site shows is the committed one, so its verdicts cannot go stale:
+    the results page's for the current environment's runs once they exist, and the archived
     environment-v5 README's for the archived v5 runs (always)."""
     archive = REPOSITORY / "results" / "archive" / "env-v5"
     archived = (archive / "paper_figures" / "claims_paper.md").read_text().strip()
     assert archived in (archive / "README.md").read_text()
     current = FIGURES / "claims_paper.md"
     if current.exists():
-        assert current.read_text().strip() in (REPOSITORY / "README.md").read_text()
+        assert current.read_text().strip() in results_page()
     else:
         assert "results/archive/env-v5/README.md" in (REPOSITORY / "README.md").read_text()

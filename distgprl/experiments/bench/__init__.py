@@ -38,8 +38,9 @@ Modules (one per section, plus what they share; every name below is re-exported 
 - `adaptation` (1, and `bench_gp`), `simulation` (2), `environment` (2b), `training` (3, 4),
   `scaling` (5a, 5b), `workers` (5c, and the worker protocol of ``python -m
   distgprl.experiments.bench --worker``), `suite` (6), `floor` (7).
-- `markdown`, `plots`: the README table and the figure; `run`: `run_benchmarks`,
-  `load_results`; `cli`: the argparse `main` of ``python -m distgprl.experiments.bench``.
+- `markdown`, `plots`: the Markdown tables (the site's benchmarks page) and the figure;
+  `run`: `run_benchmarks`, `load_results`; `cli`: the argparse `main` of ``python -m
+  distgprl.experiments.bench``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The benchmark results as Markdown tables (the README's), from a `run_benchmarks` JSON."""
+"""The benchmark results as Markdown tables (the documentation site's benchmarks page), from a
+`run_benchmarks` JSON."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ def _fmt_ms(timing: dict[str, float], digits: int = 3) -> str:
 
 
 def markdown_table(document: dict[str, Any]) -> str:
-    """The benchmark results as Markdown tables (for the README), from a `run_benchmarks` JSON.
+    """The benchmark results as Markdown tables (the site's benchmarks page), from a
+    `run_benchmarks` JSON.
 
     Times are medians with the 10th–90th percentile range in parentheses, in ms.
     """
