@@ -75,6 +75,8 @@ RESULT_FIGURES: tuple[tuple[str, str], ...] = (
     ("covariance_effect_paper.png", "The covariance transform's effect: Dist-GPRL against NoCov"),
     ("table2_noise_paper.png", "Twin success and collision against the perception error"),
     ("sensitivity_operators_paper.png", "The operator study: Dist-GPRL per reading of S"),
+    ("rollout_dcp.gif", "A DCP rollout: Dist-GPRL's Table I policy (left) beside the demo"),
+    ("rollout_dbm.gif", "A DBM rollout: the TC-conditioned demonstration"),
     ("dcp_scene.png", "The DCP scene"),
     ("dbm_scene.png", "The DBM scene"),
 )
@@ -110,15 +112,16 @@ def results_tables(figures: Path = FIGURES) -> str:
 
 
 def result_figures(figures: Path = FIGURES) -> str:
-    """Every PNG figure of ``paper_figures/`` (copied into the site by `main`), the listed
-    ones (`RESULT_FIGURES`) first, each with its PDF's path where one is committed."""
-    present = {path.name for path in figures.glob("*.png")}
+    """Every PNG figure and GIF rollout of ``paper_figures/`` (copied into the site by
+    `main`), the listed ones (`RESULT_FIGURES`) first, each with its PDF's path where one is
+    committed."""
+    present = {path.name for pattern in ("*.png", "*.gif") for path in figures.glob(pattern)}
     order = [name for name, _ in RESULT_FIGURES if name in present]
     order += sorted(present - set(order))
     titles = dict(RESULT_FIGURES)
     parts = []
     for name in order:
-        title = titles.get(name, name.removesuffix(".png").replace("_", " "))
+        title = titles.get(name, name.rsplit(".", 1)[0].replace("_", " "))
         pdf = (figures / name).with_suffix(".pdf")
         source = f"`paper_figures/{name}`"
         if pdf.exists():
@@ -414,7 +417,11 @@ def generated_pages() -> dict[str, str]:
 
 def figure_files() -> dict[str, Path]:
     """The figures the site shows, by their path in the site -> the committed file."""
-    files = {f"{FIGURE_DIR}/{path.name}": path for path in sorted(FIGURES.glob("*.png"))}
+    files = {
+        f"{FIGURE_DIR}/{path.name}": path
+        for pattern in ("*.png", "*.gif")
+        for path in sorted(FIGURES.glob(pattern))
+    }
     files[f"{FIGURE_DIR}/bench_full.png"] = BENCH / "bench_full.png"
     return files
 
