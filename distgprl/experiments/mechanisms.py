@@ -35,10 +35,25 @@ import numpy as np
 from distgprl.adaptation.layout import ActionLayout
 from distgprl.methods import METHODS, MethodSpec
 
-__all__ = ["AXES", "layout_reach", "reach_rows", "residual_reach", "run_pairs"]
+__all__ = [
+    "AXES",
+    "layout_reach",
+    "reach_rows",
+    "residual_reach",
+    "row_gains_and_moving",
+    "run_pairs",
+]
 
 AXES = ("x", "y", "z")
 """The position axes the table reports (the TCs vary positions only)."""
+
+
+def row_gains_and_moving(layout: ActionLayout) -> tuple[np.ndarray, np.ndarray]:
+    """(gains, moving): the position rows' gains sum_j |S_W,ij| per step, axis and slot
+    (n_steps, 3, A_v), and which slots adapt a via-point (not a frozen one), (n_steps, A_v)."""
+    gains: np.ndarray = np.abs(layout.operators[:, :3]).sum(axis=-1)
+    moving: np.ndarray = ~np.isin(layout.indices, np.asarray(layout.frozen, dtype=int))
+    return gains, moving
 
 
 def layout_reach(layout: ActionLayout) -> dict[str, np.ndarray]:
@@ -48,9 +63,8 @@ def layout_reach(layout: ActionLayout) -> dict[str, np.ndarray]:
     over the via-points the layout adapts (its ``frozen`` ones, which never move, left out)
     and, for one step, over the steps (module docstring).
     """
-    gains = np.abs(layout.operators[:, :3]).sum(axis=-1)  # (n_steps, 3, A_v): row sums
+    gains, moving = row_gains_and_moving(layout)
     step_reach = gains * layout.scale[None, :3, None]  # m per unit raw action
-    moving = ~np.isin(layout.indices, np.asarray(layout.frozen, dtype=int))  # (n_steps, A_v)
     if not moving.any():
         raise ValueError("the layout adapts no via-point")
     one_step = step_reach.transpose(1, 0, 2)[:, moving]  # (3, adapted (step, point) pairs)

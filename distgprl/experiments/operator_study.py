@@ -26,7 +26,7 @@ import numpy as np
 
 from distgprl.adaptation.layout import ActionLayout
 from distgprl.data import TASK_NAMES
-from distgprl.experiments.mechanisms import AXES, layout_reach
+from distgprl.experiments.mechanisms import AXES, layout_reach, row_gains_and_moving
 from distgprl.schema import write_json
 from distgprl.studies import Study
 
@@ -39,8 +39,7 @@ REACH_FILE = "reach.json"
 def layout_mean_gain(layout: ActionLayout) -> np.ndarray:
     """The mean row gain sum_j |S_ij| per position axis over the adapted (non-frozen)
     via-points of every step, shape (3,), dimensionless."""
-    gains = np.abs(layout.operators[:, :3]).sum(axis=-1)  # (n_steps, 3, A_v)
-    moving = ~np.isin(layout.indices, np.asarray(layout.frozen, dtype=int))  # (n_steps, A_v)
+    gains, moving = row_gains_and_moving(layout)
     mean: np.ndarray = gains.transpose(1, 0, 2)[:, moving].mean(axis=1)
     return mean
 

@@ -77,10 +77,22 @@ def drop_curve_policies_after(folder: Path, step: int) -> None:
             path.unlink()
 
 
-def load_curve_policy(folder: Path, model, step: int) -> None:
-    """Replace the model's actor by the kept learning-curve actor of ``step``."""
+def load_actor(model, path: Path, what: str) -> None:
+    """Replace the model's actor by the weights saved at ``path`` (``what`` names them in the
+    `UserInputError` raised if they cannot be loaded)."""
     import torch
 
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        model.actor.load_state_dict(state)
+    except Exception as exc:
+        raise UserInputError(
+            f"{path}: cannot load the {what} ({type(exc).__name__}: {exc})"
+        ) from None
+
+
+def load_curve_policy(folder: Path, model, step: int) -> None:
+    """Replace the model's actor by the kept learning-curve actor of ``step``."""
     path = curve_policy_path(folder, step)
     if not path.exists():
         raise UserInputError(
@@ -88,13 +100,7 @@ def load_curve_policy(folder: Path, model, step: int) -> None:
             "trained before training kept curve policies, or on another machine (they stay "
             "in the checkpoint folder of the machine that trained the run)"
         )
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-        model.actor.load_state_dict(state)
-    except Exception as exc:
-        raise UserInputError(
-            f"{path}: cannot load the curve policy ({type(exc).__name__}: {exc})"
-        ) from None
+    load_actor(model, path, "curve policy")
 
 
 SHIPPED_POLICY = "policy_best.pt"
@@ -261,7 +267,6 @@ def _load_shipped(
 ) -> TrainedPolicy:
     """The run's shipped best actor in a fresh `RegularisedSAC` of the run's configuration,
     without its regulariser (its critics untrained and unused: only the actor acts)."""
-    import torch
 
     from distgprl.experiments.factories import make_agent
 
@@ -274,13 +279,7 @@ def _load_shipped(
         )
     run = _as_trained(run, folder, path)
     model = make_agent(env, run, regularised=False)  # it only acts
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-        model.actor.load_state_dict(state)
-    except Exception as exc:
-        raise UserInputError(
-            f"{path}: cannot load the shipped policy ({type(exc).__name__}: {exc})"
-        ) from None
+    load_actor(model, path, "shipped policy")
     selected = _selected(best) | {
         "policy_source": SHIPPED_POLICY,
         "policy_sha256": record["sha256"],

@@ -17,15 +17,14 @@ method keeps its colour in every figure, and each figure is written as a vector 
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
+from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.runs import select_runs
 from distgprl.report.sensitivity import write_sensitivity
@@ -53,8 +52,6 @@ Y_LABELS = {
 RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
-#: PNG resolution (dots per inch); the PDF is vector.
-PNG_DPI = 150
 #: Figure titles (the paper's captions, shortened).
 TITLES = {
     "hap_effect": "Effect of the HAP subspace prior",
@@ -227,24 +224,11 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     written = []
     for name, methods in FIGURES.items():
         fig, drawn = plot_figure(root, preset, tasks, methods, f"{TITLES[name]} ({preset} preset)")
+        stem = Path(out_dir) / f"{name}_{preset}"
         if drawn:
-            for suffix in ("png", "pdf"):
-                buffer = io.BytesIO()
-                # Fixed metadata keeps the files byte-identical when regenerated.
-                metadata = (
-                    {"Software": None}
-                    if suffix == "png"
-                    else {"CreationDate": None, "Producer": None}
-                )
-                fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
-                written.append(
-                    atomic_write_bytes(
-                        Path(out_dir) / f"{name}_{preset}.{suffix}", buffer.getvalue()
-                    )
-                )
+            written += write_figure(fig, stem)
         else:  # nothing to draw: an earlier figure would no longer match the results
-            for suffix in ("png", "pdf"):
-                (Path(out_dir) / f"{name}_{preset}.{suffix}").unlink(missing_ok=True)
+            remove_figure(stem)
         plt.close(fig)
     for study in studies_of(preset):  # an operator study's sensitivity figure
         if not study.reads_the_operator:

@@ -11,18 +11,16 @@ is left out (the real robot has no ground truth).
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.figure_files import remove_figure, write_figure
 
 __all__ = ["curve_series", "write_noise_curve"]
 
-PNG_DPI = 150
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
 
@@ -54,8 +52,7 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
     stem = Path(out_dir) / f"table2_noise_{preset}"
     series = curve_series(rows)
     if not series:
-        for suffix in ("png", "pdf"):
-            Path(f"{stem}.{suffix}").unlink(missing_ok=True)
+        remove_figure(stem)
         return []
     fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
     for index, (method, points) in enumerate(series.items()):
@@ -100,13 +97,6 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0.0, 0.08 + 0.04 * (len(labels) // 4), 1.0, 0.93))
-    written = []
-    for suffix in ("png", "pdf"):
-        buffer = io.BytesIO()
-        metadata = (
-            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
-        )
-        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
-        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
+    written = write_figure(fig, stem)
     plt.close(fig)
     return written

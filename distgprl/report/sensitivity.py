@@ -17,15 +17,14 @@ only; without the reach file or any run of the studied method there is nothing t
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from distgprl.io import atomic_write_bytes
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_SEED, Estimate, Scores, method_estimate
+from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.schema import read_json
 from distgprl.studies import Study
 
@@ -40,8 +39,6 @@ PANELS = (
 
 REFERENCES = ("dist-gprl-nocov", "demo")
 """Methods drawn as horizontal reference bands, from the reference preset's runs."""
-
-PNG_DPI = 150
 
 
 def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], float]:
@@ -121,8 +118,7 @@ def write_sensitivity(
         ]
         points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
     if not points:
-        for suffix in ("png", "pdf"):
-            Path(f"{stem}.{suffix}").unlink(missing_ok=True)
+        remove_figure(stem)
         return []
     tasks = [t for t in tasks if any(p["task"] == t for p in points)]
     reference = scores_of.get(study.reference.preset, {})
@@ -186,13 +182,6 @@ def write_sensitivity(
     )
     legend_rows = (len(labels) + 2) // 3
     fig.tight_layout(rect=(0.0, 0.04 + 0.035 * legend_rows, 1.0, 0.95))
-    written = []
-    for suffix in ("png", "pdf"):
-        buffer = io.BytesIO()
-        metadata = (
-            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
-        )
-        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
-        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
+    written = write_figure(fig, stem)
     plt.close(fig)
     return written

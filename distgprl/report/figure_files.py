@@ -1,0 +1,41 @@
+"""Figure files of the reports: PNG and PDF written byte-reproducibly, or removed when there is
+nothing to draw (figures are functions of the current results only)."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from distgprl.io import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["PNG_DPI", "SUFFIXES", "remove_figure", "write_figure"]
+
+PNG_DPI = 150
+"""PNG resolution (dots per inch); the PDF is vector."""
+
+SUFFIXES = ("png", "pdf")
+
+
+def write_figure(fig: Figure, stem: str | Path) -> list[Path]:
+    """Write ``fig`` to ``<stem>.png`` and ``<stem>.pdf`` atomically, with fixed metadata so
+    that regenerating it from the same results gives the same bytes."""
+    written = []
+    for suffix in SUFFIXES:
+        buffer = io.BytesIO()
+        metadata = (
+            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
+        )
+        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
+        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
+    return written
+
+
+def remove_figure(stem: str | Path) -> None:
+    """Remove ``<stem>.png`` and ``<stem>.pdf`` if they exist (an earlier figure that the
+    results no longer make)."""
+    for suffix in SUFFIXES:
+        Path(f"{stem}.{suffix}").unlink(missing_ok=True)
