@@ -69,6 +69,15 @@ def _parent(pid: int) -> int:
         return 0
 
 
+def _start_time(pid: int) -> int:
+    """The process's start time (clock ticks after boot; 0 if it is gone): with the PID, it
+    names one process, even after its PID is reused."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19])
+    except (OSError, IndexError, ValueError):
+        return 0
+
+
 def alive(pid: int) -> bool:
     """Whether ``pid`` runs (a zombie, dead but not reaped, does not)."""
     try:
@@ -86,6 +95,7 @@ class RayNode:
     base: int
     temp_dir: Path
     head: bool
+    known: dict[int, int] = field(default_factory=dict)  # every PID seen: its start time
 
     def processes(self) -> list[int]:
         """PIDs of every process of this node: those whose command line names its folder
@@ -106,7 +116,16 @@ class RayNode:
             more = {pid for pid, parent in parents.items() if parent in found} - found - mine
             grew = bool(more)
             found |= more
+        for pid in found:
+            self.known.setdefault(pid, _start_time(pid))
         return sorted(found)
+
+    def all_processes(self) -> list[int]:
+        """`processes` and every process of this node seen before that still runs (a
+        process orphaned by its raylet's death no longer descends from it)."""
+        now = set(self.processes())
+        seen = {pid for pid, start in self.known.items() if start and _start_time(pid) == start}
+        return sorted(now | seen)
 
     def raylet(self) -> int | None:
         """PID of this node's raylet (the process Ray names ``raylet`` with its folder)."""
@@ -178,6 +197,7 @@ class LocalCluster:
         if done.returncode != 0:
             raise RuntimeError(f"ray start of node {name} failed (see {log})")
         self.nodes.append(node)
+        node.processes()  # remembered, to be stopped even once orphaned
         return node
 
     def start_head(self) -> RayNode:
@@ -211,7 +231,7 @@ class LocalCluster:
         """SIGKILL a node: its raylet alone (the node is lost; what its other processes
         do then is Ray's to decide) or every process of it. Returns the PIDs killed."""
         node = self.node(name)
-        pids = [node.raylet()] if raylet_only else node.processes()
+        pids = [node.raylet()] if raylet_only else node.all_processes()
         killed = []
         for pid in pids:
             if pid is None:
@@ -226,12 +246,14 @@ class LocalCluster:
     def stop(self) -> None:
         """SIGKILL every process of every node (this cluster's processes only)."""
         for node in self.nodes:
-            for pid in node.processes():
+            for pid in node.all_processes():
                 try:
                     os.kill(pid, signal.SIGKILL)
                 except ProcessLookupError:
                     pass
         deadline = time.time() + 30
-        while time.time() < deadline and any(n.processes() for n in self.nodes):
+        while time.time() < deadline and any(
+            alive(pid) for n in self.nodes for pid in n.all_processes()
+        ):
             time.sleep(0.2)
         self.nodes = []

@@ -90,40 +90,39 @@ def _compare_values(a: Any, b: Any, where: str, out: list[str]) -> None:
         out.append(f"{where}: {a!r} != {b!r}")
 
 
-def _compare_csv(a: Path, b: Path, out: list[str]) -> None:
+def _compare_csv(name: str, a: Path, b: Path, out: list[str]) -> None:
     meta_a, rows_a = read_csv(a)
     meta_b, rows_b = read_csv(b)
-    _compare_values(meta_a, meta_b, f"{a.name} meta", out)
+    _compare_values(meta_a, meta_b, f"{name} meta", out)
     columns_a = list(rows_a[0]) if rows_a else []
     columns_b = list(rows_b[0]) if rows_b else []
     if columns_a != columns_b:
-        out.append(f"{a.name}: columns {columns_a} != {columns_b}")
+        out.append(f"{name}: columns {columns_a} != {columns_b}")
         return
     if len(rows_a) != len(rows_b):
-        out.append(f"{a.name}: {len(rows_a)} rows != {len(rows_b)}")
+        out.append(f"{name}: {len(rows_a)} rows != {len(rows_b)}")
     for number, (row_a, row_b) in enumerate(zip(rows_a, rows_b, strict=False), start=1):
         for column in columns_a:
             if column not in TIMING_FIELDS and row_a[column] != row_b[column]:
-                out.append(f"{a.name} row {number} {column}: {row_a[column]} != {row_b[column]}")
+                out.append(f"{name} row {number} {column}: {row_a[column]} != {row_b[column]}")
 
 
-def _compare_model(a: Path, b: Path, out: list[str]) -> None:
+def _compare_model(name: str, a: Path, b: Path, out: list[str]) -> None:
     with zipfile.ZipFile(a) as zip_a, zipfile.ZipFile(b) as zip_b:
         names_a, names_b = sorted(zip_a.namelist()), sorted(zip_b.namelist())
         if names_a != names_b:
-            out.append(f"{a.name}: members {names_a} != {names_b}")
+            out.append(f"{name}: members {names_a} != {names_b}")
             return
         for name in names_a:
             if name not in MODEL_METADATA and zip_a.read(name) != zip_b.read(name):
-                out.append(f"{a.name}: {name} differs (the trained weights)")
+                out.append(f"{name}: {name} differs (the trained weights)")
 
 
-def _compare_file(a: Path, b: Path, out: list[str]) -> None:
-    name = a.name
+def _compare_file(name: str, a: Path, b: Path, out: list[str]) -> None:
     if name.endswith(CSV_META_SUFFIX):
         return  # compared with its CSV (`read_csv` reads it)
     if name.endswith(".csv"):
-        _compare_csv(a, b, out)
+        _compare_csv(name, a, b, out)
     elif name.endswith(".json"):
         try:
             doc_a, doc_b = read_json(a), read_json(b)
@@ -131,7 +130,7 @@ def _compare_file(a: Path, b: Path, out: list[str]) -> None:
             doc_a, doc_b = json.loads(a.read_text()), json.loads(b.read_text())
         _compare_values(doc_a, doc_b, name, out)
     elif name.endswith(".zip"):
-        _compare_model(a, b, out)
+        _compare_model(name, a, b, out)
     elif a.read_bytes() != b.read_bytes():
         out.append(f"{name}: the bytes differ")
 
@@ -162,7 +161,7 @@ def compare_runs(a: str | Path, b: str | Path) -> list[str]:
     out += [f"{name}: only in {b}" for name in sorted(set(files_b) - set(files_a))]
     for name in sorted(set(files_a) & set(files_b)):
         try:
-            _compare_file(files_a[name], files_b[name], out)
+            _compare_file(name, files_a[name], files_b[name], out)
         except (OSError, ValueError, zipfile.BadZipFile) as error:
             out.append(f"{name}: cannot be compared ({type(error).__name__}: {error})")
     return out

@@ -67,15 +67,16 @@ class ClusterLostError(UserInputError):
 
     Attributes:
         address: the head's GCS address.
-        unfinished: the jobs without a result.
+        unfinished: the jobs without a result (some may still finish: a worker node goes
+            on with its task until its raylet gives up on the head).
     """
 
     def __init__(self, address: str, unfinished: list[Job]):
         runs = "1 run" if len(unfinished) == 1 else f"{len(unfinished)} runs"
         super().__init__(
-            f"sweep: the ray cluster at {address} was lost (its head does not answer) with "
-            f"{runs} unfinished: restart the cluster and re-run the same command (finished "
-            "runs are kept, unfinished ones resume from their checkpoints)"
+            f"sweep: the ray cluster at {address} was lost (its head does not answer) before "
+            f"{runs} reported back: restart the cluster and re-run the same command (finished "
+            "runs are skipped, the others resume from their checkpoints)"
         )
         self.address = address
         self.unfinished = unfinished
