@@ -113,9 +113,9 @@ def _compare_model(name: str, a: Path, b: Path, out: list[str]) -> None:
         if names_a != names_b:
             out.append(f"{name}: members {names_a} != {names_b}")
             return
-        for name in names_a:
-            if name not in MODEL_METADATA and zip_a.read(name) != zip_b.read(name):
-                out.append(f"{name}: {name} differs (the trained weights)")
+        for member in names_a:
+            if member not in MODEL_METADATA and zip_a.read(member) != zip_b.read(member):
+                out.append(f"{name}: {member} differs (the trained weights)")
 
 
 def _compare_file(name: str, a: Path, b: Path, out: list[str]) -> None:
