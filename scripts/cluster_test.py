@@ -56,16 +56,25 @@ def log(message: str) -> None:
 
 
 def held_runs(pids: list[int]) -> dict[int, Path]:
-    """The run folder whose lock (``.lock``) each of ``pids`` has open: the run it trains."""
-    out = {}
+    """The run folder whose lock each of ``pids`` holds (an exclusive ``flock`` on its
+    ``.lock``, as /proc/locks lists it): the run that process trains. A process that only
+    has the file open (probing it, or waiting for it) is not counted."""
+    opened = {}  # inode of an open .lock -> its run folder
     for pid in pids:
         try:
             for fd in os.listdir(f"/proc/{pid}/fd"):
                 target = os.readlink(f"/proc/{pid}/fd/{fd}")
                 if target.endswith("/.lock"):
-                    out[pid] = Path(target).parent
+                    opened[(pid, os.stat(f"/proc/{pid}/fd/{fd}").st_ino)] = Path(target).parent
         except OSError:  # ended meanwhile
             continue
+    out = {}
+    for line in Path("/proc/locks").read_text().splitlines():
+        words = line.split()  # "1: FLOCK ADVISORY WRITE <pid> <major>:<minor>:<inode> 0 EOF"
+        if len(words) >= 6 and words[1] == "FLOCK" and words[3] == "WRITE":
+            pid, inode = int(words[4]), int(words[5].rsplit(":", 1)[1])
+            if (pid, inode) in opened:
+                out[pid] = opened[(pid, inode)]
     return out
 
 
