@@ -8,13 +8,19 @@ one results root they share. Then:
    node's run has written its first checkpoint, the worker's raylet is killed (SIGKILL).
    The sweep must finish (exit 0): Ray retries the lost task on the head, which resumes the
    run from its checkpoint. Re-running the same command then has nothing left to do.
-2. **Head lost.** A new worker node joins; the sweep of the seed-1 runs starts, and once
+2. **Worker frozen.** A new worker node joins; the sweep of the seed-2 runs starts, and
+   once the worker trains a run past its first checkpoint every process of that node is
+   stopped (SIGSTOP: a node cut off or hung) until the head declares it dead, then let go on
+   (SIGCONT: the partition heals). Its process must end, the retry must take the run's lock
+   only after that, and the sweep must finish (exit 0) with the run resumed. (Ray's health
+   check is shortened for the test, `HEALTH_CHECK`.)
+3. **Head lost.** Another worker node joins; the sweep of the seed-1 runs starts, and once
    the head trains a run past its first checkpoint every process of the head is killed
    (SIGKILL). The sweep must exit 4 with one line saying to restart the cluster and re-run.
    A new cluster is started (the old worker node's processes are left to die as Ray makes
    them) and the same command re-run: it must finish (exit 0), resuming the lost runs.
-3. **Local.** The same runs with the local executor, in another results root.
-4. **Counts and comparison.** Every run of the cluster root is audited (`audit_run`:
+4. **Local.** The same runs with the local executor, in another results root.
+5. **Counts and comparison.** Every run of the cluster root is audited (`audit_run`:
    verdict, duplicated steps or episodes, checkpoint manifests, leftovers) and compared
    with the local one in every value but timings (`compare_runs`).
 
@@ -30,6 +36,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -49,6 +56,19 @@ from distgprl.schema import read_csv, read_json, run_dir  # noqa: E402
 DISTGPRL = str(Path(sys.executable).with_name("distgprl"))
 PRESET = "ci"
 SWEEP_TIMEOUT_S = 900
+FREEZE_AT_MOST_S = 60.0
+"""How long a frozen worker node stays frozen if the head has not declared it dead by then
+(with `HEALTH_CHECK`, the head declares it dead within about 10 s)."""
+
+HEALTH_CHECK = {
+    "RAY_health_check_initial_delay_ms": "1000",
+    "RAY_health_check_period_ms": "1000",
+    "RAY_health_check_timeout_ms": "2000",
+    "RAY_health_check_failure_threshold": "5",
+}
+"""Ray's node health check, shortened for the test (Ray's defaults: 3 s period, 10 s
+timeout, 5 failures: a node that stops answering is declared dead after about a minute,
+measured 63 s): the frozen worker node of phase 2 is declared dead in seconds."""
 
 
 def log(message: str) -> None:
@@ -100,9 +120,8 @@ class Sweep:
         self.out = open(self.logs / f"{self.name}.out", "w")  # noqa: SIM115
         self.err = open(self.logs / f"{self.name}.err", "w")  # noqa: SIM115
         self.started = time.monotonic()
-        self.process = subprocess.Popen(
-            self.command, env=self.env, stdout=self.out, stderr=self.err
-        )
+        env = {**self.env, "PYTHONUNBUFFERED": "1"}  # its lines as they come
+        self.process = subprocess.Popen(self.command, env=env, stdout=self.out, stderr=self.err)
         return self
 
     def wait(self, until: Callable[[], bool] | None = None, poll_s: float = 0.1) -> int:
@@ -215,10 +234,78 @@ def worker_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Rec
     )
 
 
+def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: Record) -> None:
+    """Phase 2: freeze a worker node (SIGSTOP to every process of it, as a node cut off
+    from the network or hung) while it trains a run, until the head declares it dead; then
+    let it go on (SIGCONT), as a partition that heals. Its process must not train beside
+    the retry: Ray retries the task once the frozen process is gone, and the retry takes
+    the run's lock only after it."""
+    worker = cluster.start_worker("worker2", slot=2)
+    env = {**cluster.env(), "DISTGPRL_CHECKPOINT_ROOT": ""}
+    command = sweep_command(root, args.methods, args.task, "2", cluster.address)
+    state: dict = {}
+    sweep = Sweep("2-worker-frozen", command, env, logs)
+
+    def freeze_then_thaw() -> bool:
+        if "at" not in state:
+            for pid, folder in held_runs(worker.job_processes()).items():
+                if past_first_checkpoint(folder):
+                    jobs = worker.job_processes()
+                    frozen = cluster.signal("worker2", signal.SIGSTOP)
+                    state.update(folder=folder, jobs=jobs, frozen=frozen, at=time.monotonic())
+                    log(f"froze the worker node ({len(frozen)} processes); {pid} trained {folder}")
+                    record.lost[str(folder)] = "worker node frozen"
+            return False
+        since = time.monotonic() - state["at"]
+        if "thawed" not in state:
+            if "marked dead" in sweep.stdout() or since > FREEZE_AT_MOST_S:
+                state["dead"] = "marked dead" in sweep.stdout()
+                cluster.signal("worker2", signal.SIGCONT, state["frozen"])
+                state["thawed"] = since
+                log(f"the head declared it dead: {state['dead']}; let it go on after {since:.1f} s")
+            return False
+        holders = held_runs(cluster.node("head").job_processes())
+        zombie_holds = state["folder"] in held_runs(state["jobs"]).values()
+        if state["folder"] in holders.values() and "retry" not in state:
+            state["retry"] = since
+            state["collision"] = zombie_holds
+        if "gone" not in state and not any(alive(pid) for pid in state["jobs"]):
+            state["gone"] = since
+        return "retry" in state and "gone" in state
+
+    sweep.start()
+    code = sweep.wait(until=freeze_then_thaw, poll_s=0.1)
+    if state.get("frozen") and "thawed" not in state:  # never leave it stopped
+        cluster.signal("worker2", signal.SIGCONT, state["frozen"])
+    record.seconds["sweep with a worker frozen"] = time.monotonic() - sweep.started
+    record.check("a worker node was frozen mid-run", "at" in state)
+    if "at" not in state:
+        return
+    record.check(
+        "the head declared the frozen node dead",
+        bool(state.get("dead")),
+        f"let go on {state.get('thawed', float('nan')):.1f} s after the freeze",
+    )
+    record.check(
+        "its process ended once it went on, and the retry took the run's lock after that",
+        "retry" in state and state.get("gone", 1e9) <= state["retry"] and not state["collision"],
+        f"process gone {state.get('gone', float('nan')):.1f} s, retry took the lock "
+        f"{state.get('retry', float('nan')):.1f} s after the freeze",
+    )
+    name = "/".join(state["folder"].parts[-3:])
+    out = sweep.stdout()
+    record.check("the sweep finished (exit 0)", code == 0, f"exit {code}")
+    record.check(
+        "the sweep reported where the frozen run was resumed",
+        any(name in line and "resumed from its checkpoint" in line for line in out.splitlines()),
+        next((line for line in out.splitlines() if name in line and ": " in line), ""),
+    )
+
+
 def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Record):
-    """Phase 2: kill the head while it trains a run; re-run on a new cluster. Returns the
+    """Phase 3: kill the head while it trains a run; re-run on a new cluster. Returns the
     new cluster."""
-    cluster.start_worker("worker2", slot=2)
+    cluster.start_worker("worker3", slot=3)
     env = {**cluster.env(), "DISTGPRL_CHECKPOINT_ROOT": ""}
     command = sweep_command(root, args.methods, args.task, "1", cluster.address)
     state: dict = {}
@@ -227,7 +314,7 @@ def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Recor
         head = cluster.node("head")
         for pid, folder in held_runs(head.job_processes()).items():
             if past_first_checkpoint(folder):
-                worker_runs = held_runs(cluster.node("worker2").job_processes())
+                worker_runs = held_runs(cluster.node("worker3").job_processes())
                 killed = cluster.kill("head")
                 state.update(at=time.monotonic(), worker_runs=worker_runs)
                 log(f"killed the head ({len(killed)} processes); its {pid} trained {folder}")
@@ -235,7 +322,7 @@ def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Recor
                 return True
         return False
 
-    sweep = Sweep("2-head-lost", command, env, logs).start()
+    sweep = Sweep("3-head-lost", command, env, logs).start()
     code = sweep.wait(until=kill_head_mid_run)
     record.check("the head was killed mid-run", "at" in state)
     if "at" not in state:
@@ -258,12 +345,12 @@ def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Recor
     )
     # A new cluster, as after a restart; the old worker node is left as Ray leaves it (its
     # raylet gives up on the head after 60 s; a process of it may still hold a run's lock).
-    fresh = LocalCluster(cluster.workdir / "restarted")
+    fresh = LocalCluster(cluster.workdir / "restarted", extra_env=HEALTH_CHECK)
     fresh.start_head()
     fresh.start_worker()
     env = {**fresh.env(), "DISTGPRL_CHECKPOINT_ROOT": ""}
     command = sweep_command(root, args.methods, args.task, "1", fresh.address)
-    rerun = Sweep("2-head-lost-rerun", command, env, logs).start()
+    rerun = Sweep("3-head-lost-rerun", command, env, logs).start()
     code = rerun.wait()
     record.seconds["re-run on the restarted cluster"] = time.monotonic() - rerun.started
     record.check(
@@ -277,7 +364,7 @@ def count(root: Path, local: Path, args, record: Record) -> bool:
     """Audit and compare every run; print the counts; True if all is well."""
     runs = [
         run_dir(root, PRESET, args.task, method, seed)
-        for seed in (0, 1)
+        for seed in (0, 1, 2)
         for method in args.methods.split(",")
     ]
     complete, resumed, restarted, duplicated, corrupt, differ = [], [], [], [], [], []
@@ -327,7 +414,7 @@ def count(root: Path, local: Path, args, record: Record) -> bool:
     ]
     print()
     print(
-        f"cluster test: {len(runs)} runs: {PRESET} preset, {args.task}, {args.methods}, seeds 0,1"
+        f"cluster test: {len(runs)} runs: {PRESET} preset, {args.task}, {args.methods}, seeds 0,1,2"
     )
     for what, number, detail in rows:
         print(f"  {what:<11}{number:3d}  {detail}")
@@ -362,7 +449,7 @@ def main() -> int:
     root, local = workdir / "shared" / "results", workdir / "local" / "results"
     record = Record()
     started = time.monotonic()
-    clusters = [LocalCluster(workdir / "cluster")]
+    clusters = [LocalCluster(workdir / "cluster", extra_env=HEALTH_CHECK)]
     try:
         log(f"work folder {workdir}; starting a head and a worker node")
         clusters[0].start_head()
@@ -371,17 +458,19 @@ def main() -> int:
         record.check("two Ray nodes are alive", nodes == 2, f"{nodes} nodes")
         log("phase 1: the worker node is lost mid-run")
         worker_lost(clusters[0], root, args, logs, record)
-        log("phase 2: the head is lost mid-run")
+        log("phase 2: a worker node freezes mid-run, is declared dead, then goes on")
+        worker_frozen(clusters[0], root, args, logs, record)
+        log("phase 3: the head is lost mid-run")
         clusters.append(head_lost(clusters[0], root, args, logs, record))
     finally:
         for cluster in clusters:
             cluster.stop()
-    log("phase 3: the same runs with the local executor")
+    log("phase 4: the same runs with the local executor")
     t0 = time.monotonic()
     done = subprocess.run(
-        sweep_command(local, args.methods, args.task, "0,1", None),
+        sweep_command(local, args.methods, args.task, "0,1,2", None),
         env={**os.environ, "DISTGPRL_CHECKPOINT_ROOT": ""},
-        stdout=open(logs / "3-local.out", "w"),  # noqa: SIM115
+        stdout=open(logs / "4-local.out", "w"),  # noqa: SIM115
         stderr=subprocess.STDOUT,
         timeout=SWEEP_TIMEOUT_S,
     )

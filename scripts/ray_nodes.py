@@ -157,6 +157,7 @@ class LocalCluster:
     workdir: Path
     base: int = 0
     nodes: list[RayNode] = field(default_factory=list)
+    extra_env: dict[str, str] = field(default_factory=dict)  # e.g. Ray's settings
 
     def __post_init__(self) -> None:
         self.workdir.mkdir(parents=True, exist_ok=True)
@@ -165,7 +166,7 @@ class LocalCluster:
             token.write_text(secrets.token_hex(32))
             token.chmod(0o600)
         if not self.base:
-            self.base = free_port_base(PORTS_PER_NODE * 3)
+            self.base = free_port_base(PORTS_PER_NODE * 4)
 
     @property
     def address(self) -> str:
@@ -175,6 +176,7 @@ class LocalCluster:
         """The environment of every process of the cluster and of its drivers."""
         return {
             **os.environ,
+            **self.extra_env,
             "RAY_AUTH_MODE": "token",
             "RAY_AUTH_TOKEN_PATH": str(self.workdir / "auth_token"),
             "RAY_USAGE_STATS_ENABLED": "0",
@@ -204,7 +206,7 @@ class LocalCluster:
         return self._start("head", 0)
 
     def start_worker(self, name: str = "worker", slot: int = 1) -> RayNode:
-        """A worker node; ``slot`` (1, 2) chooses its ports."""
+        """A worker node; ``slot`` (1 to 3) chooses its ports."""
         return self._start(name, slot)
 
     def node(self, name: str) -> RayNode:
@@ -242,6 +244,16 @@ class LocalCluster:
             except ProcessLookupError:
                 pass
         return killed
+
+    def signal(self, name: str, number: int, pids: list[int] | None = None) -> list[int]:
+        """Send signal ``number`` to every process of a node (or to ``pids``); the PIDs."""
+        pids = self.node(name).all_processes() if pids is None else pids
+        for pid in pids:
+            try:
+                os.kill(pid, number)
+            except ProcessLookupError:
+                pass
+        return pids
 
     def stop(self) -> None:
         """SIGKILL every process of every node (this cluster's processes only)."""
