@@ -24,9 +24,10 @@ TEST_WORKERS ?= 2
 test:
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
-# The sweep on a two-node Ray cluster on this machine (issue 52): a worker node and then the
-# head killed mid-sweep, re-runs, a local sweep of the same runs, compared; prints the counts
-# (complete / lost / resumed / duplicated / corrupt) and fails on any. About 3 min on 2 cores.
+# The sweep on a two-node Ray cluster on this machine (issue 52): a worker node killed, a worker
+# node frozen, then the head killed mid-sweep, re-runs, a local sweep of the same runs,
+# compared; prints the counts (complete / lost / resumed / duplicated / corrupt) and fails on
+# any. About 4 to 5 min on 2 cores.
 test-cluster:
 	$(BIN)/python scripts/cluster_test.py
 

@@ -10,6 +10,11 @@ docs/DESIGN.md, "Executors"):
   The task is then retried on a live node (`MAX_RETRIES`), where it resumes the run from its
   last checkpoint: a sweep job is idempotent (a finished run is skipped, a partial one
   resumed, a locked one left alone), so running it again is safe.
+- **A worker node hangs** (every process of it stopped: a hang, a network partition): the
+  head declares it dead after its health check fails, but Ray starts the retry only once
+  the hung process's connection closes: when the node goes on again, its raylet, told it
+  is dead, exits and the process with it, then the retry resumes the run. A node that never
+  comes back keeps its task waiting (Ctrl-C and a re-run resume it).
 - **A retry cannot collide with the lost node's process**: the run lock is an exclusive
   ``flock`` on the shared results folder. A retry that finds it still held (the lost node's
   process not yet gone: on a real network, a node cut off from its head only stops its
