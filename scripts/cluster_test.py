@@ -337,8 +337,9 @@ def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Recor
         f"exit {code} {after:.1f} s after the kill",
     )
     record.check(
-        "with one line saying what to do",
+        "with one line saying what to do, its last",
         len(ours) == 1
+        and lines[-1] == ours[0]
         and "restart the cluster and re-run the same command" in ours[0]
         and not any("Traceback" in line for line in lines),
         ours[0] if ours else (lines[-1] if lines else "(nothing on stderr)"),

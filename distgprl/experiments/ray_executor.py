@@ -131,11 +131,25 @@ def _connect(ray, address: str | None, workers: int) -> bool:
     try:
         ray.init(address=address, log_to_driver=False)
     except (ConnectionError, RuntimeError) as error:
-        first_line = (str(error).splitlines() or [""])[0]
         raise UserInputError(
-            f"cannot connect to the ray cluster at {address}: {first_line}"
+            f"cannot connect to the ray cluster at {address}: {_why_not_connected(error)}"
         ) from None
     return True
+
+
+def _why_not_connected(error: BaseException) -> str:
+    """One line for a failed ``ray.init``: its message's first line, or, for a token that
+    does not match the cluster's (Ray wraps that error's text into the one it raises), what
+    to do about it."""
+    causes = [error]
+    while causes[-1].__cause__ is not None and len(causes) < 10:
+        causes.append(causes[-1].__cause__)
+    if any("InvalidAuthToken" in str(cause) or "Authentication" in str(cause) for cause in causes):
+        return (
+            "its authentication token is missing or wrong here (set RAY_AUTH_MODE=token and "
+            "RAY_AUTH_TOKEN_PATH to the token file the cluster was started with)"
+        )
+    return (str(error).splitlines() or [type(error).__name__])[0]
 
 
 def _describe_lost(error: Exception) -> str:

@@ -200,3 +200,25 @@ def test_a_task_ray_gave_up_on_is_recorded_and_the_others_go_on(monkeypatch, tmp
 def test_a_sweep_says_where_a_run_it_continued_was_resumed(tmp_path, reached, resumes, expected):
     write_json(tmp_path / "done.json", {"steps": 240, "resumes": resumes}, kind="done")
     assert sweep.describe_resume(tmp_path, reached) == expected
+
+
+def test_a_failed_connection_is_one_line_naming_a_wrong_token():
+    """Ray wraps the GCS's refusal of a token into the text of the errors it raises."""
+    try:
+        try:
+            raise RuntimeError(
+                "Failed to connect to GCS. Last connection error: Traceback (most recent call "
+                "last):\n  ...\nray.exceptions.AuthenticationError: RPC error: "
+                "InvalidAuthToken: Authentication token is missing or incorrect."
+            )
+        except RuntimeError as inner:
+            raise ConnectionError("Failed to connect to Ray cluster at 192.0.2.7:26379") from inner
+    except ConnectionError as error:
+        assert ray_executor._why_not_connected(error) == (
+            "its authentication token is missing or wrong here (set RAY_AUTH_MODE=token and "
+            "RAY_AUTH_TOKEN_PATH to the token file the cluster was started with)"
+        )
+    other = ConnectionError("Failed to connect to Ray cluster at 192.0.2.7:26379\nmore")
+    assert ray_executor._why_not_connected(other) == (
+        "Failed to connect to Ray cluster at 192.0.2.7:26379"
+    )
