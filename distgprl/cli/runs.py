@@ -45,7 +45,14 @@ def sweep(
     executor: Annotated[
         Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
     ] = "local",
-    address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
+    address: Annotated[
+        str | None,
+        typer.Option(
+            help="Ray cluster address HOST:PORT (ray executor; without it, a Ray instance on "
+            "this machine). Every node must see --root at the same path: "
+            "docs/guides/slurm.md."
+        ),
+    ] = None,
     root: RootOption = Path("results"),
     heartbeat: Annotated[
         float,
@@ -100,7 +107,12 @@ def sweep(
     )
     if workers is None:
         workers = default_workers()
-    typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
+    # on a Ray cluster its CPUs say how many jobs run at once, not --workers
+    where = f"on the ray cluster at {address}" if executor == "ray" and address else ""
+    typer.echo(
+        f"sweep: {runs_text(len(jobs))} ({preset} preset), "
+        + (where or f"{workers} parallel job(s)")
+    )
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
