@@ -3,6 +3,8 @@ whole sweep, and see where a sweep stands."""
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -45,7 +47,14 @@ def sweep(
     executor: Annotated[
         Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
     ] = "local",
-    address: Annotated[str | None, typer.Option(help="Ray cluster address (ray executor).")] = None,
+    address: Annotated[
+        str | None,
+        typer.Option(
+            help="Ray cluster address HOST:PORT (ray executor; without it, a Ray instance on "
+            "this machine). Every node must see --root at the same path: "
+            "docs/guides/slurm.md."
+        ),
+    ] = None,
     root: RootOption = Path("results"),
     heartbeat: Annotated[
         float,
@@ -76,8 +85,10 @@ def sweep(
 
     Exit code 0: every run is complete; 1: a run failed (its error.json says why) or is
     damaged (reported, left alone without --retrain-damaged); 3: no failure, but runs were
-    left to another process training them (busy); 130: interrupted.
+    left to another process training them (busy); 4: the Ray cluster was lost (its head
+    stopped answering: restart it and re-run the same command); 130: interrupted.
     """
+    from distgprl.experiments.ray_executor import CLUSTER_LOST_EXIT, ClusterLostError
     from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import (
         default_workers,
@@ -105,10 +116,16 @@ def sweep(
         typer.echo(f"study {study.name}: readings {', '.join(study.presets)}; {study.question}")
         if study.reads_the_operator:
             typer.echo(f"wrote {write_study_reach(root, study)}")
-    typer.echo(f"sweep: {runs_text(len(jobs))} ({preset} preset), {workers} parallel job(s)")
+    # on a Ray cluster its CPUs say how many jobs run at once, not --workers
+    where = f"on the ray cluster at {address}" if executor == "ray" and address else ""
+    typer.echo(
+        f"sweep: {runs_text(len(jobs))} ({preset} preset), "
+        + (where or f"{workers} parallel job(s)")
+    )
 
     def report(result, finished, total):
         extra = f" ({result.error})" if result.error else ""
+        extra += f" ({result.resumed})" if result.resumed else ""
         extra += f"\n  {result.trials}" if result.trials else ""
         extra += f"\n  {result.repairs}" if result.repairs else ""
         typer.echo(
@@ -140,6 +157,13 @@ def sweep(
             err=True,
         )
         raise typer.Exit(code=130) from None
+    except ClusterLostError as lost:
+        typer.echo(str(lost), err=True)
+        # Ray's driver cannot shut down without its head (it would wait for it, then abort
+        # with a traceback): leave at once, the result files are all written already.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(CLUSTER_LOST_EXIT)
     failed = [r for r in results if r.status == "failed"]
     busy = [r for r in results if r.status == "busy"]
     damaged = [r for r in results if r.status == "damaged"]

@@ -365,6 +365,26 @@ def _load_generation(directory: Path, env, strict: bool):
     return model, state
 
 
+def verify_checkpoints(folder: Path) -> list[CheckpointDamage]:
+    """The first damaged file of each of the run's checkpoint generations that does not
+    match its manifest, newest first (empty: every generation on disk matches; a
+    generation without a manifest, written before manifests, is not checked here)."""
+    paths = checkpoint_paths(folder)
+    damaged = []
+    for directory in _generations(paths):
+        manifest_path = directory / MANIFEST_NAME
+        manifest = _read_manifest(manifest_path)
+        if manifest is None:
+            if manifest_path.exists():
+                damaged.append(CheckpointDamage(manifest_path, "is not a readable manifest"))
+            continue
+        try:
+            _verify(directory, manifest)
+        except _Damaged as error:
+            damaged.append(error.damage)
+    return damaged
+
+
 def _discard_newest(paths: dict[str, Path]) -> None:
     """Remove the damaged newest generation, manifest first, so that a later save never
     rotates it over the good previous one (`install_checkpoint` rotates only a generation

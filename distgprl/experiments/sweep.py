@@ -13,8 +13,10 @@
   the sweep goes on; the next sweep retries it. With ``workers > 1`` each job runs in a
   process of its own, so a worker that dies (a crash in native code, the OOM killer, a
   signal) fails its own job only: the sweep writes that job's ``error.json`` (exit code or
-  signal) and goes on with the others. On Ray, a crashed or lost task is recorded the same
-  way.
+  signal) and goes on with the others. On Ray, a task whose process or node was lost is
+  retried on another node, resuming its run from its checkpoint, and recorded the same way
+  once its retries are spent; a lost head stops the sweep (`distgprl.experiments.
+  ray_executor`).
 - A damaged run (`distgprl.runstate`: a result file not readable as a result
   of this schema, or the evaluation of a finished run gone) is reported ``damaged`` with
   the file and the reason and left alone, never retrained over (that would discard a
@@ -61,7 +63,7 @@ from typing import cast
 
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
-from distgprl.experiments.checkpoints import checkpoint_dir
+from distgprl.experiments.checkpoints import checkpoint_dir, trained_steps
 from distgprl.experiments.evaluation import evaluate_run
 from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
     follow_up_due,
@@ -73,7 +75,7 @@ from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
 )
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.policies import ship_if_missing
-from distgprl.experiments.results import write_json
+from distgprl.experiments.results import read_json, write_json
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
 from distgprl.io import is_locked
@@ -92,6 +94,7 @@ class JobResult:
     error: str = ""
     trials: str = ""  # what the Table II twin trials did (empty: none were due)
     repairs: str = ""  # what the safety-layer evaluations did (empty: none were due)
+    resumed: str = ""  # where a run this job continued was resumed from (empty: a fresh run)
 
 
 def plan_jobs(
@@ -216,9 +219,11 @@ def run_job(job: Job) -> JobResult:
     busy = JobResult(job, "busy", 0.0, "another process is training this run")
     if is_locked(folder):
         return busy
+    resumed = ""
     try:
         if get_method(job.method).trainable:
             resume = (folder / "config.json").exists()
+            reached = trained_steps(folder / "progress.csv") if resume else 0
             train_run(
                 job.task,
                 job.method,
@@ -229,6 +234,7 @@ def run_job(job: Job) -> JobResult:
                 show_progress=False,
             )
             ship_if_missing(folder)  # Table I's actor, committed with the run's small files
+            resumed = describe_resume(folder, reached)
         else:
             evaluate_run(
                 job.task, job.method, job.seed, job.preset, root=job.root, show_progress=False
@@ -242,7 +248,19 @@ def run_job(job: Job) -> JobResult:
     if error_file.exists():
         error_file.unlink()
     follow_ups = run_follow_ups(job)
-    return JobResult(job, "done", time.perf_counter() - start, **follow_ups)
+    return JobResult(job, "done", time.perf_counter() - start, resumed=resumed, **follow_ups)
+
+
+def describe_resume(folder: Path, reached: int) -> str:
+    """Where a run that had reached step ``reached`` before this job was resumed from, as
+    its ``done.json`` records it (empty for a run this job trained from its start)."""
+    if reached <= 0:
+        return ""
+    resumes = read_json(folder / "done.json").get("resumes") or [{}]
+    step = int(resumes[-1].get("step", 0))
+    if step > 0:
+        return f"resumed from its checkpoint of step {step}"
+    return f"restarted from step 0 (it had reached step {reached})"
 
 
 def record_failure(job: Job, message: str, details: str, seconds: float) -> JobResult:
@@ -401,46 +419,12 @@ def _run_local(jobs: list[Job], workers: int) -> Generator[JobResult, None, None
 def _run_ray(
     jobs: list[Job], workers: int, address: str | None
 ) -> Generator[JobResult, None, None]:
-    try:
-        import ray
-    except ImportError:
-        raise UserInputError(
-            "the ray executor needs the optional extra: pip install -e '.[ray]' (in the project)"
-        ) from None
-    started_here = not ray.is_initialized()
-    if started_here:
-        if address:
-            ray.init(address=address, log_to_driver=False)
-        else:
-            ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(run_job)
-        # Workers resolve the results root on their own machines: pass it absolute (a
-        # cluster's nodes must share this path, e.g. a network file system).
-        submitted = {
-            remote.remote(replace(job, root=str(Path(job.root).resolve()))): job for job in jobs
-        }
-        pending = list(submitted)
-        try:
-            while pending:
-                done, pending = ray.wait(pending, num_returns=1)
-                for ref in done:
-                    job = submitted[ref]
-                    try:
-                        result = ray.get(ref)
-                    except ray.exceptions.RayError as error:  # the task crashed or was lost
-                        first_line = (str(error).splitlines() or [""])[0]
-                        message = f"{type(error).__name__}: {first_line}"
-                        yield record_failure(job, message, str(error), 0.0)
-                        continue
-                    yield replace(result, job=job)
-        except BaseException:
-            for ref in pending:  # queued: dropped; running: KeyboardInterrupt, as locally
-                ray.cancel(ref)
-            raise
-    finally:
-        if started_here:
-            ray.shutdown()
+    """Run ``jobs`` as Ray tasks (`distgprl.experiments.ray_executor`: which faults it
+    survives, and how)."""
+    from distgprl.experiments.ray_executor import run_on_ray
+
+    # `run_job` looked up here, at call time: the tests replace it
+    yield from run_on_ray(jobs, workers, address, run_job, record_failure)
 
 
 def run_sweep(

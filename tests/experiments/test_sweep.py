@@ -355,8 +355,8 @@ def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_p
 def test_ray_executor_runs_the_same_jobs_on_a_local_ray_instance(tmp_path, monkeypatch):
     """On a local Ray instance: an evaluation job and a training job finish as locally
     (the results root is passed on absolute: here a relative one), a task whose worker
-    dies is recorded as failed with its error.json and stops nothing else, and a second
-    sweep skips the finished runs."""
+    dies (every time: after its retries, `ray_executor.MAX_RETRIES`) is recorded as failed
+    with its error.json and stops nothing else, and a second sweep skips the finished runs."""
     import ray  # installed by `make setup` (extra `distgprl[ray]`)
 
     def run_job(job):  # pickled by value: the Ray worker's own `sweep.run_job` is the real one
