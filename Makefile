@@ -51,6 +51,7 @@ tables:
 	$(BIN)/distgprl tables --preset paper
 	$(BIN)/distgprl curves --preset paper
 	$(BIN)/distgprl tables --preset reward-unit-10
+	$(BIN)/distgprl mechanisms --preset paper
 
 
 reproduce:
