@@ -12,7 +12,9 @@ reading, with the same rules and the same bootstrap seed, on that reading's runs
   same under it);
 - a method a reading acts on with no run under it is *not* borrowed from Table I (its numbers
   would be those of another reading): every claim whose test reads it is `NOT_RUN` under that
-  reading, naming the methods to run.
+  reading, naming the methods to run — or `OUTSIDE` where the study does not train that
+  method at all (`Study.methods`: the operator study trains Dist-GPRL only), so no run will
+  ever come; the reading does not test that claim.
 
 Across the readings (`across_readings`), with R the readings:
 
@@ -25,8 +27,14 @@ Across the readings (`across_readings`), with R the readings:
 - *incomplete* while a reading has no verdict yet (no runs, fewer than two seeds, not run),
   with the agreeing verdict so far and the readings awaited.
 
-Written as ``claims_robustness_<preset>.csv`` (one row per claim and reading, then the
-claim's ``across`` row) and ``.md`` (a column per reading) by `robustness_texts`.
+Readings that do not test a claim (`OUTSIDE`) take no part in that rule and are named: a claim
+reproduced under Table I's reading that no study reading tests reads "reproduced under every
+reading that tests it (1 of 5; untested: ...)", never "under every reading".
+
+Written as ``claims_robustness_<preset>.csv`` (one row per claim and reading, then with
+several studies one ``across <study>`` row per study — Table I's reading and that study's —
+and the claim's ``across`` row over every reading) and ``.md`` (a column per reading) by
+`robustness_texts`.
 """
 
 from __future__ import annotations
@@ -45,6 +53,7 @@ from distgprl.studies import Reading, Study
 __all__ = [
     "CSV_FIELDS",
     "NOT_RUN",
+    "OUTSIDE",
     "ReadingVerdicts",
     "across_readings",
     "reading_scores",
@@ -56,13 +65,20 @@ NOT_RUN = "not run under this reading"
 """A reading's verdict for a claim whose test reads a method the reading acts on and that has
 no run under it."""
 
+OUTSIDE = "not tested by this study"
+"""A reading's verdict for a claim whose test reads a method the reading acts on and that the
+reading's study does not train (`Study.methods`): no run will come, the reading does not test
+the claim."""
+
 PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
 """Verdicts that decide nothing yet."""
 
 CSV_FIELDS = ("claim", "reading", "preset", "verdict", "detail")
 """Columns of ``claims_robustness_<preset>.csv``: one row per claim and reading (its overall
-verdict over the tasks, `distgprl.report.claims.combine`), then one row per claim with reading
-``across`` and the verdict across the readings (`across_readings`)."""
+verdict over the tasks, `distgprl.report.claims.combine`), then, with several studies, one row
+per claim and study with reading ``across <study>`` (Table I's reading and that study's), and
+one row per claim with reading ``across`` and the verdict across every reading
+(`across_readings`)."""
 
 
 def _label(method: str) -> str:
@@ -78,11 +94,13 @@ class ReadingVerdicts:
         verdicts: `evaluate_claims` on the reading's scores, in the claims' order, with
             `NOT_RUN` where a needed method the reading acts on has no run under it.
         not_run: the methods the reading acts on that have no run under it (sorted).
+        study: the name of the study the reading belongs to ("" for the reference reading).
     """
 
     reading: Reading
     verdicts: tuple[Verdict, ...]
     not_run: tuple[str, ...]
+    study: str = ""
 
 
 def reading_scores(
@@ -122,28 +140,46 @@ def study_verdicts(
                 lacking = [m for m in verdict.needs if m in not_run]
                 if lacking:
                     names = ", ".join(map(_label, lacking))
-                    detail = f"{names} under {reading.preset}: the reading changes it; run it"
+                    if all(m in study.methods for m in lacking):
+                        detail = f"{names} under {reading.preset}: the reading changes it; run it"
+                        status = NOT_RUN
+                    else:
+                        trained = ", ".join(map(_label, study.methods))
+                        outside = ", ".join(_label(m) for m in lacking if m not in study.methods)
+                        detail = (
+                            f"{names} under {reading.preset}: the reading changes it, and the "
+                            f"{study.name} study trains {trained} only (not {outside})"
+                        )
+                        status = OUTSIDE
                     verdict = Verdict(
-                        verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs
+                        verdict.claim, verdict.test, (), None, status, detail, verdict.needs
                     )
                 verdicts.append(verdict)
-            out.append(ReadingVerdicts(reading, tuple(verdicts), not_run))
+            out.append(ReadingVerdicts(reading, tuple(verdicts), not_run, study.name))
     return out
 
 
 def across_readings(verdicts: Sequence[tuple[str, str]]) -> str:
     """The verdict across readings from (reading label, verdict) pairs (module docstring)."""
-    decided = [(label, v) for label, v in verdicts if v not in PENDING]
-    pending = [label for label, v in verdicts if v in PENDING]
+    untested = [label for label, v in verdicts if v == OUTSIDE]
+    tested = [(label, v) for label, v in verdicts if v != OUTSIDE]
+    decided = [(label, v) for label, v in tested if v not in PENDING]
+    pending = [label for label, v in tested if v in PENDING]
     distinct = list(dict.fromkeys(v for _, v in decided))
+    tail = f"; untested: {', '.join(untested)}" if untested else ""
     if len(distinct) > 1:
         groups = [f"{v} under {', '.join(lab for lab, w in decided if w == v)}" for v in distinct]
-        return "reading-dependent: " + "; ".join(groups)
+        return "reading-dependent: " + "; ".join(groups) + tail
     if pending:
         so_far = (
-            f"{distinct[0]} under {len(decided)} of {len(verdicts)} readings; " if decided else ""
+            f"{distinct[0]} under {len(decided)} of {len(tested)} readings; " if decided else ""
         )
-        return f"incomplete: {so_far}awaiting {', '.join(pending)}"
+        return f"incomplete: {so_far}awaiting {', '.join(pending)}{tail}"
+    if untested:
+        return (
+            f"{distinct[0]} under every reading that tests it "
+            f"({len(tested)} of {len(verdicts)}{tail})"
+        )
     return f"{distinct[0]} under every reading"
 
 
@@ -151,6 +187,8 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
     """(CSV, Markdown) of the claims per reading (`CSV_FIELDS`; Markdown: a column per
     reading, the verdict across them last)."""
     claims = [v.claim for v in results[0].verdicts]
+    studies = list(dict.fromkeys(r.study for r in results if r.study))
+    per_study = len(studies) > 1  # then each study's own across column, before the overall one
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
     writer.writeheader()
@@ -168,12 +206,32 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
                     "detail": verdict.detail,
                 }
             )
+        study_columns = []
+        for name in studies if per_study else []:
+            within = across_readings(
+                [
+                    (r.reading.label, r.verdicts[index].verdict)
+                    for r in results
+                    if r.study in ("", name)
+                ]
+            )
+            writer.writerow(
+                {
+                    "claim": claim,
+                    "reading": f"across {name}",
+                    "preset": "",
+                    "verdict": within,
+                    "detail": "",
+                }
+            )
+            study_columns.append(within)
         across = across_readings(pairs)
         writer.writerow(
             {"claim": claim, "reading": "across", "preset": "", "verdict": across, "detail": ""}
         )
-        rows.append([claim, *(f"{v}" for _, v in pairs), f"**{across}**"])
+        rows.append([claim, *(f"{v}" for _, v in pairs), *study_columns, f"**{across}**"])
     header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
+    header += [f"Across Table I and the {name} study" for name in studies if per_study]
     header.append("Across readings")
     missing = [
         f"{r.reading.label}: {', '.join(map(_label, r.not_run))}" for r in results if r.not_run
@@ -186,11 +244,19 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
         "under its preset and keeps the other methods' Table I runs. A claim counts as "
         "reproduced only where it is reproduced under every reading; a verdict that changes "
         "with the reading is reading-dependent (rules: `distgprl.report.robustness`)."
+        + (
+            " With several studies, each study's column judges Table I's reading and that "
+            "study's readings alone (one study's runs can be complete while another's wait); "
+            "the last column judges them all."
+            if per_study
+            else ""
+        )
     )
     markdown = markdown_table(intro, header, rows)
     if missing:
         markdown += (
-            "\nMethods a reading acts on without runs under it (the claims reading "
-            "them are not run there): " + "; ".join(missing) + ".\n"
+            "\nMethods a reading acts on without runs under it (the claims reading them are "
+            f"'{NOT_RUN}' there while the study trains them, '{OUTSIDE}' where it does "
+            "not): " + "; ".join(missing) + ".\n"
         )
     return buffer.getvalue(), markdown

@@ -8,6 +8,7 @@ import numpy as np
 from distgprl.report.claims import NO_RUNS, REFUTED, REPRODUCED
 from distgprl.report.robustness import (
     NOT_RUN,
+    OUTSIDE,
     across_readings,
     reading_scores,
     robustness_texts,
@@ -79,8 +80,9 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
     assert verdict["operator-unit"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-signal"][GLOBAL].verdict == REFUTED
     assert verdict["paper"][HAP].verdict == REPRODUCED
-    assert verdict["operator-unit"][HAP].verdict == NOT_RUN
+    assert verdict["operator-unit"][HAP].verdict == OUTSIDE  # the study trains Dist-GPRL only
     assert "GPRL-D under operator-unit" in verdict["operator-unit"][HAP].detail
+    assert "trains Dist-GPRL only" in verdict["operator-unit"][HAP].detail
     csv_text, markdown = robustness_texts(results, "paper")
     across = {line.split(",")[0]: line for line in csv_text.splitlines() if ",across,," in line}
     assert (
@@ -88,7 +90,11 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         in (across[GLOBAL])
     )
     assert "refuted under per-axis signal (v5)" in across[GLOBAL]
-    assert "incomplete: reproduced under 1 of 4 readings" in across[HAP]
+    assert (
+        "reproduced under every reading that tests it (1 of 4; untested: unit variance (v4), "
+        "per-axis signal (v5), correlation only)" in across[HAP]
+    )
+    assert "under every reading," not in across[HAP]
     assert markdown.count("\n| ") == 1 + len(results[0].verdicts)  # header + one row per claim
     assert "unit variance (v4): GPRL-D, GPRL-H" in markdown
 
@@ -111,6 +117,30 @@ def test_the_rule_across_readings():
     assert across_readings([("a", NO_RUNS), ("b", NOT_RUN)]) == "incomplete: awaiting a, b"
 
 
+def test_a_reading_that_does_not_test_a_claim_is_named_and_never_counts_as_agreeing():
+    """A study reading that does not train a method the claim reads (OUTSIDE) neither agrees
+    nor disagrees: the verdict says how many readings test the claim and names the others."""
+    assert across_readings([("a", REPRODUCED), ("b", OUTSIDE), ("c", REPRODUCED)]) == (
+        "reproduced under every reading that tests it (2 of 3; untested: b)"
+    )
+    assert across_readings([("a", REPRODUCED), ("b", OUTSIDE), ("c", REFUTED)]) == (
+        "reading-dependent: reproduced under a; refuted under c; untested: b"
+    )
+    assert across_readings([("a", REPRODUCED), ("b", OUTSIDE), ("c", NOT_RUN)]) == (
+        "incomplete: reproduced under 1 of 2 readings; awaiting c; untested: b"
+    )
+
+
+def test_a_method_the_study_trains_but_has_not_run_is_awaited_not_untested():
+    """Under the operator readings Dist-GPRL is trained by the study: a claim reading it with
+    no run under a reading is NOT_RUN (awaited), not OUTSIDE."""
+    study = get_study("operators")
+    results = study_verdicts([study], both_tasks(FIELD), lambda preset: {}, seed=0)
+    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    assert verdict["operator-unit"][GLOBAL].verdict == NOT_RUN
+    assert verdict["operator-unit"][HAP].verdict == OUTSIDE
+
+
 def test_a_reward_unit_reading_replaces_every_trained_method():
     """The reward unit changes every trained method's rewards: under its reading no Table I
     run of a trained method is kept (the references are), and a method without a run under it
@@ -130,3 +160,21 @@ def test_a_reward_unit_reading_replaces_every_trained_method():
         "reward-unit-10",
     ]
     assert {v.verdict for v in results[-1].verdicts} == {NOT_RUN}
+
+
+def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
+    """The operator study's verdict does not wait for the reward-unit study's runs: with both
+    read, each study's column judges Table I's reading and that study's readings only."""
+    operators, reward = get_study("operators"), get_study("reward-unit")
+    reference = both_tasks(FIELD)
+    same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
+    runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
+    results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
+    csv_text, markdown = robustness_texts(results, "paper")
+    rows = [line.split(",") for line in csv_text.splitlines()]
+    of_global = {row[1]: row[3] for row in rows if row[0] == GLOBAL}
+    assert of_global["across operators"] == "reproduced under every reading"
+    assert of_global["across reward-unit"].startswith("incomplete: reproduced under 1 of 2")
+    assert of_global["across"].startswith("incomplete: reproduced under 4 of 5")
+    assert "Across Table I and the operators study" in markdown
+    assert "Across Table I and the reward-unit study" in markdown
