@@ -165,17 +165,19 @@ residual RL (`distgprl.envs.residual_rl`)."""
 
 
 NO_SAFETY_LAYER = (
-    "the hardware safety layer (plan check, retiming, plan repair) and the twin trials work on "
-    "a via-point plan; a residual-control method (environment v6's promp-rrl, promp-nominal) "
-    "commands a 10 Hz residual with no plan to check ahead: not implemented yet (issue 50, "
-    "Table II v6)"
+    "the plan-repair evaluation in simulation (Table I with the safety layer) re-plans a "
+    "window's via-point plan; a residual-control method (environment v6's promp-rrl, "
+    "promp-nominal) commands a 10 Hz residual with no window plan: not implemented (its twin "
+    "trials check and re-time each 0.1 s step instead, `distgprl hardware`)"
 )
-"""Why `has_via_point_plan` methods are the only ones the safety layer and Table II run."""
+"""Why `has_via_point_plan` methods are the only ones the simulated safety-layer evaluation
+(`distgprl.experiments.repaired_evaluation`) runs."""
 
 
 def has_via_point_plan(spec: MethodSpec) -> bool:
-    """Whether ``spec`` plans an episode as via-points or residual weights the hardware safety
-    layer can check and repair before execution (every action mode but ``residual-control``)."""
+    """Whether ``spec`` plans each window ahead (via-points or residual weights), as the
+    simulated safety-layer evaluation needs (every action mode but ``residual-control``;
+    the twin trials run every method, residual control one 0.1 s step at a time)."""
     return spec.action_mode != "residual-control"
 
 

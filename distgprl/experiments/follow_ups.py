@@ -62,8 +62,6 @@ def trials_due(job: Job) -> bool:
     """True if the job should run Table II twin trials now (`table2_trials.trials_due`)."""
     if job.twin_trials <= 0 or job.task != "dbm":
         return False
-    if not has_via_point_plan(get_method(job.method)):
-        return False  # methods.NO_SAFETY_LAYER: not implemented for residual-control methods
     from distgprl.hardware.table2_trials import trials_due as due
 
     return due(job.method, job.seed, job.preset, job.root, job.twin_trials)

@@ -1,9 +1,11 @@
 """Online window-by-window adaptation from perceived poses (the policy side of a trial).
 
 :class:`PerceivedAdaptation` reuses :class:`~distgprl.envs.adaptation.AdaptationEnv` (and
-:class:`PerceivedResidual` ProMP-RRL's :class:`~distgprl.envs.residual.ResidualEnv`) for
-everything but the world: its skill, action layout, TC conditioning, segment maps (control
-rate), continuity blending and observation builder are used unchanged. The env's
+:class:`PerceivedResidual` the windowed-weights residual's
+:class:`~distgprl.envs.residual.ResidualEnv`, :class:`PerceivedResidualControl` ProMP-RRL's
+:class:`~distgprl.envs.residual_rl.ResidualRLEnv`) for everything but the world: its skill,
+action layout, TC conditioning, segment maps (control rate), continuity blending (or the
+residual's nominal, gate, slew limit and hold) and observation builder are used unchanged. The env's
 simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
 what the observation reads from the world (TCP pose, object position, goal, obstacles)
 comes from a :class:`PerceivedScene` filled by the perception and the robot backend.
@@ -11,6 +13,7 @@ comes from a :class:`PerceivedScene` filled by the perception and the robot back
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, cast
 
@@ -18,9 +21,10 @@ import numpy as np
 
 from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.envs.residual import ResidualEnv
-from distgprl.errors import UserInputError
+from distgprl.envs.residual_rl import ResidualRLEnv
 from distgprl.hardware.perception import OBJECTS, Percept
-from distgprl.methods import NO_SAFETY_LAYER, get_method, has_via_point_plan
+from distgprl.hardware.safety import tool_check_points
+from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape
 from distgprl.sim.tasks.base import TaskConfig, TaskSim
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
@@ -73,6 +77,7 @@ class PerceivedScene:
         static_shapes: tuple[Shape, ...],
         conveyor_velocity: np.ndarray,
         scene: DBMScene = SCENE,
+        tool_points_at: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self.static_shapes = tuple(static_shapes)
         self.velocity = np.asarray(conveyor_velocity, dtype=float)
@@ -80,6 +85,8 @@ class PerceivedScene:
         self.tracks: dict[str, TrackedObject] = {}
         self.now = 0.0
         self._tcp = np.zeros(6)
+        self._joints: np.ndarray | None = None
+        self._tool_points_at = tool_points_at
 
     # -- updates ---------------------------------------------------------------------------
     def update(self, percept: Percept) -> None:
@@ -91,10 +98,13 @@ class PerceivedScene:
             elif name in self.tracks:
                 self.tracks[name].frames_since_seen += 1
 
-    def set_robot(self, tcp_pose: np.ndarray, now: float) -> None:
-        """The robot's actual TCP pose (6,) and the current time (s)."""
+    def set_robot(self, tcp_pose: np.ndarray, now: float, joints: np.ndarray | None = None) -> None:
+        """The robot's actual TCP pose (6,), the current time (s) and, where known, its joint
+        positions (6,), rad (what `tool_points` needs)."""
         self._tcp = np.asarray(tcp_pose, dtype=float).copy()
         self.now = float(now)
+        if joints is not None:
+            self._joints = np.asarray(joints, dtype=float).copy()
 
     # -- predictions -----------------------------------------------------------------------
     def on_belt(self, transform: np.ndarray) -> bool:
@@ -126,6 +136,16 @@ class PerceivedScene:
     def object_position(self) -> np.ndarray:
         return self.object_transform("target_bar")[:3, 3].copy()
 
+    def tool_points(self) -> np.ndarray:
+        """The tool's surface points (m, 3), m, at the robot's last joint positions
+        (`set_robot`), by the kinematic model's forward kinematics."""
+        if self._tool_points_at is None or self._joints is None:
+            raise RuntimeError(
+                "the perceived world knows no tool points: build it with tool_points_at and "
+                "pass the robot's joints to set_robot(tcp_pose, now, joints)"
+            )
+        return self._tool_points_at(self._joints)
+
     def goal_position(self) -> np.ndarray:
         position = self.object_position()
         return np.array(
@@ -152,16 +172,30 @@ class _PerceivedWorld(_Host):
 
     model: TaskSim  # the environment's own simulation, kept as the kinematic model
     sim: Any  # after `_attach_world`: the `PerceivedScene` (the TaskSim subset it reads)
+    decision_unit = "window"
+    """What one decision of the policy (and one safety check) covers."""
 
     def _attach_world(self, conveyor_velocity: Any) -> None:
         self.model = self.sim
         static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
-        self.world = PerceivedScene(static, np.asarray(conveyor_velocity, dtype=float))
+        robot = self.model.robot
+
+        def tool_points_at(joints: np.ndarray) -> np.ndarray:
+            return tool_check_points(robot, joints)[:-1]  # without the flange origin
+
+        self.world = PerceivedScene(
+            static, np.asarray(conveyor_velocity, dtype=float), tool_points_at=tool_points_at
+        )
         self.sim = self.world  # the observation now reads the perceived world
 
     @property
     def control_dt(self) -> float:
         return float(self.model.control_dt)
+
+    @property
+    def trial_steps(self) -> int:
+        """Decisions per trial: the windows (a via-point plan or windowed residual weights)."""
+        return int(self.layout.n_steps)
 
     def perceived_tc(self, start_time: float) -> TaskConfig:
         """TC from the perceived bars predicted at the trial's start time (s)."""
@@ -254,14 +288,77 @@ class PerceivedResidual(_PerceivedWorld, ResidualEnv):
         self._attach_world(conveyor_velocity)
 
 
-def perceived_env(
-    method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)
-) -> PerceivedAdaptation | PerceivedResidual:
-    """The trial adapter for ``method``: residual for the ProMP methods (`promp-rrl`,
-    `promp-rrl-expert`, the `promp-nominal` reference), via-points otherwise."""
+# the mixin is typed against AdaptationEnv (its other two hosts); ResidualRLEnv is no subclass
+class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[misc]
+    """ProMP-RRL's residual RL (:class:`ResidualRLEnv`) whose world is a
+    :class:`PerceivedScene` (DBM only).
+
+    One decision per RL step (10 Hz, 50 per DBM trial) instead of per window: :meth:`begin`
+    conditions the nominal on the perceived target bar and blends the robot's TCP pose in;
+    then per RL step :meth:`observe` (the training observation, from the perceived world and
+    the robot's joints: the tool's clearance needs them) -> policy -> :meth:`adapt` (the
+    slew-limited residual and the step's 2-3 control-period poses, nominal + gated residual,
+    exactly as `ResidualRLEnv.step` commands them) -> the trial checks the poses and streams
+    them -> :meth:`executed`. The safety layer checks each 0.1 s segment before it moves (a
+    plan of one RL step: what residual control knows ahead); retiming applies to it as to a
+    window, pushing via-points does not (there are none).
+    """
+
+    def __init__(
+        self, method: str = "promp-rrl", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
+    ) -> None:
+        ResidualRLEnv.__init__(self, "dbm", method, config)
+        self._attach_world(conveyor_velocity)
+        self._pending = np.zeros(6)
+        self._pending_poses = np.zeros((0, 6))
+
+    decision_unit = "RL step"
+
+    @property
+    def trial_steps(self) -> int:
+        """Decisions per trial: the RL steps (10 Hz)."""
+        return int(self.n_steps)
+
+    def start_plan(self, tc: TaskConfig, tcp_pose: np.ndarray, start_time: float) -> None:
+        """The conditioned nominal with the TCP pose (6,) blended in, residual 0."""
+        self._start_episode(tc, tcp_pose)
+        self._episode_over = False
+
+    def adapt(self, action: np.ndarray | None) -> np.ndarray:
+        """The residual at the end of the current RL step for the raw action (6,) (``None``
+        or the ``promp-nominal`` reference: 0), and the step's poses (m_j, 6) to check."""
+        step = self.step_index
+        raw = np.zeros(6) if action is None else np.asarray(action, dtype=float)
+        self._pending = self.step_residual(step, raw)
+        self._pending_poses = self.step_poses(step, self._pending)
+        return self._pending_poses.copy()
+
+    def mark_commanded(self, step: int, poses: np.ndarray) -> None:
+        """Record RL step ``step`` as executed: ``poses`` its commanded path (a re-timed
+        step's path has more instants than the step's control periods; fewer: stopped)."""
+        indices = self.schedule.steps[step]
+        done = len(indices) if len(poses) >= len(indices) else len(poses)
+        self.commanded_poses[indices[:done] + 1] = self._pending_poses[:done]
+        self._instants_done = int(indices[0]) + done
+        self._residuals[step] = self._pending
+
+    @property
+    def last_commanded(self) -> np.ndarray:
+        """The last commanded pose (6,) (the blended start before the first step)."""
+        return np.asarray(self.commanded_poses[self._instants_done], dtype=float).copy()
+
+
+TrialAdapter = PerceivedAdaptation | PerceivedResidual | PerceivedResidualControl
+"""A trial's environment (`perceived_env`)."""
+
+
+def perceived_env(method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> TrialAdapter:
+    """The trial adapter for ``method``: residual RL for Table I's ProMP-RRL and its
+    ``promp-nominal`` reference (action mode ``residual-control``), windowed residual weights
+    for ``promp-rrl-windowed`` / ``promp-rrl-expert``, via-points otherwise."""
     spec = get_method(method)
-    if not has_via_point_plan(spec):
-        raise UserInputError(f"{method}: {NO_SAFETY_LAYER}")
+    if spec.action_mode == "residual-control":
+        return PerceivedResidualControl(method, config, conveyor_velocity)
     if spec.action_mode == "residual":
         return PerceivedResidual(method, config, conveyor_velocity)
     return PerceivedAdaptation(method, config, conveyor_velocity)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from distgprl.identity import resolve_run
-from distgprl.methods import METHODS, TABLE_ORDER, get_method, has_via_point_plan
+from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
 
 __all__ = [
@@ -42,11 +42,11 @@ HARDWARE_TASK = "dbm"
 TABLE2_TRIALS = 10
 """Trials per setting (the paper's 10 hardware trials per method)."""
 
-ROBUSTNESS_METHODS = tuple(m for m in TABLE_ORDER if has_via_point_plan(METHODS[m]))
+ROBUSTNESS_METHODS = TABLE_ORDER
 """Methods whose trials also run at every sensor-noise level (the robustness table and its
-curve): every method of Table I with a via-point plan the twin can execute (issue 50 item 5:
-where does each policy break?); environment v6's residual-control methods have no safety
-layer yet (`distgprl.methods.NO_SAFETY_LAYER`)."""
+curve): every method of Table I and its references (issue 50 item 5: where does each policy
+break?); ProMP-RRL's residual RL one 0.1 s step at a time
+(`distgprl.hardware.adapter.PerceivedResidualControl`)."""
 
 NOISE_LEVELS = (1, 2, 3, 4)
 """The twin's sensor-noise levels above none (`distgprl.hardware.twin.SENSOR_NOISE`)."""
@@ -120,8 +120,8 @@ def run_table2_trials(
     Returns the trial files written (none if every setting is done).
 
     Raises:
-        UserInputError: a trained method's DBM model is not on disk (``model.zip``), or the
-            method is not a via-point method the trials can run.
+        UserInputError: a trained method's DBM model is not on disk (``model.zip``, nor the
+            shipped best actor).
     """
     from distgprl.hardware.repair import RepairConfig
     from distgprl.hardware.trials import run_trials

@@ -6,12 +6,14 @@ One trial on the DBM cell:
    places the bars and the robot goes to the start configuration);
 2. an image is taken; ArUco perception gives the bars in the robot base frame; the skill is
    conditioned on the perceived target bar (its pose predicted along the belt to now);
-3. for each of the 3 windows: a fresh image updates the bar tracks and the distance field
-   (static cell geometry + perceived other bar), the trained policy adapts the window from
-   the observation built exactly as in training, the segment's poses are checked by the
-   plan repair (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points pushed
-   along the distance field's gradient if too close) and the safety layer (refused if
-   still unsafe, unless ``force``), then streamed to the robot;
+3. for each of the 3 windows (residual RL, ProMP-RRL: each of the 50 RL steps of 0.1 s): a
+   fresh image updates the bar tracks and the distance field (static cell geometry +
+   perceived other bar), the trained policy adapts the window (sets the step's residual)
+   from the observation built exactly as in training, the segment's poses are checked by
+   the plan repair (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points
+   pushed along the distance field's gradient if too close — a residual step has none to
+   push) and the safety layer (refused if still unsafe, unless ``force``), then streamed
+   to the robot;
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
@@ -83,8 +85,9 @@ def run_trials(
 
     Args:
         trials: number of trials (>= 1).
-        method: a via-point method (``dist-gprl``, ``gprl-d``, ..., or ``demo`` for the
-            unadapted conditioned demonstration).
+        method: a trained method (``dist-gprl``, ``gprl-d``, ..., ``promp-rrl``) or a
+            reference: ``demo`` (the unadapted conditioned demonstration), ``promp-nominal``
+            (ProMP-RRL's nominal, zero residual).
         seed: training seed of the policy; also seeds the twin's TCs and sensor noise.
         backend: ``twin`` (digital twin) or ``ur`` (UR5e via ur_rtde).
         robot_ip: controller address (``ur``).
@@ -204,6 +207,8 @@ def run_trials(
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
         "policy": provenance,  # which trained model ran (empty for the unadapted demo)
+        # what the safety layer checks before it moves: a window's plan, or one RL step's
+        "checked_unit": adapter.decision_unit,
     }
     rows: list[dict[str, Any]] = []
     dt = adapter.control_dt
@@ -297,7 +302,7 @@ def _one_trial(
         timings["perception"].append(percept.detection_ms)
         row["images"] += 1
         adapter.world.update(percept)
-        adapter.world.set_robot(robot.tcp_pose(), robot.now())
+        adapter.world.set_robot(robot.tcp_pose(), robot.now(), robot.joint_positions())
         if twin:
             truth = robot.sim.object_transforms()
             # the image was taken at `stamp`; compare with the truth predicted back to it
@@ -321,12 +326,13 @@ def _one_trial(
     shift = np.zeros(3)  # belt shift of re-timed plans (repair module docstring)
     last_pose = None  # last commanded pose (with the shift)
     windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
-    for step in range(adapter.layout.n_steps):
+    unit = adapter.decision_unit  # a window, or one 0.1 s RL step (residual RL)
+    for step in range(adapter.trial_steps):
         if step > 0 and not dry_run:
             perceive()
         elif step > 0:
             adapter.world.set_robot(
-                adapter.last_commanded if last_pose is None else last_pose, clock
+                adapter.last_commanded if last_pose is None else last_pose, clock, q
             )
         start = time.perf_counter()
         observation = adapter.observe()
@@ -351,7 +357,7 @@ def _one_trial(
                     v_start=velocity,
                 )
             except UnsafePlanError as refused:
-                echo(f"trial {index + 1}, window {step + 1}: {refused}")
+                echo(f"trial {index + 1}, {unit} {step + 1}: {refused}")
                 windows.append(("refused", 0.0, 0.0))
                 row.update(
                     status="refused",
@@ -379,7 +385,7 @@ def _one_trial(
             timings["check"] += time.perf_counter() - started
             windows.append((repaired.decision, repaired.time_added, repaired.max_displacement))
             if repaired.decision != "none" or dry_run:
-                echo(f"trial {index + 1}, window {step + 1}: {describe_repair(repaired)}")
+                echo(f"trial {index + 1}, {unit} {step + 1}: {describe_repair(repaired)}")
             if repaired.decision == "refused" and not force:
                 refusal = UnsafePlanError(repaired.remaining)
                 row.update(

@@ -63,8 +63,9 @@ def gradient_function(
 
 def movable_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
     """The window's movable via-points (not frozen ones) and how its plan depends on them;
-    None for the residual ProMP baseline (its parameters are weights, not via-points)."""
-    if adapter.method.action_mode == "residual":
+    None for the residual ProMP methods (their parameters are weights or a residual, not
+    via-points)."""
+    if adapter.method.action_mode in ("residual", "residual-control"):
         return None
     frozen = set(adapter.layout.frozen)
     movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)

@@ -8,6 +8,7 @@ import pytest
 from distgprl.hardware.adapter import (
     PerceivedAdaptation,
     PerceivedResidual,
+    PerceivedResidualControl,
     TrackedObject,
     perceived_env,
 )
@@ -140,18 +141,86 @@ def test_the_demo_reference_ignores_the_action():
 def test_the_residual_adapter_is_built_for_the_requested_promp_method():
     """`perceived_env` builds the residual adapter with the method it is asked for:
     `promp-rrl-windowed` and `promp-rrl-expert` (the latter fits the 20 expert
-    demonstrations); environment v6's residual-control methods have no adapter yet."""
-    from distgprl.errors import UserInputError
+    demonstrations) get windowed weights; environment v6's residual-control methods
+    (`promp-rrl`, `promp-nominal`) residual RL at 10 Hz."""
     from distgprl.hardware.adapter import perceived_env
 
     windowed = perceived_env("promp-rrl-windowed")
     expert = perceived_env("promp-rrl-expert")
+    nominal = perceived_env("promp-nominal")
     try:
         assert windowed.method.name == "promp-rrl-windowed"
         assert expert.method.name == "promp-rrl-expert"
         assert expert.promp.demonstration_count == 20
+        assert isinstance(nominal, PerceivedResidualControl)
+        assert nominal.method.name == "promp-nominal" and nominal.trial_steps == 50
+        assert (windowed.decision_unit, nominal.decision_unit) == ("window", "RL step")
     finally:
         windowed.close()
         expert.close()
-    with pytest.raises(UserInputError, match="residual-control"):
-        perceived_env("promp-nominal")
+        nominal.close()
+
+
+def _perceive_truth(env, adapter) -> None:
+    """Give the adapter's perceived world exactly what the training simulation holds now:
+    both bars, the TCP pose, the joints, the time."""
+    now = float(env.sim.time)
+    adapter.world.tracks["target_bar"] = TrackedObject(
+        _bar_transform(env.sim.object_position()), now
+    )
+    adapter.world.tracks["other_bar"] = TrackedObject(
+        _bar_transform(env.sim.other_bar_position_at(now)), now
+    )
+    adapter.world.set_robot(env.sim.tcp_pose(), now, env.sim.joint_positions())
+
+
+def test_residual_control_adapter_commands_what_the_training_env_commands():
+    """With perfect perception, ProMP-RRL's trial adapter conditions the same nominal,
+    observes the same state (the tool's clearance from the joints by forward kinematics) and
+    commands, RL step by RL step, the same 2-3 control-period poses as `ResidualRLEnv`."""
+    env = _training_env("promp-rrl")
+    adapter = perceived_env("promp-rrl", env.config)
+    try:
+        assert isinstance(adapter, PerceivedResidualControl)
+        obs, _ = env.reset(options={"tc": TC})
+        _perceive_truth(env, adapter)
+        tc = adapter.begin(env.sim.tcp_pose(), float(env.sim.time))
+        np.testing.assert_allclose(tc.object_offset, TC.object_offset, atol=1e-3)
+        np.testing.assert_allclose(adapter.nominal_poses, env.nominal_poses, atol=1e-3)
+        np.testing.assert_allclose(adapter.observe()["state"], obs["state"], atol=1e-2)
+        np.testing.assert_allclose(adapter.world.tool_points(), env.sim.tool_points(), atol=1e-6)
+        rng = np.random.default_rng(2)
+        for step in range(4):
+            action = rng.uniform(-1, 1, 6)
+            planned = adapter.adapt(action)
+            expected = env.step_poses(step, env.step_residual(step, action))
+            np.testing.assert_allclose(planned, expected, atol=1e-3)
+            assert len(planned) in (2, 3)
+            obs, *_ = env.step(action)
+            adapter.executed(planned)
+            assert adapter.step_index == step + 1
+            np.testing.assert_allclose(adapter.last_commanded, planned[-1])
+            _perceive_truth(env, adapter)
+            np.testing.assert_allclose(adapter.observe()["state"], obs["state"], atol=1e-2)
+    finally:
+        adapter.close()
+        env.close()
+
+
+def test_residual_control_records_a_stopped_step_by_what_ran():
+    """A step stopped after its first control period counts one instant as done (the
+    nominal the next observation compares with), and its residual as the one in force."""
+    env = _training_env("promp-nominal")
+    adapter = perceived_env("promp-nominal", env.config)
+    try:
+        env.reset(options={"tc": TC})
+        _perceive_truth(env, adapter)
+        adapter.begin(env.sim.tcp_pose(), float(env.sim.time))
+        planned = adapter.adapt(np.ones(6))  # the reference ignores the action: the nominal
+        np.testing.assert_allclose(planned, adapter.nominal_poses[1 : len(planned) + 1])
+        adapter.executed(planned[:1])
+        np.testing.assert_array_equal(adapter.last_commanded, planned[0])
+        assert adapter.step_index == 1
+    finally:
+        adapter.close()
+        env.close()

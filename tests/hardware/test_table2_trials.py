@@ -19,21 +19,21 @@ from distgprl.schema import TRIAL_FIELDS, write_csv
 
 
 def test_every_method_gets_repair_on_and_off_and_the_robustness_methods_every_noise_level():
-    """Every via-point method of Table I (and the demo) also runs at every sensor-noise level
-    (issue 50 item 5: where does each policy break?); the residual-control ones have no twin
-    trials at all (no safety layer yet), so none is due."""
+    """Every method of Table I and both references also run at every sensor-noise level
+    (issue 50 item 5: where does each policy break?), ProMP-RRL's residual RL and its nominal
+    included (checked one 0.1 s step at a time)."""
     from distgprl.hardware.twin import SENSOR_NOISE
+    from distgprl.methods import TABLE_ORDER
 
     noisy = {TrialSetting(True, level) for level in SENSOR_NOISE if level > 0}
-    for method in ("gprl", "dist-gprl", "dist-gprl-nocov", "demo"):
+    assert {"promp-rrl", "promp-nominal", "demo"} <= set(TABLE_ORDER)
+    for method in TABLE_ORDER:
         assert set(table2_settings(method)) == {
             TrialSetting(True, 0),
             TrialSetting(False, 0),
             *noisy,
         }
     assert len(noisy) == 4
-    for method in ("promp-rrl", "promp-nominal"):
-        assert table2_settings(method) == (TrialSetting(True, 0), TrialSetting(False, 0))
 
 
 def test_the_cli_admits_every_twin_noise_level():

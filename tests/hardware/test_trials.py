@@ -47,8 +47,8 @@ def _untrained_policy(tmp_path_factory, method: str):
     return path
 
 
-# via-points; residual ProMP weights (v5's ProMP-RRL)
-@pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl-windowed"])
+# via-points; residual ProMP weights (v5's ProMP-RRL); residual RL (Table I's ProMP-RRL)
+@pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl-windowed", "promp-rrl"])
 def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
     from distgprl.report.tables import hardware_table
 
@@ -80,6 +80,10 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         # the perceived TC agrees with the true one to within the perception error
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
     assert report.summary["judged"] == 2
+    assert meta["checked_unit"] == ("RL step" if method == "promp-rrl" else "window")
+    if method == "promp-rrl":  # a fresh image, a decision and a check per 0.1 s step reached
+        for row in rows:
+            assert int(row["images"]) == len(row["repair"].split(";")) > 3
     if method not in TABLE_ORDER:  # an exploration method is no Table II row
         assert all(row["method"] != method for row in hardware_table(tmp_path, "ci"))
         return
@@ -323,25 +327,25 @@ def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
 
 
-@pytest.mark.parametrize("method", ["promp-nominal", "promp-rrl"])
-def test_residual_control_methods_are_refused_by_the_trials_with_the_reason(tmp_path, method):
-    """Environment v6's `promp-rrl` and `promp-nominal` command a 10 Hz residual with no
-    via-point plan for the safety layer to check: a twin trial stops before anything runs
-    with one `UserInputError` naming why (`methods.NO_SAFETY_LAYER`), never a traceback
-    from deeper down and never a trial of a different method."""
-    from distgprl.errors import UserInputError
-    from distgprl.hardware.trials import run_trials
-    from distgprl.methods import NO_SAFETY_LAYER
-
-    with pytest.raises(UserInputError) as raised:
-        run_trials(
-            trials=1,
-            method=method,
-            seed=0,
-            backend="twin",
-            root=tmp_path,
-            preset="ci",
-            echo=lambda *_: None,
-        )
-    assert str(raised.value) == f"{method}: {NO_SAFETY_LAYER}"
-    assert not (tmp_path / "hardware" / method).exists()
+def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_path):
+    """Residual control has no window plan: the twin trial of ProMP-RRL's nominal (zero
+    residual) perceives, decides and checks every 0.1 s RL step before it moves (50 per DBM
+    trial when none is refused), and records that in the trial file."""
+    report = run_trials(
+        trials=1,
+        method="promp-nominal",
+        seed=0,
+        root=tmp_path,
+        preset="ci",
+        twin_config=SMALL,
+        echo=lambda _: None,
+    )
+    meta, rows = read_csv(report.path)
+    assert meta["checked_unit"] == "RL step" and meta["policy"] == {}
+    decisions = rows[0]["repair"].split(";")
+    assert set(decisions) <= {"none", "retimed", "refused"}
+    assert int(rows[0]["images"]) == len(decisions)
+    if rows[0]["status"] == "ok":
+        assert len(decisions) == 50
+    else:
+        assert rows[0]["status"] == "refused" and decisions[-1] == "refused"
