@@ -83,9 +83,16 @@ RESULT_FIGURES: tuple[tuple[str, str], ...] = (
 """The results page's figures, in its order; other PNGs of ``paper_figures/`` follow."""
 
 
+def site_table(table: str) -> str:
+    """A committed Markdown table as the site shows it: every bracket pair that is no inline
+    link escaped, so that "0.86 [0.61, 1.00] [2]" (an interval, then the seeds) stays text
+    and is not read as a reference link to "2" (which strict mode would refuse)."""
+    return re.sub(r"\[([^\[\]]*)\](?!\()", r"\\[\1\\]", table.strip())
+
+
 def _demote(table: str) -> str:
     """A committed Markdown table as a section body (its caption line kept as a paragraph)."""
-    return table.strip() + "\n"
+    return site_table(table) + "\n"
 
 
 def results_tables(figures: Path = FIGURES) -> str:
