@@ -197,6 +197,11 @@ class _PerceivedWorld(_Host):
         """Decisions per trial: the windows (a via-point plan or windowed residual weights)."""
         return int(self.layout.n_steps)
 
+    def takes_image(self, step: int) -> bool:
+        """Whether the trial takes a fresh image before decision ``step``: before every
+        window (between images the tracks predict the bars along the belt)."""
+        return True
+
     def perceived_tc(self, start_time: float) -> TaskConfig:
         """TC from the perceived bars predicted at the trial's start time (s)."""
         scene = self.world.scene
@@ -296,7 +301,8 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
     One decision per RL step (10 Hz, 50 per DBM trial) instead of per window: :meth:`begin`
     conditions the nominal on the perceived target bar and blends the robot's TCP pose in;
     then per RL step :meth:`observe` (the training observation, from the perceived world and
-    the robot's joints: the tool's clearance needs them) -> policy -> :meth:`adapt` (the
+    the robot's joints: the tool's clearance needs them; a fresh image before the steps of
+    `image_steps`, one per window as the via-point methods get) -> policy -> :meth:`adapt` (the
     slew-limited residual and the step's 2-3 control-period poses, nominal + gated residual,
     exactly as `ResidualRLEnv.step` commands them) -> the trial checks the poses and streams
     them -> :meth:`executed`. The safety layer checks each 0.1 s segment before it moves (a
@@ -318,6 +324,22 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
     def trial_steps(self) -> int:
         """Decisions per trial: the RL steps (10 Hz)."""
         return int(self.n_steps)
+
+    @property
+    def image_steps(self) -> tuple[int, ...]:
+        """The RL steps before which the trial takes a fresh image: the first step starting
+        at or after each window start k T / n_windows — the images the via-point methods get
+        (one per window), so that Table II compares the policies, not perception rates.
+        Between images the tracks predict the bars along the belt; the robot's pose and
+        joints are read before every step."""
+        starts = np.concatenate([[0.0], np.cumsum(self.schedule.step_duration)[:-1]])
+        windows = self.config.n_windows
+        at = [k * self.duration / windows for k in range(windows)]
+        return tuple(sorted({int(np.searchsorted(starts, t - 1e-9)) for t in at}))
+
+    def takes_image(self, step: int) -> bool:
+        """Whether the trial takes a fresh image before RL step ``step`` (`image_steps`)."""
+        return step in self.image_steps
 
     def start_plan(self, tc: TaskConfig, tcp_pose: np.ndarray, start_time: float) -> None:
         """The conditioned nominal with the TCP pose (6,) blended in, residual 0."""

@@ -6,14 +6,15 @@ One trial on the DBM cell:
    places the bars and the robot goes to the start configuration);
 2. an image is taken; ArUco perception gives the bars in the robot base frame; the skill is
    conditioned on the perceived target bar (its pose predicted along the belt to now);
-3. for each of the 3 windows (residual RL, ProMP-RRL: each of the 50 RL steps of 0.1 s): a
-   fresh image updates the bar tracks and the distance field (static cell geometry +
-   perceived other bar), the trained policy adapts the window (sets the step's residual)
-   from the observation built exactly as in training, the segment's poses are checked by
-   the plan repair (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points
-   pushed along the distance field's gradient if too close — a residual step has none to
-   push) and the safety layer (refused if still unsafe, unless ``force``), then streamed
-   to the robot;
+3. for each of the 3 windows (residual RL, ProMP-RRL: each of the 50 RL steps of 0.1 s,
+   with a fresh image at the first step of each window's span and the tracks' prediction
+   along the belt in between): a fresh image updates the bar tracks and the distance field
+   (static cell geometry + perceived other bar), the trained policy adapts the window (sets
+   the step's residual) from the observation built exactly as in training, the segment's
+   poses are checked by the plan repair (:mod:`distgprl.hardware.repair`: re-timed if too
+   fast, via-points pushed along the distance field's gradient if too close — a residual
+   step has none to push) and the safety layer (refused if still unsafe, unless ``force``),
+   then streamed to the robot;
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
@@ -328,8 +329,10 @@ def _one_trial(
     windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
     unit = adapter.decision_unit  # a window, or one 0.1 s RL step (residual RL)
     for step in range(adapter.trial_steps):
-        if step > 0 and not dry_run:
+        if step > 0 and not dry_run and adapter.takes_image(step):
             perceive()
+        elif step > 0 and not dry_run:  # no image: the tracks predict the bars; the robot's
+            adapter.world.set_robot(robot.tcp_pose(), robot.now(), robot.joint_positions())
         elif step > 0:
             adapter.world.set_robot(
                 adapter.last_commanded if last_pose is None else last_pose, clock, q

@@ -155,6 +155,9 @@ def test_the_residual_adapter_is_built_for_the_requested_promp_method():
         assert isinstance(nominal, PerceivedResidualControl)
         assert nominal.method.name == "promp-nominal" and nominal.trial_steps == 50
         assert (windowed.decision_unit, nominal.decision_unit) == ("window", "RL step")
+        # an image where each of the 3 windows starts (0, 1 2/3, 3 1/3 s of the 5 s trial)
+        assert nominal.image_steps == (0, 17, 34)
+        assert windowed.takes_image(1) and not nominal.takes_image(1)
     finally:
         windowed.close()
         expert.close()
