@@ -18,6 +18,9 @@ One trial on the DBM cell:
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
+Residual control's RL steps are streamed back to back: the robot's stream is ended (a
+deceleration to standstill) only after the trial's last step or a refusal, not between steps.
+
 A row per trial is written (atomically, after every trial) to
 ``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; its meta says what the
 safety layer checked (``checked_unit``: ``window`` or ``RL step``) and which of its parts ran
@@ -347,6 +350,7 @@ def _one_trial(
     shift = np.zeros(3)  # belt shift of re-timed plans (repair module docstring)
     last_pose = None  # last commanded pose (with the shift)
     windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
+    streaming = False  # the robot's stream left open for the next RL step
     unit = adapter.decision_unit  # a window, or one 0.1 s RL step (residual RL)
     for step in range(adapter.trial_steps):
         if step > 0 and not dry_run and adapter.takes_image(step):
@@ -433,21 +437,27 @@ def _one_trial(
                 velocity = (check.joints[-1] - (check.joints[-2] if len(poses) > 1 else q)) / dt
                 q = check.joints[-1]
             continue
-        result = robot.execute(check.joints, poses)
+        # residual control streams its RL steps back to back (the robot's stream is not
+        # ended between them); a window plan ends its stream
+        last = not adapter.streams_decisions or step == adapter.trial_steps - 1
+        result = robot.execute(check.joints, poses, last=last)
+        streaming = not last and not result.stopped
         timings["execution"] += result.wall_s
         adapter.executed(path_poses[: result.steps])
         if result.steps:
             last_pose = np.asarray(poses[result.steps - 1], dtype=float).copy()
-            q = check.joints[result.steps - 1]
             previous = check.joints[result.steps - 2] if result.steps > 1 else q
+            q = check.joints[result.steps - 1]
             velocity = (q - previous) / dt
         if result.stopped:
             row.update(status="stopped", stop_reason=result.stop_reason)
             if result.protective_stop:
                 row["collision"] = 1
             break
-        if not twin:
+        if not twin and not streaming:  # a continued stream goes on from its last target
             q = robot.joint_positions()
+    if streaming:  # a refusal ended the trial with the robot's stream still open
+        robot.stop()
     row["repair"] = ";".join(w[0] for w in windows)
     row["repair_added_s"] = ";".join(f"{w[1]:.3f}" for w in windows)
     row["repair_displacement_m"] = ";".join(f"{w[2]:.4f}" for w in windows)

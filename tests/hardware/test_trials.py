@@ -405,3 +405,47 @@ def test_an_unsafe_rl_step_is_retimed_or_refused_before_it_moves_and_never_pushe
     from distgprl.report.table2 import repair_label
 
     assert repair_label(meta) == "retime"
+
+
+def test_a_residual_trial_on_the_ur_streams_its_rl_steps_without_stopping_between(
+    tmp_path, model_sim
+):
+    """On the UR (fake RTDE), a residual-control trial streams its checked 0.1 s RL steps
+    back to back: servo mode is ended after the last step (or by the stop after a
+    refusal), never between steps (it was: a servoStop, a braking to standstill, after each
+    of the 50)."""
+    from fake_rtde import FakeRTDE  # tests/hardware is on sys.path (rootdir conftest)
+
+    from distgprl.hardware.perception import save_calibration
+
+    calibration = save_calibration(tmp_path / "cell.yaml", twin_calibration(SMALL))
+    fake = FakeRTDE(model_sim.start_joint_positions, model_sim.robot.fk)
+    answers = iter(["", "n", "n"])  # place the bars; lifted? touched?
+    report = run_trials(
+        trials=1,
+        method="promp-nominal",
+        backend="ur",
+        robot_ip="10.0.0.2",
+        camera=TwinCamera(SMALL),
+        calibration=calibration,
+        judge="operator",
+        root=tmp_path,
+        preset="ci",
+        rtde_factory=fake.factory,
+        ask=lambda _: next(answers),
+        echo=lambda _: None,
+    )
+    row = report.rows[0]
+    steps = len(row["repair"].split(";"))
+    assert row["status"] in ("ok", "refused") and steps > 1
+    names = fake.names()
+    servo = [i for i, name in enumerate(names) if name == "servoJ"]
+    assert len(servo) >= 5 * 2 * (steps - 1)  # 125 Hz, 2-3 control periods per step
+    assert names.index("servoStop") > servo[-1]  # the stream ended after the last step only
+    assert names[-5:] == [  # and closing the connection stops the robot once more
+        "servoStop",
+        "stopJ",
+        "stopScript",
+        "disconnect_control",
+        "disconnect_receive",
+    ]
