@@ -174,6 +174,9 @@ class _PerceivedWorld(_Host):
     sim: Any  # after `_attach_world`: the `PerceivedScene` (the TaskSim subset it reads)
     decision_unit = "window"
     """What one decision of the policy (and one safety check) covers."""
+    streams_decisions = False
+    """Whether the robot streams consecutive decisions' poses without ending its stream
+    between them (residual control's 0.1 s RL steps; a window plan ends its stream)."""
 
     def _attach_world(self, conveyor_velocity: Any) -> None:
         self.model = self.sim
@@ -319,6 +322,7 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
         self._pending_poses = np.zeros((0, 6))
 
     decision_unit = "RL step"
+    streams_decisions = True
 
     @property
     def trial_steps(self) -> int:

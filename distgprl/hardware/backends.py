@@ -66,8 +66,11 @@ class RobotBackend(Protocol):
     def move_joints(self, q: np.ndarray) -> ExecutionResult:
         """Slow joint move to ``q`` (6,) (already checked)."""
 
-    def execute(self, joints: np.ndarray, poses: np.ndarray) -> ExecutionResult:
-        """Stream joint targets (n, 6), one per control period (poses (n, 6) for monitoring)."""
+    def execute(self, joints: np.ndarray, poses: np.ndarray, last: bool = True) -> ExecutionResult:
+        """Stream joint targets (n, 6), one per control period (poses (n, 6) for monitoring).
+
+        ``last=False``: another segment follows at once (residual control's next 0.1 s RL
+        step), so the stream is not ended (no deceleration to standstill) after this one."""
 
     def stop(self) -> None:
         """Stop any motion now (idempotent)."""
@@ -184,7 +187,9 @@ class TwinBackend:
         self.sim.q_command = np.asarray(q, dtype=float).copy()
         return ExecutionResult(0)
 
-    def execute(self, joints: np.ndarray, poses: np.ndarray) -> ExecutionResult:
+    def execute(self, joints: np.ndarray, poses: np.ndarray, last: bool = True) -> ExecutionResult:
+        """Run the poses in the twin (it moves only inside this call: ``last`` changes
+        nothing)."""
         result = self._run(np.asarray(poses, dtype=float))
         self.moved_steps += result.steps
         return result
@@ -294,6 +299,7 @@ class URBackend:
         self.control.setTcp(list(config.tcp_offset))
         self.commands = 0
         self._moving = False
+        self._streamed: tuple[np.ndarray, np.ndarray] | None = None  # a stream left open
 
     def now(self) -> float:
         return float(self._clock() - self._origin)
@@ -347,11 +353,15 @@ class URBackend:
             )
         return ExecutionResult(1, wall_s=time.perf_counter() - start)
 
-    def execute(self, joints: np.ndarray, poses: np.ndarray) -> ExecutionResult:
+    def execute(self, joints: np.ndarray, poses: np.ndarray, last: bool = True) -> ExecutionResult:
         """Stream ``joints`` with servoJ at ``servo_rate_hz`` under the :class:`Watchdog`.
 
-        A stop condition ends streaming with ``servoStop``; Ctrl-C (KeyboardInterrupt)
-        stops the robot and is re-raised.
+        The stream ends with ``servoStop`` (decelerating to standstill) unless ``last`` is
+        False: then the next call continues it (residual control streams its 0.1 s RL steps
+        back to back; between them servoJ holds the last target while the next step is
+        decided and checked: a few ms, some 30 ms more where the step takes an image). A
+        stop condition ends streaming with ``servoStop``;
+        Ctrl-C (KeyboardInterrupt) stops the robot and is re-raised.
         """
         joints = np.asarray(joints, dtype=float)
         poses = np.asarray(poses, dtype=float)
@@ -361,8 +371,12 @@ class URBackend:
         watchdog = Watchdog(self.limits, period)
         start = time.perf_counter()
         actual: list[np.ndarray] = []
-        previous = self.joint_positions()
-        previous_pose = self.tcp_pose()
+        if self._streamed is not None:  # the stream goes on from its last target
+            previous, previous_pose = self._streamed
+        else:
+            previous = self.joint_positions()
+            previous_pose = self.tcp_pose()
+        self._streamed = None
         self._moving = True
         try:
             self._ready()
@@ -401,8 +415,11 @@ class URBackend:
         except KeyboardInterrupt:
             self.stop()
             raise
-        self.control.servoStop(config.stop_deceleration)
-        self._moving = False
+        if last:
+            self.control.servoStop(config.stop_deceleration)
+            self._moving = False
+        else:
+            self._streamed = (np.asarray(previous).copy(), np.asarray(previous_pose).copy())
         return ExecutionResult(
             len(actual),
             actual_joints=np.array(actual).reshape(-1, 6),
@@ -411,6 +428,7 @@ class URBackend:
 
     def stop(self) -> None:
         """Decelerate to standstill (servoStop + stopJ); safe to call at any time."""
+        self._streamed = None
         try:
             self.control.servoStop(self.config.stop_deceleration)
             self.control.stopJ(self.config.stop_deceleration)

@@ -18,9 +18,15 @@ One trial on the DBM cell:
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
+Residual control's RL steps are streamed back to back: the robot's stream is ended (a
+deceleration to standstill) only after the trial's last step or a refusal, not between steps.
+
 A row per trial is written (atomically, after every trial) to
-``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; ``dry_run`` writes plans to
-``<root>/hardware/dry-run/<method>/`` instead (not read by the tables) and never moves.
+``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; its meta says what the
+safety layer checked (``checked_unit``: ``window`` or ``RL step``) and which of its parts ran
+(``safety_layer``: the check, retiming, the push or why it does not apply); ``dry_run``
+writes plans to ``<root>/hardware/dry-run/<method>/`` instead (not read by the tables) and
+never moves.
 """
 
 from __future__ import annotations
@@ -46,7 +52,13 @@ from distgprl.hardware.repair import RepairConfig
 from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
 from distgprl.hardware.trial_policy import load_trial_policy
 from distgprl.hardware.trial_rows import ask_yes_no, finish_row, summarise_trials
-from distgprl.hardware.window_check import clearance_function, describe_repair, repair_window
+from distgprl.hardware.window_check import (
+    clearance_function,
+    describe_repair,
+    pushes_via_points,
+    repair_window,
+    safety_layer,
+)
 from distgprl.schema import TRIAL_FIELDS
 
 
@@ -105,9 +117,12 @@ def run_trials(
         limits: safety limits (default :class:`SafetyLimits`).
         ask: prompt function (operator judge, bar placement); echo: progress output.
         rtde_factory: ``ip -> (control, receive)`` for the ur backend (tests inject a fake).
-        repair: retime / repair unsafe window plans before refusing them (False: refuse
-            at once, the behaviour before plan repair).
-        repair_config: settings of the repair (default :class:`RepairConfig`).
+        repair: retime / repair unsafe window plans (residual control: 0.1 s RL steps)
+            before refusing them (False: refuse at once, the behaviour before plan repair).
+        repair_config: settings of the repair (default :class:`RepairConfig`); its push
+            (``repair=True``) does not apply to the residual ProMP methods, which have no
+            via-points: the trial file's ``safety_layer`` says so and ``repair_push`` is
+            False (`distgprl.hardware.window_check.safety_layer`).
         sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
             0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
             Ignored by the ur backend (a real camera).
@@ -189,6 +204,10 @@ def run_trials(
         )
     else:
         perception = MarkerPerception(cal)
+    handling = (repair_config or RepairConfig()) if repair else None
+    layer = safety_layer(adapter, handling, force)
+    if handling is not None and handling.repair and not pushes_via_points(adapter):
+        echo(f"{method}: --repair-push {layer['push']}; retiming only")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
     prefix = "plans" if dry_run else "trials"
@@ -203,13 +222,17 @@ def run_trials(
         "judge": judge,
         "force": force,
         "repair": repair,
-        "repair_push": bool(repair and (repair_config or RepairConfig()).repair),
+        # whether via-points were pushed: asked for and the method has via-points to push
+        "repair_push": bool(handling is not None and handling.repair)
+        and pushes_via_points(adapter),
         "sensor_noise": sensor_noise if backend == "twin" else None,
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
         "policy": provenance,  # which trained model ran (empty for the unadapted demo)
         # what the safety layer checks before it moves: a window's plan, or one RL step's
         "checked_unit": adapter.decision_unit,
+        # which safety layer ran: the check, retiming, the push (or why it does not apply)
+        "safety_layer": layer,
     }
     rows: list[dict[str, Any]] = []
     dt = adapter.control_dt
@@ -235,7 +258,7 @@ def run_trials(
                 force,
                 ask,
                 echo,
-                (repair_config or RepairConfig()) if repair else None,
+                handling,
             )
             row["backend"] = backend
             rows.append(row)
@@ -327,6 +350,7 @@ def _one_trial(
     shift = np.zeros(3)  # belt shift of re-timed plans (repair module docstring)
     last_pose = None  # last commanded pose (with the shift)
     windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
+    streaming = False  # the robot's stream left open for the next RL step
     unit = adapter.decision_unit  # a window, or one 0.1 s RL step (residual RL)
     for step in range(adapter.trial_steps):
         if step > 0 and not dry_run and adapter.takes_image(step):
@@ -413,21 +437,27 @@ def _one_trial(
                 velocity = (check.joints[-1] - (check.joints[-2] if len(poses) > 1 else q)) / dt
                 q = check.joints[-1]
             continue
-        result = robot.execute(check.joints, poses)
+        # residual control streams its RL steps back to back (the robot's stream is not
+        # ended between them); a window plan ends its stream
+        last = not adapter.streams_decisions or step == adapter.trial_steps - 1
+        result = robot.execute(check.joints, poses, last=last)
+        streaming = not last and not result.stopped
         timings["execution"] += result.wall_s
         adapter.executed(path_poses[: result.steps])
         if result.steps:
             last_pose = np.asarray(poses[result.steps - 1], dtype=float).copy()
-            q = check.joints[result.steps - 1]
             previous = check.joints[result.steps - 2] if result.steps > 1 else q
+            q = check.joints[result.steps - 1]
             velocity = (q - previous) / dt
         if result.stopped:
             row.update(status="stopped", stop_reason=result.stop_reason)
             if result.protective_stop:
                 row["collision"] = 1
             break
-        if not twin:
+        if not twin and not streaming:  # a continued stream goes on from its last target
             q = robot.joint_positions()
+    if streaming:  # a refusal ended the trial with the robot's stream still open
+        robot.stop()
     row["repair"] = ";".join(w[0] for w in windows)
     row["repair_added_s"] = ";".join(f"{w[1]:.3f}" for w in windows)
     row["repair_displacement_m"] = ";".join(f"{w[2]:.4f}" for w in windows)

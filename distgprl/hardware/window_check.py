@@ -1,7 +1,11 @@
 """The pre-flight handling of one window's plan in a hardware trial: the clearance and the
 distance-field gradient along the plan with the other bar predicted to each step's time, the
 window's movable via-points, and the retime / repair / refuse decision
-(`distgprl.hardware.repair.repair_plan`) written back into the adapter."""
+(`distgprl.hardware.repair.repair_plan`) written back into the adapter.
+
+The same handling checks one 0.1 s RL step of residual control (ProMP-RRL) as a plan of its
+own: retiming applies to it, the push does not (`pushes_via_points`); `safety_layer` says
+which ran, in the trial file's meta."""
 
 from __future__ import annotations
 
@@ -9,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from distgprl.hardware.repair import RepairResult, ViaPoints, repair_plan
+from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints, repair_plan
 
 
 def clearance_function(
@@ -61,11 +65,49 @@ def gradient_function(
     return gradient_at
 
 
+NO_VIA_POINTS = (
+    "not applicable: the method's plan has no via-points to push (residual ProMP weights, "
+    "or ProMP-RRL's 10 Hz residual)"
+)
+"""Why the via-point push never runs for the residual ProMP methods (`safety_layer`)."""
+
+
+def pushes_via_points(adapter) -> bool:
+    """Whether the repair's push applies to ``adapter``'s plans: the via-point methods; not
+    the residual ProMP methods (their parameters are weights or a residual, not via-points:
+    `NO_VIA_POINTS`)."""
+    return adapter.method.action_mode not in ("residual", "residual-control")
+
+
+def safety_layer(adapter, config: RepairConfig | None, force: bool = False) -> dict[str, str]:
+    """What a trial's safety layer does before each decision's poses move, for its file's
+    meta (nothing skipped silently): what one check covers (``checked_unit``: a ``window``
+    plan, or one ``RL step`` of residual control, 0.1 s), the pre-flight check, and whether
+    retiming and the via-point push ran (``on``, ``off`` or `NO_VIA_POINTS`).
+
+    Args:
+        adapter: the trial's environment (`~distgprl.hardware.adapter.perceived_env`).
+        config: the repair settings, None with repair off (refused at once).
+        force: unsafe poses execute anyway (the violations recorded).
+    """
+    push = "off" if config is None or not config.repair else "on"
+    return {
+        "checked_unit": str(adapter.decision_unit),
+        "check": (
+            "pre-flight, every control instant before it moves (safety.check_plan: workspace, "
+            "IK and joint margins, joint speed and acceleration, TCP speed, predicted "
+            "clearance of tool and flange)"
+        ),
+        "unsafe": "executed anyway (force), violations recorded" if force else "refused",
+        "retime": "on" if config is not None and config.retime else "off",
+        "push": push if pushes_via_points(adapter) or push == "off" else NO_VIA_POINTS,
+    }
+
+
 def movable_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
     """The window's movable via-points (not frozen ones) and how its plan depends on them;
-    None for the residual ProMP methods (their parameters are weights or a residual, not
-    via-points)."""
-    if adapter.method.action_mode in ("residual", "residual-control"):
+    None for the residual ProMP methods (`pushes_via_points`)."""
+    if not pushes_via_points(adapter):
         return None
     frozen = set(adapter.layout.frozen)
     movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)

@@ -195,3 +195,10 @@ def test_residual_control_methods_get_twin_trials_but_no_simulated_repair_evalua
         job = Job("dbm", method, 0, "ci", str(tmp_path), twin_trials=2, repair_evaluations=True)
         assert not repairs_due(job)
         assert trials_due(job) == (method == "promp-nominal")  # promp-rrl: no model.zip yet
+    from distgprl.hardware.table2_trials import NOISE_LEVELS, model_path, table2_settings
+
+    model_path(tmp_path, "ci", "promp-rrl", 0).parent.mkdir(parents=True)
+    model_path(tmp_path, "ci", "promp-rrl", 0).write_bytes(b"")  # trained: its model on disk
+    assert trials_due(Job("dbm", "promp-rrl", 0, "ci", str(tmp_path), twin_trials=2))
+    # repair on and off, and repair on at every sensor-noise level (Table II's noise curve)
+    assert len(table2_settings("promp-rrl")) == 2 + len(NOISE_LEVELS)

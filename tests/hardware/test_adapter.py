@@ -180,7 +180,9 @@ def _perceive_truth(env, adapter) -> None:
 def test_residual_control_adapter_commands_what_the_training_env_commands():
     """With perfect perception, ProMP-RRL's trial adapter conditions the same nominal,
     observes the same state (the tool's clearance from the joints by forward kinematics) and
-    commands, RL step by RL step, the same 2-3 control-period poses as `ResidualRLEnv`."""
+    commands, RL step by RL step, the same 2-3 control-period poses as `ResidualRLEnv`, to
+    float tolerance (the same code on the same numbers: poses to 1e-12 m / rad, the float32
+    observation to 1e-6)."""
     env = _training_env("promp-rrl")
     adapter = perceived_env("promp-rrl", env.config)
     try:
@@ -188,23 +190,24 @@ def test_residual_control_adapter_commands_what_the_training_env_commands():
         obs, _ = env.reset(options={"tc": TC})
         _perceive_truth(env, adapter)
         tc = adapter.begin(env.sim.tcp_pose(), float(env.sim.time))
-        np.testing.assert_allclose(tc.object_offset, TC.object_offset, atol=1e-3)
-        np.testing.assert_allclose(adapter.nominal_poses, env.nominal_poses, atol=1e-3)
-        np.testing.assert_allclose(adapter.observe()["state"], obs["state"], atol=1e-2)
-        np.testing.assert_allclose(adapter.world.tool_points(), env.sim.tool_points(), atol=1e-6)
+        np.testing.assert_allclose(tc.object_offset, TC.object_offset, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(adapter.nominal_poses, env.nominal_poses, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(adapter.observe()["state"], obs["state"], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(adapter.world.tool_points(), env.sim.tool_points(), atol=1e-9)
         rng = np.random.default_rng(2)
         for step in range(4):
             action = rng.uniform(-1, 1, 6)
             planned = adapter.adapt(action)
             expected = env.step_poses(step, env.step_residual(step, action))
-            np.testing.assert_allclose(planned, expected, atol=1e-3)
+            np.testing.assert_allclose(planned, expected, rtol=0, atol=1e-12)
             assert len(planned) in (2, 3)
             obs, *_ = env.step(action)
             adapter.executed(planned)
             assert adapter.step_index == step + 1
             np.testing.assert_allclose(adapter.last_commanded, planned[-1])
             _perceive_truth(env, adapter)
-            np.testing.assert_allclose(adapter.observe()["state"], obs["state"], atol=1e-2)
+            state = adapter.observe()["state"]
+            np.testing.assert_allclose(state, obs["state"], rtol=0, atol=1e-6)
     finally:
         adapter.close()
         env.close()

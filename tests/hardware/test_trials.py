@@ -81,6 +81,9 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         assert abs(float(row["object_offset_y"]) - float(row["true_object_offset_y"])) < 0.03
     assert report.summary["judged"] == 2
     assert meta["checked_unit"] == ("RL step" if method == "promp-rrl" else "window")
+    layer = meta["safety_layer"]  # which safety layer ran, nothing skipped silently
+    assert layer["checked_unit"] == meta["checked_unit"] and layer["unsafe"] == "refused"
+    assert (layer["retime"], layer["push"]) == ("on", "off")
     if method == "promp-rrl":  # a decision and a check per 0.1 s step, an image per window
         for row in rows:
             reached = len(row["repair"].split(";"))
@@ -351,3 +354,98 @@ def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_
         assert len(decisions) == 50
     else:
         assert rows[0]["status"] == "refused" and decisions[-1] == "refused"
+
+
+def test_an_unsafe_rl_step_is_retimed_or_refused_before_it_moves_and_never_pushed(tmp_path):
+    """Residual control's safety layer at the control rate: under a 0.6 rad/s joint-speed
+    limit the nominal's 8th RL step is too fast. Without repair it is refused before it
+    moves (the trial ends there, naming the limit, its earlier steps executed); with repair
+    it is re-timed (time added, recorded per step) and the trial goes on. The via-point push
+    does not apply (no via-points): asked for, it is said so once and in the file's meta,
+    never run (no step is `repaired`), and the file counts as the retiming setting."""
+    from distgprl.hardware.repair import RepairConfig
+    from distgprl.hardware.safety import SafetyLimits
+    from distgprl.hardware.window_check import NO_VIA_POINTS
+
+    kwargs = dict(
+        trials=1,
+        method="promp-nominal",
+        seed=1,
+        root=tmp_path,
+        preset="ci",
+        twin_config=SMALL,
+        limits=SafetyLimits(max_joint_speed=0.6),
+    )
+    plain = run_trials(repair=False, echo=lambda _: None, **kwargs)
+    meta, rows = read_csv(plain.path)
+    row = rows[0]
+    decisions = row["repair"].split(";")
+    assert row["status"] == "refused" and row["refused_limits"] == "joint_speed"
+    assert decisions[-1] == "refused" and set(decisions[:-1]) == {"none"}
+    assert "nothing was moved" in row["stop_reason"] and float(row["execution_s"]) > 0.0
+    assert meta["safety_layer"] == {
+        "checked_unit": "RL step",
+        "check": meta["safety_layer"]["check"],
+        "unsafe": "refused",
+        "retime": "off",
+        "push": "off",
+    }
+
+    lines: list[str] = []
+    pushed = run_trials(repair_config=RepairConfig(repair=True), echo=lines.append, **kwargs)
+    meta, rows = read_csv(pushed.path)
+    retimed = rows[0]["repair"].split(";")
+    assert retimed[: len(decisions)] == decisions[:-1] + ["retimed"]
+    assert "repaired" not in retimed and len(retimed) > len(decisions)
+    added = [float(v) for v in rows[0]["repair_added_s"].split(";")]
+    assert all((a > 0.0) == (d == "retimed") for a, d in zip(added, retimed, strict=True))
+    assert meta["repair"] is True and meta["repair_push"] is False
+    assert meta["safety_layer"]["retime"] == "on" and meta["safety_layer"]["push"] == NO_VIA_POINTS
+    assert lines[0] == f"promp-nominal: --repair-push {NO_VIA_POINTS}; retiming only"
+    from distgprl.report.table2 import repair_label
+
+    assert repair_label(meta) == "retime"
+
+
+def test_a_residual_trial_on_the_ur_streams_its_rl_steps_without_stopping_between(
+    tmp_path, model_sim
+):
+    """On the UR (fake RTDE), a residual-control trial streams its checked 0.1 s RL steps
+    back to back: servo mode is ended after the last step (or by the stop after a
+    refusal), never between steps (it was: a servoStop, a braking to standstill, after each
+    of the 50)."""
+    from fake_rtde import FakeRTDE  # tests/hardware is on sys.path (rootdir conftest)
+
+    from distgprl.hardware.perception import save_calibration
+
+    calibration = save_calibration(tmp_path / "cell.yaml", twin_calibration(SMALL))
+    fake = FakeRTDE(model_sim.start_joint_positions, model_sim.robot.fk)
+    answers = iter(["", "n", "n"])  # place the bars; lifted? touched?
+    report = run_trials(
+        trials=1,
+        method="promp-nominal",
+        backend="ur",
+        robot_ip="10.0.0.2",
+        camera=TwinCamera(SMALL),
+        calibration=calibration,
+        judge="operator",
+        root=tmp_path,
+        preset="ci",
+        rtde_factory=fake.factory,
+        ask=lambda _: next(answers),
+        echo=lambda _: None,
+    )
+    row = report.rows[0]
+    steps = len(row["repair"].split(";"))
+    assert row["status"] in ("ok", "refused") and steps > 1
+    names = fake.names()
+    servo = [i for i, name in enumerate(names) if name == "servoJ"]
+    assert len(servo) >= 5 * 2 * (steps - 1)  # 125 Hz, 2-3 control periods per step
+    assert names.index("servoStop") > servo[-1]  # the stream ended after the last step only
+    assert names[-5:] == [  # and closing the connection stops the robot once more
+        "servoStop",
+        "stopJ",
+        "stopScript",
+        "disconnect_control",
+        "disconnect_receive",
+    ]

@@ -51,6 +51,32 @@ def test_streams_interpolated_servoj_within_limits(model_sim):
     assert fake.log[1][0] == "setTcp"
 
 
+def test_residual_steps_stream_back_to_back_and_stop_once_at_the_end(model_sim):
+    """Residual control's 0.1 s RL steps (`execute(..., last=False)`) continue one stream:
+    no servoStop between them, and the next step's servoJ targets go on from the last
+    step's last target (not from where the lagging arm is), so the interpolated targets
+    stay within the speed limit across the seam; the last step ends the stream once."""
+    limits = SafetyLimits()
+    q0, poses = straight_plan(model_sim, dx=0.04, steps=6)
+    check = check_plan(poses, q0, model_sim.robot, limits, DT)
+    fake = FakeRTDE(q0, model_sim.robot.fk)
+    robot = backend(model_sim, fake, limits)
+    first = robot.execute(check.joints[:3], poses[:3], last=False)
+    assert not first.stopped and "servoStop" not in fake.names()
+    fake.q = check.joints[1].copy()  # the arm lags one control period behind its target
+    second = robot.execute(check.joints[3:], poses[3:], last=True)
+    assert not second.stopped and fake.names().count("servoStop") == 1
+    assert fake.names()[-1] == "servoStop"
+    targets = np.array([args[0] for name, args in fake.log if name == "servoJ"])
+    assert len(targets) == len(poses) * 5
+    seam = check.joints[2] + (check.joints[3] - check.joints[2]) / 5  # the first after it
+    np.testing.assert_allclose(targets[15], seam)
+    period = DT / 5
+    steps = np.abs(np.diff(np.vstack([q0, targets]), axis=0)).max(axis=1) / period
+    assert steps.max() <= limits.max_joint_speed
+    np.testing.assert_allclose(targets[-1], check.joints[-1])
+
+
 def test_protective_stop_mid_trajectory_stops_streaming(model_sim):
     q0, poses = straight_plan(model_sim)
     check = check_plan(poses, q0, model_sim.robot, SafetyLimits(), DT)
