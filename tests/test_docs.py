@@ -10,7 +10,6 @@ build time); these tests call its functions directly, without building the site.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
 import re
 from pathlib import Path
@@ -18,6 +17,7 @@ from types import ModuleType
 
 import pytest
 import yaml
+from _scripts import load_script
 from typer.testing import CliRunner
 
 from distgprl.cli import app
@@ -48,15 +48,6 @@ OLD_README_COMMANDS = frozenset(
 )
 """The ``distgprl <command>`` commands the README documented before issue 51 (its commands
 table, and ``bench`` under "Benchmarks"): the site must document each of them."""
-
-
-def load_script(name: str) -> ModuleType:
-    """A module of ``scripts/`` (not a package), loaded from its file."""
-    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")

@@ -320,6 +320,7 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
         self._attach_world(conveyor_velocity)
         self._pending = np.zeros(6)
         self._pending_poses = np.zeros((0, 6))
+        self.image_steps = self._window_start_steps()
 
     decision_unit = "RL step"
     streams_decisions = True
@@ -329,13 +330,12 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
         """Decisions per trial: the RL steps (10 Hz)."""
         return int(self.n_steps)
 
-    @property
-    def image_steps(self) -> tuple[int, ...]:
-        """The RL steps before which the trial takes a fresh image: the first step starting
-        at or after each window start k T / n_windows — the images the via-point methods get
-        (one per window), so that Table II compares the policies, not perception rates.
-        Between images the tracks predict the bars along the belt; the robot's pose and
-        joints are read before every step."""
+    def _window_start_steps(self) -> tuple[int, ...]:
+        """The RL steps before which the trial takes a fresh image (``image_steps``): the
+        first step starting at or after each window start k T / n_windows — the images the
+        via-point methods get (one per window), so that Table II compares the policies, not
+        perception rates. Between images the tracks predict the bars along the belt; the
+        robot's pose and joints are read before every step."""
         starts = np.concatenate([[0.0], np.cumsum(self.schedule.step_duration)[:-1]])
         windows = self.config.n_windows
         at = [k * self.duration / windows for k in range(windows)]

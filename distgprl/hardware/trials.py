@@ -206,7 +206,8 @@ def run_trials(
         perception = MarkerPerception(cal)
     handling = (repair_config or RepairConfig()) if repair else None
     layer = safety_layer(adapter, handling, force)
-    if handling is not None and handling.repair and not pushes_via_points(adapter):
+    push_asked, can_push = handling is not None and handling.repair, pushes_via_points(adapter)
+    if push_asked and not can_push:
         echo(f"{method}: --repair-push {layer['push']}; retiming only")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
@@ -223,8 +224,7 @@ def run_trials(
         "force": force,
         "repair": repair,
         # whether via-points were pushed: asked for and the method has via-points to push
-        "repair_push": bool(handling is not None and handling.repair)
-        and pushes_via_points(adapter),
+        "repair_push": push_asked and can_push,
         "sensor_noise": sensor_noise if backend == "twin" else None,
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},

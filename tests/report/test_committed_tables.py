@@ -8,9 +8,9 @@ the archive instead of showing a Table I."""
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
-from types import ModuleType
+
+from _scripts import load_script
 
 from distgprl.experiments.mechanisms import reach_rows
 from distgprl.report.mechanisms import write_mechanisms
@@ -24,15 +24,6 @@ MAKE_TABLES = {"paper": None, "reward-unit-10": None}  # the reward-unit study's
 
 MAKE_MECHANISMS = ("paper",)
 """The ``distgprl mechanisms --preset P`` calls of ``make tables``."""
-
-
-def load_script(name: str) -> ModuleType:
-    """A module of ``scripts/`` (``readme_results``, ``docs_pages``), loaded from its file."""
-    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def site_table(table: str) -> str:

@@ -1,0 +1,21 @@
+"""The modules of ``scripts/`` (not a package: ``docs_pages``, ``readme_results``), for the
+tests that check what they write."""
+
+from __future__ import annotations
+
+import importlib.util
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+
+
+@cache
+def load_script(name: str) -> ModuleType:
+    """The module ``scripts/<name>.py``, loaded from its file (once per test process)."""
+    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "scripts" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
