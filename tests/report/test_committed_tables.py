@@ -8,6 +8,7 @@ the archive instead of showing a Table I."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from _scripts import load_script
@@ -43,21 +44,61 @@ def has_runs(preset: str) -> bool:
     return any((RESULTS / preset).glob("*/*/seed*/summary.json"))
 
 
+NUMBER = re.compile(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+"""A number as the tables write it (the mechanism table's CSV: 6 significant digits)."""
+
+
+def same_up_to_last_digit(made: str, committed: str) -> bool:
+    """Whether two texts are the same but for numbers that differ by at most one unit in
+    their last written digit (or 1e-5 relative, for numbers written without decimals)."""
+    if NUMBER.sub("#", made) != NUMBER.sub("#", committed):
+        return False
+    for new, old in zip(NUMBER.findall(made), NUMBER.findall(committed), strict=True):
+        if new == old:
+            continue
+        mantissa = old.lower().split("e")[0]
+        unit = 10.0 ** -len(mantissa.split(".")[1]) if "." in mantissa else 0.0
+        if "e" in old.lower():
+            unit *= 10.0 ** int(old.lower().split("e")[1])
+        if abs(float(new) - float(old)) > max(1.01 * unit, 1e-5 * abs(float(old))):
+            return False
+    return True
+
+
+def test_the_last_digit_comparison_allows_a_rounding_flip_and_nothing_more():
+    assert same_up_to_last_digit("reach,0.0794997,yes", "reach,0.0794998,yes")
+    assert same_up_to_last_digit("x 2.38499e-05 m", "x 2.38500e-05 m")
+    assert not same_up_to_last_digit("reach,0.0794997,yes", "reach,0.0795007,yes")
+    assert not same_up_to_last_digit("14 of 14 pairs", "13 of 14 pairs")
+    assert not same_up_to_last_digit("reach,0.0794997,yes", "reach,0.0794997,no")
+
+
 def test_committed_tables_are_regenerated_byte_for_byte(tmp_path):
     """Every table made from results/ is committed unchanged, and every committed table is
-    made: with no evaluated run yet (the v6 runs pending), paper_figures/ holds no table."""
+    made: with no evaluated run yet (the v6 runs pending), paper_figures/ holds no table.
+
+    Across machines: the tables read the committed result files only and are byte-identical
+    on any CPU; the mechanism table's reach rows are recomputed (each method's environment
+    and its fitted skill), whose floating point differs between CPUs (BLAS kernels, the
+    likelihood fit's optimiser path), so its files may differ by one unit in a number's last
+    written digit and nothing else."""
     made = []
     for preset, against in MAKE_TABLES.items():
         if has_runs(preset):  # without runs `distgprl tables` refuses: nothing is made
             made += write_tables(RESULTS, preset, tmp_path, against)
+    recomputed: set[str] = set()
     for preset in MAKE_MECHANISMS:
-        # the reach rows rebuild each method's environment and fit its skill: floating point
-        # differs between CPUs far below the 6 significant digits the table writes
-        if has_runs(preset):
-            made += write_mechanisms(RESULTS, preset, tmp_path, reach_rows(RESULTS, preset))[0]
+        if has_runs(preset):  # the reach rows are recomputed (docstring: across machines)
+            written = write_mechanisms(RESULTS, preset, tmp_path, reach_rows(RESULTS, preset))[0]
+            made += written
+            recomputed |= {path.name for path in written}
     for path in made:
         committed = FIGURES / path.name
         assert committed.exists(), f"{path.name} is made from results/ but not committed"
+        if path.name in recomputed and path.read_bytes() != committed.read_bytes():
+            same = same_up_to_last_digit(path.read_text(), committed.read_text())
+            assert same, f"{path.name} is stale"
+            continue
         assert path.read_bytes() == committed.read_bytes(), f"{path.name} is stale"
     committed = {
         p.name for p in FIGURES.iterdir() if p.name.endswith((".csv", ".md", ".tex", ".meta.json"))
