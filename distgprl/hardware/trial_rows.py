@@ -1,5 +1,6 @@
 """The rows of hardware trials: the bookkeeping columns of a finished trial (`finish_row`),
-the operator's yes/no judgement and the summary of a trial file's rows (as Table II counts
+its judgement (`judge_row`: the twin's simulation, the operator's yes/no or the perceived lift)
+and the summary of a trial file's rows (as Table II counts
 them)."""
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from distgprl.hardware.safety import tool_check_points
 from distgprl.schema import moved_robot
 
 
@@ -59,6 +61,52 @@ def ask_yes_no(ask: Callable[[str], str], question: str) -> int:
             return 1
         if answer in ("n", "no", "0"):
             return 0
+
+
+def judge_row(
+    row: dict[str, Any],
+    robot: Any,
+    adapter: Any,
+    *,
+    twin: bool,
+    judge: str,
+    ask: Callable[[str], str],
+    index: int,
+    perceive: Callable[[], bool],
+) -> None:
+    """Judge a trial that ran (or stopped) into ``row``, in place: ``min_clearance`` (the
+    twin's simulated clearance, else the distance field's at the robot's actual joints, m) and
+    its source, ``success`` and ``collision`` — from the twin's simulation (``judge="auto"``
+    on the twin), the operator's answers (``judge="operator"``, asked through ``ask`` about
+    trial ``index``), or on the real robot the perceived lift of the target bar (a fresh
+    ``perceive()``) with a protective stop counted as the collision."""
+    if twin:
+        row["min_clearance"] = float(robot.min_clearance)
+        row["clearance_source"] = "sim"
+    else:
+        row["min_clearance"] = _edf_clearance(adapter, robot)
+        row["clearance_source"] = "edf"
+    if twin and judge == "auto":
+        row["success"] = int(robot.success())
+        row["collision"] = int(bool(robot.collision))
+    elif judge == "operator":
+        row["success"] = ask_yes_no(ask, f"trial {index + 1}: was the target bar lifted off?")
+        row["collision"] = ask_yes_no(
+            ask, f"trial {index + 1}: did the robot or tool touch a roller, rail or the other bar?"
+        )
+    else:  # real robot, automatic: perceived lift; collision = a protective stop
+        perceive()
+        track = adapter.world.tracks["target_bar"].transform
+        lifted = track[2, 3] - adapter.world.scene.bar_centre_z
+        row["success"] = int(lifted >= adapter.world.scene.lift_height and row["status"] == "ok")
+        row["collision"] = int(row["collision"] == 1)
+
+
+def _edf_clearance(adapter: Any, robot: Any) -> float:
+    """Min distance (m) of the tool/flange at the actual joints to the perceived obstacles."""
+    points = tool_check_points(adapter.model.robot, robot.joint_positions())
+    adapter.field.update(adapter.world.obstacle_shapes())
+    return float(adapter.field.clearance(points).min())
 
 
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:

@@ -49,9 +49,9 @@ from distgprl.hardware.perception import (
     pose_error,
 )
 from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan, tool_check_points
+from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan
 from distgprl.hardware.trial_policy import load_trial_policy
-from distgprl.hardware.trial_rows import ask_yes_no, finish_row, summarise_trials
+from distgprl.hardware.trial_rows import finish_row, judge_row, summarise_trials
 from distgprl.hardware.window_check import (
     clearance_function,
     describe_repair,
@@ -467,26 +467,7 @@ def _one_trial(
         if row["status"] == "ok":
             row["status"] = "planned"
         return finish_row(row, trial_start, timings, errors, planned)
-    if twin:
-        row["min_clearance"] = float(robot.min_clearance)
-        row["clearance_source"] = "sim"
-    else:
-        row["min_clearance"] = _edf_clearance(adapter, robot)
-        row["clearance_source"] = "edf"
-    if twin and judge == "auto":
-        row["success"] = int(robot.success())
-        row["collision"] = int(bool(robot.collision))
-    elif judge == "operator":
-        row["success"] = ask_yes_no(ask, f"trial {index + 1}: was the target bar lifted off?")
-        row["collision"] = ask_yes_no(
-            ask, f"trial {index + 1}: did the robot or tool touch a roller, rail or the other bar?"
-        )
-    else:  # real robot, automatic: perceived lift; collision = a protective stop
-        perceive()
-        track = adapter.world.tracks["target_bar"].transform
-        lifted = track[2, 3] - adapter.world.scene.bar_centre_z
-        row["success"] = int(lifted >= adapter.world.scene.lift_height and row["status"] == "ok")
-        row["collision"] = int(row["collision"] == 1)
+    judge_row(row, robot, adapter, twin=twin, judge=judge, ask=ask, index=index, perceive=perceive)
     return finish_row(row, trial_start, timings, errors, planned)
 
 
@@ -494,10 +475,3 @@ def _fk_pose(robot, q: np.ndarray) -> np.ndarray:
     from distgprl.sim.transforms import matrix_to_pose
 
     return matrix_to_pose(robot.fk(q))
-
-
-def _edf_clearance(adapter, robot) -> float:
-    """Min distance (m) of the tool/flange at the actual joints to the perceived obstacles."""
-    points = tool_check_points(adapter.model.robot, robot.joint_positions())
-    adapter.field.update(adapter.world.obstacle_shapes())
-    return float(adapter.field.clearance(points).min())
