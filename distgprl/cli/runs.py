@@ -206,7 +206,11 @@ def status(
     for entry in statuses:
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
-    typer.echo(training_left(statuses).describe(workers or default_workers()))
+    reference = []  # a study's first runs take the pace of its reference preset's
+    if is_study(preset):
+        study = get_study(preset)
+        reference = sweep_status(plan_jobs(study.reference.preset, list(study.methods), root=root))
+    typer.echo(training_left(statuses, reference=reference).describe(workers or default_workers()))
     finished = [
         (entry.job.task, entry.job.method, entry.job.seed)
         for entry in statuses

@@ -11,7 +11,8 @@ rows over their steps; the first interval is mostly gradient-free warm-up, so th
 step 0 would promise far too early a finish), or the pace since step 0 with one row.
 `training_left` adds up the whole sweep's remaining training: each unfinished run's steps
 left at its own pace, or, for runs not started, at the median pace of the task's finished
-runs (``done.json``: training wall time over steps).
+runs (``done.json``: training wall time over steps), or for a study's first runs at the pace
+of the same task and method in its reference preset.
 """
 
 from __future__ import annotations
@@ -180,29 +181,50 @@ class TrainingLeft:
         return text
 
 
-def training_left(statuses: Iterable[RunStatus], numerics: str | None = None) -> TrainingLeft:
+def _median_paces(statuses: list[RunStatus], numerics: str, key) -> tuple[dict, dict]:
+    """Median wall and CPU seconds per step of the finished runs in ``statuses``, by
+    ``key(status)``; where a key has finished runs of this machine's ``numerics``, only
+    theirs count."""
+    done = [s for s in statuses if s.state == "done"]
+    local = {key(s) for s in done if s.numerics == numerics}
+    paces: dict[object, list[float]] = {}
+    cpu_paces: dict[object, list[float]] = {}
+    for status in done:
+        if key(status) in local and status.numerics != numerics:
+            continue
+        if status.seconds_per_step:
+            paces.setdefault(key(status), []).append(status.seconds_per_step)
+        if status.cpu_seconds_per_step:
+            cpu_paces.setdefault(key(status), []).append(status.cpu_seconds_per_step)
+    return (
+        {k: statistics.median(v) for k, v in paces.items()},
+        {k: statistics.median(v) for k, v in cpu_paces.items()},
+    )
+
+
+def training_left(
+    statuses: Iterable[RunStatus],
+    numerics: str | None = None,
+    reference: Iterable[RunStatus] = (),
+) -> TrainingLeft:
     """Training time left in the sweep (trainable runs not done), at each started run's
     own pace (`RunStatus.seconds_per_step`), else at the median pace of the finished runs
     of its task. The finished runs' pace includes whatever shared the machine with them
     (another worker), so this is an estimate at the same load. Where finished runs of a task
     were trained on a machine of this one's numerics (``numerics``, default this machine's
     `distgprl.machine.numerics_fingerprint`), only theirs count: runs committed from another
-    machine may be twice as slow or fast."""
+    machine may be twice as slow or fast. A task without a finished run of its own (a
+    study's first seed) takes the median pace of the same task and method in ``reference``
+    (e.g. the study's reference preset: the same method under another reading trains at
+    the same size)."""
     from distgprl.machine import machine_info
 
     statuses = list(statuses)
     numerics = machine_info()["numerics"] if numerics is None else numerics
-    local = {s.job.task for s in statuses if s.state == "done" and s.numerics == numerics}
-    statuses_for_pace = [s for s in statuses if s.job.task not in local or s.numerics == numerics]
-    paces: dict[str, list[float]] = {}
-    cpu_paces: dict[str, list[float]] = {}
-    for status in statuses_for_pace:
-        if status.state == "done" and status.seconds_per_step:
-            paces.setdefault(status.job.task, []).append(status.seconds_per_step)
-        if status.state == "done" and status.cpu_seconds_per_step:
-            cpu_paces.setdefault(status.job.task, []).append(status.cpu_seconds_per_step)
-    median = {task: statistics.median(values) for task, values in paces.items()}
-    cpu_median = {task: statistics.median(values) for task, values in cpu_paces.items()}
+    median, cpu_median = _median_paces(statuses, numerics, lambda s: s.job.task)
+    borrowed, cpu_borrowed = _median_paces(
+        list(reference), numerics, lambda s: (s.job.task, s.job.method)
+    )
     seconds, runs, unestimated = 0.0, 0, 0
     cpu_seconds: float | None = None
     for status in statuses:
@@ -210,9 +232,12 @@ def training_left(statuses: Iterable[RunStatus], numerics: str | None = None) ->
             continue
         runs += 1
         steps_left = max(status.total_steps - status.step, 0)  # stale runs: step 0
-        if status.job.task in cpu_median:  # the task's finished runs' median CPU pace
-            cpu_seconds = (cpu_seconds or 0.0) + cpu_median[status.job.task] * steps_left
-        pace = status.seconds_per_step or median.get(status.job.task)
+        task, method = status.job.task, status.job.method
+        own_task = task in median or task in cpu_median
+        cpu_pace = cpu_median.get(task) if own_task else cpu_borrowed.get((task, method))
+        if cpu_pace is not None:  # the finished runs' median CPU pace
+            cpu_seconds = (cpu_seconds or 0.0) + cpu_pace * steps_left
+        pace = status.seconds_per_step or median.get(task) or borrowed.get((task, method))
         if pace is None:
             unestimated += 1
             continue

@@ -256,3 +256,27 @@ def test_a_finish_marker_not_of_this_schema_is_damaged_not_stale(tmp_path):
     assert status.state == "damaged" and status.eta_s is None
     assert status.error.startswith(f"{folder / 'done.json'}: schema_version 999 is not supported")
     assert count_states([status]) == "0/1 done, 1 damaged"
+
+
+def test_training_left_borrows_the_pace_of_the_same_task_and_method_from_a_reference(tmp_path):
+    """A task without a finished run of its own (a study's first seed) takes the median pace
+    of the same task *and method* in ``reference`` (the study's reference preset), wall and
+    CPU; another method's reference runs do not set it, and a task with its own finished runs
+    keeps its own pace."""
+    study = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0], root=tmp_path / "study")
+    other = sweep.plan_jobs("ci", ["gprl-d", "gprl"], ["dcp"], [0, 1], root=tmp_path / "ref")
+    reference = [
+        RunStatus(job, "done", 1000, 1000, seconds_per_step=pace, cpu_seconds_per_step=pace / 2)
+        for job, pace in zip(other, (0.2, 9.0, 0.4, 9.0), strict=True)  # gprl-d 0.2 / 0.4
+    ]
+    assert [job.method for job in other] == ["gprl-d", "gprl", "gprl-d", "gprl"]
+    statuses = [RunStatus(job, "missing", 0, 1000) for job in study]
+    left = training_left(statuses, numerics="", reference=reference)
+    assert (left.runs, left.unestimated) == (2, 1)  # dbm: no run of the task anywhere
+    assert left.seconds == pytest.approx(1000 * 0.3)
+    assert left.cpu_seconds == pytest.approx(1000 * 0.15)
+    assert training_left(statuses, numerics="").unestimated == 2  # no reference: as before
+    own = RunStatus(study[0], "done", 1000, 1000, seconds_per_step=1.0)
+    dcp_again = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [1], root=tmp_path / "study")[0]
+    left = training_left([own, RunStatus(dcp_again, "missing", 0, 1000)], "", reference)
+    assert left.seconds == pytest.approx(1000 * 1.0)
