@@ -53,9 +53,9 @@ from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan
 from distgprl.hardware.trial_policy import load_trial_policy
 from distgprl.hardware.trial_rows import finish_row, judge_row, summarise_trials
 from distgprl.hardware.window_check import (
+    NO_VIA_POINTS,
     clearance_function,
     describe_repair,
-    pushes_via_points,
     repair_window,
     safety_layer,
 )
@@ -206,8 +206,7 @@ def run_trials(
         perception = MarkerPerception(cal)
     handling = (repair_config or RepairConfig()) if repair else None
     layer = safety_layer(adapter, handling, force)
-    push_asked, can_push = handling is not None and handling.repair, pushes_via_points(adapter)
-    if push_asked and not can_push:
+    if layer["push"] == NO_VIA_POINTS:  # the push was asked for and does not apply
         echo(f"{method}: --repair-push {layer['push']}; retiming only")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
@@ -224,7 +223,7 @@ def run_trials(
         "force": force,
         "repair": repair,
         # whether via-points were pushed: asked for and the method has via-points to push
-        "repair_push": push_asked and can_push,
+        "repair_push": layer["push"] == "on",
         "sensor_noise": sensor_noise if backend == "twin" else None,
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
