@@ -5,7 +5,8 @@ previous joint target), joint position control linearly interpolated over the ph
 substeps with feed-forward velocity, the world's kinematic bodies moved every physics step,
 contacts checked after every physics step and the clearance after every control period.
 It works on any `ControlledScene` (a `distgprl.sim.tasks.base.TaskSim`) with any
-`distgprl.sim.robot.Robot`.
+`distgprl.sim.robot.Robot`. A segment's joint targets are computed before it executes, in
+one call (`Robot.ik_segment`): they depend on the poses and the previous target only.
 
 The per-step PyBullet functions are bound once in `BulletCalls` (a `BulletClient`'s
 attribute look-up costs microseconds per call); benchmarks may wrap its attributes with
@@ -21,7 +22,6 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from distgprl.errors import UserInputError
-from distgprl.sim.transforms import pose_to_matrix
 
 if TYPE_CHECKING:
     from pybullet_utils.bullet_client import BulletClient
@@ -174,13 +174,14 @@ class ControlLoop:
         joint target; the joint position controllers move to it, linearly interpolated
         over ``physics.substeps`` physics steps, with feed-forward velocity. Object and
         obstacles keep moving. Collisions are checked after every physics step,
-        clearance at every control step.
+        clearance at every control step. The targets depend on the poses only, so the
+        segment's IK runs in one pass before it executes (`Robot.ik_segment`, issue 49).
         """
         poses = np.asarray(poses, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
             raise UserInputError(f"poses must be a finite (n, 6) array, got shape {poses.shape}")
         robot = self.robot
-        ik_nearest, command = robot.ik_nearest, robot.command
+        command = robot.command
         step_simulation, contact_points = self.calls.step_simulation, self.calls.contact_points
         move_kinematic, convey_object = scene.move_kinematic, scene.convey_object
         clearance_now = self.clearance
@@ -203,16 +204,17 @@ class ControlLoop:
         now = scene.time
         q_command = scene.q_command
         q_previous = q_command.tolist()
+        joints, reached = robot.ik_segment(poses, q_command)
+        targets = joints.tolist()
         executed = 0
         try:
-            for pose in poses:
-                solution = ik_nearest(pose_to_matrix(pose), q_previous)
-                if solution is None:
+            for index, ok in enumerate(reached.tolist()):
+                if ok:
+                    q_command = joints[index]
+                    q_target = targets[index]
+                else:
                     failures += 1
                     q_target = q_previous
-                else:
-                    q_command = solution
-                    q_target = solution.tolist()
                 delta = [t - p for t, p in zip(q_target, q_previous, strict=True)]
                 velocity = [d * inverse_dt for d in delta]
                 speed = max([abs(v) for v in velocity])

@@ -49,6 +49,7 @@ from distgprl.sim.transforms import (
     rotation_x,
     rotation_z,
 )
+from distgprl.sim.ur_ik import segment_ik
 
 JOINT_NAMES: tuple[str, ...] = (
     "shoulder_pan_joint",
@@ -168,6 +169,14 @@ class Robot(Protocol):
         self, tcp_transform: np.ndarray, q_reference: Sequence[float] | np.ndarray
     ) -> np.ndarray | None:
         """The IK solution nearest ``q_reference`` (n_joints,), or None if unreachable."""
+        ...
+
+    def ik_segment(
+        self, poses: np.ndarray, q_reference: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Joint targets (n, n_joints) of TCP poses (n, 6), each `ik_nearest` the previous
+        target (``q_reference`` for the first; the previous one held where a pose is
+        unreachable), and whether each pose was reachable, (n,) bool."""
         ...
 
     def reset_joints(self, q: np.ndarray) -> None:
@@ -388,6 +397,30 @@ class UR5e:
             self._last_branch,
         )
         return best
+
+    def ik_segment(
+        self, poses: np.ndarray, q_reference: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`ik_nearest` along a segment, in one compiled pass (`distgprl.sim.ur_ik`).
+
+        Args:
+            poses: TCP poses (n, 6): x, y, z (m), rotation vector (rad), world frame.
+            q_reference: the joint target before the segment (6,), rad.
+
+        Returns (joints (n, 6), rad; reached (n,) bool): pose k's target is the IK branch
+        nearest target k - 1 (``q_reference`` for k = 0), the same bits as
+        ``ik_nearest(pose_to_matrix(pose_k), target_{k-1})``, or target k - 1 held where pose
+        k has no branch within the limits (reached False).
+        """
+        joints, reached, self._last_branch = segment_ik(
+            poses,
+            self._tcp_from_tool0,
+            q_reference,
+            self.lower_limits,
+            self.upper_limits,
+            self._last_branch,
+        )
+        return joints, reached
 
     # ------------------------------------------------------------------ state and control
     def reset_joints(self, q: np.ndarray) -> None:

@@ -94,6 +94,7 @@ def _instrument(env, model) -> SectionTimers:
     timers.wrap(sim, "move_kinematic", "kinematic_obstacles")
     timers.wrap(sim.robot, "command", "joint_commands")
     timers.wrap(sim.robot, "ik_nearest", "ik")
+    timers.wrap(sim.robot, "ik_segment", "ik")
     for attribute in ("distance", "update", "clearance"):
         timers.wrap(env.field, attribute, "edf")
     for attribute in ("obstacle_shapes", "tool_points", "tcp_pose", "object_position"):
