@@ -25,7 +25,7 @@ from pathlib import Path
 
 from distgprl.hardware.repair import RepairConfig
 from distgprl.identity import resolve_run
-from distgprl.methods import get_method
+from distgprl.methods import get_method, has_via_point_plan
 from distgprl.schema import read_json, repair_evaluation_file_names, run_dir
 
 SWEEP_REPAIR_MODES = ("check", "repair")
@@ -103,28 +103,37 @@ class RepairCoverage:
         pending: runs lacking a mode whose policy is on disk (the next sweep runs it).
         lost: trained runs lacking a mode whose ``model.zip`` is gone (a run committed
             from another machine, or trained before the sweep made these evaluations).
+        not_applicable: runs of methods without a window plan (`has_via_point_plan`:
+            ProMP-RRL and its nominal), which the simulated safety layer does not evaluate
+            and a sweep never schedules.
     """
 
     complete: tuple[str, ...]
     pending: tuple[str, ...]
     lost: tuple[str, ...]
+    not_applicable: tuple[str, ...] = ()
 
     def describe(self) -> str:
-        return (
+        text = (
             f"Table I + repair evaluations: {len(self.complete)} runs complete, "
             f"{len(self.pending)} pending, {len(self.lost)} without their model on disk"
         )
+        if self.not_applicable:
+            text += f", {len(self.not_applicable)} without a window plan (not evaluated)"
+        return text
 
 
 def coverage(root: str | Path, preset: str, finished: list[tuple[str, str, int]]) -> RepairCoverage:
     """`RepairCoverage` of the finished runs ``finished`` ((task, method, seed) triples)."""
-    complete, pending, lost = [], [], []
+    complete, pending, lost, not_applicable = [], [], [], []
     for task, method, seed in finished:
         name = f"{task}/{method}/seed{seed}"
-        if not missing_modes(root, preset, task, method, seed):
+        if not has_via_point_plan(get_method(method)):
+            not_applicable.append(name)
+        elif not missing_modes(root, preset, task, method, seed):
             complete.append(name)
         elif evaluations_due(root, preset, task, method, seed):
             pending.append(name)
         else:
             lost.append(name)
-    return RepairCoverage(tuple(complete), tuple(pending), tuple(lost))
+    return RepairCoverage(tuple(complete), tuple(pending), tuple(lost), tuple(not_applicable))

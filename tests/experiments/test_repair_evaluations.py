@@ -101,3 +101,19 @@ def test_coverage_sorts_finished_runs_into_complete_pending_and_lost(demo_evalua
     assert state.describe() == (
         "Table I + repair evaluations: 1 runs complete, 0 pending, 1 without their model on disk"
     )
+
+
+def test_coverage_counts_methods_without_a_window_plan_apart(tmp_path):
+    """ProMP-RRL (residual control) and its nominal have no window plan, so a sweep never
+    evaluates them with the safety layer: coverage names them apart, never pending or lost."""
+    finished = [("dbm", "promp-rrl", 0), ("dcp", "promp-nominal", 0), ("dbm", "gprl", 0)]
+    for task, method, seed in finished:
+        folder = run_dir(tmp_path, "ci", task, method, seed)
+        folder.mkdir(parents=True)
+        write_json(folder / "summary.json", {"summary": {}})
+    state = follow.coverage(tmp_path, "ci", finished)
+    assert state.not_applicable == ("dbm/promp-rrl/seed0", "dcp/promp-nominal/seed0")
+    assert (state.complete, state.pending, state.lost) == ((), (), ("dbm/gprl/seed0",))
+    assert state.describe().endswith(
+        "0 pending, 1 without their model on disk, 2 without a window plan (not evaluated)"
+    )
