@@ -1,8 +1,9 @@
 """Table II (hardware) from the trial files of a preset's policies.
 
 Table II (``table2_<preset>``) counts the trial files of the preset's policies
-(`select_trial_files`: never trials with the pre-flight check overridden, dry runs, or
-policies of an older configuration; those are listed under the table). Its rates are over
+(`select_trial_files`: never trials with the pre-flight check overridden, dry runs,
+policies of an older configuration, or a twin file that repeats another's trials; those are
+listed under the table). Its rates are over
 all trials (a refused trial is a failure without collision), with the exact (Clopper-Pearson)
 95 % binomial interval over the trials; its MinCl is over the trials that moved the robot
 only (`moved_robot`), and says over how many when that is fewer than the trials.
@@ -56,7 +57,8 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
     not those run with the pre-flight check overridden (``force``: the safety layer's
     refusals were not applied, so they are not the method's hardware result) or as a dry
     run, and, for this checkout's presets, only those whose policy's recorded config hash
-    is the one the code resolves now (as Table I; a trial of an older policy is listed)."""
+    is the one the code resolves now (as Table I; a trial of an older policy is listed);
+    on the twin, one file per policy, seed and setting (`_without_twin_repeats`)."""
     base = Path(root) / "hardware"
     checked = known_preset(preset)
     counted, excluded = [], []
@@ -75,8 +77,56 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
             if reason:
                 excluded.append(f"{name} ({reason})")
             else:
-                counted.append((method, meta, tuple(rows)))
-    return TrialFiles(tuple(counted), tuple(excluded))
+                counted.append((method, meta, tuple(rows), path.name))
+    kept, repeats = _without_twin_repeats(counted)
+    excluded += repeats
+    return TrialFiles(tuple(kept), tuple(excluded))
+
+
+def _twin_setting(method: str, meta: dict[str, Any]) -> tuple[Any, ...] | None:
+    """The twin setting a trial file repeats exactly (None off the twin): the twin draws a
+    seed's bar positions and sensor noise from the seed, so two files of one policy, seed and
+    setting run the same trials."""
+    if meta.get("backend") != "twin":
+        return None
+    return (
+        method,
+        meta.get("seed"),
+        bool(meta.get("repair")),
+        bool(meta.get("repair_push")),
+        meta.get("sensor_noise") or 0,
+    )
+
+
+def _without_twin_repeats(
+    files: list[tuple[str, dict[str, Any], tuple[dict[str, Any], ...], str]],
+) -> tuple[list[tuple[str, dict[str, Any], tuple[dict[str, Any], ...]]], list[str]]:
+    """The files with one twin file per (policy, seed, setting) — the one with the most
+    trials, the newest on a tie (an interrupted run's partial file and its complete re-run
+    hold the same first trials: counting both would count those trials twice) — and an
+    exclusion line for each repeat. Trials on the real robot are new executions: all kept."""
+    best: dict[tuple[Any, ...], int] = {}
+    for index, (method, meta, rows, name) in enumerate(files):
+        setting = _twin_setting(method, meta)
+        if setting is None:
+            continue
+        if setting not in best or (len(rows), name) >= (
+            len(files[best[setting]][2]),
+            files[best[setting]][3],
+        ):
+            best[setting] = index
+    kept, repeats = [], []
+    for index, (method, meta, rows, name) in enumerate(files):
+        setting = _twin_setting(method, meta)
+        if setting is None or best[setting] == index:
+            kept.append((method, meta, rows))
+        else:
+            keeper = files[best[setting]][3]
+            repeats.append(
+                f"{method}/{name} (repeats the twin trials of {keeper}: same seed and "
+                f"setting, same bar positions; {len(rows)} trials)"
+            )
+    return kept, repeats
 
 
 def binomial_interval(successes: int, trials: int, level: float = 0.95) -> tuple[float, float]:

@@ -533,3 +533,37 @@ def test_table2_keeps_repair_and_noise_apart_and_the_noise_table_pivots_the_twin
     assert [r["sensor_noise"] for r in curve_series(rows)["demo"]] == ["0", "1", "2"]
     names = {p.name for p in write_curves(tmp_path, "p", tmp_path / "out")}
     assert {"table2_noise_p.png", "table2_noise_p.pdf"} <= names
+
+
+def test_table2_counts_one_twin_file_per_policy_seed_and_setting(tmp_path):
+    """The twin draws a seed's bar positions from the seed, so an interrupted run's partial
+    file and its complete re-run hold the same first trials: Table II counts the file with
+    the most trials (the newest on a tie) and lists the repeat. Another seed or setting is
+    not a repeat, and trials on the real robot are new executions: all counted."""
+    write_json(tmp_path / "p" / "dbm" / "demo" / "seed0" / "summary.json", summary(0.9, 0.3, 0.0))
+    fields = ["trial", "backend", "status", "success", "collision", "min_clearance"]
+
+    def trials(name, count, backend="twin", **meta):
+        rows = [
+            dict(zip(fields, (k, backend, "ok", 1, 0, 0.02), strict=True)) for k in range(count)
+        ]
+        meta = {"preset": "p", "backend": backend, "repair": True, "sensor_noise": 0} | meta
+        write_csv(tmp_path / "hardware" / "demo" / name, rows, fields, **meta)
+
+    trials("trials_twin_seed0_1.csv", 1, seed=0)  # interrupted
+    trials("trials_twin_seed0_2.csv", 3, seed=0)  # its complete re-run
+    trials("trials_twin_seed0_3.csv", 3, seed=0, sensor_noise=1)  # another setting
+    trials("trials_twin_seed1_1.csv", 3, seed=1)  # another seed
+    trials("trials_twin_seed1_2.csv", 3, seed=1)  # the same again: the newest counts
+    trials("trials_ur_seed0_1.csv", 2, backend="ur", seed=0)
+    trials("trials_ur_seed0_2.csv", 2, backend="ur", seed=0)
+    selection = select_trial_files(tmp_path, "p")
+    assert sorted(len(rows) for _, _, rows in selection.counted) == [2, 2, 3, 3, 3]
+    assert selection.excluded == (
+        "demo/trials_twin_seed0_1.csv (repeats the twin trials of trials_twin_seed0_2.csv: "
+        "same seed and setting, same bar positions; 1 trials)",
+        "demo/trials_twin_seed1_1.csv (repeats the twin trials of trials_twin_seed1_2.csv: "
+        "same seed and setting, same bar positions; 3 trials)",
+    )
+    rows = {(r["backend"], r["sensor_noise"]): r["trials"] for r in hardware_table(tmp_path, "p")}
+    assert rows == {("twin", "0"): 6, ("twin", "1"): 3, ("ur", "–"): 4}
