@@ -62,6 +62,23 @@ def atomic_open(path: str | Path) -> Iterator[IO[bytes]]:
         raise
 
 
+def remove_partial_writes(folder: str | Path) -> list[Path]:
+    """Remove the temporary files `atomic_open` left in ``folder`` (not its subfolders) when
+    a writer died between creating one and renaming it (kill -9, a lost node); returns them.
+
+    Only for a folder no other process is writing: the caller holds its lock (a run folder
+    under `distgprl.experiments.run_control.run_lock`). The files it replaces are intact.
+    """
+    leftovers = sorted(
+        path
+        for path in Path(folder).glob(".*.tmp")
+        if path.is_file() and path.name.count(".") >= 3  # ".<name>.<random>.tmp"
+    )
+    for path in leftovers:
+        path.unlink(missing_ok=True)
+    return leftovers
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temp file in the same folder + rename)."""
     with atomic_open(path) as handle:

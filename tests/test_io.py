@@ -79,3 +79,22 @@ def test_sha256_helpers_agree(tmp_path):
     path.write_bytes("é\n".encode())
     assert io.sha256_hex("é\n") == io.sha256_hex("é\n".encode()) == io.file_sha256(path)
     assert io.file_sha256(path) == hashlib.sha256("é\n".encode()).hexdigest()
+
+
+def test_remove_partial_writes_takes_only_atomic_open_leftovers(tmp_path):
+    """A writer killed inside `atomic_open` leaves ``.<name>.<random>.tmp`` beside the file it
+    was replacing: removed (and returned); the file itself, the run lock, other hidden files
+    and subfolders' files are left alone."""
+    (tmp_path / "progress.csv").write_text("intact")
+    leftover = tmp_path / ".progress.csv.meta.json.wsaoftax.tmp"
+    leftover.write_text("half")
+    keep = [tmp_path / ".lock", tmp_path / ".model.tmp.zip", tmp_path / "notes.tmp"]
+    for path in keep:
+        path.write_text("")
+    (tmp_path / "checkpoints").mkdir()
+    nested = tmp_path / "checkpoints" / ".state.pkl.abc.tmp"
+    nested.write_text("")
+    assert io.remove_partial_writes(tmp_path) == [leftover]
+    assert not leftover.exists() and all(p.exists() for p in [*keep, nested])
+    assert (tmp_path / "progress.csv").read_text() == "intact"
+    assert io.remove_partial_writes(tmp_path) == []

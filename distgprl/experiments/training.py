@@ -37,6 +37,7 @@ from distgprl.experiments.policies import (
 from distgprl.experiments.rollout import deterministic_policy, evaluate_policy, summarise
 from distgprl.experiments.run_control import TrainingInterrupted, run_lock
 from distgprl.identity import RunSpec, resolve_run
+from distgprl.io import remove_partial_writes
 from distgprl.schema import (
     PROGRESS_FIELDS,
     csv_meta_path,
@@ -87,6 +88,12 @@ def train_run(
     created = [p for p in (folder, *folder.parents) if not p.exists()]
     try:
         with run_lock(folder):
+            for leftover in remove_partial_writes(folder):
+                print(
+                    f"{folder}: removed {leftover.name}, a write an earlier process did not "
+                    "finish (the file it was replacing is intact)",
+                    file=sys.stderr,
+                )
             return _train_locked(run, folder, preset, resume, root, show_progress, evaluate_after)
     except _StartFailed as failed:
         for path in created:  # innermost first; only the still empty ones this start made

@@ -111,6 +111,32 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     assert [int(r["step"]) for r in progress] == [0, 120, 240]
 
 
+def test_a_resume_removes_the_partial_write_a_killed_process_left(tmp_path, capsys, monkeypatch):
+    """A process killed between creating an atomic write's temporary file and renaming it
+    (kill -9, a frozen node let go) leaves ``.<name>.<random>.tmp`` in the run folder; the
+    next process that takes the run's lock removes it with one line, and the run finishes
+    with nothing left behind."""
+    original = training.save_checkpoint
+
+    def save_then_die(folder, model, env, extra):
+        original(folder, model, env, extra)
+        raise KeyboardInterrupt  # killed right after the first checkpoint
+
+    monkeypatch.setattr(training, "save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
+    monkeypatch.setattr(training, "save_checkpoint", original)
+    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    leftover = folder / ".progress.csv.meta.json.wsaoftax.tmp"
+    leftover.write_text("a write that never finished")
+    capsys.readouterr()
+    train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
+    assert not leftover.exists()
+    assert f"removed {leftover.name}" in capsys.readouterr().err
+    assert read_json(folder / "done.json")["steps"] == 240
+    assert not list(folder.glob(".*.tmp"))
+
+
 def _actor_parameters(folder):
     model = _load_model(folder / "model.zip")
     return [p.detach().numpy().copy() for p in model.actor.parameters()]
