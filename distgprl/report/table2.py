@@ -105,25 +105,24 @@ def _without_twin_repeats(
     trials, the newest on a tie (an interrupted run's partial file and its complete re-run
     hold the same first trials: counting both would count those trials twice) — and an
     exclusion line for each repeat. Trials on the real robot are new executions: all kept."""
-    best: dict[tuple[Any, ...], int] = {}
-    for index, (method, meta, rows, name) in enumerate(files):
-        setting = _twin_setting(method, meta)
+    keepers: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+    for entry in files:
+        setting = _twin_setting(entry[0], entry[1])
         if setting is None:
             continue
-        if setting not in best or (len(rows), name) >= (
-            len(files[best[setting]][2]),
-            files[best[setting]][3],
-        ):
-            best[setting] = index
+        held = keepers.get(setting)
+        if held is None or (len(entry[2]), entry[3]) >= (len(held[2]), held[3]):
+            keepers[setting] = entry
     kept, repeats = [], []
-    for index, (method, meta, rows, name) in enumerate(files):
+    for entry in files:
+        method, meta, rows, name = entry
         setting = _twin_setting(method, meta)
-        if setting is None or best[setting] == index:
+        keeper = keepers[setting] if setting is not None else entry
+        if keeper is entry:
             kept.append((method, meta, rows))
         else:
-            keeper = files[best[setting]][3]
             repeats.append(
-                f"{method}/{name} (repeats the twin trials of {keeper}: same seed and "
+                f"{method}/{name} (repeats the twin trials of {keeper[3]}: same seed and "
                 f"setting, same bar positions; {len(rows)} trials)"
             )
     return kept, repeats

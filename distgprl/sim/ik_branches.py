@@ -17,7 +17,7 @@ from numba import njit
 
 TWO_PI = 2.0 * math.pi
 
-__all__ = ["TWO_PI", "nearest_branch", "nearest_branch_exact"]
+__all__ = ["TWO_PI", "nearest_branch", "nearest_branch_exact", "nearest_branch_index"]
 
 
 def nearest_branch_exact(
@@ -81,9 +81,10 @@ def _wrapped_branch(row, reference, lower, upper, bound, out):  # pragma: no cov
 
 
 @njit(cache=True, nogil=True)
-def _nearest_branch(solutions, reference, lower, upper, hint, best):  # pragma: no cover
+def nearest_branch_index(solutions, reference, lower, upper, hint, best):  # pragma: no cover
     """Index of the chosen branch of ``solutions`` (k, 6), wrapped into ``best`` (6,), or
-    -1 if none fits the limits."""
+    -1 if none fits the limits: `nearest_branch`'s compiled kernel, callable from other
+    compiled code (`distgprl.sim.ur_ik`)."""
     count = solutions.shape[0]
     scratch = np.empty(solutions.shape[1])
     bound = np.inf
@@ -132,5 +133,5 @@ def nearest_branch(
     best = np.empty(6)
     if len(solutions) == 0:
         return None, hint
-    chosen = _nearest_branch(solutions, reference, lower, upper, hint, best)
+    chosen = nearest_branch_index(solutions, reference, lower, upper, hint, best)
     return (None, hint) if chosen < 0 else (best, chosen)

@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from distgprl.sim.ik_branches import _nearest_branch
+from distgprl.sim.ik_branches import nearest_branch_index
 
 __all__ = ["UR5E_DH", "ik_branches", "pose_matrices", "segment_ik"]
 
@@ -235,7 +235,7 @@ def _segment(targets, reference, lower, upper, hint, dh, joints, reached):  # pr
         count = ik_branches(targets[k], dh, branches)
         chosen = -1
         if count > 0:
-            chosen = _nearest_branch(branches[:count], previous, lower, upper, hint, best)
+            chosen = nearest_branch_index(branches[:count], previous, lower, upper, hint, best)
         if chosen >= 0:
             hint = chosen
             previous[:] = best
