@@ -27,6 +27,13 @@ Across the readings (`across_readings`), with R the readings:
 - *incomplete* while a reading has no verdict yet (no runs, fewer than two seeds, not run),
   with the agreeing verdict so far and the readings awaited.
 
+A decided verdict across readings whose runs differ in number — while a study trains, Table
+I's reading can have three seeds of Dist-GPRL and a study reading two — ends "at unequal
+seeds": a reading with fewer seeds has wider intervals and can be inconclusive where another
+decides, so such a *reading-dependent* may be the seed count's, not the reading's. Each
+reading's seeds of Dist-GPRL per task (`ReadingVerdicts.seeds`; every study trains it) are
+listed under the table.
+
 Readings that do not test a claim (`OUTSIDE`) take no part in that rule and are named: a claim
 reproduced under Table I's reading that no study reading tests reads "reproduced under every
 reading that tests it (1 of 5; untested: ...)", never "under every reading".
@@ -45,7 +52,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from distgprl.methods import METHODS
-from distgprl.report.aggregate import BOOTSTRAP_SEED, Scores
+from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
 from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
 from distgprl.report.markdown import markdown_table
 from distgprl.studies import Reading, Study
@@ -73,6 +80,9 @@ the claim."""
 PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
 """Verdicts that decide nothing yet."""
 
+UNEQUAL_SEEDS = "at unequal seeds"
+"""The suffix of a decided verdict across readings whose Dist-GPRL runs differ in number."""
+
 CSV_FIELDS = ("claim", "reading", "preset", "verdict", "detail")
 """Columns of ``claims_robustness_<preset>.csv``: one row per claim and reading (its overall
 verdict over the tasks, `distgprl.report.claims.combine`), then, with several studies, one row
@@ -95,12 +105,19 @@ class ReadingVerdicts:
             `NOT_RUN` where a needed method the reading acts on has no run under it.
         not_run: the methods the reading acts on that have no run under it (sorted).
         study: the name of the study the reading belongs to ("" for the reference reading).
+        seeds: (task, number of seeds) of Dist-GPRL's runs under the reading, per task of
+            the reference reading, in the paper's order (0 where it has none).
     """
 
     reading: Reading
     verdicts: tuple[Verdict, ...]
     not_run: tuple[str, ...]
     study: str = ""
+    seeds: tuple[tuple[str, int], ...] = ()
+
+
+def _seeds(scores: Scores, tasks: Sequence[str]) -> tuple[tuple[str, int], ...]:
+    return tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks)
 
 
 def reading_scores(
@@ -131,7 +148,15 @@ def study_verdicts(
     (`distgprl.report.table1.collect_scores`)."""
     if not studies:
         raise ValueError("no study to read")
-    out = [ReadingVerdicts(studies[0].reference, tuple(evaluate_claims(reference, seed)), ())]
+    tasks = tasks_of(reference)
+    out = [
+        ReadingVerdicts(
+            studies[0].reference,
+            tuple(evaluate_claims(reference, seed)),
+            (),
+            seeds=_seeds(reference, tasks),
+        )
+    ]
     for study in studies:
         for reading in study.readings:
             scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
@@ -155,21 +180,31 @@ def study_verdicts(
                         verdict.claim, verdict.test, (), None, status, detail, verdict.needs
                     )
                 verdicts.append(verdict)
-            out.append(ReadingVerdicts(reading, tuple(verdicts), not_run, study.name))
+            out.append(
+                ReadingVerdicts(
+                    reading, tuple(verdicts), not_run, study.name, _seeds(scores, tasks)
+                )
+            )
     return out
 
 
-def across_readings(verdicts: Sequence[tuple[str, str]]) -> str:
-    """The verdict across readings from (reading label, verdict) pairs (module docstring)."""
+def across_readings(
+    verdicts: Sequence[tuple[str, str]], seeds: Mapping[str, object] | None = None
+) -> str:
+    """The verdict across readings from (reading label, verdict) pairs (module docstring);
+    ``seeds`` (reading label → its run count, any comparable value) marks a decided verdict
+    across readings whose counts differ `UNEQUAL_SEEDS`."""
     untested = [label for label, v in verdicts if v == OUTSIDE]
     tested = [(label, v) for label, v in verdicts if v != OUTSIDE]
     decided = [(label, v) for label, v in tested if v not in PENDING]
     pending = [label for label, v in tested if v in PENDING]
     distinct = list(dict.fromkeys(v for _, v in decided))
+    unequal = seeds is not None and len({repr(seeds[label]) for label, _ in decided}) > 1
     tail = f"; untested: {', '.join(untested)}" if untested else ""
+    caveat = f"; {UNEQUAL_SEEDS}" if unequal else ""
     if len(distinct) > 1:
         groups = [f"{v} under {', '.join(lab for lab, w in decided if w == v)}" for v in distinct]
-        return "reading-dependent: " + "; ".join(groups) + tail
+        return "reading-dependent: " + "; ".join(groups) + tail + caveat
     if pending:
         so_far = (
             f"{distinct[0]} under {len(decided)} of {len(tested)} readings; " if decided else ""
@@ -178,9 +213,9 @@ def across_readings(verdicts: Sequence[tuple[str, str]]) -> str:
     if untested:
         return (
             f"{distinct[0]} under every reading that tests it "
-            f"({len(tested)} of {len(verdicts)}{tail})"
+            f"({len(tested)} of {len(verdicts)}{tail}){caveat}"
         )
-    return f"{distinct[0]} under every reading"
+    return f"{distinct[0]} under every reading{caveat}"
 
 
 def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[str, str]:
@@ -193,6 +228,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
     writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
     writer.writeheader()
     rows = []
+    seeds = {r.reading.label: r.seeds for r in results}
     for index, claim in enumerate(claims):
         pairs = [(r.reading.label, r.verdicts[index].verdict) for r in results]
         for result in results:
@@ -213,7 +249,8 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
                     (r.reading.label, r.verdicts[index].verdict)
                     for r in results
                     if r.study in ("", name)
-                ]
+                ],
+                seeds,
             )
             writer.writerow(
                 {
@@ -225,7 +262,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
                 }
             )
             study_columns.append(within)
-        across = across_readings(pairs)
+        across = across_readings(pairs, seeds)
         writer.writerow(
             {"claim": claim, "reading": "across", "preset": "", "verdict": across, "detail": ""}
         )
@@ -253,6 +290,17 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
         )
     )
     markdown = markdown_table(intro, header, rows)
+    if any(r.seeds for r in results):
+        tasks = [task.upper() for task, _ in results[0].seeds]
+        counts = "; ".join(
+            f"{r.reading.label} {' / '.join(str(n) for _, n in r.seeds)}" for r in results
+        )
+        markdown += (
+            f"\nSeeds of Dist-GPRL per reading ({' / '.join(tasks)}): {counts}. A verdict "
+            f"across readings ending '{UNEQUAL_SEEDS}' compares readings with different "
+            "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
+            "verdict there may be the seed count's.\n"
+        )
     if missing:
         markdown += (
             "\nMethods a reading acts on without runs under it (the claims reading them are "

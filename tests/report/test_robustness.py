@@ -178,3 +178,34 @@ def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
     assert of_global["across"].startswith("incomplete: reproduced under 4 of 5")
     assert "Across Table I and the operators study" in markdown
     assert "Across Table I and the reward-unit study" in markdown
+
+
+def test_a_verdict_across_readings_with_different_seed_counts_says_so():
+    """While a study trains, Table I's reading can have five seeds of Dist-GPRL and a study
+    reading two: a decided verdict across them ends 'at unequal seeds' (a narrower interval
+    can decide where a wider one cannot), equal counts add nothing, and the table lists each
+    reading's seeds of Dist-GPRL per task."""
+    assert across_readings(
+        [("a", REPRODUCED), ("b", "inconclusive")], {"a": (5, 5), "b": (2, 2)}
+    ) == ("reading-dependent: reproduced under a; inconclusive under b; at unequal seeds")
+    assert across_readings([("a", REPRODUCED), ("b", REPRODUCED)], {"a": (5,), "b": (5,)}) == (
+        "reproduced under every reading"
+    )
+    assert across_readings(
+        [("a", REPRODUCED), ("b", OUTSIDE), ("c", REPRODUCED)], {"a": (5,), "b": (0,), "c": (3,)}
+    ) == ("reproduced under every reading that tests it (2 of 3; untested: b); at unequal seeds")
+    assert across_readings([("a", REFUTED), ("b", NOT_RUN)], {"a": (5,), "b": (0,)}) == (
+        "incomplete: refuted under 1 of 2 readings; awaiting b"
+    )
+    study = get_study("operators")
+    reference = both_tasks(FIELD)
+    two = {key: value[:2] for key, value in both_tasks({"dist-gprl": FIELD["dist-gprl"]}).items()}
+    results = study_verdicts([study], reference, lambda preset: two, seed=0)
+    assert results[0].seeds == (("dcp", 5), ("dbm", 5))
+    assert results[1].seeds == (("dcp", 2), ("dbm", 2))
+    csv_text, markdown = robustness_texts(results, "paper")
+    assert "at unequal seeds" in csv_text
+    assert (
+        "Seeds of Dist-GPRL per reading (DCP / DBM): zero-mean GP (Table I) 5 / 5; "
+        "unit variance (v4) 2 / 2" in markdown
+    )
