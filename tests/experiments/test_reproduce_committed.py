@@ -82,7 +82,19 @@ RETURN_TCS = 3
 CURVE_TCS = 20
 # Columns computed from the replay buffer and the networks only (losses, the entropy
 # coefficient): smooth in the data, so within 5 %.
-SMOOTH_COLUMNS = {"l_sim", "l_hap", "ent_coef", "grad_q", "grad_sim", "grad_hap"}
+SMOOTH_COLUMNS = {
+    "l_sim",
+    "l_hap",
+    "ent_coef",
+    "grad_q",
+    "grad_sim",
+    "grad_hap",
+    "grad_hap_active",
+}
+# Shares of one gradient step's batch (``hap_active_fraction``: samples whose L_hap > 0): a
+# count over the batch's samples, drawn from a replay buffer whose contents differ across
+# CPUs (see above), so compared as two binomial samples of the batch size, like the rates.
+BATCH_RATE_COLUMNS = {"hap_active_fraction"}
 # Episodes trained by a curve point: since environment v5 a collision ends an episode early,
 # so the count follows the collisions (contact-chaotic): within 10 %.
 COUNT_COLUMNS = {"episodes"}
@@ -103,9 +115,12 @@ def _return_span(rows: list[dict[str, str]]) -> float:
 
 def test_counts_consistent_rejects_a_different_rate():
     """The rate comparison is not vacuous: 0/20 against 10/20 is rejected, 5/20 against
-    6/20 is not."""
+    6/20 is not; likewise over a batch."""
     assert not _counts_consistent(0.0, 0.5)
     assert _counts_consistent(0.25, 0.30)
+    # over a 256-sample batch a 5-point difference of shares is not rejected, 40 points are
+    assert _counts_consistent(0.91, 0.89, n=256)
+    assert not _counts_consistent(0.9, 0.5, n=256)
 
 
 @pytest.mark.parametrize("method", ["promp-rrl", "dist-gprl"])
@@ -114,19 +129,21 @@ def test_committed_run_reproduces_its_first_curve_point(method, task, tmp_path, 
     """Seed 0, retrained for its first learning-curve interval (1 500 steps: 1 000 of
     warm-up, 500 gradient steps) from this checkout, meets the committed run's curve there:
     success and collision rates consistent with the committed ones (Fisher's exact test, see
-    ALPHA), the untrained policy's return within the change RETURN_TCS curve TCs can make
-    (after training the return follows the rates: a collision moves it by its penalty), the
-    clearance within 2 cm, the losses
-    and the entropy coefficient within 5 % (methods with a learned entropy coefficient: an
-    annealed one, GPRL's, is scheduled over the run's total steps, which a shortened run
-    changes). Holds on any x86-64 CPU and BLAS kernel; see the module docstring."""
+    ALPHA; the batch share with L_hap active likewise over the batch size), the untrained
+    policy's return within the change RETURN_TCS curve TCs can make (after training the
+    return follows the rates: a collision moves it by its penalty), the clearance within
+    2 cm, the losses, gradient norms and the entropy coefficient within 5 % (methods with a
+    learned entropy coefficient: an annealed one, GPRL's, is scheduled over the run's total
+    steps, which a shortened run changes). Holds on any x86-64 CPU and BLAS kernel; see the
+    module docstring."""
     committed = PAPER_RESULTS / task / method / "seed0" / "progress.csv"
     if not committed.exists():
         pytest.skip(
             f"{committed}: no committed run (the current environment's runs are not made yet)"
         )
     meta, expected = read_csv(committed)
-    if meta["config_hash"] != resolve_run(task, method, 0, "paper").hash:
+    run = resolve_run(task, method, 0, "paper")
+    if meta["config_hash"] != run.hash:
         pytest.skip(
             f"{committed}: made by an older configuration (a stale run, not reproducible here)"
         )
@@ -145,6 +162,10 @@ def test_committed_run_reproduces_its_first_curve_point(method, task, tmp_path, 
                 assert row[column] == "", where
             elif column in RATE_COLUMNS:
                 assert _counts_consistent(float(row[column]), float(old[column])), where
+            elif column in BATCH_RATE_COLUMNS:
+                assert _counts_consistent(
+                    float(row[column]), float(old[column]), n=run.config.sac.batch_size
+                ), where
             elif column in COUNT_COLUMNS:
                 assert float(row[column]) == pytest.approx(float(old[column]), rel=0.1), where
             elif column in SMOOTH_COLUMNS:
