@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
 from distgprl.methods import METHODS
@@ -189,17 +189,17 @@ def study_verdicts(
 
 
 def across_readings(
-    verdicts: Sequence[tuple[str, str]], seeds: Mapping[str, object] | None = None
+    verdicts: Sequence[tuple[str, str]], seeds: Mapping[str, Hashable] | None = None
 ) -> str:
     """The verdict across readings from (reading label, verdict) pairs (module docstring);
-    ``seeds`` (reading label → its run count, any comparable value) marks a decided verdict
+    ``seeds`` (reading label → its run counts, e.g. `ReadingVerdicts.seeds`) marks a decided verdict
     across readings whose counts differ `UNEQUAL_SEEDS`."""
     untested = [label for label, v in verdicts if v == OUTSIDE]
     tested = [(label, v) for label, v in verdicts if v != OUTSIDE]
     decided = [(label, v) for label, v in tested if v not in PENDING]
     pending = [label for label, v in tested if v in PENDING]
     distinct = list(dict.fromkeys(v for _, v in decided))
-    unequal = seeds is not None and len({repr(seeds[label]) for label, _ in decided}) > 1
+    unequal = seeds is not None and len({seeds[label] for label, _ in decided}) > 1
     tail = f"; untested: {', '.join(untested)}" if untested else ""
     caveat = f"; {UNEQUAL_SEEDS}" if unequal else ""
     if len(distinct) > 1:
