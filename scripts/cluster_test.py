@@ -13,8 +13,10 @@ one results root they share. Then:
    stopped (SIGSTOP: a node cut off or hung) until the head declares it dead, then let go on
    (SIGCONT: the partition heals). Its process must end, the retry must take the run's lock
    only after that, and the sweep must finish (exit 0) with the run resumed — or, on a loaded
-   machine, the thawed process finishes the run (it holds the lock) before Ray ends it and
-   the retry skips it. (Ray's health check is shortened for the test, `HEALTH_CHECK`.)
+   machine, the thawed process finishes the run (it holds the lock) before Ray ends it:
+   then the retry skips it, or the frozen node's own task delivers the result first, and
+   the run counts as finished by the lost node, not resumed. (Ray's health check is
+   shortened for the test, `HEALTH_CHECK`.)
 3. **Head lost.** Another worker node joins; the sweep of the seed-1 runs starts, and once
    the head trains a run past its first checkpoint every process of the head is killed
    (SIGKILL). The sweep must exit 4 with one line saying to restart the cluster and re-run.
@@ -58,6 +60,7 @@ DISTGPRL = str(Path(sys.executable).with_name("distgprl"))
 PRESET = "ci"
 SWEEP_TIMEOUT_S = 900
 FREEZE_AT_MOST_S = 60.0
+GONE_WITHIN_S = 30.0  # after the sweep ends, how long the thawed node's processes may linger
 """How long a frozen worker node stays frozen if the head has not declared it dead by then
 (with `HEALTH_CHECK`, the head declares it dead within about 10 s)."""
 
@@ -152,6 +155,8 @@ class Record:
     """What the faults did, for the report."""
 
     lost: dict[str, str] = field(default_factory=dict)  # run folder -> which fault
+    # lost runs the lost node's own process finished after it went on (no resume needed)
+    finished_by_lost: set[str] = field(default_factory=set)
     checks: list[tuple[str, bool, str]] = field(default_factory=list)  # (what, ok, detail)
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -284,6 +289,16 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
     code = sweep.wait(until=freeze_then_thaw, poll_s=0.1)
     if state.get("frozen") and "thawed" not in state:  # never leave it stopped
         cluster.signal("worker2", signal.SIGCONT, state["frozen"])
+    # the sweep may end (its run finished by the thawed process) before the last poll saw
+    # done.json, or before that process is gone
+    if "at" in state and "retry" not in state and "finished" not in state:
+        if (state["folder"] / "done.json").exists():
+            state["finished"] = time.monotonic() - state["at"]
+    deadline = time.monotonic() + GONE_WITHIN_S
+    while "jobs" in state and "gone" not in state and time.monotonic() < deadline:
+        if not any(alive(pid) for pid in state["jobs"]):
+            state["gone"] = time.monotonic() - state["at"]
+        time.sleep(0.1)
     record.seconds["sweep with a worker frozen"] = time.monotonic() - sweep.started
     record.check("a worker node was frozen mid-run", "at" in state)
     if "at" not in state:
@@ -293,34 +308,62 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
         bool(state.get("dead")),
         f"let go on {state.get('thawed', float('nan')):.1f} s after the freeze",
     )
-    finished_by_frozen = "retry" not in state and "finished" in state and "gone" in state
-    retried_after = "retry" in state and state.get("gone", 1e9) <= state["retry"]
+    finished_by_frozen, ok, detail = frozen_outcome(state)
+    record.check(
+        "its process ended once it went on, and the retry took the run's lock after that "
+        "(or it finished the run first and no retry trained it)",
+        ok,
+        detail,
+    )
+    name = "/".join(state["folder"].parts[-3:])
+    out = sweep.stdout()
+    record.check("the sweep finished (exit 0)", code == 0, f"exit {code}")
+    if finished_by_frozen:
+        record.finished_by_lost.add(str(state["folder"]))
+    record.check(
+        "the sweep reported the frozen run "
+        + ("skipped or done" if finished_by_frozen else "resumed from its checkpoint"),
+        frozen_run_reported(out, name, finished_by_frozen),
+        next((line for line in out.splitlines() if name in line and ": " in line), ""),
+    )
+
+
+def frozen_outcome(state: dict) -> tuple[bool, bool, str]:
+    """Phase 2's outcome from what ``freeze_then_thaw`` saw (seconds after the freeze:
+    ``gone`` its processes ended, ``retry`` the head's retry held the run's lock,
+    ``finished`` done.json appeared while no retry held it; ``collision`` the frozen
+    process still held the lock when the retry did). Returns (the thawed process finished
+    the run itself, one writer was kept, detail): either its process was gone before the
+    retry took the lock, or it finished the run and is gone (a retry then found it done)."""
     nan = float("nan")
+    finished_by_frozen = "finished" in state
+    retried_after = "retry" in state and state.get("gone", 1e9) <= state["retry"]
+    ok = not state.get("collision") and (retried_after or (finished_by_frozen and "gone" in state))
     if finished_by_frozen:
         detail = (
             f"it finished the run {state['finished']:.1f} s after the freeze (process gone "
-            f"{state['gone']:.1f} s); the retry found it finished"
+            f"{state.get('gone', nan):.1f} s); no retry trained it"
         )
     else:
         detail = (
             f"process gone {state.get('gone', nan):.1f} s, retry took the lock "
             f"{state.get('retry', nan):.1f} s after the freeze"
         )
-    record.check(
-        "its process ended once it went on, and the retry took the run's lock after that "
-        "(or it finished the run first and the retry skipped it)",
-        finished_by_frozen or (retried_after and not state["collision"]),
-        detail,
-    )
-    name = "/".join(state["folder"].parts[-3:])
-    out = sweep.stdout()
-    record.check("the sweep finished (exit 0)", code == 0, f"exit {code}")
-    reported = "skipped" if finished_by_frozen else "resumed from its checkpoint"
-    record.check(
-        f"the sweep reported the frozen run {reported}",
-        any(name in line and reported in line for line in out.splitlines()),
-        next((line for line in out.splitlines() if name in line and ": " in line), ""),
-    )
+    return finished_by_frozen, ok, detail
+
+
+def frozen_run_reported(out: str, name: str, finished_by_frozen: bool) -> bool:
+    """Whether the sweep's output ``out`` reports run ``name`` (``dcp/gprl-d/seed2``) as
+    phase 2 left it: ``<run>: skipped in 0 s`` (Ray's retry found it finished) or
+    ``<run>: done in 1 s`` (the frozen node's own task delivered it) when the thawed process
+    finished it, else ``<run>: done in 3 s (resumed from its checkpoint of step 120)``."""
+    for line in out.splitlines():
+        if finished_by_frozen:
+            if f"{name}: skipped" in line or f"{name}: done" in line:
+                return True
+        elif f"{name}: done" in line and "resumed from its checkpoint" in line:
+            return True
+    return False
 
 
 def head_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Record):
@@ -423,12 +466,20 @@ def count(root: Path, local: Path, args, record: Record) -> bool:
             differ.append(name)
             details += [f"  {name} vs local: {d}" for d in differences[:5]]
     lost = {"/".join(Path(f).parts[-3:]): fault for f, fault in record.lost.items()}
+    finished_by_lost = {"/".join(Path(f).parts[-3:]) for f in record.finished_by_lost}
     lost_resumed = [name for name in lost if name in resumed]
+    lost_accounted = [name for name in lost if name in resumed or name in finished_by_lost]
     same = len(runs) - len(differ)
     rows = [
         ("complete", len(complete), f"of {len(runs)}"),
         ("lost", len(lost), ", ".join(f"{n} ({fault})" for n, fault in sorted(lost.items()))),
         ("resumed", len(resumed), f"{', '.join(resumed)}; lost ones: {len(lost_resumed)}"),
+        (
+            "self-done",
+            len(finished_by_lost),
+            "lost runs the lost node finished itself: "
+            + (", ".join(sorted(finished_by_lost)) or "none"),
+        ),
         ("restarted", len(restarted), ", ".join(restarted)),
         ("duplicated", len(duplicated), ", ".join(duplicated)),
         ("corrupt", len(corrupt), ", ".join(corrupt)),
@@ -453,7 +504,7 @@ def count(root: Path, local: Path, args, record: Record) -> bool:
         and not corrupt
         and not differ
         and not restarted
-        and len(lost_resumed) == len(lost) > 0
+        and len(lost_accounted) == len(lost) > 0
     )
 
 
