@@ -60,9 +60,10 @@ DISTGPRL = str(Path(sys.executable).with_name("distgprl"))
 PRESET = "ci"
 SWEEP_TIMEOUT_S = 900
 FREEZE_AT_MOST_S = 60.0
-GONE_WITHIN_S = 30.0  # after the sweep ends, how long the thawed node's processes may linger
 """How long a frozen worker node stays frozen if the head has not declared it dead by then
 (with `HEALTH_CHECK`, the head declares it dead within about 10 s)."""
+GONE_WITHIN_S = 30.0
+"""After the sweep of phase 2 ends, how long the thawed node's processes may linger."""
 
 HEALTH_CHECK = {
     "RAY_health_check_initial_delay_ms": "1000",
@@ -278,12 +279,15 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
         if state["folder"] in holders.values() and "retry" not in state:
             state["retry"] = since
             state["collision"] = zombie_holds
+        see_finished_and_gone(since)
+        return "retry" in state and "gone" in state
+
+    def see_finished_and_gone(since: float) -> None:
         if "retry" not in state and "finished" not in state:
             if (state["folder"] / "done.json").exists():  # only the thawed process holds it
                 state["finished"] = since
         if "gone" not in state and not any(alive(pid) for pid in state["jobs"]):
             state["gone"] = since
-        return "retry" in state and "gone" in state
 
     sweep.start()
     code = sweep.wait(until=freeze_then_thaw, poll_s=0.1)
@@ -291,13 +295,9 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
         cluster.signal("worker2", signal.SIGCONT, state["frozen"])
     # the sweep may end (its run finished by the thawed process) before the last poll saw
     # done.json, or before that process is gone
-    if "at" in state and "retry" not in state and "finished" not in state:
-        if (state["folder"] / "done.json").exists():
-            state["finished"] = time.monotonic() - state["at"]
     deadline = time.monotonic() + GONE_WITHIN_S
-    while "jobs" in state and "gone" not in state and time.monotonic() < deadline:
-        if not any(alive(pid) for pid in state["jobs"]):
-            state["gone"] = time.monotonic() - state["at"]
+    while "at" in state and "gone" not in state and time.monotonic() < deadline:
+        see_finished_and_gone(time.monotonic() - state["at"])
         time.sleep(0.1)
     record.seconds["sweep with a worker frozen"] = time.monotonic() - sweep.started
     record.check("a worker node was frozen mid-run", "at" in state)
