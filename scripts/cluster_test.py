@@ -7,7 +7,10 @@ one results root they share. Then:
 1. **Worker lost.** ``distgprl sweep --executor ray`` of the seed-0 runs; once the worker
    node's run has written its first checkpoint, the worker's raylet is killed (SIGKILL).
    The sweep must finish (exit 0): Ray retries the lost task on the head, which resumes the
-   run from its checkpoint. Re-running the same command then has nothing left to do.
+   run from its checkpoint once the lost process has ended — or, on a loaded machine, that
+   process finishes the run before it notices its raylet is gone, and the run counts as
+   finished by the lost node (as in phase 2). Re-running the same command then has nothing
+   left to do.
 2. **Worker frozen.** A new worker node joins; the sweep of the seed-2 runs starts, and
    once the worker trains a run past its first checkpoint every process of that node is
    stopped (SIGSTOP: a node cut off or hung) until the head declares it dead, then let go on
@@ -63,7 +66,7 @@ FREEZE_AT_MOST_S = 60.0
 """How long a frozen worker node stays frozen if the head has not declared it dead by then
 (with `HEALTH_CHECK`, the head declares it dead within about 10 s)."""
 GONE_WITHIN_S = 30.0
-"""After the sweep of phase 2 ends, how long the thawed node's processes may linger."""
+"""After the sweep of phase 1 or 2 ends, how long the lost node's processes may linger."""
 
 HEALTH_CHECK = {
     "RAY_health_check_initial_delay_ms": "1000",
@@ -176,7 +179,11 @@ def sweep_command(root: Path, methods: str, task: str, seeds: str, address: str 
 
 
 def worker_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Record) -> None:
-    """Phase 1: kill the worker node's raylet while it trains a run."""
+    """Phase 1: kill the worker node's raylet while it trains a run. Its process must end
+    before Ray's retry on the head takes the run's lock — or, on a loaded machine, it
+    finishes the ``ci`` run (seconds from its end) before it notices its raylet is gone;
+    then the retry finds the run finished. Both keep one writer; `check_lost_run` says
+    which happened."""
     env = {**cluster.env(), "DISTGPRL_CHECKPOINT_ROOT": ""}
     command = sweep_command(root, args.methods, args.task, "0", cluster.address)
     worker = cluster.node("worker")
@@ -195,43 +202,20 @@ def worker_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Rec
         return False
 
     def watch_retry() -> bool:
-        """After the kill: when the lost node's processes end, and when a process of the
-        head takes the lost run's lock (the retry)."""
         if "at" not in state:
-            return kill_worker_mid_run() and False
-        if "gone" not in state and not any(alive(pid) for pid in state["jobs"]):
-            state["gone"] = time.monotonic() - state["at"]
-        if "retry" not in state:
-            holders = held_runs(cluster.node("head").job_processes())
-            if state["folder"] in holders.values():
-                state["retry"] = time.monotonic() - state["at"]
-                state["zombie_alive_at_retry"] = any(alive(pid) for pid in state["jobs"])
-        return "gone" in state and "retry" in state
+            kill_worker_mid_run()
+            return False
+        watch_lost_run(state, cluster.node("head").job_processes())
+        return "gone" in state and ("retry" in state or "finished" in state)
 
     sweep = Sweep("1-worker-lost", command, env, logs).start()
     code = sweep.wait(until=watch_retry)
+    wait_gone(state)
     record.seconds["sweep with the worker lost"] = time.monotonic() - sweep.started
     record.check("a worker node was killed mid-run", "at" in state)
     if "at" not in state:
         return
-    record.check(
-        "the lost node's processes ended",
-        "gone" in state,
-        f"{state.get('gone', float('nan')):.1f} s after its raylet",
-    )
-    record.check(
-        "Ray retried the lost run on the head only after they ended",
-        "retry" in state and not state.get("zombie_alive_at_retry", True),
-        f"retry took the run's lock {state.get('retry', float('nan')):.1f} s after the kill",
-    )
-    out = sweep.stdout()
-    name = "/".join(state["folder"].parts[-3:])
-    record.check("the sweep finished (exit 0)", code == 0, f"exit {code}")
-    record.check(
-        "the sweep reported where the lost run was resumed",
-        any(name in line and "resumed from its checkpoint" in line for line in out.splitlines()),
-        next((line for line in out.splitlines() if name in line and ": " in line), ""),
-    )
+    check_lost_run(record, state, code, sweep.stdout())
     again = Sweep("1-worker-lost-rerun", command, env, logs).start()
     code = again.wait()
     record.check(
@@ -274,31 +258,14 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
                 state["thawed"] = since
                 log(f"the head declared it dead: {state['dead']}; let it go on after {since:.1f} s")
             return False
-        holders = held_runs(cluster.node("head").job_processes())
-        zombie_holds = state["folder"] in held_runs(state["jobs"]).values()
-        if state["folder"] in holders.values() and "retry" not in state:
-            state["retry"] = since
-            state["collision"] = zombie_holds
-        see_finished_and_gone(since)
+        watch_lost_run(state, cluster.node("head").job_processes())
         return "retry" in state and "gone" in state
-
-    def see_finished_and_gone(since: float) -> None:
-        if "retry" not in state and "finished" not in state:
-            if (state["folder"] / "done.json").exists():  # only the thawed process holds it
-                state["finished"] = since
-        if "gone" not in state and not any(alive(pid) for pid in state["jobs"]):
-            state["gone"] = since
 
     sweep.start()
     code = sweep.wait(until=freeze_then_thaw, poll_s=0.1)
     if state.get("frozen") and "thawed" not in state:  # never leave it stopped
         cluster.signal("worker2", signal.SIGCONT, state["frozen"])
-    # the sweep may end (its run finished by the thawed process) before the last poll saw
-    # done.json, or before that process is gone
-    deadline = time.monotonic() + GONE_WITHIN_S
-    while "at" in state and "gone" not in state and time.monotonic() < deadline:
-        see_finished_and_gone(time.monotonic() - state["at"])
-        time.sleep(0.1)
+    wait_gone(state)
     record.seconds["sweep with a worker frozen"] = time.monotonic() - sweep.started
     record.check("a worker node was frozen mid-run", "at" in state)
     if "at" not in state:
@@ -308,57 +275,88 @@ def worker_frozen(cluster: LocalCluster, root: Path, args, logs: Path, record: R
         bool(state.get("dead")),
         f"let go on {state.get('thawed', float('nan')):.1f} s after the freeze",
     )
-    finished_by_frozen, ok, detail = frozen_outcome(state)
+    check_lost_run(record, state, code, sweep.stdout())
+
+
+def watch_lost_run(state: dict, head_jobs: list[int]) -> None:
+    """One poll after a node was lost mid-run (``state``: ``folder`` the run it trained,
+    ``jobs`` its job processes, ``at`` when). Notes, in seconds after ``at``: ``retry``
+    when a process of the head (``head_jobs``) took the run's lock, with ``collision``
+    whether a lost process still held it then; ``finished`` when done.json appeared while
+    no retry held the lock (only the lost process can have written it); ``gone`` when
+    every lost process had ended."""
+    since = time.monotonic() - state["at"]
+    if "retry" not in state and state["folder"] in held_runs(head_jobs).values():
+        state["retry"] = since
+        state["collision"] = state["folder"] in held_runs(state["jobs"]).values()
+    if "retry" not in state and "finished" not in state:
+        if (state["folder"] / "done.json").exists():
+            state["finished"] = since
+    if "gone" not in state and not any(alive(pid) for pid in state["jobs"]):
+        state["gone"] = since
+
+
+def wait_gone(state: dict) -> None:
+    """After the sweep ends: the lost run may have been finished by the lost process
+    before the last poll saw done.json, or that process may not be gone yet; keep
+    watching (no retry can start any more) for up to `GONE_WITHIN_S`."""
+    deadline = time.monotonic() + GONE_WITHIN_S
+    while "at" in state and "gone" not in state and time.monotonic() < deadline:
+        watch_lost_run(state, [])
+        time.sleep(0.1)
+
+
+def check_lost_run(record: Record, state: dict, code: int, out: str) -> None:
+    """The checks every lost worker run must pass (phases 1 and 2), from what
+    `watch_lost_run` saw and the sweep's exit ``code`` and output ``out``."""
+    finished_by_lost, ok, detail = lost_outcome(state)
     record.check(
-        "its process ended once it went on, and the retry took the run's lock after that "
+        "its process ended, and Ray's retry took the run's lock only after that "
         "(or it finished the run first and no retry trained it)",
         ok,
         detail,
     )
     name = "/".join(state["folder"].parts[-3:])
-    out = sweep.stdout()
     record.check("the sweep finished (exit 0)", code == 0, f"exit {code}")
-    if finished_by_frozen:
+    if finished_by_lost:
         record.finished_by_lost.add(str(state["folder"]))
     record.check(
-        "the sweep reported the frozen run "
-        + ("skipped or done" if finished_by_frozen else "resumed from its checkpoint"),
-        frozen_run_reported(out, name, finished_by_frozen),
+        "the sweep reported the lost run "
+        + ("skipped or done" if finished_by_lost else "resumed from its checkpoint"),
+        lost_run_reported(out, name, finished_by_lost),
         next((line for line in out.splitlines() if name in line and ": " in line), ""),
     )
 
 
-def frozen_outcome(state: dict) -> tuple[bool, bool, str]:
-    """Phase 2's outcome from what ``freeze_then_thaw`` saw (seconds after the freeze:
-    ``gone`` its processes ended, ``retry`` the head's retry held the run's lock,
-    ``finished`` done.json appeared while no retry held it; ``collision`` the frozen
-    process still held the lock when the retry did). Returns (the thawed process finished
-    the run itself, one writer was kept, detail): either its process was gone before the
-    retry took the lock, or it finished the run and is gone (a retry then found it done)."""
+def lost_outcome(state: dict) -> tuple[bool, bool, str]:
+    """A lost run's outcome from what `watch_lost_run` saw. Returns (the lost process
+    finished the run itself, one writer was kept, detail): either its process was gone
+    before the retry took the lock, or it finished the run and is gone (a retry then found
+    it done)."""
     nan = float("nan")
-    finished_by_frozen = "finished" in state
+    finished_by_lost = "finished" in state
     retried_after = "retry" in state and state.get("gone", 1e9) <= state["retry"]
-    ok = not state.get("collision") and (retried_after or (finished_by_frozen and "gone" in state))
-    if finished_by_frozen:
+    ok = not state.get("collision") and (retried_after or (finished_by_lost and "gone" in state))
+    if finished_by_lost:
         detail = (
-            f"it finished the run {state['finished']:.1f} s after the freeze (process gone "
+            f"it finished the run {state['finished']:.1f} s after the fault (process gone "
             f"{state.get('gone', nan):.1f} s); no retry trained it"
         )
     else:
         detail = (
             f"process gone {state.get('gone', nan):.1f} s, retry took the lock "
-            f"{state.get('retry', nan):.1f} s after the freeze"
+            f"{state.get('retry', nan):.1f} s after the fault"
         )
-    return finished_by_frozen, ok, detail
+    return finished_by_lost, ok, detail
 
 
-def frozen_run_reported(out: str, name: str, finished_by_frozen: bool) -> bool:
+def lost_run_reported(out: str, name: str, finished_by_lost: bool) -> bool:
     """Whether the sweep's output ``out`` reports run ``name`` (``dcp/gprl-d/seed2``) as
-    phase 2 left it: ``<run>: skipped in 0 s`` (Ray's retry found it finished) or
-    ``<run>: done in 1 s`` (the frozen node's own task delivered it) when the thawed process
+    the fault left it: ``<run>: skipped in 0 s`` (Ray's retry found it finished) or
+    ``<run>: done in 1 s`` (the lost node's own task delivered it) when the lost process
     finished it, else ``<run>: done in 3 s (resumed from its checkpoint of step 120)``."""
     for line in out.splitlines():
-        if finished_by_frozen:
+        if finished_by_lost:
             if f"{name}: skipped" in line or f"{name}: done" in line:
                 return True
         elif f"{name}: done" in line and "resumed from its checkpoint" in line:
