@@ -75,6 +75,8 @@ RESULT_FIGURES: tuple[tuple[str, str], ...] = (
     ("covariance_effect_paper.png", "The covariance transform's effect: Dist-GPRL against NoCov"),
     ("table2_noise_paper.png", "Twin success and collision against the perception error"),
     ("sensitivity_operators_paper.png", "The operator study: Dist-GPRL per reading of S"),
+    ("curves_operators_paper.png", "The operator study: learning curves per reading, seed by seed"),
+    ("curves_reward-unit_paper.png", "The reward-unit study: learning curves, seed by seed"),
     ("rollout_dcp.gif", "A DCP rollout: Dist-GPRL's Table I policy (left) beside the demo"),
     ("rollout_dbm.gif", "A DBM rollout: the TC-conditioned demonstration"),
     ("dcp_scene.png", "The DCP scene"),

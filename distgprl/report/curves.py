@@ -23,7 +23,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.aggregate import BOOTSTRAP_REPS, BOOTSTRAP_SEED, CONFIDENCE, estimate_rng
+from distgprl.report.aggregate import (
+    BOOTSTRAP_REPS,
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    PROPOSED,
+    estimate_rng,
+)
 from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.runs import select_runs
@@ -31,7 +37,7 @@ from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
 from distgprl.report.table2 import hardware_rows, select_trial_files
 from distgprl.schema import read_csv
-from distgprl.studies import studies_of
+from distgprl.studies import Study, studies_of
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -65,35 +71,41 @@ FIGURES = {
 }
 
 
+def seed_curves(
+    root: str | Path, preset: str, task: str, method: str
+) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
+    """{seed: (steps (k,), {metric: (k,)})} of every finished seed of a run of the current
+    configuration (`select_runs`), each on its own steps. Runs still in progress are left
+    out, and so are seeds with an empty learning curve."""
+    current = select_runs(root, preset, marker="done.json").current
+    out = {}
+    for path in sorted((Path(root) / preset / task / method).glob("seed*/progress.csv")):
+        if path.parent not in current:
+            continue
+        _, rows = read_csv(path)
+        if rows:
+            steps = np.array([int(r["step"]) for r in rows])
+            values = {key: np.array([float(r[key]) for r in rows]) for key, _ in PANELS}
+            out[int(path.parent.name.removeprefix("seed"))] = (steps, values)
+    return dict(sorted(out.items()))
+
+
 def load_curves(
     root: str | Path, preset: str, task: str, method: str
 ) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
     """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
-    configuration (`select_runs`), on their common steps. Runs still in progress are left
+    configuration (`seed_curves`), on their common steps. Runs still in progress are left
     out."""
-    current = select_runs(root, preset, marker="done.json").current
-    files = sorted(
-        path
-        for path in (Path(root) / preset / task / method).glob("seed*/progress.csv")
-        if path.parent in current
-    )
-    series = []
-    for path in files:
-        _, rows = read_csv(path)
-        if rows:
-            series.append(rows)
+    series = list(seed_curves(root, preset, task, method).values())
     if not series:
         return None
-    common = sorted(set.intersection(*[{int(r["step"]) for r in rows} for rows in series]))
+    common = sorted(set.intersection(*[set(steps.tolist()) for steps, _ in series]))
     if not common:
         return None
     out: dict[str, np.ndarray] = {}
     for key, _ in PANELS:
         out[key] = np.array(
-            [
-                [float(next(r[key] for r in rows if int(r["step"]) == s)) for s in common]
-                for rows in series
-            ]
+            [values[key][np.searchsorted(steps, common)] for steps, values in series]
         )
     return np.array(common), out
 
@@ -198,11 +210,90 @@ def plot_figure(
     return fig, drawn
 
 
+SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
+"""A seed's line colour in `plot_reading_curves` (seed k: the k-th, cycling), the same in
+every panel."""
+
+
+def reading_columns(study: Study) -> list[tuple[str, str, str]]:
+    """The panels of `plot_reading_curves`, left to right: (preset, method, title) — the
+    studied method (Dist-GPRL where the study trains it) under each reading, the reference's
+    first, and for an operator study Dist-GPRL-NoCov from the reference preset (no operator,
+    so no reading changes it)."""
+    method = PROPOSED if PROPOSED in study.methods else study.methods[0]
+    label = METHODS[method].label.removesuffix(" (ours)")
+    columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
+    if study.reads_the_operator:
+        nocov = "dist-gprl-nocov"
+        columns.append((study.reference.preset, nocov, f"{METHODS[nocov].label} (no operator)"))
+    return columns
+
+
+def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
+    """A study's learning curves seed by seed: one row per task, one panel per
+    `reading_columns` entry, each with the success rate on the curve TCs of every finished
+    seed (a thin line, its colour the seed's in every panel) and their mean on the common
+    steps (black, bold). Where a mean over seeds hides it, this shows *when* each seed
+    learns — a plateau left early, late or never — which the sensitivity figure's end points
+    cannot. Returns (figure, number of panels with a curve)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    columns = reading_columns(study)
+    fig, axes = plt.subplots(
+        len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
+        squeeze=False, sharey=True,
+    )  # fmt: skip
+    drawn = 0
+    handles: dict[str, Line2D] = {}
+    for row, task in enumerate(tasks):
+        for col, (preset, method, title) in enumerate(columns):
+            ax = axes[row, col]
+            seeds = seed_curves(root, preset, task, method)
+            for seed, (steps, values) in seeds.items():
+                (line,) = ax.plot(
+                    steps, values["success_rate"], lw=0.9, alpha=0.85,
+                    color=SEED_COLORS[seed % len(SEED_COLORS)],
+                )  # fmt: skip
+                handles.setdefault(f"seed {seed}", line)
+            common = load_curves(root, preset, task, method)
+            if common is not None and len(seeds) > 1:
+                steps, values = common
+                (line,) = ax.plot(steps, values["success_rate"].mean(axis=0), color="black", lw=2.2)
+                handles.setdefault("mean over seeds", line)
+            drawn += bool(seeds)
+            if not seeds:
+                ax.text(0.5, 0.5, "no finished runs", ha="center", va="center", fontsize=8,
+                        transform=ax.transAxes, color="0.4")  # fmt: skip
+            count = f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''}" if seeds else "no runs"
+            ax.set_title(f"{task.upper()}: {title}\n({preset}, {count})", fontsize=8)
+            ax.set_xlabel("training steps", fontsize=8)
+            if col == 0:
+                ax.set_ylabel(Y_LABELS["success_rate"], fontsize=8)
+            ax.set_ylim(-0.03, 1.03)
+            ax.tick_params(labelsize=7)
+            ax.grid(alpha=0.3, lw=0.5)
+    fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")
+    order = sorted((k for k in handles if k.startswith("seed")), key=lambda k: int(k[5:]))
+    order += [k for k in handles if not k.startswith("seed")]
+    if order:
+        fig.legend(
+            [handles[k] for k in order], order, loc="lower center", ncol=len(order),
+            fontsize=8, frameon=False,
+        )  # fmt: skip
+    height = fig.get_figheight()
+    fig.tight_layout(rect=(0.0, 0.3 / height if order else 0.0, 1.0, 1.0 - 0.1 / height))
+    return fig, drawn
+
+
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF, and
-    the sensitivity figure of each study read beside ``preset`` (`distgprl.report.sensitivity`)
-    and Table II's noise curve where twin trials ran at several noise levels
-    (`distgprl.report.noise_curve`).
+    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF; for
+    each study read beside ``preset``, its readings' learning curves seed by seed
+    (`plot_reading_curves`) and, for an operator study, its sensitivity figure
+    (`distgprl.report.sensitivity`); and Table II's noise curve where twin trials ran at
+    several noise levels (`distgprl.report.noise_curve`).
 
     A figure none of whose methods has a finished run is not drawn, and an earlier file of
     it is removed (figures are functions of the current results only).
@@ -230,11 +321,17 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         else:  # nothing to draw: an earlier figure would no longer match the results
             remove_figure(stem)
         plt.close(fig)
-    for study in studies_of(preset):  # an operator study's sensitivity figure
-        if not study.reads_the_operator:
-            continue
-        scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
-        written += write_sensitivity(root, study, scores_of, out_dir)
+    for study in studies_of(preset):
+        stem = Path(out_dir) / f"curves_{study.name}_{preset}"
+        fig, drawn = plot_reading_curves(root, study, tasks)
+        if drawn:  # the readings' curves, seed by seed
+            written += write_figure(fig, stem)
+        else:
+            remove_figure(stem)
+        plt.close(fig)
+        if study.reads_the_operator:  # an operator study's sensitivity figure
+            scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
+            written += write_sensitivity(root, study, scores_of, out_dir)
     # Table II's noise curve: twin success and collision against the perception error
     written += write_noise_curve(hardware_rows(select_trial_files(root, preset)), out_dir, preset)
     return written

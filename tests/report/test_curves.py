@@ -247,3 +247,87 @@ def test_figures_are_a_vector_pdf_and_a_150_dpi_png(tmp_path):
     with Image.open(png) as image:
         assert image.size == (12 * 150, round(3.2 * 150))
     assert (tmp_path / "out" / "hap_effect_p.pdf").read_bytes().startswith(b"%PDF")
+
+
+# --- a study's learning curves, seed by seed (`plot_reading_curves`) ---
+
+
+def _study_run(root, preset, task, method, seed, success):
+    """A finished run of a shipped preset, its files stamped with the current config hash."""
+    from distgprl.report.runs import current_hash
+
+    folder = root / preset / task / method / f"seed{seed}"
+    config_hash = current_hash(task, method, seed, preset)
+    rows = []
+    for index, value in enumerate(success):
+        row = dict.fromkeys(PROGRESS_FIELDS, "")
+        row.update(step=1500 * index, success_rate=value, collision_rate=0.0, mean_return=value)
+        rows.append(row)
+    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS, config_hash=config_hash)
+    summary = {"success_rate": success[-1], "collision_rate": 0.0}
+    for name in ("summary.json", "summary_best.json"):
+        write_json(folder / name, {"summary": summary}, config_hash=config_hash)
+    evaluation = [{**dict.fromkeys(EPISODE, 0), "success": 1}]
+    write_csv(folder / "evaluation.csv", evaluation, EPISODE, config_hash=config_hash)
+    write_json(folder / "done.json", {"steps": 1500 * (len(success) - 1)}, config_hash=config_hash)
+
+
+@pytest.fixture
+def study_tree(tmp_path):
+    """DCP: Table I's Dist-GPRL seeds 0 and 1 (seed 1 learns late), NoCov seed 0, Dist-GPRL
+    under operator-signal seed 0 (learns early); operator-unit and -correlation not run."""
+    _study_run(tmp_path, "paper", "dcp", "dist-gprl", 0, [0.4, 0.0, 0.0, 0.0])
+    _study_run(tmp_path, "paper", "dcp", "dist-gprl", 1, [0.0, 0.0, 0.0, 0.8])
+    _study_run(tmp_path, "paper", "dcp", "dist-gprl-nocov", 0, [0.0, 0.0, 0.0, 0.0])
+    _study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 0, [0.5, 0.8, 0.9, 0.9])
+    return tmp_path
+
+
+def test_seed_curves_keep_each_seed_on_its_own_steps(tmp_path):
+    from distgprl.report.curves import seed_curves
+
+    _run(tmp_path, "dist-gprl", 0, [0, 100, 200], [0.0, 0.2, 0.4])
+    _run(tmp_path, "dist-gprl", 3, [0, 100], [0.1, 0.5])
+    _run(tmp_path, "dist-gprl", 1, [0, 100], [1.0, 1.0], finished=False)  # still training
+    curves = seed_curves(tmp_path, "p", "dcp", "dist-gprl")
+    assert list(curves) == [0, 3]
+    np.testing.assert_array_equal(curves[3][0], [0, 100])
+    np.testing.assert_allclose(curves[0][1]["success_rate"], [0.0, 0.2, 0.4])
+
+
+def test_a_studys_curves_show_every_seed_of_every_reading_and_the_mean(study_tree):
+    """One panel per reading (Table I's first) and NoCov's for the operator study; a line
+    per finished seed plus the mean where there are several; a reading without runs says so."""
+    from distgprl.report.curves import plot_reading_curves, reading_columns
+    from distgprl.studies import get_study
+
+    study = get_study("operators")
+    columns = reading_columns(study)
+    assert [c[0] for c in columns] == ["paper", *study.presets, "paper"]
+    assert [c[1] for c in columns] == ["dist-gprl"] * 4 + ["dist-gprl-nocov"]
+    fig, drawn = plot_reading_curves(study_tree, study, ["dcp"])
+    assert drawn == 3  # Table I's, the signal reading's and NoCov's panels
+    axes = fig.axes[: len(columns)]
+    table1, unit, signal, _, nocov = axes
+    assert len(table1.get_lines()) == 3  # two seeds and their mean
+    np.testing.assert_allclose(table1.get_lines()[-1].get_ydata(), [0.2, 0.0, 0.0, 0.4])
+    assert len(signal.get_lines()) == 1 and len(nocov.get_lines()) == 1  # one seed: no mean
+    assert not unit.get_lines() and "no finished runs" in [t.get_text() for t in unit.texts]
+    assert "operator-signal, 1 seed" in signal.get_title()
+
+
+def test_write_curves_writes_each_studys_curves_and_removes_them_without_runs(study_tree):
+    import shutil
+
+    from distgprl.report.curves import write_curves
+
+    out = study_tree / "out"
+    names = {p.name for p in write_curves(study_tree, "paper", out)}
+    assert {"curves_operators_paper.png", "curves_operators_paper.pdf"} <= names
+    assert {"curves_reward-unit_paper.png", "curves_reward-unit_paper.pdf"} <= names
+    for preset in ("paper", "operator-signal"):
+        shutil.rmtree(study_tree / preset / "dcp")
+    (study_tree / "paper" / "dbm" / "gprl" / "seed0").mkdir(parents=True)  # a task folder
+    names = {p.name for p in write_curves(study_tree, "paper", out)}
+    assert not any(name.startswith("curves_") for name in names)
+    assert not (out / "curves_operators_paper.png").exists()
