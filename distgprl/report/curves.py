@@ -9,6 +9,10 @@ a single seed has no band. Seeds are aligned on their common steps. Each band dr
 own generator (`estimate_rng` of the figure seed, task, method and metric), so the figures
 are reproducible byte for byte and adding a method leaves the other bands unchanged.
 
+Beside a preset's studies, one more figure per study (`plot_reading_curves`): the studied
+method's success curve of every seed under each reading, so that *when* a seed learns is
+visible where the mean over seeds averages an early and a late learner into a slope.
+
 For print: every panel has its y-axis label, one legend for the whole figure sits below the
 panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
 method keeps its colour in every figure, and each figure is written as a vector PDF and a
