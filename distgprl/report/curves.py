@@ -100,7 +100,15 @@ def load_curves(
     """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
     configuration (`seed_curves`), on their common steps. Runs still in progress are left
     out."""
-    series = list(seed_curves(root, preset, task, method).values())
+    return common_curves(seed_curves(root, preset, task, method))
+
+
+def common_curves(
+    seeds: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]],
+) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+    """`seed_curves`' curves on the steps every seed has: (steps (k,), {metric: (seeds,
+    k)}), or None without a seed or a common step."""
+    series = list(seeds.values())
     if not series:
         return None
     common = sorted(set.intersection(*[set(steps.tolist()) for steps, _ in series]))
@@ -262,7 +270,7 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
                     color=SEED_COLORS[seed % len(SEED_COLORS)],
                 )  # fmt: skip
                 handles.setdefault(f"seed {seed}", line)
-            common = load_curves(root, preset, task, method)
+            common = common_curves(seeds)
             if common is not None and len(seeds) > 1:
                 steps, values = common
                 (line,) = ax.plot(steps, values["success_rate"].mean(axis=0), color="black", lw=2.2)
@@ -310,29 +318,28 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     from distgprl.data import TASK_NAMES
     from distgprl.errors import UserInputError
 
-    folder = Path(root) / preset
+    folder, out = Path(root) / preset, Path(out_dir)
     tasks = [t for t in TASK_NAMES if (folder / t).is_dir()]
     if not tasks:
         raise UserInputError(
             f"{folder}: no results of any task ({', '.join(TASK_NAMES)}); run a sweep first"
         )
     written = []
-    for name, methods in FIGURES.items():
-        fig, drawn = plot_figure(root, preset, tasks, methods, f"{TITLES[name]} ({preset} preset)")
-        stem = Path(out_dir) / f"{name}_{preset}"
+
+    def write_or_remove(figure: tuple[Figure, int], stem: Path) -> None:
+        fig, drawn = figure
         if drawn:
-            written += write_figure(fig, stem)
+            written.extend(write_figure(fig, stem))
         else:  # nothing to draw: an earlier figure would no longer match the results
             remove_figure(stem)
         plt.close(fig)
-    for study in studies_of(preset):
-        stem = Path(out_dir) / f"curves_{study.name}_{preset}"
-        fig, drawn = plot_reading_curves(root, study, tasks)
-        if drawn:  # the readings' curves, seed by seed
-            written += write_figure(fig, stem)
-        else:
-            remove_figure(stem)
-        plt.close(fig)
+
+    for name, methods in FIGURES.items():
+        title = f"{TITLES[name]} ({preset} preset)"
+        write_or_remove(plot_figure(root, preset, tasks, methods, title), out / f"{name}_{preset}")
+    for study in studies_of(preset):  # the readings' curves, seed by seed
+        stem = out / f"curves_{study.name}_{preset}"
+        write_or_remove(plot_reading_curves(root, study, tasks), stem)
         if study.reads_the_operator:  # an operator study's sensitivity figure
             scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
             written += write_sensitivity(root, study, scores_of, out_dir)
