@@ -67,7 +67,7 @@ _SECTIONS = {"env": EnvConfig, "sac": SACConfig, "run": RunConfig}
 
 CHOICES: dict[str, tuple[str, ...]] = {
     "clearance_timing": ("predicted", "current"),
-    "covariance_scale": ("zero-mean", "signal", "unit", "correlation"),
+    "covariance_scale": ("zero-mean", "signal", "unit", "correlation", "signal-uncoupled"),
     "action_scale_rule": ("reach", "fixed"),
 }
 """Fields that take one of a few strings; checked when a configuration is loaded."""

@@ -56,7 +56,10 @@ class EnvConfig:
             ``operator-signal``) — the standardised GP's variance times the axis's
             demonstration variance; ``"unit"`` (v4, ``operator-unit``) — the unit-variance
             correlation matrix; ``"correlation"`` (``operator-correlation``) — the
-            zero-mean operator with each row divided by its row sum (reach without shrink).
+            zero-mean operator with each row divided by its row sum (reach without shrink);
+            ``"signal-uncoupled"`` (``operator-signal-uncoupled``, the operator study's
+            control, not a reading of the paper) — the diagonal of the ``"signal"``
+            operator's row gains (its reach without its coupling).
         action_scale_rule: how the raw action's per-axis scale is set (the paper does not
             give it). ``"reach"`` (environment v6): per task and axis, so that under the
             Table I operator (``covariance_scale="zero-mean"``, whatever operator the run

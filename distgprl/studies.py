@@ -14,7 +14,10 @@ figure), from the result files alone.
 The operator study (Protocol v6 rule 3, docs/FINDINGS.md): Table I's Dist-GPRL uses the
 zero-mean GP operator of Eq. 1 per axis; the three other defensible readings of K_tt in
 S = K (K + lambda I)^-1 ship as presets and are run for Dist-GPRL only. A claim is reproduced
-only where it holds under every reading (`distgprl.report.robustness`).
+only where it holds under every reading (`distgprl.report.robustness`). Its control
+(``operator-signal-uncoupled``, pre-registered in docs/findings/operator.md) is not a reading:
+the signal reading's per-via-point reach without its coupling, run and drawn beside the
+readings to tell which of the two lets that reading learn DCP early; no verdict reads it.
 """
 
 from __future__ import annotations
@@ -37,11 +40,14 @@ class Reading:
         changes: the (``section.field``, value) pairs in which the preset's configuration
             differs from the reference preset's — documentation and a consistency test (the
             preset file is the one source of the values; empty for the reference).
+        control: a control, not a reading of the paper: run, tabled and drawn with the
+            study, but no claim's verdict reads it (`Study.claim_readings`).
     """
 
     preset: str
     label: str
     changes: tuple[tuple[str, object], ...] = ()
+    control: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,12 @@ class Study:
         return tuple(reading.preset for reading in self.readings)
 
     @property
+    def claim_readings(self) -> tuple[Reading, ...]:
+        """The study's readings of the paper (its controls left out): the ones the claims'
+        verdicts per reading judge (`distgprl.report.robustness`)."""
+        return tuple(reading for reading in self.readings if not reading.control)
+
+    @property
     def all_readings(self) -> tuple[Reading, ...]:
         """The reference reading first, then the study's."""
         return (self.reference, *self.readings)
@@ -102,6 +114,12 @@ STUDIES: dict[str, Study] = {
                 "operator-correlation",
                 "correlation only",
                 (("env.covariance_scale", "correlation"),),
+            ),
+            Reading(
+                "operator-signal-uncoupled",
+                "signal reach, uncoupled (control)",
+                (("env.covariance_scale", "signal-uncoupled"),),
+                control=True,
             ),
         ),
         methods=("dist-gprl",),

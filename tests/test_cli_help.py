@@ -45,7 +45,10 @@ def test_train_help_lists_methods_tasks_and_presets_and_states_the_steps_rule():
     output = invoke("train", "--help").output
     for name in [n for n, spec in METHODS.items() if spec.trainable] + ["dcp", "dbm"]:
         assert name in output
-    assert "ci | operator-correlation | operator-signal | operator-unit | paper" in output
+    assert (
+        "ci | operator-correlation | operator-signal | operator-signal-uncoupled | operator-unit"
+        in output
+    )
     assert "x>=3" not in output
     assert "multiple of the episode" in output
     assert "demo" in invoke("evaluate", "--help").output
@@ -75,7 +78,8 @@ def test_tables_against_an_unknown_preset_says_it_is_not_a_preset(tmp_path):
     assert result.exit_code == 2
     assert (
         "--against nope: not a preset (valid presets: ci, operator-correlation, "
-        "operator-signal, operator-unit, paper, reward-unit-10)" in result.output
+        "operator-signal, operator-signal-uncoupled, operator-unit, paper, reward-unit-10)"
+        in result.output
     )
     assert f"no results under {tmp_path / 'nope'}" in " ".join(result.output.split())
 

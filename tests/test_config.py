@@ -142,6 +142,7 @@ def test_shipped_presets_are_package_data_not_files_of_the_checkout():
         "ci",
         "operator-correlation",
         "operator-signal",
+        "operator-signal-uncoupled",
         "operator-unit",
         "paper",
         "reward-unit-10",

@@ -496,3 +496,11 @@ def test_a_file_that_is_not_yaml_is_one_line_with_no_key(tmp_path):
             load_config("t")
     assert caught.value.key == "" and "not valid YAML" in str(caught.value)
     assert "\n" not in str(caught.value)
+
+
+def test_the_operator_choices_a_config_accepts_are_the_ones_the_layout_builds():
+    """`CHOICES["covariance_scale"]` (checked when a config loads; config cannot import the
+    layout) names exactly `COVARIANCE_SCALES`, each of which builds an action layout."""
+    from distgprl.adaptation.layout import COVARIANCE_SCALES
+
+    assert CHOICES["covariance_scale"] == COVARIANCE_SCALES

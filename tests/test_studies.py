@@ -38,14 +38,15 @@ def test_every_reading_differs_from_the_reference_in_exactly_its_stated_changes(
 
 
 def test_a_study_plans_its_methods_under_each_reading_seed_by_seed(tmp_path):
-    """operators, seeds 0-1: 3 readings x 2 tasks x 2 seeds of Dist-GPRL, seed 0 of every
-    reading first, without follow-ups (twin trials, repair evaluations), named by preset."""
+    """operators, seeds 0-1: 3 readings and the control x 2 tasks x 2 seeds of Dist-GPRL, seed
+    0 of every reading first, without follow-ups (twin trials, repair evaluations), named by
+    preset."""
     jobs = plan_jobs("operators", seeds=[0, 1], root=tmp_path, twin_trials=10)
     study = get_study("operators")
     assert len(jobs) == len(study.presets) * 2 * 2
     assert {job.method for job in jobs} == {"dist-gprl"}
     assert {job.preset for job in jobs} == set(study.presets)
-    assert [job.seed for job in jobs] == [0] * 6 + [1] * 6
+    assert [job.seed for job in jobs] == [0] * 8 + [1] * 8
     assert all(job.twin_trials == 0 and not job.repair_evaluations for job in jobs)
     assert jobs[0].name == "operator-unit/dcp/dist-gprl/seed0"
     more = plan_jobs("operators", methods=["dist-gprl", "gprl-d"], seeds=[0], root=tmp_path)
@@ -60,4 +61,5 @@ def test_status_accepts_a_study(tmp_path):
     )
     assert result.exit_code == 0, result.output
     assert "operator-signal/dbm/dist-gprl/seed0" in result.output
-    assert "0/6 done, 6 missing" in result.output
+    assert "operator-signal-uncoupled/dcp/dist-gprl/seed0" in result.output
+    assert "0/8 done, 8 missing" in result.output

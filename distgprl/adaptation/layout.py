@@ -16,7 +16,7 @@ import numpy as np
 from distgprl.config import EnvConfig
 from distgprl.methods import MethodSpec
 from distgprl.skill.gp import GPSkill
-from distgprl.skill.operator import axis_operator, row_gains, row_normalised
+from distgprl.skill.operator import axis_operator, row_gain_diagonal, row_gains, row_normalised
 
 __all__ = [
     "COVARIANCE_SCALES",
@@ -31,9 +31,11 @@ __all__ = [
 #: (and, environment v5, the scale of an axis the demonstration keeps constant in S's K).
 OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
-COVARIANCE_SCALES = ("zero-mean", "signal", "unit", "correlation")
+COVARIANCE_SCALES = ("zero-mean", "signal", "unit", "correlation", "signal-uncoupled")
 """The readings of K in S (`EnvConfig.covariance_scale`): ``zero-mean`` is Table I's
-(environment v6), the others the operator study's (docs/FINDINGS.md "Protocol v6")."""
+(environment v6), ``signal``, ``unit`` and ``correlation`` the operator study's readings
+(docs/FINDINGS.md "Protocol v6"), ``signal-uncoupled`` its control (not a reading of the paper:
+the signal reading's per-via-point reach without its coupling; docs/findings/operator.md)."""
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,9 @@ def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> n
     row sum (reach without shrink); ``"signal"`` (v5) — K_tt is the standardised GP's
     covariance in the via-points' units, axis a's ``sigma_f^2 s_a^2 R``
     (`GPSkill.signal_variance_per_axis`, s_a floored at `OBSERVATION_SCALE_FLOOR`); ``"unit"``
-    (v4) — the unit-variance correlation matrix R for every axis.
+    (v4) — the unit-variance correlation matrix R for every axis; ``"signal-uncoupled"`` (the
+    study's control) — the diagonal of the ``"signal"`` operator's row gains sum_j |S_ij|:
+    each via-point as far as under ``"signal"``, moved by its own action only.
     """
     length_scale = config.correlation_length_scale or None  # 0: the fitted one
     scale = config.covariance_scale
@@ -93,11 +97,12 @@ def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> n
     if scale == "unit":
         operator = skill.window_operator(window, config.correlation_lambda, length_scale)
         return np.tile(operator, (6, 1, 1))
-    if scale == "signal":
+    if scale in ("signal", "signal-uncoupled"):
         variance = skill.signal_variance_per_axis(OBSERVATION_SCALE_FLOOR)
-        return skill.axis_window_operators(
+        signal = skill.axis_window_operators(
             window, config.correlation_lambda, variance, length_scale
         )
+        return row_gain_diagonal(signal) if scale == "signal-uncoupled" else signal
     if skill.axis_kernels is None:
         raise ValueError(f"skill {skill.name!r} has no axis_kernels (saved before v6); refit it")
     index = np.ix_(np.asarray(window), np.asarray(window))

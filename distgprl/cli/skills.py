@@ -76,6 +76,7 @@ def fit(
             typer.echo(f"  no transform (S_W = I): one step's reach {reach_text(candidate)}")
             continue
         role = "Table I" if scale == correlation["covariance_scale"] else "study"
+        role += " control" if scale == "signal-uncoupled" else ""
         typer.echo(
             f"  {role} operator K {scale!r}: S_W eigenvalues "
             f"{candidate['eigenvalue_min']:.3f}-{candidate['eigenvalue_max']:.3f}; "

@@ -14,7 +14,9 @@ reading, with the same rules and the same bootstrap seed, on that reading's runs
   would be those of another reading): every claim whose test reads it is `NOT_RUN` under that
   reading, naming the methods to run — or `OUTSIDE` where the study does not train that
   method at all (`Study.methods`: the operator study trains Dist-GPRL only), so no run will
-  ever come; the reading does not test that claim.
+  ever come; the reading does not test that claim;
+- a study's control (`distgprl.studies.Reading.control`, e.g. the uncoupled-signal operator)
+  is not a reading of the paper: no verdict reads it (`Study.claim_readings`).
 
 Across the readings (`across_readings`), with R the readings:
 
@@ -158,7 +160,7 @@ def study_verdicts(
         )
     ]
     for study in studies:
-        for reading in study.readings:
+        for reading in study.claim_readings:  # a control judges no claim
             scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
             verdicts = []
             for verdict in evaluate_claims(scores, seed):

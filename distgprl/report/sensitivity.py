@@ -9,7 +9,9 @@ reading's mean operator gain on a raw action (``mean_gain`` of
 over seeds with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one
 stratum: the task). The references are horizontal lines with their intervals as bands:
 Dist-GPRL-NoCov (no operator) and the demonstration (no adaptation), from the reference
-preset's runs.
+preset's runs. A study's control (`distgprl.studies.Reading.control`) is drawn hollow and
+grey; the uncoupled-signal control shares the signal reading's x (its row gains are the
+signal operator's), so the two points at one x differ by the coupling alone.
 
 Reads ``<root>/<study>/reach.json`` (written by the study's sweep) and the runs' result files
 only; without the reach file or any run of the studied method there is nothing to draw.
@@ -156,7 +158,8 @@ def write_sensitivity(
                         [estimate.point],
                         yerr=yerr,
                         fmt=markers.get(reading.preset, "o"),
-                        color="black",
+                        color="0.5" if reading.control else "black",
+                        markerfacecolor="white" if reading.control else None,
                         capsize=3,
                         label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
                         f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",

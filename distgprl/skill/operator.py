@@ -27,6 +27,7 @@ __all__ = [
     "CONSTANT_AXIS_SCALE",
     "axis_operator",
     "fit_zero_mean_axes",
+    "row_gain_diagonal",
     "row_gains",
     "row_normalised",
 ]
@@ -115,6 +116,16 @@ def row_normalised(operator: np.ndarray) -> np.ndarray:
     operator = np.asarray(operator, dtype=float)
     normalised: np.ndarray = operator / row_gains(operator)[..., :, None]
     return normalised
+
+
+def row_gain_diagonal(operator: np.ndarray) -> np.ndarray:
+    """The diagonal matrix of the operator's row gains (`row_gains`): every via-point keeps
+    its reach and moves with its own action only — the coupling between neighbours removed
+    (the ``operator-signal-uncoupled`` control: the signal reading's reach without its
+    coupling). Shape as ``operator``, (..., L, L)."""
+    operator = np.asarray(operator, dtype=float)
+    diagonal: np.ndarray = np.eye(operator.shape[-1]) * row_gains(operator)[..., :, None]
+    return diagonal
 
 
 def window_blocks(operator: np.ndarray, windows: Sequence[Sequence[int]]) -> list[np.ndarray]:

@@ -196,6 +196,36 @@ def test_the_correlation_operator_keeps_the_correlation_and_drops_the_shrink():
     np.testing.assert_allclose(table_one.operators[0, 0], direct, atol=1e-12)
 
 
+def test_the_uncoupled_signal_control_moves_each_via_point_as_far_as_signal_on_its_own():
+    """``operator-signal-uncoupled``: per step and axis a diagonal S_W whose entries are the
+    signal reading's row gains, so a raw action reaches every via-point exactly as far as
+    under ``signal`` and moves no other; the action scale stays Table I's."""
+    s = skill()
+    signal = build_action_layout(
+        s, EnvConfig(covariance_scale="signal"), get_method("dist-gprl"), tc_range=TC_RANGE
+    )
+    control = build_action_layout(
+        s,
+        EnvConfig(covariance_scale="signal-uncoupled"),
+        get_method("dist-gprl"),
+        tc_range=TC_RANGE,
+    )
+    eye = np.eye(signal.points_per_step)
+    assert np.abs(signal.operators * (1 - eye)).max() > 1e-3  # the signal reading couples
+    np.testing.assert_array_equal(control.operators * (1 - eye), 0.0)
+    np.testing.assert_allclose(
+        np.diagonal(control.operators, axis1=-2, axis2=-1),
+        np.abs(signal.operators).sum(axis=-1),
+        rtol=1e-12,
+    )
+    np.testing.assert_allclose(control.scale, signal.scale)
+    raw = np.zeros(signal.points_per_step * 6)
+    raw[2 * 6 + 0] = 1.0  # only the third via-point's x
+    moved = np.flatnonzero(np.abs(control.delta(1, raw)).sum(axis=1))
+    assert moved.tolist() == [2]
+    assert np.count_nonzero(np.abs(signal.delta(1, raw)).sum(axis=1) > 1e-12) > 1
+
+
 def test_a_skill_without_axis_kernels_cannot_build_the_table_one_operator():
     """A skill saved before v6 (no ``axis_kernels``) raises instead of falling back."""
     tau = np.linspace(0, 1, 15)

@@ -304,15 +304,16 @@ def test_a_studys_curves_show_every_seed_of_every_reading_and_the_mean(study_tre
     study = get_study("operators")
     columns = reading_columns(study)
     assert [c[0] for c in columns] == ["paper", *study.presets, "paper"]
-    assert [c[1] for c in columns] == ["dist-gprl"] * 4 + ["dist-gprl-nocov"]
+    assert [c[1] for c in columns] == ["dist-gprl"] * 5 + ["dist-gprl-nocov"]
     fig, drawn = plot_reading_curves(study_tree, study, ["dcp"])
     assert drawn == 3  # Table I's, the signal reading's and NoCov's panels
     axes = fig.axes[: len(columns)]
-    table1, unit, signal, _, nocov = axes
+    table1, unit, signal, _, control, nocov = axes
     assert len(table1.get_lines()) == 3  # two seeds and their mean
     np.testing.assert_allclose(table1.get_lines()[-1].get_ydata(), [0.2, 0.0, 0.0, 0.4])
     assert len(signal.get_lines()) == 1 and len(nocov.get_lines()) == 1  # one seed: no mean
     assert not unit.get_lines() and "no finished runs" in [t.get_text() for t in unit.texts]
+    assert "(control)" in control.get_title() and not control.get_lines()
     assert "operator-signal, 1 seed" in signal.get_title()
 
 

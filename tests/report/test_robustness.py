@@ -72,9 +72,11 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "operator-unit": same,
         "operator-signal": worse,
         "operator-correlation": same,
+        "operator-signal-uncoupled": worse,  # a control: no verdict reads it
     }
     results = study_verdicts([study], reference, runs_of.__getitem__, seed=0)
-    assert [r.reading.preset for r in results] == ["paper", *study.presets]
+    assert [r.reading.preset for r in results] == ["paper", *study.presets[:3]]
+    assert [r.preset for r in study.claim_readings] == list(study.presets[:3])
     verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
     assert verdict["paper"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-unit"][GLOBAL].verdict == REPRODUCED

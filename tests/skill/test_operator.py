@@ -10,6 +10,7 @@ from distgprl.skill.operator import (
     CONSTANT_AXIS_SCALE,
     axis_operator,
     fit_zero_mean_axes,
+    row_gain_diagonal,
     row_gains,
     row_normalised,
 )
@@ -81,3 +82,22 @@ def test_row_gains_bound_every_action_and_row_normalising_makes_them_one():
     for i in range(5):
         assert (operator @ np.sign(operator[i]))[i] == pytest.approx(gains[i])
     np.testing.assert_allclose(row_gains(row_normalised(operator)), 1.0)
+
+
+def test_the_row_gain_diagonal_keeps_each_reach_and_drops_the_coupling():
+    """``signal-uncoupled``'s transform: a diagonal matrix (no via-point moves with another's
+    action) whose row gains, and so every via-point's reach, are the operator's; per block of
+    a stack."""
+    via = np.linspace(0, 1, 15)
+    blocks = np.stack(
+        [
+            axis_operator(via, KernelParams(length, variance, 1e-10), 1e-2)[1:6, 1:6]
+            for length, variance in ((0.06, 0.02), (0.04, 0.005))
+        ]
+    )
+    assert np.abs(blocks - np.diagonal(blocks, axis1=-2, axis2=-1)[..., None] * np.eye(5)).max() > 0
+    diagonal = row_gain_diagonal(blocks)
+    assert diagonal.shape == blocks.shape
+    np.testing.assert_allclose(row_gains(diagonal), row_gains(blocks), rtol=1e-12)
+    np.testing.assert_array_equal(diagonal * (1 - np.eye(5)), 0.0)
+    np.testing.assert_allclose(np.diagonal(diagonal, axis1=-2, axis2=-1), row_gains(blocks))
