@@ -27,7 +27,45 @@ from dataclasses import dataclass
 from distgprl.errors import UserInputError
 from distgprl.methods import EXPLORATION_METHODS, METHODS
 
-__all__ = ["STUDIES", "TRAINED", "Reading", "Study", "get_study", "is_study", "studies_of"]
+__all__ = [
+    "STUDIES",
+    "TRAINED",
+    "OnsetRule",
+    "Reading",
+    "Study",
+    "get_study",
+    "is_study",
+    "studies_of",
+]
+
+
+@dataclass(frozen=True)
+class OnsetRule:
+    """A control's decision rule, fixed before its first run: on ``task`` a run *learns
+    early* if its learning curve's success reaches ``threshold`` at a curve point after step
+    0 (the untrained policy) and at or before step ``by_step``; of ``seeds`` runs,
+    ``at_least`` or more learning early give ``if_early``, ``at_most`` or fewer ``if_late``,
+    any count between "undecided" (`distgprl.report.onsets`).
+
+    Attributes:
+        task: the task the rule reads.
+        threshold: success on the curve TCs that counts as learned.
+        by_step: the last training step at which reaching ``threshold`` counts as early.
+        seeds: how many runs the rule reads (seeds 0 .. seeds-1); fewer finished: awaiting.
+        at_least: the least count of early runs for ``if_early``.
+        at_most: the largest count of early runs for ``if_late``.
+        if_early: the conclusion when ``at_least`` or more runs learn early.
+        if_late: the conclusion when ``at_most`` or fewer do.
+    """
+
+    task: str
+    threshold: float
+    by_step: int
+    seeds: int
+    at_least: int
+    at_most: int
+    if_early: str
+    if_late: str
 
 
 @dataclass(frozen=True)
@@ -42,12 +80,14 @@ class Reading:
             preset file is the one source of the values; empty for the reference).
         control: a control, not a reading of the paper: run, tabled and drawn with the
             study, but no claim's verdict reads it (`Study.claim_readings`).
+        rule: a control's pre-registered decision rule (`OnsetRule`), or None.
     """
 
     preset: str
     label: str
     changes: tuple[tuple[str, object], ...] = ()
     control: bool = False
+    rule: OnsetRule | None = None
 
 
 @dataclass(frozen=True)
@@ -120,6 +160,23 @@ STUDIES: dict[str, Study] = {
                 "signal reach, uncoupled (control)",
                 (("env.covariance_scale", "signal-uncoupled"),),
                 control=True,
+                # docs/findings/operator.md, "The uncoupled-signal control" (session 38)
+                rule=OnsetRule(
+                    task="dcp",
+                    threshold=0.5,
+                    by_step=4500,
+                    seeds=5,
+                    at_least=4,
+                    at_most=1,
+                    if_early=(
+                        "reach: the signal reading's early escape is its smaller per-via-point "
+                        "step; its coupling is not needed for it"
+                    ),
+                    if_late=(
+                        "coupling: the signal reading's reach without its coupling does not "
+                        "escape early"
+                    ),
+                ),
             ),
         ),
         methods=("dist-gprl",),

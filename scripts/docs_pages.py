@@ -61,6 +61,8 @@ RESULT_TABLES: tuple[tuple[str, str], ...] = (
     ("table2_noise_paper.md", "The twin's robustness to perception error"),
     ("claims_paper.md", "The claims"),
     ("claims_robustness_paper.md", "The claims per reading (operator and reward-unit studies)"),
+    ("onsets_operators_paper.md", "When each run learns: the operator study and its control"),
+    ("onsets_reward-unit_paper.md", "When each run learns: the reward-unit study"),
     ("mechanisms_paper.md", "The mechanism table"),
     ("paired_vs_demo_paper.md", "Every run against the unadapted demonstration, TC by TC"),
     ("paired_vs_dist-gprl_paper.md", "Every run against Dist-GPRL of the same seed, TC by TC"),

@@ -26,8 +26,9 @@ from pathlib import Path
 
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
-from distgprl.report.aggregate import aggregate_texts
+from distgprl.report.aggregate import aggregate_texts, tasks_of
 from distgprl.report.claims_table import claims_texts
+from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
     FINAL_POLICY,
     REFERENCES,
@@ -138,6 +139,15 @@ def write_tables(
             "each claim's verdict under every reading of "
             f"{', '.join(s.name for s in studies)} (rules: distgprl.report.robustness)",
         )
+        for study in studies:  # when each run of each reading learns; a control's verdict
+            written += _write_or_remove(
+                out_dir / f"onsets_{study.name}_{preset}",
+                (".csv", ".md"),
+                onset_texts(root, study, tasks_of(scores), preset),
+                preset,
+                f"the {study.name} study's learning-curve onsets per reading and seed "
+                "(rules: distgprl.report.onsets)",
+            )
     sizes = supplementary_sizes(root, preset)
     for reference in REFERENCES:
         for episodes in (None, *sizes):

@@ -252,37 +252,6 @@ def test_figures_are_a_vector_pdf_and_a_150_dpi_png(tmp_path):
 # --- a study's learning curves, seed by seed (`plot_reading_curves`) ---
 
 
-def _study_run(root, preset, task, method, seed, success):
-    """A finished run of a shipped preset, its files stamped with the current config hash."""
-    from distgprl.report.runs import current_hash
-
-    folder = root / preset / task / method / f"seed{seed}"
-    config_hash = current_hash(task, method, seed, preset)
-    rows = []
-    for index, value in enumerate(success):
-        row = dict.fromkeys(PROGRESS_FIELDS, "")
-        row.update(step=1500 * index, success_rate=value, collision_rate=0.0, mean_return=value)
-        rows.append(row)
-    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS, config_hash=config_hash)
-    summary = {"success_rate": success[-1], "collision_rate": 0.0}
-    for name in ("summary.json", "summary_best.json"):
-        write_json(folder / name, {"summary": summary}, config_hash=config_hash)
-    evaluation = [{**dict.fromkeys(EPISODE, 0), "success": 1}]
-    write_csv(folder / "evaluation.csv", evaluation, EPISODE, config_hash=config_hash)
-    write_json(folder / "done.json", {"steps": 1500 * (len(success) - 1)}, config_hash=config_hash)
-
-
-@pytest.fixture
-def study_tree(tmp_path):
-    """DCP: Table I's Dist-GPRL seeds 0 and 1 (seed 1 learns late), NoCov seed 0, Dist-GPRL
-    under operator-signal seed 0 (learns early); operator-unit and -correlation not run."""
-    _study_run(tmp_path, "paper", "dcp", "dist-gprl", 0, [0.4, 0.0, 0.0, 0.0])
-    _study_run(tmp_path, "paper", "dcp", "dist-gprl", 1, [0.0, 0.0, 0.0, 0.8])
-    _study_run(tmp_path, "paper", "dcp", "dist-gprl-nocov", 0, [0.0, 0.0, 0.0, 0.0])
-    _study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 0, [0.5, 0.8, 0.9, 0.9])
-    return tmp_path
-
-
 def test_seed_curves_keep_each_seed_on_its_own_steps(tmp_path):
     from distgprl.report.curves import seed_curves
 
