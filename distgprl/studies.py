@@ -36,6 +36,7 @@ __all__ = [
     "get_study",
     "is_study",
     "studies_of",
+    "study_of_reading",
 ]
 
 
@@ -233,6 +234,11 @@ def get_study(name: str) -> Study:
         raise UserInputError(
             f"unknown study {name!r}; valid studies: {', '.join(STUDIES)}"
         ) from None
+
+
+def study_of_reading(preset: str) -> Study | None:
+    """The study one of whose readings (or controls) ``preset`` is, or None."""
+    return next((s for s in STUDIES.values() if preset in s.presets), None)
 
 
 def studies_of(reference_preset: str) -> tuple[Study, ...]:

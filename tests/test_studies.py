@@ -63,3 +63,14 @@ def test_status_accepts_a_study(tmp_path):
     assert "operator-signal/dbm/dist-gprl/seed0" in result.output
     assert "operator-signal-uncoupled/dcp/dist-gprl/seed0" in result.output
     assert "0/8 done, 8 missing" in result.output
+
+
+def test_a_reading_preset_knows_its_study_and_a_reference_preset_none():
+    """`study_of_reading`: each reading's (and control's) preset names its study, so `status
+    --preset <reading>` can borrow the reference preset's pace; Table I's preset is none's."""
+    from distgprl.studies import study_of_reading
+
+    for study in STUDIES.values():
+        for preset in study.presets:
+            assert study_of_reading(preset) is study
+    assert study_of_reading("paper") is None and study_of_reading("ci") is None

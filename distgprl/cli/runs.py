@@ -30,7 +30,7 @@ from distgprl.cli.common import (
 )
 from distgprl.errors import UserInputError
 from distgprl.hardware.table2_trials import TABLE2_TRIALS
-from distgprl.studies import get_study, is_study
+from distgprl.studies import get_study, is_study, study_of_reading
 
 
 @user_errors
@@ -207,8 +207,8 @@ def status(
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
     reference = []  # a study's first runs take the pace of its reference preset's
-    if is_study(preset):
-        study = get_study(preset)
+    study = get_study(preset) if is_study(preset) else study_of_reading(preset)
+    if study is not None:
         reference = sweep_status(plan_jobs(study.reference.preset, list(study.methods), root=root))
     typer.echo(training_left(statuses, reference=reference).describe(workers or default_workers()))
     finished = [
