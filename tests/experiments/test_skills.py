@@ -145,7 +145,7 @@ def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units
             assert reported["axes"][axis]["eigenvalue_max"] == pytest.approx(eigenvalues.max())
     axes = summary["windows"][0]["axes"]
     assert axes["x"]["eigenvalue_max"] < axes["z"]["eigenvalue_max"] < axes["y"]["eigenvalue_max"]
-    assert set(summary["candidates"]) == {"signal", "unit", "none"}
+    assert set(summary["candidates"]) == {"signal", "signal-uncoupled", "unit", "none"}
     assert summary["candidates"]["unit"]["eigenvalue_min"] > 0.9
 
 
@@ -217,4 +217,14 @@ def test_shipped_skills_reach_their_tc_range_under_the_table_one_operator():
         for axis, value in needed.items():
             assert summary["reach_min"][axis] == pytest.approx(value, rel=1e-9), (task, axis)
             assert summary["candidates"]["none"]["reach"][axis] >= value - 1e-12
-        assert set(summary["candidates"]) == {"zero-mean", "signal", "unit", "correlation", "none"}
+        assert set(summary["candidates"]) == {
+            "zero-mean",
+            "signal",
+            "unit",
+            "correlation",
+            "signal-uncoupled",
+            "none",
+        }
+        control, signal = summary["candidates"]["signal-uncoupled"], summary["candidates"]["signal"]
+        for axis in needed:  # the control: the signal reading's reach, no coupling
+            assert control["reach"][axis] == pytest.approx(signal["reach"][axis], rel=1e-12)
