@@ -1,10 +1,10 @@
 """When each run learns: the learning-curve onset per reading and seed, and a control's verdict.
 
-A mean over seeds averages an early and a late learner into one slope; the operator study's
-question ("does this reading leave the r_ga plateau, and when?") is per run. For every study
-(`distgprl.studies`) read beside a preset, and every panel of its seed-by-seed curves
-(`distgprl.report.curves.reading_columns`: the studied method under each reading, the
-control included, and NoCov for an operator study), this tabulates per task and seed:
+A mean over seeds averages an early and a late learner into one slope; the studies' question
+("does this reading leave the r_ga plateau, and when?") is per run. For every study
+(`distgprl.studies`) read beside a preset, every method it trains under each of its readings
+(`onset_panels`: the control included; for an operator study also NoCov, which no reading
+changes), this tabulates per task and seed:
 
 - ``onset_step``: the first learning-curve step after step 0 (``progress.csv``; the curve
   TCs, the deterministic policy of that step) at which success reaches the threshold — the
@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.curves import reading_columns, seed_curves
 from distgprl.report.markdown import markdown_table
 from distgprl.report.paired import FINAL_POLICY
@@ -44,6 +45,7 @@ __all__ = [
     "CSV_FIELDS",
     "THRESHOLD",
     "RuleVerdict",
+    "onset_panels",
     "onset_rows",
     "onset_step",
     "onset_texts",
@@ -90,19 +92,27 @@ def _evaluations(
     return {(r["task"], r["method"], r["seed"]): r for r in per_seed_rows(root, preset, policy)}
 
 
+def onset_panels(study: Study) -> list[tuple[str, str, str]]:
+    """(preset, method, reading label) per table row: each of the study's methods (Table I's
+    order) under each reading, the reference's first; an operator study adds NoCov from the
+    reference preset (`distgprl.report.curves.reading_columns`' last panel)."""
+    methods = [m for m in TABLE_ORDER if m in study.methods]
+    panels = [(r.preset, m, r.label) for m in methods for r in study.all_readings]
+    extra = [(p, m, title) for p, m, title in reading_columns(study) if m not in study.methods]
+    return panels + extra
+
+
 def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[str, Any]]:
-    """One row per `reading_columns` panel, task and finished seed (CSV_FIELDS), panels in
+    """One row per `onset_panels` panel, task and finished seed (CSV_FIELDS), panels in
     their order; the threshold and ``early`` from `study_rule` (``early`` empty without)."""
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
-    labels = {r.preset: r.label for r in study.all_readings}
     evaluations: dict[tuple[str, str], dict[tuple[str, str, int], dict[str, Any]]] = {}
     rows = []
-    for preset, method, title in reading_columns(study):
+    for preset, method, reading in onset_panels(study):
         for policy in (TABLE_POLICY, FINAL_POLICY):
             if (preset, policy) not in evaluations:
                 evaluations[(preset, policy)] = _evaluations(root, preset, policy)
-        reading = labels[preset] if method in study.methods else title
         for task in tasks:
             for seed, (steps, values) in seed_curves(root, preset, task, method).items():
                 onset = onset_step(steps, values["success_rate"], threshold)
@@ -191,7 +201,8 @@ def onset_texts(
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
     parts = [
-        f"When each run learns ({study.name} study, {preset} preset): per reading and seed, "
+        f"When each run learns ({study.name} study, {preset} preset): per method, reading and "
+        "seed, "
         f"the first training step after step 0 (the untrained policy) at which the learning "
         f"curve's success (the curve TCs, the deterministic policy of that step) reaches "
         f"{threshold:g} (— never), then the best (final) policy's success on the evaluation "
@@ -202,7 +213,7 @@ def onset_texts(
         if not mine:
             continue
         seeds = sorted({r["seed"] for r in mine})
-        header = ["Reading", *[f"seed {s}" for s in seeds]]
+        header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
         by_step = rule.by_step if rule is not None and rule.task == task else None
         if by_step is not None:
             header.append(f"early (by step {_step(by_step)})")
@@ -215,7 +226,15 @@ def onset_texts(
                 for r in mine
                 if (r["reading"], r["preset"], r["method"]) == (reading, panel_preset, method)
             }
-            line = [f"{reading} (`{panel_preset}`)", *[cells.get(s, "") for s in seeds]]
+            name = f"{reading} (`{panel_preset}`)"
+            if method in study.methods:
+                name = f"{METHODS[method].label.removesuffix(' (ours)')}: {name}"
+            reached = [r for r in mine if (r["preset"], r["method"]) == (panel_preset, method)]
+            line = [
+                name,
+                *[cells.get(s, "") for s in seeds],
+                f"{sum(r['onset_step'] != '' for r in reached)}/{len(reached)}",
+            ]
             if by_step is not None:
                 early, runs = _early_count(rows, panel_preset, method, task)
                 line.append(f"{early}/{runs}")

@@ -41,6 +41,26 @@ def test_every_panel_gets_a_row_per_seed_with_its_onset_and_both_policies(tmp_pa
     assert (rows[0]["best_success"], rows[0]["final_success"]) == (0.9, 0.7)
 
 
+def test_a_study_of_every_trained_method_has_a_row_per_method_and_reading(tmp_path, study_run):
+    """The reward-unit study acts on every trained method: its table lists each method (Table
+    I's order) under Table I's unit and under the study's, no NoCov extra, no rule column."""
+    from distgprl.report.onsets import onset_panels
+
+    study = get_study("reward-unit")
+    panels = onset_panels(study)
+    assert len(panels) == 2 * len(study.methods)
+    assert [p[1] for p in panels[:2]] == ["gprl", "gprl"]
+    assert [p[0] for p in panels[:2]] == ["paper", "reward-unit-10"]
+    study_run(tmp_path, "paper", "dcp", "gprl-h", 0, EARLY)
+    study_run(tmp_path, "reward-unit-10", "dcp", "gprl-h", 0, LATE)
+    _, markdown = onset_texts(tmp_path, study, ["dcp"], "paper")
+    assert (
+        "| GPRL-H: r_tc in units of one task (Table I) (`paper`) | 3 000: 0.80 (0.80) | 1/1 |"
+        in (markdown)
+    )
+    assert "early" not in markdown
+
+
 @pytest.mark.parametrize(
     ("curves", "verdict"),
     [
@@ -69,13 +89,21 @@ def test_the_controls_rule_decides_from_its_own_runs_only(tmp_path, study_run, c
 
 
 def test_the_table_shows_each_seed_the_early_counts_and_the_controls_verdict(tmp_path, study_run):
+    """A row per method and reading with runs: each seed's onset, best (final) success, how
+    many reached the threshold at all and, on the rule's task, how many early; the control's
+    verdict below; no finished run: no table."""
     study_run(tmp_path, "paper", "dcp", "dist-gprl", 0, LATE, best=0.9)
     study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 0, EARLY)
     study_run(tmp_path, CONTROL, "dcp", "dist-gprl", 0, START)
     csv_text, markdown = onset_texts(tmp_path, get_study("operators"), ["dcp"], "paper")
     assert csv_text.splitlines()[0].startswith("study,task,reading,preset,method,seed,onset")
-    assert "| zero-mean GP (Table I) (`paper`) | 6 000: 0.90 (0.70) | 0/1 |" in markdown
-    assert "| per-axis signal (v5) (`operator-signal`) | 3 000: 0.80 (0.80) | 1/1 |" in markdown
-    assert "(`operator-signal-uncoupled`) | —: 0.00 (0.00) | 0/1 |" in markdown
+    assert "| Dist-GPRL: zero-mean GP (Table I) (`paper`) | 6 000: 0.90 (0.70) | 1/1 | 0/1 |" in (
+        markdown
+    )
+    assert (
+        "| Dist-GPRL: per-axis signal (v5) (`operator-signal`) | 3 000: 0.80 (0.80) | 1/1 | 1/1 |"
+        in (markdown)
+    )
+    assert "(`operator-signal-uncoupled`) | —: 0.00 (0.00) | 0/1 | 0/1 |" in markdown
     assert "**0 of 1 seeds learn early: awaiting (1 of 5 runs finished)**" in markdown
     assert onset_texts(tmp_path / "none", get_study("operators"), ["dcp"], "paper") is None
