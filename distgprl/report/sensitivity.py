@@ -10,8 +10,9 @@ over seeds with its 95 % stratified-bootstrap interval (`distgprl.report.aggrega
 stratum: the task). The references are horizontal lines with their intervals as bands:
 Dist-GPRL-NoCov (no operator) and the demonstration (no adaptation), from the reference
 preset's runs. A study's control (`distgprl.studies.Reading.control`) is drawn hollow and
-grey; the uncoupled-signal control shares the signal reading's x (its row gains are the
-signal operator's), so the two points at one x differ by the coupling alone.
+grey, shifted `CONTROL_SHIFT_POINTS` to the right on the page (its x value is unchanged): the
+uncoupled-signal control has the signal reading's gain (its row gains are the signal
+operator's), so the two points at one gain differ by the coupling alone.
 
 Reads ``<root>/<study>/reach.json`` (written by the study's sweep) and the runs' result files
 only; without the reach file or any run of the studied method there is nothing to draw.
@@ -20,7 +21,7 @@ only; without the reach file or any run of the studied method there is nothing t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,7 +31,18 @@ from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.schema import read_json
 from distgprl.studies import Study
 
-__all__ = ["PANELS", "REFERENCES", "reading_gains", "sensitivity_points", "write_sensitivity"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "CONTROL_SHIFT_POINTS",
+    "PANELS",
+    "REFERENCES",
+    "plot_sensitivity",
+    "reading_gains",
+    "sensitivity_points",
+    "write_sensitivity",
+]
 
 PANELS = (
     ("success_rate", "success rate"),
@@ -38,6 +50,10 @@ PANELS = (
     ("mean_kinematic_retention", "kinematic retention"),
 )
 """(score, axis label) per panel."""
+
+CONTROL_SHIFT_POINTS = 9.0
+"""How far (typographic points) a control's point is drawn right of its x, so that it does not
+hide a reading's point at the same gain."""
 
 REFERENCES = ("dist-gprl-nocov", "demo")
 """Methods drawn as horizontal reference bands, from the reference preset's runs."""
@@ -99,16 +115,36 @@ def write_sensitivity(
     out_dir: str | Path,
     seed: int = BOOTSTRAP_SEED,
 ) -> list[Path]:
-    """Draw the study's sensitivity figure (module docstring) into
+    """Draw the study's sensitivity figure (module docstring, `plot_sensitivity`) into
     ``<out_dir>/sensitivity_<study>_<reference preset>.{png,pdf}``; with nothing to draw,
     remove an earlier one. ``scores_of`` maps each reading's preset to its scores
     (`distgprl.report.table1.collect_scores`)."""
+    import matplotlib.pyplot as plt
+
+    stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
+    fig = plot_sensitivity(root, study, scores_of, seed)
+    if fig is None:
+        remove_figure(stem)
+        return []
+    written = write_figure(fig, stem)
+    plt.close(fig)
+    return written
+
+
+def plot_sensitivity(
+    root: str | Path,
+    study: Study,
+    scores_of: dict[str, Scores],
+    seed: int = BOOTSTRAP_SEED,
+) -> Figure | None:
+    """The study's sensitivity figure (module docstring), or None with nothing to draw (no
+    reach file, or no run of the studied method)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.transforms import offset_copy
 
-    stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
     reach_path = Path(root) / study.name / "reach.json"
     method = study.methods[0]
     tasks = sorted({task for scores in scores_of.values() for task, _ in scores})
@@ -120,8 +156,7 @@ def write_sensitivity(
         ]
         points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
     if not points:
-        remove_figure(stem)
-        return []
+        return None
     tasks = [t for t in tasks if any(p["task"] == t for p in points)]
     reference = scores_of.get(study.reference.preset, {})
     fig, axes = plt.subplots(
@@ -153,6 +188,9 @@ def write_sensitivity(
                     if estimate.has_interval:
                         yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
                     seeds = min(estimate.seeds)
+                    shift = offset_copy(
+                        ax.transData, fig=fig, x=CONTROL_SHIFT_POINTS, units="points"
+                    )
                     ax.errorbar(
                         [point["gain"]],
                         [estimate.point],
@@ -160,6 +198,7 @@ def write_sensitivity(
                         fmt=markers.get(reading.preset, "o"),
                         color="0.5" if reading.control else "black",
                         markerfacecolor="white" if reading.control else None,
+                        transform=shift if reading.control else ax.transData,
                         capsize=3,
                         label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
                         f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
@@ -177,14 +216,14 @@ def write_sensitivity(
                 handles.append(handle)
                 labels.append(text)
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
+    control = any(r.control for r in study.readings)
     fig.suptitle(
-        f"Operator study: {METHODS[method].label.removesuffix(' (ours)')} per reading of K_tt "
+        f"Operator study: {METHODS[method].label.removesuffix(' (ours)')} per reading of K_tt"
+        f"{' and control (hollow, drawn beside its gain)' if control else ''} "
         f"(means over seeds, 95 % bootstrap intervals; {study.reference.preset} preset's "
         "references dashed)",
         fontsize=10,
     )
     legend_rows = (len(labels) + 2) // 3
     fig.tight_layout(rect=(0.0, 0.04 + 0.035 * legend_rows, 1.0, 0.95))
-    written = write_figure(fig, stem)
-    plt.close(fig)
-    return written
+    return fig

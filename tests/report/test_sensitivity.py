@@ -102,3 +102,27 @@ def test_a_readings_gain_averages_the_axes_the_tcs_vary(tree):
     gains = reading_gains(read_json(tree / STUDY.name / "reach.json"), "dist-gprl")
     assert gains[("operator-signal", "dcp")] == pytest.approx(0.2)
     assert gains[("paper", "dcp")] == pytest.approx(1.0)
+
+
+def test_a_control_is_drawn_hollow_beside_the_reading_with_its_gain(tree):
+    """The uncoupled-signal control has the signal reading's gain: its point keeps that x in
+    data units but is drawn shifted right on the page (another transform), hollow; every
+    reading's point is drawn at its own x unshifted."""
+    from matplotlib.colors import to_rgba
+
+    from distgprl.report.sensitivity import plot_sensitivity
+    from distgprl.report.table1 import collect_scores
+
+    for seed in range(3):
+        _run(tree, "operator-signal-uncoupled", "dcp", "dist-gprl", seed, 0.5)
+    _reach(tree, {"paper": 1.0, "operator-signal": 0.2, "operator-signal-uncoupled": 0.2})
+    scores_of = {r.preset: collect_scores(tree, r.preset) for r in STUDY.all_readings}
+    fig = plot_sensitivity(tree, STUDY, scores_of)
+    success = fig.axes[0]
+    points = [line for line in success.get_lines() if line.get_marker() in tuple("o^sDvP")]
+    control = [line for line in points if to_rgba(line.get_markerfacecolor()) == (1, 1, 1, 1)]
+    readings = [line for line in points if line not in control]
+    assert len(control) == 1 and control[0].get_xdata()[0] == pytest.approx(0.2)
+    assert control[0].get_transform() != success.transData
+    assert all(line.get_transform() == success.transData for line in readings)
+    assert sorted(line.get_xdata()[0] for line in readings) == pytest.approx([0.2, 1.0])
