@@ -161,12 +161,14 @@ def _early_count(
 
 
 def rule_verdict(rows: list[dict[str, Any]], study: Study, preset: str) -> RuleVerdict:
-    """The verdict of the control ``preset``'s rule on its runs among ``rows`` (`onset_rows`)."""
+    """The verdict of the control ``preset``'s rule on its runs among ``rows`` (`onset_rows`):
+    seeds 0 .. ``rule.seeds`` - 1 only (a further seed, run later, does not change it)."""
     reading = next(r for r in study.readings if r.preset == preset)
     rule = reading.rule
     if rule is None:
         raise ValueError(f"{preset} has no decision rule")
-    early, runs = _early_count(rows, preset, study.methods[0], rule.task)
+    ruled = [r for r in rows if int(r["seed"]) < rule.seeds]
+    early, runs = _early_count(ruled, preset, study.methods[0], rule.task)
     if runs < rule.seeds:
         verdict = f"awaiting ({runs} of {rule.seeds} runs finished)"
     elif early >= rule.at_least:
