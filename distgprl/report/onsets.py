@@ -219,27 +219,26 @@ def onset_texts(
         by_step = rule.by_step if rule is not None and rule.task == task else None
         if by_step is not None:
             header.append(f"early (by step {_step(by_step)})")
+        panels: dict[tuple[str, str], list[dict[str, Any]]] = {}  # (preset, method): its runs
+        for r in mine:
+            panels.setdefault((r["preset"], r["method"]), []).append(r)
         table = []
-        panels = list(dict.fromkeys((r["reading"], r["preset"], r["method"]) for r in mine))
-        for reading, panel_preset, method in panels:
+        for (panel_preset, method), runs in panels.items():
             cells = {
                 r["seed"]: f"{_step(r['onset_step'])}: {_rate(r['best_success'])} "
                 f"({_rate(r['final_success'])})"
-                for r in mine
-                if (r["reading"], r["preset"], r["method"]) == (reading, panel_preset, method)
+                for r in runs
             }
-            name = f"{reading} (`{panel_preset}`)"
+            name = f"{runs[0]['reading']} (`{panel_preset}`)"
             if method in study.methods:
                 name = f"{METHODS[method].label.removesuffix(' (ours)')}: {name}"
-            reached = [r for r in mine if (r["preset"], r["method"]) == (panel_preset, method)]
             line = [
                 name,
                 *[cells.get(s, "") for s in seeds],
-                f"{sum(r['onset_step'] != '' for r in reached)}/{len(reached)}",
+                f"{sum(r['onset_step'] != '' for r in runs)}/{len(runs)}",
             ]
             if by_step is not None:
-                early, runs = _early_count(rows, panel_preset, method, task)
-                line.append(f"{early}/{runs}")
+                line.append(f"{sum(r['early'] == 1 for r in runs)}/{len(runs)}")
             table.append(line)
         parts.append(markdown_table(f"**{task.upper()}**", header, table))
     for reading in study.readings:

@@ -188,9 +188,11 @@ def plot_sensitivity(
                     if estimate.has_interval:
                         yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
                     seeds = min(estimate.seeds)
-                    shift = offset_copy(
-                        ax.transData, fig=fig, x=CONTROL_SHIFT_POINTS, units="points"
-                    )
+                    transform = ax.transData
+                    if reading.control:  # beside the reading with its gain, same x value
+                        transform = offset_copy(
+                            transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points"
+                        )
                     ax.errorbar(
                         [point["gain"]],
                         [estimate.point],
@@ -198,7 +200,7 @@ def plot_sensitivity(
                         fmt=markers.get(reading.preset, "o"),
                         color="0.5" if reading.control else "black",
                         markerfacecolor="white" if reading.control else None,
-                        transform=shift if reading.control else ax.transData,
+                        transform=transform,
                         capsize=3,
                         label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
                         f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
