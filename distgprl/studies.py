@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from distgprl.errors import UserInputError
+from distgprl.identity import SWEEP_SEEDS
 from distgprl.methods import EXPLORATION_METHODS, METHODS
 
 __all__ = [
@@ -42,31 +43,46 @@ __all__ = [
 
 @dataclass(frozen=True)
 class OnsetRule:
-    """A control's decision rule, fixed before its first run: on ``task`` a run *learns
-    early* if its learning curve's success reaches ``threshold`` at a curve point after step
-    0 (the untrained policy) and at or before step ``by_step``; of ``seeds`` runs,
-    ``at_least`` or more learning early give ``if_early``, ``at_most`` or fewer ``if_late``,
-    any count between "undecided" (`distgprl.report.onsets`).
+    """A pre-registered decision rule on one reading's learning-curve onsets, fixed before
+    its first run: on ``task`` a run *learns early* if its learning curve's success reaches
+    ``threshold`` at a curve point after step 0 (the untrained policy) and at or before step
+    ``by_step``; of the runs at ``seeds``, ``at_least`` or more learning early give
+    ``if_early``, ``at_most`` or fewer ``if_late``, any count between ``if_between``
+    (`distgprl.report.onsets`).
 
     Attributes:
+        name: the rule's name, unique within its study (tables and ``given`` use it).
         task: the task the rule reads.
         threshold: success on the curve TCs that counts as learned.
         by_step: the last training step at which reaching ``threshold`` counts as early.
-        seeds: how many runs the rule reads (seeds 0 .. seeds-1); fewer finished: awaiting.
+        seeds: the seeds of the runs the rule reads; fewer of them finished: awaiting.
         at_least: the least count of early runs for ``if_early``.
         at_most: the largest count of early runs for ``if_late``.
         if_early: the conclusion when ``at_least`` or more runs learn early.
         if_late: the conclusion when ``at_most`` or fewer do.
+        if_between: the conclusion for a count between (empty: undecided).
+        given: the name of another rule of the study whose ``if_early`` this rule needs:
+            while that rule awaits its runs this one does too, and any other verdict of it
+            makes this one void (empty: none).
     """
 
+    name: str
     task: str
     threshold: float
     by_step: int
-    seeds: int
+    seeds: tuple[int, ...]
     at_least: int
     at_most: int
     if_early: str
     if_late: str
+    if_between: str = ""
+    given: str = ""
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.at_most < self.at_least <= len(self.seeds):
+            raise ValueError(
+                f"rule {self.name!r}: need 0 <= at_most < at_least <= {len(self.seeds)} seeds"
+            )
 
 
 @dataclass(frozen=True)
@@ -81,14 +97,14 @@ class Reading:
             preset file is the one source of the values; empty for the reference).
         control: a control, not a reading of the paper: run, tabled and drawn with the
             study, but no claim's verdict reads it (`Study.claim_readings`).
-        rule: a control's pre-registered decision rule (`OnsetRule`), or None.
+        rules: the pre-registered decision rules on this reading's onsets (`OnsetRule`).
     """
 
     preset: str
     label: str
     changes: tuple[tuple[str, object], ...] = ()
     control: bool = False
-    rule: OnsetRule | None = None
+    rules: tuple[OnsetRule, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -104,6 +120,9 @@ class Study:
         acts_on: the `MethodSpec` flag that marks the methods whose runs a reading changes
             (``covariance_transform``: the operator acts on the methods that apply S_W;
             ``trainable``: a reward unit changes every trained method).
+        seeds: the seeds at which the readings are compared (Table I's): every table,
+            figure and verdict of the study reads these; runs at other seeds are read by
+            the rules that name them only (`OnsetRule.seeds`).
     """
 
     name: str
@@ -112,6 +131,32 @@ class Study:
     methods: tuple[str, ...]
     question: str
     acts_on: str = "covariance_transform"
+    seeds: tuple[int, ...] = SWEEP_SEEDS
+
+    def __post_init__(self) -> None:
+        rules = self.rules
+        names = [rule.name for _, rule in rules]
+        if len(set(names)) != len(names):
+            raise ValueError(f"study {self.name!r}: rule names repeat: {names}")
+        for _, rule in rules:
+            if rule.given and rule.given not in names:
+                raise ValueError(f"rule {rule.name!r} needs unknown rule {rule.given!r}")
+        if len({(rule.threshold, rule.by_step) for _, rule in rules}) > 1:
+            raise ValueError(f"study {self.name!r}: its rules differ in threshold or by_step")
+
+    @property
+    def rules(self) -> tuple[tuple[Reading, OnsetRule], ...]:
+        """Every reading's rules, with their reading, in the readings' order."""
+        return tuple((reading, rule) for reading in self.readings for rule in reading.rules)
+
+    def rule(self, name: str) -> tuple[Reading, OnsetRule]:
+        """The rule ``name`` and its reading; a `KeyError` names the study's rules."""
+        for reading, rule in self.rules:
+            if rule.name == name:
+                return reading, rule
+        raise KeyError(
+            f"study {self.name!r} has no rule {name!r}: {[r.name for _, r in self.rules]}"
+        )
 
     @property
     def reads_the_operator(self) -> bool:
@@ -142,6 +187,15 @@ class Study:
 
 TRAINED = tuple(name for name, spec in METHODS.items() if spec.trainable)
 
+REACH = (
+    "reach: the signal reading's early escape is its smaller per-via-point step; its "
+    "coupling is not needed for it"
+)
+"""The operator study control's conclusion when enough of its runs learn early."""
+
+COUPLING = "coupling: the signal reading's reach without its coupling does not escape early"
+"""The operator study control's conclusion when too few of its runs learn early."""
+
 STUDIES: dict[str, Study] = {
     "operators": Study(
         name="operators",
@@ -149,7 +203,24 @@ STUDIES: dict[str, Study] = {
         readings=(
             Reading("operator-unit", "unit variance (v4)", (("env.covariance_scale", "unit"),)),
             Reading(
-                "operator-signal", "per-axis signal (v5)", (("env.covariance_scale", "signal"),)
+                "operator-signal",
+                "per-axis signal (v5)",
+                (("env.covariance_scale", "signal"),),
+                # docs/findings/operator.md, "The uncoupled-signal control, stage 2" (session 39)
+                rules=(
+                    OnsetRule(
+                        name="stage 2 replication",
+                        task="dcp",
+                        threshold=0.5,
+                        by_step=4500,
+                        seeds=(5, 6, 7, 8, 9),
+                        at_least=4,
+                        at_most=3,
+                        if_early="replicated: the signal reading learns early at new seeds",
+                        if_late="not replicated: the signal reading's early escape does not "
+                        "hold at new seeds",
+                    ),
+                ),
             ),
             Reading(
                 "operator-correlation",
@@ -161,21 +232,35 @@ STUDIES: dict[str, Study] = {
                 "signal reach, uncoupled (control)",
                 (("env.covariance_scale", "signal-uncoupled"),),
                 control=True,
-                # docs/findings/operator.md, "The uncoupled-signal control" (session 38)
-                rule=OnsetRule(
-                    task="dcp",
-                    threshold=0.5,
-                    by_step=4500,
-                    seeds=5,
-                    at_least=4,
-                    at_most=1,
-                    if_early=(
-                        "reach: the signal reading's early escape is its smaller per-via-point "
-                        "step; its coupling is not needed for it"
+                rules=(
+                    # docs/findings/operator.md, "The uncoupled-signal control" (session 38)
+                    OnsetRule(
+                        name="stage 1",
+                        task="dcp",
+                        threshold=0.5,
+                        by_step=4500,
+                        seeds=(0, 1, 2, 3, 4),
+                        at_least=4,
+                        at_most=1,
+                        if_early=REACH,
+                        if_late=COUPLING,
                     ),
-                    if_late=(
-                        "coupling: the signal reading's reach without its coupling does not "
-                        "escape early"
+                    # docs/findings/operator.md, "… stage 2" (session 39): independent seeds
+                    OnsetRule(
+                        name="stage 2",
+                        task="dcp",
+                        threshold=0.5,
+                        by_step=4500,
+                        seeds=tuple(range(5, 15)),
+                        at_least=8,
+                        at_most=2,
+                        if_early=REACH,
+                        if_late=COUPLING,
+                        if_between=(
+                            "both: the signal reading's reach without its coupling escapes "
+                            "early on some seeds, less reliably than with it; each contributes"
+                        ),
+                        given="stage 2 replication",
                     ),
                 ),
             ),

@@ -74,3 +74,45 @@ def test_a_reading_preset_knows_its_study_and_a_reference_preset_none():
         for preset in study.presets:
             assert study_of_reading(preset) is study
     assert study_of_reading("paper") is None and study_of_reading("ci") is None
+
+
+def test_a_rule_and_a_study_refuse_rules_that_could_not_be_applied():
+    """at_most below at_least within the seed count; unique rule names; a needed rule that
+    exists; one threshold and by_step per study (the onsets table's single early column)."""
+    import dataclasses
+
+    from distgprl.studies import OnsetRule, Reading, Study
+
+    rule = OnsetRule("a", "dcp", 0.5, 4500, (0, 1, 2), 2, 1, "early", "late")
+    for bad in ({"at_least": 4}, {"at_most": 2}, {"at_most": -1}):
+        with pytest.raises(ValueError, match="at_most < at_least"):
+            dataclasses.replace(rule, **bad)
+    reference = Reading("paper", "Table I")
+
+    def study(*rules):
+        return Study(
+            "s", reference, (Reading("operator-unit", "u", rules=rules),), ("dist-gprl",), "?"
+        )
+
+    assert [r.name for _, r in study(rule, dataclasses.replace(rule, name="b")).rules] == ["a", "b"]
+    with pytest.raises(ValueError, match="repeat"):
+        study(rule, rule)
+    with pytest.raises(ValueError, match="unknown rule 'c'"):
+        study(dataclasses.replace(rule, given="c"))
+    with pytest.raises(ValueError, match="threshold or by_step"):
+        study(rule, dataclasses.replace(rule, name="b", by_step=3000))
+    with pytest.raises(KeyError, match="no rule 'c'"):
+        study(rule).rule("c")
+
+
+def test_the_operator_controls_second_stage_reads_new_seeds_only():
+    """Pre-registered (docs/findings/operator.md, stage 2): the control's seeds 5-14 and the
+    signal reading's 5-9, none of the study's own 0-4, and stage 2 needs the replication."""
+    study = get_study("operators")
+    reading, stage2 = study.rule("stage 2")
+    assert reading.control and stage2.seeds == tuple(range(5, 15))
+    assert (stage2.at_least, stage2.at_most, stage2.given) == (8, 2, "stage 2 replication")
+    signal, replication = study.rule("stage 2 replication")
+    assert signal.preset == "operator-signal" and replication.seeds == (5, 6, 7, 8, 9)
+    assert not set(stage2.seeds + replication.seeds) & set(study.seeds)
+    assert study.rule("stage 1")[1].seeds == study.seeds

@@ -21,6 +21,7 @@ method keeps its colour in every figure, and each figure is written as a vector 
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -76,12 +77,16 @@ FIGURES = {
 
 
 def seed_curves(
-    root: str | Path, preset: str, task: str, method: str
+    root: str | Path,
+    preset: str,
+    task: str,
+    method: str,
+    seeds: Collection[int] | None = None,
 ) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """{seed: (steps (k,), {metric: (k,)})} of every finished seed of a run of the current
-    configuration (`select_runs`), each on its own steps. Runs still in progress are left
-    out, and so are seeds with an empty learning curve."""
-    current = select_runs(root, preset, marker="done.json").current
+    """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
+    a run of the current configuration (`select_runs`), each on its own steps. Runs still in
+    progress are left out, and so are seeds with an empty learning curve."""
+    current = select_runs(root, preset, marker="done.json", seeds=seeds).current
     out = {}
     for path in sorted((Path(root) / preset / task / method).glob("seed*/progress.csv")):
         if path.parent not in current:
@@ -263,7 +268,7 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     for row, task in enumerate(tasks):
         for col, (preset, method, title) in enumerate(columns):
             ax = axes[row, col]
-            seeds = seed_curves(root, preset, task, method)
+            seeds = seed_curves(root, preset, task, method, study.seeds)
             for seed, (steps, values) in seeds.items():
                 (line,) = ax.plot(
                     steps, values["success_rate"], lw=0.9, alpha=0.85,
@@ -341,7 +346,10 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         stem = out / f"curves_{study.name}_{preset}"
         write_or_remove(plot_reading_curves(root, study, tasks), stem)
         if study.reads_the_operator:  # an operator study's sensitivity figure
-            scores_of = {r.preset: collect_scores(root, r.preset) for r in study.all_readings}
+            scores_of = {
+                r.preset: collect_scores(root, r.preset, seeds=study.seeds)
+                for r in study.all_readings
+            }
             written += write_sensitivity(root, study, scores_of, out_dir)
     # Table II's noise curve: twin success and collision against the perception error
     written += write_noise_curve(hardware_rows(select_trial_files(root, preset)), out_dir, preset)

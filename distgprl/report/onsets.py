@@ -16,11 +16,14 @@ changes), this tabulates per task and seed:
 - the best and the final policy's success and collision on the evaluation TCs (Table I's
   ``summary_best.json`` and ``summary.json``).
 
-A control's verdict (`rule_verdict`) applies its rule to its own runs of the rule's task:
-with fewer than the rule's seeds finished it is "awaiting", otherwise the count of early runs
-decides it as the rule states, fixed before the control's first run
-(docs/findings/operator.md, "The uncoupled-signal control"). The other readings' counts are
-listed beside it, measured the same way, and decide nothing.
+Each pre-registered rule (`distgprl.studies.OnsetRule`; `rule_verdict`) is applied to its
+reading's runs of the rule's task at the rule's seeds only: with fewer of them finished it is
+"awaiting", otherwise the count of early runs decides it as the rule states, fixed before its
+first run (docs/findings/operator.md: the control's stage 1 at seeds 0–4; stage 2 at seeds
+5–14, which needs the signal reading's replication at seeds 5–9 and is "void" without it).
+The Markdown's main table has the study's seeds (`Study.seeds`), the seeds only a rule reads
+a table of their own; the other readings' counts are listed beside the rules, measured the
+same way, and decide nothing.
 
 Reads result files only; `distgprl tables` writes ``onsets_<study>_<preset>.{csv,md}``.
 """
@@ -82,8 +85,9 @@ def onset_step(steps: Any, success: Any, threshold: float) -> int | None:
 
 
 def study_rule(study: Study) -> OnsetRule | None:
-    """The first control rule of the study's readings (the threshold its table uses)."""
-    return next((r.rule for r in study.readings if r.rule is not None), None)
+    """The study's first decision rule (its threshold and ``by_step`` are every rule's:
+    `Study` checks), or None."""
+    return next((rule for _, rule in study.rules), None)
 
 
 def _evaluations(
@@ -140,9 +144,11 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
 
 @dataclass(frozen=True)
 class RuleVerdict:
-    """A control's verdict under its rule: ``early`` of ``runs`` finished runs of the rule's
-    task learned early; ``verdict`` is the rule's conclusion, "undecided" or "awaiting"."""
+    """A rule's verdict: ``early`` of ``runs`` finished runs at the rule's seeds of its
+    reading and task learned early; ``verdict`` is the rule's conclusion, "awaiting", or
+    "void" where the rule it needs (`OnsetRule.given`) did not give its ``if_early``."""
 
+    rule: str
     reading: str
     early: int
     runs: int
@@ -160,24 +166,34 @@ def _early_count(
     return sum(int(r["early"] == 1) for r in mine), len(mine)
 
 
-def rule_verdict(rows: list[dict[str, Any]], study: Study, preset: str) -> RuleVerdict:
-    """The verdict of the control ``preset``'s rule on its runs among ``rows`` (`onset_rows`):
-    seeds 0 .. ``rule.seeds`` - 1 only (a further seed, run later, does not change it)."""
-    reading = next(r for r in study.readings if r.preset == preset)
-    rule = reading.rule
-    if rule is None:
-        raise ValueError(f"{preset} has no decision rule")
-    ruled = [r for r in rows if int(r["seed"]) < rule.seeds]
-    early, runs = _early_count(ruled, preset, study.methods[0], rule.task)
-    if runs < rule.seeds:
-        verdict = f"awaiting ({runs} of {rule.seeds} runs finished)"
+def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> RuleVerdict:
+    """The verdict of the study's rule ``name`` on its reading's runs among ``rows``
+    (`onset_rows`) at the rule's seeds only (a run at another seed does not change it)."""
+    reading, rule = study.rule(name)
+    ruled = [r for r in rows if int(r["seed"]) in rule.seeds]
+    early, runs = _early_count(ruled, reading.preset, study.methods[0], rule.task)
+    needed = len(rule.seeds)
+    if runs < needed:
+        verdict = f"awaiting ({runs} of {needed} runs finished)"
     elif early >= rule.at_least:
         verdict = rule.if_early
     elif early <= rule.at_most:
         verdict = rule.if_late
     else:
-        verdict = f"undecided at {runs} seeds"
-    return RuleVerdict(reading.label, early, runs, verdict)
+        verdict = rule.if_between or f"undecided at {runs} seeds"
+    if rule.given:
+        _, given = study.rule(rule.given)
+        before = rule_verdict(rows, study, rule.given).verdict
+        if before.startswith("awaiting"):
+            verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
+        elif before != given.if_early:
+            verdict = f"void: {rule.given} gave {_short(before)}"
+    return RuleVerdict(rule.name, reading.label, early, runs, verdict)
+
+
+def _short(conclusion: str) -> str:
+    """A conclusion's name: its text before the first colon."""
+    return conclusion.split(":")[0]
 
 
 def _rate(value: Any) -> str:
@@ -188,11 +204,54 @@ def _step(value: Any) -> str:
     return "—" if value in ("", None) else f"{int(value):,}".replace(",", " ")
 
 
+def _seeds_text(seeds: tuple[int, ...]) -> str:
+    """``seeds`` as "0–4" where they are a run of consecutive integers, else listed."""
+    if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}–{seeds[-1]}"
+    return ", ".join(str(seed) for seed in seeds)
+
+
+def _onset_table(
+    title: str, rows: list[dict[str, Any]], study: Study, threshold: float, by_step: int | None
+) -> str:
+    """A Markdown table of ``rows`` (one task's): a line per (preset, method) panel in the
+    rows' order, a column per seed (onset: best (final) success), how many reached
+    ``threshold`` and, with ``by_step``, how many learned early."""
+    seeds = sorted({r["seed"] for r in rows})
+    header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
+    if by_step is not None:
+        header.append(f"early (by step {_step(by_step)})")
+    panels: dict[tuple[str, str], list[dict[str, Any]]] = {}  # (preset, method): its runs
+    for r in rows:
+        panels.setdefault((r["preset"], r["method"]), []).append(r)
+    table = []
+    for (panel_preset, method), runs in panels.items():
+        cells = {
+            r["seed"]: f"{_step(r['onset_step'])}: {_rate(r['best_success'])} "
+            f"({_rate(r['final_success'])})"
+            for r in runs
+        }
+        name = f"{runs[0]['reading']} (`{panel_preset}`)"
+        if method in study.methods:
+            name = f"{METHODS[method].label.removesuffix(' (ours)')}: {name}"
+        line = [
+            name,
+            *[cells.get(s, "") for s in seeds],
+            f"{sum(r['onset_step'] != '' for r in runs)}/{len(runs)}",
+        ]
+        if by_step is not None:
+            line.append(f"{sum(r['early'] == 1 for r in runs)}/{len(runs)}")
+        table.append(line)
+    return markdown_table(title, header, table)
+
+
 def onset_texts(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[str, str] | None:
     """(CSV, Markdown) of the study's onsets beside ``preset``, or None without a finished
-    run of any panel."""
+    run of any panel. The CSV has every finished seed; the Markdown's tables the study's seeds
+    (`Study.seeds`) and, apart, the seeds only a rule reads; then each rule's verdict and, per
+    reading with rules, its early count over all its finished seeds (decides nothing)."""
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
@@ -210,47 +269,42 @@ def onset_texts(
         f"{threshold:g} (— never), then the best (final) policy's success on the evaluation "
         "TCs. Rules: `distgprl.report.onsets`."
     ]
+    rule_tasks = {r.task for _, r in study.rules}
     for task in tasks:
+        by_step = rule.by_step if rule is not None and task in rule_tasks else None
         mine = [r for r in rows if r["task"] == task]
-        if not mine:
-            continue
-        seeds = sorted({r["seed"] for r in mine})
-        header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
-        by_step = rule.by_step if rule is not None and rule.task == task else None
-        if by_step is not None:
-            header.append(f"early (by step {_step(by_step)})")
-        panels: dict[tuple[str, str], list[dict[str, Any]]] = {}  # (preset, method): its runs
-        for r in mine:
-            panels.setdefault((r["preset"], r["method"]), []).append(r)
-        table = []
-        for (panel_preset, method), runs in panels.items():
-            cells = {
-                r["seed"]: f"{_step(r['onset_step'])}: {_rate(r['best_success'])} "
-                f"({_rate(r['final_success'])})"
-                for r in runs
-            }
-            name = f"{runs[0]['reading']} (`{panel_preset}`)"
-            if method in study.methods:
-                name = f"{METHODS[method].label.removesuffix(' (ours)')}: {name}"
-            line = [
-                name,
-                *[cells.get(s, "") for s in seeds],
-                f"{sum(r['onset_step'] != '' for r in runs)}/{len(runs)}",
-            ]
-            if by_step is not None:
-                line.append(f"{sum(r['early'] == 1 for r in runs)}/{len(runs)}")
-            table.append(line)
-        parts.append(markdown_table(f"**{task.upper()}**", header, table))
+        inside = [r for r in mine if r["seed"] in study.seeds]
+        beyond = [r for r in mine if r["seed"] not in study.seeds]
+        if inside:
+            parts.append(_onset_table(f"**{task.upper()}**", inside, study, threshold, by_step))
+        if beyond:
+            title = (
+                f"**{task.upper()}, seeds beyond the study's {_seeds_text(study.seeds)}** (read "
+                "by the rules that name them only)"
+            )
+            parts.append(_onset_table(title, beyond, study, threshold, by_step))
+    for reading, own in study.rules:
+        verdict = rule_verdict(rows, study, own.name)
+        count = len(own.seeds)
+        middle = ""
+        if own.at_least - own.at_most > 1:  # a count between the two is possible
+            middle = f", otherwise {_short(own.if_between) if own.if_between else 'undecided'}"
+        needs = ""
+        if own.given:
+            needs = f"; needs {own.given} to give {_short(study.rule(own.given)[1].if_early)}"
+        parts.append(
+            f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
+            f"{own.task.upper()} seeds {_seeds_text(own.seeds)} a run learns early if its "
+            f"curve reaches {own.threshold:g} success after step 0 and by step "
+            f"{_step(own.by_step)}; {own.at_least} or more of {count} → {_short(own.if_early)}, "
+            f"{own.at_most} or fewer → {_short(own.if_late)}{middle}"
+            f"{needs}): **{verdict.text}**"
+        )
     for reading in study.readings:
-        own = reading.rule
-        if own is not None:
-            verdict = rule_verdict(rows, study, reading.preset)
+        for task in sorted({own.task for own in reading.rules}):
+            early, runs = _early_count(rows, reading.preset, study.methods[0], task)
             parts.append(
-                f"**{reading.label}** (its rule, fixed before its first run: on "
-                f"{own.task.upper()} a run learns early if its curve reaches "
-                f"{own.threshold:g} success after step 0 and by step {_step(own.by_step)}; "
-                f"{own.at_least} or more of {own.seeds} → {own.if_early.split(':')[0]}, "
-                f"{own.at_most} or fewer → {own.if_late.split(':')[0]}, otherwise "
-                f"undecided): **{verdict.text}**"
+                f"{reading.label}, every finished seed on {task.upper()} (descriptive; no rule "
+                f"reads this count): {early} of {runs} learn early."
             )
     return buffer.getvalue(), "\n\n".join(parts) + "\n"

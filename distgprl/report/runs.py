@@ -25,6 +25,7 @@ claims report :data:`TABLE_POLICY`, the best policy: Algorithm 1's output (docs/
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -92,12 +93,22 @@ def current_hash(task: str, method: str, seed: int, preset: str) -> str:
     return resolve_run(task, method, seed, preset).hash
 
 
-def select_runs(root: str | Path, preset: str, marker: str = "summary.json") -> RunSelection:
+def select_runs(
+    root: str | Path,
+    preset: str,
+    marker: str = "summary.json",
+    seeds: Collection[int] | None = None,
+) -> RunSelection:
     """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
     ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
-    current configuration (module docstring)."""
+    current configuration (module docstring); with ``seeds``, of those seeds only (a study
+    compares its readings at its own seeds, `distgprl.studies.Study.seeds`)."""
     base = Path(root) / preset
-    folders = sorted(p for p in base.glob("*/*/seed*") if p.is_dir())
+    folders = sorted(
+        p
+        for p in base.glob("*/*/seed*")
+        if p.is_dir() and (seeds is None or int(p.name.removeprefix("seed")) in seeds)
+    )
     checked = known_preset(preset)
     current, excluded = set(), []
     for folder in folders:
@@ -181,16 +192,20 @@ class EvaluationSelection:
 
 
 def run_evaluations(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
 ) -> EvaluationSelection:
     """The evaluation of ``policy`` (``"best"`` or ``"final"``) of each run that counts
     (`select_runs`: evaluated, current configuration). An untrained reference has only one
     evaluation, used for either policy. A trained run whose best policy has no evaluation, or
     one recorded under another config hash than its final evaluation's, is shown with its
-    final policy and listed (`EvaluationSelection.substituted`), never left out silently."""
+    final policy and listed (`EvaluationSelection.substituted`), never left out silently.
+    ``seeds``: as `select_runs`."""
     if policy not in POLICY_CHOICES:
         raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
-    runs = select_runs(root, preset)
+    runs = select_runs(root, preset, seeds=seeds)
     final_csv, final_summary = evaluation_file_names(None, "final")
     best_csv, best_summary = evaluation_file_names(None, "best")
     evaluations, substituted = [], []

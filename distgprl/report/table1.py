@@ -21,6 +21,7 @@ files they read.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -153,13 +154,18 @@ def collect_summaries(
     return out
 
 
-def collect_scores(root: str | Path, preset: str, policy: str = TABLE_POLICY) -> Scores:
+def collect_scores(
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
+) -> Scores:
     """{(task, method): [`run_scores` per seed]}: the rates and learning-curve measures the
     aggregates and the claims table bootstrap, from the same evaluations as Table I
     (``policy``, by default `TABLE_POLICY`, the best policy: the one switch that keeps the
-    claims on Table I's evaluation)."""
+    claims on Table I's evaluation); with ``seeds``, of those seeds' runs only."""
     out: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for evaluation in run_evaluations(root, preset, policy).evaluations:
+    for evaluation in run_evaluations(root, preset, policy, seeds).evaluations:
         scores = run_scores(evaluation.folder, run_summary(evaluation))
         out.setdefault((evaluation.task, evaluation.method), []).append(scores)
     return out

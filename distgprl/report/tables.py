@@ -26,7 +26,7 @@ from pathlib import Path
 
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
-from distgprl.report.aggregate import aggregate_texts, tasks_of
+from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
 from distgprl.report.claims_table import claims_texts
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
@@ -60,7 +60,7 @@ from distgprl.report.table2 import (
     select_trial_files,
 )
 from distgprl.schema import SCHEMA_VERSION, csv_meta_path, moved_robot
-from distgprl.studies import studies_of
+from distgprl.studies import studies_of, study_of_reading
 
 __all__ = [  # the tables' functions, importable from here as before the split
     "LATE_CURVE_POINTS",
@@ -75,6 +75,13 @@ __all__ = [  # the tables' functions, importable from here as before the split
     "table_meta_text",
     "write_tables",
 ]
+
+
+def _reading_scores(root: str | Path, preset: str) -> Scores:
+    """A study reading's scores (Table I's policy) at its study's seeds (`Study.seeds`): the
+    runs a rule alone reads, at further seeds, stay out of every cross-reading verdict."""
+    study = study_of_reading(preset)
+    return collect_scores(root, preset, TABLE_POLICY, seeds=None if study is None else study.seeds)
 
 
 def write_tables(
@@ -130,7 +137,7 @@ def write_tables(
     )
     studies = studies_of(preset)
     if studies:  # each claim under every reading of every study read beside this preset
-        results = study_verdicts(studies, scores, lambda p: collect_scores(root, p, TABLE_POLICY))
+        results = study_verdicts(studies, scores, lambda p: _reading_scores(root, p))
         written += _write_or_remove(
             out_dir / f"claims_robustness_{preset}",
             (".csv", ".md"),

@@ -286,6 +286,20 @@ def test_a_studys_curves_show_every_seed_of_every_reading_and_the_mean(study_tre
     assert "operator-signal, 1 seed" in signal.get_title()
 
 
+def test_a_studys_curves_leave_out_seeds_beyond_its_own(study_tree, study_run):
+    """A reading's runs at seeds a rule alone reads (5-9; `Study.seeds` is 0-4) are not
+    drawn: the signal panel keeps its one seed."""
+    from distgprl.report.curves import plot_reading_curves
+    from distgprl.studies import get_study
+
+    for seed in range(5, 10):
+        study_run(study_tree, "operator-signal", "dcp", "dist-gprl", seed, [0.0, 0.9])
+    fig, _ = plot_reading_curves(study_tree, get_study("operators"), ["dcp"])
+    signal = fig.axes[2]
+    assert "operator-signal, 1 seed" in signal.get_title()
+    assert len(signal.get_lines()) == 1
+
+
 def test_write_curves_writes_each_studys_curves_and_removes_them_without_runs(study_tree):
     import shutil
 

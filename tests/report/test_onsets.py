@@ -75,19 +75,73 @@ def test_a_study_of_every_trained_method_has_a_row_per_method_and_reading(tmp_pa
         ([LATE] * 4 + [EARLY] * 3, "coupling"),
     ],
 )
-def test_the_controls_rule_decides_from_its_own_runs_only(tmp_path, study_run, curves, verdict):
-    """4 or more of 5 control seeds early → reach, 1 or fewer → coupling, else undecided;
-    fewer than 5 finished → awaiting; other readings' runs (here: signal, all early) and the
-    control's DBM runs do not count."""
+def test_the_controls_first_rule_decides_from_its_own_runs_only(
+    tmp_path, study_run, curves, verdict
+):
+    """Stage 1: 4 or more of seeds 0-4 early → reach, 1 or fewer → coupling, else undecided;
+    fewer than 5 finished → awaiting; other readings' runs (here: signal, all early), the
+    control's DBM runs and its seeds beyond 4 do not count."""
     study = get_study("operators")
     for seed, success in enumerate(curves):
         study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, success)
     for seed in range(5):
         study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", seed, EARLY)
         study_run(tmp_path, CONTROL, "dbm", "dist-gprl", seed, EARLY)
-    result = rule_verdict(onset_rows(tmp_path, study, ["dcp", "dbm"]), study, CONTROL)
+    result = rule_verdict(onset_rows(tmp_path, study, ["dcp", "dbm"]), study, "stage 1")
     assert result.verdict.startswith(verdict)
     assert result.runs == min(len(curves), 5)
+
+
+@pytest.mark.parametrize(
+    ("signal", "control", "verdict"),
+    [
+        (5, 8, "reach"),
+        (4, 10, "reach"),
+        (5, 2, "coupling"),
+        (4, 0, "coupling"),
+        (5, 3, "both"),
+        (5, 7, "both"),
+        (3, 10, "void: stage 2 replication gave not replicated"),
+        (0, 0, "void: stage 2 replication gave not replicated"),
+    ],
+)
+def test_the_second_stage_reads_new_seeds_and_needs_the_signal_reading_replicated(
+    tmp_path, study_run, signal, control, verdict
+):
+    """Stage 2: the signal reading early on 4 or more of seeds 5-9 replicates its effect,
+    else the control's rule is void; the control's seeds 5-14 decide: 8 or more early →
+    reach, 2 or fewer → coupling, between → both. Seeds 0-4 (here all late for the control,
+    all early for the signal reading) do not count."""
+    study = get_study("operators")
+    for seed in range(5):
+        study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, LATE)
+        study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", seed, EARLY)
+    for index, seed in enumerate(range(5, 10)):
+        study_run(
+            tmp_path, "operator-signal", "dcp", "dist-gprl", seed, EARLY if index < signal else LATE
+        )
+    for index, seed in enumerate(range(5, 15)):
+        study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, EARLY if index < control else START)
+    rows = onset_rows(tmp_path, study, ["dcp"])
+    result = rule_verdict(rows, study, "stage 2")
+    assert (result.early, result.runs) == (control, 10)
+    assert result.verdict.startswith(verdict)
+    replication = rule_verdict(rows, study, "stage 2 replication")
+    assert replication.verdict.startswith("replicated" if signal >= 4 else "not replicated")
+    assert rule_verdict(rows, study, "stage 1").verdict.startswith("coupling")
+
+
+def test_the_second_stage_awaits_its_runs_and_the_replications(tmp_path, study_run):
+    """All ten control runs in but the signal reading's seeds 5-9 not: stage 2 awaits them
+    (not void); a control run missing: awaiting with the count."""
+    study = get_study("operators")
+    for seed in range(5, 15):
+        study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, EARLY)
+    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
+    assert result.verdict.startswith("awaiting (10 of 10 runs finished; stage 2 replication")
+    (tmp_path / CONTROL / "dcp" / "dist-gprl" / "seed14" / "done.json").unlink()
+    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
+    assert result.verdict.startswith("awaiting (9 of 10 runs finished")
 
 
 def test_the_table_shows_each_seed_the_early_counts_and_the_controls_verdict(tmp_path, study_run):
@@ -109,3 +163,31 @@ def test_the_table_shows_each_seed_the_early_counts_and_the_controls_verdict(tmp
     assert "(`operator-signal-uncoupled`) | —: 0.00 (0.00) | 0/1 | 0/1 |" in markdown
     assert "**0 of 1 seeds learn early: awaiting (1 of 5 runs finished)**" in markdown
     assert onset_texts(tmp_path / "none", get_study("operators"), ["dcp"], "paper") is None
+
+
+def test_seeds_beyond_the_studys_get_their_own_table_and_every_rule_its_line(tmp_path, study_run):
+    """The study's table has seeds 0-4 only; a rule's further seeds a table of their own
+    (every run in the CSV); each rule's verdict and each ruled reading's count over all its
+    seeds are stated."""
+    study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 0, EARLY)
+    study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 5, LATE)
+    study_run(tmp_path, CONTROL, "dcp", "dist-gprl", 7, EARLY)
+    csv_text, markdown = onset_texts(tmp_path, get_study("operators"), ["dcp"], "paper")
+    assert len(csv_text.splitlines()) == 1 + 3
+    main, beyond = markdown.split("**DCP, seeds beyond the study's 0–4**")
+    assert "| Run | seed 0 | reached 0.5 | early (by step 4 500) |" in main
+    assert "| Run | seed 5 | seed 7 | reached 0.5 | early (by step 4 500) |" in beyond
+    assert "(`operator-signal`) | 6 000: 0.70 (0.70) |  | 1/1 | 0/1 |" in beyond
+    assert "(`operator-signal-uncoupled`) |  | 3 000: 0.80 (0.80) | 1/1 | 1/1 |" in beyond
+    assert "**per-axis signal (v5), stage 2 replication** (its rule" in markdown
+    assert "on DCP seeds 5–14 a run learns early" in markdown
+    assert "8 or more of 10 → reach, 2 or fewer → coupling, otherwise both; needs stage 2" in (
+        markdown
+    )
+    assert "**1 of 1 seeds learn early: awaiting (1 of 10 runs finished; stage 2 replication" in (
+        markdown
+    )
+    assert "signal reach, uncoupled (control), every finished seed on DCP" in markdown
+    assert "per-axis signal (v5), every finished seed on DCP (descriptive; no rule reads this " in (
+        markdown.replace("\n", " ")
+    )

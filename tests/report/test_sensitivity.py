@@ -126,3 +126,15 @@ def test_a_control_is_drawn_hollow_beside_the_reading_with_its_gain(tree):
     assert control[0].get_transform() != success.transData
     assert all(line.get_transform() == success.transData for line in readings)
     assert sorted(line.get_xdata()[0] for line in readings) == pytest.approx([0.2, 1.0])
+
+
+def test_runs_at_seeds_beyond_the_studys_change_no_claim_per_reading(tree):
+    """Seeds 5-9 of a reading (a stage-2 rule's runs; `Study.seeds` is 0-4) stay out of the
+    claims per reading: the signal reading stays refuted on its three seeds although five
+    better runs lie beside them."""
+    for seed in range(5, 10):
+        _run(tree, "operator-signal", "dcp", "dist-gprl", seed, 0.95)
+    write_tables(tree, "paper", tree / "out")
+    _, rows = read_csv(tree / "out" / "claims_robustness_paper.csv")
+    windowed = {r["reading"]: r["verdict"] for r in rows if r["claim"] == GLOBAL}
+    assert windowed["per-axis signal (v5)"] == "refuted"
