@@ -55,6 +55,26 @@ def test_a_study_plans_its_methods_under_each_reading_seed_by_seed(tmp_path):
         plan_jobs("operators", seeds=[], root=tmp_path)
 
 
+def test_a_study_without_seeds_plans_its_seeds_then_its_rules_runs(tmp_path):
+    """No seeds given: the study's seeds 0-4 for every reading, then each pre-registered
+    rule's further runs (its reading, Dist-GPRL, its task) — none twice, none with
+    follow-ups; a task or method filter that excludes a rule's excludes its runs."""
+    study = get_study("operators")
+    jobs = plan_jobs("operators", root=tmp_path)
+    readings = len(study.presets) * 2 * len(study.seeds)
+    assert len(jobs) == readings + 5 + 10
+    assert {job.seed for job in jobs[:readings]} == set(study.seeds)
+    extra = {(job.preset, job.task, job.method, job.seed) for job in jobs[readings:]}
+    assert extra == {("operator-signal", "dcp", "dist-gprl", s) for s in range(5, 10)} | {
+        ("operator-signal-uncoupled", "dcp", "dist-gprl", s) for s in range(5, 15)
+    }
+    assert all(job.twin_trials == 0 and not job.repair_evaluations for job in jobs)
+    assert len(plan_jobs("operators", tasks=["dbm"], root=tmp_path)) == readings // 2
+    assert len(plan_jobs("operators", methods=["gprl-d"], root=tmp_path)) == readings
+    reward = get_study("reward-unit")
+    assert len(plan_jobs("reward-unit", root=tmp_path)) == len(reward.methods) * 2 * 5
+
+
 def test_status_accepts_a_study(tmp_path):
     result = CliRunner().invoke(
         app, ["status", "--preset", "operators", "--seeds", "0", "--root", str(tmp_path)]
@@ -63,6 +83,10 @@ def test_status_accepts_a_study(tmp_path):
     assert "operator-signal/dbm/dist-gprl/seed0" in result.output
     assert "operator-signal-uncoupled/dcp/dist-gprl/seed0" in result.output
     assert "0/8 done, 8 missing" in result.output
+    result = CliRunner().invoke(app, ["status", "--preset", "operators", "--root", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert "operator-signal-uncoupled/dcp/dist-gprl/seed14" in result.output
+    assert "0/55 done, 55 missing" in result.output
 
 
 def test_a_reading_preset_knows_its_study_and_a_reference_preset_none():

@@ -128,8 +128,15 @@ MethodsOption = Annotated[
 TasksOption = Annotated[
     str | None, typer.Option(help=f"Comma-separated tasks (default all): {TASKS_HELP}.")
 ]
-SeedsOption = Annotated[str, typer.Option(help="Comma-separated seeds.")]
 DEFAULT_SEEDS = ",".join(str(seed) for seed in SWEEP_SEEDS)
+SeedsOption = Annotated[
+    str | None,
+    typer.Option(
+        help=f"Comma-separated seeds (default: {DEFAULT_SEEDS}; for a study its seeds, then "
+        "its pre-registered rules' runs at further seeds).",
+        show_default=False,
+    ),
+]
 TaskOption = Annotated[str, typer.Option(metavar="TASK", help=f"Task: {TASKS_HELP}.")]
 
 

@@ -11,7 +11,6 @@ from typing import Annotated, Literal
 import typer
 
 from distgprl.cli.common import (
-    DEFAULT_SEEDS,
     METHODS_HELP,
     TRAINABLE_HELP,
     ConfigOption,
@@ -39,7 +38,7 @@ def sweep(
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
-    seeds: SeedsOption = DEFAULT_SEEDS,
+    seeds: SeedsOption = None,
     workers: Annotated[
         int | None,
         typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
@@ -102,7 +101,7 @@ def sweep(
         preset,
         split_list(methods),
         split_list(tasks),
-        parse_seeds(seeds),
+        None if seeds is None else parse_seeds(seeds),
         root,
         twin_trials,
         repair_evaluations,
@@ -185,7 +184,7 @@ def status(
     config: ConfigOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
-    seeds: SeedsOption = DEFAULT_SEEDS,
+    seeds: SeedsOption = None,
     root: RootOption = Path("results"),
     workers: Annotated[
         int | None,
@@ -201,7 +200,13 @@ def status(
 
     preset = resolve_preset(preset, config)
     statuses = sweep_status(
-        plan_jobs(preset, split_list(methods), split_list(tasks), parse_seeds(seeds), root)
+        plan_jobs(
+            preset,
+            split_list(methods),
+            split_list(tasks),
+            None if seeds is None else parse_seeds(seeds),
+            root,
+        )
     )
     for entry in statuses:
         typer.echo(entry.describe())
