@@ -481,13 +481,15 @@ def run_sweep(
             on_result(result, len(results), total)
     completed: set[Job] = set()
     stop = threading.Event()
+    heartbeat = None
     if on_tick is not None and todo:
 
         def tick() -> None:
             while not stop.wait(tick_s):
                 on_tick([job for job in todo if job not in completed])
 
-        threading.Thread(target=tick, name="sweep-heartbeat", daemon=True).start()
+        heartbeat = threading.Thread(target=tick, name="sweep-heartbeat", daemon=True)
+        heartbeat.start()
     stream = _run_local(todo, workers) if executor == "local" else _run_ray(todo, workers, address)
     try:
         for result in stream:
@@ -498,4 +500,6 @@ def run_sweep(
     finally:
         stop.set()
         stream.close()  # interrupted: the executor stops its running and queued jobs now
+        if heartbeat is not None:  # a report under way ends before the sweep returns
+            heartbeat.join()
     return results

@@ -184,6 +184,25 @@ def test_sweep_reports_unfinished_jobs_while_they_run(tmp_path, monkeypatch):
     assert len(ticks) == count
 
 
+def test_a_report_under_way_ends_before_the_sweep_returns(tmp_path, monkeypatch):
+    """A slow progress report that began while the last job ran finishes inside run_sweep:
+    nothing reports after it returned (a caller may print its summary then)."""
+    jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [0], root=tmp_path)
+    monkeypatch.setattr(
+        sweep, "run_job", lambda job: (time.sleep(0.3), sweep.JobResult(job, "done", 0.3))[1]
+    )
+    ticks: list[float] = []
+
+    def slow_report(todo):
+        time.sleep(0.25)
+        ticks.append(time.monotonic())
+
+    sweep.run_sweep(jobs, on_tick=slow_report, tick_s=0.2)
+    returned = time.monotonic()
+    time.sleep(0.4)
+    assert ticks and all(tick <= returned for tick in ticks)
+
+
 def test_status_command_prints_every_run_and_the_counts(tmp_path):
     result = CliRunner().invoke(
         app,
