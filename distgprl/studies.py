@@ -22,6 +22,7 @@ readings to tell which of the two lets that reading learn DCP early; no verdict 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from distgprl.errors import UserInputError
@@ -148,6 +149,33 @@ class Study:
     def rules(self) -> tuple[tuple[Reading, OnsetRule], ...]:
         """Every reading's rules, with their reading, in the readings' order."""
         return tuple((reading, rule) for reading in self.readings for rule in reading.rules)
+
+    def planned_runs(
+        self,
+        methods: Sequence[str] | None,
+        tasks: Sequence[str],
+        seeds: Sequence[int] | None = None,
+    ) -> list[tuple[str, str, str, int]]:
+        """(preset, method, task, seed) of the runs the study's sweep trains, in order: seed by
+        seed, every reading's preset for ``methods`` (default: the study's) on ``tasks``; then,
+        without ``seeds`` (default: `seeds`), each rule's runs at its seeds (its reading, the
+        study's first method, its task — where ``methods`` and ``tasks`` include them)."""
+        runs = [
+            (preset, method, task, seed)
+            for seed in (self.seeds if seeds is None else seeds)
+            for preset in self.presets
+            for method in (methods or self.methods)
+            for task in tasks
+        ]
+        method = self.methods[0]
+        if seeds is None and (not methods or method in methods):
+            runs += [
+                (reading.preset, method, rule.task, seed)
+                for reading, rule in self.rules
+                if rule.task in tasks
+                for seed in rule.seeds
+            ]
+        return list(dict.fromkeys(runs))
 
     def rule(self, name: str) -> tuple[Reading, OnsetRule]:
         """The rule ``name`` and its reading; a `KeyError` names the study's rules."""

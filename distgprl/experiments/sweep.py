@@ -118,33 +118,18 @@ def plan_jobs(
     for the study's methods (or ``methods``), seed by seed across the readings, with no
     follow-ups (the twin trials and safety-layer evaluations are Table I's, not a study's).
 
-    ``seeds`` None: `SWEEP_SEEDS` for a preset; for a study its own (`Study.seeds`) and then
-    every pre-registered rule's runs at further seeds (`OnsetRule.seeds`: that rule's reading,
-    the study's first method, the rule's task — where ``methods`` and ``tasks`` include them).
-    Given seeds are exactly those, for every reading."""
-    if is_study(preset):
-        study = get_study(preset)
-        planned: dict[tuple[str, str, str, int], Job] = {}
-
-        def add(member: str, run_methods: Sequence[str], run_tasks: Sequence[str] | None,
-                seed: int) -> None:  # fmt: skip
-            for job in plan_jobs(member, run_methods, run_tasks, [seed], root):
-                key = (job.preset, job.task, job.method, job.seed)
-                planned.setdefault(key, replace(job, named_with_preset=True))
-
-        for seed in study.seeds if seeds is None else seeds:
-            for member in study.presets:
-                add(member, methods or study.methods, tasks, seed)
-        if seeds is None:  # the rules' own runs, after the study's
-            method = study.methods[0]
-            for reading, rule in study.rules:
-                if (methods and method not in methods) or (tasks and rule.task not in tasks):
-                    continue
-                for seed in rule.seeds:
-                    add(reading.preset, [method], [rule.task], seed)
-        if not planned:
+    ``seeds`` None: `SWEEP_SEEDS` for a preset; for a study `Study.planned_runs` (its seeds,
+    then its rules' further runs). Given seeds are exactly those, for every reading."""
+    if is_study(preset):  # its readings' runs seed by seed, then its rules' (`planned_runs`)
+        runs = get_study(preset).planned_runs(methods, tasks or TASK_NAMES, seeds)
+        jobs = [
+            replace(job, named_with_preset=True)
+            for member, method, task, seed in runs
+            for job in plan_jobs(member, [method], [task], [seed], root)
+        ]
+        if not jobs:
             raise UserInputError("no seeds given")
-        return list(planned.values())
+        return list({(j.preset, j.task, j.method, j.seed): j for j in jobs}.values())
     seeds = SWEEP_SEEDS if seeds is None else seeds
     methods = list(methods or TABLE_ORDER)
     tasks = list(tasks or TASK_NAMES)
