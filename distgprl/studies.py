@@ -139,9 +139,15 @@ class Study:
         names = [rule.name for _, rule in rules]
         if len(set(names)) != len(names):
             raise ValueError(f"study {self.name!r}: rule names repeat: {names}")
-        for _, rule in rules:
-            if rule.given and rule.given not in names:
-                raise ValueError(f"rule {rule.name!r} needs unknown rule {rule.given!r}")
+        needs = {rule.name: rule.given for _, rule in rules}
+        for name in names:  # follow each rule's chain of needed rules to its end
+            chain = [name]
+            while given := needs[chain[-1]]:
+                if given not in needs:
+                    raise ValueError(f"rule {chain[-1]!r} needs unknown rule {given!r}")
+                if given in chain:
+                    raise ValueError(f"rules need each other in a circle: {chain}")
+                chain.append(given)
         if len({(rule.threshold, rule.by_step) for _, rule in rules}) > 1:
             raise ValueError(f"study {self.name!r}: its rules differ in threshold or by_step")
 

@@ -123,6 +123,8 @@ def test_a_rule_and_a_study_refuse_rules_that_could_not_be_applied():
         study(rule, rule)
     with pytest.raises(ValueError, match="unknown rule 'c'"):
         study(dataclasses.replace(rule, given="c"))
+    with pytest.raises(ValueError, match="circle"):
+        study(dataclasses.replace(rule, given="b"), dataclasses.replace(rule, name="b", given="a"))
     with pytest.raises(ValueError, match="threshold or by_step"):
         study(rule, dataclasses.replace(rule, name="b", by_step=3000))
     with pytest.raises(KeyError, match="no rule 'c'"):
