@@ -80,6 +80,8 @@ class OnsetRule:
     given: str = ""
 
     def __post_init__(self) -> None:
+        if len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"rule {self.name!r}: a seed repeats: {self.seeds}")
         if not 0 <= self.at_most < self.at_least <= len(self.seeds):
             raise ValueError(
                 f"rule {self.name!r}: need 0 <= at_most < at_least <= {len(self.seeds)} seeds"
@@ -135,6 +137,12 @@ class Study:
     seeds: tuple[int, ...] = SWEEP_SEEDS
 
     def __post_init__(self) -> None:
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"study {self.name!r}: seeds must be distinct and some: {self.seeds}")
+        if self.reference.rules:
+            raise ValueError(
+                f"study {self.name!r}: a rule belongs to a study reading, not its reference"
+            )
         rules = self.rules
         names = [rule.name for _, rule in rules]
         if len(set(names)) != len(names):
@@ -184,7 +192,7 @@ class Study:
         return list(dict.fromkeys(runs))
 
     def rule(self, name: str) -> tuple[Reading, OnsetRule]:
-        """The rule ``name`` and its reading; a `KeyError` names the study's rules."""
+        """(reading, rule) of the rule ``name``; a `KeyError` names the study's rules."""
         for reading, rule in self.rules:
             if rule.name == name:
                 return reading, rule

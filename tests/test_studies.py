@@ -129,6 +129,12 @@ def test_a_rule_and_a_study_refuse_rules_that_could_not_be_applied():
         study(rule, dataclasses.replace(rule, name="b", by_step=3000))
     with pytest.raises(KeyError, match="no rule 'c'"):
         study(rule).rule("c")
+    with pytest.raises(ValueError, match="a seed repeats"):
+        dataclasses.replace(rule, seeds=(5, 5, 6))
+    with pytest.raises(ValueError, match="not its reference"):
+        Study("s", Reading("paper", "Table I", rules=(rule,)), (), ("dist-gprl",), "?")
+    with pytest.raises(ValueError, match="distinct and some"):
+        Study("s", reference, (), ("dist-gprl",), "?", seeds=())
 
 
 def test_the_operator_controls_second_stage_reads_new_seeds_only():

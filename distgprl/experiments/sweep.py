@@ -430,6 +430,11 @@ def _run_ray(
     yield from run_on_ray(jobs, workers, address, run_job, record_failure)
 
 
+HEARTBEAT_JOIN_S = 60.0
+"""How long `run_sweep` waits, before it returns, for a progress report under way (one that
+hangs, say on a stuck file system, does not hold the sweep)."""
+
+
 def run_sweep(
     jobs: list[Job],
     workers: int = 1,
@@ -484,7 +489,9 @@ def run_sweep(
                 on_result(result, len(results), total)
     finally:
         stop.set()
-        stream.close()  # interrupted: the executor stops its running and queued jobs now
-        if heartbeat is not None:  # a report under way ends before the sweep returns
-            heartbeat.join()
+        try:
+            stream.close()  # interrupted: the executor stops its running and queued jobs now
+        finally:
+            if heartbeat is not None:  # a report under way ends before the sweep returns
+                heartbeat.join(timeout=HEARTBEAT_JOIN_S)
     return results

@@ -279,8 +279,9 @@ def onset_texts(
             parts.append(_onset_table(f"**{task.upper()}**", inside, study, threshold, by_step))
         if beyond:
             title = (
-                f"**{task.upper()}, seeds beyond the study's {_seeds_text(study.seeds)}** (read "
-                "by the rules that name them only)"
+                f"**{task.upper()}, seeds beyond the study's {_seeds_text(study.seeds)}** (no "
+                "table, figure or verdict across readings reads them; the rules below name "
+                "their seeds)"
             )
             parts.append(_onset_table(title, beyond, study, threshold, by_step))
     for reading, own in study.rules:

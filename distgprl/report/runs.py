@@ -101,13 +101,20 @@ def select_runs(
 ) -> RunSelection:
     """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
     ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
-    current configuration (module docstring); with ``seeds``, of those seeds only (a study
-    compares its readings at its own seeds, `distgprl.studies.Study.seeds`)."""
+    current configuration (module docstring); with ``seeds``, a trained method's runs of
+    those seeds only (a study compares its readings at its own seeds,
+    `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays)."""
     base = Path(root) / preset
     folders = sorted(
         p
         for p in base.glob("*/*/seed*")
-        if p.is_dir() and (seeds is None or int(p.name.removeprefix("seed")) in seeds)
+        if p.is_dir()
+        and (
+            seeds is None
+            or p.parent.name not in METHODS
+            or not METHODS[p.parent.name].trainable
+            or int(p.name.removeprefix("seed")) in seeds
+        )
     )
     checked = known_preset(preset)
     current, excluded = set(), []

@@ -137,7 +137,10 @@ def write_tables(
     )
     studies = studies_of(preset)
     if studies:  # each claim under every reading of every study read beside this preset
-        results = study_verdicts(studies, scores, lambda p: _reading_scores(root, p))
+        if len({study.seeds for study in studies}) > 1:
+            raise ValueError(f"the studies beside {preset} compare at different seeds")
+        at_seeds = collect_scores(root, preset, TABLE_POLICY, seeds=studies[0].seeds)
+        results = study_verdicts(studies, at_seeds, lambda p: _reading_scores(root, p))
         written += _write_or_remove(
             out_dir / f"claims_robustness_{preset}",
             (".csv", ".md"),

@@ -142,6 +142,10 @@ def test_the_second_stage_awaits_its_runs_and_the_replications(tmp_path, study_r
     (tmp_path / CONTROL / "dcp" / "dist-gprl" / "seed14" / "done.json").unlink()
     result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
     assert result.verdict.startswith("awaiting (9 of 10 runs finished")
+    for seed in range(5, 10):  # the replication fails: void, whatever the control's runs say
+        study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", seed, LATE)
+    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
+    assert result.verdict == "void: stage 2 replication gave not replicated"
 
 
 def test_the_table_shows_each_seed_the_early_counts_and_the_controls_verdict(tmp_path, study_run):
