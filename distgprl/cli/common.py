@@ -160,8 +160,11 @@ def split_list(text: str | None) -> list[str] | None:
     return [item.strip() for item in text.split(",") if item.strip()] if text else None
 
 
-def parse_seeds(text: str) -> list[int]:
-    """The seeds of ``--seeds`` (comma-separated integers); a clear error otherwise."""
+def parse_seeds(text: str | None) -> list[int] | None:
+    """The seeds of ``--seeds`` (comma-separated integers; None when not given, so a study
+    plans its own); a clear error otherwise."""
+    if text is None:
+        return None
     try:
         return [int(s) for s in split_list(text) or []]
     except ValueError:

@@ -101,7 +101,7 @@ def sweep(
         preset,
         split_list(methods),
         split_list(tasks),
-        None if seeds is None else parse_seeds(seeds),
+        parse_seeds(seeds),
         root,
         twin_trials,
         repair_evaluations,
@@ -204,7 +204,7 @@ def status(
             preset,
             split_list(methods),
             split_list(tasks),
-            None if seeds is None else parse_seeds(seeds),
+            parse_seeds(seeds),
             root,
         )
     )

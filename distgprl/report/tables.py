@@ -26,7 +26,7 @@ from pathlib import Path
 
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
-from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
+from distgprl.report.aggregate import aggregate_texts, tasks_of
 from distgprl.report.claims_table import claims_texts
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
@@ -60,7 +60,7 @@ from distgprl.report.table2 import (
     select_trial_files,
 )
 from distgprl.schema import SCHEMA_VERSION, csv_meta_path, moved_robot
-from distgprl.studies import studies_of, study_of_reading
+from distgprl.studies import studies_of
 
 __all__ = [  # the tables' functions, importable from here as before the split
     "LATE_CURVE_POINTS",
@@ -75,13 +75,6 @@ __all__ = [  # the tables' functions, importable from here as before the split
     "table_meta_text",
     "write_tables",
 ]
-
-
-def _reading_scores(root: str | Path, preset: str) -> Scores:
-    """A study reading's scores (Table I's policy) at its study's seeds (`Study.seeds`): the
-    runs a rule alone reads, at further seeds, stay out of every cross-reading verdict."""
-    study = study_of_reading(preset)
-    return collect_scores(root, preset, TABLE_POLICY, seeds=None if study is None else study.seeds)
 
 
 def write_tables(
@@ -139,8 +132,13 @@ def write_tables(
     if studies:  # each claim under every reading of every study read beside this preset
         if len({study.seeds for study in studies}) > 1:
             raise ValueError(f"the studies beside {preset} compare at different seeds")
-        at_seeds = collect_scores(root, preset, TABLE_POLICY, seeds=studies[0].seeds)
-        results = study_verdicts(studies, at_seeds, lambda p: _reading_scores(root, p))
+        # every reading, Table I's included, at the studies' seeds (`Study.seeds`): runs a
+        # rule alone reads, at further seeds, stay out of every cross-reading verdict
+        seeds = studies[0].seeds
+        at_seeds = collect_scores(root, preset, TABLE_POLICY, seeds=seeds)
+        results = study_verdicts(
+            studies, at_seeds, lambda p: collect_scores(root, p, TABLE_POLICY, seeds=seeds)
+        )
         written += _write_or_remove(
             out_dir / f"claims_robustness_{preset}",
             (".csv", ".md"),
