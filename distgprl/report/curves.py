@@ -21,7 +21,6 @@ method keeps its colour in every figure, and each figure is written as a vector 
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -32,27 +31,20 @@ from distgprl.report.aggregate import (
     BOOTSTRAP_REPS,
     BOOTSTRAP_SEED,
     CONFIDENCE,
-    PROPOSED,
     estimate_rng,
 )
 from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.report.noise_curve import write_noise_curve
-from distgprl.report.runs import select_runs
+from distgprl.report.seed_curves import PANELS, SEED_COLORS, reading_columns, seed_curves
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
 from distgprl.report.table2 import hardware_rows, select_trial_files
-from distgprl.schema import read_csv
 from distgprl.studies import Study, studies_of
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-PANELS = (
-    ("success_rate", "success rate"),
-    ("collision_rate", "collision rate"),
-    ("mean_return", "episode return"),
-)
 #: y-axis label per panel (learning-curve evaluations: the fixed curve TCs, deterministic).
 Y_LABELS = {
     "success_rate": "success rate (curve TCs)",
@@ -74,29 +66,6 @@ FIGURES = {
     "covariance_effect": ("dist-gprl", "dist-gprl-nocov"),
     "all_methods": tuple(m for m in TABLE_ORDER if METHODS[m].trainable),
 }
-
-
-def seed_curves(
-    root: str | Path,
-    preset: str,
-    task: str,
-    method: str,
-    seeds: Collection[int] | None = None,
-) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
-    a run of the current configuration (`select_runs`), each on its own steps. Runs still in
-    progress are left out, and so are seeds with an empty learning curve."""
-    current = select_runs(root, preset, marker="done.json", seeds=seeds).current
-    out = {}
-    for path in sorted((Path(root) / preset / task / method).glob("seed*/progress.csv")):
-        if path.parent not in current:
-            continue
-        _, rows = read_csv(path)
-        if rows:
-            steps = np.array([int(r["step"]) for r in rows])
-            values = {key: np.array([float(r[key]) for r in rows]) for key, _ in PANELS}
-            out[int(path.parent.name.removeprefix("seed"))] = (steps, values)
-    return dict(sorted(out.items()))
 
 
 def load_curves(
@@ -225,25 +194,6 @@ def plot_figure(
     bottom = (0.08 + 0.18 * legend_rows) / height if legend_rows else 0.0
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / height))
     return fig, drawn
-
-
-SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
-"""A seed's line colour in `plot_reading_curves` (seed k: the k-th, cycling), the same in
-every panel."""
-
-
-def reading_columns(study: Study) -> list[tuple[str, str, str]]:
-    """The panels of `plot_reading_curves`, left to right: (preset, method, title) — the
-    studied method (Dist-GPRL where the study trains it) under each reading, the reference's
-    first, and for an operator study Dist-GPRL-NoCov from the reference preset (no operator,
-    so no reading changes it)."""
-    method = PROPOSED if PROPOSED in study.methods else study.methods[0]
-    label = METHODS[method].label.removesuffix(" (ours)")
-    columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
-    if study.reads_the_operator:
-        nocov = "dist-gprl-nocov"
-        columns.append((study.reference.preset, nocov, f"{METHODS[nocov].label} (no operator)"))
-    return columns
 
 
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:

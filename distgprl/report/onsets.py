@@ -37,10 +37,10 @@ from pathlib import Path
 from typing import Any
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.curves import reading_columns, seed_curves
 from distgprl.report.markdown import markdown_table
 from distgprl.report.paired import FINAL_POLICY
 from distgprl.report.runs import TABLE_POLICY
+from distgprl.report.seed_curves import reading_columns, seed_curves
 from distgprl.report.table1 import per_seed_rows
 from distgprl.studies import OnsetRule, Study
 
@@ -53,6 +53,8 @@ __all__ = [
     "onset_step",
     "onset_texts",
     "rule_verdict",
+    "run_label",
+    "seeds_text",
     "study_rule",
 ]
 
@@ -99,11 +101,20 @@ def _evaluations(
 def onset_panels(study: Study) -> list[tuple[str, str, str]]:
     """(preset, method, reading label) per table row: each of the study's methods (Table I's
     order) under each reading, the reference's first; an operator study adds NoCov from the
-    reference preset (`distgprl.report.curves.reading_columns`' last panel)."""
+    reference preset (`distgprl.report.seed_curves.reading_columns`' last panel)."""
     methods = [m for m in TABLE_ORDER if m in study.methods]
     panels = [(r.preset, m, r.label) for m in methods for r in study.all_readings]
     extra = [(p, m, title) for p, m, title in reading_columns(study) if m not in study.methods]
     return panels + extra
+
+
+def run_label(study: Study, method: str, reading: str) -> str:
+    """A table row's or figure row's name for ``method`` under ``reading`` (a row's
+    ``reading``): "Dist-GPRL: per-axis signal (v5)"; a method the study does not train (an
+    operator study's NoCov) by its reading label alone, which names it."""
+    if method in study.methods:
+        return f"{METHODS[method].label.removesuffix(' (ours)')}: {reading}"
+    return reading
 
 
 def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[str, Any]]:
@@ -204,7 +215,7 @@ def _step(value: Any) -> str:
     return "—" if value in ("", None) else f"{int(value):,}".replace(",", " ")
 
 
-def _seeds_text(seeds: tuple[int, ...]) -> str:
+def seeds_text(seeds: tuple[int, ...]) -> str:
     """``seeds`` as "0–4" where they are a run of consecutive integers, else listed."""
     if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
         return f"{seeds[0]}–{seeds[-1]}"
@@ -231,9 +242,7 @@ def _onset_table(
             f"({_rate(r['final_success'])})"
             for r in runs
         }
-        name = f"{runs[0]['reading']} (`{panel_preset}`)"
-        if method in study.methods:
-            name = f"{METHODS[method].label.removesuffix(' (ours)')}: {name}"
+        name = f"{run_label(study, method, runs[0]['reading'])} (`{panel_preset}`)"
         line = [
             name,
             *[cells.get(s, "") for s in seeds],
@@ -279,7 +288,7 @@ def onset_texts(
             parts.append(_onset_table(f"**{task.upper()}**", inside, study, threshold, by_step))
         if beyond:
             title = (
-                f"**{task.upper()}, seeds beyond the study's {_seeds_text(study.seeds)}** (no "
+                f"**{task.upper()}, seeds beyond the study's {seeds_text(study.seeds)}** (no "
                 "table, figure or verdict across readings reads them; the rules below name "
                 "their seeds)"
             )
@@ -295,7 +304,7 @@ def onset_texts(
             needs = f"; needs {own.given} to give {_short(study.rule(own.given)[1].if_early)}"
         parts.append(
             f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
-            f"{own.task.upper()} seeds {_seeds_text(own.seeds)} a run learns early if its "
+            f"{own.task.upper()} seeds {seeds_text(own.seeds)} a run learns early if its "
             f"curve reaches {own.threshold:g} success after step 0 and by step "
             f"{_step(own.by_step)}; {own.at_least} or more of {count} → {_short(own.if_early)}, "
             f"{own.at_most} or fewer → {_short(own.if_late)}{middle}"

@@ -1,0 +1,70 @@
+"""Learning curves seed by seed, as the result files hold them (``progress.csv``), and the
+panels in which a study reads them.
+
+The one source of both for the curve figures (`distgprl.report.curves`), the onset tables
+(`distgprl.report.onsets`) and the onset figure (`distgprl.report.onset_figure`): the
+figures draw the onsets, and the onsets read the curves, without an import circle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from pathlib import Path
+
+import numpy as np
+
+from distgprl.methods import METHODS
+from distgprl.report.aggregate import PROPOSED
+from distgprl.report.runs import select_runs
+from distgprl.schema import read_csv
+from distgprl.studies import Study
+
+__all__ = ["PANELS", "SEED_COLORS", "reading_columns", "seed_curves"]
+
+PANELS = (
+    ("success_rate", "success rate"),
+    ("collision_rate", "collision rate"),
+    ("mean_return", "episode return"),
+)
+"""The learning-curve metrics read (``progress.csv`` columns) and drawn, with their labels."""
+
+SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
+"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling), the same in
+every panel and figure."""
+
+
+def seed_curves(
+    root: str | Path,
+    preset: str,
+    task: str,
+    method: str,
+    seeds: Collection[int] | None = None,
+) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
+    """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
+    a run of the current configuration (`select_runs`), each on its own steps. Runs still in
+    progress are left out, and so are seeds with an empty learning curve."""
+    current = select_runs(root, preset, marker="done.json", seeds=seeds).current
+    out = {}
+    for path in sorted((Path(root) / preset / task / method).glob("seed*/progress.csv")):
+        if path.parent not in current:
+            continue
+        _, rows = read_csv(path)
+        if rows:
+            steps = np.array([int(r["step"]) for r in rows])
+            values = {key: np.array([float(r[key]) for r in rows]) for key, _ in PANELS}
+            out[int(path.parent.name.removeprefix("seed"))] = (steps, values)
+    return dict(sorted(out.items()))
+
+
+def reading_columns(study: Study) -> list[tuple[str, str, str]]:
+    """The panels of `distgprl.report.curves.plot_reading_curves`, left to right: (preset,
+    method, title) — the studied method (Dist-GPRL where the study trains it) under each
+    reading, the reference's first, and for an operator study Dist-GPRL-NoCov from the
+    reference preset (no operator, so no reading changes it)."""
+    method = PROPOSED if PROPOSED in study.methods else study.methods[0]
+    label = METHODS[method].label.removesuffix(" (ours)")
+    columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
+    if study.reads_the_operator:
+        nocov = "dist-gprl-nocov"
+        columns.append((study.reference.preset, nocov, f"{METHODS[nocov].label} (no operator)"))
+    return columns
