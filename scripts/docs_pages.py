@@ -79,6 +79,8 @@ RESULT_FIGURES: tuple[tuple[str, str], ...] = (
     ("sensitivity_operators_paper.png", "The operator study: Dist-GPRL per reading of S"),
     ("curves_operators_paper.png", "The operator study: learning curves per reading, seed by seed"),
     ("curves_reward-unit_paper.png", "The reward-unit study: learning curves, seed by seed"),
+    ("onsets_operators_paper.png", "The operator study: when each run first reaches 0.5 success"),
+    ("onsets_reward-unit_paper.png", "The reward-unit study: when each run first reaches 0.5"),
     ("rollout_dcp.gif", "A DCP rollout: Dist-GPRL's Table I policy (left) beside the demo"),
     ("rollout_dbm.gif", "A DBM rollout: the TC-conditioned demonstration"),
     ("dcp_scene.png", "The DCP scene"),

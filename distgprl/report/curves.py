@@ -11,7 +11,9 @@ are reproducible byte for byte and adding a method leaves the other bands unchan
 
 Beside a preset's studies, one more figure per study (`plot_reading_curves`): the studied
 method's success curve of every seed under each reading, so that *when* a seed learns is
-visible where the mean over seeds averages an early and a late learner into a slope.
+visible where the mean over seeds averages an early and a late learner into a slope; and
+the study's onset figure (`distgprl.report.onset_figure`), the step at which each run first
+learns, run by run.
 
 For print: every panel has its y-axis label, one legend for the whole figure sits below the
 panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
@@ -35,6 +37,7 @@ from distgprl.report.aggregate import (
 )
 from distgprl.report.figure_files import remove_figure, write_figure
 from distgprl.report.noise_curve import write_noise_curve
+from distgprl.report.onset_figure import write_onset_figure
 from distgprl.report.seed_curves import PANELS, SEED_COLORS, reading_columns, seed_curves
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
@@ -258,8 +261,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
     """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF; for
     each study read beside ``preset``, its readings' learning curves seed by seed
-    (`plot_reading_curves`) and, for an operator study, its sensitivity figure
-    (`distgprl.report.sensitivity`); and Table II's noise curve where twin trials ran at
+    (`plot_reading_curves`), for an operator study its sensitivity figure
+    (`distgprl.report.sensitivity`), and its onset figure (`distgprl.report.onset_figure`:
+    when each run first learns); and Table II's noise curve where twin trials ran at
     several noise levels (`distgprl.report.noise_curve`).
 
     A figure none of whose methods has a finished run is not drawn, and an earlier file of
@@ -301,6 +305,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
                 for r in study.all_readings
             }
             written += write_sensitivity(root, study, scores_of, out_dir)
+        written += write_onset_figure(root, study, tasks, out_dir, preset)  # when runs learn
     # Table II's noise curve: twin success and collision against the perception error
     written += write_noise_curve(hardware_rows(select_trial_files(root, preset)), out_dir, preset)
     return written

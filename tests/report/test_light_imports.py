@@ -60,6 +60,8 @@ def test_the_blocker_blocks():
         "distgprl.report.table1",
         "distgprl.report.table2",
         "distgprl.report.curves",
+        "distgprl.report.seed_curves",
+        "distgprl.report.onset_figure",
         "distgprl.report.paired",
         "distgprl.report.runs",
         "distgprl.report.check",

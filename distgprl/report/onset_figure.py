@@ -1,0 +1,215 @@
+"""The onset figure: when each run of a study first learns, run by run.
+
+The onset table (`distgprl.report.onsets`) drawn: for one study read beside a preset, one
+panel per task, one row per line of the table (`onset_rows`' panels, in their order, top to
+bottom: each method under each reading, and an operator study's NoCov), and in it one marker
+per finished run at its onset — the first learning-curve step after step 0 at which the
+curve's success reaches the threshold (0.5; training steps on the x axis, from 0 to the run
+length). A run that never reaches it is drawn in the shaded "never" band right of the axis
+range. Within a row each seed keeps its own small vertical offset and its colour
+(`distgprl.report.seed_curves.SEED_COLORS`, as in the study's seed-by-seed curves), so runs
+at the same step do not hide each other. Filled markers are the study's own seeds
+(`distgprl.studies.Study.seeds`, which every table and verdict across readings reads), hollow
+ones the further seeds only a pre-registered rule reads (`distgprl.studies.OnsetRule.seeds`).
+On a task a rule reads, a dashed line marks the rule's ``by_step``: a marker on or left of it
+learned early.
+
+The run length of a task is the longest ``run.total_steps`` its rows' presets resolve
+(`distgprl.config.load_config`): a run counts only with the config hash the code resolves
+for it now (`distgprl.report.runs`), which includes that length, so every drawn run was
+trained exactly that long.
+
+Reads result files only; `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from distgprl.config import load_config
+from distgprl.report.figure_files import remove_figure, write_figure
+from distgprl.report.onsets import THRESHOLD, onset_rows, run_label, seeds_text, study_rule
+from distgprl.report.seed_curves import SEED_COLORS
+from distgprl.studies import Study
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "NEVER_BAND",
+    "NEVER_X",
+    "SEED_SPREAD",
+    "marker_gid",
+    "plot_onset_figure",
+    "run_length",
+    "seed_offsets",
+    "write_onset_figure",
+]
+
+NEVER_X = 1.125
+"""Where a run that never reaches the threshold is drawn, as a multiple of the run length."""
+
+NEVER_BAND = (1.05, 1.2)
+"""The shaded "never" band's extent, as multiples of the run length (its right end is the
+axis's)."""
+
+SEED_SPREAD = 0.7
+"""The vertical extent of a row's seed offsets, in rows (rows are 1 apart)."""
+
+
+def marker_gid(preset: str, method: str, task: str, seed: int) -> str:
+    """The group id of a run's marker (a `matplotlib.lines.Line2D`'s ``gid``): how a test or
+    a reader of the figure object finds the run's marker."""
+    return f"onset {preset} {method} {task} seed{seed}"
+
+
+def seed_offsets(seeds: list[int]) -> dict[int, float]:
+    """{seed: vertical offset in rows} of ``seeds``: spread evenly over `SEED_SPREAD`, the
+    smallest seed highest (the rows' axis points down), one seed on the row's line."""
+    ordered = sorted(set(seeds))
+    if len(ordered) < 2:
+        return dict.fromkeys(ordered, 0.0)
+    step = SEED_SPREAD / (len(ordered) - 1)
+    return {seed: -SEED_SPREAD / 2 + step * index for index, seed in enumerate(ordered)}
+
+
+def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
+    """The x range's end on ``task``, in training steps: the longest ``run.total_steps`` of
+    ``presets`` on it (module docstring), or a later onset among ``onsets``."""
+    lengths = [load_config(preset, task).run.total_steps for preset in presets]
+    return max([*lengths, *onsets])
+
+
+def _steps_text(step: float) -> str:
+    """A step count as the onset tables write it: ``4 500``."""
+    return f"{round(step):,}".replace(",", " ")
+
+
+def _x_axis(ax: Axes, length: int, threshold: float) -> None:
+    """Ticks from 0 to ``length`` steps, the "never" band and its tick, the axis label."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.axvspan(NEVER_BAND[0] * length, NEVER_BAND[1] * length, color="0.9", lw=0, zorder=0)
+    locator = MaxNLocator(nbins=4, steps=[1, 1.5, 2, 2.5, 3, 5, 10])
+    ticks = [float(t) for t in locator.tick_values(0, length) if 0 <= t <= length]
+    ax.set_xticks([*ticks, NEVER_X * length], [*map(_steps_text, ticks), "never"])
+    ax.set_xlim(-0.03 * length, NEVER_BAND[1] * length)
+    ax.set_xlabel(f"training step at which the curve first reaches {threshold:g}", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(axis="x", alpha=0.3, lw=0.5)
+
+
+def _seed_marker(seed: int, study: Study) -> dict[str, Any]:
+    """A run marker's style (`matplotlib.lines.Line2D` keywords) at ``seed``: its seed's colour,
+    filled for one of the study's seeds, hollow for a further one."""
+    color = SEED_COLORS[seed % len(SEED_COLORS)]
+    fill = color if seed in study.seeds else "none"
+    return {"marker": "o", "ms": 6, "mew": 1.3, "ls": "none", "color": color, "mfc": fill}
+
+
+def _draw_task(
+    ax: Axes,
+    rows: list[dict[str, Any]],
+    panels: list[tuple[str, str, str]],
+    study: Study,
+    length: int,
+) -> int:
+    """One task's markers on ``ax``: a run of ``rows`` (the task's) in its panel's row of
+    ``panels``, at its onset step or `NEVER_X` times ``length``; a row without a run says so.
+    Returns the number of markers drawn."""
+    offsets = seed_offsets([int(r["seed"]) for r in rows])
+    drawn = 0
+    for index, (preset, method, _) in enumerate(panels):
+        runs = [r for r in rows if (r["preset"], r["method"]) == (preset, method)]
+        if not runs:
+            ax.text(length / 2, index, "no finished run", ha="center", va="center", fontsize=7,
+                    color="0.5")  # fmt: skip
+        for run in runs:
+            seed, onset = int(run["seed"]), run["onset_step"]
+            x = NEVER_X * length if onset == "" else int(onset)
+            ax.plot([x], [index + offsets[seed]], zorder=3, **_seed_marker(seed, study),
+                    gid=marker_gid(preset, method, run["task"], seed))  # fmt: skip
+            drawn += 1
+    for boundary in range(len(panels) - 1):
+        ax.axhline(boundary + 0.5, color="0.8", lw=0.6, zorder=1)
+    return drawn
+
+
+def plot_onset_figure(
+    root: str | Path, study: Study, tasks: list[str], preset: str
+) -> tuple[Figure, int]:
+    """The onset figure of ``study`` beside ``preset`` (module docstring): one panel per task
+    of ``tasks``, one row per `onset_rows` panel with a finished run on any of them. Returns
+    (figure, number of markers drawn: one per finished run, `onset_rows`' rows)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    rows = onset_rows(root, study, tasks)
+    if not rows:  # nothing to draw (`write_onset_figure` writes no file)
+        return plt.figure(), 0
+    rule = study_rule(study)
+    threshold = rule.threshold if rule else THRESHOLD
+    panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
+    seeds = sorted({int(r["seed"]) for r in rows})
+    row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset
+    fig, axes = plt.subplots(
+        1, len(tasks), figsize=(3.4 + 4.4 * len(tasks), 2.1 + row_height * len(panels)),
+        squeeze=False, sharey=True,
+    )  # fmt: skip
+    rule_tasks = {own.task for _, own in study.rules}
+    drawn = 0
+    for ax, task in zip(axes[0], tasks, strict=True):
+        mine = [r for r in rows if r["task"] == task]
+        onsets = [int(r["onset_step"]) for r in mine if r["onset_step"] != ""]
+        length = run_length(sorted({p for p, _, _ in panels}), task, onsets)
+        drawn += _draw_task(ax, mine, panels, study, length)
+        if rule is not None and task in rule_tasks:
+            ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
+            ax.text(rule.by_step, 1.005, f" early: ≤ {_steps_text(rule.by_step)}", fontsize=7,
+                    ha="left", va="bottom", transform=ax.get_xaxis_transform())  # fmt: skip
+        _x_axis(ax, length, threshold)
+        ax.set_title(f"{task.upper()} (runs of {_steps_text(length)} steps)", fontsize=9, pad=12)
+    first = axes[0, 0]
+    first.set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
+    first.set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
+    first.tick_params(axis="y", labelsize=8, length=0)
+    fig.suptitle(
+        f"When each run first reaches {threshold:g} success ({study.name} study, {preset} preset)"
+    )
+    handles = [Line2D([], [], label=f"seed {seed}", **_seed_marker(seed, study)) for seed in seeds]
+    columns = min(len(handles), 8)
+    fig.legend(
+        handles=handles, loc="lower center", ncol=columns, fontsize=7, frameon=False,
+        title_fontsize=7,
+        title="one marker per run, its colour its seed's; filled: the study's seeds "
+        f"({seeds_text(study.seeds)}); hollow: a further seed, read only by a rule",
+    )  # fmt: skip
+    height = fig.get_figheight()
+    bottom = (0.25 + 0.2 * -(-len(handles) // columns)) / height
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.05 / height))
+    return fig, drawn
+
+
+def write_onset_figure(
+    root: str | Path, study: Study, tasks: list[str], out_dir: str | Path, preset: str
+) -> list[Path]:
+    """Write ``study``'s onset figure beside ``preset`` (`plot_onset_figure`) as
+    ``<out_dir>/onsets_<study>_<preset>.{png,pdf}``; without a finished run to draw, remove
+    an earlier one instead (figures are functions of the current results only). Returns the
+    paths written."""
+    import matplotlib.pyplot as plt
+
+    fig, drawn = plot_onset_figure(root, study, tasks, preset)
+    stem = Path(out_dir) / f"onsets_{study.name}_{preset}"
+    written: list[Path] = []
+    if drawn:
+        written = write_figure(fig, stem)
+    else:
+        remove_figure(stem)
+    plt.close(fig)
+    return written
