@@ -40,10 +40,12 @@ if TYPE_CHECKING:
 __all__ = [
     "NEVER_BAND",
     "NEVER_X",
+    "SEED_SHAPES",
     "SEED_SPREAD",
     "marker_gid",
     "plot_onset_figure",
     "run_length",
+    "seed_marker",
     "seed_offsets",
     "write_onset_figure",
 ]
@@ -101,12 +103,18 @@ def _x_axis(ax: Axes, length: int, threshold: float) -> None:
     ax.grid(axis="x", alpha=0.3, lw=0.5)
 
 
-def _seed_marker(seed: int, study: Study) -> dict[str, Any]:
-    """A run marker's style (`matplotlib.lines.Line2D` keywords) at ``seed``: its seed's colour,
-    filled for one of the study's seeds, hollow for a further one."""
+SEED_SHAPES = ("o", "s", "D", "^")
+"""A seed's marker shape, one per round of `SEED_COLORS`: seed k and seed k + 9 share a colour,
+never a shape (distinct up to 36 seeds)."""
+
+
+def seed_marker(seed: int, study: Study) -> dict[str, Any]:
+    """A run marker's style (`matplotlib.lines.Line2D` keywords) at ``seed``: its seed's colour
+    and shape, filled for one of the study's seeds, hollow for a further one."""
     color = SEED_COLORS[seed % len(SEED_COLORS)]
+    shape = SEED_SHAPES[(seed // len(SEED_COLORS)) % len(SEED_SHAPES)]
     fill = color if seed in study.seeds else "none"
-    return {"marker": "o", "ms": 6, "mew": 1.3, "ls": "none", "color": color, "mfc": fill}
+    return {"marker": shape, "ms": 6, "mew": 1.3, "ls": "none", "color": color, "mfc": fill}
 
 
 def _draw_task(
@@ -129,7 +137,7 @@ def _draw_task(
         for run in runs:
             seed, onset = int(run["seed"]), run["onset_step"]
             x = NEVER_X * length if onset == "" else int(onset)
-            ax.plot([x], [index + offsets[seed]], zorder=3, **_seed_marker(seed, study),
+            ax.plot([x], [index + offsets[seed]], zorder=3, **seed_marker(seed, study),
                     gid=marker_gid(preset, method, run["task"], seed))  # fmt: skip
             drawn += 1
     for boundary in range(len(panels) - 1):
@@ -181,7 +189,7 @@ def plot_onset_figure(
     fig.suptitle(
         f"When each run first reaches {threshold:g} success ({study.name} study, {preset} preset)"
     )
-    handles = [Line2D([], [], label=f"seed {seed}", **_seed_marker(seed, study)) for seed in seeds]
+    handles = [Line2D([], [], label=f"seed {seed}", **seed_marker(seed, study)) for seed in seeds]
     columns = min(len(handles), 8)
     fig.legend(
         handles=handles, loc="lower center", ncol=columns, fontsize=7, frameon=False,

@@ -17,6 +17,7 @@ from distgprl.report.onset_figure import (
     marker_gid,
     plot_onset_figure,
     run_length,
+    seed_marker,
     seed_offsets,
     write_onset_figure,
 )
@@ -123,6 +124,14 @@ def test_seed_offsets_are_distinct_inside_the_row_and_fixed_by_seed():
     assert max(values) - min(values) < 1.0 and values[2] == pytest.approx(0.0)
     assert seed_offsets([0, 1, 2, 3, 4]) == offsets
     assert seed_offsets([7]) == {7: 0.0}
+
+
+def test_seeds_beyond_the_colour_cycle_differ_in_shape(operators):
+    """Fifteen seeds (the control's 0-14) draw fifteen distinct (colour, shape) markers, so no
+    two seeds' runs look alike where the colours cycle."""
+    study = get_study("operators")
+    styles = {(m["color"], m["marker"]) for m in (seed_marker(k, study) for k in range(15))}
+    assert len(styles) == 15
 
 
 def test_the_studys_seeds_are_filled_and_a_rules_further_seeds_hollow(operators):
