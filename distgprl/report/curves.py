@@ -35,7 +35,7 @@ from distgprl.report.aggregate import (
     CONFIDENCE,
     estimate_rng,
 )
-from distgprl.report.figure_files import remove_figure, write_figure
+from distgprl.report.figure_files import write_or_remove_figure
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
 from distgprl.report.seed_curves import PANELS, SEED_COLORS, reading_columns, seed_curves
@@ -272,8 +272,6 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
     """
-    import matplotlib.pyplot as plt
-
     from distgprl.data import TASK_NAMES
     from distgprl.errors import UserInputError
 
@@ -285,20 +283,14 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         )
     written = []
 
-    def write_or_remove(figure: tuple[Figure, int], stem: Path) -> None:
-        fig, drawn = figure
-        if drawn:
-            written.extend(write_figure(fig, stem))
-        else:  # nothing to draw: an earlier figure would no longer match the results
-            remove_figure(stem)
-        plt.close(fig)
-
     for name, methods in FIGURES.items():
         title = f"{TITLES[name]} ({preset} preset)"
-        write_or_remove(plot_figure(root, preset, tasks, methods, title), out / f"{name}_{preset}")
+        written += write_or_remove_figure(
+            plot_figure(root, preset, tasks, methods, title), out / f"{name}_{preset}"
+        )
     for study in studies_of(preset):  # the readings' curves, seed by seed
         stem = out / f"curves_{study.name}_{preset}"
-        write_or_remove(plot_reading_curves(root, study, tasks), stem)
+        written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)
         if study.reads_the_operator:  # an operator study's sensitivity figure
             scores_of = {
                 r.preset: collect_scores(root, r.preset, seeds=study.seeds)

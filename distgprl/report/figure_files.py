@@ -12,7 +12,7 @@ from distgprl.io import atomic_write_bytes
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PNG_DPI", "SUFFIXES", "remove_figure", "write_figure"]
+__all__ = ["PNG_DPI", "SUFFIXES", "remove_figure", "write_figure", "write_or_remove_figure"]
 
 PNG_DPI = 150
 """PNG resolution (dots per inch); the PDF is vector."""
@@ -39,3 +39,17 @@ def remove_figure(stem: str | Path) -> None:
     results no longer make)."""
     for suffix in SUFFIXES:
         Path(f"{stem}.{suffix}").unlink(missing_ok=True)
+
+
+def write_or_remove_figure(figure: tuple[Figure, int], stem: str | Path) -> list[Path]:
+    """Write a plot function's ``(figure, number of things drawn)`` to ``<stem>.{png,pdf}``
+    (`write_figure`), or, with nothing drawn, remove an earlier figure there (it would no
+    longer match the results); close the figure either way. Returns the paths written."""
+    import matplotlib.pyplot as plt
+
+    fig, drawn = figure
+    written = write_figure(fig, stem) if drawn else []
+    if not drawn:
+        remove_figure(stem)
+    plt.close(fig)
+    return written

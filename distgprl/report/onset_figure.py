@@ -28,8 +28,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from distgprl.config import load_config
-from distgprl.report.figure_files import remove_figure, write_figure
-from distgprl.report.onsets import THRESHOLD, onset_rows, run_label, seeds_text, study_rule
+from distgprl.report.figure_files import write_or_remove_figure
+from distgprl.report.onsets import (
+    THRESHOLD,
+    onset_rows,
+    run_label,
+    seeds_text,
+    step_text,
+    study_rule,
+)
 from distgprl.report.seed_curves import SEED_COLORS
 from distgprl.studies import Study
 
@@ -84,11 +91,6 @@ def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
     return max([*lengths, *onsets])
 
 
-def _steps_text(step: float) -> str:
-    """A step count as the onset tables write it: ``4 500``."""
-    return f"{round(step):,}".replace(",", " ")
-
-
 def _x_axis(ax: Axes, length: int, threshold: float) -> None:
     """Ticks from 0 to ``length`` steps, the "never" band and its tick, the axis label."""
     from matplotlib.ticker import MaxNLocator
@@ -96,7 +98,7 @@ def _x_axis(ax: Axes, length: int, threshold: float) -> None:
     ax.axvspan(NEVER_BAND[0] * length, NEVER_BAND[1] * length, color="0.9", lw=0, zorder=0)
     locator = MaxNLocator(nbins=4, steps=[1, 1.5, 2, 2.5, 3, 5, 10])
     ticks = [float(t) for t in locator.tick_values(0, length) if 0 <= t <= length]
-    ax.set_xticks([*ticks, NEVER_X * length], [*map(_steps_text, ticks), "never"])
+    ax.set_xticks([*ticks, NEVER_X * length], [*map(step_text, ticks), "never"])
     ax.set_xlim(-0.03 * length, NEVER_BAND[1] * length)
     ax.set_xlabel(f"training step at which the curve first reaches {threshold:g}", fontsize=8)
     ax.tick_params(labelsize=7)
@@ -178,10 +180,10 @@ def plot_onset_figure(
         drawn += _draw_task(ax, mine, panels, study, length)
         if rule is not None and task in rule_tasks:
             ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
-            ax.text(rule.by_step, 1.005, f" early: ≤ {_steps_text(rule.by_step)}", fontsize=7,
+            ax.text(rule.by_step, 1.005, f" early: ≤ {step_text(rule.by_step)}", fontsize=7,
                     ha="left", va="bottom", transform=ax.get_xaxis_transform())  # fmt: skip
         _x_axis(ax, length, threshold)
-        ax.set_title(f"{task.upper()} (runs of {_steps_text(length)} steps)", fontsize=9, pad=12)
+        ax.set_title(f"{task.upper()} (runs of {step_text(length)} steps)", fontsize=9, pad=12)
     first = axes[0, 0]
     first.set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
     first.set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
@@ -210,14 +212,5 @@ def write_onset_figure(
     ``<out_dir>/onsets_<study>_<preset>.{png,pdf}``; without a finished run to draw, remove
     an earlier one instead (figures are functions of the current results only). Returns the
     paths written."""
-    import matplotlib.pyplot as plt
-
-    fig, drawn = plot_onset_figure(root, study, tasks, preset)
     stem = Path(out_dir) / f"onsets_{study.name}_{preset}"
-    written: list[Path] = []
-    if drawn:
-        written = write_figure(fig, stem)
-    else:
-        remove_figure(stem)
-    plt.close(fig)
-    return written
+    return write_or_remove_figure(plot_onset_figure(root, study, tasks, preset), stem)

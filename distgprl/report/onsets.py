@@ -55,6 +55,7 @@ __all__ = [
     "rule_verdict",
     "run_label",
     "seeds_text",
+    "step_text",
     "study_rule",
 ]
 
@@ -211,7 +212,8 @@ def _rate(value: Any) -> str:
     return "–" if value in ("", None) else f"{float(value):.2f}"
 
 
-def _step(value: Any) -> str:
+def step_text(value: Any) -> str:
+    """A training step as the onset tables and figure write it (``4 500``; "—" for none)."""
     return "—" if value in ("", None) else f"{int(value):,}".replace(",", " ")
 
 
@@ -231,14 +233,14 @@ def _onset_table(
     seeds = sorted({r["seed"] for r in rows})
     header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
     if by_step is not None:
-        header.append(f"early (by step {_step(by_step)})")
+        header.append(f"early (by step {step_text(by_step)})")
     panels: dict[tuple[str, str], list[dict[str, Any]]] = {}  # (preset, method): its runs
     for r in rows:
         panels.setdefault((r["preset"], r["method"]), []).append(r)
     table = []
     for (panel_preset, method), runs in panels.items():
         cells = {
-            r["seed"]: f"{_step(r['onset_step'])}: {_rate(r['best_success'])} "
+            r["seed"]: f"{step_text(r['onset_step'])}: {_rate(r['best_success'])} "
             f"({_rate(r['final_success'])})"
             for r in runs
         }
@@ -306,7 +308,8 @@ def onset_texts(
             f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
             f"{own.task.upper()} seeds {seeds_text(own.seeds)} a run learns early if its "
             f"curve reaches {own.threshold:g} success after step 0 and by step "
-            f"{_step(own.by_step)}; {own.at_least} or more of {count} → {_short(own.if_early)}, "
+            f"{step_text(own.by_step)}; {own.at_least} or more of {count} → "
+            f"{_short(own.if_early)}, "
             f"{own.at_most} or fewer → {_short(own.if_late)}{middle}"
             f"{needs}): **{verdict.text}**"
         )
