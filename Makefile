@@ -52,6 +52,7 @@ tables:
 	$(BIN)/distgprl curves --preset paper
 	$(BIN)/distgprl tables --preset reward-unit-10
 	$(BIN)/distgprl mechanisms --preset paper
+	$(BIN)/python scripts/readme_results.py
 
 
 reproduce:

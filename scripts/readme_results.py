@@ -1,12 +1,15 @@
-"""Write the README's short results table from the committed Table I.
+"""Write the README's short results tables from the committed Table I and claims.
 
 ``python scripts/readme_results.py`` replaces what lies between ``<!-- results:start -->`` and
 ``<!-- results:end -->`` in README.md with `short_table`: each method's success and collision
 rates per task from ``paper_figures/table1_paper.csv`` (what `make tables` made), with links to
-the full tables. The full tables, the claims, Table II and the figures are on the
-documentation site's results page, which copies them from ``paper_figures/`` at build time
-(``scripts/docs_pages.py``). The committed-tables tests check that the README's table is
-`short_table` of the committed Table I, so run this after `make tables`.
+the full tables; and what lies between ``<!-- claims:start -->`` and ``<!-- claims:end -->``
+with `claims_table`: each claim's verdict under Table I's readings and across every reading,
+from ``paper_figures/claims_robustness_paper.csv``. The full tables, the claims, Table II and
+the figures are on the documentation site's results page, which copies them from
+``paper_figures/`` at build time (``scripts/docs_pages.py``). The committed-tables tests check
+that the README's blocks are `short_table` and `claims_table` of the committed files, so run
+this after `make tables`.
 """
 
 from __future__ import annotations
@@ -17,6 +20,11 @@ from pathlib import Path
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 START, END = "<!-- results:start -->", "<!-- results:end -->"
+CLAIMS_START, CLAIMS_END = "<!-- claims:start -->", "<!-- claims:end -->"
+TABLE_ONE_READING = "paper"
+"""The ``preset`` of the robustness rows that hold Table I's verdicts."""
+ACROSS_EVERY_READING = "across"
+"""The ``reading`` of the robustness rows that judge every reading together."""
 TASKS = ("dcp", "dbm")
 
 
@@ -71,15 +79,59 @@ def short_table(figures: Path = REPOSITORY / "paper_figures") -> str:
     return "\n".join(lines) + "\n"
 
 
+def claims_table(figures: Path = REPOSITORY / "paper_figures") -> str:
+    """The README's claims block: each claim's verdict under Table I's readings and across
+    every reading of the studies (``claims_robustness_paper.csv``, what `make tables` made),
+    or a note that no claims per reading are committed yet."""
+    path = figures / "claims_robustness_paper.csv"
+    link = "[`claims_robustness_paper.md`](paper_figures/claims_robustness_paper.md)"
+    if not path.exists():
+        return "No claims per reading yet: Table I's runs or the studies' are pending.\n"
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    claims = list(dict.fromkeys(row["claim"] for row in rows))
+    table_one = {row["claim"]: row["verdict"] for row in rows if row["preset"] == TABLE_ONE_READING}
+    across = {
+        row["claim"]: row["verdict"] for row in rows if row["reading"] == ACROSS_EVERY_READING
+    }
+    lines = [
+        "**The claims per reading** (every reading and its runs: "
+        f"{link}; rules: `distgprl.report.claims`, `distgprl.report.robustness`): a claim counts "
+        "as reproduced only where every reading reproduces it; one whose verdict changes with "
+        "the reading is reading-dependent, with the readings named; one ending 'at unequal "
+        "seeds' compares readings with different numbers of runs (a study still training).",
+        "",
+        "| Claim | Table I | Across every reading |",
+        "|---|---|---|",
+    ]
+    for claim in claims:
+        lines.append(f"| {claim} | {table_one.get(claim, '–')} | {across.get(claim, '–')} |")
+    return "\n".join(lines) + "\n"
+
+
+def _replace_block(text: str, start: str, end: str, block: str) -> str | None:
+    """``text`` with what lies between ``start`` and ``end`` replaced by ``block``, or None
+    where ``text`` has no such block."""
+    if start not in text or end not in text:
+        return None
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}\n{block}{end}{tail}"
+
+
 def main() -> int:
     readme = REPOSITORY / "README.md"
     text = readme.read_text()
-    if START not in text or END not in text:
-        print(f"README.md has no {START} ... {END} block", file=sys.stderr)
-        return 2
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    readme.write_text(f"{head}{START}\n{short_table()}{END}{tail}")
+    for start, end, block in (
+        (START, END, short_table()),
+        (CLAIMS_START, CLAIMS_END, claims_table()),
+    ):
+        replaced = _replace_block(text, start, end, block)
+        if replaced is None:
+            print(f"README.md has no {start} ... {end} block", file=sys.stderr)
+            return 2
+        text = replaced
+    readme.write_text(text)
     return 0
 
 

@@ -147,6 +147,39 @@ def test_the_short_table_is_table_one_in_brief(tmp_path):
     assert "No Table I" in load_script("readme_results").short_table(tmp_path / "none")
 
 
+def test_the_readme_shows_the_committed_claims_per_reading():
+    """The README's claims table (each claim's verdict under Table I and across every reading)
+    is made from the committed claims_robustness_paper.csv by scripts/readme_results.py."""
+    readme = (REPOSITORY / "README.md").read_text()
+    claims = load_script("readme_results").claims_table()
+    start, end = "<!-- claims:start -->\n", "<!-- claims:end -->"
+    assert f"{start}{claims}{end}" in readme, "README's claims are stale: scripts/readme_results.py"
+
+
+def test_the_claims_table_is_table_one_beside_every_reading(tmp_path):
+    """Each row of the README's claims table is a claim, its Table I verdict (the `paper`
+    preset's row) and its verdict across every reading (the `across` row), in the file's order;
+    a study reading's own row and the per-study columns are left to the full file."""
+    csv_text = (
+        "claim,reading,preset,verdict,detail\n"
+        "B claim,zero-mean GP (Table I),paper,refuted on DCP,\n"
+        "B claim,unit variance (v4),operator-unit,reproduced,\n"
+        "B claim,across operators,,reading-dependent: operators only,\n"
+        "B claim,across,,reading-dependent: refuted on DCP under zero-mean GP,\n"
+        "A claim,zero-mean GP (Table I),paper,inconclusive,\n"
+        "A claim,across,,inconclusive under every reading,\n"
+    )
+    (tmp_path / "claims_robustness_paper.csv").write_text(csv_text)
+    table = load_script("readme_results").claims_table(tmp_path)
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "claim |" in line]
+    assert rows == [
+        "| B claim | refuted on DCP | reading-dependent: refuted on DCP under zero-mean GP |",
+        "| A claim | inconclusive | inconclusive under every reading |",
+    ]
+    assert "operators only" not in table
+    assert "No claims" in load_script("readme_results").claims_table(tmp_path / "none")
+
+
 def test_the_site_shows_the_committed_hardware_and_repair_tables():
     """The site's copies of Table II, the twin robustness table and Table I + repair are the
     committed ones (where they exist)."""
