@@ -4,7 +4,8 @@ For the studies (`distgprl.studies`) read beside a preset's Table I — the cova
 readings, the unit of r_tc — every claim of `distgprl.report.claims` is tested once per
 reading, with the same rules and the same bootstrap seed, on that reading's runs:
 
-- the reference reading (Table I's) uses the reference preset's runs as they are;
+- the reference reading (Table I's) uses the reference preset's runs as they are; read beside
+  several studies it is named by each studied constant's Table I value (`reference_reading`);
 - a study reading replaces every method the reading acts on (`Study.acted_on`: for the
   operator study each method with the covariance transform, for the reward unit every trained
   method) by its runs under the reading's preset, and keeps the reference preset's runs of
@@ -138,6 +139,24 @@ def reading_scores(
     return scores, tuple(missing)
 
 
+TABLE_ONE = " (Table I)"
+"""How a study's reference label names Table I's reading (`distgprl.studies`)."""
+
+
+def reference_reading(studies: Sequence[Study]) -> Reading:
+    """Table I's reading, shared by ``studies``: the one study's own reference, or with several
+    one reading named by every studied constant's Table I value — "Table I (zero-mean GP; r_tc
+    in units of one task)" — so that no study's verdicts name Table I by another study's
+    constant. The studies must share the reference preset (one set of Table I runs)."""
+    presets = {study.reference.preset for study in studies}
+    if len(presets) != 1:
+        raise ValueError(f"the studies read different Table I presets: {sorted(presets)}")
+    if len(studies) == 1:
+        return studies[0].reference
+    values = [study.reference.label.removesuffix(TABLE_ONE) for study in studies]
+    return Reading(presets.pop(), f"Table I ({'; '.join(values)})")
+
+
 def study_verdicts(
     studies: Sequence[Study],
     reference: Scores,
@@ -153,7 +172,7 @@ def study_verdicts(
     tasks = tasks_of(reference)
     out = [
         ReadingVerdicts(
-            studies[0].reference,
+            reference_reading(studies),
             tuple(evaluate_claims(reference, seed)),
             (),
             seeds=_seeds(reference, tasks),

@@ -3,7 +3,10 @@ verdict across readings, and the claims_robustness files `write_tables` writes."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 
 from distgprl.report.claims import NO_RUNS, REFUTED, REPRODUCED
 from distgprl.report.robustness import (
@@ -11,6 +14,7 @@ from distgprl.report.robustness import (
     OUTSIDE,
     across_readings,
     reading_scores,
+    reference_reading,
     robustness_texts,
     study_verdicts,
 )
@@ -180,6 +184,28 @@ def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
     assert of_global["across"].startswith("incomplete: reproduced under 4 of 5")
     assert "Across Table I and the operators study" in markdown
     assert "Across Table I and the reward-unit study" in markdown
+
+
+def test_with_two_studies_table_one_is_named_by_every_studied_constant():
+    """With the operator and reward-unit studies read together, Table I's reading is named by
+    both constants' Table I values, never by one study's alone (a reward-unit verdict naming
+    "zero-mean GP" would name the operator); one study keeps its own reference label, and
+    studies of different Table I presets are refused."""
+    operators, reward = get_study("operators"), get_study("reward-unit")
+    both = reference_reading([operators, reward])
+    assert both.preset == "paper"
+    assert both.label == "Table I (zero-mean GP; r_tc in units of one task)"
+    assert reference_reading([reward]) == reward.reference
+    reference = both_tasks(FIELD)
+    same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
+    runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
+    results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
+    assert results[0].reading == both
+    csv_text, _ = robustness_texts(results, "paper")
+    assert "zero-mean GP (Table I)" not in csv_text
+    other = replace(reward, reference=replace(reward.reference, preset="ci"))
+    with pytest.raises(ValueError, match="different Table I presets"):
+        reference_reading([operators, other])
 
 
 def test_a_verdict_across_readings_with_different_seed_counts_says_so():
