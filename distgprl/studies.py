@@ -110,6 +110,16 @@ class Reading:
     rules: tuple[OnsetRule, ...] = ()
 
 
+TABLE_ONE = " (Table I)"
+"""How a reference reading's label names Table I's value of the studied constant."""
+
+
+def table_one_reading(value: str, preset: str = "paper") -> Reading:
+    """The reference reading of a study: ``preset``'s runs, labelled by Table I's ``value`` of
+    the studied constant, e.g. "zero-mean GP (Table I)"."""
+    return Reading(preset, f"{value}{TABLE_ONE}")
+
+
 @dataclass(frozen=True)
 class Study:
     """A named group of presets run by one sweep and reported beside a reference preset.
@@ -241,7 +251,7 @@ COUPLING = "coupling: the signal reading's reach without its coupling does not e
 STUDIES: dict[str, Study] = {
     "operators": Study(
         name="operators",
-        reference=Reading("paper", "zero-mean GP (Table I)"),
+        reference=table_one_reading("zero-mean GP"),
         readings=(
             Reading("operator-unit", "unit variance (v4)", (("env.covariance_scale", "unit"),)),
             Reading(
@@ -315,7 +325,7 @@ STUDIES: dict[str, Study] = {
     ),
     "reward-unit": Study(
         name="reward-unit",
-        reference=Reading("paper", "r_tc in units of one task (Table I)"),
+        reference=table_one_reading("r_tc in units of one task"),
         readings=(
             Reading(
                 "reward-unit-10",

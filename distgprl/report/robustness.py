@@ -58,7 +58,7 @@ from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
 from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
 from distgprl.report.markdown import markdown_table
-from distgprl.studies import Reading, Study
+from distgprl.studies import TABLE_ONE, Reading, Study
 
 __all__ = [
     "CSV_FIELDS",
@@ -137,10 +137,6 @@ def reading_scores(
     have = {method for _, method in scores}
     missing = sorted({m for _, m in reference if acts_on(m) and m not in have})
     return scores, tuple(missing)
-
-
-TABLE_ONE = " (Table I)"
-"""How a study's reference label names Table I's reading (`distgprl.studies`)."""
 
 
 def reference_reading(studies: Sequence[Study]) -> Reading:
