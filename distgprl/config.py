@@ -36,6 +36,7 @@ from distgprl.config_types import (
 )
 from distgprl.data import TASK_NAMES
 from distgprl.errors import ConfigError, UserInputError
+from distgprl.reward_scale import check_reward_scale
 
 PRESET_DIR: Traversable | Path = resources.files("distgprl") / "presets"
 """The shipped presets (package data)."""
@@ -399,4 +400,7 @@ def load_config(
                 config = replace(config, **{section: updated})
                 origin.update({f"{section}.{key}": where for key in layer[section]})
     check_config(config, origin)
+    check_reward_scale(
+        config.env, origin.get("env.progress_weight", str(path)), (task,) if task else TASK_NAMES
+    )
     return config

@@ -17,20 +17,10 @@ __all__ = [
     "SACConfig",
 ]
 
-ENVIRONMENT_VERSION = 7
-"""The environment version every run records (it enters the config hash, so runs of an
-older version are stale). v7 (docs/FINDINGS.md "Environment v7", pre-registered): r_sd's
-beta = eps / (samples per segment x tool points), so that the whole tool held at contact
-for a segment costs the collision penalty, as v6's rule intended (v6 charged it once per
-tool point, ~50 times over). v6 (docs/FINDINGS.md "Protocol v6", pre-registered): every reward
-and actor-loss term in a natural unit (r_tc in units of one task, beta = eps / 4, L_hap
-hinged and in grid steps, SAC's temperature scaled with the rewards); S from the zero-mean
-GP of Eq. 1; action scales from the task's reach; conditioning keeps a fixed goal fixed;
-ProMP-RRL is residual RL; MinCl over collision-free episodes; Table I from the best policy.
-v5 (docs/FINDINGS.md "Environment v5"): a collision ends the episode and success is
-completion without collision; DBM's bars vary in the xy-plane; S's K is the GP's covariance
-in via-point units; MinCl is a distance (>= 0); ProMP-RRL gets the one demonstration the GP
-methods get."""
+ENVIRONMENT_VERSION = 8
+"""The environment version every run records (it enters the config hash, so runs of an older
+version are stale). What each version changed, and why: CHANGELOG.md and docs/FINDINGS.md
+(v8: "Protocol v8")."""
 
 
 @dataclass(frozen=True)
@@ -76,21 +66,21 @@ class EnvConfig:
         rotation_action_scale: rad of via-point change per unit raw action (rule
             ``"fixed"``).
         lambda_ga: weight of the gradient-alignment reward (paper: 0.2).
-        progress_weight: r_tc weight of the change in task progress (in [0, 1]); environment
-            v6: r_tc is in units of one task (the whole progress is worth 1; v5: 10).
-        success_bonus: r_tc bonus on success at the end of the episode (v6: 1; v5: 10).
-        collision_penalty: r_tc penalty for a segment with a collision (v6: 1; v5: 10).
+        progress_weight: r_tc weight of the change in task progress (in [0, 1]): the whole
+            task's progress is worth 10, so that lambda_ga r_ga can pay at most 3 % of a
+            success's r_tc (`distgprl.reward_scale`, bound (a)) and an episode that never
+            attempts the task earns under 10 % of what the demonstration earns (bound (b)).
+        success_bonus: r_tc bonus on success at the end of the episode (10, as the progress).
+        collision_penalty: r_tc penalty for a segment with a collision (10, as the progress).
         collision_ends_episode: a collision stops execution at that control period and
             ends the episode, as a protective stop ends a hardware trial; success is then
             task completion without collision (environment v5; False = v4: execution
             pushes on through kinematic obstacles and success ignores collisions).
-        sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward). Environment
-            v7: eps / (sd_samples_per_segment x 50 tool points) = 5e-5, so the whole tool
-            held at distance d for a whole segment costs eps / (d + eps): 1 (the collision
-            penalty) at contact, 0.25 at d_min; one tool point 1/50 of that (v6: eps / 4 =
-            0.0025 charged every one of the ~50 points the full amount, so a tool that
-            works near the table cost up to 50 collisions per segment; v5: 2e-4, with r_tc
-            ten times larger).
+        sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward):
+            collision_penalty x eps / (sd_samples_per_segment x 50 tool points) = 5e-4, so
+            the whole tool held at distance d for a whole segment costs collision_penalty x
+            eps / (d + eps): the collision penalty at contact, a quarter of it at d_min; one
+            tool point 1/50 of that.
         sd_d_min: d_min of Eq. safety_reward, m.
         sd_epsilon: epsilon of Eq. safety_reward, m.
         sd_samples_per_segment: instants per executed segment at which the tool points
@@ -107,8 +97,8 @@ class EnvConfig:
             env v2) at the time the trajectory reaches each via-point, along the moving
             obstacles' known paths; ``"current"`` (env v1, the paper read literally) at
             the observation instant.
-        signature_weight: GPRL's signature-similarity reward weight (v6: 0.1, scaled with
-            r_tc; v5: 1.0).
+        signature_weight: GPRL's signature-similarity reward weight (a tenth of r_tc's
+            unit, like lambda_ga's share of it).
         signature_depth: truncation level of the path signature (GPRL).
         signature_scale: distance scale of the signature similarity (GPRL).
     """
@@ -125,11 +115,11 @@ class EnvConfig:
     position_action_scale: float = 0.1
     rotation_action_scale: float = 0.05
     lambda_ga: float = 0.2
-    progress_weight: float = 1.0
-    success_bonus: float = 1.0
-    collision_penalty: float = 1.0
+    progress_weight: float = 10.0
+    success_bonus: float = 10.0
+    collision_penalty: float = 10.0
     collision_ends_episode: bool = True
-    sd_beta: float = 5e-5  # eps / (4 instants x 50 tool points), environment v7
+    sd_beta: float = 5e-4  # collision_penalty x eps / (4 instants x 50 tool points)
     sd_d_min: float = 0.03
     sd_epsilon: float = 0.01
     sd_samples_per_segment: int = 4
@@ -138,7 +128,7 @@ class EnvConfig:
     clearance_scale: float = 0.05
     relative_position_scale: float = 0.1
     clearance_timing: str = "predicted"
-    signature_weight: float = 0.1
+    signature_weight: float = 1.0
     signature_depth: int = 3
     signature_scale: float = 0.05
 
@@ -168,18 +158,16 @@ class SACConfig:
             dimensionless terms, set from the units before any v5 run, never tuned.
         n_similarity_samples: T, trajectory samples for L_sim.
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
-        hap_hinge: environment v6's L_hap in natural units: each query's soft-min hinged at
-            its value at the centre of a fully safe grid cell and divided by the HAP grid step
-            (0 inside C_safe, about 1 a grid step outside; docs/FINDINGS.md "Protocol v6");
-            False keeps v5's offset soft-min in metres.
+        hap_hinge: False (default): L_hap as Eq. hap_compact writes it, the soft-min in
+            metres; True: each query's soft-min hinged at its value at the centre of a fully
+            safe grid cell and divided by the HAP grid step (a variant, not Table I's).
         anneal_start, anneal_end: GPRL's entropy coefficient, decayed exponentially
-            from start to end over the run (v6: 0.02 -> 0.0002, scaled with the rewards;
-            v5: 0.2 -> 0.002).
+            from start to end over the run (set relative to r_tc's unit).
         ent_coef_init: initial value of SAC's automatically tuned entropy coefficient
             (SB3 ``ent_coef="auto_<init>"``). SB3's default 1.0 makes the entropy bonus of a
             30-D action dwarf this task's rewards for the first ~15k steps; 0.1 keeps the
             automatic tuning of Haarnoja et al. but starts at the scale of the rewards
-            (environment v6: 0.01, the rewards being ten times smaller than v5's).
+            (a hundredth of r_tc's unit).
     """
 
     learning_rate: float = 3e-4
@@ -199,10 +187,10 @@ class SACConfig:
     hap_k: int = 8
     hap_temperature: float = 0.05
     hap_n_query: int = 20
-    hap_hinge: bool = True
-    anneal_start: float = 0.02
-    anneal_end: float = 0.0002
-    ent_coef_init: float = 0.01
+    hap_hinge: bool = False
+    anneal_start: float = 0.2
+    anneal_end: float = 0.002
+    ent_coef_init: float = 0.1
 
 
 @dataclass(frozen=True)

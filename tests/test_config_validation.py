@@ -19,15 +19,16 @@ from typing import Any
 
 import pytest
 import yaml
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from distgprl import api
 from distgprl import config as config_module
 from distgprl.cli import app
-from distgprl.config import BOUNDS, CHOICES, NON_NEGATIVE, Config, load_config
+from distgprl.config import BOUNDS, CHOICES, NON_NEGATIVE, Config, EnvConfig, load_config
 from distgprl.errors import ConfigError, UserInputError
+from distgprl.reward_scale import check_reward_scale
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 
 DEFAULTS = Config()
@@ -214,7 +215,19 @@ def valid_configs(draw) -> dict[str, dict[str, Any]]:
         if name in data[section] or not draw(st.booleans()):
             continue
         data[section][name] = draw(value_in(f"{section}.{name}", FIELD_DEFAULTS[section][name]))
+    assume(_keeps_reward_purpose(data["env"]))
     return data
+
+
+def _keeps_reward_purpose(env: dict[str, Any]) -> bool:
+    """Whether ``env``'s values (over the defaults) meet protocol v8 rule 1's bounds on every
+    task (a configuration that breaks them is bad input, `test_reward_scale.py`)."""
+    values = EnvConfig(**{**FIELD_DEFAULTS["env"], **env})
+    try:
+        check_reward_scale(values, "random")
+    except ConfigError:
+        return False
+    return True
 
 
 # -- the config loader ----------------------------------------------------------------------
@@ -377,6 +390,11 @@ BAD_CONFIGS = [
     ("negative lambda", "sac:\n  lambda_hap: -0.2\n", "sac.lambda_hap"),
     ("negative lambda (env)", "env:\n  correlation_lambda: -1e-2\n", "env.correlation_lambda"),
     ("window > via-points", "env:\n  window_size: 16\n  n_via_points: 15\n", "env.window_size"),
+    (
+        "r_ga pays 30 % of a success",
+        "env:\n  progress_weight: 1\n  success_bonus: 1\n",
+        "env.progress_weight",
+    ),
 ]
 
 

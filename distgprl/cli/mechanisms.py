@@ -18,10 +18,15 @@ def mechanisms(
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("paper_figures"),
 ) -> None:
     """The mechanism table: reach vs TC range, shaping and regulariser shares (CSV, Markdown)."""
+    from distgprl.config import load_config
+    from distgprl.data import TASK_NAMES
     from distgprl.experiments.mechanisms import reach_rows
     from distgprl.report.mechanisms import write_mechanisms
+    from distgprl.reward_scale import describe_reward_scale
 
     preset = resolve_preset(preset, config)
+    for task in TASK_NAMES:  # protocol v8 rule 1's two ratios, from the preset's reward scale
+        typer.echo(describe_reward_scale(load_config(preset, task=task).env, task))
     written, verdicts = write_mechanisms(root, preset, out_dir, reach_rows(root, preset))
     for line in verdicts:
         typer.echo(line)
