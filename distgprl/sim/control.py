@@ -97,12 +97,28 @@ class ControlledScene(Protocol):
         """The robot touched the object: from now on it moves under contact physics."""
         ...
 
-    def move_kinematic(self, time: float) -> None:
-        """Put the kinematically moved obstacles at their poses for ``time`` (s)."""
+    def kinematic_schedule(
+        self, times: list[float]
+    ) -> list[
+        tuple[tuple[int, tuple[float, float, float], tuple[float, float, float, float]], ...]
+    ]:
+        """Per time of ``times`` (s), the resets (body, position (m), orientation (x, y, z,
+        w)) that put the kinematically moved obstacles at their poses for that time (pure:
+        nothing moves)."""
         ...
 
-    def convey_object(self, time: float) -> None:
-        """Put the (not yet released) conveyed object where the conveyor has it at ``time``."""
+    def kinematic_reached(self, time: float) -> None:
+        """Record that the kinematic obstacles stand at their poses for ``time`` (s) (the
+        loop made the resets of `kinematic_schedule`)."""
+        ...
+
+    def convey_schedule(
+        self, times: list[float]
+    ) -> list[
+        tuple[int, tuple[float, float, float], tuple[float, ...], tuple[float, float, float]]
+    ]:
+        """Per time of ``times`` (s), (body, position (m), orientation, linear velocity
+        (m/s)) of the conveyed object where the conveyor has it then (pure)."""
         ...
 
 
@@ -146,14 +162,15 @@ class ControlLoop:
 
         ``below`` (m, at most the cutoff): only distances under it matter to the caller
         (the running minimum of a segment), so the queries look no farther; the result is
-        then the clearance if it is under ``below``, else ``below`` (issue 29).
+        then the clearance if it is under ``below``, else ``below`` (issue 29). Each body's
+        query looks no farther than the minimum found so far, which culls the same pairs or
+        more and finds the same minimum (issue 66).
         """
-        cutoff = self.clearance_cutoff if below is None else min(below, self.clearance_cutoff)
-        best = cutoff
+        best = self.clearance_cutoff if below is None else min(below, self.clearance_cutoff)
         closest_points = self.calls.closest_points
         robot_body = self.robot.body
         for body, exempt in self._clearance_queries:
-            for point in closest_points(bodyA=robot_body, bodyB=body, distance=cutoff):
+            for point in closest_points(robot_body, body, best):
                 if point[8] < best and (exempt is None or point[3] not in exempt):
                     best = point[8]
         return best
@@ -174,8 +191,11 @@ class ControlLoop:
         joint target; the joint position controllers move to it, linearly interpolated
         over ``physics.substeps`` physics steps, with feed-forward velocity. Object and
         obstacles keep moving. Collisions are checked after every physics step,
-        clearance at every control step. The targets depend on the poses only, so the
-        segment's IK runs in one pass before it executes (`Robot.ik_segment`, issue 49).
+        clearance at every control step. Nothing of this depends on the physics but the
+        contacts and the clearance, so the segment's joint targets (one IK pass,
+        `Robot.ik_segment`, issue 49), their interpolation, the kinematic bodies' poses and
+        the conveyed object's path are computed before it executes (`_SegmentPlan`;
+        issue 66), the same IEEE operations in the same order as per physics step.
         """
         poses = np.asarray(poses, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != 6 or not np.all(np.isfinite(poses)):
@@ -183,10 +203,11 @@ class ControlLoop:
         robot = self.robot
         command = robot.command
         step_simulation, contact_points = self.calls.step_simulation, self.calls.contact_points
-        move_kinematic, convey_object = scene.move_kinematic, scene.convey_object
+        reset_base_pose, reset_base_velocity = (
+            self.calls.reset_base_pose,
+            self.calls.reset_base_velocity,
+        )
         clearance_now = self.clearance
-        substeps = self.physics.substeps
-        dt = self.physics.physics_dt
         robot_body = robot.body
         object_body = self.object_body
         obstacles = self._obstacle_set
@@ -194,40 +215,25 @@ class ControlLoop:
         no_links: frozenset[int] = frozenset()
         collision = False
         min_clearance = self.clearance_cutoff
-        failures = 0
-        peak_speed = 0.0
-        # substep s of a period: time offset (s + 1) dt and interpolation fraction (s + 1) / n
-        substep_plan = [((s + 1) * dt, (s + 1) / substeps) for s in range(substeps)]
-        period = substeps * dt
-        inverse_dt = 1.0 / (self.physics.physics_dt * substeps)
         released = scene.object_released
-        now = scene.time
-        q_command = scene.q_command
-        q_previous = q_command.tolist()
-        joints, reached = robot.ik_segment(poses, q_command)
-        targets = joints.tolist()
+        q_start = scene.q_command
+        joints, reached = robot.ik_segment(poses, q_start)
+        plan = _SegmentPlan(joints, q_start, scene.time, self.physics)
+        moves = scene.kinematic_schedule(plan.times)
+        conveyed = None if released else scene.convey_schedule(plan.times)
+        substeps = self.physics.substeps
         executed = 0
+        time = scene.time
         try:
-            for index, ok in enumerate(reached.tolist()):
-                if ok:
-                    q_command = joints[index]
-                    q_target = targets[index]
-                else:
-                    failures += 1
-                    q_target = q_previous
-                delta = [t - p for t, p in zip(q_target, q_previous, strict=True)]
-                velocity = [d * inverse_dt for d in delta]
-                speed = max([abs(v) for v in velocity])
-                if speed > peak_speed:
-                    peak_speed = speed
-                for offset, fraction in substep_plan:
-                    command(
-                        [p + fraction * d for p, d in zip(q_previous, delta, strict=True)], velocity
-                    )
-                    time = now + offset
-                    move_kinematic(time)
+            for index in range(plan.count):
+                first = index * substeps
+                velocity = plan.velocities[index]
+                for substep, target in enumerate(plan.targets[index]):
+                    command(target, velocity)
+                    for body, position, orientation in moves[first + substep]:
+                        reset_base_pose(body, position, orientation)
                     step_simulation()
-                    for contact in contact_points(bodyA=robot_body):
+                    for contact in contact_points(robot_body):
                         if contact[8] > 0.0:
                             continue
                         other = contact[2]
@@ -238,9 +244,10 @@ class ControlLoop:
                         elif other in obstacles and contact[3] not in exempt.get(other, no_links):
                             collision = True
                     if not released:
-                        convey_object(time)
-                now += period
-                q_previous = q_target
+                        body, position, orientation, linear = conveyed[first + substep]
+                        reset_base_pose(body, position, orientation)
+                        reset_base_velocity(body, linear, (0.0, 0.0, 0.0))
+                time = plan.times[first + substeps - 1]
                 clearance = clearance_now(min_clearance)  # only a new minimum matters
                 if clearance < min_clearance:
                     min_clearance = clearance
@@ -248,15 +255,70 @@ class ControlLoop:
                 if stop_on_collision and (collision or min_clearance <= 0.0):
                     break
         finally:
-            scene.time = now
-            scene.q_command = np.array(q_command, dtype=float)
+            if executed:
+                scene.time = plan.clock[executed - 1]
+                scene.q_command = joints[executed - 1].copy()
+                scene.kinematic_reached(time)
         if min_clearance <= 0.0:
             collision = True
         return SegmentResult(
             collision=collision,
             min_clearance=float(min_clearance),
-            ik_failures=failures,
+            ik_failures=int(plan.count - np.count_nonzero(reached)),
             steps=executed,
-            peak_joint_speed=peak_speed,
-            stopped=executed < int(poses.shape[0]),
+            peak_joint_speed=plan.peak_speed(executed),
+            stopped=executed < plan.count,
         )
+
+
+class _SegmentPlan:
+    """What a segment commands, computed before it executes (plain floats, the same IEEE
+    operations in the same order as computed per physics step).
+
+    Args:
+        joints: the segment's joint targets (n, n_joints), rad (`Robot.ik_segment`; an
+            unreachable pose's row holds the previous target).
+        q_start: the joint target before the segment (n_joints,), rad.
+        start_time: the world's clock at the segment's start, s.
+        physics: ``substeps`` physics steps of ``physics_dt`` per pose.
+
+    Attributes:
+        count: n.
+        targets: per period, per substep, the interpolated joint targets (lists of floats):
+            previous + ((s + 1) / substeps) (target - previous).
+        velocities: per period, the feed-forward velocities (target - previous) / period.
+        speeds: per period, the largest |velocity| over the joints, rad/s.
+        times: the world's clock after each physics step (n * substeps,), s.
+        clock: the world's clock after each period (n,), s.
+    """
+
+    def __init__(self, joints: np.ndarray, q_start: np.ndarray, start_time: float, physics) -> None:
+        substeps, dt = physics.substeps, physics.physics_dt
+        self.count = int(joints.shape[0])
+        previous = np.empty_like(joints)
+        if self.count:
+            previous[0] = q_start
+            previous[1:] = joints[:-1]
+        delta = joints - previous
+        velocity = delta * (1.0 / (dt * substeps))
+        fractions = np.array([(s + 1) / substeps for s in range(substeps)])
+        targets = previous[:, None, :] + fractions[None, :, None] * delta[:, None, :]
+        self.targets = targets.tolist()
+        self.velocities = velocity.tolist()
+        self.speeds = np.abs(velocity).max(axis=1) if self.count else np.zeros(0)
+        offsets = [(s + 1) * dt for s in range(substeps)]
+        period = substeps * dt
+        times: list[float] = []
+        clock: list[float] = []
+        now = float(start_time)
+        for _ in range(self.count):
+            times.extend([now + offset for offset in offsets])
+            now += period
+            clock.append(now)
+        self.times = times
+        self.clock = clock
+
+    def peak_speed(self, executed: int) -> float:
+        """The largest commanded joint speed (rad/s) over the first ``executed`` periods
+        (0 for none)."""
+        return float(max(0.0, float(self.speeds[:executed].max()))) if executed else 0.0

@@ -341,7 +341,11 @@ class UR5e:
                 for box, count in zip(tool.boxes, tool.surface_points_per_box, strict=True)
             ]
         )
+        # positional arguments (bodyUniqueId, jointIndices, controlMode, targetPositions,
+        # targetVelocities, forces, positionGains, velocityGains): keyword parsing costs
+        # a microsecond a physics step
         self._set_motors = client.setJointMotorControlArray
+        self._joint_list = list(self.joint_indices)
         self._gains = [position_gain] * 6
         self._velocity_gains = [1.0] * 6
         self._forces = self.max_forces.tolist()
@@ -436,13 +440,13 @@ class UR5e:
         (arrays or lists of floats)."""
         self._set_motors(
             self.body,
-            self.joint_indices,
+            self._joint_list,
             pybullet.POSITION_CONTROL,
-            targetPositions=_float_list(q_target),
-            targetVelocities=_float_list(qd_target),
-            forces=self._forces,
-            positionGains=self._gains,
-            velocityGains=self._velocity_gains,
+            q_target if type(q_target) is list else _float_list(q_target),
+            qd_target if type(qd_target) is list else _float_list(qd_target),
+            self._forces,
+            self._gains,
+            self._velocity_gains,
         )
 
     def joint_positions(self) -> np.ndarray:

@@ -211,9 +211,34 @@ class TaskSim:
         """Set object start/velocity and the obstacles' paths for ``tc``."""
         raise NotImplementedError
 
+    def kinematic_moves(
+        self, time: float
+    ) -> tuple[tuple[int, tuple[float, float, float], tuple[float, float, float, float]], ...]:
+        """The resets (body, position (m), orientation (x, y, z, w)) that put the
+        kinematically moved obstacles at their poses for ``time`` (s); pure (plain floats:
+        the control loop asks for every physics step of a segment at once)."""
+        raise NotImplementedError
+
+    def kinematic_reached(self, time: float) -> None:
+        """Record that the kinematic obstacles stand at their poses for ``time`` (s)
+        (`moving_obstacle_shapes` of the current time reads it)."""
+        raise NotImplementedError
+
     def move_kinematic(self, time: float) -> None:
         """Put the kinematically moved obstacles at their poses for ``time`` (s)."""
-        raise NotImplementedError
+        reset_base_pose = self.calls.reset_base_pose
+        for body, position, orientation in self.kinematic_moves(time):
+            reset_base_pose(body, position, orientation)
+        self.kinematic_reached(time)
+
+    def kinematic_schedule(
+        self, times: list[float]
+    ) -> list[
+        tuple[tuple[int, tuple[float, float, float], tuple[float, float, float, float]], ...]
+    ]:
+        """`kinematic_moves` at each of ``times`` (s)."""
+        moves = self.kinematic_moves
+        return [moves(time) for time in times]
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Every obstacle (static and moving) at its current pose (``time`` None), or
@@ -392,13 +417,21 @@ class TaskSim:
         conveying velocity; nothing once it is released."""
         if self._object_released:
             return
+        ((body, position, orientation, linear),) = self.convey_schedule([time])
+        self.calls.reset_base_pose(body, position, orientation)
+        self.calls.reset_base_velocity(body, linear, (0.0, 0.0, 0.0))
+
+    def convey_schedule(
+        self, times: list[float]
+    ) -> list[
+        tuple[int, tuple[float, float, float], tuple[float, ...], tuple[float, float, float]]
+    ]:
+        """Per time of ``times`` (s), (body, position (m), orientation (x, y, z, w), linear
+        velocity (m/s)) of the conveyed object where the conveyor has it then (pure)."""
         x0, y0, z0, vx, vy = self._conveyor  # plain floats of the start and velocity
-        self.calls.reset_base_pose(
-            self.object_body, (x0 + vx * time, y0 + vy * time, z0), self._object_quaternion
-        )
-        self.calls.reset_base_velocity(
-            self.object_body, self._object_velocity_list, (0.0, 0.0, 0.0)
-        )
+        body, orientation = self.object_body, self._object_quaternion
+        linear = tuple(self._object_velocity_list)
+        return [(body, (x0 + vx * t, y0 + vy * t, z0), orientation, linear) for t in times]
 
 
 def condition_by_translation(

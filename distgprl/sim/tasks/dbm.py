@@ -49,6 +49,7 @@ from distgprl.sim.transforms import pose_to_matrix, rotation_y
 
 IDENTITY = np.eye(3)
 ROLLER_ROTATION = rotation_y(math.pi / 2.0)  # cylinder axis (local z) along world x
+_UNIT = (0.0, 0.0, 0.0, 1.0)  # the identity quaternion (x, y, z, w)
 
 
 @dataclass(frozen=True)
@@ -249,6 +250,7 @@ class DBMSim(TaskSim):
                 self._rest_z + 1e-4,
             ]
         )
+        self._other_motion = (*self._other_start.tolist(), scene.belt_speed)
 
     def other_bar_position_at(self, time: float) -> np.ndarray:
         """Base-box centre (3,), m, of the other bar at ``time`` s for the current TC."""
@@ -260,12 +262,17 @@ class DBMSim(TaskSim):
         anchors[:, 1] += self.scene.belt_speed * np.asarray(times, dtype=float)
         return anchors
 
-    def move_kinematic(self, time: float) -> None:
-        """Put the other bar where the belt carries it at ``time`` (s)."""
-        start = self._other_start
-        position = (start[0], start[1] + self.scene.belt_speed * time, start[2])
-        self._other_position = position
-        self.calls.reset_base_pose(self.other_bar_body, position, (0.0, 0.0, 0.0, 1.0))
+    def kinematic_moves(
+        self, time: float
+    ) -> tuple[tuple[int, tuple[float, float, float], tuple[float, float, float, float]], ...]:
+        """The other bar where the belt carries it at ``time`` (s) (plain floats: asked for
+        every physics step)."""
+        x, y, z, speed = self._other_motion
+        return ((self.other_bar_body, (x, y + speed * time, z), _UNIT),)
+
+    def kinematic_reached(self, time: float) -> None:
+        """The other bar stands where the belt carries it at ``time`` (s)."""
+        self._other_position = self.kinematic_moves(time)[0][1]
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Rollers, rails and the other bar, as EDF primitives.

@@ -40,6 +40,7 @@ from distgprl.sim.tasks.base import TaskConfig, TaskSim, TaskSpec
 from distgprl.sim.transforms import pose_to_matrix
 
 IDENTITY = np.eye(3)
+_UNIT = (0.0, 0.0, 0.0, 1.0)  # the identity quaternion (x, y, z, w)
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,17 @@ class DCPSim(TaskSim):
         self._object_velocity = np.array([*scene.drift_velocity, 0.0])
         self._obstacle_line = np.asarray(scene.obstacle_centre) + np.asarray(tc.obstacle_offset)
         line_x, line_y = self._obstacle_line.tolist()
-        self._obstacle_path = (line_x, line_y, scene.obstacle_half + 1e-4)
+        # 2.0 * math.pi * time is (2.0 * math.pi) * time: the same operations as
+        # `obstacle_position_at`
+        self._obstacle_motion = (
+            line_x,
+            line_y,
+            scene.obstacle_half + 1e-4,
+            scene.obstacle_amplitude,
+            2.0 * math.pi,
+            scene.obstacle_period,
+            scene.obstacle_phase,
+        )
         self._start_cube_xy = start_xy
 
     def obstacle_position_at(self, time: float) -> np.ndarray:
@@ -196,15 +207,20 @@ class DCPSim(TaskSim):
         anchors[:, 2] = scene.obstacle_half + 1e-4
         return anchors
 
-    def move_kinematic(self, time: float) -> None:
-        """Put the obstacle cube at `obstacle_position_at` ``time`` (s) (plain floats: this
-        runs every physics step)."""
-        scene = self.scene
-        phase = 2.0 * math.pi * time / scene.obstacle_period + scene.obstacle_phase
-        line_x, line_y, height = self._obstacle_path
-        position = (line_x + scene.obstacle_amplitude * math.sin(phase), line_y, height)
-        self._obstacle_position = position
-        self.calls.reset_base_pose(self.obstacle_body, position, (0.0, 0.0, 0.0, 1.0))
+    def kinematic_moves(
+        self, time: float
+    ) -> tuple[tuple[int, tuple[float, float, float], tuple[float, float, float, float]], ...]:
+        """The obstacle cube at `obstacle_position_at` ``time`` (s) (plain floats: asked for
+        every physics step)."""
+        line_x, line_y, height, amplitude, angular, period, phase0 = self._obstacle_motion
+        phase = angular * time / period + phase0
+        return (
+            (self.obstacle_body, (line_x + amplitude * math.sin(phase), line_y, height), _UNIT),
+        )
+
+    def kinematic_reached(self, time: float) -> None:
+        """The obstacle cube stands at `obstacle_position_at` ``time`` (s)."""
+        self._obstacle_position = self.kinematic_moves(time)[0][1]
 
     def obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
         """Table (box), wall and obstacle cube, as EDF primitives.
