@@ -37,9 +37,11 @@ obstacles can be refreshed every control step.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba import njit
 
 from distgprl.safety.shapes import Box, Cylinder, Plane, Shape, with_pose
 
@@ -48,6 +50,46 @@ __all__ = ["DistanceField", "frame_from_normal"]
 _TINY = 1e-12
 # Half-size of the box that stands for a plane's half-space, m.
 _PLANE_DEPTH = 1.0e3
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nearest_signed_distance(transform, half, first_cylinder, points):  # pragma: no cover
+    """Min over shapes of the folded-box signed distance, per point (n,), m: the operations
+    of `DistanceField._excess` and `DistanceField._signed` in one pass, the local
+    coordinates as plain sums (no BLAS; issue 66).
+
+    Args:
+        transform: the packed (3S, 4) world-to-local rows (`DistanceField._local_transform`).
+        half: the half extents (3, S, 1).
+        first_cylinder: index of the first cylinder column (S if none).
+        points: (n, 3), m.
+    """
+    n_shapes = half.shape[1]
+    out = np.empty(points.shape[0])
+    for j in range(points.shape[0]):
+        x, y, z = points[j, 0], points[j, 1], points[j, 2]
+        best = np.inf
+        for i in range(n_shapes):
+            r0, r1, r2 = transform[i], transform[n_shapes + i], transform[2 * n_shapes + i]
+            l0 = r0[0] * x + r0[1] * y + r0[2] * z + r0[3]
+            l1 = r1[0] * x + r1[1] * y + r1[2] * z + r1[3]
+            l2 = r2[0] * x + r2[1] * y + r2[2] * z + r2[3]
+            if i >= first_cylinder:
+                a0 = math.sqrt(l0 * l0 + l1 * l1)
+                a1 = 0.0
+            else:
+                a0 = abs(l0)
+                a1 = abs(l1)
+            q0 = a0 - half[0, i, 0]
+            q1 = a1 - half[1, i, 0]
+            q2 = abs(l2) - half[2, i, 0]
+            p0, p1, p2 = max(q0, 0.0), max(q1, 0.0), max(q2, 0.0)
+            outside = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+            d = outside + min(max(max(q0, q1), q2), 0.0)
+            if d < best or d != d:
+                best = d
+        out[j] = best
+    return out
 
 
 def frame_from_normal(normal: np.ndarray) -> np.ndarray:
@@ -220,13 +262,16 @@ class DistanceField:
     def clearance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance to the nearest obstacle without the gradient, shape (n,), m.
 
-        About half the cost of :meth:`distance`; e.g. for the tool points of r_sd.
+        One compiled pass (`_nearest_signed_distance`); e.g. for the tool points of r_sd.
+        Equal to :meth:`distance`'s ``d`` to rounding (its local coordinates are a BLAS
+        product, here plain sums: ≤ 1e-15 m apart, `tests/safety/test_edf.py`).
         """
-        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
         if not self._names:
             return np.full(len(points), np.inf)
-        nearest: np.ndarray = self._signed(self._excess(points)[1])[0].min(axis=0)
-        return nearest
+        return _nearest_signed_distance(
+            self._local_transform, self._half_extents, self._first_cylinder, points
+        )
 
     def distance(
         self, points: np.ndarray, dynamic_shift: np.ndarray | None = None
