@@ -345,6 +345,7 @@ class UR5e:
         # targetVelocities, forces, positionGains, velocityGains): keyword parsing costs
         # a microsecond a physics step
         self._set_motors = client.setJointMotorControlArray
+        self._link_state = client.getLinkState  # bound once: a client look-up costs ~1 us
         self._joint_list = list(self.joint_indices)
         self._gains = [position_gain] * 6
         self._velocity_gains = [1.0] * 6
@@ -456,7 +457,7 @@ class UR5e:
 
     def link_transform(self, link: int) -> np.ndarray:
         """World transform (4, 4) of a link frame (URDF link frame, not the inertial frame)."""
-        state = self.client.getLinkState(self.body, link, computeForwardKinematics=True)
+        state = self._link_state(self.body, link, computeForwardKinematics=True)
         return make_transform(quaternion_to_matrix(state[5]), state[4])
 
     def tcp_transform(self) -> np.ndarray:
@@ -469,8 +470,10 @@ class UR5e:
 
     def tool_points(self) -> np.ndarray:
         """About 50 points (m, 3) on the tool's surface, world frame, current pose, m."""
-        tool = self.link_transform(self.tool_link)
-        return self._tool_points_local @ tool[:3, :3].T + tool[:3, 3]
+        state = self._link_state(self.body, self.tool_link, computeForwardKinematics=True)
+        # `link_transform`'s rotation and translation, without the (4, 4) around them
+        rotation = quaternion_to_matrix(state[5])
+        return self._tool_points_local @ rotation.T + np.array(state[4], dtype=float)
 
     @property
     def tool_points_local(self) -> np.ndarray:

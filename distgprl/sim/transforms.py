@@ -63,7 +63,7 @@ def matrix_to_quaternion(rotation: np.ndarray) -> np.ndarray:
 
 def quaternion_to_matrix(quaternion: np.ndarray) -> np.ndarray:
     """Rotation matrix (3, 3) of a quaternion (x, y, z, w)."""
-    x, y, z, w = (float(v) for v in quaternion)
+    x, y, z, w = map(float, quaternion)
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],

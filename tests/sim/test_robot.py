@@ -176,3 +176,16 @@ def test_ik_nearest_returns_the_scalar_rules_branch_bit_for_bit(robot):
         assert np.array_equal(found, np.array(expected)), (q, reference)
         assert [math.copysign(1.0, v) for v in found] == [math.copysign(1.0, v) for v in expected]
     assert cases > 300
+
+
+def test_tool_points_are_v7s_bit_for_bit(robot):
+    """`tool_points` reads the tool link's rotation and translation without the (4, 4)
+    transform around them (issue 66): the same product and sum as v7's ``tool @ R^T + t``
+    with R, t sliced from `link_transform`, so the same bits (tolerance zero), at random
+    configurations."""
+    rng = np.random.default_rng(66)
+    for q in rng.uniform(robot.lower_limits / 2, robot.upper_limits / 2, (20, 6)):
+        robot.reset_joints(q)
+        tool = robot.link_transform(robot.tool_link)
+        v7 = robot.tool_points_local @ tool[:3, :3].T + tool[:3, 3]
+        assert np.array_equal(robot.tool_points(), v7)
