@@ -37,8 +37,19 @@ def hardware(
     judge: Annotated[
         str, typer.Option(metavar="auto|operator", help="Who judges success.")
     ] = "auto",
+    protocol: Annotated[
+        str,
+        typer.Option(
+            metavar="paper|safety-layer",
+            help="paper: the policy's trajectory executes as made, only the UR5e's own joint "
+            "speed/acceleration limits apply (a protective stop is a failed trial), as the "
+            "paper ran Table II; safety-layer: this project's pre-flight check, retiming "
+            "and repair before every motion (--force, --repair, --repair-push).",
+        ),
+    ] = "paper",
     force: Annotated[
-        bool, typer.Option(help="Execute plans that fail the pre-flight check.")
+        bool,
+        typer.Option(help="Execute plans that fail the pre-flight check (safety-layer only)."),
     ] = False,
     preset: PresetOption = None,
     config: ConfigOption = None,
@@ -47,8 +58,8 @@ def hardware(
     repair: Annotated[
         bool,
         typer.Option(
-            help="Retime too-fast plans before refusing (with --repair-push also push "
-            "too-close via-points; --no-repair: refuse at once)."
+            help="Safety-layer protocol: retime too-fast plans before refusing (with "
+            "--repair-push also push too-close via-points; --no-repair: refuse at once)."
         ),
     ] = True,
     sensor_noise: Annotated[
@@ -68,7 +79,10 @@ def hardware(
         ),
     ] = False,
 ) -> None:
-    """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial."""
+    """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial.
+
+    The paper's protocol by default (`distgprl.hardware.protocols`); an unknown
+    ``--protocol`` is a user error (exit 2)."""
     from distgprl.hardware.repair import RepairConfig
     from distgprl.hardware.trials import run_trials
 
@@ -90,5 +104,6 @@ def hardware(
         repair=repair,
         repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
+        protocol=protocol,
     )
     typer.echo(f"{report.path}: {report.summary}")

@@ -2,7 +2,8 @@
 
 A trained policy's weights are not committed, so whatever needs the policy beyond its plain
 evaluation has to run where it was trained: the Table II digital-twin trials of a DBM policy
-(`distgprl.hardware.table2_trials`, ``Job.twin_trials``) and the evaluations with the
+(`distgprl.hardware.table2_trials`, ``Job.twin_trials``: the paper's protocol first, then the
+safety layer's settings beside it, `distgprl.hardware.protocols`) and the evaluations with the
 hardware safety layer in the loop of every run (`distgprl.experiments.repair_evaluations`,
 ``Job.repair_evaluations``). `distgprl.experiments.sweep` runs them right after training, and
 picks a finished run up again for them alone when they are due. Each report is a
@@ -68,7 +69,9 @@ def trials_due(job: Job) -> bool:
 
 
 def run_job_trials(job: Job) -> str:
-    """Run the job's missing Table II twin trials: a report (`table2_trials.run_and_report`)."""
+    """Run the job's missing Table II twin trials (the paper's protocol and the safety
+    layer's settings, `table2_trials.table2_settings`): a report
+    (`table2_trials.run_and_report`)."""
     from distgprl.hardware.table2_trials import run_and_report
 
     return run_and_report(job.method, job.seed, job.preset, job.root, job.twin_trials)

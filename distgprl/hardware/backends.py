@@ -1,7 +1,10 @@
 """Robot backends for hardware trials: the digital twin and a UR5e over ``ur_rtde``.
 
-Both stream joint-space trajectories that the safety layer has already checked (one joint
-target per control period of the skill, 25 Hz) and report what happened. Shared protocol:
+Both stream joint-space trajectories (one joint target per control period of the skill,
+25 Hz; checked by the safety layer first under its protocol, as the policy made them under
+the paper's, `distgprl.hardware.protocols`) and report what happened. Either robot enforces
+its controller's own limits: the real UR5e itself, the twin by emulating it
+(`TwinBackend`). Shared protocol:
 :class:`RobotBackend`. Times are on the backend's clock (s); poses are robot base frame
 (x, y, z m; rotation vector rad); joints rad.
 """
@@ -10,13 +13,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
 
 from distgprl.errors import UserInputError
+from distgprl.hardware.protocols import controller_stop
 from distgprl.hardware.safety import SafetyLimits, StopRequested, Watchdog
+from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 from distgprl.sim.tasks.base import TaskConfig
 
 
@@ -28,8 +33,11 @@ class ExecutionResult:
         steps: control instants commanded before the end or a stop.
         stopped: the motion ended early (protective stop, watchdog, contact).
         stop_reason: why ("" if not stopped).
-        protective_stop: the controller (or the twin's contact emulation) stopped the arm.
+        protective_stop: the controller (or the twin's emulation of it) stopped the arm.
         collision: ground-truth contact with an obstacle (twin only; None if unknown).
+        limit_stop: the controller's limit the command exceeded (``joint_speed``,
+            ``joint_acceleration``; twin only) where the stop was at a limit, not a
+            contact; "" otherwise.
         min_clearance: ground-truth min robot-obstacle distance, m (twin only; None if unknown).
         actual_joints: measured joint positions (k, 6), rad, one per commanded instant.
         wall_s: wall time of the execution, s.
@@ -41,6 +49,7 @@ class ExecutionResult:
     protective_stop: bool = False
     collision: bool | None = None
     min_clearance: float | None = None
+    limit_stop: str = ""
     actual_joints: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     wall_s: float = 0.0
 
@@ -83,8 +92,12 @@ class RobotBackend(Protocol):
 class TwinBackend:
     """Executes in the digital twin (:class:`~distgprl.hardware.twin.TwinSim`).
 
-    Contact with an obstacle triggers an emulated protective stop (as a real UR would on a
-    collision force): the rest of the trajectory is not executed.
+    The twin's arm is a UR5e and stops as one (emulated protective stops; the rest of the
+    trajectory is not executed): on contact with an obstacle (as a real UR would on a
+    collision force), and, before any, at the first commanded joint target beyond the
+    controller's limits (``controller``: joint speed or acceleration over the twin's own IK
+    targets, `distgprl.hardware.protocols.controller_stop`; the arm executes the targets
+    before it).
 
     Args:
         twin: camera/sensor settings.
@@ -92,6 +105,7 @@ class TwinBackend:
         chunk: control instants executed between contact checks.
         noise_rng: generator for the image effects of ``twin.noise`` (exposure, blur,
             extra sensor noise); default seeded 0.
+        controller: the controller's limits (default the UR5e's documented ones).
     """
 
     name = "twin"
@@ -102,6 +116,7 @@ class TwinBackend:
         rng: np.random.Generator | None = None,
         chunk: int = 5,
         noise_rng: np.random.Generator | None = None,
+        controller: ControllerLimits = UR5E_CONTROLLER,
     ) -> None:
         from distgprl.hardware.twin import TwinConfig, TwinSim
 
@@ -111,9 +126,11 @@ class TwinBackend:
         self.noise_rng = noise_rng if noise_rng is not None else np.random.default_rng(0)
         self.control_dt = float(self.sim.control_dt)
         self.chunk = int(chunk)
+        self.controller = controller
         self.collision = False
         self.min_clearance = float(self.sim.clearance_cutoff)
         self.moved_steps = 0
+        self.velocity = np.zeros(6)  # commanded joint velocity, rad/s (the controller's view)
 
     def start_trial(self, tc: TaskConfig) -> None:
         """Reset the cell to ``tc`` (bars placed, robot at the start pose)."""
@@ -121,6 +138,7 @@ class TwinBackend:
         self.collision = False
         self.min_clearance = float(self.sim.clearance())
         self.moved_steps = 0
+        self.velocity = np.zeros(6)
 
     def now(self) -> float:
         return float(self.sim.time)
@@ -152,6 +170,7 @@ class TwinBackend:
             return
         pose = matrix_to_pose(self.sim.robot.fk(self.sim.q_command))
         self._run(np.tile(pose, (steps, 1)))
+        self.velocity = np.zeros(6)  # holding still
 
     def _run(self, poses: np.ndarray) -> ExecutionResult:
         start = time.perf_counter()
@@ -185,14 +204,36 @@ class TwinBackend:
     def move_joints(self, q: np.ndarray) -> ExecutionResult:
         self.sim.robot.reset_joints(np.asarray(q, dtype=float))
         self.sim.q_command = np.asarray(q, dtype=float).copy()
+        self.velocity = np.zeros(6)
         return ExecutionResult(0)
 
     def execute(self, joints: np.ndarray, poses: np.ndarray, last: bool = True) -> ExecutionResult:
         """Run the poses in the twin (it moves only inside this call: ``last`` changes
-        nothing)."""
-        result = self._run(np.asarray(poses, dtype=float))
+        nothing), up to a protective stop: a contact, or the first joint target beyond the
+        controller's limits (the twin's own IK targets of ``poses``, as its joints are
+        commanded; ``joints`` is for a real robot's stream)."""
+        poses = np.asarray(poses, dtype=float)
+        q_before = np.asarray(self.sim.q_command, dtype=float).copy()
+        targets, _ = self.sim.robot.ik_segment(poses, q_before)
+        stop = controller_stop(targets, q_before, self.velocity, self.control_dt, self.controller)
+        end = len(poses) if stop is None else stop.index
+        result = self._run(poses[:end]) if end else ExecutionResult(0)
         self.moved_steps += result.steps
-        return result
+        if result.steps:
+            previous = targets[result.steps - 2] if result.steps > 1 else q_before
+            self.velocity = (targets[result.steps - 1] - previous) / self.control_dt
+        if stop is None or result.stopped:  # done, or a contact came first
+            return result
+        self.velocity = np.zeros(6)  # the arm is stopped
+        return replace(
+            result,
+            stopped=True,
+            stop_reason=stop.reason(),
+            protective_stop=True,
+            collision=self.collision,
+            min_clearance=self.min_clearance,
+            limit_stop=stop.limit,
+        )
 
     def stop(self) -> None:
         """The twin only moves inside :meth:`execute`; nothing to stop."""

@@ -1,5 +1,9 @@
 """Safety layer for hardware trials: limits, pre-flight plan check, runtime watchdog.
 
+This project's own layer, run under the ``safety-layer`` protocol beside the paper's
+(`distgprl.hardware.protocols`), against its own :class:`SafetyLimits` (stricter than the
+UR5e's, `distgprl.limits.UR5E_CONTROLLER`).
+
 Before any motion, :func:`check_plan` converts the planned TCP poses to joint positions
 (analytic IK, branch nearest the previous configuration, as the backends stream them) and
 checks every control instant against :class:`SafetyLimits`:
@@ -122,6 +126,24 @@ def tool_check_points(robot, q: np.ndarray) -> np.ndarray:
     return np.vstack([points, tool0[:3, 3]])
 
 
+def ik_chain(poses: np.ndarray, q_start: np.ndarray, robot) -> tuple[np.ndarray, list[int]]:
+    """The joint targets (n, 6), rad, a backend streams for TCP poses (n, 6): each pose's
+    analytic IK branch nearest the previous target (``q_start`` (6,), rad, for the first),
+    the previous one held where a pose is unreachable; and those poses' indices."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+    joints = np.empty((len(poses), 6))
+    q = np.asarray(q_start, dtype=float)
+    unreachable = []
+    for k, pose in enumerate(poses):
+        solution = robot.ik_nearest(pose_to_matrix(pose), q)
+        if solution is None:
+            unreachable.append(k)
+        else:
+            q = solution
+        joints[k] = q
+    return joints, unreachable
+
+
 def _worst(limit: str, excess: np.ndarray, values: np.ndarray, bound: float, detail) -> Violation:
     index = int(np.argmax(excess))
     return Violation(limit, float(values[index]), float(bound), index, detail(index))
@@ -177,16 +199,7 @@ def check_plan(
                 f"{lower.tolist()}..{upper.tolist()}",
             )
         )
-    joints = np.empty((n, 6))
-    q = np.asarray(q_start, dtype=float)
-    unreachable = []
-    for k, pose in enumerate(poses):
-        solution = robot.ik_nearest(pose_to_matrix(pose), q)
-        if solution is None:
-            unreachable.append(k)
-        else:
-            q = solution
-        joints[k] = q
+    joints, unreachable = ik_chain(poses, q_start, robot)
     if unreachable:
         violations.append(
             Violation("ik", float(len(unreachable)), 0.0, unreachable[0], "unreachable poses")

@@ -1,16 +1,19 @@
 """The digital-twin trials Table II counts for one DBM policy, each setting run once.
 
-Table II v5 (issue 31) has, for every method's v5 policies and every seed where one exists,
-twin trials with plan repair on and off, and for Dist-GPRL and the two references a
-robustness series over the twin's sensor-noise levels. A policy's weights are not kept
+Table II has, for every method's policies and every seed where one exists, twin trials
+under the paper's protocol (the policy's trajectory executes, only the UR5e's own limits
+apply, `distgprl.hardware.protocols`) and, beside them, behind the safety layer with plan
+repair on and off, and for every method a robustness series over the twin's sensor-noise
+levels (safety layer, repair on). A policy's weights are not kept
 with the committed results (only a run's small files are), so its trials have to be run
 where and when it was trained: `distgprl sweep --twin-trials N` runs the missing settings
 of every DBM run it finishes (or finds finished with its ``model.zip`` still on disk) in
 the same job, and a later sweep fills in what an interrupted one left.
 
 A setting counts as done when a trial file of it exists that Table II would count: the
-twin backend, this preset, neither ``--force`` nor a dry run, pushes off, at least the
-requested number of trials, and (trained methods) the policy's current config hash.
+twin backend, this preset, its protocol (a file without one ran behind the safety layer),
+neither ``--force`` nor a dry run, pushes off, at least the requested number of trials, and
+(trained methods) the policy's current config hash.
 """
 
 from __future__ import annotations
@@ -19,11 +22,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from distgprl.hardware.protocols import PAPER, SAFETY_LAYER, file_protocol
 from distgprl.identity import resolve_run
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
 
 __all__ = [
+    "PAPER_SETTING",
     "ROBUSTNESS_METHODS",
     "TABLE2_TRIALS",
     "TrialCoverage",
@@ -54,19 +59,29 @@ NOISE_LEVELS = (1, 2, 3, 4)
 
 @dataclass(frozen=True)
 class TrialSetting:
-    """How one trial file's trials run: plan repair (retiming) on or off, twin noise level."""
+    """How one trial file's trials run: the protocol (`distgprl.hardware.protocols`), plan
+    repair (retiming; the safety layer's, always off under the paper's protocol) on or off,
+    twin noise level."""
 
     repair: bool
     sensor_noise: int
+    protocol: str = SAFETY_LAYER
 
     def describe(self) -> str:
-        return f"repair {'on' if self.repair else 'off'}, noise {self.sensor_noise}"
+        if self.protocol == PAPER:
+            return f"paper's protocol, noise {self.sensor_noise}"
+        return f"safety layer, repair {'on' if self.repair else 'off'}, noise {self.sensor_noise}"
+
+
+PAPER_SETTING = TrialSetting(False, 0, PAPER)
+"""Table II's primary setting: the paper's protocol on the noiseless twin."""
 
 
 def table2_settings(method: str) -> tuple[TrialSetting, ...]:
-    """The settings Table II wants for ``method``: repair on and off without sensor noise,
-    and (`ROBUSTNESS_METHODS`) repair on at every noise level."""
-    settings = [TrialSetting(True, 0), TrialSetting(False, 0)]
+    """The settings Table II wants for ``method``: the paper's protocol (`PAPER_SETTING`)
+    first, then the safety layer with repair on and off without sensor noise, and
+    (`ROBUSTNESS_METHODS`) the safety layer with repair on at every noise level."""
+    settings = [PAPER_SETTING, TrialSetting(True, 0), TrialSetting(False, 0)]
     if method in ROBUSTNESS_METHODS:
         settings += [TrialSetting(True, level) for level in NOISE_LEVELS]
     return tuple(settings)
@@ -95,7 +110,9 @@ def _done_settings(
             or trial_file_exclusion(meta, current)
         ):
             continue
-        done.add(TrialSetting(bool(meta.get("repair")), int(meta.get("sensor_noise") or 0)))
+        protocol = file_protocol(meta)
+        repair = bool(meta.get("repair")) and protocol != PAPER
+        done.add(TrialSetting(repair, int(meta.get("sensor_noise") or 0), protocol))
     return done
 
 
@@ -138,13 +155,20 @@ def run_table2_trials(
             repair=setting.repair,
             repair_config=RepairConfig(repair=False),
             sensor_noise=setting.sensor_noise,
+            protocol=setting.protocol,
             echo=lambda line: None,
         )
         summary = report.summary
+        stopped = (
+            f"protective stops {int(summary.get('protective_stops', 0))}"
+            if setting.protocol == PAPER
+            else f"refused {int(summary.get('refused', 0))}"
+        )
         echo(
             f"twin trials {method} seed {seed} ({setting.describe()}): "
-            f"success {summary['success_rate']:.2f}, collision {summary['collision_rate']:.2f}, "
-            f"refused {int(summary['refused'])} of {int(summary['trials'])} -> {report.path}"
+            f"success {summary.get('success_rate', 0.0):.2f}, "
+            f"collision {summary.get('collision_rate', 0.0):.2f}, "
+            f"{stopped} of {int(summary['trials'])} -> {report.path}"
         )
         written.append(report.path)
     return written

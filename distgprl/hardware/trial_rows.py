@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from distgprl.hardware.protocols import PROTECTIVE_STOP
 from distgprl.hardware.safety import tool_check_points
 from distgprl.schema import moved_robot
 
@@ -111,7 +112,8 @@ def _edf_clearance(adapter: Any, robot: Any) -> float:
 
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
     """Success rate, collision rate (over judged trials), MinCl (5th percentile of min
-    clearance, over the trials that moved the robot, `moved_robot`; as Table II), counts."""
+    clearance, over the trials that moved the robot, `moved_robot`; as Table II), counts
+    (refusals by the safety layer; protective stops at the robot controller's limits)."""
     executed = [r for r in rows if r["success"] != ""]  # judged: ran, stopped or refused
     if not executed:
         return {"trials": len(rows), "judged": 0}
@@ -121,6 +123,7 @@ def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
         "judged": len(executed),
         "moved": len(moved),
         "refused": sum(1 for r in rows if r["status"] == "refused"),
+        "protective_stops": sum(1 for r in rows if r["status"] == PROTECTIVE_STOP),
         "success_rate": float(np.mean([float(r["success"]) for r in executed])),
         "collision_rate": float(np.mean([float(r["collision"]) for r in executed])),
         "mean_trial_s": float(np.mean([float(r["trial_s"]) for r in rows])),

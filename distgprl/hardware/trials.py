@@ -10,11 +10,14 @@ One trial on the DBM cell:
    with a fresh image at the first step of each window's span and the tracks' prediction
    along the belt in between): a fresh image updates the bar tracks and the distance field
    (static cell geometry + perceived other bar), the trained policy adapts the window (sets
-   the step's residual) from the observation built exactly as in training, the segment's
-   poses are checked by the plan repair (:mod:`distgprl.hardware.repair`: re-timed if too
-   fast, via-points pushed along the distance field's gradient if too close — a residual
-   step has none to push) and the safety layer (refused if still unsafe, unless ``force``),
-   then streamed to the robot;
+   the step's residual) from the observation built exactly as in training, and the
+   segment's poses go to the robot — under the paper's protocol (``protocol="paper"``, the
+   default, `distgprl.hardware.protocols`) as they are, the robot's controller alone
+   enforcing its own limits (a command beyond them ends the trial in a protective stop);
+   under the ``safety-layer`` protocol after the plan repair
+   (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points pushed along the
+   distance field's gradient if too close — a residual step has none to push) and the
+   safety layer's pre-flight check (refused if still unsafe, unless ``force``);
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
    perceived lift and the controller's protective stops with ``judge="auto"``).
 
@@ -22,9 +25,11 @@ Residual control's RL steps are streamed back to back: the robot's stream is end
 deceleration to standstill) only after the trial's last step or a refusal, not between steps.
 
 A row per trial is written (atomically, after every trial) to
-``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; its meta says what the
-safety layer checked (``checked_unit``: ``window`` or ``RL step``) and which of its parts ran
-(``safety_layer``: the check, retiming, the push or why it does not apply); ``dry_run``
+``<root>/hardware/<method>/trials_<backend>_seed<k>_<UTC>.csv``; its meta says which
+protocol the trials ran under (``protocol``: ``paper`` or ``safety-layer``), what one
+decision covers (``checked_unit``: ``window`` or ``RL step``) and what ran before each
+decision moved (``safety_layer``: the check, retiming, the push or why it does not apply;
+under the paper's protocol none of them, and the controller's limits); ``dry_run``
 writes plans to ``<root>/hardware/dry-run/<method>/`` instead (not read by the tables) and
 never moves.
 """
@@ -48,8 +53,21 @@ from distgprl.hardware.perception import (
     load_calibration,
     pose_error,
 )
+from distgprl.hardware.protocols import (
+    PAPER,
+    PROTECTIVE_STOP,
+    UNCHECKED,
+    check_protocol,
+    paper_protocol_meta,
+)
 from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan
+from distgprl.hardware.safety import (
+    PlanCheck,
+    SafetyLimits,
+    UnsafePlanError,
+    check_plan,
+    ik_chain,
+)
 from distgprl.hardware.trial_policy import load_trial_policy
 from distgprl.hardware.trial_rows import finish_row, judge_row, summarise_trials
 from distgprl.hardware.window_check import (
@@ -59,6 +77,7 @@ from distgprl.hardware.window_check import (
     repair_window,
     safety_layer,
 )
+from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 from distgprl.schema import TRIAL_FIELDS
 
 
@@ -93,6 +112,8 @@ def run_trials(
     repair: bool = True,
     repair_config: RepairConfig | None = None,
     sensor_noise: int | None = None,
+    protocol: str = PAPER,
+    controller: ControllerLimits = UR5E_CONTROLLER,
 ) -> TrialReport:
     """Run hardware trials of a trained DBM policy (see the module docstring).
 
@@ -110,7 +131,8 @@ def run_trials(
         dry_run: perceive, adapt and check every window without moving the robot.
         judge: ``auto`` (twin: simulation; ur: perceived lift + protective stops) or
             ``operator`` (ask success/collision after each trial).
-        force: execute plans that violate a safety limit (violations still recorded).
+        force: execute plans that violate a safety limit (violations still recorded);
+            the ``safety-layer`` protocol only.
         root: results root; preset: the policy's training preset.
         model_path: policy zip (default ``<root>/<preset>/dbm/<method>/seed<k>/model.zip``).
         twin_config: :class:`~distgprl.hardware.twin.TwinConfig` (camera, noise, latency).
@@ -118,7 +140,8 @@ def run_trials(
         ask: prompt function (operator judge, bar placement); echo: progress output.
         rtde_factory: ``ip -> (control, receive)`` for the ur backend (tests inject a fake).
         repair: retime / repair unsafe window plans (residual control: 0.1 s RL steps)
-            before refusing them (False: refuse at once, the behaviour before plan repair).
+            before refusing them (False: refuse at once, the behaviour before plan repair);
+            the ``safety-layer`` protocol only (the paper's has no check to repair for).
         repair_config: settings of the repair (default :class:`RepairConfig`); its push
             (``repair=True``) does not apply to the residual ProMP methods, which have no
             via-points: the trial file's ``safety_layer`` says so and ``repair_push`` is
@@ -126,6 +149,11 @@ def run_trials(
         sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
             0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
             Ignored by the ur backend (a real camera).
+        protocol: ``paper`` (the default: the policy's poses execute as made, only the
+            robot's own limits apply) or ``safety-layer`` (this project's pre-flight check
+            and repair before every motion), `distgprl.hardware.protocols`.
+        controller: the twin's emulated controller limits (default the UR5e's documented
+            ones; the real robot enforces its own).
 
     Returns:
         The rows, the CSV path and a summary (success/collision rates, MinCl).
@@ -146,6 +174,13 @@ def run_trials(
     if judge not in ("auto", "operator"):
         raise UserInputError(f"judge must be 'auto' or 'operator', got {judge!r}")
     get_method(method)  # an unknown name is a clear error before any hardware is touched
+    check_protocol(protocol)
+    paper = protocol == PAPER
+    if paper and force:
+        raise UserInputError(
+            "force overrides the safety layer's pre-flight check: use it with the "
+            "safety-layer protocol (the paper's protocol checks nothing before it moves)"
+        )
     limits = limits or SafetyLimits()
     config = load_config(preset, task="dbm")
     rng = np.random.default_rng(seed)
@@ -182,6 +217,7 @@ def run_trials(
                 twin_config,
                 rng=np.random.default_rng([seed, 1]),
                 noise_rng=np.random.default_rng([seed, 2]),
+                controller=controller,
             )
         else:
             from distgprl.hardware.backends import OpenCVCamera, URBackend
@@ -204,9 +240,14 @@ def run_trials(
         )
     else:
         perception = MarkerPerception(cal)
+    repair = repair and not paper  # the paper's protocol has no check to repair for
     handling = (repair_config or RepairConfig()) if repair else None
-    layer = safety_layer(adapter, handling, force)
-    if layer["push"] == NO_VIA_POINTS:  # the push was asked for and does not apply
+    layer = (
+        {"checked_unit": str(adapter.decision_unit), **paper_protocol_meta(controller)}
+        if paper
+        else safety_layer(adapter, handling, force)
+    )
+    if layer.get("push") == NO_VIA_POINTS:  # the push was asked for and does not apply
         echo(f"{method}: --repair-push {layer['push']}; retiming only")
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
@@ -214,6 +255,7 @@ def run_trials(
     path = folder / f"{prefix}_{backend}_seed{seed}_{stamp}.csv"
     meta = {
         "kind": "hardware-trials",
+        "protocol": protocol,  # the paper's (no pre-flight check) or the safety layer's
         "method": method,
         "seed": seed,
         "backend": backend,
@@ -223,14 +265,15 @@ def run_trials(
         "force": force,
         "repair": repair,
         # whether via-points were pushed: asked for and the method has via-points to push
-        "repair_push": layer["push"] == "on",
+        "repair_push": layer.get("push") == "on",
         "sensor_noise": sensor_noise if backend == "twin" else None,
         "twin_noise": asdict(twin_config.noise) if backend == "twin" else None,
         "limits": {k: v for k, v in limits.__dict__.items()},
         "policy": provenance,  # which trained model ran (empty for the unadapted demo)
         # what the safety layer checks before it moves: a window's plan, or one RL step's
         "checked_unit": adapter.decision_unit,
-        # which safety layer ran: the check, retiming, the push (or why it does not apply)
+        # what ran before each decision moved: the safety layer's check, retiming, the push
+        # (or why it does not apply); under the paper's protocol none, the controller's limits
         "safety_layer": layer,
     }
     rows: list[dict[str, Any]] = []
@@ -258,6 +301,7 @@ def run_trials(
                 ask,
                 echo,
                 handling,
+                paper,
             )
             row["backend"] = backend
             rows.append(row)
@@ -292,6 +336,7 @@ def _one_trial(
     ask,
     echo,
     repair_config: RepairConfig | None = None,
+    paper: bool = False,
 ) -> dict[str, Any]:
     trial_start = time.perf_counter()
     twin = robot.name == "twin"
@@ -370,7 +415,10 @@ def _one_trial(
             adapter.field, adapter.world.obstacle_shapes, reference, dt
         )
         path_poses = poses
-        if repair_config is None:
+        if paper:  # the paper's protocol: the poses go as made; the controller alone stops
+            check = PlanCheck(ik_chain(poses, q, adapter.model.robot)[0], np.inf)
+            windows.append((UNCHECKED, 0.0, 0.0))
+        elif repair_config is None:
             try:
                 check = check_plan(
                     poses,
@@ -448,10 +496,11 @@ def _one_trial(
             previous = check.joints[result.steps - 2] if result.steps > 1 else q
             q = check.joints[result.steps - 1]
             velocity = (q - previous) / dt
-        if result.stopped:
-            row.update(status="stopped", stop_reason=result.stop_reason)
-            if result.protective_stop:
-                row["collision"] = 1
+        if result.stopped:  # a controller's limit stop is a failure, not a refusal
+            status = PROTECTIVE_STOP if result.limit_stop else "stopped"
+            row.update(status=status, stop_reason=result.stop_reason)
+            if result.protective_stop and result.collision is not False:
+                row["collision"] = 1  # a contact (the real robot: any protective stop)
             break
         if not twin and not streaming:  # a continued stream goes on from its last target
             q = robot.joint_positions()

@@ -3,10 +3,17 @@
 Table II (``table2_<preset>``) counts the trial files of the preset's policies
 (`select_trial_files`: never trials with the pre-flight check overridden, dry runs,
 policies of an older configuration, or a twin file that repeats another's trials; those are
-listed under the table). Its rates are over
-all trials (a refused trial is a failure without collision), with the exact (Clopper-Pearson)
-95 % binomial interval over the trials; its MinCl is over the trials that moved the robot
-only (`moved_robot`), and says over how many when that is fewer than the trials.
+listed under the table). Its first columns are the paper's protocol (every trial executes
+the policy's trajectory; only the UR5e's own limits apply, and a protective stop at them is
+a failed trial, `distgprl.hardware.protocols`); the safety layer's settings (its pre-flight
+check with plan repair off, or retiming) follow as columns beside it. Each file says which
+protocol its trials ran under (its meta's ``protocol``; a file without one ran behind the
+safety layer). Rates are over all trials (a refused or protectively stopped trial is a
+failure, a collision only where the arm touched something), with the exact
+(Clopper-Pearson) 95 % binomial interval over the trials; MinCl is over the trials that
+moved the robot only (`moved_robot`), and says over how many when that is fewer than the
+trials. The CSV has one row per protocol setting; Markdown and LaTeX one per method,
+backend and twin noise level, the paper's protocol first.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from distgprl.hardware.protocols import PAPER, PROTECTIVE_STOP, PROTOCOLS, file_protocol
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import current_hash, known_preset
@@ -92,6 +100,7 @@ def _twin_setting(method: str, meta: dict[str, Any]) -> tuple[Any, ...] | None:
     return (
         method,
         meta.get("seed"),
+        file_protocol(meta),
         bool(meta.get("repair")),
         bool(meta.get("repair_push")),
         meta.get("sensor_noise") or 0,
@@ -145,8 +154,9 @@ def repair_label(meta: dict[str, Any]) -> str:
     """How a trial file's plans were handled before execution (its meta): ``off`` (refused
     at once), ``retime`` (re-timed when too fast, then refused if still unsafe), ``retime +
     push`` (via-points also pushed along the distance field's gradient); ``–`` for files
-    written before plan repair existed."""
-    if "repair" not in meta:
+    written before plan repair existed, and under the paper's protocol (nothing checked, so
+    nothing repaired)."""
+    if "repair" not in meta or file_protocol(meta) == PAPER:
         return "–"
     if not meta["repair"]:
         return "off"
@@ -175,24 +185,30 @@ def _median_perception_error(rows: list[dict[str, Any]]) -> float:
 
 def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
     """Rows of Table II from the trial files ``files`` counts, one per (method, backend,
-    repair, sensor noise): trials on the real robot (``ur``) and on the digital twin are never
-    mixed, nor trials with plan repair on and off (`repair_label`) or at different twin
-    sensor-noise levels (`noise_label`). Refused trials (the safety layer's pre-flight check
-    refused a window's plan) count as failures without collision and are also counted on
+    protocol, repair, sensor noise), the paper's protocol first within a method and backend:
+    trials on the real robot (``ur``) and on the digital twin are never mixed, nor trials
+    under the paper's protocol and behind the safety layer (`file_protocol`), with plan
+    repair on and off (`repair_label`) or at different twin sensor-noise levels
+    (`noise_label`). Refused trials (the safety layer's pre-flight check refused a window's
+    plan) and protective stops (the robot's controller stopped the arm at its own limits,
+    status ``protective_stop``) count as failures without collision and are also counted on
     their own. Success and collision rates are over all trials, each with its exact 95 %
     binomial interval (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of
     the trials' minimum clearance, only over the ``executed`` trials that moved the robot
     (`moved_robot`; NaN if none did)."""
-    groups: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
+    groups: dict[tuple[str, str, str, str, str], list[dict[str, Any]]] = {}
     for method, meta, trial_rows in files.counted:  # counted in table order
         for row in trial_rows:
             backend = row.get("backend", "unknown")
-            setting = (method, backend, repair_label(meta), noise_label(meta, backend))
+            protocol = file_protocol(meta)
+            setting = (method, backend, protocol, repair_label(meta), noise_label(meta, backend))
             groups.setdefault(setting, []).append(row)
     rows = []
-    order = sorted(groups, key=lambda k: (TABLE_ORDER.index(k[0]), k[1], k[2], k[3]))
-    for method, backend, repair, noise in order:
-        subset = groups[(method, backend, repair, noise)]
+    order = sorted(
+        groups, key=lambda k: (TABLE_ORDER.index(k[0]), k[1], PROTOCOLS.index(k[2]), k[3], k[4])
+    )
+    for method, backend, protocol, repair, noise in order:
+        subset = groups[(method, backend, protocol, repair, noise)]
         executed = [r for r in subset if moved_robot(r)]
         clearance = [
             float(r["min_clearance"])
@@ -203,10 +219,12 @@ def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
             "method": method,
             "label": METHODS[method].label,
             "backend": backend,
+            "protocol": protocol,
             "repair": repair,
             "sensor_noise": noise,
             "trials": len(subset),
             "refused": sum(r.get("status") == "refused" for r in subset),
+            "protective_stops": sum(r.get("status") == PROTECTIVE_STOP for r in subset),
             "min_clearance_p5": float(np.percentile(clearance, 5)) if clearance else np.nan,
             "executed": len(executed),
             "perception_error_mm_median": _median_perception_error(subset),
@@ -226,7 +244,8 @@ def rate_text(row: dict[str, Any], key: str) -> str:
 
 def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | None:
     """(CSV, Markdown) of the robustness table: the twin's success and collision rates (exact
-    95 % intervals) per method and repair setting against the sensor-noise level
+    95 % intervals) per method and protocol setting (`setting_label`) against the
+    sensor-noise level
     (`distgprl.hardware.twin.SENSOR_NOISE`); None unless some twin policy ran at more than one
     level."""
     twin = [r for r in rows if r["backend"] == "twin"]
@@ -234,7 +253,8 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     if len(levels) < 2:
         return None
     buffer = io.StringIO()
-    fields = ["method", "repair", "sensor_noise", "perception_error_mm_median", "trials"]
+    fields = ["method", "protocol", "repair", "sensor_noise", "perception_error_mm_median"]
+    fields.append("trials")
     fields += list(INTERVAL_METRICS)
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
@@ -242,8 +262,8 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     writer.writerows(twin)
     by_setting: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
     for r in twin:
-        by_setting.setdefault((r["method"], r["repair"]), {})[r["sensor_noise"]] = r
-    header = ["Method", "Repair"]
+        by_setting.setdefault((r["method"], setting_label(r)), {})[r["sensor_noise"]] = r
+    header = ["Method", "Protocol / repair"]
     header += [
         f"Noise {level} {name}"
         for level in levels
@@ -271,6 +291,22 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     return buffer.getvalue(), _markdown_table(caption, header, table)
 
 
+def setting_label(row: dict[str, Any]) -> str:
+    """A `hardware_rows` row's protocol setting: ``paper`` (the paper's protocol), else the
+    safety layer's repair setting (`repair_label`)."""
+    return "paper" if row.get("protocol") == PAPER else str(row["repair"])
+
+
+PAPER_COLUMNS = (
+    ("trials", "Trials"),
+    ("success_rate", "Success"),
+    ("collision_rate", "Collision"),
+    ("protective_stops", "Protective stops"),
+    ("min_clearance_p5", "MinCl (m)"),
+)
+"""Table II's first columns, the paper's protocol: trials executed, success and collision
+rates, protective stops at the UR5e's own limits (failed trials), MinCl."""
+
 HARDWARE_COLUMNS = (
     ("trials", "Trials"),
     ("refused", "Refused"),
@@ -278,12 +314,20 @@ HARDWARE_COLUMNS = (
     ("collision_rate", "Collision"),
     ("min_clearance_p5", "MinCl (m)"),
 )
-"""Table II columns after method and backend (MinCl: 5th percentile of the minimum
-clearance of the trials that moved the robot, m). The CSV adds ``executed``, the number of
-those trials."""
+"""Table II's columns of each safety-layer setting, after the paper's (MinCl: 5th
+percentile of the minimum clearance of the trials that moved the robot, m). The CSV adds
+``executed``, the number of those trials, and ``protective_stops``."""
+
+SAFETY_SETTINGS = ("off", "retime", "retime + push", "–")
+"""The safety layer's settings (`repair_label`) in the order of their column groups."""
 
 HARDWARE_CAPTION = (
-    "Hardware trials (DBM); refused trials count as failures; Success and Collision with "
+    "Hardware trials (DBM). First columns: the paper's protocol — every trial executes the "
+    "policy's trajectory without a pre-flight check, only the UR5e's own joint speed "
+    "(pi rad/s) and acceleration (40 rad/s^2) limits apply, and a protective stop at them is "
+    "a failed trial (a collision only where the arm touched something). Then this project's "
+    "safety layer, repair off (refused at once) and retime: its pre-flight check against its "
+    "own, stricter limits; refused trials count as failures. Success and Collision with "
     "the exact 95 % binomial interval over the trials; MinCl is over the trials that "
     "moved the robot (n = their number where fewer than the trials; – if none did)"
 )
@@ -298,11 +342,57 @@ def hardware_min_clearance(row: dict[str, Any]) -> str:
     return text
 
 
+def _cell(row: dict[str, Any] | None, key: str) -> str:
+    """One Table II cell of a protocol setting's row (``–`` where the setting did not run)."""
+    if row is None:
+        return "–"
+    if key in INTERVAL_METRICS:
+        return rate_text(row, key)
+    if key == "min_clearance_p5":
+        return hardware_min_clearance(row)
+    return str(row[key])
+
+
+def _groups(rows: list[dict[str, Any]]) -> list[tuple[str, tuple[tuple[str, str], ...]]]:
+    """The column groups of Table II: (setting, columns), the paper's protocol first, then
+    every safety-layer setting some row has (`SAFETY_SETTINGS` order)."""
+    present = {setting_label(r) for r in rows}
+    groups = [("paper", PAPER_COLUMNS)]
+    groups += [(s, HARDWARE_COLUMNS) for s in SAFETY_SETTINGS if s in present]
+    return groups
+
+
+GROUP_TITLES = {
+    "paper": "Paper",
+    "off": "Safety layer, repair off",
+    "retime": "Safety layer, retime",
+    "retime + push": "Safety layer, retime + push",
+    "–": "Safety layer",
+}
+"""Column-group titles of Table II (`setting_label` -> title)."""
+
+
+def _wide_rows(rows: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, dict]]]:
+    """Table II's rows: one per (method, backend, noise) in `hardware_rows` order, each with
+    its protocol settings' rows by `setting_label`."""
+    keyed: dict[tuple[str, str, str], dict[str, dict[str, Any]]] = {}
+    first: dict[tuple[str, str, str], dict[str, Any]] = {}
+    for row in rows:
+        key = (row["method"], row["backend"], row["sensor_noise"])
+        first.setdefault(key, row)
+        keyed.setdefault(key, {})[setting_label(row)] = row
+    order = sorted(keyed, key=lambda k: (TABLE_ORDER.index(k[0]), k[1], k[2]))
+    return [(first[key], keyed[key]) for key in order]
+
+
 def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> tuple[str, str, str]:
-    """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows."""
+    """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows: the CSV one row per
+    protocol setting, Markdown and LaTeX one per method, backend and noise level with the
+    paper's protocol's columns first (`_groups`)."""
     buffer = io.StringIO()
-    fields = ["method", "backend", "repair", "sensor_noise"]
-    fields += [*(key for key, _ in HARDWARE_COLUMNS), "executed"]
+    fields = ["method", "backend", "protocol", "repair", "sensor_noise", "trials", "refused"]
+    fields += ["protective_stops", "success_rate", "collision_rate", "min_clearance_p5"]
+    fields += ["executed"]
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
     writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -310,37 +400,53 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
         value = row["min_clearance_p5"]
         writer.writerow({**row, "min_clearance_p5": "" if np.isnan(value) else value})
 
-    def cells(row: dict[str, Any]) -> list[str]:
-        return [
-            row["label"],
-            row["backend"],
-            row["repair"],
-            row["sensor_noise"],
-            str(row["trials"]),
-            str(row["refused"]),
-            *(rate_text(row, key) for key in INTERVAL_METRICS),
-            hardware_min_clearance(row),
-        ]
+    groups = _groups(rows)
+    wide = _wide_rows(rows)
 
-    header = ["Method", "Backend", "Repair", "Noise", *(label for _, label in HARDWARE_COLUMNS)]
+    def cells(head: dict[str, Any], settings: dict[str, dict[str, Any]]) -> list[str]:
+        out = [head["label"], head["backend"], head["sensor_noise"]]
+        for setting, columns in groups:
+            out += [_cell(settings.get(setting), key) for key, _ in columns]
+        return out
+
+    header = ["Method", "Backend", "Noise"]
+    header += [f"{GROUP_TITLES[g]}: {label}" for g, columns in groups for _, label in columns]
     caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"
-    markdown = _markdown_table(f"Table II: {caption}", header, [cells(row) for row in rows])
+    body = [cells(head, settings) for head, settings in wide]
+    markdown = _markdown_table(f"Table II: {caption}", header, body)
     if note:
         markdown += f"\n{note}.\n"
-    latex_caption = caption.replace("–", "--").replace(" %", "\\,\\%")
+    return buffer.getvalue(), markdown, _latex(caption, groups, body)
+
+
+def _latex(caption: str, groups, body: list[list[str]]) -> str:
+    """Table II as LaTeX: a row of column-group titles over the column names."""
+    latex_caption = caption.replace("—", "---").replace("–", "--").replace(" %", "\\,\\%")
+    latex_caption = latex_caption.replace("pi rad/s", "$\\pi$ rad/s").replace("s^2", "s$^2$")
+    titles = " & ".join(
+        f"\\multicolumn{{{len(columns)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, columns in groups
+    )
+    names = [
+        "Method",
+        "Backend",
+        "Noise",
+        *(label for _, columns in groups for _, label in columns),
+    ]
+    width = sum(len(columns) for _, columns in groups)
     lines = [
         "\\begin{table}[htb]",
         "\\centering",
         f"\\caption{{{latex_caption}}}",
         "\\label{tab:hardware_results}",
-        "\\begin{tabular}{llll" + "c" * len(HARDWARE_COLUMNS) + "}",
+        "\\begin{tabular}{lll" + "c" * width + "}",
         "\\toprule",
-        " & ".join(header) + " \\\\",
+        f" & & & {titles} \\\\",
+        " & ".join(names) + " \\\\",
         "\\midrule",
-        *(" & ".join(cells(row)).replace("–", "--") + " \\\\" for row in rows),
+        *(" & ".join(row).replace("–", "--") + " \\\\" for row in body),
         "\\bottomrule",
         "\\end{tabular}",
         "\\end{table}",
         "",
     ]
-    return buffer.getvalue(), markdown, "\n".join(lines)
+    return "\n".join(lines)

@@ -18,17 +18,21 @@ from distgprl.identity import resolve_run
 from distgprl.schema import TRIAL_FIELDS, write_csv
 
 
-def test_every_method_gets_repair_on_and_off_and_the_robustness_methods_every_noise_level():
-    """Every method of Table I and both references also run at every sensor-noise level
-    (issue 50 item 5: where does each policy break?), ProMP-RRL's residual RL and its nominal
-    included (checked one 0.1 s step at a time)."""
+def test_every_method_gets_the_papers_protocol_first_then_the_safety_layer_settings():
+    """Every method of Table I and both references run the paper's protocol first (Table II's
+    primary: no pre-flight check), then the safety layer with repair on and off, and at every
+    sensor-noise level (issue 50 item 5: where does each policy break?), ProMP-RRL's residual
+    RL and its nominal included (checked one 0.1 s step at a time)."""
     from distgprl.hardware.twin import SENSOR_NOISE
     from distgprl.methods import TABLE_ORDER
 
     noisy = {TrialSetting(True, level) for level in SENSOR_NOISE if level > 0}
     assert {"promp-rrl", "promp-nominal", "demo"} <= set(TABLE_ORDER)
     for method in TABLE_ORDER:
-        assert set(table2_settings(method)) == {
+        settings = table2_settings(method)
+        assert settings[0] == TrialSetting(False, 0, "paper")
+        assert set(settings) == {
+            TrialSetting(False, 0, "paper"),
             TrialSetting(True, 0),
             TrialSetting(False, 0),
             *noisy,
@@ -49,6 +53,7 @@ def test_the_cli_admits_every_twin_noise_level():
 def _trial_file(root, method, name, rows=2, **meta):
     values = {
         "kind": "hardware-trials",
+        "protocol": "safety-layer",
         "method": method,
         "seed": 0,
         "backend": "twin",
@@ -67,7 +72,9 @@ def _trial_file(root, method, name, rows=2, **meta):
 
 def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
     """Force, dry runs, pushes, another preset or backend, a stale policy hash and too few
-    trials leave the setting due; a counted file of repair off removes exactly that one."""
+    trials leave the setting due; a counted file of repair off removes exactly that one, a
+    paper-protocol file the paper's setting, and a file without a protocol (written before
+    the paper's protocol existed) counts as the safety layer's."""
     stale = {"run_config_hash": "0" * 16}
     for index, meta in enumerate(
         [
@@ -85,6 +92,12 @@ def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
     assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == table2_settings("gprl")
     _trial_file(tmp_path, "gprl", "trials_twin_seed0_counted.csv", repair=False)
     due = tuple(s for s in table2_settings("gprl") if s != TrialSetting(False, 0))
+    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == due
+    _trial_file(tmp_path, "gprl", "trials_twin_seed0_paper.csv", protocol="paper", repair=False)
+    due = tuple(s for s in due if s.protocol != "paper")
+    assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == due
+    _trial_file(tmp_path, "gprl", "trials_twin_seed0_legacy.csv", protocol=None, sensor_noise=1)
+    due = tuple(s for s in due if s != TrialSetting(True, 1))
     assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == due
     # another seed's files do not count for seed 0, and vice versa
     assert missing_settings(tmp_path, "ci", "gprl", 1, trials=2) == table2_settings("gprl")
@@ -129,8 +142,8 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
     assert results[0].trials.startswith(f"twin trials: {len(settings)} setting(s) run\n")
     files = sorted((root / "hardware" / "gprl").glob("trials_twin_seed0_*.csv"))
     metas = [read_csv(path)[0] for path in files]
-    assert {(m["repair"], m["sensor_noise"]) for m in metas} == {
-        (s.repair, s.sensor_noise) for s in settings
+    assert {(m["protocol"], m["repair"], m["sensor_noise"]) for m in metas} == {
+        (s.protocol, s.repair, s.sensor_noise) for s in settings
     }
     assert all(len(read_csv(path)[1]) == 1 for path in files)
     assert not sweep.trials_due(job)
@@ -165,9 +178,10 @@ def test_coverage_tells_complete_pending_and_lost_policies_apart(gprl_on_disk, t
         _trial_file(
             root,
             "demo",
-            f"trials_twin_seed0_{setting.repair}{setting.sensor_noise}.csv",
+            f"trials_twin_seed0_{setting.protocol}{setting.repair}{setting.sensor_noise}.csv",
             repair=setting.repair,
             sensor_noise=setting.sensor_noise,
+            protocol=setting.protocol,
             policy={},
         )
     finished = [("demo", 0), ("gprl", 0), ("gprl", 1), ("promp-nominal", 0)]

@@ -62,10 +62,12 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         model_path=policy_zip,
         twin_config=SMALL,
         echo=lambda _: None,
+        protocol="safety-layer",
     )
     assert report.path.parent == tmp_path / "hardware" / method
     meta, rows = read_csv(report.path)
     assert meta["backend"] == "twin" and meta["method"] == method
+    assert meta["protocol"] == "safety-layer"
     from distgprl.experiments.results import file_sha256
 
     assert meta["policy"]["model_sha256"] == file_sha256(policy_zip)
@@ -105,6 +107,7 @@ def test_operator_judge_and_forced_plans(tmp_path):
         root=tmp_path,
         judge="operator",
         force=True,
+        protocol="safety-layer",
         twin_config=SMALL,
         ask=lambda _: next(answers),
         echo=lambda _: None,
@@ -123,6 +126,7 @@ def test_dry_run_twin_never_moves(tmp_path):
         dry_run=True,
         twin_config=SMALL,
         echo=lambda _: None,
+        protocol="safety-layer",  # the paper's protocol predicts no clearance
     )
     row = report.rows[0]
     assert report.path.parent == tmp_path / "hardware" / "dry-run" / "demo"
@@ -170,6 +174,7 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
         rtde_factory=fake.factory,
         ask=lambda _: pytest.fail("a dry run must not prompt"),
         echo=lines.append,
+        protocol="safety-layer",
     )
     assert report.rows[0]["status"] in ("planned", "refused")
     # the ur backend goes through the same repair path and prints its per-window decisions
@@ -251,7 +256,9 @@ def test_too_fast_plans_are_retimed_not_refused(tmp_path):
     from distgprl.hardware.safety import SafetyLimits
 
     slow = SafetyLimits(max_joint_speed=0.6)
-    kwargs = dict(trials=1, method="demo", seed=1, root=tmp_path, twin_config=SMALL)
+    kwargs = dict(
+        trials=1, method="demo", seed=1, root=tmp_path, twin_config=SMALL, protocol="safety-layer"
+    )
     repaired = run_trials(limits=slow, echo=lambda _: None, **kwargs).rows[0]
     decisions = repaired["repair"].split(";")
     assert decisions[0] == "retimed" and set(decisions) <= set(DECISIONS)
@@ -280,6 +287,7 @@ def test_dry_run_prints_the_window_decisions(tmp_path):
         dry_run=True,
         twin_config=SMALL,
         echo=lines.append,
+        protocol="safety-layer",
     )
     windows = [line for line in lines if ", window " in line]
     assert len(windows) == len(report.rows[0]["repair"].split(";")) >= 1
@@ -306,8 +314,9 @@ def test_sensor_noise_level_is_recorded_with_the_perception_error(tmp_path):
         run_trials(trials=1, method="demo", root=tmp_path, twin_config=SMALL, sensor_noise=5)
 
 
-def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
-    """`distgprl hardware --no-repair --sensor-noise 2` reaches run_trials; 3 is rejected."""
+def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
+    """`distgprl hardware --no-repair --sensor-noise 2 --protocol safety-layer` reaches
+    run_trials; the paper's protocol is the default; noise 5 is rejected."""
     from pathlib import Path
 
     from typer.testing import CliRunner
@@ -323,11 +332,13 @@ def test_cli_passes_repair_and_sensor_noise(monkeypatch, tmp_path):
 
     monkeypatch.setattr(trials, "run_trials", fake_run_trials)
     runner = CliRunner()
-    result = runner.invoke(app, ["hardware", "--no-repair", "--sensor-noise", "2"])
+    command = ["hardware", "--no-repair", "--sensor-noise", "2", "--protocol", "safety-layer"]
+    result = runner.invoke(app, command)
     assert result.exit_code == 0, result.output
     assert seen["repair"] is False and seen["sensor_noise"] == 2
+    assert seen["protocol"] == "safety-layer"
     assert runner.invoke(app, ["hardware"]).exit_code == 0
-    assert seen["repair"] is True and seen["sensor_noise"] == 0
+    assert seen["repair"] is True and seen["sensor_noise"] == 0 and seen["protocol"] == "paper"
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
 
 
@@ -344,6 +355,7 @@ def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_
         preset="ci",
         twin_config=SMALL,
         echo=lambda _: None,
+        protocol="safety-layer",
     )
     meta, rows = read_csv(report.path)
     assert meta["checked_unit"] == "RL step" and meta["policy"] == {}
@@ -358,7 +370,7 @@ def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_
 
 def test_an_unsafe_rl_step_is_retimed_or_refused_before_it_moves_and_never_pushed(tmp_path):
     """Residual control's safety layer at the control rate: under a 0.6 rad/s joint-speed
-    limit the nominal's 8th RL step is too fast. Without repair it is refused before it
+    limit one of the nominal's RL steps is too fast. Without repair it is refused before it
     moves (the trial ends there, naming the limit, its earlier steps executed); with repair
     it is re-timed (time added, recorded per step) and the trial goes on. The via-point push
     does not apply (no via-points): asked for, it is said so once and in the file's meta,
@@ -374,7 +386,9 @@ def test_an_unsafe_rl_step_is_retimed_or_refused_before_it_moves_and_never_pushe
         root=tmp_path,
         preset="ci",
         twin_config=SMALL,
-        limits=SafetyLimits(max_joint_speed=0.6),
+        # a speed limit only: the clearance margin off (this test is about retiming)
+        limits=SafetyLimits(max_joint_speed=0.6, min_clearance=-1.0),
+        protocol="safety-layer",
     )
     plain = run_trials(repair=False, echo=lambda _: None, **kwargs)
     meta, rows = read_csv(plain.path)
@@ -434,6 +448,7 @@ def test_a_residual_trial_on_the_ur_streams_its_rl_steps_without_stopping_betwee
         rtde_factory=fake.factory,
         ask=lambda _: next(answers),
         echo=lambda _: None,
+        protocol="safety-layer",
     )
     row = report.rows[0]
     steps = len(row["repair"].split(";"))
