@@ -36,10 +36,17 @@ class MethodSpec:
         signature_reward: add GPRL's signature-similarity reward.
         entropy: ``auto`` (SAC's automatic temperature) or ``anneal`` (GPRL schedule).
         trainable: whether the method trains a policy.
-        demonstrations: what a residual method's ProMP is fitted to (for
-            ``residual-control``, the ProMP whose variance gates the residual): ``one`` — the one
-            demonstration every method gets (conditioned on training TCs), ``expert`` — 20
-            TC-aware expert demonstrations (an exploration variant with more information).
+        demonstrations: what a residual method's object-centric ProMP is fitted to (only
+            ``residual`` and ``residual-control`` fit one): ``expert`` — the 20 shipped
+            expert demonstrations (``distgprl/data/demos/<task>_varied/``, each successful
+            and collision-free for its own TC), the ProMP of both the nominal and the
+            variance gate (Table I's ProMP-RRL as the paper's §V-B defines it, "an
+            object-centric ProMP over 20 demonstrated trajectories"); ``one`` — the one
+            demonstration every GP method gets: for ``residual-control`` the nominal is the
+            ProMP of that demonstration itself and the gate's ProMP is fitted to 20 copies
+            of it conditioned on training TCs (environment v7's ProMP-RRL, the study method
+            ``promp-rrl-1demo``). How many distinct demonstrations that is:
+            `demonstration_count`.
         episode_range: a global action's per-step scale is the configured one divided by
             the number of RL steps, so that over an episode a via-point can move as far as
             a windowed method's (DESIGN §3: windowing and correlation are the only
@@ -61,15 +68,36 @@ class MethodSpec:
     episode_range: bool = False
     demonstrations: Literal["one", "expert"] = "one"
 
+    @property
+    def fits_promp(self) -> bool:
+        """Whether the method fits an object-centric ProMP (the residual action modes)."""
+        return self.action_mode in ("residual", "residual-control")
+
+    @property
+    def demonstration_count(self) -> int:
+        """How many distinct demonstrations the method's ProMP is fitted on
+        (`PROMP_DEMONSTRATIONS`; 0 for a method without a ProMP)."""
+        return PROMP_DEMONSTRATIONS[self.demonstrations] if self.fits_promp else 0
+
     def to_dict(self) -> dict:
-        """The spec as a dict (hashed into every run's config hash). Fields added after
-        results were committed appear only when they differ from the default that
-        reproduces the old behaviour, so that those runs keep their hash."""
+        """The spec as a dict (hashed into every run's config hash, recorded in its
+        ``config.json``). Fields added after results were committed appear only when they
+        differ from the default that reproduces the old behaviour, so that those runs keep
+        their hash. A method that fits a ProMP also records ``demonstration_count``, how
+        many demonstrations it is fitted on (since environment v8)."""
         data = asdict(self)
         for field, default in HASH_STABLE_DEFAULTS.items():
             if data[field] == default:
                 del data[field]
+        if self.fits_promp:
+            data["demonstration_count"] = self.demonstration_count
         return data
+
+
+PROMP_DEMONSTRATIONS: dict[str, int] = {"one": 1, "expert": 20}
+"""Distinct demonstrations per `MethodSpec.demonstrations` source: the one shipped
+demonstration, or the 20 demonstrated trajectories of the paper's ProMP-RRL (§V-B). The
+loader refuses an ``expert`` set of any other size (`distgprl.envs.residual`)."""
 
 
 #: Fields added to `MethodSpec` after committed results, with their old-behaviour default.
@@ -88,7 +116,8 @@ METHODS: dict[str, MethodSpec] = {
             entropy="anneal",
             episode_range=True,
         ),
-        MethodSpec("promp-rrl", "ProMP-RRL", "residual-control"),
+        MethodSpec("promp-rrl", "ProMP-RRL", "residual-control", demonstrations="expert"),
+        MethodSpec("promp-rrl-1demo", "ProMP-RRL (1 demo)", "residual-control"),
         MethodSpec("promp-rrl-windowed", "ProMP-RRL (windowed weights)", "residual"),
         MethodSpec(
             "promp-rrl-expert", "ProMP-RRL (20 expert demos)", "residual", demonstrations="expert"
@@ -138,7 +167,17 @@ METHODS: dict[str, MethodSpec] = {
         ),
         MethodSpec("demo", "Demo (no adaptation)", "none", trainable=False),
         MethodSpec(
-            "promp-nominal", "ProMP nominal (no residual)", "residual-control", trainable=False
+            "promp-nominal",
+            "ProMP nominal (no residual)",
+            "residual-control",
+            trainable=False,
+            demonstrations="expert",
+        ),
+        MethodSpec(
+            "promp-nominal-1demo",
+            "ProMP nominal (1 demo, no residual)",
+            "residual-control",
+            trainable=False,
         ),
     )
 }
@@ -159,9 +198,17 @@ TABLE_ORDER: tuple[str, ...] = (
 EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-windowed", "promp-rrl-expert")
 """Methods outside Table I and the default sweep (run them by name): ``promp-rrl-windowed`` is
 environment v5's ProMP-RRL (residual ProMP weights at the three windowed steps, not residual
-RL; issue 48 item 4); ``promp-rrl-expert`` the same with more information than Table I's
-methods (20 TC-aware expert demonstrations instead of one). Environment v6's ``promp-rrl`` is
-residual RL (`distgprl.envs.residual_rl`)."""
+RL; issue 48 item 4) on the one demonstration; ``promp-rrl-expert`` the same on the 20 expert
+demonstrations. Table I's ``promp-rrl`` is residual RL (`distgprl.envs.residual_rl`)."""
+
+STUDY_METHODS: tuple[str, ...] = ("promp-rrl-1demo", "promp-nominal-1demo")
+"""Methods reported beside Table I, not in it, and outside the default sweep (run them by
+name, e.g. ``distgprl sweep --preset paper --methods promp-rrl-1demo``): ``promp-rrl-1demo``
+is environment v7's ProMP-RRL — the same 10 Hz residual RL as Table I's ``promp-rrl``, its
+nominal the ProMP of the one demonstration every GP method gets, its gate's ProMP fitted to
+20 TC-conditioned copies of it (the paper's §V-A "a single expert demonstration for each
+task", where its §V-B defines ProMP-RRL on 20 demonstrated trajectories; Protocol v8 rule
+3) — and ``promp-nominal-1demo`` its nominal with zero residual."""
 
 
 NO_SAFETY_LAYER = (

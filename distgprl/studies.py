@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 from distgprl.errors import UserInputError
 from distgprl.identity import SWEEP_SEEDS
-from distgprl.methods import EXPLORATION_METHODS, METHODS
+from distgprl.methods import EXPLORATION_METHODS, METHODS, STUDY_METHODS
 
 __all__ = [
     "STUDIES",
@@ -342,7 +342,7 @@ STUDIES: dict[str, Study] = {
                 ),
             ),
         ),
-        methods=tuple(m for m in TRAINED if m not in EXPLORATION_METHODS),
+        methods=tuple(m for m in TRAINED if m not in EXPLORATION_METHODS + STUDY_METHODS),
         question=(
             "Is a claim the paper's, or the unit of r_tc the paper leaves open, which sets "
             "what lambda_ga = 0.2, lambda_sim = 0.5 and lambda_hap = 0.2 weigh against the task?"

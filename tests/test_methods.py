@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -10,7 +11,13 @@ import pytest
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_json
 from distgprl.experiments.runner import resolve_run
-from distgprl.methods import EXPLORATION_METHODS, METHODS, TABLE_ORDER, get_method
+from distgprl.methods import (
+    EXPLORATION_METHODS,
+    METHODS,
+    STUDY_METHODS,
+    TABLE_ORDER,
+    get_method,
+)
 
 
 def test_registry_matches_the_design_table():
@@ -41,11 +48,64 @@ def test_registry_matches_the_design_table():
 
 
 def test_table_order_covers_every_method_once():
-    """Every method but the exploration ones (more information) is a Table I row, once."""
-    assert sorted(TABLE_ORDER) == sorted(set(METHODS) - set(EXPLORATION_METHODS))
+    """Every method but the exploration and study ones is a Table I row, once; Table I's
+    ProMP-RRL and its nominal fit the 20 expert demonstrations (the paper's §V-B), the
+    study's one-demonstration pair the one demonstration (environment v7's ProMP-RRL)."""
+    outside = set(EXPLORATION_METHODS) | set(STUDY_METHODS)
+    assert not set(EXPLORATION_METHODS) & set(STUDY_METHODS)
+    assert sorted(TABLE_ORDER) == sorted(set(METHODS) - outside)
     assert METHODS["promp-rrl-expert"].demonstrations == "expert"
-    assert METHODS["promp-rrl"].demonstrations == "one"
+    assert METHODS["promp-rrl"].demonstrations == "expert"
+    assert METHODS["promp-nominal"].demonstrations == "expert"
     assert not METHODS["promp-nominal"].trainable
+    assert STUDY_METHODS == ("promp-rrl-1demo", "promp-nominal-1demo")
+    one, v8 = METHODS["promp-rrl-1demo"], METHODS["promp-rrl"]
+    assert one.demonstrations == "one" and METHODS["promp-nominal-1demo"].demonstrations == "one"
+    assert one.trainable and not METHODS["promp-nominal-1demo"].trainable
+    assert replace(one, name=v8.name, label=v8.label, demonstrations="expert") == v8
+
+
+def test_config_records_how_many_demonstrations_the_promp_is_fitted_on():
+    """A run's hashed spec (its config.json) records ``demonstration_count`` for every method
+    that fits a ProMP — 20 for Table I's ProMP-RRL, 1 for the study's — and for no other."""
+    counts = {
+        name: resolve_run("dcp", name, 0, "ci").to_dict()["method"].get("demonstration_count")
+        for name in METHODS
+    }
+    assert counts["promp-rrl"] == counts["promp-nominal"] == counts["promp-rrl-expert"] == 20
+    assert counts["promp-rrl-1demo"] == counts["promp-nominal-1demo"] == 1
+    assert counts["promp-rrl-windowed"] == 1
+    assert {name for name, count in counts.items() if count is None} == {
+        name for name, spec in METHODS.items() if not spec.fits_promp
+    }
+    assert (
+        resolve_run("dcp", "promp-rrl", 0, "ci").hash
+        != resolve_run("dcp", "promp-rrl-1demo", 0, "ci").hash
+    )
+
+
+def test_study_methods_stay_out_of_the_default_sweep_and_run_by_name():
+    """`distgprl sweep --preset paper` plans Table I's 74 runs (7 trained methods x 2 tasks x
+    5 seeds, 2 references x 2 tasks) without the study methods; naming one runs it into its
+    own folders, results/paper/<task>/promp-rrl-1demo/seed<k>; no study adds it."""
+    from distgprl.experiments.sweep import plan_jobs
+    from distgprl.studies import STUDIES
+
+    default = plan_jobs("paper")
+    assert len(default) == 74
+    assert not {job.method for job in default} & set(STUDY_METHODS)
+    named = plan_jobs("paper", ["promp-rrl-1demo"])
+    assert sorted(job.name for job in named) == sorted(
+        f"{task}/promp-rrl-1demo/seed{seed}" for task in ("dcp", "dbm") for seed in range(5)
+    )
+    assert {job.preset for job in named} == {"paper"}
+    reference = plan_jobs("paper", ["promp-nominal-1demo"])
+    assert [job.name for job in reference] == [
+        "dcp/promp-nominal-1demo/seed0",
+        "dbm/promp-nominal-1demo/seed0",
+    ]
+    for study in STUDIES.values():
+        assert not set(study.methods) & set(STUDY_METHODS), study.name
 
 
 def test_unknown_method_lists_valid_names():
@@ -73,6 +133,7 @@ def test_fields_added_later_leave_old_method_hashes_unchanged():
         if k not in ("episode_range", "demonstrations")
     }
     assert METHODS["promp-rrl-expert"].to_dict()["demonstrations"] == "expert"
+    assert "demonstrations" not in METHODS["promp-rrl-1demo"].to_dict()
     assert METHODS["gprl"].to_dict()["episode_range"] is True
 
 

@@ -2,8 +2,9 @@
 
 ``demos/<task>.csv`` is the nominal demonstration of a task; ``demos/<task>_varied/``
 holds the 20 varied demonstrations (one per task configuration, planned by a TC-aware
-expert) that the exploration method `promp-rrl-expert` fits (Table I's ProMP-RRL gets only
-the nominal one, environment v5).
+expert, each successful and collision-free for its TC) over which Table I's ProMP-RRL fits
+its object-centric ProMP (Protocol v8 rule 3; also the exploration method
+`promp-rrl-expert`); the study method `promp-rrl-1demo` gets only the nominal one.
 Both are regenerated exactly by ``python -m distgprl.sim.experts``.
 """
 

@@ -5,20 +5,36 @@ Env ids: ``ProMPRRL-DCP-v7`` and ``ProMPRRL-DBM-v7``.
 
 from __future__ import annotations
 
-import json
 from functools import lru_cache
-from typing import cast
+from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from distgprl.adaptation.trajectories import ResidualProMPTrajectory, variance_gate
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import AdaptationEnv
-from distgprl.methods import MethodSpec, get_method
-from distgprl.skill.demos import load_demonstration
+from distgprl.errors import UserInputError
+from distgprl.methods import PROMP_DEMONSTRATIONS, MethodSpec, get_method
+from distgprl.skill.demos import (
+    SET_INDEX,
+    DemonstrationSetEntry,
+    load_demonstration,
+    load_demonstration_set,
+)
 from distgprl.skill.promp import ObjectCentricProMP
 
-__all__ = ["ResidualEnv", "load_task_promp", "one_demonstration_set", "variance_gate"]
+if TYPE_CHECKING:
+    from distgprl.sim.tasks.base import TaskSpec
+
+__all__ = [
+    "ResidualEnv",
+    "check_demonstrations_succeed",
+    "expert_demonstration_set",
+    "load_task_promp",
+    "one_demonstration_set",
+    "variance_gate",
+]
 
 DEMONSTRATION_SOURCES = ("one", "expert")
 
@@ -26,8 +42,8 @@ ONE_DEMONSTRATION_TC_SEED = 20_251_201
 """Seed of the training-distribution TCs the one demonstration is conditioned on to give
 ProMP-RRL its demonstration set (distinct from the evaluation and learning-curve seeds)."""
 
-ONE_DEMONSTRATION_SET_SIZE = 20
-"""As many conditioned copies as the expert variant has demonstrations."""
+ONE_DEMONSTRATION_SET_SIZE = PROMP_DEMONSTRATIONS["expert"]
+"""As many conditioned copies as the expert set has demonstrations."""
 
 
 def one_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
@@ -63,26 +79,62 @@ def one_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]
     return demos, np.asarray(offsets)
 
 
-def expert_demonstration_set(task: str) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
-    """The 20 TC-aware scripted-expert demonstrations shipped for the exploration method
-    ``promp-rrl-expert`` (each planned for its own TC and kept only when it succeeded without
-    collision; environment v4's ProMP-RRL): (demos, object offsets (K, 3))."""
+def expert_demonstration_set(
+    task: str, folder: str | Path | None = None
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """The 20 TC-aware scripted-expert demonstrations of ``folder`` (default the task's
+    shipped ``distgprl/data/demos/<task>_varied/``), the set Table I's ProMP-RRL fits (the
+    paper's §V-B: "an object-centric ProMP over 20 demonstrated trajectories"): (demos as
+    (times, poses) pairs, object offsets (K, 3), m).
+
+    The set must be exactly ``PROMP_DEMONSTRATIONS["expert"]`` = 20 demonstrations
+    (`distgprl.skill.demos.load_demonstration_set`), each successful and collision-free
+    for its own TC: every one is executed in the task's simulation on its TC
+    (`distgprl.sim.experts.run_demonstration`, as the expert kept it when it wrote the set;
+    about 0.5 s for 20).
+
+    Raises:
+        UserInputError: one line naming the folder, ``tcs.json`` or the demonstration at fault.
+    """
     from distgprl.sim.tasks import get_task
 
-    folder = get_task(task).varied_demo_dir
-    tcs = json.loads((folder / "tcs.json").read_text())
-    demos, offsets = [], []
-    for name, tc in zip(tcs["files"], tcs["tcs"], strict=True):
-        demo = load_demonstration(folder / name)
-        demos.append((demo.times, demo.poses))
-        offsets.append([*tc["object_offset"], 0.0])
-    return demos, np.asarray(offsets)
+    spec = get_task(task)
+    folder = spec.varied_demo_dir if folder is None else Path(folder)
+    entries = load_demonstration_set(folder, PROMP_DEMONSTRATIONS["expert"], task=task)
+    check_demonstrations_succeed(spec, entries)
+    demos = [(e.demonstration.times, e.demonstration.poses) for e in entries]
+    offsets = np.array([[*e.tc["object_offset"], 0.0] for e in entries])
+    return demos, offsets
+
+
+def check_demonstrations_succeed(spec: TaskSpec, entries: list[DemonstrationSetEntry]) -> None:
+    """Execute each demonstration in a fresh simulation of ``spec`` on its TC; a
+    `UserInputError` names the first that fails the task or collides."""
+    from distgprl.sim.experts import run_demonstration
+    from distgprl.sim.tasks.base import TaskConfig
+
+    sim = spec.make_sim()
+    try:
+        for entry in entries:
+            demo = entry.demonstration
+            tc = TaskConfig.from_dict(entry.tc)
+            success, collision, _ = run_demonstration(sim, tc, demo.times, demo.poses)
+            if collision or not success:
+                outcome = "collides" if collision else "does not complete the task"
+                raise UserInputError(
+                    f"{entry.path}: the demonstration {outcome} for its TC in {SET_INDEX}; "
+                    f"ProMP-RRL's demonstrations must be successful and collision-free"
+                )
+    finally:
+        sim.close()
 
 
 @lru_cache(maxsize=8)
 def load_task_promp(task: str, source: str = "one") -> ObjectCentricProMP:
-    """The object-centric ProMP of ProMP-RRL: fitted to `one_demonstration_set` (``"one"``,
-    the Table I baseline, environment v5) or to `expert_demonstration_set` (``"expert"``).
+    """The object-centric ProMP of ProMP-RRL: fitted to `expert_demonstration_set`
+    (``"expert"``, the 20 demonstrations of Table I's ProMP-RRL since environment v8) or to
+    `one_demonstration_set` (``"one"``, 20 TC-conditioned copies of the one demonstration:
+    the gate of the study method ``promp-rrl-1demo``, environment v5-v7's Table I baseline).
 
     Each demonstration is expressed in its object's frame by subtracting the object's start
     offset (x, y, 0) before the fit.

@@ -3,8 +3,10 @@
 
 The numerics (schedule, range, gate, hold, composition) are `distgprl.adaptation.
 residual_control`; this module adds the simulator, the nominal and the MDP. Methods
-``promp-rrl`` (Table I's ProMP-RRL, environment v6) and the ``promp-nominal`` reference (its
-nominal, zero residual), action mode ``residual-control``.
+``promp-rrl`` (Table I's ProMP-RRL: the ProMP of the 20 expert demonstrations, Protocol v8
+rule 3) and the ``promp-nominal`` reference (its nominal, zero residual); the study methods
+``promp-rrl-1demo`` and ``promp-nominal-1demo`` (environment v7's ProMP-RRL, one
+demonstration); action mode ``residual-control``.
 """
 
 from __future__ import annotations
@@ -69,7 +71,8 @@ ROTATION_ERROR_CLIP = 4.0
 
 @lru_cache(maxsize=8)
 def load_nominal_promp(task: str) -> ObjectCentricProMP:
-    """The ProMP of the task's one demonstration itself: fitted (same basis and ridge as
+    """The nominal's ProMP of a ``one``-demonstration method (``promp-rrl-1demo``): the ProMP
+    of the task's one demonstration itself, fitted (same basis and ridge as
     `load_task_promp`) to the shipped demonstration at its own TC (object offset 0), so its
     mean is the demonstration in the ProMP's basis, in the world frame.
 
@@ -86,7 +89,8 @@ def load_nominal_promp(task: str) -> ObjectCentricProMP:
 def condition_nominal(
     spec: TaskSpec, tau: np.ndarray, reference: np.ndarray, tc: TaskConfig
 ) -> np.ndarray:
-    """The nominal conditioned on ``tc``: the one place that says how the TC moves it.
+    """The nominal of a ``one``-demonstration method conditioned on ``tc``: the one place
+    that says how the TC moves it.
 
     Rule 2 of Protocol v6, as every method gets it for a dense trajectory
     (`distgprl.sim.tasks.base.condition_by_translation`): the poses are translated by the
@@ -124,23 +128,39 @@ class ResidualRLEnv(gym.Env):
     step j executes the control periods whose ends lie in (j / 10, (j + 1) / 10] s (2 and
     3 alternately; `residual_control.control_schedule`).
 
-    **Nominal**: the ProMP of the one demonstration (`load_nominal_promp`; its mean fits the
-    demonstration to about 2 mm), offset by the observed object with the TC conditioning
-    every method gets (`condition_nominal`), with the robot's start pose blended in: the
-    difference between the TCP pose at reset and the conditioned nominal at t = 0 is
-    added with a weight falling from 1 to 0 (minimum jerk) over the first
-    ``blend_fraction / n_windows`` of the trajectory (0.1 of T by default, about the 0.09 of
-    T over which `AdaptationEnv` blends its first segment's start; the mismatch is under
-    1 mm on both tasks).
+    **ProMP** (`MethodSpec.demonstrations`; how many demonstrations it is fitted on is
+    recorded in the run's ``config.json`` as ``demonstration_count``): ``expert``
+    (``promp-rrl``, ``promp-nominal``) — one object-centric ProMP fitted over the 20 shipped
+    expert demonstrations (`load_task_promp`, refused unless they are exactly 20, each
+    successful and collision-free for its TC), the nominal's and the gate's; ``one``
+    (``promp-rrl-1demo``, ``promp-nominal-1demo``, environment v7's ProMP-RRL) — the nominal
+    from the ProMP of the one demonstration (`load_nominal_promp`; its mean fits the
+    demonstration to about 2 mm), the gate from the ProMP of 20 copies of it conditioned on
+    training TCs.
+
+    **Nominal** (from ``nominal_promp``): ``expert`` — the paper's "nominal trajectory offset
+    by the observed object" (§V-B): the ProMP's mean in the object frame plus the object's
+    offset (dx, dy, 0), conditioned on the start pose at phase 0
+    (`ObjectCentricProMP.start_conditioned_mean`, as ``promp-rrl-expert``'s nominal): the
+    demonstrations all start at one pose in the world, so their start varies in the object
+    frame, and the conditioning moves the rest of the mean as their weights covary with it
+    (on DCP, goal fixed in the world, the return too; without it the nominal ends up to the
+    whole offset from the goal, zero-residual DCP success 0.32 against 0.77 on 100
+    evaluation TCs); ``one`` — the ProMP's mean moved by the TC conditioning every GP method
+    gets (`condition_nominal`). Then the robot's start pose blended in: the difference between
+    the TCP pose at reset and the conditioned nominal at t = 0 is added with a weight
+    falling from 1 to 0 (minimum jerk) over the first ``blend_fraction / n_windows`` of the
+    trajectory (0.1 of T by default, about the 0.09 of T over which `AdaptationEnv` blends
+    its first segment's start; the mismatch is under 1 mm on both tasks, either nominal).
 
     **Gate** (per control instant t_k): g_k = 1 - sigma(t_k) / max_i sigma(t_i), sigma(t) the
-    mean over x, y, z of the marginal positional standard deviation of the ProMP fitted to
-    the one demonstration conditioned on 20 training TCs (`load_task_promp`, in the object
-    frame), the maximum over the episode's control instants: where the demonstrations vary
-    most the residual is held back, where they agree it passes whole (Carvalho et al.)
+    mean over x, y, z of the marginal positional standard deviation of the gate's ProMP
+    (``promp``, in the object frame, not conditioned on the start), the maximum over the
+    episode's control instants: where the demonstrations vary most the residual is held
+    back, where they agree it passes whole (Carvalho et al.)
     (`residual_control.variance_gate`, mode ``GATE_MODE`` = ``"certain"``). One gate for
-    all six channels: the tasks vary only the object's position, so the ProMP's orientation
-    variance is its covariance jitter and carries no information.
+    all six channels, from the positional variance: the TCs vary only positions (what
+    orientation variance the expert demonstrations have, DCP's tool yaw, follows from them).
 
     **Action**: raw a in [-1, 1]^6, clipped, scaled per axis by the residual range
     rho = `residual_control.residual_range` (max(TC range, ``minimum_position_reach``) on
@@ -215,9 +235,11 @@ class ResidualRLEnv(gym.Env):
     evaluation's three columns add up to the episode's) and ``final_parameters`` (the
     residuals r_j, shape (n, 6), m and rad; 0 for steps not reached).
 
-    **Versions**: v7 — unchanged (environment v7 changes r_sd, which this env does not
-    compute; its runs carry v7 in their config hash). v6 — first release (environment v6,
-    Protocol v6 rule 4; no gymnasium id registered yet).
+    **Versions**: v8 — Table I's ``promp-rrl`` fits the nominal and the gate on the 20
+    expert demonstrations (Protocol v8 rule 3); v7's one-demonstration ProMP-RRL is the
+    study method ``promp-rrl-1demo``, unchanged. v7 — unchanged (environment v7 changes
+    r_sd, which this env does not compute; its runs carry v7 in their config hash). v6 —
+    first release (environment v6, Protocol v6 rule 4; no gymnasium id registered yet).
     """
 
     metadata = {"render_modes": ["rgb_array"]}
@@ -230,6 +252,8 @@ class ResidualRLEnv(gym.Env):
         render_mode: str | None = None,
         promp: ObjectCentricProMP | None = None,
     ) -> None:
+        """``promp`` replaces the method's ProMP (`load_task_promp`): the gate's, and for an
+        ``expert`` method the nominal's too."""
         from distgprl.envs.tasks import load_task_skill, make_task_sim
 
         self.config = config or EnvConfig()
@@ -245,10 +269,12 @@ class ResidualRLEnv(gym.Env):
         self.n_steps = self.schedule.n_steps
         # The nominal on tau = 0 and every control instant (index k + 1 is instant k).
         self._tau = np.r_[0.0, self.schedule.tau]
-        self._reference = load_nominal_promp(task).mean_trajectory(self._tau)
         self.promp = (
             promp if promp is not None else load_task_promp(task, self.method.demonstrations)
         )
+        self.nominal_promp = self.promp if self._fits_expert else load_nominal_promp(task)
+        # the nominal ProMP's mean for the object at offset 0 (what `condition_nominal` moves)
+        self._reference = self.nominal_promp.mean_trajectory(self._tau)
         self.gate = variance_gate(self.promp.trajectory_std(self.schedule.tau)[:, :3], GATE_MODE)
         self.residual_scale = residual_range(
             np.asarray(self.spec_task.tc_range),
@@ -271,10 +297,19 @@ class ResidualRLEnv(gym.Env):
         self._residuals = np.zeros((self.n_steps, 6))
 
     # -- the episode's plan ------------------------------------------------------------------
+    @property
+    def _fits_expert(self) -> bool:
+        """Whether the nominal is the object-centric ProMP of the expert demonstrations."""
+        return self.method.demonstrations == "expert"
+
     def _start_episode(self, tc: TaskConfig, tcp_pose: np.ndarray) -> None:
         """Condition the nominal on ``tc`` and blend the TCP pose (6,) in at its start."""
         self.tc = tc
-        nominal = condition_nominal(self.spec_task, self._tau, self._reference, tc)
+        if self._fits_expert:
+            offset = np.r_[np.asarray(tc.object_offset, dtype=float), 0.0]
+            nominal = self.nominal_promp.start_conditioned_mean(self._tau, offset, tcp_pose)
+        else:
+            nominal = condition_nominal(self.spec_task, self._tau, self._reference, tc)
         start = np.array(tcp_pose, dtype=float)
         start[3:] = nearest_equivalent_rotvec(start[3:], nominal[0, 3:])
         nominal += self._start_weight[:, None] * (start - nominal[0])[None, :]

@@ -12,13 +12,25 @@ Format (one header line, then one row per sample)::
 
 Every cell must be a finite number. Extra columns are rejected so that a file
 in another convention is not silently misread.
+
+A demonstration *set* is a folder of such files with a ``tcs.json`` index::
+
+    {"task": "dcp", "seed": 3141592, "files": ["demo_00.csv", ...],
+     "tcs": [{"object_offset": [dx, dy], "obstacle_offset": [dx, dy]}, ...]}
+
+- ``task``: the task the demonstrations were made for.
+- ``files``: the demonstration CSVs in the folder, one per TC, distinct.
+- ``tcs``: the task configuration each demonstration was made (and succeeded) for, in the
+  same order; offsets in metres.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +38,9 @@ from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text, sha256_hex
 
 COLUMNS: tuple[str, ...] = ("t", "x", "y", "z", "rx", "ry", "rz")
+
+SET_INDEX = "tcs.json"
+"""The file of a demonstration set that lists its demonstrations and their TCs."""
 
 
 @dataclass(frozen=True)
@@ -146,3 +161,84 @@ def save_demonstration(path: str | Path, times: np.ndarray, poses: np.ndarray) -
     for t, pose in zip(times, poses, strict=True):
         lines.append(",".join(f"{v:.6f}" for v in (t, *pose)))
     atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+@dataclass(frozen=True)
+class DemonstrationSetEntry:
+    """One demonstration of a set and the TC it was made for.
+
+    Attributes:
+        path: the demonstration CSV.
+        demonstration: its contents.
+        tc: its ``tcs.json`` entry (``object_offset`` and ``obstacle_offset``, 2 numbers each, m).
+    """
+
+    path: Path
+    demonstration: Demonstration
+    tc: dict[str, list[float]]
+
+
+def load_demonstration_set(
+    folder: str | Path, count: int, task: str | None = None
+) -> list[DemonstrationSetEntry]:
+    """Load and validate a demonstration set: exactly ``count`` distinct demonstrations listed
+    in ``folder/tcs.json``, each a valid CSV with a TC of two finite offsets.
+
+    Whether each demonstration succeeds for its TC is the simulator's to say
+    (`distgprl.envs.residual.expert_demonstration_set` executes them).
+
+    Args:
+        folder: the set's folder.
+        count: how many demonstrations the set must hold.
+        task: if given, the task ``tcs.json`` must name.
+
+    Raises:
+        UserInputError: one line naming the folder, ``tcs.json`` or the file at fault.
+    """
+    folder = Path(folder)
+    index_path = folder / SET_INDEX
+    index = _read_set_index(index_path)
+    files, tcs = index.get("files"), index.get("tcs")
+    if not isinstance(files, list) or not isinstance(tcs, list):
+        raise UserInputError(f"{index_path}: needs a 'files' list and a 'tcs' list")
+    if len(files) != len(tcs):
+        raise UserInputError(f"{index_path}: {len(files)} files but {len(tcs)} TCs")
+    if len(files) != count:
+        raise UserInputError(
+            f"{folder}: {len(files)} demonstrations listed in {SET_INDEX}, need exactly {count}"
+        )
+    if len(set(map(str, files))) != len(files):
+        raise UserInputError(f"{index_path}: a demonstration file is listed twice")
+    if task is not None and index.get("task") != task:
+        raise UserInputError(f"{index_path}: made for task {index.get('task')!r}, not {task!r}")
+    entries = []
+    for k, (name, tc) in enumerate(zip(files, tcs, strict=True)):
+        checked = _checked_tc(tc, index_path, k)
+        path = folder / str(name)
+        entries.append(DemonstrationSetEntry(path, load_demonstration(path), checked))
+    return entries
+
+
+def _read_set_index(path: Path) -> dict[str, Any]:
+    """The parsed ``tcs.json`` of a set (a JSON object), or a `UserInputError` naming it."""
+    try:
+        index = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot read the demonstration set ({exc.strerror})") from exc
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserInputError(f"{path}: not a JSON file ({exc})") from exc
+    if not isinstance(index, dict):
+        raise UserInputError(f"{path}: expected a JSON object")
+    return index
+
+
+def _checked_tc(tc: object, path: Path, k: int) -> dict[str, list[float]]:
+    """The ``k``-th TC of ``path`` with two finite numbers per offset, else a `UserInputError`."""
+    keys = ("object_offset", "obstacle_offset")
+    try:
+        checked = {key: [float(v) for v in tc[key]] for key in keys}  # type: ignore[index]
+    except (KeyError, TypeError, ValueError):
+        checked = {}
+    if not checked or any(len(v) != 2 or not np.all(np.isfinite(v)) for v in checked.values()):
+        raise UserInputError(f"{path}: TC {k} needs {' and '.join(keys)}, two finite numbers each")
+    return checked

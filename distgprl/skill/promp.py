@@ -314,6 +314,40 @@ class ObjectCentricProMP:
             self.config, weight_mean, weight_covariance, self.duration, self.demonstration_count
         )
 
+    def start_conditioned_mean(
+        self,
+        phase: np.ndarray,
+        object_position: np.ndarray,
+        start_pose: np.ndarray,
+        noise: float = 1e-4,
+    ) -> np.ndarray:
+        """The nominal for an observed object: the mean offset by the object's position,
+        conditioned (:meth:`conditioned`) on passing through ``start_pose`` at phase 0.
+
+        The start's rotation vector is first replaced by its equivalent nearest the mean's
+        (rotation vectors are averaged linearly), so a 2 pi wrap does not move the mean.
+
+        Args:
+            phase: shape (m,), in [0, 1].
+            object_position: shape (3,), metres: the observed object start position.
+            start_pose: shape (6,), world frame, m and rad: where the robot starts.
+            noise: the conditioning's observation standard deviation (m and rad).
+
+        Returns:
+            shape (m, 6), world frame, m and rad.
+        """
+        from distgprl.skill.rotations import nearest_equivalent_rotvec
+
+        start = np.array(start_pose, dtype=np.float64)
+        if start.shape != (POSE_CHANNELS,):
+            raise ValueError(f"start_pose must have shape (6,), got {start.shape}")
+        mean_start = self.mean_trajectory(np.zeros(1), object_position)[0]
+        start[POSITION_CHANNELS:] = nearest_equivalent_rotvec(
+            start[POSITION_CHANNELS:], mean_start[POSITION_CHANNELS:]
+        )
+        conditioned = self.conditioned(0.0, start, noise, object_position=object_position)
+        return conditioned.mean_trajectory(phase, object_position)
+
     def sample(
         self,
         rng: np.random.Generator,

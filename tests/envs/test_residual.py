@@ -7,6 +7,7 @@ import pytest
 
 from distgprl.envs.residual import (
     ResidualEnv,
+    expert_demonstration_set,
     load_task_promp,
     one_demonstration_set,
     variance_gate,
@@ -132,3 +133,125 @@ def test_expert_variant_and_nominal_reference():
     expert.close()
     with pytest.raises(ValueError, match="not a residual method"):
         ResidualEnv("dcp", method="promp-nominal")
+
+
+# -- the 20 expert demonstrations of Table I's ProMP-RRL (Protocol v8 rule 3) -------------------
+
+
+def _tc_array(tcs) -> np.ndarray:
+    """TCs -> (n, 4): object offset (dx, dy) and obstacle offset (dx, dy), m."""
+    return np.array([[*tc.object_offset, *tc.obstacle_offset] for tc in tcs], dtype=float)
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_expert_set_is_twenty_demonstrations_on_tcs_no_evaluation_or_curve_draws(task):
+    """The shipped set loads (20 demonstrations, each executed successfully and collision-free
+    on its own TC by `expert_demonstration_set`), and its TCs are none of the evaluation or
+    learning-curve TCs any shipped preset draws: no demonstration TC equals one of them within
+    1e-9 m on any of the four offsets."""
+    from distgprl.config import load_config, shipped_presets
+    from distgprl.sim.tasks.base import TaskConfig
+    from distgprl.skill.demos import load_demonstration_set
+
+    demos, offsets = expert_demonstration_set(task)
+    assert len(demos) == 20 and offsets.shape == (20, 3) and np.all(offsets[:, 2] == 0.0)
+    entries = load_demonstration_set(get_task(task).varied_demo_dir, 20, task=task)
+    shipped = _tc_array(TaskConfig.from_dict(entry.tc) for entry in entries)
+    np.testing.assert_array_equal(offsets[:, :2], shipped[:, :2])
+    runs = [load_config(preset, task=task).run for preset in shipped_presets()]
+    spec = get_task(task)
+    drawn = {
+        "evaluation": spec.evaluation_tcs(max(run.eval_episodes for run in runs)),
+        "learning-curve": spec.training_curve_tcs(max(run.curve_episodes for run in runs)),
+    }
+    for name, tcs in drawn.items():
+        gaps = np.abs(shipped[:, None, :] - _tc_array(tcs)[None, :, :]).max(axis=2)
+        assert gaps.min() > 1e-9, (task, name, gaps.min())
+
+
+def _copy_set(task: str, folder) -> dict:
+    """Copy the task's shipped set into ``folder``; return its parsed tcs.json."""
+    import json
+    import shutil
+
+    shutil.copytree(get_task(task).varied_demo_dir, folder)
+    return json.loads((folder / "tcs.json").read_text())
+
+
+def test_a_set_of_nineteen_demonstrations_is_refused_naming_the_folder(tmp_path):
+    import json
+
+    from distgprl.errors import UserInputError
+
+    folder = tmp_path / "dcp_varied"
+    index = _copy_set("dcp", folder)
+    index["files"], index["tcs"] = index["files"][:19], index["tcs"][:19]
+    (folder / "tcs.json").write_text(json.dumps(index))
+    with pytest.raises(UserInputError, match=f"^{folder}: 19 demonstrations .* exactly 20$"):
+        expert_demonstration_set("dcp", folder)
+
+
+def test_a_demonstration_that_fails_or_collides_is_refused_naming_its_file(tmp_path):
+    """A demonstration that does not complete the task for its TC (a DCP demonstration that
+    holds the start pose), and one that collides (the nominal DBM demonstration on the TC of
+    DBM's demo_06, where it hits an obstacle), each refuse the set with its file named."""
+    from distgprl.errors import UserInputError
+    from distgprl.skill.demos import save_demonstration
+
+    dcp = tmp_path / "dcp_varied"
+    _copy_set("dcp", dcp)
+    held = load_demonstration(dcp / "demo_03.csv")
+    save_demonstration(
+        dcp / "demo_03.csv", held.times, np.tile(held.poses[0], (len(held.times), 1))
+    )
+    with pytest.raises(UserInputError, match="demo_03.csv: the demonstration does not complete"):
+        expert_demonstration_set("dcp", dcp)
+
+    dbm = tmp_path / "dbm_varied"
+    _copy_set("dbm", dbm)
+    nominal = load_demonstration(get_task("dbm").demo_path)
+    save_demonstration(dbm / "demo_06.csv", nominal.times, nominal.poses)
+    with pytest.raises(UserInputError, match="demo_06.csv: the demonstration collides"):
+        expert_demonstration_set("dbm", dbm)
+
+
+def test_a_missing_file_or_another_tasks_set_is_refused(tmp_path):
+    from distgprl.errors import UserInputError
+
+    folder = tmp_path / "dcp_varied"
+    _copy_set("dcp", folder)
+    (folder / "demo_11.csv").unlink()
+    with pytest.raises(UserInputError, match="demo_11.csv: cannot read"):
+        expert_demonstration_set("dcp", folder)
+    with pytest.raises(UserInputError, match="made for task 'dbm', not 'dcp'"):
+        expert_demonstration_set("dcp", get_task("dbm").varied_demo_dir)
+
+
+def test_training_on_a_bad_set_exits_2_and_writes_nothing(tmp_path, monkeypatch):
+    """`distgprl train --method promp-rrl` on a task whose demonstration set holds 19
+    demonstrations: exit code 2, one line naming the folder, no run folder left behind."""
+    import dataclasses
+    import json
+
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+    from distgprl.sim import tasks
+
+    folder = tmp_path / "demos" / "dcp_varied"
+    index = _copy_set("dcp", folder)
+    index["files"], index["tcs"] = index["files"][1:], index["tcs"][1:]
+    (folder / "tcs.json").write_text(json.dumps(index))
+    monkeypatch.setitem(
+        tasks.TASKS, "dcp", dataclasses.replace(tasks.TASKS["dcp"], varied_demo_dir=folder)
+    )
+    load_task_promp.cache_clear()
+    root = tmp_path / "results"
+    args = ["train", "--preset", "ci", "--task", "dcp", "--method", "promp-rrl", "--seed", "0"]
+    try:
+        result = CliRunner().invoke(app, [*args, "--root", str(root)])
+    finally:
+        load_task_promp.cache_clear()
+    assert result.exit_code == 2, result.output
+    assert f"{folder}: 19 demonstrations" in result.output
+    assert not [p for p in root.rglob("*") if p.is_file()]

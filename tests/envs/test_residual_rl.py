@@ -1,4 +1,5 @@
-"""ProMP-RRL as residual RL (`distgprl.envs.residual_rl.ResidualRLEnv`, issue 48 item 4)."""
+"""ProMP-RRL as residual RL (`distgprl.envs.residual_rl.ResidualRLEnv`, issue 48 item 4;
+its ProMP over the 20 expert demonstrations, Protocol v8 rule 3)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,27 @@ import pytest
 
 from distgprl.adaptation.residual_control import RL_RATE_HZ, rotation_error
 from distgprl.config import EnvConfig
-from distgprl.envs.residual_rl import REWARD_TERMS, ResidualRLEnv, condition_nominal
+from distgprl.envs.residual import expert_demonstration_set, load_task_promp
+from distgprl.envs.residual_rl import (
+    REWARD_TERMS,
+    ResidualRLEnv,
+    condition_nominal,
+    load_nominal_promp,
+)
+from distgprl.methods import METHODS
 from distgprl.skill.promp import ObjectCentricProMP
 
 
 @pytest.fixture(scope="module", params=["dcp", "dbm"])
 def env(request):
     env = ResidualRLEnv(request.param)
+    yield env
+    env.close()
+
+
+@pytest.fixture(scope="module", params=["dcp", "dbm"])
+def one_demo(request):
+    env = ResidualRLEnv(request.param, method="promp-rrl-1demo")
     yield env
     env.close()
 
@@ -86,9 +101,60 @@ def test_zero_action_executes_the_nominal_exactly(env):
     np.testing.assert_allclose(rotation_error(env.nominal_poses[0], start), 0.0, atol=1e-9)
 
 
-def test_nominal_is_the_promp_conditioned_by_the_tc_rule(env):
-    """Past the start blend the nominal is `condition_nominal` of the ProMP reference, and at
-    the interaction time it has moved with the object by the whole offset (w = 1 there)."""
+def test_table_one_nominal_is_the_expert_promp_offset_by_the_object(env):
+    """``promp-rrl``: past the start blend the nominal is the 20-demonstration ProMP's mean
+    for the TC's object offset conditioned on the start pose (`start_conditioned_mean`),
+    which passes through the TCP pose at reset; from one TC to another it moves at the
+    interaction time with the object (within 3 cm: the expert's pre-contact pose varies
+    with the TC)."""
+    tc_a, tc_b = env.spec_task.evaluation_tcs(4)[2:]
+    at = np.argmin(np.abs(env._tau - env.spec_task.interaction_time))
+    engaged = []
+    for tc in (tc_a, tc_b):
+        env.reset(options={"tc": tc})
+        start = env.sim.tcp_pose()
+        offset = np.r_[tc.object_offset, 0.0]
+        expected = env.promp.start_conditioned_mean(env._tau, offset, start)
+        past_blend = env._tau > env.config.blend_fraction / env.config.n_windows
+        np.testing.assert_allclose(env.nominal_poses[past_blend], expected[past_blend], atol=1e-12)
+        np.testing.assert_allclose(expected[0, :3], start[:3], atol=2e-3)
+        engaged.append(env.nominal_poses[at, :2])
+    shift = np.subtract(tc_b.object_offset, tc_a.object_offset)
+    np.testing.assert_allclose(engaged[1] - engaged[0], shift, atol=0.03)
+
+
+def test_promp_rrl_fits_twenty_demonstrations_and_the_study_one(env):
+    """Table I's ``promp-rrl`` fits its nominal and its gate on one ProMP over the 20
+    expert demonstrations; the study method ``promp-rrl-1demo`` its nominal on the one
+    demonstration (its gate on 20 TC-conditioned copies of it, v7); each run's config
+    records the count its nominal's ProMP was fitted on."""
+    from distgprl.identity import resolve_run
+
+    task = env.task_name
+    assert env.promp is env.nominal_promp and env.promp.demonstration_count == 20
+    demos, offsets = expert_demonstration_set(task)
+    refit = ObjectCentricProMP.fit(demos, offsets)
+    np.testing.assert_array_equal(env.promp.weight_mean, refit.weight_mean)
+    one = ResidualRLEnv(task, method="promp-rrl-1demo")
+    try:
+        assert one.nominal_promp is load_nominal_promp(task)
+        assert one.nominal_promp.demonstration_count == 1
+        assert one.promp is load_task_promp(task, "one")
+        counts = {}
+        for method, built in (("promp-rrl", env), ("promp-rrl-1demo", one)):
+            recorded = resolve_run(task, method, 0, "ci").to_dict()["method"]
+            counts[method] = recorded["demonstration_count"]
+            assert counts[method] == built.nominal_promp.demonstration_count
+        assert counts == {"promp-rrl": 20, "promp-rrl-1demo": 1}
+    finally:
+        one.close()
+
+
+def test_one_demo_nominal_is_the_promp_conditioned_by_the_tc_rule(one_demo):
+    """``promp-rrl-1demo`` (v7's ProMP-RRL): past the start blend the nominal is
+    `condition_nominal` of the one demonstration's ProMP, and at the interaction time it has
+    moved with the object by the whole offset (w = 1 there)."""
+    env = one_demo
     tc = env.spec_task.evaluation_tcs(4)[3]
     env.reset(options={"tc": tc})
     conditioned = condition_nominal(env.spec_task, env._tau, env._reference, tc)
@@ -99,11 +165,13 @@ def test_nominal_is_the_promp_conditioned_by_the_tc_rule(env):
     np.testing.assert_allclose(shift, tc.object_offset, atol=0.01)
 
 
-def test_gate_is_the_promps_own_normalised_std(env):
+@pytest.mark.parametrize("which", ["promp-rrl", "promp-rrl-1demo"])
+def test_gate_is_the_promps_own_normalised_std(env, one_demo, which):
     """The gate at each control instant is 1 - sigma / max sigma, sigma the ProMP's positional
     std there (mean over x, y, z): Carvalho et al.'s variability as a decision variable, the
     residual acting where the demonstrations agree (precision) and held back where they
     vary; a larger variance passes less of the residual."""
+    env = env if which == "promp-rrl" else one_demo
     sigma = env.promp.trajectory_std(env.schedule.tau)[:, :3].mean(axis=1)
     np.testing.assert_allclose(env.gate, 1.0 - sigma / sigma.max())
     order = np.argsort(sigma, kind="stable")
@@ -270,18 +338,21 @@ def test_method_is_registered_outside_table_one_and_built_by_the_factory():
     residual is the exploration method ``promp-rrl-windowed``, which this env refuses."""
     from distgprl.experiments.factories import make_env
     from distgprl.identity import resolve_run
-    from distgprl.methods import METHODS, TABLE_ORDER
+    from distgprl.methods import TABLE_ORDER
 
     spec = METHODS["promp-rrl"]
     assert spec.action_mode == "residual-control" and spec.label == "ProMP-RRL"
     assert "promp-rrl" in TABLE_ORDER and "promp-rrl-windowed" not in TABLE_ORDER
-    assert METHODS["promp-nominal"].action_mode == "residual-control"
+    assert "promp-rrl-1demo" not in TABLE_ORDER and "promp-nominal-1demo" not in TABLE_ORDER
+    for name in ("promp-nominal", "promp-rrl-1demo", "promp-nominal-1demo"):
+        assert METHODS[name].action_mode == "residual-control"
     assert METHODS["promp-rrl-windowed"].action_mode == "residual"
-    env = make_env(resolve_run("dbm", "promp-rrl", 0, "ci"))
-    try:
-        assert isinstance(env, ResidualRLEnv) and env.n_steps == 50
-    finally:
-        env.close()
+    for name in ("promp-rrl", "promp-rrl-1demo"):
+        env = make_env(resolve_run("dbm", name, 0, "ci"))
+        try:
+            assert isinstance(env, ResidualRLEnv) and env.n_steps == 50
+        finally:
+            env.close()
     with pytest.raises(ValueError, match="not a residual-control method"):
         ResidualRLEnv("dcp", method="promp-rrl-windowed")
 
@@ -307,10 +378,14 @@ def test_ci_training_runs_end_to_end(tmp_path):
     assert (folder / "summary_best.json").exists() and (folder / "done.json").exists()
 
 
-def test_the_nominal_reference_ignores_its_actions():
-    """``promp-nominal`` (untrained reference) executes the nominal whatever it is given, as
-    the ``demo`` reference ignores its actions."""
-    env = ResidualRLEnv("dcp", method="promp-nominal")
+@pytest.mark.parametrize("method", ["promp-nominal", "promp-nominal-1demo"])
+def test_the_nominal_reference_ignores_its_actions(method):
+    """``promp-nominal`` (untrained reference) and the study's ``promp-nominal-1demo``
+    execute their nominal whatever they are given, as the ``demo`` reference ignores its
+    actions; each is the nominal of its trained method."""
+    env = ResidualRLEnv("dcp", method=method)
+    trained = {"promp-nominal": "promp-rrl", "promp-nominal-1demo": "promp-rrl-1demo"}[method]
+    assert env.method.demonstrations == METHODS[trained].demonstrations
     try:
         calls, _, _, _ = run(env, lambda step: np.ones(6), env.spec_task.nominal_tc)
         commanded = np.concatenate(calls)

@@ -145,6 +145,29 @@ def test_large_noise_barely_moves_the_mean(promp):
     assert np.linalg.norm(moved) < 1e-3
 
 
+def test_start_conditioned_mean_starts_at_the_robot_and_engages_the_new_object(promp):
+    """The nominal for a new object (ProMP-RRL's, Protocol v8 rule 3): it starts at the
+    robot's pose (within 2 mm: conditioning noise 1e-4 and 20 demonstrations), and behind
+    the object (the demonstrations' second key pose, phase 2/3) it is where the
+    demonstrations put it relative to that object (within 5 mm); an equivalent start
+    rotation vector (2 pi apart) gives the same nominal."""
+    new_object = NOMINAL_OBJECT + [0.07, -0.06, 0.0]
+    start = np.r_[HOME, np.pi, 0.0, 0.0]
+    phase = np.linspace(0.0, 1.0, 61)
+    nominal = promp.start_conditioned_mean(phase, new_object, start)
+    assert nominal.shape == (61, 6)
+    np.testing.assert_allclose(nominal[0, :3], HOME, atol=2e-3)
+    behind = nominal[40, :3]  # phase 2/3
+    np.testing.assert_allclose(behind, new_object + [0.0, -0.08, 0.02], atol=5e-3)
+    wrapped = start.copy()
+    wrapped[3] -= 2 * np.pi
+    np.testing.assert_allclose(
+        promp.start_conditioned_mean(phase, new_object, wrapped), nominal, atol=1e-9
+    )
+    unconditioned = promp.mean_trajectory(phase, new_object)
+    assert np.abs(unconditioned[0, :3] - HOME).max() > 0.03  # what the conditioning fixes
+
+
 def test_basis_and_conditioning_agree_with_movement_primitives():
     """Same basis family and Eqs. (5)-(6) as movement_primitives.promp.ProMP (width matched)."""
     n_basis = 12
