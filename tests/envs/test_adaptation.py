@@ -470,3 +470,84 @@ def test_r_sd_charges_the_whole_tool_at_contact_one_collision_per_segment(tool):
     assert at_contact == pytest.approx(config.collision_penalty, rel=1e-12)
     at_margin = config.sd_beta * per_segment / (config.sd_d_min + config.sd_epsilon)
     assert at_margin == pytest.approx(0.25 * config.collision_penalty, rel=1e-12)
+
+
+V7_EPISODE_TCS = 3
+
+
+def _v7_env(task: str, monkeypatch):
+    """The paper preset's dist-gprl env with v7's control loop and v7's NumPy distance field
+    (`tests/sim/_reference_control.py`, `tests/safety/_reference_edf.py`) in place of the
+    planned loop and the compiled field of protocol v8 rule 6 (issue 66)."""
+    from pathlib import Path
+
+    tests = Path(__file__).resolve().parents[1]
+    monkeypatch.syspath_prepend(str(tests / "sim"))
+    monkeypatch.syspath_prepend(str(tests / "safety"))
+    from _reference_control import reference_run
+    from _reference_edf import reference_distance
+
+    from distgprl.experiments.bench.sizes import run_spec
+    from distgprl.experiments.runner import make_env
+
+    env = make_env(run_spec(task, "dist-gprl"))
+    sim, field = env.unwrapped.sim, env.unwrapped.field
+    monkeypatch.setattr(
+        sim,
+        "execute",
+        lambda poses, stop_on_collision=False: reference_run(sim, poses, stop_on_collision),
+    )
+    monkeypatch.setattr(
+        field,
+        "distance",
+        lambda points, dynamic_shift=None: reference_distance(field, points, dynamic_shift),
+    )
+    monkeypatch.setattr(field, "clearance", lambda points: reference_distance(field, points)[0])
+    return env
+
+
+@pytest.mark.parametrize("task", ["dcp", "dbm"])
+def test_v8_speed_work_keeps_v7s_episodes(task, monkeypatch):
+    """On fixed evaluation TCs with fixed random actions, the env with v8's speed work
+    (issue 66: the planned control loop, the compiled distance field, the tool points)
+    plays v7's episodes: the same steps, success, collision, stop, min clearance and peak
+    joint speed (tolerance zero: the control loop is bit-identical, tests/sim/
+    test_control_equivalence.py, and the field does not act on the physics), rewards and
+    their terms within 1e-9 and the state within 1e-6 (the field's values differ by the
+    rounding of its local coordinates, ≤ 1e-15 m, tests/safety/test_edf.py; r_sd's
+    1 / (d + eps) and the float32 state amplify that far below these bounds)."""
+    from distgprl.experiments.bench.sizes import run_spec
+    from distgprl.experiments.runner import make_env
+
+    new, old = make_env(run_spec(task, "dist-gprl")), _v7_env(task, monkeypatch)
+    rng = np.random.default_rng(66)
+    exact = (
+        "success",
+        "completed",
+        "collision",
+        "stopped_at_step",
+        "min_clearance",
+        "min_signed_clearance",
+        "peak_joint_speed",
+    )
+    try:
+        for tc in new.unwrapped.spec_task.evaluation_tcs(V7_EPISODE_TCS):
+            obs_new, _ = new.reset(options={"tc": tc})
+            obs_old, _ = old.reset(options={"tc": tc})
+            done = False
+            while not done:
+                np.testing.assert_allclose(obs_new["state"], obs_old["state"], atol=1e-6)
+                np.testing.assert_allclose(obs_new["aux"], obs_old["aux"], atol=1e-6)
+                action = rng.uniform(-1.0, 1.0, new.action_space.shape).astype(np.float32)
+                obs_new, r_new, term_new, _, info_new = new.step(action)
+                obs_old, r_old, term_old, _, info_old = old.step(action)
+                assert term_new == term_old
+                assert abs(r_new - r_old) <= 1e-9
+                for key in REWARD_TERMS:
+                    assert abs(info_new[key] - info_old[key]) <= 1e-9, key
+                for key in exact:
+                    assert info_new.get(key) == info_old.get(key), key
+                done = term_new
+    finally:
+        new.close()
+        old.close()
