@@ -29,10 +29,11 @@ from distgprl.experiments.evaluation import evaluate_run
 from distgprl.experiments.factories import make_agent, make_env
 from distgprl.experiments.policies import (
     beats_every_earlier,
-    best_curve_row,
     curve_policy_path,
     drop_curve_policies_after,
+    is_trained_point,
     save_curve_policy,
+    select_best,
 )
 from distgprl.experiments.rollout import deterministic_policy, evaluate_policy, summarise
 from distgprl.experiments.run_control import TrainingInterrupted, run_lock
@@ -294,8 +295,9 @@ class _TrainingLoop:
 
     def record_curve(self) -> None:
         """Evaluate the deterministic policy on the learning-curve TCs and append the point
-        to ``progress.csv`` (and the logs); keep the actor if the point beats every earlier
-        one (`curve_rank`)."""
+        to ``progress.csv`` (and the logs); keep the actor if the point is trained (after the
+        first SAC update) and ranks at least as high as every earlier trained one
+        (`beats_every_earlier`): the untrained actor is never kept."""
         run, model, progress_rows = self.run, self.model, self.started.progress_rows
         rows = evaluate_policy(
             self.started.eval_env, self.started.curve_tcs, deterministic_policy(model)
@@ -328,7 +330,8 @@ class _TrainingLoop:
             if key not in ("step", "episodes", "wall_time_s") and value != "":
                 model.logger.record(f"curve/{key}", float(value))
         model.logger.dump(step=model.num_timesteps)
-        if beats_every_earlier(progress_rows[:-1], progress_rows[-1]):
+        learning_starts = run.config.sac.learning_starts
+        if beats_every_earlier(progress_rows[:-1], progress_rows[-1], learning_starts):
             save_curve_policy(self.folder, model)  # before the row: a kill never leaves it unkept
         write_csv(
             self.folder / "progress.csv",
@@ -442,11 +445,20 @@ def _evaluate_trained(
     show_progress: bool,
     progress_rows: list[dict[str, Any]],
 ) -> None:
-    """Evaluate the trained run's final policy and, if its actor was kept, its best
-    learning-curve policy (`evaluate_run`)."""
+    """Evaluate the trained run's final policy and, if it has a trained curve point whose
+    actor was kept, its best learning-curve policy (`evaluate_run`); otherwise the best-policy
+    evaluation is skipped with a note."""
     task, method, seed = run.task, run.method.name, run.seed
     evaluate_run(task, method, seed, preset, root=root, show_progress=show_progress)
-    best_step = int(best_curve_row(progress_rows)["step"])
+    learning_starts = run.config.sac.learning_starts
+    if not any(is_trained_point(row, learning_starts) for row in progress_rows):
+        print(
+            f"note: {folder}: no learning-curve point after the first SAC update (step > "
+            f"learning_starts = {learning_starts}); the best-policy evaluation is skipped",
+            file=sys.stderr,
+        )
+        return
+    best_step = select_best(progress_rows, learning_starts, folder).step
     if curve_policy_path(folder, best_step).exists():
         evaluate_run(
             task, method, seed, preset, root=root, show_progress=show_progress, policy="best"

@@ -14,6 +14,12 @@ before it was recorded has it computed from its ``evaluation[_best].csv``
 (`with_collision_free_clearance`). A run whose every episode collided has no MinCl (not 0):
 its cell is over the other seeds, ``(n=k)``, or ``– (all collided)``.
 
+A best-policy cell where, at any of its seeds, no trained learning-curve point beat the
+untrained step-0 one (the summary's ``beats_untrained`` is false; protocol v8, rule 2) still
+reports the best trained policy, and counts those seeds with their mean untrained curve
+success (`untrained_marks`, shown with `distgprl.report.table1_text.UNTRAINED_MARK`); a
+summary without ``beats_untrained`` (written before it was recorded) is unknown, not marked.
+
 Rows follow the paper's order, then the ablation and the `demo` reference. The CSV,
 Markdown and LaTeX texts are made by `distgprl.report.table1_text`. Pure functions of the
 files they read.
@@ -115,6 +121,42 @@ def aggregate(values: list[float]) -> Cell:
     return Cell(mean, std, mean - half, mean + half, n)
 
 
+BEATS_UNTRAINED = "beats_untrained"
+"""The best-policy summary field (`distgprl.experiments.policies.BestSelection`): whether the
+selected trained curve point's curve success is above the untrained step-0 point's (true,
+false; absent, or None, where unknown)."""
+
+UNTRAINED_CURVE_SUCCESS = "untrained_curve_success_rate"
+"""The best-policy summary field: the untrained step-0 point's curve success (curve TCs)."""
+
+
+@dataclass(frozen=True)
+class UntrainedMarks:
+    """The seeds of one Table I cell at which no trained policy beat the untrained one.
+
+    Attributes:
+        seeds: how many of the cell's seeds record ``beats_untrained`` false.
+        untrained_curve_success: the mean over those seeds of the untrained step-0 point's
+            learning-curve success (NaN where ``seeds`` is 0 or none records it).
+    """
+
+    seeds: int
+    untrained_curve_success: float
+
+
+def untrained_marks(summaries: list[dict[str, Any]]) -> UntrainedMarks:
+    """`UntrainedMarks` of one cell's summaries (one per seed): only an explicit false
+    ``beats_untrained`` counts; a missing one is unknown and not counted."""
+    beaten = [s for s in summaries if s.get(BEATS_UNTRAINED) is False]
+    figures = [
+        float(s[UNTRAINED_CURVE_SUCCESS])
+        for s in beaten
+        if s.get(UNTRAINED_CURVE_SUCCESS) is not None
+    ]
+    mean = float(np.mean(figures)) if figures else float("nan")
+    return UntrainedMarks(len(beaten), mean)
+
+
 def metric_values(summaries: list[dict[str, Any]], key: str) -> list[float]:
     """``key`` of each summary that has a value (MinCl is None where every episode
     collided, and absent from summaries written before it was recorded)."""
@@ -175,7 +217,9 @@ def per_seed_rows(
     root: str | Path, preset: str, policy: str = TABLE_POLICY
 ) -> list[dict[str, Any]]:
     """One row per run: task, method, seed, the policy evaluated (``best``, ``final`` or
-    ``untrained``) and, for the best, its learning-curve step, the Table I metrics and the
+    ``untrained``) and, for the best, its learning-curve step and whether it beat the
+    untrained step-0 point (`BEATS_UNTRAINED`, `UNTRAINED_CURVE_SUCCESS`; empty where not
+    recorded), the Table I metrics and the
     collision-free episodes MinCl is over, the training wall time
     (min) and process CPU time per RL step (ms, both from ``done.json``; empty for `demo` and
     for runs made before it was recorded), the numerics fingerprint of the machine that
@@ -197,6 +241,9 @@ def per_seed_rows(
             "policy_step": summary.get("policy_step", ""),
             "collision_free_episodes": summary.get("collision_free_episodes", ""),
         }
+        for key in (BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS):
+            value = summary.get(key)
+            row[key] = "" if value is None else value
         for key, _ in (*METRICS, *PER_SEED_EXTRA):
             value = summary.get(key)
             row[key] = "" if value is None else value
@@ -253,7 +300,8 @@ def simulation_table(
     root: str | Path, preset: str, policy: str = TABLE_POLICY
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Rows of Table I of the ``policy`` evaluations: one per (method), columns per task and
-    metric (and, for MinCl, the seeds whose every episode collided)."""
+    metric (and, for MinCl, the seeds whose every episode collided; ``<task>_untrained``:
+    the cell's `UntrainedMarks`)."""
     summaries = collect_summaries(root, preset, policy)
     tasks = sorted({task for task, _ in summaries}, key=task_order)
     rows = []
@@ -269,6 +317,7 @@ def simulation_table(
             row[f"{task}_all_collided_seeds"] = sum(
                 s.get("collision_free_episodes") == 0 for s in seeds
             )
+            row[f"{task}_untrained"] = untrained_marks(seeds)
             scores = {(task, method): [{k: float(s[k]) for k, _ in IQM_METRICS} for s in seeds]}
             for key, _ in IQM_METRICS:
                 row[f"{task}_{key}_iqm"] = method_estimate(

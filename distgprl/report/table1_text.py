@@ -9,7 +9,10 @@ unreadable); their caption says so. Those displayed intervals, and the CSV's int
 ``mean`` and the seed count follows the Success cell in brackets, e.g. ``[3]``. MinCl's
 cells say over how many seeds they are where a seed's every episode collided
 (`cell_text`), and a sentence under the Markdown table says what MinCl is over
-(`MINCL_NOTE`). Pure functions of the rows they are given.
+(`MINCL_NOTE`). A best-policy Success cell with seeds at which no trained policy beat the
+untrained one carries `UNTRAINED_MARK` and the untrained curve success beside
+(`untrained_text`), explained by `UNTRAINED_NOTE` under the table (Markdown and LaTeX); the
+CSV counts those seeds and gives the figure. Pure functions of the rows they are given.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from distgprl.report.aggregate import BOOTSTRAP_REPS, Estimate
 from distgprl.report.markdown import markdown_table
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
+    BEATS_UNTRAINED,
     CLEARANCE_METRICS,
     COLLISION_FREE_MINCL,
     INTERVAL_METRICS,
@@ -33,7 +37,9 @@ from distgprl.report.table1 import (
     METRICS,
     PER_SEED_EXTRA,
     RATE_BOUNDS,
+    UNTRAINED_CURVE_SUCCESS,
     Cell,
+    UntrainedMarks,
     aggregate,
 )
 
@@ -49,6 +55,27 @@ MINCL_NOTE = (
 )
 """The sentence under the Markdown Table I saying what MinCl is over."""
 
+UNTRAINED_MARK = "†"
+"""The mark of a best-policy cell (or run) where no trained policy beat the untrained one."""
+
+_UNTRAINED_WHAT = (
+    "no learning-curve point after the first SAC update had a higher curve success than the "
+    "untrained step-0 policy (protocol v8, rule 2); the best trained policy is still reported"
+)
+
+UNTRAINED_NOTE = (
+    f"{UNTRAINED_MARK} (untrained x, k of n seeds): no trained policy beat the untrained one "
+    f"at k of the cell's n seeds: {_UNTRAINED_WHAT}, and x is the untrained policy's "
+    "learning-curve success (curve TCs, not the evaluation TCs), mean over those k seeds"
+)
+"""The footnote of `UNTRAINED_MARK`, under the Markdown and LaTeX Table I where it is used."""
+
+UNTRAINED_RUN_NOTE = (
+    f"{UNTRAINED_MARK} (untrained x): no trained policy beat the untrained one: "
+    f"{_UNTRAINED_WHAT}, and x is the untrained policy's learning-curve success (curve TCs)"
+)
+"""The footnote of `UNTRAINED_MARK` under the Markdown Table I per run where it is used."""
+
 POLICY_TITLES = {
     "best": "best learning-curve policy, Algorithm 1's output",
     "final": "final policy",
@@ -57,6 +84,12 @@ POLICY_TITLES = {
 
 MINCL_SEEDS = f"{COLLISION_FREE_MINCL}_seeds"
 """CSV column per task: the seeds MinCl's cell is over (those with a collision-free episode)."""
+
+UNTRAINED_SEEDS = "untrained_best_seeds"
+"""CSV column per task: the seeds at which no trained policy beat the untrained one."""
+
+UNTRAINED_FIGURE = "untrained_curve_success_mean"
+"""CSV column per task: those seeds' mean untrained (step-0) curve success (empty: none)."""
 
 
 def cell_text(cell: Cell, key: str, seeds: int = 0, all_collided: int = 0) -> str:
@@ -74,6 +107,32 @@ def cell_text(cell: Cell, key: str, seeds: int = 0, all_collided: int = 0) -> st
     return text
 
 
+def untrained_text(marks: UntrainedMarks | None, seeds: int) -> str:
+    """`` † (untrained 0.68, 5 of 5 seeds)`` where ``marks`` counts seeds (of the cell's
+    ``seeds``) at which no trained policy beat the untrained one; empty otherwise."""
+    if marks is None or marks.seeds == 0:
+        return ""
+    figure = (
+        "–" if np.isnan(marks.untrained_curve_success) else f"{marks.untrained_curve_success:.2f}"
+    )
+    return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
+
+
+def _success_text(row: dict[str, Any], task: str) -> str:
+    """The Success cell of ``row`` and ``task`` with its seed count and `untrained_text`."""
+    n = row.get(f"{task}_seeds", 0)
+    text = _row_cell_text(row, task, "success_rate")
+    text = f"{text} [{n}]" if n else text
+    return text + untrained_text(row.get(f"{task}_untrained"), n)
+
+
+def _has_untrained_marks(rows: list[dict[str, Any]], tasks: list[str]) -> bool:
+    """Whether any cell of ``rows`` carries `UNTRAINED_MARK`."""
+    return any(
+        getattr(row.get(f"{task}_untrained"), "seeds", 0) > 0 for row in rows for task in tasks
+    )
+
+
 def _row_cell_text(row: dict[str, Any], task: str, key: str) -> str:
     """`cell_text` of ``row``'s cell of ``task`` and ``key``."""
     cell = row.get(f"{task}_{key}", aggregate([]))
@@ -86,20 +145,23 @@ def per_seed_texts(
 ) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows` of the ``policy`` evaluations."""
     columns = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
-    fields = ["task", "method", "seed", "policy", "policy_step", "collision_free_episodes"]
+    fields = ["task", "method", "seed", "policy", "policy_step"]
+    fields += [BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS, "collision_free_episodes"]
     fields += [*(key for key, _ in columns), "train_wall_min"]
     fields += ["train_cpu_ms_per_step", "numerics", "config_hash"]
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows(
+        [{**dict.fromkeys((BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS), ""), **r} for r in rows]
+    )
     header = ["Task", "Method", "Seed", "Policy", "Collision-free episodes"]
     header += [*(label for _, label in columns), "Train wall (min)", "Train CPU (ms/step)"]
     table = []
     for row in rows:
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
         step = row["policy_step"]
-        cells.append(row["policy"] + ("" if step == "" else f" (step {step})"))
+        cells.append(row["policy"] + ("" if step == "" else f" (step {step})") + _run_mark(row))
         cells.append(str(row["collision_free_episodes"]) or "–")
         for key, _ in columns:
             value = row[key]
@@ -112,7 +174,18 @@ def per_seed_texts(
             cells.append("–" if row[key] == "" else f"{row[key]:.1f}")
         table.append(cells)
     title = f"Table I per run ({preset} preset, {POLICY_TITLES[policy]})"
-    return buffer.getvalue(), markdown_table(title, header, table)
+    marked = any(row.get(BEATS_UNTRAINED) is False for row in rows)
+    note = f"\n{UNTRAINED_RUN_NOTE}.\n" if marked else ""
+    return buffer.getvalue(), markdown_table(title, header, table) + note
+
+
+def _run_mark(row: dict[str, Any]) -> str:
+    """`` † (untrained 0.44)`` for a run whose best policy did not beat the untrained one
+    (``beats_untrained`` false), empty otherwise (true, or not recorded)."""
+    if row.get(BEATS_UNTRAINED) is not False:
+        return ""
+    figure = row.get(UNTRAINED_CURVE_SUCCESS, "")
+    return f" {UNTRAINED_MARK} (untrained {'–' if figure == '' else f'{float(figure):.2f}'})"
 
 
 def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
@@ -123,6 +196,7 @@ def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
         for key, _ in METRICS:
             fields += [f"{task}_{key}_{part}" for part in ("mean", "std", "ci_low", "ci_high")]
         fields += [f"{task}_{MINCL_SEEDS}", f"{task}_all_collided_seeds"]
+        fields += [f"{task}_{UNTRAINED_SEEDS}", f"{task}_{UNTRAINED_FIGURE}"]
         for key, _ in IQM_METRICS:
             fields += [f"{task}_{key}_{part}" for part in ("iqm", "iqm_low", "iqm_high")]
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
@@ -142,6 +216,10 @@ def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
                 f"{task}_{COLLISION_FREE_MINCL}", aggregate([])
             ).n
             out[f"{task}_all_collided_seeds"] = row.get(f"{task}_all_collided_seeds", 0)
+            marks = row.get(f"{task}_untrained") or UntrainedMarks(0, float("nan"))
+            out[f"{task}_{UNTRAINED_SEEDS}"] = marks.seeds
+            figure = marks.untrained_curve_success
+            out[f"{task}_{UNTRAINED_FIGURE}"] = "" if np.isnan(figure) else f"{figure:.6g}"
             for key, _ in IQM_METRICS:
                 estimate = row.get(f"{task}_{key}_iqm")
                 parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
@@ -180,10 +258,11 @@ def _markdown(
     for row in rows:
         cells = [row["label"]]
         for task in tasks:
-            n = row.get(f"{task}_seeds", 0)
-            for index, (key, _) in enumerate(METRICS):
-                text = _row_cell_text(row, task, key)
-                cells.append(f"{text} [{n}]" if index == 0 and n else text)
+            for key, _ in METRICS:
+                success = key == "success_rate"
+                cells.append(
+                    _success_text(row, task) if success else _row_cell_text(row, task, key)
+                )
             cells += [_iqm_text(row.get(f"{task}_{key}_iqm")) for key, _ in IQM_METRICS]
         table.append(cells)
     title = (
@@ -193,7 +272,8 @@ def _markdown(
         "seeds; the IQM columns give the interquartile mean over seeds with its 95 % "
         f"stratified-bootstrap interval ({BOOTSTRAP_REPS} replicates)"
     )
-    notes = "".join(f"\n{text}.\n" for text in (MINCL_NOTE, note) if text)
+    untrained = UNTRAINED_NOTE if _has_untrained_marks(rows, tasks) else ""
+    notes = "".join(f"\n{text}.\n" for text in (MINCL_NOTE, untrained, note) if text)
     return markdown_table(title, header, table) + notes
 
 
@@ -221,10 +301,23 @@ def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: st
         for task in tasks:
             for key, _ in METRICS:
                 text = _row_cell_text(row, task, key)
-                cells.append(text.replace("±", "$\\pm$").replace("–", "--"))
+                if key == "success_rate":
+                    text += untrained_text(
+                        row.get(f"{task}_untrained"), row.get(f"{task}_seeds", 0)
+                    )
+                cells.append(_latex_text(text))
         lines.append(" & ".join(cells) + " \\\\")
-    lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
+    lines += ["\\bottomrule", "\\end{tabular}"]
+    if _has_untrained_marks(rows, tasks):
+        lines += ["", f"\\footnotesize {_latex_text(UNTRAINED_NOTE)}."]
+    lines += ["\\end{table}", ""]
     return "\n".join(lines)
+
+
+def _latex_text(text: str) -> str:
+    """``text`` with the table's Unicode signs as LaTeX."""
+    replaced = text.replace("±", "$\\pm$").replace("—", "---").replace("–", "--")
+    return replaced.replace(UNTRAINED_MARK, "$^\\dagger$")
 
 
 def table1_texts(

@@ -1,4 +1,6 @@
-"""Algorithm 1's "best policy": curve policies kept in training, selected, evaluated."""
+"""Algorithm 1's "best policy": curve policies kept in training, selected, evaluated. The
+best policy is a trained one (protocol v8, rule 2): only curve points after the first SAC
+update (step > learning_starts) qualify, the step-0 point never does."""
 
 from __future__ import annotations
 
@@ -9,9 +11,11 @@ from typer.testing import CliRunner
 from distgprl.cli import app
 from distgprl.errors import UserInputError
 from distgprl.experiments import policies, runner, training
-from distgprl.experiments.results import read_csv, read_json
+from distgprl.experiments.results import read_csv, read_json, write_json
 
 STEPS = 240  # the `ci` preset shortened: curve points at 0, 120, 240
+CI_LEARNING_STARTS = 60  # the `ci` preset's sac.learning_starts: 120 and 240 are trained
+LS = 50  # learning_starts of the synthetic curves below (steps 0, 100, 200, ...)
 
 
 def train(root, steps=STEPS, **kwargs):
@@ -43,39 +47,78 @@ def row(success, collision, ret, step=0):
     return {"step": step, "success_rate": success, "collision_rate": collision, "mean_return": ret}
 
 
-def test_best_point_is_the_highest_curve_success_ties_to_the_later_point():
-    """As pre-registered (FINDINGS "Protocol v6", rule 6): the highest curve success alone
-    (collision rate and return do not break ties), and of equal ones the later point."""
+def test_best_point_is_the_highest_trained_curve_success_ties_to_the_later_point():
+    """As pre-registered (FINDINGS "Protocol v6", rule 6; v8, rule 2): among the points after
+    the first update, the highest curve success alone (collision rate and return do not
+    break ties), and of equal ones the later point."""
     rows = [
         row(0.5, 0.0, 9.0, 0),
-        row(0.8, 0.0, 99.0, 1),  # the same success with fewer collisions and more return...
-        row(0.8, 0.4, 1.0, 2),
-        row(0.8, 0.6, 0.0, 3),  # ...loses to the latest point of that success
-        row(0.7, 0.0, 99.0, 4),
+        row(0.8, 0.0, 99.0, 100),  # the same success with fewer collisions and more return...
+        row(0.8, 0.4, 1.0, 200),
+        row(0.8, 0.6, 0.0, 300),  # ...loses to the latest point of that success
+        row(0.7, 0.0, 99.0, 400),
     ]
-    assert runner.best_curve_row(rows)["step"] == 3
+    assert runner.best_curve_row(rows, LS, "run")["step"] == 300
     as_read = [{k: str(v) for k, v in r.items()} for r in rows]  # progress.csv gives strings
-    assert runner.best_curve_row(as_read)["step"] == "3"
-    assert runner.best_curve_row(rows[:1])["step"] == 0
-    assert runner.best_curve_row([row(0.3, 0, 0, s) for s in range(4)])["step"] == 3  # all tie
-    assert runner.best_curve_row([row(0.9, 0, 0, 0), row(0.3, 0, 0, 1)])["step"] == 0
-    with pytest.raises(UserInputError, match="no learning-curve points"):
-        runner.best_curve_row([])
+    assert runner.best_curve_row(as_read, LS, "run")["step"] == "300"
+    all_tie = [row(0.3, 0, 0, s) for s in (0, 100, 200, 300)]
+    assert runner.best_curve_row(all_tie, LS, "run")["step"] == 300
 
 
-def test_a_point_is_kept_when_it_ranks_at_least_as_high_as_every_earlier_one():
-    """The first point is kept; a later one if it ranks at least as high as every earlier
-    one: a tie keeps the later actor too, as `best_curve_row` selects the later of equal
-    points, so the selected point always has its actor."""
-    first, better, tie = row(0.5, 0.0, 1.0, 0), row(0.6, 0.0, 0.0, 1), row(0.6, 0.9, -5.0, 2)
-    assert policies.beats_every_earlier([], first)
-    assert policies.beats_every_earlier([first], better)
-    assert policies.beats_every_earlier([first, better], tie)
-    assert not policies.beats_every_earlier([better], first)
-    curve = [row(*point, step) for step, point in enumerate([(0.5, 0, 0), (0.4, 0, 0)])]
-    curve += [row(0.6, 0.0, 0.0, 2), row(0.6, 0.9, -5.0, 3), row(0.55, 0.0, 0.0, 4)]
-    kept = [r["step"] for i, r in enumerate(curve) if policies.beats_every_earlier(curve[:i], r)]
-    assert kept == [0, 2, 3] and runner.best_curve_row(curve)["step"] == kept[-1]
+def test_step_zero_never_qualifies_even_with_the_highest_curve_success():
+    """The untrained step-0 point, and every point up to learning_starts (no update yet), is
+    never the best, however high its curve success; the selection says the untrained point
+    was not beaten, and gives its curve success."""
+    rows = [row(0.9, 0, 0, 0), row(0.95, 0, 0, LS), row(0.3, 0, 0, LS + 1), row(0.2, 0, 0, 200)]
+    assert runner.best_curve_row(rows, LS, "run")["step"] == LS + 1
+    selection = policies.select_best(rows, LS, "run")
+    assert (selection.step, selection.beats_untrained) == (LS + 1, False)
+    assert selection.untrained_curve_success_rate == 0.9
+    assert [policies.is_trained_point(r, LS) for r in rows] == [False, False, True, True]
+
+
+def test_a_trained_point_beats_the_untrained_one_only_when_strictly_better():
+    """``beats_untrained``: the best trained point's curve success is strictly above step
+    0's; a tie does not beat it; a curve without a step-0 point leaves it unknown."""
+    better = policies.select_best([row(0.4, 0, 0, 0), row(0.5, 0, 0, 100)], LS, "run")
+    assert (better.beats_untrained, better.untrained_curve_success_rate) == (True, 0.4)
+    tie = policies.select_best([row(0.5, 0, 0, 0), row(0.5, 0, 0, 100)], LS, "run")
+    assert (tie.step, tie.beats_untrained) == (100, False)
+    unknown = policies.select_best([row(0.5, 0, 0, 100)], LS, "run")
+    assert (unknown.beats_untrained, unknown.untrained_curve_success_rate) == (None, None)
+    assert better.record() == {
+        "learning_starts": LS,
+        "beats_untrained": True,
+        "untrained_curve_success_rate": 0.4,
+    }
+
+
+def test_a_curve_without_a_trained_point_is_an_error_naming_the_run_folder():
+    for rows in ([], [row(0.9, 0, 0, 0)], [row(0.9, 0, 0, 0), row(0.1, 0, 0, LS)]):
+        with pytest.raises(
+            UserInputError, match=r"^results/x/seed0: no learning-curve point after"
+        ):
+            runner.best_curve_row(rows, LS, "results/x/seed0")
+
+
+def test_a_point_is_kept_when_it_is_trained_and_ranks_at_least_as_high_as_every_earlier_one():
+    """An untrained point (step <= learning_starts) is never kept; the first trained point
+    is; a later one if it ranks at least as high as every earlier trained one: a tie keeps
+    the later actor too, as `best_curve_row` selects the later of equal points, so the
+    selected point always has its actor."""
+    untrained, first = row(0.9, 0.0, 1.0, 0), row(0.5, 0.0, 1.0, 100)
+    better, tie = row(0.6, 0.0, 0.0, 200), row(0.6, 0.9, -5.0, 300)
+    assert not policies.beats_every_earlier([], untrained, LS)
+    assert policies.beats_every_earlier([untrained], first, LS)  # step 0's 0.9 does not count
+    assert policies.beats_every_earlier([untrained, first], better, LS)
+    assert policies.beats_every_earlier([first, better], tie, LS)
+    assert not policies.beats_every_earlier([better], row(0.5, 0, 0, 400), LS)
+    curve = [untrained, row(0.5, 0, 0, 100), row(0.4, 0, 0, 200), row(0.6, 0.0, 0.0, 300)]
+    curve += [row(0.6, 0.9, -5.0, 400), row(0.55, 0.0, 0.0, 500)]
+    kept = [
+        r["step"] for i, r in enumerate(curve) if policies.beats_every_earlier(curve[:i], r, LS)
+    ]
+    assert kept == [100, 300, 400] and runner.best_curve_row(curve, LS, "run")["step"] == kept[-1]
 
 
 @pytest.fixture(scope="module")
@@ -84,15 +127,17 @@ def trained(tmp_path_factory):
     return train(tmp_path_factory.mktemp("run"), evaluate_after=False)
 
 
-def test_a_curve_policy_is_kept_exactly_where_a_point_beats_every_earlier_one(trained):
+def test_a_curve_policy_is_kept_exactly_where_a_trained_point_beats_every_earlier_one(trained):
     _, progress = read_csv(trained / "progress.csv")
     expected, best = [], None
     for r in progress:
+        if int(r["step"]) <= CI_LEARNING_STARTS:
+            continue
         if best is None or runner.curve_rank(r) >= best:
             expected.append(int(r["step"]))
             best = runner.curve_rank(r)
     assert kept_steps(trained) == expected
-    assert expected[0] == 0
+    assert expected[0] == 120  # the first trained point; step 0 is never kept
 
 
 @pytest.fixture(scope="module")
@@ -106,16 +151,31 @@ def ranked_by_step(tmp_path_factory):
 
 
 def test_every_kept_actor_is_the_actor_of_its_step(ranked_by_step):
-    """With a ranking that always improves, every point is kept: the last one is the final
-    model's actor, the first one the untrained actor, and they differ."""
+    """With a ranking that always improves (step 0 ranking lowest), every trained point is
+    kept and step 0 is not: the last one is the final model's actor, and it differs from
+    the first trained one."""
     _, folder = ranked_by_step
-    assert kept_steps(folder) == [0, 120, 240]
+    assert kept_steps(folder) == [120, 240]
     for kept, final in zip(kept_actor(folder, 240), final_actor(folder), strict=True):
         np.testing.assert_array_equal(kept, final)
     assert any(
         not np.array_equal(a, b)
-        for a, b in zip(kept_actor(folder, 0), kept_actor(folder, 240), strict=True)
+        for a, b in zip(kept_actor(folder, 120), kept_actor(folder, 240), strict=True)
     )
+
+
+def test_a_step_is_trained_exactly_when_sb3_has_taken_an_update_before_it(ranked_by_step):
+    """The rule step > learning_starts against SB3's own count: the 240-step ci run's final
+    model has taken 240 - learning_starts gradient steps (train_freq = gradient_steps = 1),
+    so one update happened after step learning_starts + 1 was collected, none before."""
+    from distgprl.agents.sac import RegularisedSAC
+
+    _, folder = ranked_by_step
+    model = RegularisedSAC.load_saved(folder / "model.zip")
+    assert (model.learning_starts, model.train_freq.frequency) == (CI_LEARNING_STARTS, 1)
+    assert model._n_updates == STEPS - CI_LEARNING_STARTS
+    assert policies.is_trained_point({"step": CI_LEARNING_STARTS + 1}, model.learning_starts)
+    assert not policies.is_trained_point({"step": CI_LEARNING_STARTS}, model.learning_starts)
 
 
 def test_a_killed_and_resumed_run_keeps_the_same_curve_policies(
@@ -159,8 +219,10 @@ def test_best_policy_evaluation_writes_its_own_files_and_records_the_selection(
 
 
 def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkeypatch):
-    """Ranking earliest first selects the untrained step-0 actor: the evaluated policy is
-    that actor (its returns differ from the final policy's), not the final one."""
+    """Ranking earliest first selects the earliest trained point (step 120; step 0 never
+    qualifies): the evaluated policy is that actor (its returns differ from the final
+    policy's), not the final one, and the summary records that it beat the untrained
+    point (under this ranking step 0 ranks highest: it did not)."""
     monkeypatch.setattr(policies, "curve_rank", lambda r: (-float(r["step"]),))
     folder = train(tmp_path)
     loaded = {}
@@ -175,8 +237,11 @@ def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkey
     summary = runner.evaluate_run(
         "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
     )
-    assert loaded["step"] == 0 and summary["policy_step"] == 0
-    for a, b in zip(loaded["actor"], kept_actor(folder, 0), strict=True):
+    assert loaded["step"] == 120 and summary["policy_step"] == 120
+    assert summary["beats_untrained"] is False and summary["learning_starts"] == 60
+    _, progress = read_csv(folder / "progress.csv")
+    assert summary["untrained_curve_success_rate"] == float(progress[0]["success_rate"])
+    for a, b in zip(loaded["actor"], kept_actor(folder, 120), strict=True):
         np.testing.assert_array_equal(a, b)
     _, best_rows = read_csv(folder / "evaluation_best.csv")
     _, final_rows = read_csv(folder / "evaluation.csv")
@@ -186,7 +251,7 @@ def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkey
 def test_training_evaluates_the_best_policy_beside_the_final_one(ranked_by_step):
     _, folder = ranked_by_step
     summary = read_json(folder / "summary_best.json")["summary"]
-    assert summary["policy_step"] == 240
+    assert summary["policy_step"] == 240 and summary["beats_untrained"] is True
     assert len(read_csv(folder / "evaluation_best.csv")[1]) == summary["episodes"]
 
 
@@ -200,6 +265,56 @@ def test_training_skips_the_best_policy_evaluation_it_cannot_do_and_says_so(
     assert (folder / "done.json").exists() and (folder / "summary.json").exists()
     assert not (folder / "summary_best.json").exists()
     assert "best-policy evaluation is skipped" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def untrained_only(tmp_path_factory):
+    """A 60-step ci run (learning_starts 60): curve points at 0 and 60, neither trained;
+    (root, folder, what training wrote to stderr)."""
+    import contextlib
+    import io
+
+    root = tmp_path_factory.mktemp("untrained")
+    with contextlib.redirect_stderr(io.StringIO()) as stderr:
+        folder = train(root, steps=CI_LEARNING_STARTS)
+    return root, folder, stderr.getvalue()
+
+
+def test_training_without_a_trained_point_keeps_no_actor_and_skips_the_best_evaluation(
+    untrained_only,
+):
+    _, folder, stderr = untrained_only
+    _, progress = read_csv(folder / "progress.csv")
+    assert [int(r["step"]) for r in progress] == [0, CI_LEARNING_STARTS]
+    assert kept_steps(folder) == []
+    assert (folder / "summary.json").exists() and not (folder / "summary_best.json").exists()
+    assert "no learning-curve point after the first SAC update" in stderr
+    assert "best-policy evaluation is skipped" in stderr
+
+
+def test_a_best_policy_request_without_a_trained_point_exits_2_and_writes_nothing(
+    untrained_only,
+):
+    """``evaluate --policy best``, shipping and loading the best policy of a run without a
+    trained curve point: one line naming the run folder, exit 2, no file written."""
+    import distgprl
+
+    root, folder, _ = untrained_only
+    before = sorted(p.name for p in folder.iterdir())
+    arguments = ["evaluate", "--method", "dist-gprl", "--task", "dcp", "--preset", "ci"]
+    result = CliRunner().invoke(app, [*arguments, "--root", str(root), "--policy", "best"])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and str(folder) in lines[0], result.output
+    assert "no learning-curve point after the first SAC update" in lines[0]
+    for request in (
+        lambda: policies.ship_best_policy(folder),
+        lambda: distgprl.load_policy("dcp", "dist-gprl", 0, "ci", root=root, policy="best"),
+    ):
+        with pytest.raises(UserInputError, match=f"^{folder}: no learning-curve point after"):
+            request()
+    assert policies.ship_if_missing(folder) is None
+    assert sorted(p.name for p in folder.iterdir()) == before
 
 
 def test_a_best_point_without_its_kept_policy_is_a_clear_error(tmp_path):
@@ -290,20 +405,10 @@ def test_ship_best_policy_copies_the_best_actor_with_its_hash(tmp_path, monkeypa
     is a `UserInputError`, not a silently different policy."""
     import hashlib
 
-    from distgprl.errors import UserInputError
-    from distgprl.experiments import policies
-    from distgprl.experiments.results import write_csv
-    from distgprl.experiments.runner import PROGRESS_FIELDS
     from distgprl.schema import read_json
 
     monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", str(tmp_path / "ckpt"))
-    folder = tmp_path / "run"
-    rows = []
-    for step, success in ((0, 0.1), (100, 0.6), (200, 0.6), (300, 0.2)):
-        row = dict.fromkeys(PROGRESS_FIELDS, "")
-        row.update(step=step, success_rate=success, collision_rate=0.0)
-        rows.append(row)
-    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS)
+    folder = synthetic_run(tmp_path / "run", ((0, 0.1), (100, 0.6), (200, 0.6), (300, 0.2)))
     with pytest.raises(UserInputError, match="step 200"):
         policies.ship_best_policy(folder)
     kept = policies.curve_policy_path(folder, 200)
@@ -315,3 +420,45 @@ def test_ship_best_policy_copies_the_best_actor_with_its_hash(tmp_path, monkeypa
     record = read_json(folder / policies.SHIPPED_POLICY_RECORD)
     assert record["step"] == 200 and record["bytes"] == len(b"actor weights")
     assert record["sha256"] == hashlib.sha256(b"actor weights").hexdigest()
+    assert (record["beats_untrained"], record["untrained_curve_success_rate"]) == (True, 0.1)
+    assert (record["learning_starts"], record["curve_success_rate"]) == (LS, 0.6)
+
+
+def synthetic_run(folder, curve):
+    """A run folder with a ``progress.csv`` of ``curve`` ((step, success) pairs) and a
+    ``config.json`` giving learning_starts `LS`."""
+    from distgprl.experiments.results import write_csv
+    from distgprl.experiments.runner import PROGRESS_FIELDS
+
+    rows = []
+    for step, success in curve:
+        point = dict.fromkeys(PROGRESS_FIELDS, "")
+        point.update(step=step, success_rate=success, collision_rate=0.0)
+        rows.append(point)
+    write_csv(folder / "progress.csv", rows, PROGRESS_FIELDS)
+    config = {"run": {"config": {"sac": {"learning_starts": LS}}}}
+    write_json(folder / "config.json", config, kind="config")
+    return folder
+
+
+def test_shipping_never_ships_step_zero_and_records_that_it_was_not_beaten(tmp_path, monkeypatch):
+    """Step 0 has the highest curve success: the best trained point (200, the later of the
+    tied trained ones) ships, its record saying no trained point beat the untrained one; a
+    run with no trained point ships nothing and says which run."""
+    monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", str(tmp_path / "ckpt"))
+    folder = synthetic_run(tmp_path / "run", ((0, 0.9), (100, 0.6), (200, 0.6), (300, 0.2)))
+    for step in (0, 100, 200, 300):
+        policies.curve_policy_path(folder, step).parent.mkdir(parents=True, exist_ok=True)
+        policies.curve_policy_path(folder, step).write_bytes(f"actor {step}".encode())
+    assert policies.ship_best_policy(folder).read_bytes() == b"actor 200"
+    record = read_json(folder / policies.SHIPPED_POLICY_RECORD)
+    assert (record["step"], record["beats_untrained"]) == (200, False)
+    assert record["untrained_curve_success_rate"] == 0.9
+    bare = synthetic_run(tmp_path / "bare", ((0, 0.9), (LS, 0.1)))
+    policies.curve_policy_path(bare, 0).parent.mkdir(parents=True, exist_ok=True)
+    policies.curve_policy_path(bare, 0).write_bytes(b"actor 0")
+    with pytest.raises(UserInputError, match=f"^{bare}: no learning-curve point after"):
+        policies.ship_best_policy(bare)
+    assert policies.ship_if_missing(bare) is None
+    assert not (bare / policies.SHIPPED_POLICY).exists()
+    assert not (bare / policies.SHIPPED_POLICY_RECORD).exists()

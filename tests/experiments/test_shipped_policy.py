@@ -20,7 +20,7 @@ from distgprl.experiments.checkpoints import checkpoint_dir
 from distgprl.experiments.policies import (
     SHIPPED_POLICY,
     SHIPPED_POLICY_RECORD,
-    best_curve_row,
+    run_best_selection,
     ship_best_policy,
     verified_shipped_policy,
 )
@@ -40,11 +40,14 @@ def committed_runs() -> list[Path]:
 
 def test_every_committed_trained_run_ships_its_best_actor_with_a_matching_hash():
     """Every finished trained run of the paper preset has policy_best.pt whose SHA-256 is
-    the recorded one and whose step is the run's best learning-curve point."""
+    the recorded one and whose step is the run's best trained learning-curve point (after
+    learning_starts: never step 0, protocol v8 rule 2), with its comparison against the
+    untrained step-0 point recorded as the curve gives it."""
     for folder in committed_runs():
         path, record = verified_shipped_policy(folder)
-        _, curve = read_csv(folder / "progress.csv")
-        assert record["step"] == int(best_curve_row(curve)["step"]), folder
+        selection = run_best_selection(folder)
+        assert record["step"] == selection.step > selection.learning_starts > 0, folder
+        assert record.get("beats_untrained") == selection.beats_untrained, folder
         assert path.stat().st_size == record["bytes"] < 1_000_000, folder  # the actor only
 
 
@@ -59,6 +62,7 @@ def shipped_run(tmp_path_factory):
     )  # fmt: skip
     ship_best_policy(folder)
     policy = distgprl.load_policy("dcp", "dist-gprl", 0, preset="ci", root=root, policy="best")
+    assert policy.selected["policy_step"] == 120  # the one trained point (learning_starts 60)
     env = distgprl.make_env("dcp", "dist-gprl", preset="ci")
     observations = []
     try:
