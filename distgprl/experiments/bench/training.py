@@ -91,7 +91,12 @@ def _instrument(env, model) -> SectionTimers:
     timers.wrap(sim.calls, "step_simulation", "physics_step")
     timers.wrap(sim.calls, "contact_points", "contact_query")
     timers.wrap(sim.control, "clearance", "clearance_query")
-    timers.wrap(sim, "move_kinematic", "kinematic_obstacles")
+    # the control loop plans a segment's kinematic poses and conveyor path, then resets
+    # the bodies per physics step (`ControlLoop.run`): both count as kinematic obstacles
+    for attribute in ("kinematic_schedule", "convey_schedule"):
+        timers.wrap(sim, attribute, "kinematic_obstacles")
+    for attribute in ("reset_base_pose", "reset_base_velocity"):
+        timers.wrap(sim.calls, attribute, "kinematic_obstacles")
     timers.wrap(sim.robot, "command", "joint_commands")
     timers.wrap(sim.robot, "ik_nearest", "ik")
     timers.wrap(sim.robot, "ik_segment", "ik")
