@@ -6,7 +6,7 @@ Two sets of limits apply to a hardware trial, and they are kept apart:
 - :class:`ControllerLimits` (:data:`UR5E_CONTROLLER`): what the UR5e's controller itself
   enforces, from its documentation. A command beyond them ends in a protective stop of the
   arm, whatever this project's code does; the paper's protocol (Table II as the paper ran
-  it, `distgprl.hardware.protocols`) applies these and nothing else.
+  it, `distgprl.trial_protocol`) applies these and nothing else.
 - :class:`SafetyLimits`: the project's own, stricter safety layer
   (:mod:`distgprl.hardware.safety`: pre-flight check, retiming, watchdog), run beside the
   paper's protocol. The evaluation also reports the share of simulated episodes whose peak
@@ -50,7 +50,7 @@ in target position") with a protective stop. This bound is the documented one.""
 class ControllerLimits:
     """What a robot's controller itself enforces on commanded joint targets: a target
     sequence beyond them ends in a protective stop at the first control instant that
-    exceeds one (`distgprl.hardware.protocols.controller_stop`).
+    exceeds one (`distgprl.hardware.controller.controller_stop`).
 
     Attributes:
         name: the robot (in stop reasons).

@@ -330,6 +330,8 @@ API_PAGES: dict[str, str] = {
 CORE_MODULES = (
     "config",
     "config_types",
+    "reward_scale",
+    "trial_protocol",
     "methods",
     "studies",
     "identity",

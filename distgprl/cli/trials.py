@@ -81,7 +81,7 @@ def hardware(
 ) -> None:
     """Hardware trials on a UR5e (ur_rtde) or its digital twin; one CSV row per trial.
 
-    The paper's protocol by default (`distgprl.hardware.protocols`); an unknown
+    The paper's protocol by default (`distgprl.trial_protocol`); an unknown
     ``--protocol`` is a user error (exit 2)."""
     from distgprl.hardware.repair import RepairConfig
     from distgprl.hardware.trials import run_trials

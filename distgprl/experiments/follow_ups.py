@@ -3,7 +3,7 @@
 A trained policy's weights are not committed, so whatever needs the policy beyond its plain
 evaluation has to run where it was trained: the Table II digital-twin trials of a DBM policy
 (`distgprl.hardware.table2_trials`, ``Job.twin_trials``: the paper's protocol first, then the
-safety layer's settings beside it, `distgprl.hardware.protocols`) and the evaluations with the
+safety layer's settings beside it, `distgprl.trial_protocol`) and the evaluations with the
 hardware safety layer in the loop of every run (`distgprl.experiments.repair_evaluations`,
 ``Job.repair_evaluations``). `distgprl.experiments.sweep` runs them right after training, and
 picks a finished run up again for them alone when they are due. Each report is a

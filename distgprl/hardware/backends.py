@@ -2,7 +2,7 @@
 
 Both stream joint-space trajectories (one joint target per control period of the skill,
 25 Hz; checked by the safety layer first under its protocol, as the policy made them under
-the paper's, `distgprl.hardware.protocols`) and report what happened. Either robot enforces
+the paper's, `distgprl.trial_protocol`) and report what happened. Either robot enforces
 its controller's own limits: the real UR5e itself, the twin by emulating it
 (`TwinBackend`). Shared protocol:
 :class:`RobotBackend`. Times are on the backend's clock (s); poses are robot base frame
@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from distgprl.errors import UserInputError
-from distgprl.hardware.protocols import controller_stop
+from distgprl.hardware.controller import controller_stop
 from distgprl.hardware.safety import SafetyLimits, StopRequested, Watchdog
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 from distgprl.sim.tasks.base import TaskConfig
@@ -96,7 +96,7 @@ class TwinBackend:
     trajectory is not executed): on contact with an obstacle (as a real UR would on a
     collision force), and, before any, at the first commanded joint target beyond the
     controller's limits (``controller``: joint speed or acceleration over the twin's own IK
-    targets, `distgprl.hardware.protocols.controller_stop`; the arm executes the targets
+    targets, `distgprl.hardware.controller.controller_stop`; the arm executes the targets
     before it).
 
     Args:

@@ -1,7 +1,7 @@
 """Safety layer for hardware trials: limits, pre-flight plan check, runtime watchdog.
 
 This project's own layer, run under the ``safety-layer`` protocol beside the paper's
-(`distgprl.hardware.protocols`), against its own :class:`SafetyLimits` (stricter than the
+(`distgprl.trial_protocol`), against its own :class:`SafetyLimits` (stricter than the
 UR5e's, `distgprl.limits.UR5E_CONTROLLER`).
 
 Before any motion, :func:`check_plan` converts the planned TCP poses to joint positions

@@ -2,7 +2,7 @@
 
 Table II has, for every method's policies and every seed where one exists, twin trials
 under the paper's protocol (the policy's trajectory executes, only the UR5e's own limits
-apply, `distgprl.hardware.protocols`) and, beside them, behind the safety layer with plan
+apply, `distgprl.trial_protocol`) and, beside them, behind the safety layer with plan
 repair on and off, and for every method a robustness series over the twin's sensor-noise
 levels (safety layer, repair on). A policy's weights are not kept
 with the committed results (only a run's small files are), so its trials have to be run
@@ -22,10 +22,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from distgprl.hardware.protocols import PAPER, SAFETY_LAYER, file_protocol
 from distgprl.identity import resolve_run
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
+from distgprl.trial_protocol import PAPER, SAFETY_LAYER, file_protocol
 
 __all__ = [
     "PAPER_SETTING",
@@ -59,7 +59,7 @@ NOISE_LEVELS = (1, 2, 3, 4)
 
 @dataclass(frozen=True)
 class TrialSetting:
-    """How one trial file's trials run: the protocol (`distgprl.hardware.protocols`), plan
+    """How one trial file's trials run: the protocol (`distgprl.trial_protocol`), plan
     repair (retiming; the safety layer's, always off under the paper's protocol) on or off,
     twin noise level."""
 

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from distgprl.hardware.protocols import PROTECTIVE_STOP
 from distgprl.hardware.safety import tool_check_points
 from distgprl.schema import moved_robot
+from distgprl.trial_protocol import PROTECTIVE_STOP
 
 
 def finish_row(

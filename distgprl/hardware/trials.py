@@ -12,7 +12,7 @@ One trial on the DBM cell:
    (static cell geometry + perceived other bar), the trained policy adapts the window (sets
    the step's residual) from the observation built exactly as in training, and the
    segment's poses go to the robot — under the paper's protocol (``protocol="paper"``, the
-   default, `distgprl.hardware.protocols`) as they are, the robot's controller alone
+   default, `distgprl.trial_protocol`) as they are, the robot's controller alone
    enforcing its own limits (a command beyond them ends the trial in a protective stop);
    under the ``safety-layer`` protocol after the plan repair
    (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points pushed along the
@@ -46,19 +46,13 @@ from typing import Any
 import numpy as np
 
 from distgprl.errors import UserInputError
+from distgprl.hardware.controller import paper_protocol_meta
 from distgprl.hardware.perception import (
     OBJECTS,
     CellCalibration,
     MarkerPerception,
     load_calibration,
     pose_error,
-)
-from distgprl.hardware.protocols import (
-    PAPER,
-    PROTECTIVE_STOP,
-    UNCHECKED,
-    check_protocol,
-    paper_protocol_meta,
 )
 from distgprl.hardware.repair import RepairConfig
 from distgprl.hardware.safety import (
@@ -79,6 +73,7 @@ from distgprl.hardware.window_check import (
 )
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 from distgprl.schema import TRIAL_FIELDS
+from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP, UNCHECKED, check_protocol
 
 
 @dataclass(frozen=True)
@@ -151,7 +146,7 @@ def run_trials(
             Ignored by the ur backend (a real camera).
         protocol: ``paper`` (the default: the policy's poses execute as made, only the
             robot's own limits apply) or ``safety-layer`` (this project's pre-flight check
-            and repair before every motion), `distgprl.hardware.protocols`.
+            and repair before every motion), `distgprl.trial_protocol`.
         controller: the twin's emulated controller limits (default the UR5e's documented
             ones; the real robot enforces its own).
 

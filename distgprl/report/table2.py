@@ -5,7 +5,7 @@ Table II (``table2_<preset>``) counts the trial files of the preset's policies
 policies of an older configuration, or a twin file that repeats another's trials; those are
 listed under the table). Its first columns are the paper's protocol (every trial executes
 the policy's trajectory; only the UR5e's own limits apply, and a protective stop at them is
-a failed trial, `distgprl.hardware.protocols`); the safety layer's settings (its pre-flight
+a failed trial, `distgprl.trial_protocol`); the safety layer's settings (its pre-flight
 check with plan repair off, or retiming) follow as columns beside it. Each file says which
 protocol its trials ran under (its meta's ``protocol``; a file without one ran behind the
 safety layer). Rates are over all trials (a refused or protectively stopped trial is a
@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from distgprl.hardware.protocols import PAPER, PROTECTIVE_STOP, PROTOCOLS, file_protocol
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
 from distgprl.schema import moved_robot, read_csv, trial_file_exclusion
+from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP, PROTOCOLS, file_protocol
 
 HARDWARE_TASK = "dbm"
 """The task of the hardware cell (and of the policies its trials run)."""

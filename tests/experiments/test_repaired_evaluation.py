@@ -201,4 +201,4 @@ def test_residual_control_methods_get_twin_trials_but_no_simulated_repair_evalua
     model_path(tmp_path, "ci", "promp-rrl", 0).write_bytes(b"")  # trained: its model on disk
     assert trials_due(Job("dbm", "promp-rrl", 0, "ci", str(tmp_path), twin_trials=2))
     # repair on and off, and repair on at every sensor-noise level (Table II's noise curve)
-    assert len(table2_settings("promp-rrl")) == 2 + len(NOISE_LEVELS)
+    assert len(table2_settings("promp-rrl")) == 3 + len(NOISE_LEVELS)

@@ -1,4 +1,4 @@
-"""Table II as the paper ran it (`distgprl.hardware.protocols`): under the paper's protocol a
+"""Table II as the paper ran it (`distgprl.trial_protocol`): under the paper's protocol a
 trajectory executes without the safety layer's pre-flight check; only the UR5e's own joint
 speed and acceleration limits stop it (a protective stop: a failed trial with its reason,
 not a refusal, not a collision); a contact is a collision."""
@@ -13,7 +13,7 @@ import pytest
 from distgprl.errors import UserInputError
 from distgprl.experiments.results import read_csv
 from distgprl.hardware.backends import TwinBackend
-from distgprl.hardware.protocols import controller_stop
+from distgprl.hardware.controller import controller_stop
 from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan
 from distgprl.hardware.trials import run_trials
 from distgprl.hardware.twin import TwinConfig

@@ -212,35 +212,41 @@ def test_table2_is_written_as_csv_markdown_and_latex_without_mixing_backends(tmp
     out = tmp_path / "out"
     lines = (out / "table2_p.csv").read_text().splitlines()
     assert lines[0] == (
-        "method,backend,repair,sensor_noise,trials,refused,success_rate,collision_rate,"
-        "min_clearance_p5,executed,success_rate_ci_low,success_rate_ci_high,"
-        "collision_rate_ci_low,collision_rate_ci_high"
+        "method,backend,protocol,repair,sensor_noise,trials,refused,protective_stops,"
+        "success_rate,collision_rate,min_clearance_p5,executed,success_rate_ci_low,"
+        "success_rate_ci_high,collision_rate_ci_low,collision_rate_ci_high"
     )
-    twin = lines[1].split(",")
-    assert twin[:6] == ["dist-gprl", "twin", "–", "0", "3", "1"]  # written before repair
-    assert float(twin[6]) == pytest.approx(2 / 3) and float(twin[7]) == pytest.approx(1 / 3)
-    assert float(twin[8]) == pytest.approx(np.percentile([0.02, -0.01], 5))  # moved only
-    assert twin[9] == "2"
+    twin = dict(zip(lines[0].split(","), lines[1].split(","), strict=True))
+    # a file without a protocol in its meta ran behind the safety layer (every v7 file)
+    assert [twin[k] for k in ("method", "backend", "protocol", "repair", "sensor_noise")] == [
+        "dist-gprl", "twin", "safety-layer", "–", "0"
+    ]  # fmt: skip
+    assert (twin["trials"], twin["refused"], twin["protective_stops"]) == ("3", "1", "0")
+    assert float(twin["success_rate"]) == pytest.approx(2 / 3)
+    assert float(twin["collision_rate"]) == pytest.approx(1 / 3)
+    assert float(twin["min_clearance_p5"]) == pytest.approx(np.percentile([0.02, -0.01], 5))
+    assert twin["executed"] == "2"  # moved only
     # Clopper-Pearson 95 %: 2 of 3 [0.0943, 0.9916], 1 of 3 [0.0084, 0.9057] (beta quantiles)
-    assert [float(x) for x in twin[10:]] == pytest.approx(
-        [0.0943, 0.9916, 0.0084, 0.9057], abs=1e-4
-    )
-    assert lines[2].split(",")[:6] == ["dist-gprl", "ur", "–", "–", "1", "0"]
+    bounds = [twin[f"{r}_rate_ci_{e}"] for r in ("success", "collision") for e in ("low", "high")]
+    assert [float(x) for x in bounds] == pytest.approx([0.0943, 0.9916, 0.0084, 0.9057], abs=1e-4)
+    assert lines[2].split(",")[:3] == ["dist-gprl", "ur", "safety-layer"]
     markdown = (out / "table2_p.md").read_text()
+    paper_empty = "– | – | – | – | –"  # no trial of the paper's protocol in these files
     assert (
-        "| Dist-GPRL (ours) | twin | – | 0 | 3 | 1 | 0.67 [0.09, 0.99] | 0.33 [0.01, 0.91] | "
-        "-0.009 (n=2) |"
+        f"| Dist-GPRL (ours) | twin | 0 | {paper_empty} | 3 | 1 | 0.67 [0.09, 0.99] | "
+        "0.33 [0.01, 0.91] | -0.009 (n=2) |"
     ) in markdown
     assert (
-        "| Dist-GPRL (ours) | ur | – | – | 1 | 0 | 0.00 [0.00, 0.97] | 0.00 [0.00, 0.97] | 0.030 |"
+        f"| Dist-GPRL (ours) | ur | – | {paper_empty} | 1 | 0 | 0.00 [0.00, 0.97] | "
+        "0.00 [0.00, 0.97] | 0.030 |"
     ) in markdown
     latex = (out / "table2_p.tex").read_text()
     assert (
-        "Dist-GPRL (ours) & twin & -- & 0 & 3 & 1 & 0.67 [0.09, 0.99] & 0.33 [0.01, 0.91] &"
-        in latex
-    )
+        "Dist-GPRL (ours) & twin & 0 & -- & -- & -- & -- & -- & 3 & 1 & 0.67 [0.09, 0.99] & "
+        "0.33 [0.01, 0.91] &"
+    ) in latex
     assert not (out / "table2_noise_p.md").exists()  # one noise level: no robustness table
-    assert latex.count("\\\\") == 3  # header and two rows
+    assert latex.count("\\\\") == 4  # the group header, the header and two rows
 
 
 def test_table2_disappears_with_its_trial_files(tmp_path):
@@ -371,8 +377,12 @@ def test_table2_min_clearance_is_over_trials_that_moved_the_robot_only(tmp_path)
     out = tmp_path / "out"
     markdown = (out / "table2_p.md").read_text()
     ours_cells = f"| 5 | 3 | 0.40 [0.05, 0.85] | 0.00 [0.00, 0.52] | {expected:.3f} (n=3) |"
-    assert f"| Dist-GPRL (ours) | twin | – | 0 {ours_cells}" in markdown
-    gprl = "| GPRL | twin | – | 0 | 2 | 2 | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | – (n=0) |"
+    paper_empty = "| – | – | – | – | – "  # no trial of the paper's protocol in these files
+    assert f"| Dist-GPRL (ours) | twin | 0 {paper_empty}{ours_cells}" in markdown
+    gprl = (
+        f"| GPRL | twin | 0 {paper_empty}| 2 | 2 | 0.00 [0.00, 0.84] | 0.00 [0.00, 0.84] | "
+        "– (n=0) |"
+    )
     assert gprl in markdown
     assert "MinCl is over the trials that moved the robot" in markdown.splitlines()[0]
     latex = (out / "table2_p.tex").read_text()

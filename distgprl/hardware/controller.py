@@ -1,24 +1,8 @@
-"""The two protocols a hardware trial runs under, and what the UR5e's controller itself does.
-
-``paper`` (Table II as the paper ran it, the default): every window's (residual control:
-every 0.1 s RL step's) poses go to the robot as the policy made them, with no pre-flight
-check, retiming or repair. Only what the robot itself enforces applies: the UR5e's
-documented joint speed and acceleration limits (:data:`distgprl.limits.UR5E_CONTROLLER`).
-Its controller answers a command beyond them with a protective stop, the arm stopped where
-it is (UR user manual, safety configuration: a joint speed above its limit makes the safety
-system perform a stop; the servo path sanity check stops on a sudden change in target
-position). A protective stop ends the trial there: a failed trial, recorded with its reason
-(status ``protective_stop``), not a collision unless the arm touched something first, and
-not a refusal (the arm moved until the stop). A contact is a collision (the twin stops on
-contact, as the UR's force monitoring does).
-
-``safety-layer``: this project's safety layer (`distgprl.hardware.safety.check_plan`, the
-plan repair of `distgprl.hardware.repair`) checks every decision's poses against its own,
-stricter :class:`~distgprl.limits.SafetyLimits` before they move, and refuses (or retimes)
-what fails; reported beside the paper's protocol, never in its place.
-
-On the twin the controller's limits are emulated by `controller_stop` over the joint targets
-the twin commands (`distgprl.hardware.backends.TwinBackend`); the real UR5e enforces its own.
+"""What the UR5e's controller itself does with a commanded motion: the protective stop at its
+documented joint speed and acceleration limits (:data:`distgprl.limits.UR5E_CONTROLLER`),
+emulated on the twin over the joint targets it commands (`distgprl.hardware.backends.
+TwinBackend`); the real UR5e enforces its own. Under the paper's protocol
+(`distgprl.trial_protocol`) these limits are all that applies.
 """
 
 from __future__ import annotations
@@ -27,52 +11,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from distgprl.errors import UserInputError
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 
-__all__ = [
-    "PAPER",
-    "PROTOCOLS",
-    "PROTECTIVE_STOP",
-    "SAFETY_LAYER",
-    "UNCHECKED",
-    "ControllerStop",
-    "check_protocol",
-    "controller_stop",
-    "file_protocol",
-    "paper_protocol_meta",
-]
-
-PAPER = "paper"
-"""The paper's protocol: the policy's trajectory executes; only the UR5e's own limits apply."""
-
-SAFETY_LAYER = "safety-layer"
-"""This project's safety layer before every motion (pre-flight check, retiming, repair)."""
-
-PROTOCOLS = (PAPER, SAFETY_LAYER)
-"""The protocols of a hardware trial, the paper's first (the default)."""
-
-PROTECTIVE_STOP = "protective_stop"
-"""A trial row's ``status`` when the robot's controller stopped the arm at one of its own
-limits (a failed trial, not a refusal; contact stops are ``stopped`` with a collision)."""
-
-UNCHECKED = "unchecked"
-"""A trial row's per-decision ``repair`` entry under the paper's protocol: the poses went to
-the robot without a pre-flight check (the safety layer's entries are its decisions)."""
-
-
-def check_protocol(protocol: str) -> str:
-    """``protocol`` if it is one of `PROTOCOLS`, else :class:`UserInputError` naming them."""
-    if protocol not in PROTOCOLS:
-        raise UserInputError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
-    return protocol
-
-
-def file_protocol(meta: dict) -> str:
-    """The protocol a trial file's trials ran under, from its meta: its ``protocol``, or
-    `SAFETY_LAYER` for a file written before the paper's protocol existed (every trial then
-    ran behind the safety layer's pre-flight check)."""
-    return str(meta.get("protocol") or SAFETY_LAYER)
+__all__ = ["ControllerStop", "controller_stop", "paper_protocol_meta"]
 
 
 @dataclass(frozen=True)
