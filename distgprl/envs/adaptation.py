@@ -438,7 +438,9 @@ class AdaptationEnv(gym.Env):
         for chunk in chunks:
             if len(chunk) == 0:
                 continue
-            result = self.sim.execute(poses[chunk], stop_on_collision=stop)
+            # only a new episode minimum matters (the queries look no farther; same values)
+            below = self._min_clearance if 0.0 < self._min_clearance < np.inf else None
+            result = self.sim.execute(poses[chunk], stop_on_collision=stop, clearance_below=below)
             segment_collision |= result.collision
             self._min_clearance = min(self._min_clearance, result.min_clearance)
             self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)

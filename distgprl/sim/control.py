@@ -41,8 +41,8 @@ class SegmentResult:
             tool and an obstacle during the segment, checked after every physics step and
             at every control step (exempt pairs are listed by the task).
         min_clearance: minimum distance (m) between robot/tool and the obstacles over the
-            segment's control steps, capped at the task's ``clearance_cutoff``; <= 0 on
-            contact.
+            segment's control steps, capped at the task's ``clearance_cutoff`` (and at the
+            run's ``clearance_below`` when given); <= 0 on contact.
         ik_failures: poses with no IK solution within the joint limits (the previous joint
             target is then held).
         steps: poses executed (control periods).
@@ -176,7 +176,11 @@ class ControlLoop:
         return best
 
     def run(
-        self, scene: ControlledScene, poses: np.ndarray, stop_on_collision: bool = False
+        self,
+        scene: ControlledScene,
+        poses: np.ndarray,
+        stop_on_collision: bool = False,
+        clearance_below: float | None = None,
     ) -> SegmentResult:
         """Track Cartesian TCP poses in ``scene``, one per control period, with dynamics.
 
@@ -186,6 +190,9 @@ class ControlLoop:
                 target at the end of control period k of this segment.
             stop_on_collision: end execution after the control period in which a collision
                 is detected (a protective stop); the remaining poses are not executed.
+            clearance_below: optional, m, > 0: only a clearance under it matters to the
+                caller (e.g. the episode's minimum so far), so the clearance queries look no
+                farther; ``min_clearance`` is then min(clearance_below, the segment's).
 
         Each pose is converted by IK (branch nearest the previous joint target) into a
         joint target; the joint position controllers move to it, linearly interpolated
@@ -215,6 +222,10 @@ class ControlLoop:
         no_links: frozenset[int] = frozenset()
         collision = False
         min_clearance = self.clearance_cutoff
+        if clearance_below is not None:
+            if not clearance_below > 0.0:
+                raise ValueError(f"clearance_below must be > 0 m, got {clearance_below}")
+            min_clearance = min(min_clearance, float(clearance_below))
         released = scene.object_released
         q_start = scene.q_command
         joints, reached = robot.ik_segment(poses, q_start)

@@ -492,11 +492,11 @@ def _v7_env(task: str, monkeypatch):
 
     env = make_env(run_spec(task, "dist-gprl"))
     sim, field = env.unwrapped.sim, env.unwrapped.field
-    monkeypatch.setattr(
-        sim,
-        "execute",
-        lambda poses, stop_on_collision=False: reference_run(sim, poses, stop_on_collision),
-    )
+
+    def v7_execute(poses, stop_on_collision=False, clearance_below=None):
+        return reference_run(sim, poses, stop_on_collision)  # v7 queried at the cutoff
+
+    monkeypatch.setattr(sim, "execute", v7_execute)
     monkeypatch.setattr(
         field,
         "distance",
@@ -509,13 +509,14 @@ def _v7_env(task: str, monkeypatch):
 @pytest.mark.parametrize("task", ["dcp", "dbm"])
 def test_v8_speed_work_keeps_v7s_episodes(task, monkeypatch):
     """On fixed evaluation TCs with fixed random actions, the env with v8's speed work
-    (issue 66: the planned control loop, the compiled distance field, the tool points)
-    plays v7's episodes: the same steps, success, collision, stop, min clearance and peak
-    joint speed (tolerance zero: the control loop is bit-identical, tests/sim/
-    test_control_equivalence.py, and the field does not act on the physics), rewards and
-    their terms within 1e-9 and the state within 1e-6 (the field's values differ by the
-    rounding of its local coordinates, ≤ 1e-15 m, tests/safety/test_edf.py; r_sd's
-    1 / (d + eps) and the float32 state amplify that far below these bounds)."""
+    (issue 66: the planned control loop, the compiled distance field, the tool points, the
+    clearance queries culled at the episode's minimum) plays v7's episodes: the same steps,
+    success, collision, stop, min clearance and peak joint speed (tolerance zero: the
+    control loop is bit-identical, tests/sim/test_control_equivalence.py, and the field
+    does not act on the physics), rewards and their terms within 1e-9 and the state within
+    1e-6 (the field's values differ by the rounding of its local coordinates, ≤ 1e-15 m,
+    tests/safety/test_edf.py; r_sd's 1 / (d + eps) and the float32 state amplify that far
+    below these bounds)."""
     from distgprl.experiments.bench.sizes import run_spec
     from distgprl.experiments.runner import make_env
 

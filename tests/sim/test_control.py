@@ -53,3 +53,29 @@ def test_clearance_is_the_minimum_over_obstacles_capped_at_the_cutoff(dcp_sim):
         )
     ]
     assert dcp_sim.control.clearance() == min([cutoff, *direct])
+
+
+def test_clearance_below_caps_the_minimum_and_changes_nothing_else(dcp_sim):
+    """``clearance_below`` (the caller's minimum so far) gives min(below, the segment's
+    minimum) and the same segment otherwise (the queries only look no farther); it must be
+    positive."""
+    spec_poses = None
+    results = {}
+    for below in (None, 0.06, 1e-4):
+        dcp_sim.reset(TaskConfig())
+        start = dcp_sim.tcp_pose()
+        spec_poses = np.tile(start, (30, 1))
+        spec_poses[:, 2] -= np.linspace(0.0, 0.25, 30)  # down towards the table
+        results[below] = dcp_sim.control.run(dcp_sim, spec_poses, clearance_below=below)
+    plain = results[None]
+    for below in (0.06, 1e-4):
+        result = results[below]
+        assert result.min_clearance == min(below, plain.min_clearance)
+        assert (result.collision, result.steps, result.peak_joint_speed) == (
+            plain.collision,
+            plain.steps,
+            plain.peak_joint_speed,
+        )
+    assert 1e-4 < plain.min_clearance < 0.06  # the run comes between the two caps
+    with pytest.raises(ValueError):
+        dcp_sim.control.run(dcp_sim, spec_poses, clearance_below=0.0)

@@ -359,9 +359,15 @@ class TaskSim:
         """Current minimum distance (m) robot/tool to obstacles, capped at the cutoff."""
         return self.control.clearance()
 
-    def execute(self, poses: np.ndarray, stop_on_collision: bool = False) -> SegmentResult:
+    def execute(
+        self,
+        poses: np.ndarray,
+        stop_on_collision: bool = False,
+        clearance_below: float | None = None,
+    ) -> SegmentResult:
         """Track Cartesian TCP poses, one per control period, with dynamics
-        (`ControlLoop.run`).
+        (`ControlLoop.run`; ``clearance_below`` (m, > 0): only a lower clearance matters,
+        ``min_clearance`` is capped there).
 
         Args:
             poses: shape (n, 6): x, y, z (m), rx, ry, rz (rad), world frame. Pose k is the
@@ -376,7 +382,7 @@ class TaskSim:
         obstacles keep moving. Collisions are checked after every physics step,
         clearance at every control step.
         """
-        return self.control.run(self, poses, stop_on_collision)
+        return self.control.run(self, poses, stop_on_collision, clearance_below)
 
     def render_rgb(self, width: int = 320, height: int = 240) -> np.ndarray:
         """An RGB image (height, width, 3) uint8 of the scene (headless TinyRenderer)."""
