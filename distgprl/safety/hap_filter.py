@@ -11,7 +11,7 @@ import numpy as np
 
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap_build import SafeSubspace
-from distgprl.safety.hap_kernels import boxes_block
+from distgprl.safety.hap_kernels import MovingBoxes, boxes_block
 from distgprl.safety.shapes import Box, Shape
 
 __all__ = ["MovingObstacleFilter", "filter_with_edf", "safe_mask", "tool_bounds"]
@@ -126,6 +126,19 @@ class MovingObstacleFilter:
         # `boxes_block`'s first cut: the common bounding box (axis-aligned) or the reach
         self._bounds = np.concatenate([[self.reach], middle, span])
 
+    @property
+    def boxes(self) -> MovingBoxes:
+        """The template boxes as `distgprl.safety.hap_kernels` takes them (its first cut
+        included), for `HapPrior`'s fused look-up, box test and soft-min."""
+        return MovingBoxes(
+            self._centres,
+            self._rotations,
+            self._half_extents,
+            self._axis_aligned,
+            self._bounds,
+            self.margin,
+        )
+
     @staticmethod
     def anchor(shapes: Sequence[Shape]) -> np.ndarray:
         """The anchor position (3,), m, of moving obstacles given as ``shapes``."""
@@ -168,12 +181,7 @@ class MovingObstacleFilter:
             np.ascontiguousarray(points, dtype=float),
             np.ascontiguousarray(index),
             np.ascontiguousarray(anchors, dtype=float),
-            self._centres,
-            self._rotations,
-            self._half_extents,
-            self._axis_aligned,
-            self._bounds,
-            self.margin,
+            *self.boxes,
         )
 
 

@@ -9,17 +9,21 @@ sqrt(dx^2 + dy^2 + dz^2 + 1e-18), sums over candidates in candidate order), and 
 ``log`` are still NumPy's (its SIMD loops, called between the two compiled passes), so the
 results are bit-identical to that code in float32 and float64 (tested against it, kept in
 ``tests/safety/_reference_numpy_softmin.py``); the box test is in float64, also bit-identical.
+
+`grid_softmin` (issue 66, rule 6) chains the look-up, the box test and the soft-min of the
+grid mode on the batch as given (float32 queries and anchors promoted element by element in
+the float64 look-up and box test, no float64 or transposed copies of the batch).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, TypeVar, cast
+from typing import Any, NamedTuple, TypeVar, cast
 
 import numpy as np
 from numba import njit
 
-__all__ = ["boxes_block", "grid_candidates", "softmin_with_gradient"]
+__all__ = ["MovingBoxes", "boxes_block", "grid_candidates", "grid_softmin", "softmin_with_gradient"]
 
 _Function = TypeVar("_Function", bound=Callable[..., Any])
 
@@ -55,23 +59,25 @@ def softmin_with_gradient(
         w_j (x - y_j) / d_j with w = softmax(-d / tau) over the kept candidates. Blocked
         candidates have d = inf and weight 0. Distances are sqrt(|x - y|^2 + 1e-18).
 
-    Candidate-major (c, n) arrays, so that the loops over queries vectorise; ``exp`` and
-    ``log`` are NumPy's (its SIMD loops) between the two compiled passes.
+    Candidate-major (c, n) arrays, so that the loops over queries vectorise (``index`` and
+    ``blocked`` are read as given, no transposed copies); ``exp`` and ``log`` are NumPy's
+    (its SIMD loops) between the two compiled passes. The offsets x - y are recomputed in the
+    second pass rather than stored (C_safe's coordinates are few and stay in cache).
     """
     dtype = query.dtype
     constants = np.array([1.0 / temperature, 1e-18], dtype=dtype)
-    no_blocked = blocked is None
-    distances, nearest, exponent, keep, offsets = _candidate_distances(
-        np.ascontiguousarray(query.T),
+    queries = np.ascontiguousarray(query.T)
+    distances, nearest, exponent = _candidate_distances(
+        queries,
         coordinates,
-        np.ascontiguousarray(index.T),
-        np.zeros((0, 0), dtype=bool) if blocked is None else np.ascontiguousarray(blocked.T),
-        not no_blocked,
+        np.ascontiguousarray(index),
+        np.zeros((0, 0), dtype=bool) if blocked is None else np.ascontiguousarray(blocked),
+        blocked is not None,
         k,
         constants,
     )
-    np.exp(exponent, out=exponent)  # exp((d_min - d_j) / tau); 0 where d = inf
-    total, jacobian = _weighted_sums(exponent, keep, distances, offsets)
+    np.exp(exponent, out=exponent)  # exp((d_min - d_j) / tau); 0 where d = inf or not kept
+    total, jacobian = _weighted_sums(exponent, distances, queries, coordinates, index)
     values = nearest - dtype.type(temperature) * np.log(total)
     return values, jacobian
 
@@ -85,42 +91,42 @@ def _candidate_distances(
     use_blocked: bool,
     k: int,
     constants: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """First pass of `softmin_with_gradient`, candidate-major: distances (c, n), their
-    minimum d_min (n,), (d_min - d) / tau (c, n), the kept candidates (c, n) and the offsets
-    x - y (3, c, n)."""
-    count, n = index.shape
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First pass of `softmin_with_gradient`, candidate-major: distances (c, n) of the
+    candidates ``index`` (n, c) (inf where ``blocked`` (n, c)), their minimum d_min (n,) and
+    (d_min - d) / tau (c, n) of the kept candidates, -inf for the others (so that ``exp``
+    gives their weight 0)."""
+    n, count = index.shape
     inverse_tau, tiny = constants[0], constants[1]
     distances = np.empty((count, n), dtype=query.dtype)
-    offsets = np.empty((3, count, n), dtype=query.dtype)
     for j in range(count):
         for i in range(n):
-            point = index[j, i]
+            point = index[i, j]
             dx = query[0, i] - coordinates[0, point]
             dy = query[1, i] - coordinates[1, point]
             dz = query[2, i] - coordinates[2, point]
-            offsets[0, j, i] = dx
-            offsets[1, j, i] = dy
-            offsets[2, j, i] = dz
             squared = dx * dx
             squared += dy * dy
             squared += dz * dz
             squared += tiny
             distances[j, i] = np.sqrt(squared)
+    infinity = query.dtype.type(np.inf)
     if use_blocked:
-        infinity = query.dtype.type(np.inf)
         for j in range(count):
             for i in range(n):
-                if blocked[j, i]:
+                if blocked[i, j]:
                     distances[j, i] = infinity
     nearest = distances[0].copy()
     for j in range(1, count):
         for i in range(n):
             if distances[j, i] < nearest[i]:
                 nearest[i] = distances[j, i]
+    exponent = np.empty((count, n), dtype=query.dtype)
+    for j in range(count):
+        for i in range(n):
+            exponent[j, i] = (nearest[i] - distances[j, i]) * inverse_tau
     # keep the k smallest by (distance, candidate order): a candidate's rank counts the
     # candidates before it in that order
-    keep = np.ones((count, n), dtype=np.bool_)
     if count > k:
         rank = np.empty(n, dtype=np.int32)
         for j in range(count):
@@ -133,36 +139,36 @@ def _candidate_distances(
                     for i in range(n):
                         rank[i] += distances[other, i] < distances[j, i]
             for i in range(n):
-                keep[j, i] = rank[i] < k
-    exponent = np.empty((count, n), dtype=query.dtype)
-    for j in range(count):
-        for i in range(n):
-            exponent[j, i] = (nearest[i] - distances[j, i]) * inverse_tau
-    return distances, nearest, exponent, keep, offsets
+                if rank[i] >= k:
+                    exponent[j, i] = -infinity
+    return distances, nearest, exponent
 
 
 @_compiled
 def _weighted_sums(
-    weights: np.ndarray, keep: np.ndarray, distances: np.ndarray, offsets: np.ndarray
+    weights: np.ndarray,
+    distances: np.ndarray,
+    query: np.ndarray,
+    coordinates: np.ndarray,
+    index: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Second pass of `softmin_with_gradient`: the kept weights' sum (n,) and the soft-min's
-    gradient (n, 3), summed over candidates in candidate order. ``weights`` (c, n) is
-    overwritten."""
+    """Second pass of `softmin_with_gradient`: the weights' sum (n,) and the soft-min's
+    gradient (n, 3), summed over candidates in candidate order (weights (c, n), 0 for the
+    candidates not kept; the offsets x - y recomputed from ``query`` (3, n), ``coordinates``
+    and ``index`` (n, c))."""
     count, n = weights.shape
-    zero = weights.dtype.type(0.0)
     total = np.zeros(n, dtype=weights.dtype)
     for j in range(count):
         for i in range(n):
-            if not keep[j, i]:
-                weights[j, i] = zero
             total[i] += weights[j, i]
     jacobian = np.zeros((n, 3), dtype=weights.dtype)
     for j in range(count):
         for i in range(n):
+            point = index[i, j]
             weight = weights[j, i] / total[i] / distances[j, i]
-            jacobian[i, 0] += weight * offsets[0, j, i]
-            jacobian[i, 1] += weight * offsets[1, j, i]
-            jacobian[i, 2] += weight * offsets[2, j, i]
+            jacobian[i, 0] += weight * (query[0, i] - coordinates[0, point])
+            jacobian[i, 1] += weight * (query[1, i] - coordinates[1, point])
+            jacobian[i, 2] += weight * (query[2, i] - coordinates[2, point])
     return total, jacobian
 
 
@@ -286,3 +292,93 @@ def grid_candidates(
         for j in range(count):
             out[i, j] = table[flat, j]
     return out
+
+
+class MovingBoxes(NamedTuple):
+    """`boxes_block`'s description of the moving boxes (`MovingObstacleFilter.boxes`).
+
+    Attributes:
+        centres, rotations, half_extents: the template boxes, (b, 3), (b, 3, 3), (b, 3), m.
+        axis_aligned: every rotation is the identity.
+        bounds: the first cut, shape (7,) (see `boxes_block`).
+        margin: required clearance, m.
+    """
+
+    centres: np.ndarray
+    rotations: np.ndarray
+    half_extents: np.ndarray
+    axis_aligned: bool
+    bounds: np.ndarray
+    margin: float
+
+
+_NO_BOXES = MovingBoxes(
+    np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)), True, np.zeros(7), 1.0
+)
+
+
+class GridTable(NamedTuple):
+    """`grid_candidates`' look-up table: ``lower`` (3,) m, ``resolution`` m, ``shape`` (3,)
+    cells, ``table`` (cells, c) C_safe indices (C order over the cells)."""
+
+    lower: np.ndarray
+    resolution: float
+    shape: np.ndarray
+    table: np.ndarray
+
+
+def grid_softmin(
+    query: np.ndarray,
+    grid: GridTable,
+    coordinates: np.ndarray,
+    points: np.ndarray,
+    anchors: np.ndarray | None,
+    boxes: MovingBoxes | None,
+    k: int,
+    temperature: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Look-up, moving-obstacle box test and soft-min of the grid mode, without copies.
+
+    `grid_candidates`, `boxes_block` and `softmin_with_gradient` one after another on the
+    queries and anchors as given (float32 in training: numba promotes each element to float64
+    in the look-up and the box test, exactly as a float64 copy would, so the decisions are
+    those of the float64 path), with the candidates and the mask read in place (no float64 or
+    transposed copies). The values and gradients of the queries that keep at least k free
+    candidates are those of the separate kernels on float64 copies, bit for bit (tested).
+
+    Args:
+        query: query positions, shape (n, 3), m, dtype D (float32 or float64).
+        grid: the look-up table.
+        coordinates: C_safe coordinates per axis, shape (3, m), dtype D (the soft-min's).
+        points: C_safe positions, shape (m, 3), float64 (the box test's).
+        anchors: the moving obstacles' anchor per query, shape (n, 3), m, any float dtype;
+            None (with ``boxes`` None): no moving obstacles.
+        boxes: the moving boxes, or None.
+        k: neighbours kept per query (<= the table's candidates).
+        temperature: tau, m.
+
+    Returns:
+        values (n,) and jacobian (n, 3), dtype D (Eq. hap_compact and its gradient, see
+        `softmin_with_gradient`), 0 in the rows that are ``short``; ``counts`` (n,) int64,
+        the blocked candidates per query; ``short`` (n,) bool, the queries with fewer than
+        k free candidates (left to the caller's exact fallback).
+    """
+    use_moving = boxes is not None
+    if use_moving and anchors is None:
+        raise ValueError("a moving-obstacle filter needs the obstacles' anchors")
+    query = np.ascontiguousarray(query)
+    # float32 queries and anchors enter the float64 look-up and box test as they are: numba
+    # promotes each element (exactly), so no float64 copy of the batch is made
+    index = grid_candidates(query, grid.lower, grid.resolution, grid.shape, grid.table)
+    if boxes is None or anchors is None:
+        counts = np.zeros(len(query), dtype=np.int64)
+        values, jacobian = softmin_with_gradient(query, coordinates, index, None, k, temperature)
+        return values, jacobian, counts, counts.astype(np.bool_)
+    blocked, counts = boxes_block(points, index, np.ascontiguousarray(anchors), *boxes)
+    short = counts > index.shape[1] - k
+    with np.errstate(invalid="ignore", divide="ignore"):  # short rows: fewer than k free
+        values, jacobian = softmin_with_gradient(query, coordinates, index, blocked, k, temperature)
+    if short.any():
+        values[short] = 0.0
+        jacobian[short] = 0.0
+    return values, jacobian, counts, short

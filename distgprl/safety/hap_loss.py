@@ -1,23 +1,24 @@
 """The HAP safe-subspace prior L_hap (paper Eq. hap_compact, §IV-B), in torch.
 
-    L_hap = 1/N_q sum_q  -tau log sum_{y in kNN(x_q)} exp(-||x_q - y|| / tau)  -  b
+    L_hap = 1/N_q sum_q  -tau log sum_{y in kNN(x_q)} exp(-||x_q - y|| / tau)
 
-for N_q positions x_q sampled along the adapted trajectory and the k nearest points y of C_safe.
-The neighbour search runs without gradients (a precomputed lookup table or scipy ``cKDTree``, see
-:class:`HapPrior`); the distances to the found neighbours, the soft-min and its gradient
+for N_q positions x_q sampled along the adapted trajectory and the k nearest points y of C_safe,
+as the equation is written (environment v8): the raw soft-min in metres, no offset, no hinge.
+The neighbour search runs without gradients (a precomputed lookup table or scipy ``cKDTree``,
+see :class:`HapPrior`); the distances to the found neighbours, the soft-min and its gradient
 w.r.t. x_q (sum_j w_j (x_q - y_j) / ||x_q - y_j||, w = softmax(-d / tau) over the kNN) are
-computed together in NumPy, vectorised over all queries, and handed to autograd as one node, so
-the gradient reaches x_q (and through the linear GP maps the actor's sampled actions).
+computed together in compiled loops (`distgprl.safety.hap_kernels`), vectorised over all
+queries, and handed to autograd as one node, so the gradient reaches x_q (and through the
+linear GP maps the actor's sampled actions).
 
-Offset ``b`` (a constant, so the gradient is exactly that of the paper's equation): the soft-min
-is at most the smallest distance, ``softmin <= min_y ||x - y||``, and is negative on C_safe itself
-(at a C_safe point the other neighbours, one grid step away, still contribute). Subtracting the
-generic ``-tau log k`` bound would only zero the loss where k points coincide, which never
-happens on a grid. Instead ``b`` is the mean of the soft-min evaluated at the C_safe points
-themselves, so L_hap is ~0 on the subspace (exactly 0 on average over its points) and grows like
-the distance to C_safe away from it. ``subtract_offset=False`` gives the raw equation.
+The raw soft-min is at most the nearest distance, ``softmin <= min_y ||x - y||``, and is
+negative on and near C_safe (at a C_safe point the other neighbours, one grid step away, still
+contribute): a constant shift would change no gradient, only the reported value, so none is
+subtracted. ``hinge_step`` keeps environment v6–v7's variant (hinged at a safe cell's largest
+soft-min and divided by the grid step, `SACConfig.hap_hinge`) for configurations that ask for
+it; it is not the paper's equation.
 
-Defaults (DESIGN leaves them open):
+Defaults (the paper leaves them open):
     * ``k = 8``: on a 0.1 m grid, a point's 8 nearest C_safe points span the surrounding cell
       (its up to 8 corners), so the soft-min interpolates smoothly between grid points instead
       of snapping to the nearest one, while far-away parts of C_safe do not dilute it.
@@ -40,7 +41,12 @@ from scipy.spatial import cKDTree
 from torch.autograd.function import BackwardCFunction, FunctionCtx
 
 from distgprl.safety.hap import MovingObstacleFilter
-from distgprl.safety.hap_kernels import grid_candidates, softmin_with_gradient
+from distgprl.safety.hap_kernels import (
+    GridTable,
+    grid_candidates,
+    grid_softmin,
+    softmin_with_gradient,
+)
 
 __all__ = ["DEFAULT_QUERY_POINTS", "HapPrior", "HapPriorConfig"]
 
@@ -87,14 +93,12 @@ class HapPriorConfig:
         k: neighbours in the soft-min.
         temperature: soft-min temperature tau, m.
         query_points: positions N_q sampled along each trajectory (used by the caller).
-        subtract_offset: subtract the on-subspace value so that L_hap ~ 0 on C_safe.
         neighbour_search: ``"grid"`` (fixed C_safe, fastest) or ``"kdtree"`` (see HapPrior).
     """
 
     k: int = 8
     temperature: float = 0.05
     query_points: int = DEFAULT_QUERY_POINTS
-    subtract_offset: bool = True
     neighbour_search: str = "grid"
 
 
@@ -103,7 +107,7 @@ def interior_softmin_bound(step: float, temperature: float, k: int, samples: int
     unbounded, fully safe cubic grid of spacing ``step`` (m): the maximum over a
     ``samples``^3 lattice of positions in one cell, with the exact k nearest nodes of the
     surrounding 6^3 nodes. (The cell's centre is not the maximum: with k = 8 the face
-    centres' soft-min exceeds it by 0.04 of a step.) Environment v6's hinge of L_hap."""
+    centres' soft-min exceeds it by 0.04 of a step.) Environment v6–v7's hinge of L_hap."""
     axis = (np.arange(6) - 2.0) * step
     nodes = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     cell = np.linspace(0.0, step, samples)
@@ -122,7 +126,8 @@ class HapPrior:
       grown by ``margin`` with cells of ``resolution``; each cell stores the ``candidates``
       nearest C_safe points of its centre (exact kNN via ``cKDTree`` at construction, ~0.2 s).
       A query takes its cell's candidates (queries outside the box use the nearest cell), the
-      distances to them are computed and the k smallest enter the soft-min. With
+      distances to them are computed and the k smallest enter the soft-min (with the
+      moving-obstacle box test, in one compiled pass: `hap_kernels.grid_softmin`). With
       ``candidates = k + 4`` this equals the exact kNN for all but ~0.1 % of queries near the
       subspace; where it differs, it swaps a neighbour of near-equal distance (soft-min error
       < 1 mm on a 0.1 m grid). ~1 ms value + gradient for 256 x 20 queries, one core.
@@ -134,12 +139,11 @@ class HapPrior:
             EDF-filtered positions). Repeated positions are merged.
         k: neighbours per query (clipped to m).
         temperature: tau, m.
-        subtract_offset: see the module docstring.
-        hinge_step: environment v6's hinge (> 0: the HAP grid step h, m): each query's value
-            is max(0, softmin - c) / h with c = `interior_softmin_bound`, the largest soft-min
+        hinge_step: 0 (default): Eq. hap_compact as written, the soft-min in m. > 0
+            (environment v6–v7's variant, the HAP grid step h, m): each query's value is
+            max(0, softmin - c) / h with c = `interior_softmin_bound`, the largest soft-min
             anywhere inside a fully safe grid, so the prior is 0 and pulls nowhere inside
-            C_safe and about 1 a grid step outside it (dimensionless; the offset b of
-            ``subtract_offset`` is not used). 0 keeps v5's offset soft-min (m).
+            C_safe and about 1 a grid step outside it (dimensionless).
         neighbour_search: ``"grid"`` or ``"kdtree"``.
         resolution: lookup cell size, m (grid mode).
         margin: the lookup box extends this far beyond C_safe, m (grid mode).
@@ -155,7 +159,6 @@ class HapPrior:
         k: int = 8,
         temperature: float = 0.05,
         *,
-        subtract_offset: bool = True,
         hinge_step: float = 0.0,
         neighbour_search: str = "grid",
         resolution: float = 0.025,
@@ -170,7 +173,6 @@ class HapPrior:
             raise ValueError(f"neighbour_search must be 'grid' or 'kdtree', got {neighbour_search}")
         self.k_requested = int(k)
         self.temperature = float(temperature)
-        self.subtract_offset = subtract_offset
         if hinge_step < 0:
             raise ValueError("hinge_step must be >= 0")
         self.hinge_step = float(hinge_step)
@@ -191,7 +193,6 @@ class HapPrior:
             c_safe,
             config.k,
             config.temperature,
-            subtract_offset=config.subtract_offset,
             neighbour_search=config.neighbour_search,
         )
 
@@ -211,13 +212,10 @@ class HapPrior:
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
             self._build_table(points)
+        # the hinge's c (v6–v7: the largest soft-min inside a fully safe grid); 0: as written
         self.offset = 0.0
-        if self.hinge_step > 0:  # v6: the largest soft-min inside a fully safe grid
+        if self.hinge_step > 0:
             self.offset = interior_softmin_bound(self.hinge_step, self.temperature, self.k)
-        elif self.subtract_offset:
-            # b = mean soft-min at the C_safe points themselves (exact neighbours).
-            at_points = torch.as_tensor(points, dtype=torch.float64)
-            self.offset = float(self._softmin(at_points, self._exact(points)).mean())
 
     def _build_table(self, points: np.ndarray) -> None:
         count = min(max(self.candidates_requested, self.k), len(points))
@@ -233,6 +231,7 @@ class HapPrior:
         # random cells, so a compact table keeps them in cache (int16 for C_safe < 32768).
         small = np.int16 if len(points) <= np.iinfo(np.int16).max else np.int32
         self._table = np.ascontiguousarray(index.astype(small))
+        self._grid = GridTable(self._lower, self.resolution, self._shape, self._table)
 
     def _exact(self, positions: np.ndarray) -> torch.Tensor:
         _, index = self._tree.query(positions, k=self.k, workers=-1)
@@ -294,30 +293,14 @@ class HapPrior:
             x, self._coordinates_as(x.dtype), index, blocked, self.k, self.temperature
         )
 
-    def _softmin(
-        self, x: torch.Tensor, index: torch.Tensor, blocked: np.ndarray | None = None
-    ) -> torch.Tensor:
-        """-tau log sum_{kNN} exp(-||x - y|| / tau) for x (n, 3) and candidates (n, c): (n,).
-
-        ``blocked`` (n, c), optional: candidates to leave out (each row keeps at least one).
-        The gradient reaches x (computed with the values, see `_softmin_values`).
-        """
-
-        def evaluate() -> tuple[torch.Tensor, torch.Tensor]:
-            values, jacobian = self._softmin_values(
-                x.detach().cpu().numpy(), np.asarray(index), blocked
-            )
-            return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
-
-        return ValueWithGradient.of(x, evaluate)
-
     def per_point(
         self,
         x: torch.Tensor,
         anchors: torch.Tensor | np.ndarray | None = None,
         moving: MovingObstacleFilter | None = None,
     ) -> torch.Tensor:
-        """Per-query soft-min minus the offset, shape ``x.shape[:-1]``, m.
+        """Per-query soft-min (Eq. hap_compact's summand; with ``hinge_step`` hinged), shape
+        ``x.shape[:-1]``, m.
 
         With ``moving`` (and the moving obstacles' ``anchors``, shape ``x.shape``, m, one per
         query), the soft-min runs over C_safe without the points the moving obstacles block at
@@ -349,61 +332,50 @@ class HapPrior:
     ) -> tuple[np.ndarray, np.ndarray]:
         """`per_point` without torch: values (n,), m, and each value's gradient w.r.t. its own
         query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd).
-        With ``hinge_step`` (environment v6): max(0, softmin - c) / h and its gradient."""
-        values, jacobian = self._offset_values_and_gradient(x, anchors, moving)
+        With ``hinge_step`` (environment v6–v7): max(0, softmin - c) / h and its gradient."""
+        values, jacobian = self._softmin_and_gradient(x, anchors, moving)
         if self.hinge_step <= 0:
             return values, jacobian
+        values -= self.offset  # (rows without a free point stay 0: inactive either way)
         active = values > 0
         scale = np.asarray(1.0 / self.hinge_step, dtype=values.dtype)
         hinged = np.where(active, values * scale, np.zeros((), dtype=values.dtype))
         gradient = np.where(active[:, None], jacobian * scale, np.zeros((), dtype=jacobian.dtype))
         return hinged.astype(values.dtype), gradient.astype(jacobian.dtype)
 
-    def _offset_values_and_gradient(
+    def _softmin_and_gradient(
         self,
         x: np.ndarray,
         anchors: np.ndarray | None = None,
         moving: MovingObstacleFilter | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The soft-min minus `offset` and its gradient (`values_and_gradient` before the
-        hinge)."""
-        positions = np.asarray(x, dtype=float).reshape(-1, 3)
+        """The soft-min (n,) and its gradient (n, 3) in x's dtype, over C_safe without the
+        points ``moving`` blocks at each query's anchor; 0 for a query without a free point
+        (`values_and_gradient` before the hinge)."""
         x = x.reshape(-1, 3)
+        if moving is not None:
+            if anchors is None:
+                raise ValueError("a moving-obstacle filter needs the obstacles' anchors")
+            anchors = np.asarray(anchors).reshape(-1, 3)
+            if len(anchors) != len(x):
+                raise ValueError(f"{len(anchors)} anchors for {len(x)} query positions")
         if self.neighbour_search == "grid":
-            index = self._grid_candidates(positions)
+            values, jacobian, counts, short = grid_softmin(
+                x,
+                self._grid,
+                self._coordinates_as(x.dtype),
+                self.points_numpy,
+                anchors if moving is not None else None,
+                moving.boxes if moving is not None else None,
+                self.k,
+                self.temperature,
+            )
         else:
-            index = self._exact(positions).numpy()
+            values, jacobian, counts, short = self._exact_softmin(x, anchors, moving)
         if moving is None:
-            values, jacobian = self._softmin_values(x, index, None)
-            return values - self.offset, jacobian
-        if anchors is None:
-            raise ValueError("a moving-obstacle filter needs the obstacles' anchors")
-        anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
-        if len(anchors) != len(positions):
-            raise ValueError(f"{len(anchors)} anchors for {len(positions)} query positions")
-        blocked, counts = moving.blocked_candidates(self.points_numpy, index, anchors)
-        short = counts > index.shape[1] - self.k
+            return values, jacobian
         rows = np.flatnonzero(short)
-        if not rows.size:  # the common case: every query keeps at least k candidates
-            values, jacobian = self._softmin_values(x, index, blocked)
-            values -= self.offset
-        else:
-            values = np.zeros(len(x), dtype=x.dtype)
-            jacobian = np.zeros((len(x), 3), dtype=x.dtype)
-            full = np.flatnonzero(~short)
-            if full.size:
-                part, grad = self._softmin_values(x[full], index[full], blocked[full])
-                values[full], jacobian[full] = part - self.offset, grad
-        no_free = 0
-        if rows.size:
-            wide = self._wide_neighbours(positions[rows])
-            wide_blocked, _ = moving.blocked_candidates(self.points_numpy, wide, anchors[rows])
-            free = ~wide_blocked.all(axis=1)
-            no_free = int((~free).sum())
-            keep = rows[free]
-            if keep.size:
-                part, grad = self._softmin_values(x[keep], wide[free], wide_blocked[free])
-                values[keep], jacobian[keep] = part - self.offset, grad
+        no_free = self._fall_back(x, anchors, moving, rows, values, jacobian) if rows.size else 0
         self.last_moving_counts = {
             "queries": len(x),
             "with_blocked": int(np.count_nonzero(counts)),
@@ -411,6 +383,53 @@ class HapPrior:
             "no_free": no_free,
         }
         return values, jacobian
+
+    def _exact_softmin(
+        self,
+        x: np.ndarray,
+        anchors: np.ndarray | None,
+        moving: MovingObstacleFilter | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``"kdtree"`` mode: `grid_softmin`'s four results with the exact k nearest points
+        as the candidates (short rows 0)."""
+        positions = np.asarray(x, dtype=float)
+        index = self._exact(positions).numpy()
+        if moving is None:
+            values, jacobian = self._softmin_values(x, index, None)
+            nothing = np.zeros(len(x), dtype=np.int64)
+            return values, jacobian, nothing, nothing.astype(bool)
+        blocked, counts = moving.blocked_candidates(self.points_numpy, index, anchors)
+        short = counts > index.shape[1] - self.k
+        values = np.zeros(len(x), dtype=x.dtype)
+        jacobian = np.zeros((len(x), 3), dtype=x.dtype)
+        full = np.flatnonzero(~short)
+        if full.size:
+            values[full], jacobian[full] = self._softmin_values(x[full], index[full], blocked[full])
+        return values, jacobian, counts, short
+
+    def _fall_back(
+        self,
+        x: np.ndarray,
+        anchors: np.ndarray,
+        moving: MovingObstacleFilter,
+        rows: np.ndarray,
+        values: np.ndarray,
+        jacobian: np.ndarray,
+    ) -> int:
+        """The soft-min of the queries ``rows`` (fewer than k free candidates) over their
+        ``fallback_candidates`` exact nearest points without the blocked ones, written into
+        ``values`` and ``jacobian``; the rows without any free point among those stay 0 (no
+        pull). Returns how many those are."""
+        wide = self._wide_neighbours(np.asarray(x[rows], dtype=float))
+        wide_blocked, _ = moving.blocked_candidates(
+            self.points_numpy, wide, np.asarray(anchors[rows], dtype=float)
+        )
+        free = ~wide_blocked.all(axis=1)
+        keep = rows[free]
+        if keep.size:
+            part, grad = self._softmin_values(x[keep], wide[free], wide_blocked[free])
+            values[keep], jacobian[keep] = part, grad
+        return int((~free).sum())
 
     def loss(
         self,

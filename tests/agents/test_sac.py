@@ -496,36 +496,41 @@ def test_actor_loss_gradient_norms_are_per_term_and_leave_the_random_streams_alo
     buffer.reset()
 
 
-def test_l_hap_gradient_rows_are_zero_exactly_where_the_sample_is_inside_c_safe(
+def test_l_hap_gradient_rows_are_zero_exactly_where_the_hinged_sample_is_inside_c_safe(
     dist_gprl_agent,
 ):
-    """What `distgprl.agents.gradient_norms` relies on: a sample's L_hap gradient row
-    (`term_gradients`) is 0 exactly where its own L_hap (the forward pass on it alone) is 0 —
-    on the ci agent's real observations (all outside the task's C_safe somewhere), and on a
-    grid C_safe holding the whole trajectory with half the batch's via-points moved 2 m out
-    of it (both sides)."""
+    """What `distgprl.agents.gradient_norms` relies on holds for the v6–v7 hinge variant: a
+    sample's L_hap gradient row (`term_gradients`) is 0 exactly where its own L_hap (the
+    forward pass on it alone) is 0 — on a grid C_safe holding the whole trajectory with half
+    the batch's via-points moved 2 m out of it (both sides). Under environment v8's L_hap as
+    written (no hinge, the ci agent's own prior) no sample is without pull: every row of the
+    real observations' gradient is nonzero, and L_hap is negative where the samples lie in
+    C_safe."""
     env, model, observations = dist_gprl_agent
     aux = observations["aux"].double()
     actions = np.random.default_rng(7).uniform(-1, 1, (aux.shape[0], env.action_space.shape[0]))
+    assert model.regulariser.hap_prior.hinge_step == 0.0  # the v8 default: as written
+    rows = model.regulariser.term_gradients(aux, torch.as_tensor(actions))["l_hap"]
+    assert np.all(rows.norm(dim=1).numpy() > 0)
     skill = small_skill()
     layout = build_action_layout(skill, V5_OPERATOR, get_method("dist-gprl"))
     axes = [np.arange(0.0, 1.01, 0.1), np.arange(-0.5, 0.51, 0.1), np.arange(-0.2, 0.71, 0.1)]
     c_safe = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    prior = HapPrior(c_safe, hinge_step=0.1)
     weights = RegulariserWeights(lambda_sim=0.0, lambda_hap=1.0)
-    grid = ActorRegulariser(skill, layout, weights, hap_prior=prior)
     moved = aux_batch(skill, layout, batch=6).double()
     moved[3:, : skill.n_via_points * 6 : 6] += 2.0  # x of every via-point
-    small = 0.01 * np.random.default_rng(8).uniform(-1, 1, (6, layout.points_per_step * 6))
-    inside = 0
-    for reg, a, b in ((model.regulariser, aux, actions), (grid, moved, small)):
-        b = torch.as_tensor(b)
-        rows = reg.term_gradients(a, b)["l_hap"].norm(dim=1).numpy()
-        alone = np.array([reg(a[i : i + 1], b[i : i + 1])[1]["l_hap"] for i in range(len(a))])
-        np.testing.assert_array_equal(rows > 0, alone > 0)
-        assert np.any(alone > 0)
-        inside += int(np.sum(alone == 0))
-    assert inside == 3
+    small = torch.as_tensor(
+        0.01 * np.random.default_rng(8).uniform(-1, 1, (6, layout.points_per_step * 6))
+    )
+    hinged = ActorRegulariser(skill, layout, weights, hap_prior=HapPrior(c_safe, hinge_step=0.1))
+    rows = hinged.term_gradients(moved, small)["l_hap"].norm(dim=1).numpy()
+    alone = np.array([hinged(moved[i : i + 1], small[i : i + 1])[1]["l_hap"] for i in range(6)])
+    np.testing.assert_array_equal(rows > 0, alone > 0)
+    assert np.sum(alone == 0) == 3 and np.sum(alone > 0) == 3
+    raw = ActorRegulariser(skill, layout, weights, hap_prior=HapPrior(c_safe))
+    rows = raw.term_gradients(moved, small)["l_hap"].norm(dim=1).numpy()
+    alone = np.array([raw(moved[i : i + 1], small[i : i + 1])[1]["l_hap"] for i in range(6)])
+    assert np.all(rows > 0) and np.all(alone[:3] < 0) and np.all(alone[3:] > 1.0)
 
 
 def test_active_hap_norms_average_over_the_samples_outside_c_safe():

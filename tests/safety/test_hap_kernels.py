@@ -14,7 +14,7 @@ from _reference_numpy_softmin import blocked as reference_blocked
 from _reference_numpy_softmin import softmin_values as reference_softmin
 
 from distgprl.safety.hap import MovingObstacleFilter
-from distgprl.safety.hap_kernels import grid_candidates, softmin_with_gradient
+from distgprl.safety.hap_kernels import grid_candidates, grid_softmin, softmin_with_gradient
 from distgprl.safety.shapes import Box
 
 
@@ -112,3 +112,50 @@ def test_grid_candidates_are_the_table_rows_of_the_clipped_cells():
     candidates = grid_candidates(positions, lower, resolution, shape, table)
     assert candidates.dtype == table.dtype
     np.testing.assert_array_equal(candidates, table[flat])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_grid_softmin_gives_the_separate_kernels_bits_on_float64_copies(dtype):
+    """`grid_softmin` on the batch as given (float32 in training) equals the environment v7
+    path bit for bit: `grid_candidates` and `boxes_block` on float64 copies of the queries and
+    anchors, then `softmin_with_gradient` in the queries' dtype — values, gradients, blocked
+    counts and the rows left to the fallback (fewer than k free candidates: all occur)."""
+    from distgprl.safety.hap_loss import HapPrior
+
+    rng = np.random.default_rng(11)
+    prior = HapPrior(_grid(), neighbour_search="grid")
+    shapes = [Box("cube", np.zeros(3), np.eye(3), np.full(3, 0.05), True)]
+    moving = MovingObstacleFilter(shapes, np.zeros(3), np.full(3, 0.02), 0.03)
+    query = rng.uniform([0.2, -0.4, 0.0], [0.8, 0.4, 0.5], (2000, 3)).astype(dtype)
+    anchors = (query + rng.normal(0.0, 0.1, query.shape)).astype(dtype)
+    grid, k, tau = prior._grid, prior.k, prior.temperature
+    coordinates = prior._coordinates_as(np.dtype(dtype))
+    values, jacobian, counts, short = grid_softmin(
+        query, grid, coordinates, prior.points_numpy, anchors, moving.boxes, k, tau
+    )
+    index = grid_candidates(query.astype(float), *grid)
+    blocked, expected_counts = moving.blocked_candidates(
+        prior.points_numpy, index, anchors.astype(float)
+    )
+    expected_short = expected_counts > index.shape[1] - k
+    full = ~expected_short
+    expected_values, expected_jacobian = softmin_with_gradient(
+        query[full], coordinates, index[full], blocked[full], k, tau
+    )
+    assert expected_counts.any() and expected_short.any() and full.any()
+    np.testing.assert_array_equal(counts, expected_counts)
+    np.testing.assert_array_equal(short, expected_short)
+    assert values.dtype == jacobian.dtype == dtype
+    np.testing.assert_array_equal(values[full], expected_values)
+    np.testing.assert_array_equal(jacobian[full], expected_jacobian)
+    assert not values[short].any() and not jacobian[short].any()
+    # without moving obstacles: the same as the kernels on the float64 look-up
+    values, jacobian, counts, short = grid_softmin(
+        query, grid, coordinates, prior.points_numpy, None, None, k, tau
+    )
+    expected_values, expected_jacobian = softmin_with_gradient(
+        query, coordinates, index, None, k, tau
+    )
+    assert not counts.any() and not short.any()
+    np.testing.assert_array_equal(values, expected_values)
+    np.testing.assert_array_equal(jacobian, expected_jacobian)

@@ -26,24 +26,25 @@ def prior(request, c_safe) -> HapPrior:
     return HapPrior(c_safe, neighbour_search=request.param)
 
 
-def test_loss_is_about_zero_on_the_subspace(prior, c_safe):
-    """On C_safe points L_hap ~ 0 (the offset is the on-subspace soft-min)."""
-    at_points = prior.per_point(torch.as_tensor(c_safe, dtype=torch.float32))
-    assert torch.all(at_points.abs() < 0.01)
-    assert abs(float(at_points.mean())) < 1e-4
-    # The raw equation is negative there: the soft-min undercuts the nearest distance.
-    raw = HapPrior(c_safe, subtract_offset=False)
-    assert float(raw.loss(torch.as_tensor(c_safe, dtype=torch.float32))) < -0.01
+def test_loss_is_the_equation_as_written_without_offset(prior, c_safe):
+    """Environment v8 (issue 66, rule 4): L_hap per query is Eq. hap_compact's soft-min
+    itself, -tau log sum_kNN exp(-d / tau) in m, no constant subtracted: on C_safe points it
+    is negative (the other neighbours, a grid step away, still contribute) and equals the
+    exact soft-min there; the prior has no offset."""
+    assert prior.offset == 0.0 and prior.hinge_step == 0.0
+    at_points = prior.per_point(torch.as_tensor(c_safe, dtype=torch.float64)).numpy()
+    exact = _exact_softmin(prior, c_safe, c_safe)
+    np.testing.assert_allclose(at_points, exact, rtol=0, atol=1e-6)
+    assert np.all(at_points < -0.01)
 
 
 def test_loss_tracks_the_distance_off_the_subspace(prior, c_safe):
-    """Points 0.3 m above the top layer: min distance - tau log k <= L_hap + b <= min distance."""
+    """Points 0.3 m above the top layer: min distance - tau log k <= L_hap <= min distance."""
     top = c_safe[np.isclose(c_safe[:, 2], c_safe[:, 2].max())]
     above = torch.as_tensor(top + [0.0, 0.0, 0.3], dtype=torch.float32)
-    values = prior.per_point(above) + prior.offset
+    values = prior.per_point(above)
     lower = 0.3 - prior.temperature * np.log(prior.k)
     assert torch.all((values >= lower - 1e-6) & (values <= 0.3 + 1e-6))
-    assert torch.all(values - prior.offset > 0.2)
 
 
 def test_gradient_step_decreases_the_loss_off_the_subspace(prior):
@@ -98,11 +99,11 @@ def test_coinciding_points_have_finite_gradient_and_config_defaults(c_safe):
 
 
 def _exact_softmin(prior: HapPrior, points: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Eq. hap_compact over ``points`` with exact neighbours, minus ``prior``'s offset."""
+    """Eq. hap_compact's summand over ``points`` with exact neighbours (float64)."""
     distances = np.sort(np.linalg.norm(x[:, None, :] - points[None], axis=2), axis=1)
     nearest = distances[:, : prior.k]
     tau = prior.temperature
-    return -tau * np.log(np.exp(-nearest / tau).sum(axis=1)) - prior.offset
+    return -tau * np.log(np.exp(-nearest / tau).sum(axis=1))
 
 
 @pytest.mark.parametrize("search", ["grid", "kdtree"])
@@ -159,9 +160,11 @@ def test_moving_filter_needs_one_anchor_per_query(c_safe):
 
 # ----------------------------------------------------- against the pre-rewrite implementation
 def _reference_prior(*args, **kwargs):
+    """The pre-rewrite prior without its offset (``subtract_offset=False``): Eq. hap_compact
+    as written, what `HapPrior` computes since environment v8."""
     from _reference_hap_loss import ReferenceHapPrior
 
-    return ReferenceHapPrior(*args, **kwargs)
+    return ReferenceHapPrior(*args, subtract_offset=False, **kwargs)
 
 
 def _random_queries(rng: np.random.Generator, shape=(256, 20)) -> np.ndarray:
@@ -188,13 +191,12 @@ def test_soft_min_and_its_gradient_equal_the_reference(c_safe, search, candidate
     queries (weighted by a random upstream gradient) equal the pre-rewrite autograd version
     to 1e-9 in float64, for both neighbour searches, with more candidates than k (the k
     nearest are selected) and exactly k, on 256 x 20 queries on, near and far from C_safe.
-    The offsets b agree as well. Exactly at a grid point several neighbours tie at the k-th
+    Exactly at a grid point several neighbours tie at the k-th
     distance; which of them enter is arbitrary in both (torch.topk does not specify it), so
     there only the values are compared."""
     kwargs = dict(neighbour_search=search, candidates=candidates)
     new = HapPrior(c_safe, **kwargs)
     old = _reference_prior(c_safe, **kwargs)
-    assert new.offset == pytest.approx(old.offset, abs=1e-12)
     rng = np.random.default_rng(1)
     x = _random_queries(rng)
     weights = rng.normal(size=x.shape[:-1])
@@ -270,11 +272,11 @@ def _cube_grid(step: float = 0.1, n: int = 6) -> np.ndarray:
 
 
 def test_the_v6_hinge_is_zero_inside_c_safe_and_a_grid_step_outside_costs_about_one():
-    """Environment v6: with ``hinge_step`` h, L_hap per query is max(0, softmin - c) / h, c the
-    soft-min at a safe cell's centre: 0 with no gradient at the nodes and cell centres deep
-    inside a fully safe grid (no pull towards the lattice), positive and growing outside,
-    about 1 a grid step beyond the subspace's face, and the gradient is that of the
-    hinged value (finite differences)."""
+    """Environment v6–v7's variant: with ``hinge_step`` h, L_hap per query is
+    max(0, softmin - c) / h, c the largest soft-min inside a safe cell: 0 with no gradient
+    at the nodes and cell centres deep inside a fully safe grid (no pull towards the
+    lattice), positive and growing outside, about 1 a grid step beyond the subspace's
+    face, and the gradient is that of the hinged value (finite differences)."""
     from distgprl.safety.hap_loss import HapPrior
 
     points = _cube_grid()
@@ -295,4 +297,4 @@ def test_the_v6_hinge_is_zero_inside_c_safe_and_a_grid_step_outside_costs_about_
         down, _ = prior.values_and_gradient(outside - shift)
         np.testing.assert_allclose(gradient[:, axis], (up - down) / (2 * eps), atol=1e-5)
     plain = HapPrior(points, k=8, temperature=0.05, dtype=torch.float64)
-    assert np.abs(plain.values_and_gradient(inside)[1]).sum() > 0.01  # v5 pulls to nodes
+    assert np.abs(plain.values_and_gradient(inside)[1]).sum() > 0.01  # as written: pulls
