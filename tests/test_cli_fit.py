@@ -64,3 +64,68 @@ def test_unknown_task_lists_valid_names(tmp_path):
 def test_task_and_demo_are_exclusive(tmp_path, smooth_demo_file):
     result = runner.invoke(app, ["fit", "--task", "dcp", "--demo", str(smooth_demo_file)])
     assert result.exit_code == 2
+
+
+def test_fit_task_shows_the_committed_skill_without_fitting(tmp_path, monkeypatch):
+    """`distgprl fit --task dcp` prints the committed skill's hyperparameters at full
+    precision and its provenance, and writes its report files, without running the fit."""
+    import distgprl.skill.committed as committed
+    import distgprl.skill.gp as gp
+    from distgprl.skill.committed import load_committed_skill
+
+    def refit(*args, **kwargs):
+        raise AssertionError("fitted")
+
+    monkeypatch.setattr(gp, "fit_skill", refit)
+    monkeypatch.setattr(committed, "fit_skill", refit)
+    out = tmp_path / "skills"
+    result = runner.invoke(app, ["fit", "--task", "dcp", "--out-dir", str(out)])
+    assert result.exit_code == 0, result.output
+    skill = load_committed_skill("dcp")
+    assert f"length scale {skill.kernel.length_scale!r}" in result.output
+    assert "data/skills/dcp.json (fitted at " in result.output
+    document = read_json(out / "dcp.json")
+    assert document["skill"] == skill.to_dict()
+    assert document["committed_skill"]["openblas_coretype"] == "Haswell"
+    assert "action scale per unit raw action (reach)" in result.output
+
+
+def test_fit_write_round_trips_and_compare_reports_the_difference(tmp_path):
+    """`fit --task dcp --write --skills-dir D` refits and writes D/dcp.json; the file loads
+    back as exactly the fresh fit, `fit --task dcp --skills-dir D --compare` then finds a
+    fresh fit identical bit for bit on the same machine, and the package's file is untouched."""
+    from distgprl.skill.committed import (
+        committed_skill_path,
+        fit_task_skill,
+        load_committed_skill,
+    )
+
+    shipped = committed_skill_path("dcp").read_bytes()
+    result = runner.invoke(app, ["fit", "--task", "dcp", "--write", "--skills-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert f"-> {tmp_path / 'dcp.json'}" in result.output
+    written = load_committed_skill("dcp", directory=tmp_path)
+    assert written.to_dict() == fit_task_skill("dcp").to_dict()
+    again = runner.invoke(
+        app,
+        ["fit", "--task", "dcp", "--compare", "--skills-dir", str(tmp_path)]
+        + ["--out-dir", str(tmp_path / "out")],
+    )
+    assert again.exit_code == 0, again.output
+    assert "against the committed skill: identical bit for bit" in again.output
+    assert committed_skill_path("dcp").read_bytes() == shipped
+
+
+def test_fit_write_refuses_a_demo_file(tmp_path, smooth_demo_file):
+    result = runner.invoke(app, ["fit", "--demo", str(smooth_demo_file), "--write"])
+    assert result.exit_code == 2
+    assert "--write refits a task's committed skill" in result.output
+
+
+def test_fit_task_with_a_missing_skill_file_exits_2_naming_it(tmp_path):
+    result = runner.invoke(
+        app, ["fit", "--task", "dcp", "--skills-dir", str(tmp_path), "--out-dir", str(tmp_path)]
+    )
+    assert result.exit_code == 2
+    assert f"{tmp_path / 'dcp.json'}: the committed skill file is missing" in result.output
+    assert result.output.strip().count("\n") == 0

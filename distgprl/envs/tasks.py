@@ -8,11 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.data import check_task_name, demo_path
-from distgprl.io import atomic_write_text, config_hash, file_sha256
+from distgprl.data import check_task_name
 from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load, tqdm_progress
-from distgprl.skill.demos import load_demonstration
-from distgprl.skill.gp import FitConfig, GPSkill, fit_skill
+from distgprl.skill.committed import load_committed_skill
+from distgprl.skill.gp import GPSkill
 
 
 def make_task_sim(task: str):
@@ -29,33 +28,10 @@ def cache_root() -> Path:
     return Path(root) if root else Path.home() / ".cache" / "distgprl"
 
 
-@lru_cache(maxsize=8)
-def _fit_cached(task: str, n_via_points: int, sha256: str) -> GPSkill:
-    """Fit once per (demo file hash, fit settings); the result is also cached on disk, since
-    the marginal-likelihood fit costs seconds in every process that builds an env."""
-    import json
-    from dataclasses import asdict
-
-    config = FitConfig(n_via_points=n_via_points)
-    key = config_hash(
-        {"task": task, "demo_sha256": sha256, "fit": asdict(config), "v": 5}
-    )  # v2: axis_scale; v5: axis_kernels (environment v6)
-    path = cache_root() / "skills" / f"{task}_{key}.json"
-    if path.exists():
-        try:
-            return GPSkill.from_dict(json.loads(path.read_text()))
-        except (ValueError, KeyError, TypeError):
-            pass  # unreadable cache entry: refit and overwrite it
-    demo = load_demonstration(demo_path(task), min_rows=n_via_points)
-    skill = fit_skill(demo, config)
-    atomic_write_text(path, json.dumps(skill.to_dict()))
-    return skill
-
-
 def load_task_skill(task: str, n_via_points: int = 15) -> GPSkill:
-    """The GP skill fitted to the task's shipped demonstration (cached per file hash)."""
-    path = demo_path(check_task_name(task))
-    return _fit_cached(task, n_via_points, file_sha256(path))
+    """The task's committed GP skill (``data/skills/<task>.json``; never fitted here:
+    `distgprl.skill.committed`)."""
+    return load_committed_skill(check_task_name(task), n_via_points)
 
 
 def hap_cache_dir() -> Path:

@@ -1,5 +1,6 @@
-"""`distgprl fit` and `hap`: fit the GP skill to a demonstration and write its result files;
-build (or load) a task's HAP safe subspace and plot it."""
+"""`distgprl fit` and `hap`: show a task's committed GP skill (or fit a demonstration
+explicitly) and write its result files; build (or load) a task's HAP safe subspace and plot
+it."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 from distgprl.config import EnvConfig
 from distgprl.experiments.results import read_json, write_json
 from distgprl.io import atomic_write_bytes
+from distgprl.skill.committed import CommittedSkill, read_skill_file
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
 
@@ -24,13 +26,15 @@ AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 @dataclass(frozen=True)
 class FitOutput:
-    """Where `fit_demonstration` wrote its files, and the fitted skill."""
+    """Where `fit_demonstration` / `show_committed_skill` wrote their files, and the skill."""
 
     skill: GPSkill
     json_path: Path
     figure_path: Path
     rmse: dict[str, list[float]]
     correlation: dict
+    committed: CommittedSkill | None = None
+    """The committed skill file shown (None for a fresh fit)."""
 
 
 def correlation_summary(
@@ -159,7 +163,8 @@ def fit_demonstration(
     config: FitConfig | None = None,
     task: str | None = None,
 ) -> FitOutput:
-    """Fit a skill to a demonstration CSV; write ``<name>.json`` and ``<name>.png``.
+    """Fit a skill to a demonstration CSV on this machine (explicitly: environments read the
+    committed skills, `show_committed_skill`); write ``<name>.json`` and ``<name>.png``.
 
     The demonstration is validated first (a `UserInputError` leaves nothing written).
     ``task`` (the demonstration's task, if it has one) gives the TC range from which the
@@ -168,21 +173,57 @@ def fit_demonstration(
     config = config or FitConfig()
     demo = load_demonstration(demo_file, min_rows=config.n_via_points)
     name = name or demo.name
-    skill = fit_skill(demo, config)
-    skill = dataclasses.replace(skill, name=name)
-    rmse = reconstruction_error(skill, demo)
-    tc_range = None
-    if task is not None:
-        from distgprl.sim.tasks import get_task
+    skill = dataclasses.replace(fit_skill(demo, config), name=name)
+    return write_skill_report(skill, demo, demo_file, out_dir, name, config, task)
 
-        tc_range = np.asarray(get_task(task).tc_range)
-    correlation = correlation_summary(skill, tc_range=tc_range)
+
+def show_committed_skill(
+    task: str,
+    out_dir: str | Path = "results/skills",
+    n_via_points: int = 15,
+    skills_dir: str | Path | None = None,
+) -> FitOutput:
+    """The task's committed skill (`distgprl.skill.committed`; nothing is fitted): its
+    reconstruction error, operator summary and figure, written to ``out_dir`` as
+    `fit_demonstration` writes a fresh fit's."""
+    from distgprl.data import demo_path
+    from distgprl.skill.committed import committed_skill_path, load_committed_skill
+
+    skill = load_committed_skill(task, n_via_points, skills_dir)
+    committed = read_skill_file(committed_skill_path(task, skills_dir))
+    demo = load_demonstration(demo_path(task), min_rows=n_via_points)
+    output = write_skill_report(
+        skill, demo, demo_path(task), out_dir, task, committed.fit_config, task, committed
+    )
+    return output
+
+
+def write_skill_report(
+    skill: GPSkill,
+    demo: Demonstration,
+    demo_file: str | Path,
+    out_dir: str | Path,
+    name: str,
+    config: FitConfig,
+    task: str | None,
+    committed: CommittedSkill | None = None,
+) -> FitOutput:
+    """Write ``<name>.json`` (skill, RMSE against ``demo``, operator summary and, for a
+    committed skill, its file and provenance) and ``<name>.png`` into ``out_dir``."""
+    rmse = reconstruction_error(skill, demo)
+    correlation = correlation_summary(skill, tc_range=task_tc_range(task))
     out_dir = Path(out_dir)
     figure_path = plot_fit(skill, demo, out_dir / f"{name}.png")
+    source = (
+        {}
+        if committed is None
+        else {"committed_skill": {"file": str(committed.path), **committed.provenance}}
+    )
     json_path = write_json(
         out_dir / f"{name}.json",
         {
             "skill": skill.to_dict(),
+            **source,
             "demonstration": {
                 "file": str(demo_file),
                 "sha256": demo.sha256,
@@ -195,7 +236,47 @@ def fit_demonstration(
         kind="skill",
         fit_config=config.__dict__,
     )
-    return FitOutput(skill, json_path, figure_path, rmse, correlation)
+    return FitOutput(skill, json_path, figure_path, rmse, correlation, committed)
+
+
+def task_tc_range(task: str | None) -> np.ndarray | None:
+    """The task's TC range (3,), m, or None without a task."""
+    if task is None:
+        return None
+    from distgprl.sim.tasks import get_task
+
+    return np.asarray(get_task(task).tc_range)
+
+
+def fresh_fit_differences(committed: GPSkill, fresh: GPSkill, task: str) -> dict[str, float]:
+    """How a fresh fit on this machine differs from the committed skill: the largest
+    relative difference of the shared kernel's, the axis kernels' parameters, the action
+    scales and the Table I operator's reach, and the largest absolute one of the via-points
+    (m, rad); 0.0 where they agree bit for bit."""
+
+    def relative(first: object, second: object) -> float:
+        a, b = np.asarray(first, dtype=float), np.asarray(second, dtype=float)
+        scale = np.maximum(np.abs(a), np.abs(b))
+        return float(np.max(np.where(scale > 0, np.abs(a - b) / np.where(scale > 0, scale, 1), 0)))
+
+    def kernel_values(skill: GPSkill) -> np.ndarray:
+        kernels = (skill.kernel, *(skill.axis_kernels or ()))
+        return np.array([[k.length_scale, k.signal_variance, k.noise_variance] for k in kernels])
+
+    tc_range = task_tc_range(task)
+    summaries = [correlation_summary(s, tc_range=tc_range) for s in (committed, fresh)]
+    old, new = kernel_values(committed), kernel_values(fresh)
+    return {
+        "kernel": relative(old[0], new[0]),
+        "axis_kernels": relative(old[1:], new[1:]),
+        "via_points": float(np.max(np.abs(committed.via_points - fresh.via_points))),
+        "action_scale": relative(
+            list(summaries[0]["action_scale"].values()), list(summaries[1]["action_scale"].values())
+        ),
+        "reach": relative(
+            list(summaries[0]["reach"].values()), list(summaries[1]["reach"].values())
+        ),
+    }
 
 
 def load_skill(path: str | Path) -> GPSkill:

@@ -49,6 +49,8 @@ from distgprl.skill.kernels import (
     standardise,
 )
 from distgprl.skill.operator import fit_zero_mean_axes
+from distgprl.skill.portable import correlation_operator as portable_operator
+from distgprl.skill.portable import kernel_matrix
 
 N_AXES = 6
 DEFAULT_N_VIA_POINTS = 15
@@ -185,8 +187,9 @@ class GPSkill:
         """S = K (K + lambda I)^{-1}, shape (N, N) (Eq. global_S).
 
         K is the kernel's correlation matrix (unit variance) at the via-point times, so
-        S is symmetric with eigenvalues mu / (mu + lambda) in (0, 1). ``length_scale``
-        (normalised time) replaces the fitted one in K only; None = the fitted one.
+        S is symmetric with eigenvalues mu / (mu + lambda) in (0, 1), computed with
+        `distgprl.skill.portable` (the same bits on every CPU). ``length_scale`` (normalised
+        time) replaces the fitted one in K only; None = the fitted one.
         """
         length_scale = self.kernel.length_scale if length_scale is None else length_scale
         key = ("S", float(correlation_lambda), float(length_scale))
@@ -195,13 +198,9 @@ class GPSkill:
                 raise ValueError("correlation_lambda must be > 0")
             if length_scale <= 0:
                 raise ValueError("length_scale must be > 0")
-            corr = se_kernel(self.via_times, self.via_times, length_scale, 1.0)
-            n = self.n_via_points
-            # K (K + lambda I)^{-1} = I - lambda (K + lambda I)^{-1}; symmetrise rounding.
-            s = np.eye(n) - correlation_lambda * np.linalg.inv(
-                corr + correlation_lambda * np.eye(n)
-            )
-            self._cache[key] = 0.5 * (s + s.T)
+            corr = kernel_matrix(self.via_times, length_scale)
+            # I - lambda (K + lambda I)^{-1}, symmetrised, the same bits on every CPU.
+            self._cache[key] = portable_operator(corr, correlation_lambda)
         return self._cache[key]
 
     def window_operator(

@@ -21,7 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from distgprl.skill.kernels import KernelParams, maximum_likelihood_kernel, se_kernel
+from distgprl.skill.kernels import KernelParams, maximum_likelihood_kernel
+from distgprl.skill.portable import correlation_operator, kernel_matrix
 
 __all__ = [
     "CONSTANT_AXIS_SCALE",
@@ -92,13 +93,9 @@ def axis_operator(
     via_times: np.ndarray, kernel: KernelParams, correlation_lambda: float
 ) -> np.ndarray:
     """S_a = K_a (K_a + λ I)⁻¹ at the via-point times (N, N), K_a = σ_a² R(ℓ_a) (Eq. global_S);
-    symmetric, eigenvalues μ / (μ + λ) in (0, 1)."""
-    if correlation_lambda <= 0:
-        raise ValueError("correlation_lambda must be > 0")
-    k = se_kernel(via_times, via_times, kernel.length_scale, kernel.signal_variance)
-    n = len(via_times)
-    s = np.eye(n) - correlation_lambda * np.linalg.inv(k + correlation_lambda * np.eye(n))
-    return 0.5 * (s + s.T)
+    symmetric, eigenvalues μ / (μ + λ) in (0, 1); CPU-independent (`distgprl.skill.portable`)."""
+    k = kernel_matrix(via_times, kernel.length_scale, kernel.signal_variance)
+    return correlation_operator(k, correlation_lambda)  # the same bits on every CPU
 
 
 def row_gains(operator: np.ndarray) -> np.ndarray:

@@ -228,3 +228,92 @@ def test_shipped_skills_reach_their_tc_range_under_the_table_one_operator():
         control, signal = summary["candidates"]["signal-uncoupled"], summary["candidates"]["signal"]
         for axis in needed:  # the control: the signal reading's reach, no coupling
             assert control["reach"][axis] == pytest.approx(signal["reach"][axis], rel=1e-12)
+
+
+DERIVED_NUMBERS = """
+import hashlib, json
+import numpy as np
+from distgprl.adaptation.layout import COVARIANCE_SCALES, build_action_layout
+from distgprl.config import EnvConfig
+from distgprl.envs.tasks import load_task_skill, task_hap_config
+from distgprl.experiments.mechanisms import layout_reach
+from distgprl.experiments.skills import correlation_summary, task_tc_range
+from distgprl.machine import numerics_fingerprint
+from distgprl.methods import get_method
+
+def digest(values):
+    return hashlib.sha256(np.ascontiguousarray(values, dtype=float).tobytes()).hexdigest()
+
+out = {}
+for task in ("dcp", "dbm"):
+    skill, tc_range = load_task_skill(task), task_tc_range(task)
+    for scale in COVARIANCE_SCALES:
+        config = EnvConfig(covariance_scale=scale)
+        for method in ("dist-gprl", "dist-gprl-nocov", "gprl"):
+            layout = build_action_layout(skill, config, get_method(method), tc_range=tc_range)
+            out[f"{task}/{scale}/{method}/S"] = digest(layout.operators)
+            out[f"{task}/{scale}/{method}/scale"] = digest(layout.scale)
+            reach = layout_reach(layout)
+            out[f"{task}/{scale}/{method}/reach"] = digest([reach[k] for k in sorted(reach)])
+    summary = correlation_summary(skill, EnvConfig(), tc_range=tc_range)
+    out[f"{task}/summary"] = json.dumps(
+        [summary["reach"], summary["reach_min"], summary["action_scale"],
+         {k: v["reach"] for k, v in summary["candidates"].items()}]
+    )
+    out[f"{task}/hap_config"] = repr(task_hap_config(task))
+print(json.dumps({"numerics": numerics_fingerprint(), "numbers": out}))
+"""
+
+
+def machine_variants() -> dict[str, dict[str, str]]:
+    """The numerics to compare: the default, OpenBLAS' AVX2 kernel (``Haswell``), its AVX-512
+    kernel (``SkylakeX``, on a CPU that has AVX-512) and an AVX2 machine as far as this one
+    can stand in for it (Haswell kernel, numpy's AVX-512 loops disabled)."""
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    avx512 = [t for t in __cpu_dispatch__ if __cpu_features__.get(t) and "AVX2" not in t]
+    avx512 = [t for t in avx512 if "512" in t or t == "X86_V4"]
+    variants = {"default": {}, "haswell": {"OPENBLAS_CORETYPE": "Haswell"}}
+    if __cpu_features__.get("AVX512F"):
+        variants["skylakex"] = {"OPENBLAS_CORETYPE": "SkylakeX"}
+    if avx512:
+        variants["avx2-machine"] = {
+            "OPENBLAS_CORETYPE": "Haswell",
+            "NPY_DISABLE_CPU_FEATURES": " ".join(avx512),
+        }
+    return variants
+
+
+def test_numbers_derived_from_the_committed_skills_are_the_same_under_every_kernel():
+    """Protocol v8 rule 7 (issue 68): loading the committed skills, the operator S of every
+    reading and method, the action scales, the mechanism table's reach, `correlation_summary`'s
+    reach and the HAP grid are identical bit for bit under the default BLAS kernel, OpenBLAS'
+    Haswell (AVX2) and SkylakeX (AVX-512) kernels and with numpy's AVX-512 loops disabled,
+    each in its own process (the variants are checked to take effect)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    results = {}
+    for name, variables in machine_variants().items():
+        env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE",)}
+        env.pop("NPY_DISABLE_CPU_FEATURES", None)
+        completed = subprocess.run(
+            [sys.executable, "-c", DERIVED_NUMBERS],
+            env={**env, **variables},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        results[name] = json.loads(completed.stdout.strip().splitlines()[-1])
+    assert results["haswell"]["numerics"].startswith("openblas-Haswell_")
+    if "skylakex" in results:
+        assert results["skylakex"]["numerics"].startswith("openblas-SkylakeX_")
+    if "avx2-machine" in results:
+        assert "512" not in results["avx2-machine"]["numerics"]
+    reference = results["default"]["numbers"]
+    assert len(reference) == 2 * (5 * 3 * 3 + 2)
+    for name, result in results.items():
+        differing = sorted(k for k, v in result["numbers"].items() if reference.get(k) != v)
+        assert not differing, (name, result["numerics"], differing)
