@@ -16,9 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from distgprl.config import ENVIRONMENT_VERSION, Config, load_config
-from distgprl.data import SCENE_REVISIONS, check_task_name
+from distgprl.data import DATA_DIR, SCENE_REVISIONS, check_task_name
 from distgprl.errors import UserInputError
-from distgprl.io import config_hash
+from distgprl.io import config_hash, sha256_hex
 from distgprl.methods import MethodSpec, get_method
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 
@@ -61,6 +61,9 @@ class RunSpec:
         }
         if SCENE_REVISIONS[self.task]:  # see `distgprl.data.SCENE_REVISIONS`
             data["scene_revision"] = SCENE_REVISIONS[self.task]
+        skill = committed_skill_digest(self.task)
+        if skill is not None:  # a refitted skill (`distgprl fit --write`) makes runs stale
+            data["skill_sha256"] = skill
         revisions = method_revisions(self.method)
         if revisions:
             data["method_revisions"] = revisions
@@ -69,6 +72,13 @@ class RunSpec:
     @property
     def hash(self) -> str:
         return config_hash(self.to_dict())
+
+
+def committed_skill_digest(task: str) -> str | None:
+    """SHA-256 of the task's committed skill file (``data/skills/<task>.json``, every number
+    the skill fit decides, `distgprl.skill.committed`), or None for a task without one."""
+    path = DATA_DIR / "skills" / f"{task}.json"
+    return sha256_hex(path.read_bytes()) if path.exists() else None
 
 
 SWEEP_SEEDS = (0, 1, 2, 3, 4)
