@@ -447,7 +447,7 @@ class RegularisedSAC(SAC):
             if "grad_hap" in norms:
                 from distgprl.agents.gradient_norms import active_hap_norms
 
-                norms.update(active_hap_norms(terms["l_hap"], batch_size))
+                norms.update(active_hap_norms(terms["l_hap"], batch_size, terms.get("hap_outside")))
         return norms
 
     def _setup_learn(self, *args, **kwargs):

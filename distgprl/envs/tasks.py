@@ -114,8 +114,14 @@ def _hap_prior_cached(task: str, k: int, temperature: float, hinge: bool):
     from distgprl.safety.hap_loss import HapPrior
 
     subspace, _ = load_task_subspace(task)
-    step = task_hap_config(task).grid_step if hinge else 0.0
-    return HapPrior(subspace.unique_positions, k=k, temperature=temperature, hinge_step=step)
+    step = task_hap_config(task).grid_step
+    return HapPrior(
+        subspace.unique_positions,
+        k=k,
+        temperature=temperature,
+        hinge_step=step if hinge else 0.0,
+        grid_step=step,
+    )
 
 
 def load_task_hap_prior(task: str, k: int = 8, temperature: float = 0.05, hinge: bool = False):

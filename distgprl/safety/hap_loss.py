@@ -160,6 +160,7 @@ class HapPrior:
         temperature: float = 0.05,
         *,
         hinge_step: float = 0.0,
+        grid_step: float = 0.0,
         neighbour_search: str = "grid",
         resolution: float = 0.025,
         margin: float = 0.2,
@@ -176,6 +177,9 @@ class HapPrior:
         if hinge_step < 0:
             raise ValueError("hinge_step must be >= 0")
         self.hinge_step = float(hinge_step)
+        if grid_step < 0:
+            raise ValueError("grid_step must be >= 0")
+        self.grid_step = float(grid_step or hinge_step)
         self.neighbour_search = neighbour_search
         self.resolution = float(resolution)
         self.margin = float(margin)
@@ -323,6 +327,19 @@ class HapPrior:
             return torch.from_numpy(values).to(x.device), torch.from_numpy(jacobian).to(x.device)
 
         return ValueWithGradient.of(flat, evaluate).reshape(x.shape[:-1])
+
+    @property
+    def outside_threshold(self) -> float | None:
+        """The value above which a query lies outside C_safe, in `values_and_gradient`'s unit:
+        0 with the hinge; for the raw soft-min, the largest soft-min anywhere inside a fully
+        safe grid of step ``grid_step`` (`interior_softmin_bound`), None without a grid step.
+        Reporting only (the mechanism table's ``hap_active_fraction``); the loss never reads
+        it."""
+        if self.hinge_step > 0:
+            return 0.0
+        if self.grid_step <= 0:
+            return None
+        return interior_softmin_bound(self.grid_step, self.temperature, self.k)
 
     def values_and_gradient(
         self,
