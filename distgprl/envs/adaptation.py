@@ -488,7 +488,8 @@ class AdaptationEnv(gym.Env):
                 adaptation_time_s=list(self._adaptation_times),
                 final_parameters=self.gamma.copy(),
             )
-        self._refresh_field()
+        if not self.method.distance_rewards:  # else r_sd refreshed it after the last chunk
+            self._refresh_field()
         reward = float(sum(terms.values()))
         info.update(terms)
         return self.observation(), reward, terminated, False, info
