@@ -5,13 +5,18 @@ previous joint target), joint position control linearly interpolated over the ph
 substeps with feed-forward velocity, the world's kinematic bodies moved every physics step,
 contacts checked after every physics step and the clearance after every control period.
 It works on any `ControlledScene` (a `distgprl.sim.tasks.base.TaskSim`) with any
-`distgprl.sim.robot.Robot`. A segment's joint targets are computed before it executes, in
-one call (`Robot.ik_segment`): they depend on the poses and the previous target only.
+`distgprl.sim.robot.Robot`. Everything a segment commands depends on its poses, the previous
+joint target and the clock only, never on the physics: its joint targets (one IK pass,
+`Robot.ik_segment`), their interpolation and feed-forward velocities, the kinematic bodies'
+poses (`ControlledScene.kinematic_schedule`) and the conveyed object's path
+(`ControlledScene.convey_schedule`) are computed before it executes (`_SegmentPlan`), and
+the loop then only calls PyBullet and reads contacts and clearances.
 
 The per-step PyBullet functions are bound once in `BulletCalls` (a `BulletClient`'s
-attribute look-up costs microseconds per call); benchmarks may wrap its attributes with
-timers. The loop runs on plain floats: the same IEEE operations, in the same order, as
-array arithmetic would do, without its per-call overhead (issue 29).
+attribute look-up costs microseconds per call) and called with positional arguments;
+benchmarks may wrap its attributes with timers. The plan performs the same IEEE operations,
+in the same order, as the per-step arithmetic it replaces (issues 29, 66; the v7 loop is
+kept in ``tests/sim/_reference_control.py`` and the two agree bit for bit).
 """
 
 from __future__ import annotations
