@@ -447,10 +447,11 @@ class ActorRegulariser(nn.Module):
             gradient[:3, :, 2 * t :] = jacobian.reshape(batch, -1, 3).transpose(2, 0, 1) * (
                 weights.lambda_hap / len(values)
             )
-            threshold = getattr(self.hap_prior, "outside_threshold", None)
-            if self.split_gradients is not None and threshold is not None:
-                outside = (values.reshape(batch, -1) > threshold).any(axis=1)
-                self.split_gradients["hap_outside"] = torch.from_numpy(outside)
+            if self.split_gradients is not None:  # `term_gradients` only (never in training)
+                threshold = getattr(self.hap_prior, "outside_threshold", None)
+                if threshold is not None:
+                    outside = (values.reshape(batch, -1) > threshold).any(axis=1)
+                    self.split_gradients["hap_outside"] = torch.from_numpy(outside)
         else:
             gradient[:3, :, 2 * t :] = 0.0
         if self.split_gradients is not None:  # `term_gradients`: each term's own gradient

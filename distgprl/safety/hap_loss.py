@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -328,7 +329,7 @@ class HapPrior:
 
         return ValueWithGradient.of(flat, evaluate).reshape(x.shape[:-1])
 
-    @property
+    @cached_property
     def outside_threshold(self) -> float | None:
         """The value above which a query lies outside C_safe, in `values_and_gradient`'s unit:
         0 with the hinge; for the raw soft-min, the largest soft-min anywhere inside a fully
