@@ -54,7 +54,7 @@ def short_table(figures: Path = REPOSITORY / "paper_figures") -> str:
         return (
             f"No Table I of environment v{version} yet: its runs are pending. The archived "
             "environments' tables and readings are in `results/archive/` (e.g. "
-            "`results/archive/env-v5/README.md`, 70 runs at five seeds).\n"
+            "`results/archive/env-v7/README.md`: Table I v7 at five seeds and its studies).\n"
         )
     with path.open(newline="") as handle:
         rows = list(csv.DictReader(handle))

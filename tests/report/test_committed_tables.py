@@ -130,7 +130,7 @@ def test_the_readme_shows_the_committed_table_one():
     if table.exists():
         assert site_table(table.read_text()) in results_page()
     else:
-        assert "results/archive/env-v5" in readme
+        assert "results/archive/env-v7" in readme
 
 
 def test_the_short_table_is_table_one_in_brief(tmp_path):
