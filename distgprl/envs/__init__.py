@@ -2,10 +2,10 @@
 
 Registered ids (``gymnasium.make(id, method=...)``):
 
-- ``DistGPRL-DCP-v7``, ``DistGPRL-DBM-v7``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v7``, ``ProMPRRL-DBM-v7``: `distgprl.envs.residual.ResidualEnv`.
+- ``DistGPRL-DCP-v8``, ``DistGPRL-DBM-v8``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v8``, ``ProMPRRL-DBM-v8``: `distgprl.envs.residual.ResidualEnv`.
 
-Both follow `distgprl.config.ENVIRONMENT_VERSION` (the residual env skipped v4).
+The version is `distgprl.config.ENVIRONMENT_VERSION`.
 """
 
 from gymnasium.envs.registration import register, registry

@@ -1,6 +1,6 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v7`` and ``DistGPRL-DBM-v7`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v8`` and ``DistGPRL-DBM-v8`` (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations

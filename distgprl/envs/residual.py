@@ -1,6 +1,6 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v7`` and ``ProMPRRL-DBM-v7``.
+Env ids: ``ProMPRRL-DCP-v8`` and ``ProMPRRL-DBM-v8``.
 """
 
 from __future__ import annotations
