@@ -6,13 +6,10 @@ simulator's float64 state after every step (joint positions, TCP pose, object po
 
 ``python tests/envs/_env_trace.py [OUT.npz]`` writes the trace of `TRACE_RUNS` with this
 machine's `distgprl.machine.numerics_fingerprint` (default
-``tests/envs/data/env_trace_v<ENVIRONMENT_VERSION>_<fingerprint>.npz``). Environment v6 changed
-every bit (docs/FINDINGS.md "Protocol v6"), so its trace was recorded anew, with the code the
-v6 runs are made with, on this project's machine; the v5 traces are in git history (up to
-commit a42426d). Environment v7 changes r_sd's beta (the rewards of the methods with distance
-rewards), so its trace was recorded anew the same way; the v6 trace is in git history (up to
-the commit before environment v7). A CPU with other numerics records its own trace with the
-same code.
+``tests/envs/data/env_trace_v<ENVIRONMENT_VERSION>_<fingerprint>.npz``). Each environment
+version changes bits, so its traces are recorded anew with the code its runs are made with
+(v8: on this project's machine, under the Haswell and the SkylakeX OpenBLAS kernel); older
+traces are in git history. A CPU with other numerics records its own trace with the same code.
 """
 
 from __future__ import annotations
