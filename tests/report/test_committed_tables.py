@@ -192,12 +192,12 @@ def test_the_site_shows_the_committed_hardware_and_repair_tables():
 def test_the_site_shows_the_committed_claims_table():
     """The claims table the site shows is the committed one, so its verdicts cannot go stale:
     the results page's for the current environment's runs once they exist, and the archived
-    environment-v5 README's for the archived v5 runs (always)."""
-    archive = REPOSITORY / "results" / "archive" / "env-v5"
+    environment-v7 README's for the archived v7 runs (always)."""
+    archive = REPOSITORY / "results" / "archive" / "env-v7"
     archived = (archive / "paper_figures" / "claims_paper.md").read_text().strip()
     assert archived in (archive / "README.md").read_text()
     current = FIGURES / "claims_paper.md"
     if current.exists():
         assert site_table(current.read_text()) in results_page()
     else:
-        assert "results/archive/env-v5/README.md" in (REPOSITORY / "README.md").read_text()
+        assert "results/archive/env-v7/README.md" in (REPOSITORY / "README.md").read_text()
