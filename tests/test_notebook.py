@@ -57,6 +57,9 @@ def test_the_notebook_runs_from_the_committed_results(tmp_path):
     no cell raises, the rollout and the shipped run's files give outputs again, and every cell
     that reads the committed results shows what the site shows (a re-run or regenerated result
     the notebook reads leaves its stored outputs stale: refresh them)."""
+    shipped = REPOSITORY / "results" / "paper" / "dbm" / "dist-gprl" / "seed0" / "policy_best.pt"
+    if not shipped.exists():  # a new environment version, its runs not committed yet
+        pytest.skip(f"{shipped}: no shipped policy of this environment version yet")
     stored = nbformat.read(NOTEBOOK, as_version=4)
     notebook = nbformat.read(NOTEBOOK, as_version=4)
     for cell in _code_cells(notebook):

@@ -99,11 +99,13 @@ def record_episode(
     frames: list[np.ndarray] = []
     windows: list[int] = []
 
-    def execute_and_film(poses: np.ndarray, stop_on_collision: bool = False) -> SegmentResult:
+    def execute_and_film(
+        poses: np.ndarray, stop_on_collision: bool = False, **options: Any
+    ) -> SegmentResult:
         poses = np.asarray(poses, dtype=float)
         total: SegmentResult | None = None
         for start in range(0, max(len(poses), 1), frame_every):
-            part = execute(poses[start : start + frame_every], stop_on_collision)
+            part = execute(poses[start : start + frame_every], stop_on_collision, **options)
             frames.append(sim.render_rgb(width, height))
             windows.append(int(env.unwrapped.step_index))
             total = part if total is None else _joined(total, part)
