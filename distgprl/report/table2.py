@@ -357,7 +357,7 @@ def _groups(rows: list[dict[str, Any]]) -> list[tuple[str, tuple[tuple[str, str]
     """The column groups of Table II: (setting, columns), the paper's protocol first, then
     every safety-layer setting some row has (`SAFETY_SETTINGS` order)."""
     present = {setting_label(r) for r in rows}
-    groups = [("paper", PAPER_COLUMNS)]
+    groups: list[tuple[str, tuple[tuple[str, str], ...]]] = [("paper", PAPER_COLUMNS)]
     groups += [(s, HARDWARE_COLUMNS) for s in SAFETY_SETTINGS if s in present]
     return groups
 
@@ -372,7 +372,9 @@ GROUP_TITLES = {
 """Column-group titles of Table II (`setting_label` -> title)."""
 
 
-def _wide_rows(rows: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, dict]]]:
+def _wide_rows(
+    rows: list[dict[str, Any]],
+) -> list[tuple[dict[str, Any], dict[str, dict[str, Any]]]]:
     """Table II's rows: one per (method, backend, noise) in `hardware_rows` order, each with
     its protocol settings' rows by `setting_label`."""
     keyed: dict[tuple[str, str, str], dict[str, dict[str, Any]]] = {}
@@ -419,7 +421,9 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     return buffer.getvalue(), markdown, _latex(caption, groups, body)
 
 
-def _latex(caption: str, groups, body: list[list[str]]) -> str:
+def _latex(
+    caption: str, groups: list[tuple[str, tuple[tuple[str, str], ...]]], body: list[list[str]]
+) -> str:
     """Table II as LaTeX: a row of column-group titles over the column names."""
     latex_caption = caption.replace("—", "---").replace("–", "--").replace(" %", "\\,\\%")
     latex_caption = latex_caption.replace("pi rad/s", "$\\pi$ rad/s").replace("s^2", "s$^2$")

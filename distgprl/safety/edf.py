@@ -53,7 +53,7 @@ _PLANE_DEPTH = 1.0e3
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _nearest_signed_distance(transform, half, first_cylinder, points):  # pragma: no cover
+def _nearest_signed_distance(transform, half, first_cylinder, points):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Min over shapes of the folded-box signed distance, per point (n,), m: the operations
     of `DistanceField._excess` and `DistanceField._signed` in one pass, the local
     coordinates as plain sums (no BLAS; issue 66).
@@ -93,7 +93,7 @@ def _nearest_signed_distance(transform, half, first_cylinder, points):  # pragma
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _local(transform, n_shapes, i, x, y, z):  # pragma: no cover - compiled
+def _local(transform, n_shapes, i, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
     """Local coordinates (3,) of world point (x, y, z) in shape i: R_i^T (p - c_i)."""
     r0, r1, r2 = transform[i], transform[n_shapes + i], transform[2 * n_shapes + i]
     return (
@@ -104,7 +104,7 @@ def _local(transform, n_shapes, i, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _shifted_local(transform, rotations, n_shapes, i, point, shift):  # pragma: no cover
+def _shifted_local(transform, rotations, n_shapes, i, point, shift):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`_local` of ``point`` (3,), minus R_i^T ``shift`` (3,) (a dynamic shape seen at
     the point's time, `DistanceField.distance`'s ``dynamic_shift``)."""
     l0, l1, l2 = _local(transform, n_shapes, i, point[0], point[1], point[2])
@@ -120,7 +120,7 @@ def _shifted_local(transform, rotations, n_shapes, i, point, shift):  # pragma: 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _excess3(half, first_cylinder, i, l0, l1, l2):  # pragma: no cover - compiled
+def _excess3(half, first_cylinder, i, l0, l1, l2):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
     """Folded-box excess q (3,) of local coordinates in shape i (a cylinder folds radially)."""
     if i >= first_cylinder:
         a0 = math.sqrt(l0 * l0 + l1 * l1)
@@ -132,7 +132,7 @@ def _excess3(half, first_cylinder, i, l0, l1, l2):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _distance_and_gradient(
+def _distance_and_gradient(  # type: ignore[no-untyped-def]
     transform, rotations, half, first_cylinder, dynamic, points, shifts
 ):  # pragma: no cover - compiled
     """`DistanceField.distance` in two compiled passes: d (n,) and the unit gradient (n, 3).
@@ -370,9 +370,10 @@ class DistanceField:
         points = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 3))
         if not self._names:
             return np.full(len(points), np.inf)
-        return _nearest_signed_distance(
+        distances: np.ndarray = _nearest_signed_distance(
             self._local_transform, self._half_extents, self._first_cylinder, points
         )
+        return distances
 
     def distance(
         self, points: np.ndarray, dynamic_shift: np.ndarray | None = None
@@ -403,7 +404,7 @@ class DistanceField:
         shifts = np.empty((0, 3))
         if dynamic_shift is not None and self._dynamic_rows.size:
             shifts = np.ascontiguousarray(np.broadcast_to(np.asarray(dynamic_shift, float), (n, 3)))
-        return _distance_and_gradient(
+        distance_and_gradient: tuple[np.ndarray, np.ndarray] = _distance_and_gradient(
             self._local_transform,
             self._rotations_stack,
             self._half_extents,
@@ -412,3 +413,4 @@ class DistanceField:
             points,
             shifts,
         )
+        return distance_and_gradient

@@ -393,6 +393,7 @@ class HapPrior:
         if moving is None:
             return values, jacobian
         rows = np.flatnonzero(short)
+        assert anchors is not None  # checked above wherever a filter is given
         no_free = self._fall_back(x, anchors, moving, rows, values, jacobian) if rows.size else 0
         self.last_moving_counts = {
             "queries": len(x),
@@ -416,6 +417,7 @@ class HapPrior:
             values, jacobian = self._softmin_values(x, index, None)
             nothing = np.zeros(len(x), dtype=np.int64)
             return values, jacobian, nothing, nothing.astype(bool)
+        assert anchors is not None  # `_softmin_and_gradient` checks it with a filter
         blocked, counts = moving.blocked_candidates(self.points_numpy, index, anchors)
         short = counts > index.shape[1] - self.k
         values = np.zeros(len(x), dtype=x.dtype)

@@ -120,7 +120,7 @@ class ControlledScene(Protocol):
     def convey_schedule(
         self, times: list[float]
     ) -> list[
-        tuple[int, tuple[float, float, float], tuple[float, ...], tuple[float, float, float]]
+        tuple[int, tuple[float, float, float], tuple[float, float, float, float], tuple[float, ...]]
     ]:
         """Per time of ``times`` (s), (body, position (m), orientation, linear velocity
         (m/s)) of the conveyed object where the conveyor has it then (pure)."""
@@ -260,7 +260,7 @@ class ControlLoop:
                         elif other in obstacles and contact[3] not in exempt.get(other, no_links):
                             collision = True
                     if not released:
-                        body, position, orientation, linear = conveyed[first + substep]
+                        body, position, orientation, linear = conveyed[first + substep]  # type: ignore[index]  # noqa: E501
                         reset_base_pose(body, position, orientation)
                         reset_base_velocity(body, linear, (0.0, 0.0, 0.0))
                 time = plan.times[first + substeps - 1]

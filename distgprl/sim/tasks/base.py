@@ -430,7 +430,7 @@ class TaskSim:
     def convey_schedule(
         self, times: list[float]
     ) -> list[
-        tuple[int, tuple[float, float, float], tuple[float, ...], tuple[float, float, float]]
+        tuple[int, tuple[float, float, float], tuple[float, float, float, float], tuple[float, ...]]
     ]:
         """Per time of ``times`` (s), (body, position (m), orientation (x, y, z, w), linear
         velocity (m/s)) of the conveyed object where the conveyor has it then (pure)."""
