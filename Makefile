@@ -50,7 +50,6 @@ format:
 tables:
 	$(BIN)/distgprl tables --preset paper
 	$(BIN)/distgprl curves --preset paper
-	$(BIN)/distgprl tables --preset reward-unit-10
 	$(BIN)/distgprl mechanisms --preset paper
 	$(BIN)/python scripts/readme_results.py
 
