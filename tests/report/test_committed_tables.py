@@ -20,7 +20,7 @@ from distgprl.report.tables import write_tables
 REPOSITORY = Path(__file__).resolve().parents[2]
 RESULTS, FIGURES = REPOSITORY / "results", REPOSITORY / "paper_figures"
 
-MAKE_TABLES = {"paper": None, "reward-unit-10": None}  # the reward-unit study's own Table I
+MAKE_TABLES = {"paper": None}  # v7's reward-unit study is archived with its tables
 """The ``distgprl tables --preset P [--against Q]`` calls of ``make tables`` (P: Q)."""
 
 MAKE_MECHANISMS = ("paper",)
