@@ -70,19 +70,8 @@ def _nearest_signed_distance(transform, half, first_cylinder, points):  # type: 
         x, y, z = points[j, 0], points[j, 1], points[j, 2]
         best = np.inf
         for i in range(n_shapes):
-            r0, r1, r2 = transform[i], transform[n_shapes + i], transform[2 * n_shapes + i]
-            l0 = r0[0] * x + r0[1] * y + r0[2] * z + r0[3]
-            l1 = r1[0] * x + r1[1] * y + r1[2] * z + r1[3]
-            l2 = r2[0] * x + r2[1] * y + r2[2] * z + r2[3]
-            if i >= first_cylinder:
-                a0 = math.sqrt(l0 * l0 + l1 * l1)
-                a1 = 0.0
-            else:
-                a0 = abs(l0)
-                a1 = abs(l1)
-            q0 = a0 - half[0, i, 0]
-            q1 = a1 - half[1, i, 0]
-            q2 = abs(l2) - half[2, i, 0]
+            l0, l1, l2 = _local(transform, n_shapes, i, x, y, z)
+            q0, q1, q2 = _excess3(half, first_cylinder, i, l0, l1, l2)
             p0, p1, p2 = max(q0, 0.0), max(q1, 0.0), max(q2, 0.0)
             outside = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
             d = outside + min(max(max(q0, q1), q2), 0.0)
