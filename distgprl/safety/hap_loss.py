@@ -214,6 +214,7 @@ class HapPrior:
         )
         self._coordinates_numpy: dict[np.dtype, np.ndarray] = {stored.dtype: stored}
         self.k = min(self.k_requested, len(points))
+        self.__dict__.pop("outside_threshold", None)  # depends on k: recomputed when read
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
             self._build_table(points)
