@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
@@ -187,6 +188,17 @@ class RegularisedSACPolicy(MultiInputPolicy):
             module.__dict__["training"] = mode
 
 
+@dataclass
+class _UpdateLogs:
+    """The per-gradient-step values one `RegularisedSAC.train` call averages into its logs."""
+
+    ent_coef_losses: list[float] = field(default_factory=list)
+    ent_coefs: list[float] = field(default_factory=list)
+    actor_losses: list[float] = field(default_factory=list)
+    critic_losses: list[float] = field(default_factory=list)
+    regulariser: dict[str, list[float]] = field(default_factory=dict)
+
+
 class RegularisedSAC(SAC):
     """SB3 SAC whose actor loss adds the Dist-GPRL regularisers.
 
@@ -260,12 +272,12 @@ class RegularisedSAC(SAC):
         return parts
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
-        # Adapted from stable_baselines3 2.9.2 SAC.train; changes marked "distgprl:". Issue 49
-        # cut its framework work: the replay batch gathered into preallocated tensors, the
-        # actor's action and log-probability without a torch.distributions object, the
-        # critic frozen through a cached parameter list and the target update one foreach
-        # lerp (the losses' .item() stays: on the CPU it is no synchronisation, and one
-        # stacked read-back measured slower).
+        # Adapted from stable_baselines3 2.9.2 SAC.train; changes marked "distgprl:" (the
+        # replay batch gathered into preallocated tensors, the actor's action and
+        # log-probability without a torch.distributions object, the critic frozen through a
+        # cached parameter list, the target update one foreach lerp). The losses' .item()
+        # stays: on the CPU it is no synchronisation. The loop body is split into SB3's own
+        # stages (temperature, critic, actor, target), in SB3's order.
         self.policy.set_training_mode(True)
         optimizers = [self.actor.optimizer, self.critic.optimizer]
         if self.ent_coef_optimizer is not None:
@@ -278,91 +290,22 @@ class RegularisedSAC(SAC):
 
         _, sampler, critic_parameters, target_parameters = self._update_parts()
         fast_actor = not self.use_sde
-        ent_coef_losses, ent_coefs = [], []
-        actor_losses, critic_losses = [], []
-        regulariser_logs: dict[str, list[float]] = {}
+        logs = _UpdateLogs()
 
         for gradient_step in range(gradient_steps):
             if sampler is not None:  # distgprl: same draws and values as SB3's sample
                 replay_data = sampler.sample(batch_size)
             else:
                 replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
             if self.use_sde:
                 self.actor.reset_noise()
 
             actions_pi, log_prob = self._action_log_prob(replay_data.observations, fast_actor)
             log_prob = log_prob.reshape(-1, 1)
-
-            ent_coef_loss = None
-            if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
-                ent_coef = th.exp(self.log_ent_coef.detach())
-                assert isinstance(self.target_entropy, float)
-                ent_coef_loss = -(
-                    self.log_ent_coef * (log_prob + self.target_entropy).detach()
-                ).mean()
-                ent_coef_losses.append(ent_coef_loss.item())
-            else:
-                ent_coef = self.ent_coef_tensor
-
-            ent_coefs.append(ent_coef.item())
-
-            if ent_coef_loss is not None and self.ent_coef_optimizer is not None:
-                self.ent_coef_optimizer.zero_grad()
-                ent_coef_loss.backward()
-                self.ent_coef_optimizer.step()
-
-            with th.no_grad():
-                next_actions, next_log_prob = self._action_log_prob(
-                    replay_data.next_observations, fast_actor
-                )
-                next_q_values = th.cat(
-                    self.critic_target(replay_data.next_observations, next_actions), dim=1
-                )
-                next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
-                next_q_values = next_q_values - ent_coef * next_log_prob.reshape(-1, 1)
-                target_q_values = (
-                    replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
-                )
-
-            current_q_values = self.critic(replay_data.observations, replay_data.actions)
-            critic_loss = 0.5 * sum(
-                F.mse_loss(current_q, target_q_values) for current_q in current_q_values
-            )
-            assert isinstance(critic_loss, th.Tensor)
-            critic_losses.append(critic_loss.item())
-
-            self.critic.optimizer.zero_grad()
-            critic_loss.backward()
-            self.critic.optimizer.step()
-
-            # distgprl: the actor loss needs dQ/da only; with the critic's parameters frozen
-            # its backward skips their weight gradients (which the next critic update zeroes
-            # anyway), so the update is numerically unchanged and cheaper.
-            frozen = critic_parameters if self.freeze_critic_in_actor_loss else []
-            for parameter in frozen:
-                parameter.requires_grad_(False)
-            q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
-            for parameter in frozen:
-                parameter.requires_grad_(True)
-            min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
-            actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
-            actor_losses.append(actor_loss.item())
-
-            # distgprl: + lambda_sim L_sim + lambda_hap L_hap (Eq. actor_final_compact),
-            # from the actor's sampled actions so the gradients reach the actor.
-            if self.regulariser is not None:
-                regularisation, terms = self.regulariser(
-                    replay_data.observations["aux"], actions_pi
-                )
-                actor_loss = actor_loss + regularisation
-                for key, value in terms.items():
-                    regulariser_logs.setdefault(key, []).append(value)
-
-            self.actor.optimizer.zero_grad()
-            actor_loss.backward()
-            self.actor.optimizer.step()
+            ent_coef = self._temperature_step(log_prob, logs)
+            self._critic_step(replay_data, ent_coef, fast_actor, logs)
+            self._actor_step(replay_data, actions_pi, log_prob, ent_coef, critic_parameters, logs)
 
             if gradient_step % self.target_update_interval == 0:
                 polyak_lerp(critic_parameters, target_parameters, self.tau)
@@ -370,21 +313,108 @@ class RegularisedSAC(SAC):
                     polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
 
         self._n_updates += gradient_steps
+        self._record_update_logs(logs)
 
+    def _temperature_step(self, log_prob: th.Tensor, logs: _UpdateLogs) -> th.Tensor:
+        """SB3's entropy-coefficient stage: the coefficient for this gradient step and, when
+        it is learned, one optimiser step on its loss."""
+        ent_coef_loss = None
+        if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
+            ent_coef = th.exp(self.log_ent_coef.detach())
+            assert isinstance(self.target_entropy, float)
+            ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+            logs.ent_coef_losses.append(ent_coef_loss.item())
+        else:
+            ent_coef = self.ent_coef_tensor
+
+        logs.ent_coefs.append(ent_coef.item())
+
+        if ent_coef_loss is not None and self.ent_coef_optimizer is not None:
+            self.ent_coef_optimizer.zero_grad()
+            ent_coef_loss.backward()
+            self.ent_coef_optimizer.step()
+        return ent_coef
+
+    def _critic_step(
+        self, replay_data, ent_coef: th.Tensor, fast_actor: bool, logs: _UpdateLogs
+    ) -> None:
+        """SB3's critic stage: the soft Bellman target from the target critics and one
+        optimiser step on the twin critics' squared error."""
+        discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+        with th.no_grad():
+            next_actions, next_log_prob = self._action_log_prob(
+                replay_data.next_observations, fast_actor
+            )
+            next_q_values = th.cat(
+                self.critic_target(replay_data.next_observations, next_actions), dim=1
+            )
+            next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
+            next_q_values = next_q_values - ent_coef * next_log_prob.reshape(-1, 1)
+            target_q_values = (
+                replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+            )
+
+        current_q_values = self.critic(replay_data.observations, replay_data.actions)
+        critic_loss = 0.5 * sum(
+            F.mse_loss(current_q, target_q_values) for current_q in current_q_values
+        )
+        assert isinstance(critic_loss, th.Tensor)
+        logs.critic_losses.append(critic_loss.item())
+
+        self.critic.optimizer.zero_grad()
+        critic_loss.backward()
+        self.critic.optimizer.step()
+
+    def _actor_step(
+        self,
+        replay_data,
+        actions_pi: th.Tensor,
+        log_prob: th.Tensor,
+        ent_coef: th.Tensor,
+        critic_parameters: list[th.nn.Parameter],
+        logs: _UpdateLogs,
+    ) -> None:
+        """SB3's actor stage, plus the paper's regularisers (Eq. actor_final_compact)."""
+        # distgprl: the actor loss needs dQ/da only; with the critic's parameters frozen
+        # its backward skips their weight gradients (which the next critic update zeroes
+        # anyway), so the update is numerically unchanged and cheaper.
+        frozen = critic_parameters if self.freeze_critic_in_actor_loss else []
+        for parameter in frozen:
+            parameter.requires_grad_(False)
+        q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
+        for parameter in frozen:
+            parameter.requires_grad_(True)
+        min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
+        actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
+        logs.actor_losses.append(actor_loss.item())
+
+        # distgprl: + lambda_sim L_sim + lambda_hap L_hap (Eq. actor_final_compact),
+        # from the actor's sampled actions so the gradients reach the actor.
+        if self.regulariser is not None:
+            regularisation, terms = self.regulariser(replay_data.observations["aux"], actions_pi)
+            actor_loss = actor_loss + regularisation
+            for key, value in terms.items():
+                logs.regulariser.setdefault(key, []).append(value)
+
+        self.actor.optimizer.zero_grad()
+        actor_loss.backward()
+        self.actor.optimizer.step()
+
+    def _record_update_logs(self, logs: _UpdateLogs) -> None:
+        """SB3's logger records, and (distgprl) each regulariser term's mean."""
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        self.logger.record("train/ent_coef", np.mean(ent_coefs))
-        self.logger.record("train/actor_loss", np.mean(actor_losses))
-        self.logger.record("train/critic_loss", np.mean(critic_losses))
-        if len(ent_coef_losses) > 0:
-            self.logger.record("train/ent_coef_loss", np.mean(ent_coef_losses))
-        # distgprl: log each regulariser term.
-        self.last_regulariser_terms = {k: float(np.mean(v)) for k, v in regulariser_logs.items()}
+        self.logger.record("train/ent_coef", np.mean(logs.ent_coefs))
+        self.logger.record("train/actor_loss", np.mean(logs.actor_losses))
+        self.logger.record("train/critic_loss", np.mean(logs.critic_losses))
+        if len(logs.ent_coef_losses) > 0:
+            self.logger.record("train/ent_coef_loss", np.mean(logs.ent_coef_losses))
+        self.last_regulariser_terms = {k: float(np.mean(v)) for k, v in logs.regulariser.items()}
         for key, value in self.last_regulariser_terms.items():
             self.logger.record(f"train/{key}", value)
         self.last_regulariser_terms.update(
-            actor_loss=float(np.mean(actor_losses)),
-            critic_loss=float(np.mean(critic_losses)),
-            ent_coef=float(np.mean(ent_coefs)),
+            actor_loss=float(np.mean(logs.actor_losses)),
+            critic_loss=float(np.mean(logs.critic_losses)),
+            ent_coef=float(np.mean(logs.ent_coefs)),
         )
 
     def _action_log_prob(self, observations, fast: bool) -> tuple[th.Tensor, th.Tensor]:
