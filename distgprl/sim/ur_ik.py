@@ -146,7 +146,15 @@ def ik_branches(target, dh, out):  # pragma: no cover - compiled
     for row in range(4):
         sol[row, 0] = math.atan2(a1, b1) + h2
         sol[row + 4, 0] = math.atan2(a1, b1) - h2
-    # theta5 and theta6, Eqs. (25)-(28)
+    _wrist_angles(sol, r11, r12, r13, r21, r22, r23)
+    _arm_angles(sol, r11, r21, r31, px, py, pz, d1, d5, d6, a2, a3)
+    return _distinct_reaching(sol, target, dh, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _wrist_angles(sol, r11, r12, r13, r21, r22, r23):  # pragma: no cover - compiled
+    """theta5 and theta6 of the eight branches (columns 4, 5 of ``sol``) from theta1."""
+    # Eqs. (25)-(28)
     for i in (0, 4):
         theta1 = sol[i, 0]
         c1, s1 = math.cos(theta1), math.sin(theta1)
@@ -164,7 +172,12 @@ def ik_branches(target, dh, out):  # pragma: no cover - compiled
         for row in (i, i + 1):
             sol[row, 4], sol[row, 5] = theta5a, theta6a
             sol[row + 2, 4], sol[row + 2, 5] = theta5b, theta6b
-    # theta2, theta3, theta4, Eqs. (29)-(30), (52), (55), (58), (59)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _arm_angles(sol, r11, r21, r31, px, py, pz, d1, d5, d6, a2, a3):  # pragma: no cover - compiled
+    """theta2, theta3, theta4 of the eight branches (columns 1-3 of ``sol``)."""
+    # Eqs. (29)-(30), (52), (55), (58), (59)
     for i in (0, 2, 4, 6):
         theta1, theta5, theta6 = sol[i, 0], sol[i, 4], sol[i, 5]
         c1, s1 = math.cos(theta1), math.sin(theta1)
@@ -191,7 +204,12 @@ def ik_branches(target, dh, out):  # pragma: no cover - compiled
         )
         sol[i, 1], sol[i, 2], sol[i, 3] = theta2a, theta3a, theta234 - theta2a - theta3a
         sol[i + 1, 1], sol[i + 1, 2], sol[i + 1, 3] = theta2b, theta3b, theta234 - theta2b - theta3b
-    # to [-pi, pi], then the library's filters: finite, distinct, reaching the target
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _distinct_reaching(sol, target, dh, out):  # pragma: no cover - compiled
+    """The rows of ``sol`` wrapped to [-pi, pi], then the library's filters: finite,
+    distinct, reaching ``target``; copied to the first rows of ``out``, their count returned."""
     count = 0
     for row in range(8):
         finite = True
