@@ -37,6 +37,9 @@ if TYPE_CHECKING:
 __all__ = ["BulletCalls", "ControlLoop", "ControlledScene", "SegmentResult"]
 
 
+_NO_LINKS: frozenset[int] = frozenset()
+
+
 @dataclass(frozen=True)
 class SegmentResult:
     """Outcome of executing one trajectory segment.
@@ -221,10 +224,6 @@ class ControlLoop:
         )
         clearance_now = self.clearance
         robot_body = robot.body
-        object_body = self.object_body
-        obstacles = self._obstacle_set
-        exempt = self.exempt_links
-        no_links: frozenset[int] = frozenset()
         collision = False
         min_clearance = self.clearance_cutoff
         if clearance_below is not None:
@@ -249,16 +248,11 @@ class ControlLoop:
                     for body, position, orientation in moves[first + substep]:
                         reset_base_pose(body, position, orientation)
                     step_simulation()
-                    for contact in contact_points(robot_body):
-                        if contact[8] > 0.0:
-                            continue
-                        other = contact[2]
-                        if other == object_body:
-                            if not released:
-                                released = True
-                                scene.release_object()
-                        elif other in obstacles and contact[3] not in exempt.get(other, no_links):
-                            collision = True
+                    touched_object, hit = self._scan_contacts(contact_points(robot_body))
+                    collision = collision or hit
+                    if touched_object and not released:
+                        released = True
+                        scene.release_object()
                     if not released:
                         body, position, orientation, linear = conveyed[first + substep]  # type: ignore[index]  # noqa: E501
                         reset_base_pose(body, position, orientation)
@@ -285,6 +279,22 @@ class ControlLoop:
             peak_joint_speed=plan.peak_speed(executed),
             stopped=executed < plan.count,
         )
+
+    def _scan_contacts(self, contacts) -> tuple[bool, bool]:
+        """One physics step's contacts of the robot (pybullet contact tuples): whether it
+        touches the manipulated object, and whether it touches an obstacle on a link not
+        exempt from that obstacle (a collision). Contacts at positive distance are ignored."""
+        object_body, obstacles, exempt = self.object_body, self._obstacle_set, self.exempt_links
+        touched_object = hit = False
+        for contact in contacts:
+            if contact[8] > 0.0:
+                continue
+            other = contact[2]
+            if other == object_body:
+                touched_object = True
+            elif other in obstacles and contact[3] not in exempt.get(other, _NO_LINKS):
+                hit = True
+        return touched_object, hit
 
 
 class _SegmentPlan:
