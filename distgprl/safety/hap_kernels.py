@@ -112,10 +112,7 @@ def _candidate_distances(
             distances[j, i] = np.sqrt(squared)
     infinity = query.dtype.type(np.inf)
     if use_blocked:
-        for j in range(count):
-            for i in range(n):
-                if blocked[i, j]:
-                    distances[j, i] = infinity
+        _block_candidates(distances, blocked, infinity)
     nearest = distances[0].copy()
     for j in range(1, count):
         for i in range(n):
@@ -125,23 +122,40 @@ def _candidate_distances(
     for j in range(count):
         for i in range(n):
             exponent[j, i] = (nearest[i] - distances[j, i]) * inverse_tau
-    # keep the k smallest by (distance, candidate order): a candidate's rank counts the
-    # candidates before it in that order
     if count > k:
-        rank = np.empty(n, dtype=np.int32)
-        for j in range(count):
-            rank[:] = 0
-            for other in range(count):
-                if other < j:
-                    for i in range(n):
-                        rank[i] += distances[other, i] <= distances[j, i]
-                elif other > j:
-                    for i in range(n):
-                        rank[i] += distances[other, i] < distances[j, i]
-            for i in range(n):
-                if rank[i] >= k:
-                    exponent[j, i] = -infinity
+        _drop_beyond_k(distances, exponent, k, -infinity)
     return distances, nearest, exponent
+
+
+@_compiled
+def _block_candidates(distances: np.ndarray, blocked: np.ndarray, infinity: float) -> None:
+    """Set the distance (c, n) of every candidate ``blocked`` (n, c) to ``infinity``."""
+    count, n = distances.shape
+    for j in range(count):
+        for i in range(n):
+            if blocked[i, j]:
+                distances[j, i] = infinity
+
+
+@_compiled
+def _drop_beyond_k(distances: np.ndarray, exponent: np.ndarray, k: int, dropped: float) -> None:
+    """Keep the k smallest candidates per query by (distance, candidate order): a candidate's
+    rank counts the candidates before it in that order; the others' ``exponent`` (c, n)
+    becomes ``dropped``."""
+    count, n = distances.shape
+    rank = np.empty(n, dtype=np.int32)
+    for j in range(count):
+        rank[:] = 0
+        for other in range(count):
+            if other < j:
+                for i in range(n):
+                    rank[i] += distances[other, i] <= distances[j, i]
+            elif other > j:
+                for i in range(n):
+                    rank[i] += distances[other, i] < distances[j, i]
+        for i in range(n):
+            if rank[i] >= k:
+                exponent[j, i] = dropped
 
 
 @_compiled
