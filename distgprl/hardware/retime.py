@@ -144,9 +144,6 @@ def retime_plan(
         The re-timed candidate whose discrete check has no kinematic violation, or None
         if none was found (unreachable path, TOPP-RA failure, more than ``max_added_s``).
     """
-    import toppra
-    import toppra.algorithm
-    import toppra.constraint
     from scipy.interpolate import CubicSpline
 
     path_poses = np.asarray(path_poses, dtype=float).reshape(-1, 6)
@@ -163,77 +160,13 @@ def retime_plan(
     s_knots = np.arange(n + 1) * dt
     spline = CubicSpline(s_knots, knots, axis=0)
     s_grid = np.linspace(0.0, n * dt, n * max(1, int(config.grid_per_step)) + 1)
-    dense = spline(s_grid)
-    tcp_rate = np.linalg.norm(spline(s_grid, 1)[:, :3], axis=1)  # |dp/ds|, m per s of plan
+    grid = _PathGrid(s_grid, spline(s_grid), np.linalg.norm(spline(s_grid, 1)[:, :3], axis=1))
     belt = None if belt_velocity is None else np.asarray(belt_velocity, dtype=float)
 
-    def joint_path(offset: np.ndarray):
-        """TOPP-RA path through the IK chain of the spline + shift + ``offset`` (grid, 3)."""
-        joints = np.empty((len(s_grid), 6))
-        q = joints[0] = q_start
-        for i in range(1, len(s_grid)):
-            pose = dense[i].copy()
-            pose[:3] += shift + offset[i]
-            solution = robot.ik_nearest(pose_to_matrix(pose), q)
-            if solution is None:
-                return None
-            q = joints[i] = solution
-        # joints + virtual coordinate q_7(s) = s (carries ds/dt <= 1 and the TCP bound)
-        return toppra.SplineInterpolator(s_grid, np.hstack([joints, s_grid[:, None]]))
-
-    def parameterise(path, scale: float):
-        """(path speeds ds/dt on the grid, times on the grid) within ``scale`` x the limits."""
-        v_joint = scale * limits.max_joint_speed
-        a_joint = scale * limits.max_joint_acceleration
-        v_tcp = scale * limits.max_tcp_speed
-
-        def velocity_limits(s: float) -> np.ndarray:
-            rate = float(np.interp(s, s_grid, tcp_rate))
-            bound = min(1.0, v_tcp / rate) if rate > 1e-12 else 1.0
-            upper = np.array([v_joint] * 6 + [bound])
-            return np.stack([-upper, upper], axis=1)
-
-        accel = np.array([a_joint] * 6 + [1e4])
-        constraints = [
-            toppra.constraint.JointVelocityConstraintVarying(velocity_limits),
-            toppra.constraint.JointAccelerationConstraint(np.stack([-accel, accel], axis=1)),
-        ]
-        instance = toppra.algorithm.TOPPRA(
-            constraints, path, gridpoints=s_grid, parametrizer="ParametrizeConstAccel"
-        )
-        tangent0 = path(0.0, 1)[:6]
-        speed0 = float(tangent0 @ velocity0 / max(float(tangent0 @ tangent0), 1e-12))
-        for sd_start in dict.fromkeys((min(max(speed0, 0.0), 1.0), 0.0)):
-            try:
-                _, sd, *_ = instance.compute_parameterization(sd_start, 0.0)
-            except Exception:  # toppra raises on some infeasible boundary values
-                sd = None
-            if sd is None or not np.all(np.isfinite(sd)):
-                continue
-            sd = np.maximum(np.asarray(sd, dtype=float), 0.0)
-            mean = sd[:-1] + sd[1:]
-            if np.any(mean <= 0.0):
-                continue
-            return sd, np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s_grid) / mean)])
-        return None
-
     for scale in config.limit_scales:
-        # On a belt the shift v (t(s) - s) depends on the timing being sought: fixed-point
-        # iteration (the belt is slow, two or three rounds agree to well under a mm).
-        offset = np.zeros((len(s_grid), 3))
-        solved = None
-        for _ in range(4 if belt is not None else 1):
-            path = joint_path(offset)
-            if path is None:
-                return None
-            solved = parameterise(path, scale)
-            if solved is None or belt is None:
-                break
-            update = (solved[1] - s_grid)[:, None] * belt
-            converged = float(np.abs(update - offset).max()) < 1e-4
-            offset = update
-            if converged:
-                break
+        solved = _solve_timing(grid, robot, q_start, shift, belt, limits, scale, velocity0)
+        if solved is _UNREACHABLE:
+            return None
         if solved is None:
             continue
         sd, t_grid = solved
@@ -257,4 +190,99 @@ def retime_plan(
         )
         if not (violated_limits(check) & KINEMATIC_LIMITS):
             return Candidate(poses, new_path, parameter, check, added, offsets[-1].copy())
+    return None
+
+
+@dataclass(frozen=True)
+class _PathGrid:
+    """The plan's spline sampled on the re-timing grid: path parameter s (g,), s; the
+    poses there (g, 6), plan frame; the TCP's rate |dp/ds| (g,), m per s of plan."""
+
+    s: np.ndarray
+    poses: np.ndarray
+    tcp_rate: np.ndarray
+
+
+_UNREACHABLE = ("unreachable",)
+"""`_solve_timing`'s answer when the path has no IK chain (no limit scale can help)."""
+
+
+def _solve_timing(grid, robot, q_start, shift, belt, limits, scale, velocity0):
+    """Path speeds and grid times within ``scale`` x the limits, or None (infeasible at this
+    scale), or `_UNREACHABLE`. On a belt the shift v (t(s) - s) depends on the timing being
+    sought: fixed-point iteration (the belt is slow, two or three rounds agree to well
+    under a mm)."""
+    offset = np.zeros((len(grid.s), 3))
+    solved = None
+    for _ in range(4 if belt is not None else 1):
+        path = _joint_path(grid, robot, q_start, shift + offset)
+        if path is None:
+            return _UNREACHABLE
+        solved = _parameterise(path, grid, limits, scale, velocity0)
+        if solved is None or belt is None:
+            break
+        update = (solved[1] - grid.s)[:, None] * belt
+        converged = float(np.abs(update - offset).max()) < 1e-4
+        offset = update
+        if converged:
+            break
+    return solved
+
+
+def _joint_path(grid: _PathGrid, robot, q_start: np.ndarray, offset: np.ndarray):
+    """TOPP-RA path through the IK chain of the grid's poses + ``offset`` (g, 3), or None
+    where a pose has no IK solution."""
+    import toppra
+
+    joints = np.empty((len(grid.s), 6))
+    q = joints[0] = q_start
+    for i in range(1, len(grid.s)):
+        pose = grid.poses[i].copy()
+        pose[:3] += offset[i]
+        solution = robot.ik_nearest(pose_to_matrix(pose), q)
+        if solution is None:
+            return None
+        q = joints[i] = solution
+    # joints + virtual coordinate q_7(s) = s (carries ds/dt <= 1 and the TCP bound)
+    return toppra.SplineInterpolator(grid.s, np.hstack([joints, grid.s[:, None]]))
+
+
+def _parameterise(path, grid: _PathGrid, limits: SafetyLimits, scale: float, velocity0):
+    """(path speeds ds/dt on the grid, times on the grid) within ``scale`` x the limits,
+    or None."""
+    import toppra.algorithm
+    import toppra.constraint
+
+    v_joint = scale * limits.max_joint_speed
+    a_joint = scale * limits.max_joint_acceleration
+    v_tcp = scale * limits.max_tcp_speed
+
+    def velocity_limits(s: float) -> np.ndarray:
+        rate = float(np.interp(s, grid.s, grid.tcp_rate))
+        bound = min(1.0, v_tcp / rate) if rate > 1e-12 else 1.0
+        upper = np.array([v_joint] * 6 + [bound])
+        return np.stack([-upper, upper], axis=1)
+
+    accel = np.array([a_joint] * 6 + [1e4])
+    constraints = [
+        toppra.constraint.JointVelocityConstraintVarying(velocity_limits),
+        toppra.constraint.JointAccelerationConstraint(np.stack([-accel, accel], axis=1)),
+    ]
+    instance = toppra.algorithm.TOPPRA(
+        constraints, path, gridpoints=grid.s, parametrizer="ParametrizeConstAccel"
+    )
+    tangent0 = path(0.0, 1)[:6]
+    speed0 = float(tangent0 @ velocity0 / max(float(tangent0 @ tangent0), 1e-12))
+    for sd_start in dict.fromkeys((min(max(speed0, 0.0), 1.0), 0.0)):
+        try:
+            _, sd, *_ = instance.compute_parameterization(sd_start, 0.0)
+        except Exception:  # toppra raises on some infeasible boundary values
+            sd = None
+        if sd is None or not np.all(np.isfinite(sd)):
+            continue
+        sd = np.maximum(np.asarray(sd, dtype=float), 0.0)
+        mean = sd[:-1] + sd[1:]
+        if np.any(mean <= 0.0):
+            continue
+        return sd, np.concatenate([[0.0], np.cumsum(2.0 * np.diff(grid.s) / mean)])
     return None
