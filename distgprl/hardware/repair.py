@@ -238,23 +238,7 @@ def repair_plan(
         return refuse(original)
 
     def timed(path_poses: np.ndarray) -> Candidate:
-        candidate = as_candidate(path_poses, shift, *args)
-        if config.retime and violated_limits(candidate.check) & KINEMATIC_LIMITS:
-            retimed = retime_plan(
-                path_poses,
-                q_start,
-                robot,
-                limits,
-                dt,
-                clearance_at,
-                velocity0,
-                shift,
-                belt_velocity,
-                config,
-            )
-            if retimed is not None:
-                return retimed
-        return candidate
+        return _timed_candidate(path_poses, shift, args, belt_velocity, config)
 
     current = timed(np.asarray(poses, dtype=float))
     total = zero.copy()
@@ -296,3 +280,33 @@ def repair_plan(
     if np.any(total != 0.0):
         return result("repaired", current, total)
     return result("retimed", current, zero)
+
+
+def _timed_candidate(
+    path_poses: np.ndarray,
+    shift: np.ndarray,
+    args: tuple,
+    belt_velocity: np.ndarray | None,
+    config: RepairConfig,
+) -> Candidate:
+    """``path_poses`` as a candidate, re-timed (`retime_plan`) when its check violates a
+    kinematic limit and the re-timing finds a plan; ``args`` are `as_candidate`'s (q_start,
+    robot, limits, dt, clearance_at, v_start)."""
+    candidate = as_candidate(path_poses, shift, *args)
+    if config.retime and violated_limits(candidate.check) & KINEMATIC_LIMITS:
+        q_start, robot, limits, dt, clearance_at, velocity0 = args
+        retimed = retime_plan(
+            path_poses,
+            q_start,
+            robot,
+            limits,
+            dt,
+            clearance_at,
+            velocity0,
+            shift,
+            belt_velocity,
+            config,
+        )
+        if retimed is not None:
+            return retimed
+    return candidate
