@@ -20,7 +20,7 @@ __all__ = [
 ENVIRONMENT_VERSION = 8
 """The environment version every run records (it enters the config hash, so runs of an older
 version are stale). What each version changed, and why: CHANGELOG.md and docs/FINDINGS.md
-(v8: "Protocol v8")."""
+(the current protocol: docs/findings/environment-v8.md "Protocol v8")."""
 
 
 @dataclass(frozen=True)
@@ -40,29 +40,27 @@ class EnvConfig:
             (docs/FINDINGS.md, "Covariance transform"), so this lets a run use a K that
             does correlate neighbouring via-points. The trajectory GP is unchanged.
         covariance_scale: the K of S (`distgprl.adaptation.layout.COVARIANCE_SCALES`).
-            ``"zero-mean"`` (environment v6, Table I) — K_tt is the covariance matrix of the
+            ``"zero-mean"`` (Table I) — K_tt is the covariance matrix of the
             paper's zero-mean GP (Eq. 1), per axis fitted by marginal likelihood to the raw
-            demonstration (constant axes: 0.2 rad scale); ``"signal"`` (v5, study preset
+            demonstration (constant axes: 0.2 rad scale); ``"signal"`` (study preset
             ``operator-signal``) — the standardised GP's variance times the axis's
-            demonstration variance; ``"unit"`` (v4, ``operator-unit``) — the unit-variance
+            demonstration variance; ``"unit"`` (``operator-unit``) — the unit-variance
             correlation matrix; ``"correlation"`` (``operator-correlation``) — the
             zero-mean operator with each row divided by its row sum (reach without shrink);
             ``"signal-uncoupled"`` (``operator-signal-uncoupled``, the operator study's
             control, not a reading of the paper) — the diagonal of the ``"signal"``
             operator's row gains (its reach without its coupling).
         action_scale_rule: how the raw action's per-axis scale is set (the paper does not
-            give it). ``"reach"`` (environment v6): per task and axis, so that under the
+            give it). ``"reach"`` (Table I): per task and axis, so that under the
             Table I operator (``covariance_scale="zero-mean"``, whatever operator the run
             uses) every windowed via-point can move max(TC range on that axis, minimum
             reach) in the one step that adapts it (`distgprl.adaptation.layout.reach_scales`;
-            docs/FINDINGS.md "Protocol v6", rule 2); ``"fixed"`` (v3-v5): the two scales
-            below.
+            docs/findings/protocol.md, rule 2); ``"fixed"``: the two scales below.
         minimum_position_reach: the least one-step reach (m) rule ``"reach"`` gives a
-            position axis (v3's argument: approach via-points must follow the objects by
-            about 10 cm).
-        minimum_rotation_reach: likewise for a rotation axis, rad (v3-v5's scale).
+            position axis (approach via-points must follow the objects by about 10 cm).
+        minimum_rotation_reach: likewise for a rotation axis, rad.
         position_action_scale: m of via-point change per unit raw action with rule
-            ``"fixed"`` (env v3-v5: 0.1 m; v0-v2: 0.03 m).
+            ``"fixed"``.
         rotation_action_scale: rad of via-point change per unit raw action (rule
             ``"fixed"``).
         lambda_ga: weight of the gradient-alignment reward (paper: 0.2).
@@ -74,8 +72,8 @@ class EnvConfig:
         collision_penalty: r_tc penalty for a segment with a collision (10, as the progress).
         collision_ends_episode: a collision stops execution at that control period and
             ends the episode, as a protective stop ends a hardware trial; success is then
-            task completion without collision (environment v5; False = v4: execution
-            pushes on through kinematic obstacles and success ignores collisions).
+            task completion without collision (False: execution pushes on through
+            kinematic obstacles and success ignores collisions).
         sd_beta: beta of the hyperbolic clearance penalty (Eq. safety_reward):
             collision_penalty x eps / (sd_samples_per_segment x 50 tool points) = 5e-4, so
             the whole tool held at distance d for a whole segment costs collision_penalty x
@@ -90,12 +88,12 @@ class EnvConfig:
             pose and the re-planned trajectory (caused by updating the overlap
             via-point) is blended out with a minimum-jerk weight.
         clearance_clip: observed EDF clearances are clipped to this value, m.
-        clearance_scale: observed clearances are divided by this, m (env v2).
-        relative_position_scale: observed e_o and e_g are divided by this, m (env v2).
+        clearance_scale: observed clearances are divided by this, m.
+        relative_position_scale: observed e_o and e_g are divided by this, m.
         clearance_timing: when the obstacles are taken for the window via-points' EDF
-            clearances and gradients (state ``c`` and r_ga): ``"predicted"`` (default,
-            env v2) at the time the trajectory reaches each via-point, along the moving
-            obstacles' known paths; ``"current"`` (env v1, the paper read literally) at
+            clearances and gradients (state ``c`` and r_ga): ``"predicted"`` (default)
+            at the time the trajectory reaches each via-point, along the moving
+            obstacles' known paths; ``"current"`` (the paper read literally) at
             the observation instant.
         signature_weight: GPRL's signature-similarity reward weight (a tenth of r_tc's
             unit, like lambda_ga's share of it).
@@ -153,9 +151,9 @@ class SACConfig:
             never tuned).
         lambda_acceleration: lambda_a of Eq. sim_compact, per unit of *relative* L1
             acceleration error (the L1 term divided by the demonstration's mean L1
-            acceleration, so both terms are dimensionless; environment v5). The paper gives
-            neither lambda_v nor lambda_a, only lambda_sim: equal unit weights of two
-            dimensionless terms, set from the units before any v5 run, never tuned.
+            acceleration, so both terms are dimensionless). The paper gives neither lambda_v nor
+            lambda_a, only lambda_sim: equal unit weights of two dimensionless terms, set
+            from the units, never tuned.
         n_similarity_samples: T, trajectory samples for L_sim.
         hap_k, hap_temperature, hap_n_query: k, tau (m) and N_q of Eq. hap_compact.
         hap_hinge: False (default): L_hap as Eq. hap_compact writes it, the soft-min in

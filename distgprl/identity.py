@@ -26,8 +26,8 @@ __all__ = ["SWEEP_SEEDS", "RunSpec", "method_revisions", "resolve_run"]
 
 
 def method_revisions(method: MethodSpec) -> dict[str, int]:
-    """Revisions of the method's parts, for the config hash (since environment v4; the
-    environment version itself is in every hash from v5 on).
+    """Revisions of the method's parts, for the config hash (beside the environment
+    version, which is in every hash).
 
     Only the parts a method uses appear, so fixing one part leaves the hashes (and committed
     results) of methods without it valid: ``r_ga`` 1 — the gradient-alignment reward at the
@@ -82,8 +82,8 @@ def committed_skill_digest(task: str) -> str | None:
 
 
 SWEEP_SEEDS = (0, 1, 2, 3, 4)
-"""The seeds a sweep trains by default: five per method and task (Table I v5, issue 33; three
-seeds could not settle any ablation)."""
+"""The seeds a sweep trains by default: five per method and task (three seeds could not settle
+any ablation)."""
 
 SEED_LIMIT = 2**32
 """Seeds are integers in ``[0, SEED_LIMIT)`` (what NumPy, gymnasium and torch accept)."""

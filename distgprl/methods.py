@@ -44,9 +44,8 @@ class MethodSpec:
             object-centric ProMP over 20 demonstrated trajectories"); ``one`` — the one
             demonstration every GP method gets: for ``residual-control`` the nominal is the
             ProMP of that demonstration itself and the gate's ProMP is fitted to 20 copies
-            of it conditioned on training TCs (environment v7's ProMP-RRL, the study method
-            ``promp-rrl-1demo``). How many distinct demonstrations that is:
-            `demonstration_count`.
+            of it conditioned on training TCs (the study method ``promp-rrl-1demo``). How
+            many distinct demonstrations that is: `demonstration_count`.
         episode_range: a global action's per-step scale is the configured one divided by
             the number of RL steps, so that over an episode a via-point can move as far as
             a windowed method's (DESIGN §3: windowing and correlation are the only
@@ -84,7 +83,7 @@ class MethodSpec:
         ``config.json``). Fields added after results were committed appear only when they
         differ from the default that reproduces the old behaviour, so that those runs keep
         their hash. A method that fits a ProMP also records ``demonstration_count``, how
-        many demonstrations it is fitted on (since environment v8)."""
+        many demonstrations it is fitted on."""
         data = asdict(self)
         for field, default in HASH_STABLE_DEFAULTS.items():
             if data[field] == default:
@@ -196,24 +195,25 @@ TABLE_ORDER: tuple[str, ...] = (
 )
 
 EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-windowed", "promp-rrl-expert")
-"""Methods outside Table I and the default sweep (run them by name): ``promp-rrl-windowed`` is
-environment v5's ProMP-RRL (residual ProMP weights at the three windowed steps, not residual
-RL; issue 48 item 4) on the one demonstration; ``promp-rrl-expert`` the same on the 20 expert
+"""Methods outside Table I and the default sweep (run them by name): ``promp-rrl-windowed`` adapts
+the residual ProMP weights at the three windowed steps (not residual RL) on the one
+demonstration; ``promp-rrl-expert`` the same on the 20 expert
 demonstrations. Table I's ``promp-rrl`` is residual RL (`distgprl.envs.residual_rl`)."""
 
 STUDY_METHODS: tuple[str, ...] = ("promp-rrl-1demo", "promp-nominal-1demo")
 """Methods reported beside Table I, not in it, and outside the default sweep (run them by
 name, e.g. ``distgprl sweep --preset paper --methods promp-rrl-1demo``): ``promp-rrl-1demo``
-is environment v7's ProMP-RRL — the same 10 Hz residual RL as Table I's ``promp-rrl``, its
+is the same 10 Hz residual RL as Table I's ``promp-rrl``, its
 nominal the ProMP of the one demonstration every GP method gets, its gate's ProMP fitted to
 20 TC-conditioned copies of it (the paper's §V-A "a single expert demonstration for each
-task", where its §V-B defines ProMP-RRL on 20 demonstrated trajectories; Protocol v8 rule
-3) — and ``promp-nominal-1demo`` its nominal with zero residual."""
+task", where its §V-B defines ProMP-RRL on 20 demonstrated trajectories;
+docs/findings/environment-v8.md "Protocol v8", rule 3) — and ``promp-nominal-1demo`` its
+nominal with zero residual."""
 
 
 NO_SAFETY_LAYER = (
     "the plan-repair evaluation in simulation (Table I with the safety layer) re-plans a "
-    "window's via-point plan; a residual-control method (environment v6's promp-rrl, "
+    "window's via-point plan; a residual-control method (promp-rrl, "
     "promp-nominal) commands a 10 Hz residual with no window plan: not implemented (its twin "
     "trials check and re-time each 0.1 s step instead, `distgprl hardware`)"
 )

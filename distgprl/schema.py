@@ -291,11 +291,12 @@ PROGRESS_FIELDS = (
     "grad_hap_active",
     "hap_active_fraction",
 )
-"""``grad_*`` (environment v5): each actor-loss term's mean per-sample gradient norm on the
+"""``grad_*``: each actor-loss term's mean per-sample gradient norm on the
 actor's output at the curve point (`RegularisedSAC.actor_loss_gradient_norms`);
-``grad_hap_active`` (environment v6, the mechanism table) the same for lambda_hap L_hap over
-the samples where L_hap > 0 (outside C_safe; empty where none is), ``hap_active_fraction`` the
-share of those samples. Rows written before these columns lack them (reader: missing)."""
+``grad_hap_active`` (the mechanism table) the same for lambda_hap L_hap over
+the samples outside C_safe (`HapPrior.outside_threshold`; empty where none is),
+``hap_active_fraction`` the share of those samples. Rows written before these columns lack
+them (reader: missing)."""
 EVALUATION_FIELDS = (
     "episode",
     "object_offset_x",
@@ -320,7 +321,7 @@ EVALUATION_FIELDS = (
 )
 """Columns of an evaluation CSV (one row per episode, `distgprl.experiments.rollout.
 run_episode`). ``return`` is the episode's return, ``return_tc`` / ``return_sd`` /
-``return_ga`` (environment v6, the mechanism table) its r_tc, r_sd and lambda_ga r_ga parts
+``return_ga`` (the mechanism table) its r_tc, r_sd and lambda_ga r_ga parts
 (one task's unit); files written before these columns lack them (an additive change: the
 schema version stays, and readers treat them as not recorded)."""
 
@@ -400,10 +401,10 @@ def safe_success_rate(rows: list[dict[str, Any]]) -> float:
 
 
 def collision_free_min_clearance_p5(rows: Sequence[Mapping[str, Any]]) -> tuple[float | None, int]:
-    """MinCl as pre-registered for environment v6 (docs/FINDINGS.md "Protocol v6", rule 5) and
+    """MinCl as pre-registered (docs/findings/protocol.md, rule 5) and
     the number of episodes it is over: the 5th percentile (linear interpolation), over the
     episodes *without* a collision, of the episode-wise minimum clearance (``min_clearance``:
-    robot links and tool vs the obstacles, m, clamped at 0 as v4 rows hold the signed value).
+    robot links and tool vs the obstacles, m, clamped at 0: older rows hold the signed value).
     ``(None, 0)`` where every episode collided: MinCl is then undefined, not 0 (a colliding
     episode's clearance is 0 by definition and already counted by the collision rate)."""
     free = [max(float(r["min_clearance"]), 0.0) for r in rows if int(float(r["collision"])) == 0]

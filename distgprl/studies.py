@@ -11,7 +11,7 @@ study name), ``distgprl status --preset operators`` shows them, and ``distgprl t
 paper`` writes the study's outputs beside Table I (``claims_robustness_paper``, the sensitivity
 figure), from the result files alone.
 
-The operator study (Protocol v6 rule 3, docs/FINDINGS.md): Table I's Dist-GPRL uses the
+The operator study (docs/findings/protocol.md, rule 3): Table I's Dist-GPRL uses the
 zero-mean GP operator of Eq. 1 per axis; the three other defensible readings of K_tt in
 S = K (K + lambda I)^-1 ship as presets and are run for Dist-GPRL only. A claim is reproduced
 only where it holds under every reading (`distgprl.report.robustness`). Its control

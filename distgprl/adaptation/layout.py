@@ -28,13 +28,13 @@ __all__ = [
 ]
 
 #: Minimum per-axis scale (m, m, m, rad, rad, rad) used to standardise observed via-points
-#: (and, environment v5, the scale of an axis the demonstration keeps constant in S's K).
+#: (and the scale of an axis the demonstration keeps constant in S's K).
 OBSERVATION_SCALE_FLOOR = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 
 COVARIANCE_SCALES = ("zero-mean", "signal", "unit", "correlation", "signal-uncoupled")
-"""The readings of K in S (`EnvConfig.covariance_scale`): ``zero-mean`` is Table I's
-(environment v6), ``signal``, ``unit`` and ``correlation`` the operator study's readings
-(docs/FINDINGS.md "Protocol v6"), ``signal-uncoupled`` its control (not a reading of the paper:
+"""The readings of K in S (`EnvConfig.covariance_scale`): ``zero-mean`` is Table I's,
+``signal``, ``unit`` and ``correlation`` the operator study's readings
+(docs/findings/protocol.md, rule 3), ``signal-uncoupled`` its control (not a reading of the paper:
 the signal reading's per-via-point reach without its coupling; docs/findings/operator.md)."""
 
 
@@ -46,8 +46,7 @@ class ActionLayout:
         indices: per step, the via-point indices its action covers, shape (n_steps, A_v).
         operators: per step and axis, the (A_v, A_v) matrix applied to that axis's
             column of the scaled raw action, shape (n_steps, 6, A_v, A_v) (S_W per axis
-            for covariance-transformed windows, identity otherwise; environment v5 — v4's
-            S_W was one matrix for all axes, the unit-variance operator).
+            for covariance-transformed windows, identity otherwise).
         segment_bounds: normalised times bounding the executed segments, shape (n_steps+1,).
         scale: per-axis scale of the raw action, shape (6,), m and rad.
         frozen: via-point indices whose update is forced to zero (e.g. GPRL's TC via-point).
@@ -80,13 +79,13 @@ class ActionLayout:
 def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> np.ndarray:
     """S_W per axis for one window, shape (6, L, L) (Eq. global_S, Eq. transformed_action).
 
-    ``config.covariance_scale``: ``"zero-mean"`` (environment v6, Table I) — K_tt is the
+    ``config.covariance_scale``: ``"zero-mean"`` (Table I) — K_tt is the
     covariance matrix of the paper's zero-mean GP (Eq. 1), per axis (`GPSkill.axis_kernels`,
     `distgprl.skill.operator`); ``"correlation"`` — that operator with each row divided by its
-    row sum (reach without shrink); ``"signal"`` (v5) — K_tt is the standardised GP's
+    row sum (reach without shrink); ``"signal"`` — K_tt is the standardised GP's
     covariance in the via-points' units, axis a's ``sigma_f^2 s_a^2 R``
     (`GPSkill.signal_variance_per_axis`, s_a floored at `OBSERVATION_SCALE_FLOOR`); ``"unit"``
-    (v4) — the unit-variance correlation matrix R for every axis; ``"signal-uncoupled"`` (the
+    — the unit-variance correlation matrix R for every axis; ``"signal-uncoupled"`` (the
     study's control) — the diagonal of the ``"signal"`` operator's row gains sum_j |S_ij|:
     each via-point as far as under ``"signal"``, moved by its own action only.
     """
@@ -104,7 +103,10 @@ def window_operators(skill: GPSkill, config: EnvConfig, window: np.ndarray) -> n
         )
         return row_gain_diagonal(signal) if scale == "signal-uncoupled" else signal
     if skill.axis_kernels is None:
-        raise ValueError(f"skill {skill.name!r} has no axis_kernels (saved before v6); refit it")
+        raise ValueError(
+            f"skill {skill.name!r} has no axis_kernels (saved before S used the zero-mean GP); "
+            "refit it"
+        )
     index = np.ix_(np.asarray(window), np.asarray(window))
     blocks = np.stack(
         [
@@ -123,7 +125,7 @@ def _windows(config: EnvConfig) -> np.ndarray:
 
 
 def reach_scales(skill: GPSkill, config: EnvConfig, tc_range: np.ndarray) -> np.ndarray:
-    """The per-axis raw-action scale of rule ``"reach"`` (environment v6), shape (6,), m and
+    """The per-axis raw-action scale of rule ``"reach"``, shape (6,), m and
     rad per unit action: scale_a = max(R_a, r_0) / min_i sum_j |S_W,ij| over every window's
     via-points i, S_W the Table I (``zero-mean``) operator whatever operator the run uses, so
     that every windowed via-point can move max(R_a, r_0) in the one step that adapts it.

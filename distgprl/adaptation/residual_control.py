@@ -38,7 +38,8 @@ __all__ = [
 ]
 
 RL_RATE_HZ = 10.0
-"""RL steps per second of ProMP-RRL's residual policy (Protocol v6 rule 4: at least 10 Hz).
+"""RL steps per second of ProMP-RRL's residual policy (at least 10 Hz: docs/findings/protocol.md,
+rule 4).
 
 Why at least 10 Hz: a residual policy corrects the nominal *during* execution (Johannink et
 al. 2018; Carvalho et al. 2022), so it must decide faster than the scene changes on the scale
@@ -68,9 +69,9 @@ GateMode = Literal["uncertain", "certain"]
 
 GATE_MODES: tuple[str, ...] = ("uncertain", "certain")
 """The two readings of the variance gate (`variance_gate`): ``uncertain`` — the residual
-passes where the ProMP's variance is high (issue 48 item 4's brief: where the ProMP is
-certain, the residual is scaled down); ``certain`` — where it is low (v5's ProMP-RRL and the
-common reading of Carvalho et al.: the residual acts in the precise, low-variance part)."""
+passes where the ProMP's variance is high (where the ProMP is certain, the residual
+is scaled down); ``certain`` — where it is low (the common reading of Carvalho et al.: the
+residual acts in the precise, low-variance part)."""
 
 
 @dataclass(frozen=True)
@@ -136,8 +137,9 @@ def residual_range(
 
     Positions: max(TC range on the axis, ``minimum_position``); rotations:
     ``minimum_rotation`` (no TC varies an orientation) — the reach rule every method's action
-    scale follows (Protocol v6 rule 2), applied to the residual's one output. Args: the
-    task's TC range per position axis ``tc_range`` (3,), m; the minimum reaches, m and rad.
+    scale follows (docs/findings/protocol.md, rule 2), applied to the residual's one output.
+    Args: the task's TC range per position axis ``tc_range`` (3,), m; the minimum reaches, m
+    and rad.
     """
     tc_range = np.asarray(tc_range, dtype=float)
     if tc_range.shape != (3,) or np.any(tc_range < 0):

@@ -29,7 +29,7 @@ class GPSkillTrajectory:
             with the object by the TC conditioning).
         goal_fixed_in_world: the task's goal stays put when the object moves (DCP): the
             via-points after the interaction return linearly to the demonstration's end
-            (environment v6; False keeps them all moved, v5's rule and DBM's).
+            (False keeps them all moved, as on DBM).
     """
 
     def __init__(

@@ -63,7 +63,7 @@ class RegulariserWeights:
 
     lambda_a weighs the *relative* L1 acceleration error: `ActorRegulariser` divides the L1 term
     by the demonstration's own mean L1 acceleration (``acceleration_reference``), so that both
-    terms of Eq. sim_compact are dimensionless like 1 - cos (environment v5, DESIGN §3). The
+    terms of Eq. sim_compact are dimensionless like 1 - cos (DESIGN §3). The
     defaults are `distgprl.config.SACConfig`'s.
     """
 
@@ -177,7 +177,7 @@ class ActorRegulariser(nn.Module):
             out[b, j] = [M, M D_0,j, ..., M D_{S-1},j]
                         [c[b, :, j]; onehot(s_b) (x) scale_j a[b, :, j]]
 
-        for each axis j (D_s,j from axis j's S_W, environment v5): one batched
+        for each axis j (D_s,j from axis j's S_W): one batched
         (6, B, N + S*A_v) x (6, N + S*A_v, 2T + N_q) product for the batch (axis-major).
         Products are taken in float64 from the module's own (float32) buffers, so they are
         exact images of the maps that the per-window code applies.
@@ -191,7 +191,7 @@ class ActorRegulariser(nn.Module):
         selection = torch.zeros(steps, per_step, n, dtype=f64)  # window row p -> via-point
         selection.scatter_(2, self.indices.unsqueeze(-1), 1.0)
         # D_s,j[v, p'] = sum_p [indices[s, p] = v] mask[s, p] S_W,j[s, p, p'] (S, 6, N, A_v):
-        # one S_W per axis j (environment v5)
+        # one S_W per axis j
         scatter = torch.einsum(
             "spv,sp,sapq->savq", selection, self.mask.to(f64), self.operators.to(f64)
         )

@@ -3,7 +3,7 @@
 ``demos/<task>.csv`` is the nominal demonstration of a task; ``demos/<task>_varied/``
 holds the 20 varied demonstrations (one per task configuration, planned by a TC-aware
 expert, each successful and collision-free for its TC) over which Table I's ProMP-RRL fits
-its object-centric ProMP (Protocol v8 rule 3; also the exploration method
+its object-centric ProMP (as the paper's §V-B defines it; also the exploration method
 `promp-rrl-expert`); the study method `promp-rrl-1demo` gets only the nominal one.
 Both are regenerated exactly by ``python -m distgprl.sim.experts``.
 """
@@ -27,7 +27,7 @@ adds nothing, keeping the hashes of runs made before revisions were recorded.
   the first 16 (PyBullet silently drops shapes beyond 16 per shape array): the physical
   conveyor ended at y = 0.015 m while the distance field saw rollers up to 0.615 m, so
   robot contact with the missing rollers was neither a collision nor in the clearance.
-- dbm 2 (environment v5): the bars' TC offsets vary across the belt too (x, up to the
+- dbm 2: the bars' TC offsets vary across the belt too (x, up to the
   rails), as the paper varies them in the xy-plane.
 """
 

@@ -3,7 +3,7 @@
     L_hap = 1/N_q sum_q  -tau log sum_{y in kNN(x_q)} exp(-||x_q - y|| / tau)
 
 for N_q positions x_q sampled along the adapted trajectory and the k nearest points y of C_safe,
-as the equation is written (environment v8): the raw soft-min in metres, no offset, no hinge.
+as the equation is written: the raw soft-min in metres, no offset, no hinge.
 The neighbour search runs without gradients (a precomputed lookup table or scipy ``cKDTree``,
 see :class:`HapPrior`); the distances to the found neighbours, the soft-min and its gradient
 w.r.t. x_q (sum_j w_j (x_q - y_j) / ||x_q - y_j||, w = softmax(-d / tau) over the kNN) are
@@ -14,7 +14,7 @@ linear GP maps the actor's sampled actions).
 The raw soft-min is at most the nearest distance, ``softmin <= min_y ||x - y||``, and is
 negative on and near C_safe (at a C_safe point the other neighbours, one grid step away, still
 contribute): a constant shift would change no gradient, only the reported value, so none is
-subtracted. ``hinge_step`` keeps environment v6–v7's variant (hinged at a safe cell's largest
+subtracted. ``hinge_step`` gives a variant (hinged at a safe cell's largest
 soft-min and divided by the grid step, `SACConfig.hap_hinge`) for configurations that ask for
 it; it is not the paper's equation.
 
@@ -108,7 +108,7 @@ def interior_softmin_bound(step: float, temperature: float, k: int, samples: int
     unbounded, fully safe cubic grid of spacing ``step`` (m): the maximum over a
     ``samples``^3 lattice of positions in one cell, with the exact k nearest nodes of the
     surrounding 6^3 nodes. (The cell's centre is not the maximum: with k = 8 the face
-    centres' soft-min exceeds it by 0.04 of a step.) Environment v6–v7's hinge of L_hap."""
+    centres' soft-min exceeds it by 0.04 of a step.) The hinge of ``hinge_step``."""
     axis = (np.arange(6) - 2.0) * step
     nodes = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     cell = np.linspace(0.0, step, samples)
@@ -141,7 +141,7 @@ class HapPrior:
         k: neighbours per query (clipped to m).
         temperature: tau, m.
         hinge_step: 0 (default): Eq. hap_compact as written, the soft-min in m. > 0
-            (environment v6–v7's variant, the HAP grid step h, m): each query's value is
+            (a variant, the HAP grid step h, m): each query's value is
             max(0, softmin - c) / h with c = `interior_softmin_bound`, the largest soft-min
             anywhere inside a fully safe grid, so the prior is 0 and pulls nowhere inside
             C_safe and about 1 a grid step outside it (dimensionless).
@@ -218,7 +218,7 @@ class HapPrior:
         self._tree = cKDTree(points)
         if self.neighbour_search == "grid":
             self._build_table(points)
-        # the hinge's c (v6–v7: the largest soft-min inside a fully safe grid); 0: as written
+        # the hinge's c (the largest soft-min inside a fully safe grid); 0: as written
         self.offset = 0.0
         if self.hinge_step > 0:
             self.offset = interior_softmin_bound(self.hinge_step, self.temperature, self.k)
@@ -351,7 +351,7 @@ class HapPrior:
     ) -> tuple[np.ndarray, np.ndarray]:
         """`per_point` without torch: values (n,), m, and each value's gradient w.r.t. its own
         query (n, 3), for queries x (n, 3), m, computed in x's dtype (NumPy, no autograd).
-        With ``hinge_step`` (environment v6–v7): max(0, softmin - c) / h and its gradient."""
+        With ``hinge_step``: max(0, softmin - c) / h and its gradient."""
         values, jacobian = self._softmin_and_gradient(x, anchors, moving)
         if self.hinge_step <= 0:
             return values, jacobian

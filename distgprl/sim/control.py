@@ -15,7 +15,7 @@ the loop then only calls PyBullet and reads contacts and clearances.
 The per-step PyBullet functions are bound once in `BulletCalls` (a `BulletClient`'s
 attribute look-up costs microseconds per call) and called with positional arguments;
 benchmarks may wrap its attributes with timers. The plan performs the same IEEE operations,
-in the same order, as the per-step arithmetic it replaces (issues 29, 66; the v7 loop is
+in the same order, as the per-step arithmetic it replaces (the per-step loop is
 kept in ``tests/sim/_reference_control.py`` and the two agree bit for bit).
 """
 

@@ -1,6 +1,6 @@
 """The TC conditioning rule: how far each part of a skill moves with the observed object.
 
-Algorithm 1's "condition GP on observed task configuration" (docs/FINDINGS.md "Protocol v6",
+Algorithm 1's "condition GP on observed task configuration" (docs/findings/protocol.md,
 rule 2): the skill from the interaction on moves with the object by the observed offset,
 weighted by w(τ):
 

@@ -22,11 +22,11 @@ query times are therefore affine maps of Gamma; this module precomputes the matr
     acceleration =      ddM (Gamma - mu)         # m/s^2, rad/s^2
 
 The correlation operator S = K (K + lambda I)^{-1} (Eq. global_S): `correlation_operator`
-builds it from the kernel's unit-variance correlation matrix (v4's reading), and
-`axis_window_operators` per axis at a given prior variance (v5's); environment v6's Table I
+builds it from the kernel's unit-variance correlation matrix (study preset ``operator-unit``),
+and `axis_window_operators` per axis at a given prior variance (``operator-signal``); Table I's
 operator takes K from the zero-mean GP of Eq. 1 fitted per axis to the raw demonstration
 (``axis_kernels``, `distgprl.skill.operator`). `distgprl.adaptation.layout.window_operators`
-chooses between them (docs/FINDINGS.md "Protocol v6").
+chooses between them (docs/findings/protocol.md, rule 3).
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ class GPSkill:
             covariance of axis a in via-point units is ``axis_scale[a]**2 * K`` (None for a
             skill saved before it was recorded).
         axis_kernels: six `KernelParams`, the paper's zero-mean GP of each axis fitted to the
-            raw demonstration (`distgprl.skill.operator`; environment v6's K of S, m² and
+            raw demonstration (`distgprl.skill.operator`; Table I's K of S, m² and
             rad²); None for a skill saved before they were recorded.
     """
 
@@ -355,7 +355,7 @@ def fit_skill(demo: Demonstration, config: FitConfig | None = None) -> GPSkill:
        ``config.max_fit_samples`` evenly subsampled samples.
     2. Via-points Gamma_0 = GP posterior mean of the demonstration at N evenly spaced tau.
     3. Per axis, the zero-mean GP of Eq. 1 on the raw samples (``axis_kernels``, the K of
-       environment v6's S; `distgprl.skill.operator.fit_zero_mean_axes`).
+       Table I's S; `distgprl.skill.operator.fit_zero_mean_axes`).
 
     Raises:
         ValueError: if the demonstration has fewer samples than via-points.

@@ -1,10 +1,10 @@
-"""The covariance operator's K read as the paper's zero-mean GP (Eq. 1; environment v6).
+"""The covariance operator's K read as the paper's zero-mean GP (Eq. 1).
 
 The paper's skill is a GP ζ(t) ~ GP(0, k) (Eq. 1), and K_tt in S = K_tt (K_tt + λI)⁻¹
 (Eq. global_S) is "the covariance matrix" of that GP at the via-point times. So, per axis a,
 K_a = σ_a² R(ℓ_a) with σ_a², ℓ_a and the noise fitted by maximum marginal likelihood to the
 *raw* demonstration samples of that axis (m, rad), with zero mean: not mean-centred, not
-standardised, not one variance shared with the other axes (docs/FINDINGS.md "Protocol v6",
+standardised, not one variance shared with the other axes (docs/findings/protocol.md,
 rule 3). An axis the demonstration keeps constant (the tool's rotation vector: 0 throughout)
 has no signal of its own, and its ML variance collapses to the lower bound, which would make
 S_a = 0 (no adaptation on that axis at all); such an axis takes K_a = s² R(ℓ_skill), s its
@@ -35,7 +35,7 @@ __all__ = [
 
 CONSTANT_AXIS_SCALE = np.array([0.05, 0.05, 0.05, 0.2, 0.2, 0.2])
 """Physical scale (m, m, m, rad, rad, rad) of an axis the demonstration keeps constant: the
-prior standard deviation its K takes (the observation floor, v5's rule for such axes)."""
+prior standard deviation its K takes (the observation floor)."""
 
 MIN_SIGNAL_VARIANCE = 1e-8
 """Lower bound of the zero-mean fit's signal variance (m², rad²). A fit that ends within a

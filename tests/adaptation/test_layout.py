@@ -227,7 +227,7 @@ def test_the_uncoupled_signal_control_moves_each_via_point_as_far_as_signal_on_i
 
 
 def test_a_skill_without_axis_kernels_cannot_build_the_table_one_operator():
-    """A skill saved before v6 (no ``axis_kernels``) raises instead of falling back."""
+    """A skill saved without (no ``axis_kernels``) raises instead of falling back."""
     tau = np.linspace(0, 1, 15)
     old = GPSkill(KernelParams(0.12), tau, np.zeros((15, 6)), np.zeros(6), 4.0)
     with pytest.raises(ValueError, match="axis_kernels"):

@@ -95,8 +95,8 @@ class TaskSpec:
         scene_revision: the revision of the simulated scene (`distgprl.data.SCENE_REVISIONS`,
             the pybullet-free catalogue the config hashes read).
         tc_range: the largest object offset the TCs draw on each position axis (x, y, z), m
-            (environment v6's reach rule: every adaptive method must be able to correct
-            that far; docs/FINDINGS.md "Protocol v6").
+            (the reach rule: every adaptive method must be able to correct that far;
+            docs/findings/protocol.md, rule 2).
         goal_fixed_in_world: whether the task's goal stays where it is when the object is
             offset (DCP's goal region) or moves with the object (DBM's lift above the bar):
             the TC conditioning then brings the post-interaction via-points back to the
@@ -373,7 +373,7 @@ class TaskSim:
             poses: shape (n, 6): x, y, z (m), rx, ry, rz (rad), world frame. Pose k is the
                 target at the end of control period k of this segment.
             stop_on_collision: end execution after the control period in which a collision
-                is detected, as a hardware protective stop ends a trial (environment v5);
+                is detected, as a hardware protective stop ends a trial;
                 the remaining poses are not executed (``SegmentResult.stopped``).
 
         Each pose is converted by IK (branch nearest the previous joint target) into a
@@ -453,7 +453,7 @@ def condition_by_translation(
     Samples are translated by the object offset (dx, dy, 0) weighted by w(tau): 1 at
     ``interaction_time``, ramping in with a minimum-jerk blend over ``blend`` (in tau) before
     it (the start pose stays put), and after it falling linearly to 0 at the end if
-    ``goal_fixed_in_world`` (environment v6; the push ends at the goal), else staying 1.
+    ``goal_fixed_in_world`` (the push ends at the goal), else staying 1.
 
     Args:
         times: (n,) s. poses: (n, 6). object_offset: (2,) m.

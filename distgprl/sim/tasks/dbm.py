@@ -13,7 +13,7 @@ Scene (world = UR base frame, m). A roller conveyor runs along world +y at x = 0
 The hook's finger enters the target bar's handle from behind (-y), then lifts the bar by
 the handle with contact physics and carries it off the conveyor towards the robot.
 
-TC (scene revision 2, environment v5): ``object_offset = (dx, dy)`` and
+TC (scene revision 2): ``object_offset = (dx, dy)`` and
 ``obstacle_offset = (dx', dy')`` shift the bars in the xy-plane of the conveyor: along the
 belt (y) each uniform in [-0.20, 0.20] m, across it (x) each uniform in
 [-``lateral_range``, ``lateral_range``] = [-0.035, 0.035] m — as far as the conveyor allows:
