@@ -168,19 +168,25 @@ def test_the_configuration_reference_shows_every_shipped_preset(pages):
         yaml.safe_load(path.read_text())
 
 
-def test_the_results_page_holds_every_committed_table_and_figure(pages):
-    """The site's results page copies every committed table of paper_figures/ (so it cannot
-    show a stale one) and every figure; its hand-written source asks for both."""
-    source = (DOCS / "results" / "index.md").read_text()
-    assert "<!-- generated: results-tables -->" in source
-    assert "<!-- generated: results-figures -->" in source
-    expanded = pages.generated_pages()["results/index.md"]
-    figures = REPOSITORY / "paper_figures"
-    for table in figures.glob("*.md"):
-        assert pages.site_table(table.read_text()) in expanded, table.name
-    for figure in figures.glob("*.png"):
-        assert f"](figures/{figure.name})" in expanded, figure.name
-        assert f"results/figures/{figure.name}" in pages.figure_files()
+def test_the_results_pages_hold_every_committed_table_and_figure(pages):
+    """The site's tables page copies every committed table of paper_figures/ (so it cannot
+    show a stale one) and every figure, the archived environment's page every table and
+    figure of its archive; their hand-written sources ask for them. (Every file of both
+    folders is a reference preset's output or a listed illustration: none is left out.)"""
+    generated = pages.generated_pages()
+    for page, figures, folder in (
+        ("tables.md", REPOSITORY / "paper_figures", "figures"),
+        ("env-v7.md", pages.ARCHIVE_FIGURES, "figures/env-v7"),
+    ):
+        source = (DOCS / "results" / page).read_text()
+        assert re.search(r"<!-- generated: [a-z]+-tables -->", source)
+        assert re.search(r"<!-- generated: [a-z]+-figures -->", source)
+        expanded = generated[f"results/{page}"]
+        for table in figures.glob("*.md"):
+            assert pages.site_table(table.read_text()) in expanded, table.name
+        for figure in [*figures.glob("*.png"), *figures.glob("*.gif")]:
+            assert f"]({folder}/{figure.name})" in expanded, figure.name
+            assert f"results/{folder}/{figure.name}" in pages.figure_files()
 
 
 def test_the_benchmarks_page_is_the_committed_benchmark(pages):
