@@ -1,8 +1,12 @@
 """The documentation site's generated pages, made at build time (mkdocs-gen-files runs this
 file as a script during ``make docs``), so that none of them can go stale:
 
-- the **results page** (``results/index.md``): its hand-written prose, with every table
-  ``make tables`` committed under ``paper_figures/`` and every figure copied in at build time;
+- the **results pages**: the first screen of ``results/index.md`` (`results_summary`: Table I
+  in brief, the learning curves, each claim's verdict with the number that decides it, from
+  the committed CSVs of ``paper_figures/`` and the archived environment's), every table and
+  figure ``make tables`` committed under ``paper_figures/`` (``results/tables.md``) and the
+  archived environment's (``results/env-v7.md``), copied in at build time — the reference
+  presets' outputs only (`is_published`: never a ``*_ci.*`` file);
 - the **benchmarks page**: the committed ``results/bench/bench_full.json`` as the tables
   `distgprl.experiments.bench.markdown.markdown_table` makes of it;
 - the **configuration reference**: every field of the frozen dataclasses of
