@@ -427,19 +427,22 @@ def claim_summaries(path: Path) -> list[ClaimSummary]:
     return summaries
 
 
-def _verdict_cell(summary: ClaimSummary | None) -> str:
+def _verdict_cell(summary: ClaimSummary | None, with_number: bool = True) -> str:
+    """A claims cell: the verdict in bold, and (``with_number``) the number that decides it."""
     if summary is None:
         return '<td class="awaiting">no table</td>'
     word = summary.verdict.split()[0]
     verdict = f'<strong class="verdict verdict-{word}">{html.escape(summary.verdict)}</strong>'
-    if summary.deciding:
+    if summary.deciding and with_number:
         verdict += f' <span class="deciding">{glossed(summary.deciding)}</span>'
     return f"<td>{verdict}</td>"
 
 
 def claims_summary(current: Path, archived: Path, version: int) -> str:
-    """The claims in brief, as HTML: each claim with its verdict and deciding number(s) from
-    the current environment's ``claims_paper.csv`` and, beside it, the archived one's."""
+    """The claims in brief, as HTML: each claim with the current environment's verdict (from
+    its ``claims_paper.csv``) and, beside it, the archived one's; the number that decides it
+    is the current environment's once its verdict is in, the archived one's while it awaits
+    runs (one number per claim and task, so that each claim stays on about one line)."""
     now = {s.claim: s for s in claim_summaries(current)}
     before = {s.claim: s for s in claim_summaries(archived)}
     lines = [
@@ -449,9 +452,10 @@ def claims_summary(current: Path, archived: Path, version: int) -> str:
         "<tbody>",
     ]
     for claim in dict.fromkeys([*now, *before]):
+        decided = claim in now and now[claim].verdict not in AWAITING
         lines.append(
             f"<tr><td>{html.escape(claim)}</td>{_verdict_cell(now.get(claim))}"
-            f"{_verdict_cell(before.get(claim))}</tr>"
+            f"{_verdict_cell(before.get(claim), with_number=not decided)}</tr>"
         )
     lines += ["</tbody>", "</table>"]
     return "\n".join(lines)

@@ -489,3 +489,24 @@ def test_the_built_cli_reference_shows_every_subcommand():
     page = (SITE / "reference" / "cli" / "index.html").read_text()
     for name in COMMANDS:
         assert f'id="distgprl-{name}"' in page, name
+
+
+def test_each_claim_shows_one_environments_deciding_numbers(pages, tmp_path):
+    """The claims in brief give the current environment's deciding number once its verdict
+    is in, and the archived environment's while the current one awaits runs: one set of
+    numbers per claim."""
+    header = "claim,test,task,value,ci_low,ci_high,seeds,pairs,verdict,detail\n"
+    decided = "A claim,PoI of Dist-GPRL over X,{task},0.9,0.6,1.0,5,25,reproduced,\n"
+    awaiting = "B claim,PoI of Dist-GPRL over Y,{task},,,,,,inconclusive (no runs),\n"
+    archived = "B claim,PoI of Dist-GPRL over Y,{task},0.2,0.0,0.4,5,25,refuted,\n"
+    for name, lines in (("now.csv", (decided, awaiting)), ("before.csv", (decided, archived))):
+        text = header + "".join(
+            line.format(task=t) for line in lines for t in ("dcp", "dbm", "all")
+        )
+        (tmp_path / name).write_text(text)
+    table = pages.claims_summary(tmp_path / "now.csv", tmp_path / "before.csv", 8)
+    rows = {row.split("</td>", 1)[0]: row.split("<td>") for row in table.split("<tr><td>")[1:]}
+    claim_a, claim_b = rows["A claim"], rows["B claim"]
+    assert "reproduced" in claim_a[1] and "DCP: <abbr" in claim_a[1] and "PoI" not in claim_a[2]
+    assert "awaiting runs" in claim_b[1] and "PoI" not in claim_b[1]
+    assert "refuted" in claim_b[2] and "0.20 [0.00, 0.40]" in claim_b[2]
