@@ -438,16 +438,17 @@ def _verdict_cell(summary: ClaimSummary | None, with_number: bool = True) -> str
     return f"<td>{verdict}</td>"
 
 
-def claims_summary(current: Path, archived: Path, version: int) -> str:
+def claims_summary(current: Path, archived: Path, heading: str) -> str:
     """The claims in brief, as HTML: each claim with the current environment's verdict (from
     its ``claims_paper.csv``) and, beside it, the archived one's; the number that decides it
     is the current environment's once its verdict is in, the archived one's while it awaits
-    runs (one number per claim and task, so that each claim stays on about one line)."""
+    runs (one number per claim and task, so that each claim stays on about one line).
+    ``heading`` heads the current environment's column."""
     now = {s.claim: s for s in claim_summaries(current)}
     before = {s.claim: s for s in claim_summaries(archived)}
     lines = [
         '<table class="results-compact results-claims">',
-        f"<thead><tr><th>The paper's claim</th><th>Environment v{version} (training)</th>"
+        f"<thead><tr><th>The paper's claim</th><th>{html.escape(heading)}</th>"
         f"<th>Environment v{ARCHIVE_VERSION} (complete, archived)</th></tr></thead>",
         "<tbody>",
     ]
@@ -519,10 +520,14 @@ def results_summary(
     marked = any(
         int(row.get(f"{t}_untrained_best_seeds") or 0) for row in rows for t in TASK_TITLES
     )
+    progress = (
+        f"{done} of {planned} runs in</strong> ({sweep_shape()}); the other {planned - done} "
+        "are training or queued, so the cells and claims without runs say <em>awaiting</em>"
+        if done < planned
+        else f"all {planned} runs in</strong> ({sweep_shape()})"
+    )
     status = (
-        f'<p class="results-status"><strong>Environment v{version}: {done} of {planned} runs '
-        f"in</strong> ({sweep_shape()}); the other {planned - done} are training or queued, "
-        "so the cells and claims without runs say <em>awaiting</em>. Environment "
+        f'<p class="results-status"><strong>Environment v{version}: {progress}. Environment '
         f"v{ARCHIVE_VERSION}'s {archived_runs()} runs are complete and archived: their "
         "verdicts stand beside (the two are not comparable number for number: "
         '<a href="../findings/environment-v8/">what v8 changed</a>).</p>'
@@ -551,7 +556,11 @@ def results_summary(
             "</div>",
             _figure(figures, FIGURE_SITE_FOLDER),
             "</div>",
-            claims_summary(figures / "claims_paper.csv", archived / "claims_paper.csv", version),
+            claims_summary(
+                figures / "claims_paper.csv",
+                archived / "claims_paper.csv",
+                f"Environment v{version} ({'training' if done < planned else 'complete'})",
+            ),
             "</div>",
         ]
     )

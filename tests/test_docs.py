@@ -504,7 +504,7 @@ def test_each_claim_shows_one_environments_deciding_numbers(pages, tmp_path):
             line.format(task=t) for line in lines for t in ("dcp", "dbm", "all")
         )
         (tmp_path / name).write_text(text)
-    table = pages.claims_summary(tmp_path / "now.csv", tmp_path / "before.csv", 8)
+    table = pages.claims_summary(tmp_path / "now.csv", tmp_path / "before.csv", "v8")
     rows = {row.split("</td>", 1)[0]: row.split("<td>") for row in table.split("<tr><td>")[1:]}
     claim_a, claim_b = rows["A claim"], rows["B claim"]
     assert "reproduced" in claim_a[1] and "DCP: <abbr" in claim_a[1] and "PoI" not in claim_a[2]
