@@ -235,7 +235,8 @@ PLAIN_VERDICTS = {
 """The verdicts of `distgprl.report.claims` said plainly where they mean "not yet"; every
 other verdict (reproduced, refuted, inconclusive, on a task or not) is shown as it is."""
 
-AWAITING = {"awaiting runs", "awaiting a second seed"}
+AWAITING = frozenset(PLAIN_VERDICTS.values())
+"""The plain verdicts of a claim that still waits for runs (no deciding number yet)."""
 
 GLOSSES = {
     "PoI": "probability of improvement: the chance that a Dist-GPRL run beats a run of the "
