@@ -168,19 +168,192 @@ def test_the_configuration_reference_shows_every_shipped_preset(pages):
         yaml.safe_load(path.read_text())
 
 
-def test_the_results_page_holds_every_committed_table_and_figure(pages):
-    """The site's results page copies every committed table of paper_figures/ (so it cannot
-    show a stale one) and every figure; its hand-written source asks for both."""
-    source = (DOCS / "results" / "index.md").read_text()
-    assert "<!-- generated: results-tables -->" in source
-    assert "<!-- generated: results-figures -->" in source
-    expanded = pages.generated_pages()["results/index.md"]
-    figures = REPOSITORY / "paper_figures"
-    for table in figures.glob("*.md"):
-        assert pages.site_table(table.read_text()) in expanded, table.name
-    for figure in figures.glob("*.png"):
-        assert f"](figures/{figure.name})" in expanded, figure.name
-        assert f"results/figures/{figure.name}" in pages.figure_files()
+def test_the_results_pages_hold_every_committed_table_and_figure(pages):
+    """The site's tables page copies every committed table of paper_figures/ (so it cannot
+    show a stale one) and every figure, the archived environment's page every table and
+    figure of its archive; their hand-written sources ask for them. (Every file of both
+    folders is a reference preset's output or a listed illustration: none is left out.)"""
+    generated = pages.generated_pages()
+    for page, figures, folder in (
+        ("tables.md", REPOSITORY / "paper_figures", "figures"),
+        ("env-v7.md", pages.ARCHIVE_FIGURES, "figures/env-v7"),
+    ):
+        source = (DOCS / "results" / page).read_text()
+        assert re.search(r"<!-- generated: [a-z]+-tables -->", source)
+        assert re.search(r"<!-- generated: [a-z]+-figures -->", source)
+        expanded = generated[f"results/{page}"]
+        for table in figures.glob("*.md"):
+            assert pages.site_table(table.read_text()) in expanded, table.name
+        for figure in [*figures.glob("*.png"), *figures.glob("*.gif")]:
+            assert f"]({folder}/{figure.name})" in expanded, figure.name
+            assert f"results/{folder}/{figure.name}" in pages.figure_files()
+
+
+def _output_tree(folder: Path) -> Path:
+    """A ``paper_figures/`` folder as `make tables` leaves it after the `paper` preset and
+    the README's ci block: the reference outputs beside ``*_ci.*`` ones."""
+    folder.mkdir()
+    for name in (
+        "table1_paper.md",
+        "table1_paper_per_seed.md",
+        "onsets_reward-unit_paper.md",
+        "table1_reward-unit-10.md",
+        "table1_ci.md",
+        "table1_ci_per_seed.md",
+        "claims_ci.md",
+        "notes.md",
+    ):
+        (folder / name).write_text(f"| {name} |\n|---|\n")
+    for name in ("all_methods_paper.png", "dcp_scene.png", "all_methods_ci.png", "stray.png"):
+        (folder / name).write_bytes(b"\x89PNG")
+    (folder / "rollout_ci.gif").write_bytes(b"GIF89a")
+    return folder
+
+
+def test_only_the_reference_presets_outputs_are_published(pages, tmp_path):
+    """A folder holding ci outputs beside the paper preset's (the README's ci block run into
+    it): the tables page, the figures and the files copied into the site hold the `paper`
+    preset's and its studies' outputs and the listed illustrations, no ``*_ci.*`` file and
+    no file named by no preset."""
+    figures = _output_tree(tmp_path / "paper_figures")
+    archived = _output_tree(tmp_path / "archived")
+    tables, shown = pages.results_tables(figures), pages.result_figures(figures)
+    copied = pages.figure_files(figures, archived)
+    for name in ("table1_paper.md", "table1_paper_per_seed.md", "onsets_reward-unit_paper.md"):
+        assert f"| {name} |" in tables, name
+    assert "| table1_reward-unit-10.md |" in tables
+    for name in ("all_methods_paper.png", "dcp_scene.png"):
+        assert f"](figures/{name})" in shown
+        assert f"results/figures/{name}" in copied and f"results/figures/env-v7/{name}" in copied
+    published = tables + shown + " ".join(copied)
+    for name in ("_ci.", "_ci_per_seed", "notes.md", "stray.png", "rollout_ci"):
+        assert name not in published, name
+    assert {path.parent for path in copied.values()} == {figures, archived, pages.BENCH}
+
+
+def test_the_reference_presets_are_paper_and_its_studies_never_ci(pages):
+    from distgprl.studies import studies_of
+
+    presets = set(pages.reference_presets())
+    assert "paper" in presets and "ci" not in presets
+    assert {p for study in studies_of("paper") for p in study.presets} <= presets
+    assert presets <= set(pages.shipped_presets())
+
+
+def test_table_one_in_brief_is_the_committed_table(pages, tmp_path):
+    """Table I in brief shows each method's success and collision means from the CSV, the
+    interval only where the CSV has one, the untrained mark where a seed's best trained
+    policy did not beat the untrained one, the runs in of those planned, and "awaiting"
+    for every planned method without runs."""
+    (tmp_path / "table1_paper.csv").write_text(
+        "method,label,dcp_seeds,dcp_success_rate_mean,dcp_success_rate_ci_low,"
+        "dcp_success_rate_ci_high,dcp_collision_rate_mean,dcp_untrained_best_seeds,"
+        "dcp_untrained_curve_success_mean,dbm_seeds,dbm_success_rate_mean,"
+        "dbm_collision_rate_mean\n"
+        "gprl,GPRL,2,0.465,0.3,0.63,0.1,1,0.5,0,,\n"
+    )
+    rows = pages.read_rows(tmp_path / "table1_paper.csv")
+    runs = {("dcp", "gprl"): (2, 5), ("dbm", "gprl"): (0, 5), ("dcp", "demo"): (0, 1)}
+    table = pages.compact_table(rows, runs)
+    gprl = next(line for line in table.splitlines() if line.startswith("<tr><td>GPRL<"))
+    assert '<td class="runs">2/5</td><td>0.47 <span class="ci">0.30–0.63</span>' in gprl
+    assert 'title="at 1 seed(s) no trained policy beat the untrained one' in gprl
+    assert "<td>0.10</td>" in gprl
+    assert gprl.count(">awaiting<") == 2
+    demo = next(line for line in table.splitlines() if "Demo (no adaptation)" in line)
+    assert '<td class="runs">0/1</td><td class="awaiting">awaiting</td>' in demo
+    assert "<tr><td>GPRL-D<" not in table  # neither planned here nor in the file
+
+
+def test_the_first_screen_counts_the_committed_runs_and_shows_their_numbers(pages):
+    """The results page's first screen says how many of the `paper` sweep's runs are in
+    (`plan_jobs`, finished by `is_complete`) and shows every committed Table I mean."""
+    from distgprl.experiments.sweep import is_complete, plan_jobs
+
+    jobs = plan_jobs("paper", root=pages.RESULTS)
+    done = sum(is_complete(job) for job in jobs)
+    summary = pages.generated_pages()["results/index.md"]
+    assert f"{done} of {len(jobs)} runs in" in summary
+    for row in pages.read_rows(REPOSITORY / "paper_figures" / "table1_paper.csv"):
+        line = next(x for x in summary.splitlines() if x.startswith(f"<tr><td>{row['label']}<"))
+        for task in ("dcp", "dbm"):
+            for metric in ("success", "collision"):
+                if value := row[f"{task}_{metric}_rate_mean"]:
+                    assert f"<td>{float(value):.2f}" in line, (row["label"], task, metric)
+
+
+def test_every_decided_claim_shows_the_number_that_decides_it(pages):
+    """Each claim of the committed claims files in plain words: an awaiting verdict for a
+    claim without runs, otherwise the verdict with its deciding statistic in a known form
+    (a PoI, an IQM against the highest other's, dominance, the conservative rule's two
+    comparisons) on each task the verdict rests on, never a detail passed through."""
+    known = re.compile(r"^(PoI \d|IQM \d|dominated by |dominates |success \d)")
+    for path in (
+        REPOSITORY / "paper_figures" / "claims_paper.csv",
+        pages.ARCHIVE_FIGURES / "claims_paper.csv",
+    ):
+        rows = pages.read_rows(path)
+        summaries = pages.claim_summaries(path)
+        assert [s.claim for s in summaries] == list(dict.fromkeys(r["claim"] for r in rows))
+        for summary in summaries:
+            overall = next(
+                r["verdict"] for r in rows if r["claim"] == summary.claim and r["task"] == "all"
+            )
+            assert summary.verdict == pages.PLAIN_VERDICTS.get(overall, overall)
+            if summary.verdict in pages.AWAITING:
+                assert summary.deciding == ""
+                continue
+            parts = summary.deciding.split(" · ")
+            tasks = [part.split(": ", 1)[0] for part in parts]
+            named = overall.rsplit(" on ", 1)[1] if " on " in overall else None
+            assert tasks == ([named] if named else ["DCP", "DBM"]), summary
+            assert all(known.match(part.split(": ", 1)[1]) for part in parts), summary
+    archived = {
+        s.claim: s for s in pages.claim_summaries(pages.ARCHIVE_FIGURES / "claims_paper.csv")
+    }
+    assert archived["Windowed adaptation beats global"].deciding.startswith("DCP: PoI 0.88 [0.50")
+
+
+COMMAND = re.compile(r"distgprl (sweep|train|evaluate|tables|curves|mechanisms|render|hardware)\b")
+TRACKED_DEFAULTS = {"--root": "results", "--out-dir": "paper_figures"}
+"""The output options whose defaults are tracked folders (results/<preset>/, results/hardware,
+paper_figures/): a ci example must set each its command has."""
+
+
+def example_commands() -> list[tuple[str, str]]:
+    """Every ``distgprl`` command of the README, the getting-started page, the guides and
+    .ci/run that runs the ``ci`` preset, with backslash continuations joined: (file, command)."""
+    files = [
+        REPOSITORY / "README.md",
+        REPOSITORY / ".ci" / "run",
+        DOCS / "getting-started.md",
+        *sorted((DOCS / "guides").glob("*.md")),
+    ]
+    commands = []
+    for path in files:
+        text = path.read_text().replace("\\\n", " ")
+        for line in text.splitlines():
+            for part in re.split(r"&&|;|\|", line):
+                if COMMAND.search(part) and "--preset ci" in part:
+                    commands.append((path.relative_to(REPOSITORY).as_posix(), part.strip()))
+    return commands
+
+
+def test_every_ci_example_writes_outside_the_tracked_folders():
+    """A reader who runs a documented ``--preset ci`` command (or CI, .ci/run) writes its runs
+    and tables into a root of their own (``runs/``, git-ignored, or a temporary folder),
+    never into ``results/`` or ``paper_figures/``, whose outputs the site publishes."""
+    commands = example_commands()
+    assert len(commands) >= 6
+    writes = {"--root": COMMAND.pattern, "--out-dir": r"distgprl (tables|curves|mechanisms)\b"}
+    for where, command in commands:
+        for option, pattern in writes.items():
+            if not re.search(pattern, command):
+                continue
+            match = re.search(rf"{option}[ =](\S+)", command)
+            assert match, f"{where}: {command!r} writes to {TRACKED_DEFAULTS[option]}/"
+            target = match.group(1).strip("\"'`")
+            assert not target.startswith(("results", "paper_figures")), (where, command)
 
 
 def test_the_benchmarks_page_is_the_committed_benchmark(pages):
@@ -316,3 +489,24 @@ def test_the_built_cli_reference_shows_every_subcommand():
     page = (SITE / "reference" / "cli" / "index.html").read_text()
     for name in COMMANDS:
         assert f'id="distgprl-{name}"' in page, name
+
+
+def test_each_claim_shows_one_environments_deciding_numbers(pages, tmp_path):
+    """The claims in brief give the current environment's deciding number once its verdict
+    is in, and the archived environment's while the current one awaits runs: one set of
+    numbers per claim."""
+    header = "claim,test,task,value,ci_low,ci_high,seeds,pairs,verdict,detail\n"
+    decided = "A claim,PoI of Dist-GPRL over X,{task},0.9,0.6,1.0,5,25,reproduced,\n"
+    awaiting = "B claim,PoI of Dist-GPRL over Y,{task},,,,,,inconclusive (no runs),\n"
+    archived = "B claim,PoI of Dist-GPRL over Y,{task},0.2,0.0,0.4,5,25,refuted,\n"
+    for name, lines in (("now.csv", (decided, awaiting)), ("before.csv", (decided, archived))):
+        text = header + "".join(
+            line.format(task=t) for line in lines for t in ("dcp", "dbm", "all")
+        )
+        (tmp_path / name).write_text(text)
+    table = pages.claims_summary(tmp_path / "now.csv", tmp_path / "before.csv", "v8")
+    rows = {row.split("</td>", 1)[0]: row.split("<td>") for row in table.split("<tr><td>")[1:]}
+    claim_a, claim_b = rows["A claim"], rows["B claim"]
+    assert "reproduced" in claim_a[1] and "DCP: <abbr" in claim_a[1] and "PoI" not in claim_a[2]
+    assert "awaiting runs" in claim_b[1] and "PoI" not in claim_b[1]
+    assert "refuted" in claim_b[2] and "0.20 [0.00, 0.40]" in claim_b[2]

@@ -34,9 +34,10 @@ def site_table(table: str) -> str:
 
 
 def results_page() -> str:
-    """The documentation site's results page as the build writes it (scripts/docs_pages.py
-    copies the committed tables of paper_figures/ into it)."""
-    return load_script("docs_pages").generated_pages()["results/index.md"]
+    """The documentation site's results pages as the build writes them (scripts/docs_pages.py
+    copies the committed tables of paper_figures/ into them), one text."""
+    pages = load_script("docs_pages").generated_pages()
+    return "\n".join(text for name, text in sorted(pages.items()) if name.startswith("results/"))
 
 
 def has_runs(preset: str) -> bool:
