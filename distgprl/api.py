@@ -12,8 +12,9 @@ Each function is a thin wrapper over the library function the CLI calls
     obs, _ = env.reset(seed=1)
     action = policy.predict(obs)        # (action_dim,) float32, in [-1, 1]
 
-Presets are the shipped ones (``paper``, ``ci``, ``correlated``) or a YAML file of the user's
-own, given as ``config=PATH`` (named after its stem, as the CLI's ``--config``). Nothing here
+Presets are the shipped ones (``paper``, ``ci``, the study presets) or a YAML file of the
+user's own, given as ``config=PATH`` (named after its stem, as the CLI's ``--preset-file``);
+a preset name may carry overrides (`distgprl.config.preset_with_overrides`). Nothing here
 imports torch or pybullet until a function is called, so ``import distgprl`` stays cheap.
 """
 

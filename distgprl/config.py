@@ -2,14 +2,23 @@
 
 A preset is shipped with the package (``distgprl/presets/<name>.yaml``, read with
 `importlib.resources`, so an installed wheel has them) or is a user's own YAML file made
-known with `register_preset` (the CLI's ``--config PATH``; its name is the file stem). It has
-one mapping per section (``env``, ``sac``, ``run``) and optional per-task overrides under
-``tasks: {dcp: {env: {...}}}``. Unknown keys (sections, fields, task names under ``tasks``)
-are an error, so a typo in a preset never silently falls back to a default; so is a value
-that does not convert to its field's type, or a ``clearance_timing`` other than
-``"predicted"`` / ``"current"``. So is a number out of its field's range (`BOUNDS`: no
-negative weight, step count or scale; counts of at least one), or a window layout that does
-not fit the via-points (`check_config`). Every such error is one `ConfigError` line (a
+known with `register_preset` (the CLI's ``--preset-file PATH``; its name is the file stem). It
+has one mapping per section (``env``, ``sac``, ``run``) and optional per-task overrides under
+``tasks: {dcp: {env: {...}}}``. ``extends: NAME`` makes it the preset ``NAME`` with its own
+values on top: the parent's configuration for the task is resolved first (its ``extends``
+included), then the file's sections, then its ``tasks`` entry for the task.
+
+A preset name may carry dotted overrides, ``paper+sac.batch_size=128+run.total_steps=300``
+(`preset_with_overrides`, the CLI's ``--set``): the preset with those values on top, one
+canonical name per configuration, so its runs have a folder and a config hash of their own
+and every process that reads the name resolves the same configuration.
+
+Unknown keys (sections, fields, task names under ``tasks``) are an error, so a typo in a
+preset never silently falls back to a default; so is a value that does not convert to its
+field's type, or a ``clearance_timing`` other than ``"predicted"`` / ``"current"``. So is a
+number out of its field's range (`distgprl.config_checks.BOUNDS`: no negative weight, step
+count or scale; counts of at least one), or a window layout that does not fit the via-points
+(`distgprl.config_checks.check_config`). Every such error is one `ConfigError` line (a
 `ValueError`, and a `UserInputError`: the CLI exits 2) naming the file, the dotted key
 (``run.total_steps``), the value and what was expected.
 """
@@ -18,7 +27,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
@@ -26,6 +35,7 @@ from typing import Any
 
 import yaml
 
+from distgprl.config_checks import check_config
 from distgprl.config_types import (
     ENVIRONMENT_VERSION,
     HASH_STABLE_DEFAULTS,
@@ -43,21 +53,32 @@ PRESET_DIR: Traversable | Path = resources.files("distgprl") / "presets"
 
 USER_PRESETS_ENV = "DISTGPRL_USER_PRESETS"
 """Environment variable listing the user's preset files (`os.pathsep`-separated absolute
-paths) that `register_preset` made known; processes a sweep spawns inherit it."""
+paths) that `register_preset` made known: how a sweep's worker processes, which inherit the
+environment, find a ``--preset-file`` preset by its name. A user may set it too, to name
+their files as presets without ``--preset-file`` (docs/reference/config.md)."""
+
+EXTENDS_KEY = "extends"
+"""The top-level key of a preset naming the preset it modifies."""
+
+OVERRIDE_SEPARATOR = "+"
+"""Separates a preset name from each of its dotted overrides (`preset_with_overrides`)."""
 
 
 __all__ = [
     "ENVIRONMENT_VERSION",
+    "EXTENDS_KEY",
     "HASH_STABLE_DEFAULTS",
+    "OVERRIDE_SEPARATOR",
     "PRESET_DIR",
     "USER_PRESETS_ENV",
     "Config",
     "EnvConfig",
     "RunConfig",
     "SACConfig",
-    "check_config",
     "load_config",
+    "parse_override",
     "preset_names",
+    "preset_with_overrides",
     "register_preset",
     "shipped_presets",
 ]
@@ -141,125 +162,6 @@ def _apply(section_cls, current, overrides: Any, where: str, section: str):
     return replace(current, **values)
 
 
-@dataclass(frozen=True)
-class Bound:
-    """The values a numeric field admits: at least ``low`` (more than it if ``strict``) and,
-    if ``high`` is set, at most ``high``."""
-
-    low: float = 0.0
-    strict: bool = False
-    high: float | None = None
-
-    def admits(self, value: float) -> bool:
-        """Whether ``value`` is in the range."""
-        above = value > self.low if self.strict else value >= self.low
-        return above and (self.high is None or value <= self.high)
-
-    def describe(self) -> str:
-        """The range in words: ``>= 0``, ``> 0``, ``in [0, 1]``."""
-        if self.high is not None:
-            return f"in [{self.low:g}, {self.high:g}]"
-        return f"{'>' if self.strict else '>='} {self.low:g}"
-
-
-NON_NEGATIVE = Bound()
-POSITIVE = Bound(strict=True)
-AT_LEAST_ONE = Bound(1)
-FRACTION = Bound(0, high=1)
-
-BOUNDS: dict[str, Bound] = {
-    "env.n_via_points": Bound(2),
-    "env.window_size": Bound(2),  # windows overlap by one via-point
-    "env.n_windows": AT_LEAST_ONE,
-    "env.position_action_scale": POSITIVE,
-    "env.rotation_action_scale": POSITIVE,
-    "env.sd_epsilon": POSITIVE,
-    "env.sd_samples_per_segment": AT_LEAST_ONE,
-    "env.blend_fraction": FRACTION,
-    "env.clearance_clip": POSITIVE,
-    "env.clearance_scale": POSITIVE,
-    "env.relative_position_scale": POSITIVE,
-    "env.signature_depth": AT_LEAST_ONE,
-    "env.signature_scale": POSITIVE,
-    "sac.learning_rate": POSITIVE,
-    "sac.buffer_size": AT_LEAST_ONE,
-    "sac.batch_size": AT_LEAST_ONE,
-    "sac.gamma": FRACTION,
-    "sac.tau": FRACTION,
-    "sac.train_freq": AT_LEAST_ONE,
-    "sac.gradient_steps": AT_LEAST_ONE,
-    "sac.net_arch": AT_LEAST_ONE,  # every layer's width
-    "sac.n_similarity_samples": AT_LEAST_ONE,
-    "sac.hap_k": AT_LEAST_ONE,
-    "sac.hap_temperature": POSITIVE,
-    "sac.hap_n_query": AT_LEAST_ONE,
-    "sac.anneal_start": POSITIVE,
-    "sac.anneal_end": POSITIVE,
-    "sac.ent_coef_init": POSITIVE,
-    **{f"run.{f.name}": AT_LEAST_ONE for f in fields(RunConfig)},
-}
-"""The range of each numeric field (``section.key``; list fields: of each item) where it is
-narrower than `NON_NEGATIVE`, the range of every other one: no weight (every ``lambda_*``
-included), penalty, distance or count is negative; step counts, sizes and periods are at
-least one; scales and rates are positive."""
-
-
-def _numbers(value: Any) -> list[float]:
-    """The numbers a field's value holds: itself, or a list field's items."""
-    items = value if isinstance(value, tuple) else (value,)
-    return [item for item in items if isinstance(item, int | float) and not isinstance(item, bool)]
-
-
-def check_config(config: Config, origin: dict[str, str]) -> None:
-    """Raise a `ConfigError` for the first value out of its range (`BOUNDS`) or values that
-    do not fit together (the windows in the via-points; stopping between episodes).
-
-    ``origin`` maps ``section.key`` to where its value was set (a file, ``overrides``);
-    ``""`` to where the defaults were merged (the preset file)."""
-
-    def fail(name: str, message: str) -> ConfigError:
-        return ConfigError(f"{origin.get(name, origin[''])}: {name} = {message}", name)
-
-    length_scale = config.env.correlation_length_scale
-    if length_scale < 0:
-        raise fail(
-            "env.correlation_length_scale",
-            f"{length_scale} must be > 0 (normalised time), or 0 for the kernel fitted to "
-            "the demonstration",
-        )
-    for section in _SECTIONS:
-        values = getattr(config, section)
-        for item in fields(values):
-            name = f"{section}.{item.name}"
-            bound = BOUNDS.get(name, NON_NEGATIVE)
-            value = getattr(values, item.name)
-            if not all(bound.admits(number) for number in _numbers(value)):
-                shown = list(value) if isinstance(value, tuple) else value
-                raise fail(name, f"{shown!r} must be {bound.describe()}")
-    env = config.env
-    if env.window_size > env.n_via_points:
-        raise fail(
-            "env.window_size",
-            f"{env.window_size} is larger than env.n_via_points = {env.n_via_points}",
-        )
-    needed = env.n_windows * (env.window_size - 1) + 3  # start, windows, last two points
-    if needed > env.n_via_points:
-        raise fail(
-            "env.window_size",
-            f"{env.window_size}: {env.n_windows} windows of {env.window_size} via-points, "
-            f"overlapping by one, need {needed} (the first and the last two are not adapted); "
-            f"env.n_via_points is {env.n_via_points}",
-        )
-    episode = env.n_windows
-    for key in ("total_steps", "eval_every", "checkpoint_every"):
-        if getattr(config.run, key) % episode:
-            raise fail(
-                f"run.{key}",
-                f"{getattr(config.run, key)} must be a multiple of the episode length "
-                f"({episode} RL steps) so that runs stop between episodes",
-            )
-
-
 def shipped_presets() -> tuple[str, ...]:
     """Names of the presets shipped with the package, sorted."""
     return tuple(
@@ -277,31 +179,37 @@ def _user_presets() -> dict[str, Path]:
 
 def register_preset(path: str | Path) -> str:
     """Make a user's YAML file (same schema as the shipped presets) a preset named after its
-    stem, for this process and the processes it starts; return that name.
+    stem, for this process and the processes it starts (`USER_PRESETS_ENV`); return that name.
 
     The file is loaded once here, so a mistake in it is reported before any run starts. Its
     location does not enter any config hash: the same file elsewhere gives the same runs.
 
     Raises:
         UserInputError: the file does not exist, does not load, its stem is a shipped preset's
-            name, or another file of the same stem is registered already.
+            name or holds `OVERRIDE_SEPARATOR`, or another file of the same stem is registered
+            already.
     """
     path = Path(path).expanduser().resolve()
     if not path.is_file():
-        raise ConfigError(f"--config {path}: no such file")
+        raise ConfigError(f"--preset-file {path}: no such file")
     if path.suffix not in (".yaml", ".yml"):
-        raise ConfigError(f"--config {path}: expected a .yaml file")
+        raise ConfigError(f"--preset-file {path}: expected a .yaml file")
     name = path.stem
     if name in shipped_presets():
         raise ConfigError(
-            f"--config {path}: its name {name!r} is a shipped preset's (shipped: "
+            f"--preset-file {path}: its name {name!r} is a shipped preset's (shipped: "
             f"{', '.join(shipped_presets())}); rename the file so its runs are not mistaken "
             "for the shipped preset's"
+        )
+    if OVERRIDE_SEPARATOR in name:
+        raise ConfigError(
+            f"--preset-file {path}: its name {name!r} holds {OVERRIDE_SEPARATOR!r}, which "
+            "separates a preset from its --set overrides; rename the file"
         )
     registered = _user_presets()
     if name in registered and registered[name] != path:
         raise ConfigError(
-            f"--config {path}: a preset named {name!r} is registered already from "
+            f"--preset-file {path}: a preset named {name!r} is registered already from "
             f"{registered[name]}; rename one of the files"
         )
     if name in registered:
@@ -341,24 +249,104 @@ def _preset_text(preset: str) -> tuple[str, str]:
             raise ConfigError(f"preset {preset!r} ({user}): {exc.strerror}") from None
     raise ConfigError(
         f"unknown preset {preset!r}; valid presets: {', '.join(preset_names())} "
-        "(or --config PATH for a YAML file of your own)",
+        "(or --preset-file PATH for a YAML file of your own)",
         "preset",
     )
 
 
-def load_config(
-    preset: str = "paper",
-    task: str | None = None,
-    overrides: dict[str, dict[str, Any]] | None = None,
-) -> Config:
-    """Resolve a preset (and the task's overrides in it) into a `Config`.
+# -- dotted overrides: ``--set section.key=value`` ------------------------------------------
 
-    ``preset`` is a shipped preset's name or a registered user preset's (`register_preset`).
+
+def _format_value(value: Any) -> str:
+    """A converted field value as the name of a preset with overrides writes it: YAML that
+    reads back as the same value, without `OVERRIDE_SEPARATOR` (``1e20``, not ``1e+20``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple):
+        return "[" + ",".join(_format_value(item) for item in value) + "]"
+    if isinstance(value, float):
+        return repr(value).replace("e+", "e")
+    return str(value)
+
+
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """``"section.key=value"`` as (section, key, value): the value read as YAML (a scalar, or
+    a flow list such as ``[128,128]`` for a list field) and converted to the field's type.
 
     Raises:
-        ConfigError: the preset is unknown, not YAML, or has a key, a value or a combination
-            of values that is wrong (module docstring); one line naming the file and the key.
+        ConfigError: not ``section.key=value``, an unknown section or key (named, with the
+            valid ones), a value that is not YAML or does not convert to the field's type.
     """
+    where = f"--set {text}"
+    dotted, equals, value_text = text.partition("=")
+    section, dot, key = dotted.strip().partition(".")
+    if not equals or not dot or not key or not value_text.strip():
+        raise ConfigError(f"{where}: expected section.key=value (e.g. sac.batch_size=128)")
+    if section not in _SECTIONS:
+        raise ConfigError(
+            f"{where}: unknown section {section!r}; valid: {', '.join(_SECTIONS)}", section
+        )
+    names = [item.name for item in fields(_SECTIONS[section])]
+    if key not in names:
+        raise ConfigError(
+            f"{where}: unknown key {section}.{key}; valid: {', '.join(names)}", f"{section}.{key}"
+        )
+    try:
+        value = yaml.safe_load(value_text)
+    except yaml.YAMLError:
+        raise ConfigError(f"{where}: the value is not valid YAML", f"{section}.{key}") from None
+    default = getattr(getattr(Config(), section), key)
+    return section, key, _convert(key, value, default, where, section)
+
+
+def preset_with_overrides(preset: str, overrides: list[str] | tuple[str, ...]) -> str:
+    """The name of ``preset`` with the dotted overrides ``overrides`` (``section.key=value``,
+    `parse_override`) on top: ``paper+sac.batch_size=128``, the keys sorted and each value
+    written as `_format_value` writes it, so one configuration has one name.
+
+    Raises:
+        ConfigError: a bad override (`parse_override`), a key given twice, or ``preset``
+            already carrying overrides.
+    """
+    if OVERRIDE_SEPARATOR in preset:
+        raise ConfigError(f"preset {preset!r} has overrides already; give them all with --set")
+    values: dict[str, str] = {}
+    for text in overrides:
+        section, key, value = parse_override(text)
+        dotted = f"{section}.{key}"
+        if dotted in values:
+            raise ConfigError(f"--set {text}: {dotted} is given twice", dotted)
+        values[dotted] = _format_value(value)
+    parts = [preset, *(f"{dotted}={values[dotted]}" for dotted in sorted(values))]
+    return OVERRIDE_SEPARATOR.join(parts)
+
+
+def _split_overrides(preset: str) -> tuple[str, dict[str, dict[str, Any]]]:
+    """(base preset, overrides by section) of a preset name with overrides; a `ConfigError`
+    if the name is not the canonical one `preset_with_overrides` gives."""
+    base, *parts = preset.split(OVERRIDE_SEPARATOR)
+    sections: dict[str, dict[str, Any]] = {}
+    for text in parts:
+        section, key, value = parse_override(text)
+        sections.setdefault(section, {})[key] = value
+    canonical = preset_with_overrides(base, parts)
+    if canonical != preset:
+        raise ConfigError(
+            f"preset {preset!r}: write it as {canonical!r} (keys sorted, each once, values "
+            "as --set writes them), the one name of this configuration",
+            "preset",
+        )
+    return base, sections
+
+
+# -- resolving a preset ----------------------------------------------------------------------
+
+_Layer = tuple[Any, str, str]
+"""A layer of values, where it was set (for messages) and its dotted name (for errors)."""
+
+
+def _read_preset(preset: str) -> tuple[dict[str, Any], str]:
+    """(mapping, file) of a preset's YAML, its ``tasks`` entry checked."""
     text, path = _preset_text(preset)
     try:
         data = yaml.safe_load(text) or {}
@@ -377,17 +365,60 @@ def load_config(
             f"valid: {', '.join(TASK_NAMES)}",
             f"tasks.{unknown_tasks[0]}",
         )
-    config = Config(preset=preset)
-    layers = [(data, str(path), {"tasks"}, "")]
+    return data, path
+
+
+def _preset_layers(
+    preset: str, task: str | None, chain: tuple[str, ...] = ()
+) -> tuple[list[_Layer], str]:
+    """(The layers a preset's configuration for ``task`` is built from, first to last: its
+    parent's (``extends``, recursively), then its own sections, then its ``tasks`` entry;
+    the preset's file)."""
+    data, path = _read_preset(preset)
+    layers: list[_Layer] = []
+    parent = data.get(EXTENDS_KEY)
+    if parent is not None:
+        if not isinstance(parent, str):
+            raise ConfigError(f"{path}: extends must be a preset name, got {parent!r}", "extends")
+        if parent in (*chain, preset):
+            cycle = " -> ".join((*chain, preset, parent))
+            raise ConfigError(f"{path}: extends makes a cycle ({cycle})", "extends")
+        layers = _preset_layers(parent, task, (*chain, preset))[0]
+    own = {key: value for key, value in data.items() if key not in ("tasks", EXTENDS_KEY)}
+    layers.append((own, path, ""))
+    tasks = data.get("tasks") or {}
     if task is not None and task in tasks:
-        layers.append((tasks[task] or {}, f"{path}: tasks.{task}", set(), f"tasks.{task}"))
+        layers.append((tasks[task] or {}, f"{path}: tasks.{task}", f"tasks.{task}"))
+    return layers, path
+
+
+def load_config(
+    preset: str = "paper",
+    task: str | None = None,
+    overrides: dict[str, dict[str, Any]] | None = None,
+) -> Config:
+    """Resolve a preset (its parents, the task's overrides in each, the dotted overrides its
+    name carries) into a `Config`; ``overrides`` (by section) go on top.
+
+    ``preset`` is a shipped preset's name or a registered user preset's (`register_preset`),
+    with or without dotted overrides (`preset_with_overrides`); `Config.preset` is that name.
+
+    Raises:
+        ConfigError: the preset is unknown, not YAML, or has a key, a value or a combination
+            of values that is wrong (module docstring); one line naming the file and the key.
+    """
+    base, dotted = _split_overrides(preset) if OVERRIDE_SEPARATOR in preset else (preset, {})
+    layers, path = _preset_layers(base, task)
+    if dotted:
+        layers.append((dotted, "--set", "--set"))
     if overrides:
-        layers.append((overrides, "overrides", set(), "overrides"))
-    origin = {"": str(path)}  # where each key's value was last set, for `check_config`
-    for layer, where, extra, name in layers:
+        layers.append((overrides, "overrides", "overrides"))
+    config = Config(preset=preset)
+    origin = {"": path}  # where each key's value was last set, for `check_config`
+    for layer, where, name in layers:
         if not isinstance(layer, dict):
             raise ConfigError(f"{where}: must be a mapping of sections, got {layer!r}", name)
-        unknown = sorted(set(layer) - set(_SECTIONS) - extra, key=str)
+        unknown = sorted(set(layer) - set(_SECTIONS), key=str)
         if unknown:
             raise ConfigError(
                 f"{where}: unknown section(s) {', '.join(map(str, unknown))}; valid: "
@@ -401,6 +432,6 @@ def load_config(
                 origin.update({f"{section}.{key}": where for key in layer[section]})
     check_config(config, origin)
     check_reward_scale(
-        config.env, origin.get("env.progress_weight", str(path)), (task,) if task else TASK_NAMES
+        config.env, origin.get("env.progress_weight", path), (task,) if task else TASK_NAMES
     )
     return config

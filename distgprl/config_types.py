@@ -217,7 +217,8 @@ class Config:
     """A resolved configuration (what `config.json` of a run records).
 
     Attributes:
-        preset: the preset's name (a shipped preset, or the stem of a ``--config`` file).
+        preset: the preset's name (a shipped preset, or the stem of a ``--preset-file``
+            file), with the ``--set`` overrides it carries (``paper+sac.batch_size=128``).
         env: the adaptation MDP (`EnvConfig`).
         sac: SAC and the regularised actor loss (`SACConfig`).
         run: training and evaluation sizes (`RunConfig`).

@@ -10,7 +10,7 @@ class RunBusyError(UserInputError):
 
 
 class ConfigError(UserInputError, ValueError):
-    """A configuration that does not load (a preset, a ``--config`` file or overrides): a
+    """A configuration that does not load (a preset, a ``--preset-file`` file or overrides): a
     key that is not one, a value of the wrong type or out of its range, or values that do
     not fit together. The message is one line naming the file and the key; ``key`` is the
     key's dotted name (``run.total_steps``, ``sac.lambda_sim``, ``tasks.dmb``), or empty when

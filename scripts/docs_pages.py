@@ -753,6 +753,7 @@ API_PAGES: dict[str, str] = {
 
 CORE_MODULES = (
     "config",
+    "config_checks",
     "config_types",
     "reward_scale",
     "trial_protocol",

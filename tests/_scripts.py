@@ -1,5 +1,5 @@
-"""The modules of ``scripts/`` (not a package: ``docs_pages``, ``readme_results``), for the
-tests that check what they write."""
+"""The modules of ``scripts/`` (not a package: ``docs_pages``, ``readme_results``) and of
+``benchmarks/``, for the tests that check what they write."""
 
 from __future__ import annotations
 
@@ -13,9 +13,10 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 
 
 @cache
-def load_script(name: str) -> ModuleType:
-    """The module ``scripts/<name>.py``, loaded from its file (once per test process)."""
-    spec = importlib.util.spec_from_file_location(name, REPOSITORY / "scripts" / f"{name}.py")
+def load_script(name: str, folder: str = "scripts") -> ModuleType:
+    """The module ``<folder>/<name>.py`` (``scripts/`` or ``benchmarks/``), loaded from its
+    file (once per test process)."""
+    spec = importlib.util.spec_from_file_location(name, REPOSITORY / folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module  # a dataclass looks its module up there

@@ -4,6 +4,7 @@ fallback to a default or a raw Python traceback."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import pytest
@@ -127,7 +128,7 @@ def test_a_negative_correlation_length_scale_is_refused_at_load_time(preset_dir)
         load_config(preset_dir("env:\n  correlation_length_scale: -0.1\n"))
 
 
-# -- shipped presets and the user's own (--config PATH) ----------------------------------------
+# -- shipped presets and the user's own (--preset-file PATH) -----------------------------------
 @pytest.fixture
 def no_user_presets(monkeypatch):
     """No user preset registered, and whatever a test registers undone afterwards."""
@@ -219,3 +220,151 @@ def test_a_user_preset_that_does_not_load_is_reported_and_not_registered(tmp_pat
         assert "bad" not in config_module.preset_names()
     with pytest.raises(UserInputError, match="no such file"):
         config_module.register_preset(tmp_path / "missing.yaml")
+
+
+# -- extends: a preset that modifies another ---------------------------------------------------
+def test_a_preset_that_extends_another_is_its_parent_with_its_own_values_on_top(preset_dir):
+    """For each task the parent's configuration (its ``tasks`` entry included) is resolved
+    first, then the child's sections, then the child's ``tasks`` entry."""
+    folder = config_module.PRESET_DIR
+    (folder / "base.yaml").write_text(
+        "sac:\n  batch_size: 64\n  learning_starts: 30\nrun:\n  total_steps: 300\n"
+        "tasks:\n  dbm:\n    run:\n      total_steps: 600\n      eval_every: 30\n"
+    )
+    child = preset_dir(
+        "extends: base\nsac:\n  batch_size: 32\ntasks:\n  dbm:\n    sac:\n      batch_size: 16\n"
+    )
+    dcp, dbm = load_config(child, task="dcp"), load_config(child, task="dbm")
+    assert dcp.preset == dbm.preset == "t"
+    assert (dcp.sac.batch_size, dcp.sac.learning_starts, dcp.run.total_steps) == (32, 30, 300)
+    assert (dbm.sac.batch_size, dbm.run.total_steps, dbm.run.eval_every) == (16, 600, 30)
+    assert load_config(child).run == replace(Config().run, total_steps=300)
+
+
+def test_a_childs_section_overrides_its_parents_task_entry(preset_dir):
+    """The parent resolved for the task comes first: the child's ``run.total_steps`` wins over
+    the parent's ``tasks.dbm.run.total_steps`` (what "override only what differs" means)."""
+    (config_module.PRESET_DIR / "base.yaml").write_text(
+        "tasks:\n  dbm:\n    run:\n      total_steps: 600\n      eval_every: 30\n"
+    )
+    child = preset_dir("extends: base\nrun:\n  total_steps: 900\n")
+    dbm = load_config(child, task="dbm")
+    assert (dbm.run.total_steps, dbm.run.eval_every) == (900, 30)
+
+
+def test_extends_chains_through_several_parents(preset_dir):
+    folder = config_module.PRESET_DIR
+    (folder / "a.yaml").write_text("sac:\n  batch_size: 64\n  learning_starts: 30\n")
+    (folder / "b.yaml").write_text("extends: a\nsac:\n  learning_starts: 60\n")
+    config = load_config(preset_dir("extends: b\nrun:\n  total_steps: 300\n"))
+    assert (config.sac.batch_size, config.sac.learning_starts, config.run.total_steps) == (
+        64,
+        60,
+        300,
+    )
+
+
+@pytest.mark.parametrize(
+    ("files", "message"),
+    [
+        ({"t": "extends: t\n"}, r"extends makes a cycle \(t -> t\)"),
+        ({"t": "extends: a\n", "a": "extends: t\n"}, r"extends makes a cycle \(t -> a -> t\)"),
+        ({"t": "extends: nowhere\n"}, "unknown preset 'nowhere'"),
+        ({"t": "extends: [a]\n"}, r"extends must be a preset name, got \['a'\]"),
+        ({"t": "extends: a\n", "a": "sac:\n  batchsize: 3\n"}, r"a.yaml: unknown key\(s\) sac"),
+    ],
+)
+def test_a_bad_parent_is_one_error_naming_the_file(preset_dir, files, message):
+    for name, text in files.items():
+        (config_module.PRESET_DIR / f"{name}.yaml").write_text(text)
+    with pytest.raises(UserInputError, match=message) as caught:
+        load_config("t")
+    assert "\n" not in str(caught.value)
+
+
+# -- dotted overrides (--set section.key=value) ------------------------------------------------
+def test_overrides_give_one_canonical_name_that_resolves_to_the_preset_with_those_values():
+    name = config_module.preset_with_overrides(
+        "ci", ["sac.learning_rate=3e-4", "sac.batch_size=32", "run.total_steps = 300"]
+    )
+    assert name == "ci+run.total_steps=300+sac.batch_size=32+sac.learning_rate=0.0003"
+    config = load_config(name, task="dbm")
+    assert config.preset == name
+    assert config == replace(
+        load_config("ci", task="dbm"),
+        preset=name,
+        sac=replace(load_config("ci").sac, batch_size=32, learning_rate=3e-4),
+        run=replace(load_config("ci").run, total_steps=300),
+    )
+    assert config_module.preset_with_overrides("ci", []) == "ci"
+
+
+@pytest.mark.parametrize(
+    ("override", "value"),
+    [
+        ("sac.net_arch=[64, 32]", (64, 32)),
+        ("sac.hap_hinge=true", True),
+        ("env.clearance_timing=current", "current"),
+        ("sac.learning_rate=1e20", 1e20),  # repr 1e+20: the name must not hold the separator
+        ("env.sd_d_min=1", 1.0),  # an integer for a float field
+    ],
+)
+def test_every_kind_of_value_reads_back_from_the_name(override, value):
+    name = config_module.preset_with_overrides("ci", [override])
+    assert name.count(config_module.OVERRIDE_SEPARATOR) == 1
+    section, key = override.split("=")[0].split(".")
+    assert getattr(getattr(load_config(name), section), key) == value
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["sac.batchsize=128"], r"unknown key sac.batchsize; valid: learning_rate, "),
+        (["sack.batch_size=128"], r"unknown section 'sack'; valid: env, sac, run"),
+        (["sac.batch_size"], "expected section.key=value"),
+        (["batch_size=128"], "expected section.key=value"),
+        (["sac.batch_size=many"], "sac.batch_size must be an integer, got 'many'"),
+        (["sac.batch_size=[1"], "the value is not valid YAML"),
+        (["sac.batch_size=1", "sac.batch_size=2"], "sac.batch_size is given twice"),
+    ],
+)
+def test_a_bad_override_is_one_error_naming_it(overrides, message):
+    with pytest.raises(UserInputError, match=message) as caught:
+        config_module.preset_with_overrides("ci", overrides)
+    assert "\n" not in str(caught.value)
+
+
+def test_an_override_out_of_range_is_refused_when_the_preset_loads():
+    with pytest.raises(UserInputError, match=r"--set: sac.batch_size = 0 must be >= 1"):
+        load_config(config_module.preset_with_overrides("ci", ["sac.batch_size=0"]))
+
+
+@pytest.mark.parametrize(
+    "name", ["ci+sac.batch_size=32+run.total_steps=300", "ci+sac.learning_rate=3e-4"]
+)
+def test_a_name_written_other_than_the_canonical_way_is_refused_with_it(name):
+    """One configuration, one name (one folder, one hash): unsorted keys or another spelling
+    of a value are refused with the name to use."""
+    with pytest.raises(UserInputError, match=re.escape("write it as 'ci+")):
+        load_config(name)
+
+
+def test_an_override_enters_the_run_hash_and_the_recorded_config():
+    """`config.json` records ``run.to_dict()``: the name with its overrides and the value."""
+    from distgprl.identity import resolve_run
+
+    plain = resolve_run("dcp", "dist-gprl", 0, "paper")
+    name = config_module.preset_with_overrides("paper", ["sac.batch_size=128"])
+    changed = resolve_run("dcp", "dist-gprl", 0, name)
+    assert changed.hash != plain.hash
+    recorded = changed.to_dict()["config"]
+    assert recorded["preset"] == "paper+sac.batch_size=128"
+    assert recorded["sac"]["batch_size"] == 128
+    same_value = config_module.preset_with_overrides("paper", ["sac.batch_size=256"])
+    assert resolve_run("dcp", "dist-gprl", 0, same_value).hash != plain.hash
+
+
+def test_a_user_preset_name_may_not_hold_the_override_separator(tmp_path, no_user_presets):
+    (tmp_path / "a+b.yaml").write_text("")
+    with pytest.raises(UserInputError, match="holds '\\+'"):
+        config_module.register_preset(tmp_path / "a+b.yaml")

@@ -1,11 +1,11 @@
-"""Bad configurations (issue 52, item 4): a ``--config`` YAML with an unknown key, a value of
+"""Bad configurations (issue 52, item 4): a ``--preset-file`` YAML with an unknown key, a value of
 the wrong type, zero or negative steps, a negative lambda weight or a window larger than the
 via-points is one `ConfigError` (a `ValueError`) naming the key from the Python API, and exit
 code 2 with that one line from the CLI; random valid values load as given; the CLI's numeric
 options refuse non-positive counts (and negative seeds) with exit code 2.
 
 Property tests (hypothesis) draw the keys, values and options; the example tests pin one
-case of each class through ``distgprl train --config``."""
+case of each class through ``distgprl train --preset-file``."""
 
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ from typer.testing import CliRunner
 from distgprl import api
 from distgprl import config as config_module
 from distgprl.cli import app
-from distgprl.config import BOUNDS, CHOICES, NON_NEGATIVE, Config, EnvConfig, load_config
+from distgprl.config import CHOICES, Config, EnvConfig, load_config
+from distgprl.config_checks import BOUNDS, NON_NEGATIVE
 from distgprl.errors import ConfigError, UserInputError
 from distgprl.reward_scale import check_reward_scale
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
@@ -402,12 +403,12 @@ BAD_CONFIGS = [
     ("text", "key"), [c[1:] for c in BAD_CONFIGS], ids=[c[0] for c in BAD_CONFIGS]
 )
 def test_train_with_a_bad_config_exits_2_with_one_line_naming_the_key(tmp_path, text, key):
-    """`distgprl train --config bad.yaml`: exit 2, stderr exactly one line naming the file
+    """`distgprl train --preset-file bad.yaml`: exit 2, stderr exactly one line naming the file
     and the key, no traceback, nothing written; the Python API raises the `ConfigError`."""
     path = tmp_path / "bad.yaml"
     path.write_text(text)
     root = tmp_path / "results"
-    args = ["train", "--method", "dist-gprl", "--task", "dcp", "--config", str(path)]
+    args = ["train", "--method", "dist-gprl", "--task", "dcp", "--preset-file", str(path)]
     with no_runs():
         result = CliRunner().invoke(app, [*args, "--root", str(root)], env=WIDE)
     assert result.exit_code == 2, result.output
@@ -471,7 +472,7 @@ def test_positive_workers_and_valid_seeds_are_accepted(tmp_path_factory, workers
 
 
 def test_a_bad_config_file_is_reported_wherever_the_api_loads_it(tmp_path):
-    """`register_preset` (the API's ``config=`` and the CLI's ``--config``) raises the same
+    """`register_preset` (the API's ``config=`` and the CLI's ``--preset-file``) raises the same
     `ConfigError` as `load_config`, names the file, and leaves the file unregistered."""
     path = tmp_path / "mine.yaml"
     path.write_text("tasks:\n  dbm:\n    sac:\n      lambda_sim: -1\n")

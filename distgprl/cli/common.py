@@ -13,12 +13,12 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 
 from distgprl import __version__
-from distgprl.config import register_preset, shipped_presets
+from distgprl.config import preset_with_overrides, register_preset, shipped_presets
 from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 from distgprl.identity import SWEEP_SEEDS
 from distgprl.methods import METHODS
-from distgprl.studies import STUDIES
+from distgprl.studies import STUDIES, is_study
 
 
 def _plain_flags(params: list) -> list:
@@ -99,7 +99,8 @@ PresetOption = Annotated[
     str | None,
     typer.Option(
         metavar="NAME",
-        help=f"Shipped preset: {PRESETS_HELP} (default paper).",
+        help=f"Shipped preset: {PRESETS_HELP} (default paper), or one with overrides as "
+        "--set names it (PRESET+SECTION.KEY=VALUE).",
         show_default=False,
     ),
 ]
@@ -116,10 +117,23 @@ SweepPresetOption = Annotated[
 ConfigOption = Annotated[
     Path | None,
     typer.Option(
-        "--config",
+        "--preset-file",
         metavar="PATH",
-        help="Your own preset YAML instead of --preset (the presets' schema); the preset's "
-        "name is the file stem, which must not be a shipped preset's.",
+        help="Your own preset YAML instead of --preset (the presets' schema; `extends: paper` "
+        "takes paper's values for every key it does not set); the preset's name is the file "
+        "stem, which must not be a shipped preset's.",
+    ),
+]
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        metavar="SECTION.KEY=VALUE",
+        help="Override one value of the preset (repeatable; the value is read as YAML, e.g. "
+        "--set sac.batch_size=128). The runs are those of the preset named "
+        "PRESET+SECTION.KEY=VALUE (their own folder and config hash; that name is what "
+        "--preset takes to address them later).",
+        show_default=False,
     ),
 ]
 MethodsOption = Annotated[
@@ -140,14 +154,23 @@ SeedsOption = Annotated[
 TaskOption = Annotated[str, typer.Option(metavar="TASK", help=f"Task: {TASKS_HELP}.")]
 
 
-def resolve_preset(preset: str | None, config: Path | None) -> str:
-    """The preset a command runs: ``--preset`` (default ``paper``), or the user's ``--config``
-    file registered under its stem (`register_preset`)."""
+def resolve_preset(
+    preset: str | None, config: Path | None, overrides: list[str] | None = None
+) -> str:
+    """The preset a command runs: ``--preset`` (default ``paper``), or the user's
+    ``--preset-file`` registered under its stem (`register_preset`), with the ``--set``
+    overrides on top (`preset_with_overrides`: the name carries them)."""
     if config is None:
-        return preset or "paper"
-    if preset is not None:
-        raise UserInputError("give --preset or --config, not both")
-    return register_preset(config)
+        name = preset or "paper"
+    elif preset is not None:
+        raise UserInputError("give --preset or --preset-file, not both")
+    else:
+        name = register_preset(config)
+    if not overrides:
+        return name
+    if is_study(name):
+        raise UserInputError(f"--set applies to one preset; {name!r} is a study of several")
+    return preset_with_overrides(name, overrides)
 
 
 def runs_text(count: int) -> str:

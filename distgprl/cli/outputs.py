@@ -23,10 +23,10 @@ from distgprl.errors import UserInputError
 
 @user_errors
 def bench(
-    quick: Annotated[bool, typer.Option(help="Fewer repeats and smaller sweeps (~1 min).")] = False,
+    quick: Annotated[bool, typer.Option(help="Fewer repeats and timed steps.")] = False,
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/bench"),
 ) -> None:
-    """Adaptation latency, simulation and training throughput, scaling; JSON + figure."""
+    """The paper's §V figures: adaptation latency, env step, SAC update, suite vs floor."""
     from distgprl.experiments.bench import load_results, markdown_table, run_benchmarks
 
     path = run_benchmarks(quick, out_dir, progress=typer.echo)

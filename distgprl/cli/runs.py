@@ -18,6 +18,7 @@ from distgprl.cli.common import (
     PresetOption,
     RootOption,
     SeedsOption,
+    SetOption,
     SweepPresetOption,
     TaskOption,
     TasksOption,
@@ -36,6 +37,7 @@ from distgprl.studies import get_study, is_study, study_of_reading
 def sweep(
     preset: SweepPresetOption = None,
     config: ConfigOption = None,
+    overrides: SetOption = None,
     methods: MethodsOption = None,
     tasks: TasksOption = None,
     seeds: SeedsOption = None,
@@ -96,7 +98,7 @@ def sweep(
         stop_on_interrupt_signals,
     )
 
-    preset = resolve_preset(preset, config)
+    preset = resolve_preset(preset, config, overrides)
     jobs = plan_jobs(
         preset,
         split_list(methods),
@@ -241,6 +243,7 @@ def train(
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     preset: PresetOption = None,
     config: ConfigOption = None,
+    overrides: SetOption = None,
     steps: Annotated[
         int | None,
         typer.Option(
@@ -263,7 +266,7 @@ def train(
     from distgprl.experiments.sweep import stop_on_interrupt_signals
     from distgprl.experiments.training import train_run
 
-    preset = resolve_preset(preset, config)
+    preset = resolve_preset(preset, config, overrides)
     stop_on_interrupt_signals()
     try:
         folder = train_run(task, method, seed, preset, steps, resume, root, evaluate_after=evaluate)

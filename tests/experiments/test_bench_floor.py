@@ -58,7 +58,7 @@ def test_plain_sac_update_runs_the_products_of_the_algorithm():
     the clocked one and ``non_product_ms`` is the rest; the regulariser is put back."""
     from stable_baselines3.common.logger import configure
 
-    from distgprl.experiments.bench.training import _fill_replay_buffer
+    from distgprl.experiments.bench.sac_update import fill_replay_buffer
     from distgprl.experiments.runner import make_agent, make_env
 
     run = bench.run_spec("dcp")
@@ -66,7 +66,7 @@ def test_plain_sac_update_runs_the_products_of_the_algorithm():
     try:
         model = make_agent(env, run)
         model.set_logger(configure(None, []))
-        _fill_replay_buffer(model, env, 300)
+        fill_replay_buffer(model, env, 300)
         regulariser = model.regulariser
         assert regulariser is not None
         result = bench.sac_update_matrix_products(model, updates=2, warmup=1)

@@ -4,7 +4,7 @@ or replay buffer, or a buffer that no longer matches its manifest's SHA-256, mak
 there is none, printing one line that names the damaged file and what was done, never a
 traceback, and ending with the same model as a run that was never killed.
 
-The runs are a `ci`-like preset cut to the bone (a user preset, `--config`'s code path):
+The runs are a `ci`-like preset cut to the bone (a user preset, `--preset-file`'s code path):
 checkpoints every 6 steps, 18 steps in all, a run trains in about a second."""
 
 from __future__ import annotations
@@ -263,14 +263,14 @@ def test_a_checkpoint_written_before_manifests_that_mixes_steps_restarts(
 def test_the_cli_resumes_a_damaged_checkpoint_with_one_line_and_exit_0(
     tmp_path, preset_file, preset, uninterrupted, monkeypatch
 ):
-    """`distgprl train --config ... --resume` over an empty model.zip whose previous
+    """`distgprl train --preset-file ... --resume` over an empty model.zip whose previous
     checkpoint has an empty buffer: exit 0, one line on stderr naming both files and the
     restart, no traceback, and the model of the run that was never killed."""
     folder = kill_after_checkpoint(tmp_path, preset, 2, monkeypatch)
     paths = checkpoints.checkpoint_paths(folder)
     damage(paths["model"], "empty")
     damage(paths["previous"] / "replay_buffer.pkl", "empty")
-    args = ["train", "--method", METHOD, "--task", "dcp", "--config", str(preset_file)]
+    args = ["train", "--method", METHOD, "--task", "dcp", "--preset-file", str(preset_file)]
     args += ["--root", str(tmp_path), "--resume", "--no-evaluate"]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output

@@ -1,4 +1,5 @@
-"""Benchmarks (`distgprl bench [--quick]`): medians and spreads with warm-up and repeats.
+"""Benchmarks of the paper's §V figures (`distgprl bench [--quick]`): medians and spreads
+with warm-up and repeats.
 
 Sections of `run_benchmarks` (all measured in one process, so ratios compare like with like):
 
@@ -8,36 +9,32 @@ Sections of `run_benchmarks` (all measured in one process, so ratios compare lik
    inference of a SAC actor with the real observation size, and the total, side by side with
    the paper's figures and with naive alternatives measured in the same run (PyBullet
    ``getClosestPoints`` for the same points and shapes; re-solving the GP from scratch).
-2. One simulated episode per task (full trajectory, dynamics and contact checks); 2b. the
-   environment's step against the bare physics inside it, in process CPU time
+2. The environment's step against the bare physics inside it, in process CPU time
    (``ratios.env_step_over_bare_physics``).
 3. One SAC gradient step with the regularised actor loss (batch 256, paper network) vs plain SAC,
    in wall and in process CPU time (the latter is ``ratios.regularised_over_plain_sac_step``).
-4. Training throughput of a short real training run and where its time goes (timers around
-   simulation, IK, EDF, SAC update, ...).
-5. Scaling: adaptation time vs number of via-points and of obstacles; training throughput vs
-   number of worker processes.
-6. The paper suite's CPU-hours from a timed training step of every trainable method on every
+4. The paper suite's CPU-hours from a timed training step of every trainable method on every
    task (``suite.cpu_hours``, ``suite.hours_two_idle_cores``).
-7. The suite's floor (``suite.floor``): the matrix products of a plain SAC update, timed inside
-   real updates by a torch dispatch mode, plus the bare physics of section 2b, summed over the
+5. The suite's floor (``suite.floor``): the matrix products of a plain SAC update, timed inside
+   real updates by a torch dispatch mode, plus the bare physics of section 2, summed over the
    suite's runs; what any implementation of the same algorithm pays on this machine. Beside
    the products, the same plain updates timed without the clock give the update's framework
    work (``suite.floor.sac_update.non_product_ms``), and ``ratios.suite_over_floor`` is
-   section 6's CPU-hours over the floor's (issue 49).
+   section 4's CPU-hours over the floor's (issue 49).
 
 Every timing is wall time of the calling process; the machine's load average is recorded
-before and after, because other processes sharing the cores inflate every figure.
+before and after, because other processes sharing the cores inflate every figure. The
+studies around these figures (a simulated episode, the GP micro-benchmark, adaptation compute
+against via-points and obstacles, training throughput and its breakdown, worker scaling) are
+scripts in the repository's ``benchmarks/`` folder, built on the modules here.
 
 Modules (one per section, plus what they share; every name below is re-exported here):
 
-- `timing`: `Timing`, `measure`, `measure_interleaved`, `SectionTimers`, `machine_info`.
+- `timing`: `Timing`, `measure`, `measure_interleaved`, `machine_info`.
 - `sizes`: `BenchSizes` and the presets table `SIZE_PRESETS` (`FULL_SIZES`, `QUICK_SIZES`,
   `TINY_SIZES`); `run_spec`, the measured run.
 - `pipeline`: `AdaptationPipeline`; `baselines`: `BulletDistance` and the naive pipeline.
-- `adaptation` (1, and `bench_gp`), `simulation` (2), `environment` (2b), `training` (3, 4),
-  `scaling` (5a, 5b), `workers` (5c, and the worker protocol of ``python -m
-  distgprl.experiments.bench --worker``), `suite` (6), `floor` (7).
+- `adaptation` (1), `environment` (2), `sac_update` (3), `suite` (4), `floor` (5).
 - `markdown`, `plots`: the Markdown tables (the site's benchmarks page) and the figure;
   `run`: `run_benchmarks`, `load_results`; `cli`: the argparse `main` of ``python -m
   distgprl.experiments.bench``.
@@ -51,7 +48,6 @@ from distgprl.experiments.bench.adaptation import (
     PAPER_MS_PER_WINDOW,
     TARGET_MS_PER_EPISODE,
     bench_adaptation,
-    bench_gp,
 )
 from distgprl.experiments.bench.baselines import BulletDistance, naive_pipeline
 from distgprl.experiments.bench.cli import main
@@ -66,12 +62,7 @@ from distgprl.experiments.bench.markdown import markdown_table
 from distgprl.experiments.bench.pipeline import AdaptationPipeline
 from distgprl.experiments.bench.plots import plot_results
 from distgprl.experiments.bench.run import load_results, run_benchmarks
-from distgprl.experiments.bench.scaling import (
-    bench_obstacle_scaling,
-    bench_via_point_scaling,
-    random_boxes,
-)
-from distgprl.experiments.bench.simulation import bench_simulation
+from distgprl.experiments.bench.sac_update import bench_sac_step, fill_replay_buffer
 from distgprl.experiments.bench.sizes import (
     BENCH_METHOD,
     BENCH_TASK,
@@ -84,20 +75,7 @@ from distgprl.experiments.bench.sizes import (
     sizes_for,
 )
 from distgprl.experiments.bench.suite import bench_suite, suite_cpu_hours
-from distgprl.experiments.bench.timing import (
-    SectionTimers,
-    Timing,
-    machine_info,
-    measure,
-    measure_interleaved,
-)
-from distgprl.experiments.bench.training import bench_sac_step, bench_training, training_breakdown
-from distgprl.experiments.bench.workers import (
-    WORKER_RATE,
-    WORKER_READY,
-    bench_workers,
-    training_worker,
-)
+from distgprl.experiments.bench.timing import Timing, machine_info, measure, measure_interleaved
 
 __all__ = [
     "BENCH_METHOD",
@@ -109,26 +87,18 @@ __all__ = [
     "SIZE_PRESETS",
     "TARGET_MS_PER_EPISODE",
     "TINY_SIZES",
-    "WORKER_RATE",
-    "WORKER_READY",
     "AdaptationPipeline",
     "BenchSizes",
     "BulletDistance",
     "MatrixProductClock",
     "NumpyActor",
-    "SectionTimers",
     "Timing",
     "bench_adaptation",
     "bench_env_step",
     "bench_floor",
-    "bench_gp",
-    "bench_obstacle_scaling",
     "bench_sac_step",
-    "bench_simulation",
     "bench_suite",
-    "bench_training",
-    "bench_via_point_scaling",
-    "bench_workers",
+    "fill_replay_buffer",
     "load_results",
     "machine_info",
     "main",
@@ -137,13 +107,10 @@ __all__ = [
     "measure_interleaved",
     "naive_pipeline",
     "plot_results",
-    "random_boxes",
     "run_benchmarks",
     "run_spec",
     "sac_update_matrix_products",
     "sizes_for",
     "suite_cpu_hours",
     "suite_floor",
-    "training_breakdown",
-    "training_worker",
 ]

@@ -7,7 +7,6 @@ from pathlib import Path
 
 from distgprl.experiments.bench.markdown import markdown_table
 from distgprl.experiments.bench.run import load_results, run_benchmarks
-from distgprl.experiments.bench.workers import training_worker
 
 __all__ = ["main"]
 
@@ -17,23 +16,15 @@ DESCRIPTION = (
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m distgprl.experiments.bench [--quick] [--out DIR]``: run and print the table.
-
-    ``--worker TASK LEARNING_STARTS STEPS`` is the internal entry of `bench_workers`.
-    """
+    """``python -m distgprl.experiments.bench [--quick] [--out DIR]``: run and print the table."""
     import argparse
 
     parser = argparse.ArgumentParser(
         prog="python -m distgprl.experiments.bench", description=DESCRIPTION
     )
-    parser.add_argument("--quick", action="store_true", help="~1 minute instead of ~10")
+    parser.add_argument("--quick", action="store_true", help="fewer repeats and timed steps")
     parser.add_argument("--out", type=Path, default=Path("results/bench"))
-    parser.add_argument("--worker", nargs=3, metavar=("TASK", "LEARNING_STARTS", "STEPS"))
     args = parser.parse_args(argv)
-    if args.worker:
-        task, learning_starts, steps = args.worker
-        training_worker(task, int(learning_starts), int(steps))
-        return
     start = time.perf_counter()
     path = run_benchmarks(
         args.quick,

@@ -73,11 +73,6 @@ def markdown_table(document: dict[str, Any]) -> str:
         "| Other | median (p10–p90) |",
         "|---|---|",
     ]
-    for task, sim in document["simulation"].items():
-        lines.append(
-            f"| simulated episode, {task} ({sim['control_steps']} control steps, "
-            f"{sim['physics_steps']} physics steps), ms | {_fmt_ms(sim['episode'], 1)} |"
-        )
     for task, env in document.get("environment", {}).items():  # not in files before issue 29
         lines.append(
             f"| env step, {task}, process CPU, ms (over the bare physics in it) | "
@@ -97,17 +92,6 @@ def markdown_table(document: dict[str, Any]) -> str:
             f"| SAC gradient step, process CPU time, regularised / plain, ms | "
             f"{_fmt_ms(sac['cpu_regularised'], 2)} / {_fmt_ms(sac['cpu_plain'], 2)} "
             f"(ratio {sac['cpu_regularised_over_plain']:.2f}) |"
-        )
-    training = document["training"]
-    lines.append(
-        f"| training throughput ({training['task']}/{training['method']}, 1 process, with the "
-        f"breakdown's section timers), steps/s | "
-        f"{training['steps_per_s']:.1f} |"
-    )
-    for row in document["scaling"]["workers"]:
-        lines.append(
-            f"| training throughput, {row['workers']} independent process(es), aggregate steps/s "
-            f"| {row['aggregate_steps_per_s']:.1f} |"
         )
     if "suite" in document:
         suite = document["suite"]
@@ -138,7 +122,4 @@ def markdown_table(document: dict[str, Any]) -> str:
             ratio = document["ratios"].get("suite_over_floor")
             if ratio is not None:
                 lines.append(f"| suite CPU-hours over its floor's | {ratio:.2f} |")
-    lines += ["", "| Where a training step's time goes | ms/step | share |", "|---|---|---|"]
-    for name, part in sorted(training["breakdown"].items(), key=lambda kv: -kv[1]["fraction"]):
-        lines.append(f"| {name} | {part['ms_per_step']:.2f} | {100 * part['fraction']:.0f}% |")
     return "\n".join(lines) + "\n"

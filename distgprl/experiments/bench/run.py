@@ -13,13 +13,10 @@ from distgprl.experiments.bench.adaptation import bench_adaptation
 from distgprl.experiments.bench.environment import bench_env_step
 from distgprl.experiments.bench.floor import bench_floor, sac_update_matrix_products
 from distgprl.experiments.bench.plots import plot_results
-from distgprl.experiments.bench.scaling import bench_obstacle_scaling, bench_via_point_scaling
-from distgprl.experiments.bench.simulation import bench_simulation
+from distgprl.experiments.bench.sac_update import bench_sac_step
 from distgprl.experiments.bench.sizes import BenchSizes, run_spec, sizes_for
 from distgprl.experiments.bench.suite import bench_suite
 from distgprl.experiments.bench.timing import machine_info
-from distgprl.experiments.bench.training import bench_sac_step, bench_training
-from distgprl.experiments.bench.workers import bench_workers
 
 __all__ = ["load_results", "run_benchmarks"]
 
@@ -33,7 +30,7 @@ def run_benchmarks(
     """Run every benchmark section; write ``bench_<quick|full>.json`` and ``.png`` in ``out_dir``.
 
     Args:
-        quick: the ~1 minute version (fewer repeats, smaller sweeps) instead of ~10 minutes.
+        quick: the short version (`QUICK_SIZES`: fewer repeats and timed steps).
         out_dir: output folder (created).
         sizes: explicit sizes (overrides ``quick``; the tests use `TINY_SIZES`).
         progress: called with a short message before each section (e.g. ``print``).
@@ -59,26 +56,15 @@ def run_benchmarks(
         model = make_agent(env, run)
         env.reset(seed=0)
         adaptation = bench_adaptation(env, model, sizes)
-        say("adaptation vs obstacles")
-        env.reset(seed=0)
-        obstacles = bench_obstacle_scaling(env, model, sizes)
         say("SAC gradient step")
         sac_step = bench_sac_step(env, model, sizes.sac_repeats)
         say("matrix products of a plain SAC update (the suite's floor)")
         update_floor = sac_update_matrix_products(model, sizes.sac_repeats)
         env.close()
-        say("adaptation vs via-points")
-        via_points = bench_via_point_scaling(sizes)
     finally:
         torch.set_num_threads(threads)
-    say("simulated episodes")
-    simulation = {task: bench_simulation(task, sizes.sim_episodes) for task in sizes.tasks}
     say("environment step vs bare physics")
     environment = {task: bench_env_step(task, sizes.env_episodes) for task in sizes.tasks}
-    say("training throughput and breakdown")
-    training = bench_training(sizes)
-    say("training throughput vs workers")
-    workers = bench_workers(sizes)
     say("suite cost: a training step of every method and task")
     suite = bench_suite(sizes)
     suite["floor"] = bench_floor(update_floor, environment, suite)
@@ -89,7 +75,6 @@ def run_benchmarks(
         "load_average_after": list(os.getloadavg()),
         "wall_time_s": time.perf_counter() - started,
         "adaptation": adaptation,
-        "simulation": simulation,
         "environment": environment,
         "sac_step": sac_step,
         "ratios": {
@@ -103,8 +88,6 @@ def run_benchmarks(
             "suite_over_floor": suite["cpu_hours"] / suite["floor"]["cpu_hours"],
         },
         "suite": suite,
-        "training": training,
-        "scaling": {"via_points": via_points, "obstacles": obstacles, "workers": workers},
     }
     out_dir = Path(out_dir)
     name = "bench_quick" if quick else "bench_full"

@@ -34,17 +34,10 @@ class BenchSizes:
         inner: calls per sample of the fast (microsecond) operations.
         naive_repeats: samples of the slow naive alternatives (PyBullet, GP re-solve).
         in_env_episodes: real environment episodes whose recorded adaptation time is reported.
-        sim_episodes: simulated episodes per task.
         env_episodes: environment episodes per task of the env-step vs physics section.
-        tasks: tasks of the simulation benchmark.
+        tasks: tasks of the env-step and the suite-cost sections.
         sac_repeats: samples of one SAC gradient step (regularised and plain, interleaved).
-        learning_starts: random-action steps before gradient steps start (not timed).
-        training_steps: timed training steps (each: env step + one gradient step).
-        worker_steps: timed training steps per worker in the worker-scaling runs.
-        workers: worker counts of the worker-scaling runs (independent processes).
-        via_points: via-point counts of the via-point scaling curve.
-        obstacles: box counts of the obstacle scaling curve.
-        scaling_repeats: samples per point of the scaling curves.
+        learning_starts: random-action steps before the suite's timed training steps.
         suite_steps: timed training steps per (method, task) of the suite-cost section.
     """
 
@@ -52,17 +45,10 @@ class BenchSizes:
     inner: int
     naive_repeats: int
     in_env_episodes: int
-    sim_episodes: int
     env_episodes: int
     tasks: tuple[str, ...]
     sac_repeats: int
     learning_starts: int
-    training_steps: int
-    worker_steps: int
-    workers: tuple[int, ...]
-    via_points: tuple[int, ...]
-    obstacles: tuple[int, ...]
-    scaling_repeats: int
     suite_steps: int
 
 
@@ -75,17 +61,10 @@ _PRESET_TABLE: dict[str, tuple[Any, Any, Any]] = {
     "inner":           (10,                      5,                 2),
     "naive_repeats":   (40,                      8,                 2),
     "in_env_episodes": (30,                      5,                 1),
-    "sim_episodes":    (20,                      2,                 1),
     "env_episodes":    (10,                      3,                 1),
     "tasks":           (TASK_NAMES,              TASK_NAMES,        TASK_NAMES[:1]),
     "sac_repeats":     (60,                      12,                2),
     "learning_starts": (60,                      20,                6),
-    "training_steps":  (1200,                    60,                6),
-    "worker_steps":    (450,                     45,                6),
-    "workers":         ((1, 2),                  (1, 2),            (1,)),
-    "via_points":      ((15, 30, 45, 60),        (15, 60),          (15, 30)),
-    "obstacles":       ((1, 2, 4, 8, 16, 32),    (1, 8, 32),        (1, 4)),
-    "scaling_repeats": (60,                      10,                2),
     "suite_steps":     (150,                     30,                3),
 }  # fmt: skip
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SectionTimers", "Timing", "machine_info", "measure", "measure_interleaved"]
+__all__ = ["Timing", "machine_info", "measure", "measure_interleaved"]
 
 
 @dataclass(frozen=True)
@@ -86,31 +86,6 @@ def measure_interleaved(
                 func()
             samples[name][i] = (clock() - start) / inner
     return {name: Timing.from_samples(values) for name, values in samples.items()}
-
-
-class SectionTimers:
-    """Inclusive wall time and call counts of wrapped instance methods (cheap: ~0.3 us/call)."""
-
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {}
-        self.calls: dict[str, int] = {}
-
-    def wrap(self, owner: object, attribute: str, name: str) -> None:
-        """Replace ``owner.attribute`` (a callable) by a timed wrapper adding into ``name``."""
-        original = getattr(owner, attribute)
-        self.seconds.setdefault(name, 0.0)
-        self.calls.setdefault(name, 0)
-        seconds, calls, clock = self.seconds, self.calls, time.perf_counter
-
-        def timed(*args: Any, **kwargs: Any) -> Any:
-            start = clock()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                seconds[name] += clock() - start
-                calls[name] += 1
-
-        setattr(owner, attribute, timed)
 
 
 def machine_info() -> dict[str, Any]:
