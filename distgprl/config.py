@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import fields, replace
 from importlib import resources
 from importlib.resources.abc import Traversable
@@ -119,15 +120,7 @@ def _convert(key: str, value: Any, default: Any, where: str, section: str) -> An
             raise bad("an integer")
         return value
     if isinstance(default, float):
-        if isinstance(value, bool):
-            raise bad("a number")
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            raise bad("a number") from None
-        if not math.isfinite(number):
-            raise bad("a finite number")
-        return number
+        return _finite_number(value, bad)
     if isinstance(default, str):
         if not isinstance(value, str):
             raise bad("a string")
@@ -135,6 +128,19 @@ def _convert(key: str, value: Any, default: Any, where: str, section: str) -> An
             raise bad(" or ".join(repr(choice) for choice in CHOICES[key]))
         return value
     return value
+
+
+def _finite_number(value: Any, bad: Callable[[str], ConfigError]) -> float:
+    """``value`` as a finite float (a bool is not a number), else ``bad``'s error."""
+    if isinstance(value, bool):
+        raise bad("a number")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise bad("a number") from None
+    if not math.isfinite(number):
+        raise bad("a finite number")
+    return number
 
 
 def _is_int(value: Any) -> bool:
