@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pybullet
 import pytest
-from _reference_edf import reference_distance
+from _reference_edf import reference_distance, rounding_bounds
 from pybullet_utils.bullet_client import BulletClient
 from scipy.spatial.transform import Rotation
 
@@ -277,12 +277,28 @@ def test_dynamic_shift_measures_each_point_against_the_moved_dynamic_shapes():
     np.testing.assert_array_equal(zero[0], plain[0])
 
 
+def assert_within_rounding(actual, expected, bound, what):
+    """|actual - expected| <= bound elementwise (bound (n,) per row), naming the worst row."""
+    excess = np.abs(actual - expected).reshape(len(bound), -1).max(axis=1) - bound
+    worst = int(np.argmax(excess))
+    assert excess[worst] <= 0.0, (
+        f"{what} at {worst}: {actual[worst]} vs {expected[worst]}, bound {bound[worst]:.3g}"
+    )
+
+
 def test_distance_equals_the_numpy_evaluation_of_its_rules():
     """`distance` (two compiled passes, issue 66) equals v7's NumPy array evaluation of the
     same rules (`_reference_edf.reference_distance`) on random boxes, cylinders and planes,
-    outside and inside the shapes, with and without a dynamic shift. Tolerance: 1e-15 m in
-    d and 1e-12 in the unit gradient — the two differ only in the rounding of the local
-    coordinates (plain sums against a BLAS product) and of the gradient's rotation."""
+    outside and inside the shapes, with and without a dynamic shift, within the rounding
+    bound `_reference_edf.rounding_bounds` derives per point: the two sum the local
+    coordinates in different orders (plain sums against a BLAS product, whose kernel, e.g.
+    FMA chains under AVX-512, is the machine's), so they may differ by a few ulps of the
+    terms' magnitudes — for a plane, folded as a box of half extent 1 km, that is ulps of
+    1 000 m (1.1e-13 m each) — and, in the gradient, by that times the condition of the
+    direction at the point (1 / outside distance, 1 / radial distance for a cylinder). Bound
+    (2 gamma_13 (|M| + |h|) in d, 5.9e-15 to 7.9e-12 m here): a rule off by 1e-9 fails.
+    Points where rounding could change the nearest shape or face are not compared in the
+    gradient (none in these scenes)."""
     rng = np.random.default_rng(66)
     for _ in range(4):
         shapes = random_scene(rng)
@@ -294,11 +310,22 @@ def test_distance_equals_the_numpy_evaluation_of_its_rules():
         for dynamic_shift in (None, shift):
             d, grad = field.distance(points, dynamic_shift)
             d_ref, grad_ref = reference_distance(field, points, dynamic_shift)
-            np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-15)
-            np.testing.assert_allclose(grad, grad_ref, rtol=0, atol=1e-12)
+            d_bound, grad_bound = rounding_bounds(field, points, dynamic_shift)
+            assert_within_rounding(d, d_ref, d_bound, "d")
+            compared = ~np.isnan(grad_bound)
+            assert compared.mean() > 0.95
+            assert_within_rounding(
+                grad[compared], grad_ref[compared], grad_bound[compared], "gradient"
+            )
         solids = DistanceField([s for s in shapes if not isinstance(s, Plane)])
         outside = points[reference_distance(solids, points)[0] > 0.0]  # no point touches
         assert len(outside) > 100
-        np.testing.assert_allclose(
-            solids.distance(outside)[1], reference_distance(solids, outside)[1], atol=1e-12
+        grad_bound = rounding_bounds(solids, outside)[1]
+        compared = ~np.isnan(grad_bound)
+        assert compared.mean() > 0.95
+        assert_within_rounding(
+            solids.distance(outside)[1][compared],
+            reference_distance(solids, outside)[1][compared],
+            grad_bound[compared],
+            "gradient outside",
         )
