@@ -133,10 +133,12 @@ def rounding_bounds(field, points, dynamic_shift=None):
     is_cylinder = nearest >= c
     # Inside, the gradient is the nearest face's normal: the same face in both evaluations
     # when the two largest excesses are further apart than the errors can move them, and
-    # (a box) the same side when that face's coordinate is clear of 0.
+    # the same side when that face's coordinate is clear of 0 (a cylinder's radial face
+    # takes its direction from (l_x, l_y) instead: the radial term).
     face_clear = ordered[2] - ordered[1] > 4.0 * error_q
-    side_clear = is_cylinder | (np.abs(local[face, nearest, columns]) > 2.0 * error_l)
-    radial_used = is_cylinder & np.where(is_outside, q[0] > 0.0, face == 0)
+    radial_face = is_cylinder & (face == 0)
+    side_clear = radial_face | (np.abs(local[face, nearest, columns]) > 2.0 * error_l)
+    radial_used = np.where(is_outside, is_cylinder & (q[0] > 0.0), radial_face)
     cylinder_index = np.clip(nearest - c, 0, None)
     r = radial[cylinder_index, columns] if radial is not None else np.zeros(n)
     radial_clear = ~radial_used | (r > 2.0 * error_l)
