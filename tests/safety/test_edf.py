@@ -283,7 +283,8 @@ def assert_within_rounding(actual, expected, bound, what):
     excess = np.abs(actual - expected).reshape(len(bound), -1).max(axis=1) - bound
     worst = int(np.argmax(excess))
     assert excess[worst] <= 0.0, (
-        f"{what} at {worst}: {actual[worst]} vs {expected[worst]}, bound {bound[worst]:.3g}"
+        f"{what} at {worst}: {actual[worst]} vs {expected[worst]}, "
+        f"{excess[worst] + bound[worst]:.3g} apart, bound {bound[worst]:.3g}"
     )
 
 
