@@ -34,6 +34,16 @@ from distgprl.schema import run_dir
 STATES = VERDICTS
 
 
+def format_duration(seconds: float) -> str:
+    """``"40 s"``, ``"12 min"``, ``"3 h 05 min"``."""
+    if seconds < 60:
+        return f"{seconds:.0f} s"
+    minutes = int(seconds // 60)
+    if minutes < 60:
+        return f"{minutes} min"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
 @dataclass(frozen=True)
 class RunStatus:
     """Where one run stands. Rates are the last learning-curve evaluation's (fractions)."""
@@ -77,7 +87,7 @@ class RunStatus:
         if self.resume is not None:
             parts.append(self.resume.describe())
         if self.eta_s is not None:
-            parts.append(f"ETA {self.eta_s / 60:.0f} min")
+            parts.append(f"ETA {format_duration(self.eta_s)}")
         if self.error:
             parts.append(self.error)
         return "  ".join(parts)

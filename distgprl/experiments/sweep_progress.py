@@ -36,7 +36,7 @@ from typing import Any, TextIO
 
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.pace import Paces, makespan, steps_left
-from distgprl.experiments.status import RunStatus, run_status
+from distgprl.experiments.status import RunStatus, format_duration, run_status
 from distgprl.identity import resolve_run
 from distgprl.schema import run_dir
 
@@ -45,16 +45,6 @@ FALLBACK_SIZE = (100, 24)
 
 STARTED = ("partial", "failed")
 """States of a started run nobody trains: the sweep resumes (or restarts) it."""
-
-
-def format_duration(seconds: float) -> str:
-    """``"40 s"``, ``"12 min"``, ``"3 h 05 min"``."""
-    if seconds < 60:
-        return f"{seconds:.0f} s"
-    minutes = int(seconds // 60)
-    if minutes < 60:
-        return f"{minutes} min"
-    return f"{minutes // 60} h {minutes % 60:02d} min"
 
 
 def format_steps(steps: int) -> str:

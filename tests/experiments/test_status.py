@@ -17,6 +17,7 @@ from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
 from distgprl.experiments.status import (
     count_states,
+    format_duration,
     run_status,
     sweep_status,
 )
@@ -89,6 +90,14 @@ def test_each_state_is_read_from_the_run_folder(tmp_path):
     assert run_status(job).state == "done" and run_status(job).eta_s is None
     write_json(folder / "done.json", {"steps": total}, kind="done", config_hash="0" * 16)
     assert run_status(job).state == "stale"
+
+
+def test_durations_read_at_a_glance():
+    assert [format_duration(s) for s in (40, 720, 3 * 3600 + 300)] == [
+        "40 s",
+        "12 min",
+        "3 h 05 min",
+    ]
 
 
 def test_a_finished_run_reports_its_training_pace(tmp_path):
