@@ -59,8 +59,9 @@ def format_steps(steps: int) -> str:
 def retrain_hint(root: str | Path, example: Job) -> str:
     """How to train runs that are done again, naming one of them."""
     folder = run_dir(root, example.preset, example.task, example.method, example.seed)
+    other = "runs" if Path(root) != Path("runs") else "runs-2"
     return (
-        f"to train them again, sweep into another results folder (--root {Path(root)}-2) "
+        f"to train them again, sweep into another results folder (e.g. --root {other}) "
         f"or delete a run's folder (e.g. {folder})"
     )
 

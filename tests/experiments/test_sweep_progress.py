@@ -61,7 +61,7 @@ def test_the_opening_says_what_is_done_how_to_retrain_and_where_runs_resume(tmp_
     lines = _progress(jobs).opening(tmp_path)
     assert lines == [
         f"already done: 1 of 4 runs in {tmp_path / 'ci'} (skipped); to train them again, "
-        f"sweep into another results folder (--root {tmp_path}-2) or delete a run's folder "
+        "sweep into another results folder (e.g. --root runs) or delete a run's folder "
         f"(e.g. {folder})",
         "1 runs finished with another configuration: trained anew",
         "dcp/gprl-d/seed1: restarts: no checkpoint yet",
