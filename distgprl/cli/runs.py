@@ -115,8 +115,21 @@ def sweep(
         f"sweep: {runs_text(len(jobs))} ({preset} preset) into {root}, "
         + (where or f"{workers} parallel job(s)")
     )
-    record_request(root, preset, *asked)
+    recorded: list[bool] = []
+
+    def record() -> None:  # what `status` reports; on Ray once the cluster answered
+        if not recorded:
+            record_request(root, preset, *asked)
+            recorded.append(True)
+
+    if executor == "local":
+        record()
     progress = SweepProgress(jobs, workers)
+
+    def on_result(result, count, total):
+        record()
+        progress.finished(result, count, total)
+
     for line in progress.opening(root):
         typer.echo(line)
     if progress.live:  # redrawn in place every second; the heartbeat is its running lines
@@ -135,7 +148,7 @@ def sweep(
             workers,
             executor,
             address,
-            on_result=progress.finished,
+            on_result=on_result,
             on_tick=on_tick if tick_s > 0 else None,
             tick_s=tick_s,
             retrain_damaged=retrain_damaged,
@@ -276,7 +289,7 @@ def train(
         typer.echo(describe_interrupt(stop, command), err=True)
         raise typer.Exit(code=130) from None
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
-    if evaluate:
+    if evaluate and (folder / "summary.json").exists():
         from distgprl.experiments.evaluation import summary_table
         from distgprl.experiments.results import read_json
 
