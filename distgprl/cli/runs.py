@@ -57,7 +57,11 @@ def sweep(
     root: RootOption = Path("results"),
     heartbeat: Annotated[
         float,
-        typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
+        typer.Option(
+            min=0,
+            help="Minutes between plain progress reports (the sweep and its running jobs) "
+            "when stdout is not a terminal (0: none); a terminal gets a live display.",
+        ),
     ] = 5.0,
     retrain_damaged: Annotated[
         bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
