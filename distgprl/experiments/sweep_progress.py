@@ -105,6 +105,8 @@ class SweepProgress:
         self.runs = {job: resolve_run(job.task, job.method, job.seed, job.preset) for job in jobs}
         self.statuses: dict[Job, RunStatus] = {job: self._read(job) for job in self.jobs}
         self.unfinished: list[Job] = list(self.jobs)
+        # done when the sweep started: `opening` counts them, their "skipped" is not repeated
+        self.found_done = {job for job in self.jobs if self.statuses[job].state == "done"}
         self._lock = threading.Lock()
         self._bars: list[Any] = []
         self._last_paces: Paces | None = None
@@ -208,8 +210,10 @@ class SweepProgress:
             self._print("\n".join(lines))
 
     def finished(self, result: Any, count: int, total: int) -> None:
-        """A finished job (`distgprl.experiments.sweep.JobResult`): its line; a skipped one
-        was counted in `opening` already."""
+        """A finished job (`distgprl.experiments.sweep.JobResult`): its line; a run found
+        done when the sweep started was counted in `opening` already (its line only if its
+        follow-ups ran); a job that found its run done when it ran (a Ray retry of a task
+        whose lost node had finished it) says so."""
         with self._lock:
             job = result.job
             if job in self.unfinished:
@@ -218,8 +222,10 @@ class SweepProgress:
             if result.status == "done" and status.seconds_per_step and status.total_steps:
                 training = status.seconds_per_step * status.total_steps
                 self.overheads.append(max(result.seconds - training, 0.0))
-            if result.status == "skipped" and not (result.trials or result.repairs):
-                return
+            if result.status == "skipped" and job in self.found_done:
+                self.found_done.discard(job)  # reported once, by `opening`
+                if not (result.trials or result.repairs):
+                    return
             line = describe_result(result, count, total)
             self._print(line if self.live else f"{line}\n  {self.summary()}")
             if self.live:

@@ -91,6 +91,7 @@ def test_the_sweep_line_counts_runs_and_steps_and_its_eta_follows_the_measured_p
 def test_plain_output_prints_each_finished_job_with_the_sweeps_line(tmp_path):
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0], root=tmp_path)
     stream = io.StringIO()
+    _finish(tmp_path, "dcp", "gprl-d")
     progress = _progress(jobs, stream)
     progress.finished(sweep.JobResult(jobs[0], "skipped", 0.0), 1, 2)  # in the opening already
     assert stream.getvalue() == ""
@@ -103,10 +104,13 @@ def test_plain_output_prints_each_finished_job_with_the_sweeps_line(tmp_path):
     assert lines[0] == (
         "[2/2] dbm/gprl-d/seed0: done in 30 s (resumed from its checkpoint of step 120)"
     )
-    assert lines[1].startswith("  sweep: 1/2 runs, 240/480 steps, elapsed ")
+    assert lines[1].startswith("  sweep: 2/2 runs, 480/480 steps, elapsed ")
     assert "\r" not in stream.getvalue()
     progress.heartbeat()
-    assert stream.getvalue().splitlines()[2].startswith("sweep: 1/2 runs")
+    assert stream.getvalue().splitlines()[2].startswith("sweep: 2/2 runs")
+    # a job that found its run done when it ran (not when the sweep started) says so
+    progress.finished(sweep.JobResult(jobs[1], "skipped", 0.0), 2, 2)
+    assert stream.getvalue().splitlines()[3] == "[2/2] dbm/gprl-d/seed0: skipped in 0 s"
 
 
 def test_a_terminal_gets_one_display_redrawn_with_a_line_per_running_job(tmp_path):
