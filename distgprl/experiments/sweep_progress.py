@@ -178,7 +178,8 @@ class SweepProgress:
         lines = []
         done = [job for job in self.jobs if self.statuses[job].state == "done"]
         if done:
-            where = Path(root) / done[0].preset
+            presets = {job.preset for job in done}  # a study's: several readings
+            where = Path(root) / done[0].preset if len(presets) == 1 else Path(root)
             lines.append(
                 f"already done: {len(done)} of {len(self.jobs)} runs in {where} (skipped); "
                 + retrain_hint(root, done[0])
