@@ -220,7 +220,7 @@ def worker_lost(cluster: LocalCluster, root: Path, args, logs: Path, record: Rec
     code = again.wait()
     record.check(
         "re-running the same command has nothing left to do",
-        code == 0 and ": skipped" in again.stdout() and ": done" not in again.stdout(),
+        code == 0 and "already done: " in again.stdout() and ": done" not in again.stdout(),
         f"exit {code}",
     )
 

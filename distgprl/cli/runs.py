@@ -59,7 +59,11 @@ def sweep(
     root: RootOption = Path("results"),
     heartbeat: Annotated[
         float,
-        typer.Option(min=0, help="Minutes between progress reports of running jobs (0: off)."),
+        typer.Option(
+            min=0,
+            help="Minutes between plain progress reports (the sweep and its running jobs) "
+            "when stdout is not a terminal (0: none); a terminal gets a live display.",
+        ),
     ] = 5.0,
     retrain_damaged: Annotated[
         bool, typer.Option(help="Delete damaged runs (see `status`) and train them anew.")
@@ -90,24 +94,18 @@ def sweep(
     stopped answering: restart it and re-run the same command); 130: interrupted.
     """
     from distgprl.experiments.ray_executor import CLUSTER_LOST_EXIT, ClusterLostError
-    from distgprl.experiments.status import sweep_status
     from distgprl.experiments.sweep import (
         default_workers,
         plan_jobs,
         run_sweep,
         stop_on_interrupt_signals,
     )
+    from distgprl.experiments.sweep_progress import SweepProgress
+    from distgprl.experiments.sweep_record import record_request
 
     preset = resolve_preset(preset, config, overrides)
-    jobs = plan_jobs(
-        preset,
-        split_list(methods),
-        split_list(tasks),
-        parse_seeds(seeds),
-        root,
-        twin_trials,
-        repair_evaluations,
-    )
+    asked = (split_list(methods), split_list(tasks), parse_seeds(seeds))
+    jobs = plan_jobs(preset, *asked, root, twin_trials, repair_evaluations)
     if workers is None:
         workers = default_workers()
     if is_study(preset):
@@ -120,25 +118,35 @@ def sweep(
     # on a Ray cluster its CPUs say how many jobs run at once, not --workers
     where = f"on the ray cluster at {address}" if executor == "ray" and address else ""
     typer.echo(
-        f"sweep: {runs_text(len(jobs))} ({preset} preset), "
+        f"sweep: {runs_text(len(jobs))} ({preset} preset) into {root}, "
         + (where or f"{workers} parallel job(s)")
     )
+    recorded: list[bool] = []
 
-    def report(result, finished, total):
-        extra = f" ({result.error})" if result.error else ""
-        extra += f" ({result.resumed})" if result.resumed else ""
-        extra += f"\n  {result.trials}" if result.trials else ""
-        extra += f"\n  {result.repairs}" if result.repairs else ""
-        typer.echo(
-            f"[{finished}/{total}] {result.job.name}: {result.status} "
-            f"in {result.seconds:.0f} s{extra}"
-        )
+    def record() -> None:  # what `status` reports; on Ray once the cluster answered
+        if not recorded:
+            record_request(root, preset, *asked)
+            recorded.append(True)
 
-    def progress(unfinished):
-        for status in sweep_status(unfinished):
-            if status.state == "running":
-                typer.echo(f"  {status.describe()}")
+    if executor == "local":
+        record()
+    progress = SweepProgress(jobs, workers)
 
+    def on_result(result, count, total):
+        record()
+        progress.finished(result, count, total)
+
+    for line in progress.opening(root):
+        typer.echo(line)
+    if progress.live:  # redrawn in place every second; the heartbeat is its running lines
+        on_tick, tick_s = progress.tick, 1.0
+    else:  # plain lines: the sweep's line after each finished run, running jobs every beat
+
+        def on_tick(unfinished):
+            progress.tick(unfinished)
+            progress.heartbeat()
+
+        tick_s = heartbeat * 60.0
     stop_on_interrupt_signals()
     try:
         results = run_sweep(
@@ -146,25 +154,29 @@ def sweep(
             workers,
             executor,
             address,
-            on_result=report,
-            on_tick=progress if heartbeat > 0 else None,
-            tick_s=heartbeat * 60.0,
+            on_result=on_result,
+            on_tick=on_tick if tick_s > 0 else None,
+            tick_s=tick_s,
             retrain_damaged=retrain_damaged,
         )
     except KeyboardInterrupt:
+        progress.close()
         typer.echo(
             "sweep interrupted: queued runs were not started and running ones stopped at "
-            "their last checkpoint; re-run the same command to resume.",
+            "their last checkpoint; re-run the same command to resume "
+            f"(`distgprl status --preset {preset} --root {root}` says where each resumes).",
             err=True,
         )
         raise typer.Exit(code=130) from None
     except ClusterLostError as lost:
+        progress.close()
         typer.echo(str(lost), err=True)
         # Ray's driver cannot shut down without its head (it would wait for it, then abort
         # with a traceback): leave at once, the result files are all written already.
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(CLUSTER_LOST_EXIT)
+    progress.close()
     failed = [r for r in results if r.status == "failed"]
     busy = [r for r in results if r.status == "busy"]
     damaged = [r for r in results if r.status == "damaged"]
@@ -196,23 +208,32 @@ def status(
     ] = None,
 ) -> None:
     """Where every run of a sweep stands (done, running, partial, ...), from its run folder,
-    and the training time left."""
-    from distgprl.experiments.status import count_states, sweep_status, training_left
+    and the training time left.
+
+    Without --methods, --tasks and --seeds: the runs the sweeps into --root asked for (all
+    of the preset's if none was recorded)."""
+    from distgprl.experiments.pace import training_left
+    from distgprl.experiments.status import count_states, sweep_status
     from distgprl.experiments.sweep import default_workers, plan_jobs
+    from distgprl.experiments.sweep_record import recorded_requests, requested_jobs
 
     preset = resolve_preset(preset, config)
-    statuses = sweep_status(
-        plan_jobs(
-            preset,
-            split_list(methods),
-            split_list(tasks),
-            parse_seeds(seeds),
-            root,
+    asked = (split_list(methods), split_list(tasks), parse_seeds(seeds))
+    jobs = requested_jobs(root, preset) if asked == (None, None, None) else None
+    if jobs is not None:
+        requests = len(recorded_requests(root, preset))
+        typer.echo(
+            f"the runs the sweeps into {root} asked for ({requests} request(s); "
+            "--methods, --tasks or --seeds for others):"
         )
-    )
+    statuses = sweep_status(jobs if jobs is not None else plan_jobs(preset, *asked, root))
     for entry in statuses:
         typer.echo(entry.describe())
     typer.echo(count_states(statuses))
+    if not (Path(root) / preset).is_dir():
+        typer.echo(
+            f"no run of the {preset} preset in {root} (a sweep into another folder: its --root)"
+        )
     reference = []  # a study's first runs take the pace of its reference preset's
     study = get_study(preset) if is_study(preset) else study_of_reading(preset)
     if study is not None:
@@ -275,6 +296,18 @@ def train(
         typer.echo(describe_interrupt(stop, command), err=True)
         raise typer.Exit(code=130) from None
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
+    if evaluate and (folder / "summary.json").exists():
+        from distgprl.experiments.evaluation import summary_table
+        from distgprl.experiments.results import read_json
+
+        summary = read_json(folder / "summary.json")["summary"]
+        typer.echo(summary_table(summary, f"evaluation ({folder / 'summary.json'}):"))
+    else:
+        import shlex
+
+        words = ["distgprl", "evaluate", "--method", method, "--task", task, "--seed", str(seed)]
+        words += ["--preset", preset, "--root", str(root)]
+        typer.echo(f"not evaluated (--no-evaluate); evaluate with: {shlex.join(words)}")
 
 
 @user_errors
@@ -326,9 +359,12 @@ def evaluate(
             "the distance field's gradient (evaluation_repair_push.csv).",
         ),
     ] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the whole summary as one JSON line.")
+    ] = False,
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
-    from distgprl.experiments.evaluation import describe, evaluate_run
+    from distgprl.experiments.evaluation import describe, evaluate_run, summary_table
 
     preset = resolve_preset(preset, config)
     if repair_push and not plan_repair:
@@ -342,4 +378,10 @@ def evaluate(
         )
     else:
         summary = evaluate_run(task, method, seed, preset, episodes, root, policy=policy)
-    typer.echo(describe(summary))
+    if as_json:
+        typer.echo(describe(summary))
+        return
+    what = f"{task}/{method}/seed{seed} ({preset}, {policy} policy" + (
+        ", safety layer in the loop)" if plan_repair else ")"
+    )
+    typer.echo(summary_table(summary, f"evaluation of {what}:"))

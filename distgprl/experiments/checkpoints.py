@@ -171,6 +171,28 @@ def has_checkpoint(folder: Path) -> bool:
     return bool(_generations(paths))
 
 
+def checkpoint_step(folder: Path) -> int | None:
+    """The step of the checkpoint a resume of the run would continue from, read without
+    writing anything (a status report): the pending commit marker's (a save a kill
+    interrupted after it committed), else the newest generation's manifest, else the
+    previous generation's; None if the run has no checkpoint. A generation without a
+    manifest (a format before manifests) counts with the step its state file records."""
+    paths = checkpoint_paths(folder)
+    pending = _read_manifest(paths["commit"])
+    if pending is not None and "num_timesteps" in pending:
+        return int(pending["num_timesteps"])
+    for directory in _generations(paths):
+        manifest = _read_manifest(directory / MANIFEST_NAME)
+        if manifest is not None and "num_timesteps" in manifest:
+            return int(manifest["num_timesteps"])
+        try:
+            state = pickle.loads((directory / PIECE_FILES["state"]).read_bytes())
+            return int(state["num_timesteps"])
+        except Exception:  # noqa: BLE001 - unreadable: the resume would try the next one
+            continue
+    return None
+
+
 def rng_state(model, env) -> dict[str, Any]:
     """Everything random a resumed run needs to continue exactly where the run stopped.
 

@@ -78,5 +78,40 @@ def evaluate_run(
 
 
 def describe(summary: dict[str, Any]) -> str:
-    """One line for the terminal."""
+    """The whole summary as one JSON line (``distgprl evaluate --json``)."""
     return json.dumps({k: round(v, 4) if isinstance(v, float) else v for k, v in summary.items()})
+
+
+def _percent(value: float) -> str:
+    return f"{100 * value:.0f} %"
+
+
+def _millimetres(value: float) -> str:
+    return f"{1000 * value:.1f} mm"
+
+
+SUMMARY_ROWS: tuple[tuple[str, str, Any], ...] = (
+    ("episodes", "episodes", str),
+    ("success_rate", "success", _percent),
+    ("collision_rate", "collision", _percent),
+    ("safe_success_rate", "safe success (success without collision)", _percent),
+    ("completion_rate", "completion", _percent),
+    ("refused_rate", "refused by the safety layer", _percent),
+    ("min_clearance_p5", "clearance, 5th percentile of episode minima", _millimetres),
+    ("mean_return", "mean return", lambda value: f"{value:.2f}"),
+    ("joint_speed_over_limit_rate", "episodes over a joint speed limit", _percent),
+    ("policy_step", "best policy: learning-curve step", str),
+)
+"""The rows of `summary_table`: summary key, label, format (keys absent are left out)."""
+
+
+def summary_table(summary: dict[str, Any], title: str) -> str:
+    """A small table of an evaluation's headline figures, under ``title`` (`SUMMARY_ROWS`;
+    every figure: `describe`)."""
+    rows = [
+        (label, form(summary[key]))
+        for key, label, form in SUMMARY_ROWS
+        if summary.get(key) is not None
+    ]
+    width = max(len(label) for label, _ in rows) if rows else 0
+    return "\n".join([title, *(f"  {label:<{width}}  {value:>8}" for label, value in rows)])

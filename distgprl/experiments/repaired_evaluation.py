@@ -346,7 +346,7 @@ def evaluate_with_repair(
         if show_progress:
             from tqdm import tqdm
 
-            iterator = tqdm(tcs, desc="evaluate+repair", unit="ep", leave=False)
+            iterator = tqdm(tcs, desc="evaluate+repair", unit="ep", leave=False, disable=None)
         start = time.perf_counter()
         rows = [
             {"episode": index, **run_repaired_episode(env, tc, actor, limits, config)}

@@ -127,7 +127,7 @@ def evaluate_policy(env, tcs, policy=None, progress: bool = False) -> list[dict[
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(tcs, desc="evaluate", unit="ep", leave=False)
+        iterator = tqdm(tcs, desc="evaluate", unit="ep", leave=False, disable=None)
     rows = []
     for index, tc in enumerate(iterator):
         rows.append({"episode": index, **run_episode(env, tc, policy)})

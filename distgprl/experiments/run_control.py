@@ -1,16 +1,19 @@
 """Control of a training run from outside its training loop: the exclusive lock that keeps
 a second process from training the same run folder (`run_lock`), the interrupt that says
-where training stopped (`TrainingInterrupted`) and the command that resumes it
-(`resume_command`)."""
+where training stopped (`TrainingInterrupted`), the command that resumes it
+(`resume_command`) and where a resume would continue from (`resume_point`)."""
 
 from __future__ import annotations
 
 import fcntl
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from distgprl.errors import RunBusyError
+from distgprl.experiments.checkpoints import checkpoint_step, trained_steps
+from distgprl.schema import read_json
 
 
 @contextmanager
@@ -90,3 +93,48 @@ def resume_command(
     if not evaluate_after:
         words.append("--no-evaluate")
     return shlex.join(words)
+
+
+@dataclass(frozen=True)
+class ResumePoint:
+    """Where a started, unfinished run stands for a resume.
+
+    Attributes:
+        reached: the last step its ``progress.csv`` recorded (0: none).
+        checkpoint: the step of the checkpoint a resume continues from (`checkpoint_step`),
+            or None if it has none yet: a resume then trains from step 0 (the learning
+            curve recorded so far is not resumable progress).
+    """
+
+    reached: int
+    checkpoint: int | None
+
+    @property
+    def start_step(self) -> int:
+        """The step a resume trains from."""
+        return self.checkpoint or 0
+
+    def describe(self) -> str:
+        """``"resumes from its checkpoint of step 1500"`` or ``"restarts: no checkpoint yet
+        (it had reached step 1500)"``."""
+        if self.checkpoint is not None:
+            return f"resumes from its checkpoint of step {self.checkpoint}"
+        reached = f" (it had reached step {self.reached})" if self.reached else ""
+        return f"restarts: no checkpoint yet{reached}"
+
+
+def resume_point(folder: Path) -> ResumePoint:
+    """Where a resume of the run in ``folder`` would continue from (reads, never writes)."""
+    return ResumePoint(trained_steps(folder / "progress.csv"), checkpoint_step(folder))
+
+
+def describe_resume(folder: Path, reached: int) -> str:
+    """Where a run that had reached step ``reached`` before a job was resumed from, as its
+    ``done.json`` records it (empty for a run the job trained from its start)."""
+    if reached <= 0:
+        return ""
+    resumes = read_json(folder / "done.json").get("resumes") or [{}]
+    step = int(resumes[-1].get("step", 0))
+    if step > 0:
+        return f"resumed from its checkpoint of step {step}"
+    return f"restarted from step 0 (it had reached step {reached})"

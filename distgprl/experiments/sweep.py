@@ -75,7 +75,8 @@ from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
 )
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.policies import ship_if_missing
-from distgprl.experiments.results import read_json, write_json
+from distgprl.experiments.results import write_json
+from distgprl.experiments.run_control import describe_resume
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
 from distgprl.io import is_locked
@@ -252,18 +253,6 @@ def run_job(job: Job) -> JobResult:
         error_file.unlink()
     follow_ups = run_follow_ups(job)
     return JobResult(job, "done", time.perf_counter() - start, resumed=resumed, **follow_ups)
-
-
-def describe_resume(folder: Path, reached: int) -> str:
-    """Where a run that had reached step ``reached`` before this job was resumed from, as
-    its ``done.json`` records it (empty for a run this job trained from its start)."""
-    if reached <= 0:
-        return ""
-    resumes = read_json(folder / "done.json").get("resumes") or [{}]
-    step = int(resumes[-1].get("step", 0))
-    if step > 0:
-        return f"resumed from its checkpoint of step {step}"
-    return f"restarted from step 0 (it had reached step {reached})"
 
 
 def record_failure(job: Job, message: str, details: str, seconds: float) -> JobResult:

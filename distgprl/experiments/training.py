@@ -271,6 +271,7 @@ class _TrainingLoop:
                 initial=self.model.num_timesteps,
                 desc=f"{run.task}/{run.method.name}/s{run.seed}",
                 unit="step",
+                disable=None,  # drawn on a terminal only: no bar redraws in a log file
             )
 
     def wall_time(self) -> float:

@@ -365,6 +365,7 @@ def test_cli_evaluates_the_best_policy(trained):
             str(root),
             "--policy",
             "best",
+            "--json",
         ],
     )
     assert result.exit_code == 0, result.output

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from distgprl.experiments import ray_executor, sweep
+from distgprl.experiments.run_control import describe_resume
 from distgprl.io import is_locked
 from distgprl.schema import read_json, run_dir, write_json
 
@@ -199,7 +200,7 @@ def test_a_task_ray_gave_up_on_is_recorded_and_the_others_go_on(monkeypatch, tmp
 )
 def test_a_sweep_says_where_a_run_it_continued_was_resumed(tmp_path, reached, resumes, expected):
     write_json(tmp_path / "done.json", {"steps": 240, "resumes": resumes}, kind="done")
-    assert sweep.describe_resume(tmp_path, reached) == expected
+    assert describe_resume(tmp_path, reached) == expected
 
 
 def test_a_failed_connection_is_one_line_naming_a_wrong_token():

@@ -1,24 +1,25 @@
 """Sweep status: each run's state is read correctly from its folder; the training time
-left adds each run's steps left at its own or its task's finished pace; the sweep reports
-running jobs while they run."""
+a started run says where a resume continues from; the sweep reports running jobs while they
+run; the status command reports the runs the sweeps into its root asked for."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import pytest
 from typer.testing import CliRunner
 
 from distgprl.cli import app
-from distgprl.experiments import sweep
+from distgprl.experiments import pace, sweep
+from distgprl.experiments.checkpoints import checkpoint_paths
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
 from distgprl.experiments.status import (
-    RunStatus,
     count_states,
+    format_duration,
     run_status,
     sweep_status,
-    training_left,
 )
 
 
@@ -60,13 +61,21 @@ def test_each_state_is_read_from_the_run_folder(tmp_path):
     status = run_status(job)
     assert (status.state, status.step, status.total_steps) == ("partial", step, total)
     assert (status.success_rate, status.collision_rate) == (0.35, 0.05)
-    assert status.eta_s == pytest.approx(60.0 / step * (total - step))
+    # No checkpoint yet: a resume trains every step again, and the line says so.
+    assert status.eta_s == pytest.approx(60.0 / step * total)
+    assert f"restarts: no checkpoint yet (it had reached step {step})" in status.describe()
 
-    # The ETA follows the pace of the latest interval, not the warm-up-heavy pace since step 0.
+    # With a checkpoint the ETA counts from its step, at the pace of the latest curve
+    # interval (not the warm-up-heavy pace since step 0).
     _progress(folder, 2 * step, wall_time_s=160.0, earlier=[(0, 1.0), (step, 60.0)])
+    checkpoints = checkpoint_paths(folder)["dir"]
+    checkpoints.mkdir()
+    (checkpoints / "model.zip").write_bytes(b"x")
+    (checkpoints / "manifest.json").write_text(json.dumps({"num_timesteps": step, "files": {}}))
     status = run_status(job)
     assert status.step == 2 * step
-    assert status.eta_s == pytest.approx(100.0 / step * (total - 2 * step))
+    assert status.eta_s == pytest.approx(100.0 / step * (total - step))
+    assert f"resumes from its checkpoint of step {step}" in status.describe()
 
     with run_lock(folder):
         assert is_locked(folder)
@@ -83,6 +92,14 @@ def test_each_state_is_read_from_the_run_folder(tmp_path):
     assert run_status(job).state == "stale"
 
 
+def test_durations_read_at_a_glance():
+    assert [format_duration(s) for s in (40, 720, 3 * 3600 + 300)] == [
+        "40 s",
+        "12 min",
+        "3 h 05 min",
+    ]
+
+
 def test_a_finished_run_reports_its_training_pace(tmp_path):
     job = _job(tmp_path)
     folder = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
@@ -91,72 +108,6 @@ def test_a_finished_run_reports_its_training_pace(tmp_path):
     write_json(folder / "done.json", done, kind="done", config_hash=run.hash)
     assert run_status(job).seconds_per_step == pytest.approx(0.2)
     assert run_status(job).cpu_seconds_per_step == pytest.approx(0.15)
-
-
-def test_training_left_uses_own_pace_else_the_tasks_finished_median(tmp_path):
-    jobs = {
-        (task, seed): sweep.plan_jobs("ci", ["gprl-d"], [task], [seed], root=tmp_path)[0]
-        for task in ("dcp", "dbm")
-        for seed in range(4)
-    }
-    statuses = [
-        RunStatus(jobs["dcp", 0], "done", 1000, 1000, seconds_per_step=0.1),
-        RunStatus(jobs["dcp", 1], "done", 1000, 1000, seconds_per_step=0.3),
-        RunStatus(jobs["dcp", 2], "done", 1000, 1000, seconds_per_step=5.0),
-        # started: its own pace, 600 steps left
-        RunStatus(jobs["dcp", 3], "partial", 400, 1000, seconds_per_step=0.5),
-        # not started: the median finished dcp pace (0.3 s) for all 1000 steps
-        RunStatus(jobs["dbm", 0], "missing", 0, 1000),
-    ]
-    left = training_left(statuses)
-    assert (left.runs, left.unestimated) == (2, 1)  # dbm has no finished run
-    assert left.seconds == pytest.approx(600 * 0.5)
-    statuses[-1] = RunStatus(jobs["dcp", 3], "missing", 0, 1000)
-    statuses[-2] = RunStatus(jobs["dbm", 1], "running", 100, 1000, seconds_per_step=2.0)
-    left = training_left(statuses)
-    assert (left.runs, left.unestimated) == (2, 0)
-    assert left.seconds == pytest.approx(1000 * 0.3 + 900 * 2.0)
-    assert left.describe(2) == (
-        f"training left: 2 runs, {2100 / 3600:.1f} h of one worker "
-        f"({2100 / 7200:.1f} h with 2 workers)"
-    )
-    assert training_left(statuses[:3]).describe() == "training left: none"
-
-
-def test_training_left_adds_cpu_hours_from_the_finished_runs_cpu_pace(tmp_path):
-    """With finished runs that recorded their CPU seconds per step, the remaining training is
-    also given as CPU-hours (each unfinished run's steps left at its task's median CPU pace)
-    and as hours on that many idle cores; without such runs no CPU figure is made up."""
-    jobs = [sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [s], root=tmp_path)[0] for s in range(4)]
-    done = [
-        RunStatus(jobs[0], "done", 1000, 1000, seconds_per_step=0.4, cpu_seconds_per_step=0.1),
-        RunStatus(jobs[1], "done", 1000, 1000, seconds_per_step=0.6, cpu_seconds_per_step=0.3),
-        RunStatus(jobs[2], "done", 1000, 1000, seconds_per_step=0.5, cpu_seconds_per_step=0.2),
-    ]
-    left = training_left([*done, RunStatus(jobs[3], "partial", 400, 1000, seconds_per_step=1.0)])
-    assert left.cpu_seconds == pytest.approx(600 * 0.2)
-    hours = 600 * 0.2 / 3600
-    assert left.describe(2).endswith(f"; {hours:.1f} CPU-hours ({hours / 2:.1f} h on 2 idle cores)")
-    old = [RunStatus(j, "done", 1000, 1000, seconds_per_step=0.5) for j in jobs[:3]]
-    assert training_left([*old, RunStatus(jobs[3], "missing", 0, 1000)]).cpu_seconds is None
-
-
-def test_training_left_prefers_the_pace_of_runs_made_on_a_machine_like_this(tmp_path):
-    """Where a task has finished runs of this machine's numerics, only they set its pace (a
-    run committed from another machine may be twice as slow); else every finished run does,
-    and a task without local runs keeps all of its own."""
-    jobs = [sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [s], root=tmp_path)[0] for s in range(4)]
-    dbm = sweep.plan_jobs("ci", ["gprl-d"], ["dbm"], [0, 1], root=tmp_path)
-    statuses = [
-        RunStatus(jobs[0], "done", 1000, 1000, seconds_per_step=2.0, numerics="other"),
-        RunStatus(jobs[1], "done", 1000, 1000, seconds_per_step=2.0, numerics=""),
-        RunStatus(jobs[2], "done", 1000, 1000, seconds_per_step=0.5, numerics="here"),
-        RunStatus(jobs[3], "missing", 0, 1000),
-        RunStatus(dbm[0], "done", 1000, 1000, seconds_per_step=3.0, numerics="other"),
-        RunStatus(dbm[1], "missing", 0, 1000),
-    ]
-    assert training_left(statuses, numerics="here").seconds == pytest.approx(500 + 3000)
-    assert training_left(statuses, numerics="elsewhere").seconds == pytest.approx(2000 + 3000)
 
 
 def test_count_states_lists_done_out_of_all_then_the_others(tmp_path):
@@ -203,7 +154,10 @@ def test_a_report_under_way_ends_before_the_sweep_returns(tmp_path, monkeypatch)
     assert ticks and all(tick <= returned for tick in ticks)
 
 
-def test_status_command_prints_every_run_and_the_counts(tmp_path):
+def test_status_command_prints_every_run_and_the_counts(tmp_path, monkeypatch):
+    """Every run and the counts; an empty root is named as such; the training left has an
+    estimate for every trainable run (here the default pace: no run measured one)."""
+    monkeypatch.setattr(pace, "COMMITTED_RESULTS", tmp_path / "no-committed-results")
     result = CliRunner().invoke(
         app,
         [
@@ -221,10 +175,17 @@ def test_status_command_prints_every_run_and_the_counts(tmp_path):
     assert result.exit_code == 0, result.output
     lines = result.output.strip().splitlines()
     assert any(line.startswith("dcp/gprl-d/seed1") and "missing" in line for line in lines)
-    assert lines[-2] == "0/6 done, 6 missing"
-    # 4 trainable runs (demo trains nothing), no finished run to estimate their pace from
-    assert lines[-1].startswith("training left: 4 runs, 0.0 h of one worker")
-    assert lines[-1].endswith("4 without an estimate (no finished run of the task)")
+    assert lines[-3] == "0/6 done, 6 missing"
+    assert (
+        lines[-2]
+        == f"no run of the ci preset in {tmp_path} (a sweep into another folder: its --root)"
+    )
+    # 4 trainable runs (demo trains nothing) of 240 steps, none measured: the default pace
+    hours = 4 * 240 * pace.DEFAULT_SECONDS_PER_STEP / 3600
+    assert lines[-1].startswith(f"training left: 4 runs, {hours:.1f} h of one worker")
+    assert lines[-1].endswith(
+        f"paces: 4 at the default pace ({pace.DEFAULT_SECONDS_PER_STEP} s/step)"
+    )
     bad = CliRunner().invoke(app, ["status", "--seeds", "x", "--root", str(tmp_path)])
     assert bad.exit_code == 2
 
@@ -257,11 +218,17 @@ def test_sweep_command_prints_running_jobs_progress(tmp_path, monkeypatch):
             str(tmp_path),
             "--heartbeat",
             "0.002",
+            "--workers",
+            "1",
         ],
     )
     assert result.exit_code == 0, result.output
-    assert "dcp/gprl-d/seed0" in result.output and "running" in result.output
-    assert "curve success 0.25 collision 0.50" in result.output
+    lines = result.output.splitlines()
+    assert "dcp/gprl-d/seed0: restarts: no checkpoint yet (it had reached step 30)" in lines
+    running = [line for line in lines if line.startswith("  dcp/gprl-d/seed0")]
+    assert running and "30/240" in running[0]
+    assert "curve success 0.25 collision 0.50" in running[0]
+    assert any(line.startswith("sweep: 0/1 runs, 30/240 steps, elapsed ") for line in lines)
 
 
 def test_a_finish_marker_not_of_this_schema_is_damaged_not_stale(tmp_path):
@@ -275,27 +242,3 @@ def test_a_finish_marker_not_of_this_schema_is_damaged_not_stale(tmp_path):
     assert status.state == "damaged" and status.eta_s is None
     assert status.error.startswith(f"{folder / 'done.json'}: schema_version 999 is not supported")
     assert count_states([status]) == "0/1 done, 1 damaged"
-
-
-def test_training_left_borrows_the_pace_of_the_same_task_and_method_from_a_reference(tmp_path):
-    """A task without a finished run of its own (a study's first seed) takes the median pace
-    of the same task *and method* in ``reference`` (the study's reference preset), wall and
-    CPU; another method's reference runs do not set it, and a task with its own finished runs
-    keeps its own pace."""
-    study = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0], root=tmp_path / "study")
-    other = sweep.plan_jobs("ci", ["gprl-d", "gprl"], ["dcp"], [0, 1], root=tmp_path / "ref")
-    reference = [
-        RunStatus(job, "done", 1000, 1000, seconds_per_step=pace, cpu_seconds_per_step=pace / 2)
-        for job, pace in zip(other, (0.2, 9.0, 0.4, 9.0), strict=True)  # gprl-d 0.2 / 0.4
-    ]
-    assert [job.method for job in other] == ["gprl-d", "gprl", "gprl-d", "gprl"]
-    statuses = [RunStatus(job, "missing", 0, 1000) for job in study]
-    left = training_left(statuses, numerics="", reference=reference)
-    assert (left.runs, left.unestimated) == (2, 1)  # dbm: no run of the task anywhere
-    assert left.seconds == pytest.approx(1000 * 0.3)
-    assert left.cpu_seconds == pytest.approx(1000 * 0.15)
-    assert training_left(statuses, numerics="").unestimated == 2  # no reference: as before
-    own = RunStatus(study[0], "done", 1000, 1000, seconds_per_step=1.0)
-    dcp_again = sweep.plan_jobs("ci", ["gprl-d"], ["dcp"], [1], root=tmp_path / "study")[0]
-    left = training_left([own, RunStatus(dcp_again, "missing", 0, 1000)], "", reference)
-    assert left.seconds == pytest.approx(1000 * 1.0)

@@ -69,13 +69,15 @@ def test_a_connect_writes_nothing_to_stdout(capfd):
 
 
 def test_importing_the_simulation_and_connecting_prints_nothing_in_a_fresh_process():
-    """Nothing pybullet prints at import or connect (``argv[0]=``; its ``pybullet build
-    time`` banner goes to stderr) reaches a piped stdout, whichever simulation module is
-    imported first."""
+    """Nothing pybullet prints at import or connect (``argv[0]=`` on stdout; its ``pybullet
+    build time`` banner on stderr, kept off by `distgprl.sim.import_pybullet_quietly`)
+    reaches a piped stdout or stderr, whichever module imports the simulation first (in a
+    sweep's job process: the sweep)."""
     import subprocess
     import sys
 
-    for module in ("distgprl.sim.tasks.base", "distgprl.sim.robot", "distgprl.sim.bullet"):
+    modules = ("distgprl.sim.tasks.base", "distgprl.sim.robot", "distgprl.sim.bullet")
+    for module in (*modules, "distgprl.experiments.sweep"):
         code = (
             f"import {module}; from distgprl.sim.bullet import PhysicsConfig, make_client; "
             "make_client(PhysicsConfig()).disconnect(); print('done')"
@@ -84,4 +86,4 @@ def test_importing_the_simulation_and_connecting_prints_nothing_in_a_fresh_proce
             [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
         )
         assert result.returncode == 0, result.stderr
-        assert result.stdout == "done\n", (module, result.stdout)
+        assert (result.stdout, result.stderr) == ("done\n", ""), module
