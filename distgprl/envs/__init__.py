@@ -1,23 +1,101 @@
 """Gymnasium environments: the adaptation MDP and the ProMP-RRL residual MDP.
 
-Registered ids (``gymnasium.make(id, method=...)``):
+Registered ids (``gymnasium.make(id, method=...)``), one pair per task of
+`distgprl.data.TASK_NAMES`:
 
 - ``DistGPRL-DCP-v8``, ``DistGPRL-DBM-v8``: `distgprl.envs.adaptation.AdaptationEnv`;
 - ``ProMPRRL-DCP-v8``, ``ProMPRRL-DBM-v8``: `distgprl.envs.residual.ResidualEnv`.
 
-The version is `distgprl.config.ENVIRONMENT_VERSION`.
+The version is `distgprl.config.ENVIRONMENT_VERSION`. ``import distgprl`` registers them
+without importing gymnasium: if gymnasium's registry is loaded they are registered at once,
+otherwise as soon as it loads (a finder on `sys.meta_path` waits for
+``gymnasium.envs.registration``, then removes itself; the ids are computed only then).
+Gymnasium 1.x reads no plugin entry points; ``gymnasium.make("distgprl:DistGPRL-DCP-v8")``
+imports the package itself.
 """
 
-from gymnasium.envs.registration import register, registry
+from __future__ import annotations
 
-from distgprl.config import ENVIRONMENT_VERSION
-from distgprl.data import TASK_NAMES
+import sys
+from importlib.machinery import ModuleSpec
+from importlib.util import find_spec
+from types import ModuleType
+from typing import TYPE_CHECKING, cast
 
-for _task in TASK_NAMES:
-    for _prefix, _version, _entry in (
-        ("DistGPRL", ENVIRONMENT_VERSION, "distgprl.envs.adaptation:AdaptationEnv"),
-        ("ProMPRRL", ENVIRONMENT_VERSION, "distgprl.envs.residual:ResidualEnv"),
-    ):
-        _id = f"{_prefix}-{_task.upper()}-v{_version}"
-        if _id not in registry:
-            register(id=_id, entry_point=_entry, kwargs={"task": _task})
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+    from importlib.abc import Loader
+
+ENTRY_POINTS: dict[str, str] = {
+    "DistGPRL": "distgprl.envs.adaptation:AdaptationEnv",
+    "ProMPRRL": "distgprl.envs.residual:ResidualEnv",
+}
+"""Id prefix -> the environment class its ids create (``module:Class``)."""
+
+_REGISTRY_MODULE = "gymnasium.envs.registration"
+
+
+def environment_id(prefix: str, task: str) -> str:
+    """The gymnasium id of ``task``'s environment, e.g. ``DistGPRL-DCP-v8``."""
+    from distgprl.config_types import ENVIRONMENT_VERSION
+
+    return f"{prefix}-{task.upper()}-v{ENVIRONMENT_VERSION}"
+
+
+def register_environments() -> None:
+    """Register every task's ids in gymnasium's registry (ids already there are kept)."""
+    from gymnasium.envs.registration import register, registry
+
+    from distgprl.data import TASK_NAMES
+
+    for task in TASK_NAMES:
+        for prefix, entry_point in ENTRY_POINTS.items():
+            env_id = environment_id(prefix, task)
+            if env_id not in registry:
+                register(id=env_id, entry_point=entry_point, kwargs={"task": task})
+
+
+class _ThenCall:
+    """A module loader that runs ``then`` after the module it wraps has executed."""
+
+    def __init__(self, loader: Loader, then: Callable[[], None]) -> None:
+        self.loader = loader
+        self.then = then
+
+    def create_module(self, spec: ModuleSpec) -> ModuleType | None:
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        self.loader.exec_module(module)
+        self.then()
+
+    def __getattr__(self, name: str) -> object:
+        """Everything else (``get_source``, ``get_filename``, ...) from the wrapped loader."""
+        return getattr(self.__dict__["loader"], name)
+
+
+class _RegisterWhenGymnasiumLoads:
+    """Finds nothing itself: when ``gymnasium.envs.registration`` is first imported it leaves
+    `sys.meta_path` and wraps that module's loader to call `register_environments` after it."""
+
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> ModuleSpec | None:
+        if fullname != _REGISTRY_MODULE:
+            return None
+        sys.meta_path.remove(self)
+        spec = find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = cast("Loader", _ThenCall(spec.loader, register_environments))
+        return spec
+
+
+def register_when_gymnasium_loads() -> None:
+    """Register the ids now if gymnasium's registry is loaded, else once it loads."""
+    if _REGISTRY_MODULE in sys.modules:
+        register_environments()
+    elif not any(isinstance(finder, _RegisterWhenGymnasiumLoads) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterWhenGymnasiumLoads())
+
+
+register_when_gymnasium_loads()

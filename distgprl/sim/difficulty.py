@@ -3,7 +3,9 @@
 Conditions the shipped demonstration on each evaluation TC by translation
 (:func:`~distgprl.sim.tasks.base.condition_by_translation`: samples after the interaction
 time move by the object offset, with a minimum-jerk blend before it), executes it and
-records the outcome. ``python -m distgprl.sim.difficulty`` prints the rates per task.
+records the outcome. ``python -m distgprl.sim.difficulty [--task NAME]`` prints the rates
+per task and the mean progress: the figures of a task's entry in
+``distgprl/data/demo_outcomes.json`` (`distgprl.reward_scale.DemoOutcome`).
 """
 
 from __future__ import annotations
@@ -21,13 +23,15 @@ from distgprl.skill.demos import load_demonstration
 
 @dataclass(frozen=True)
 class EpisodeOutcome:
-    """One executed episode: TC, success, collision, min clearance (m), IK failures."""
+    """One executed episode: TC, success, collision, min clearance (m), IK failures and the
+    task progress gained (`TaskSim.task_progress` at the end minus at the start)."""
 
     tc: TaskConfig
     success: bool
     collision: bool
     min_clearance: float
     ik_failures: int
+    progress: float
 
 
 def demo_outcomes(task_name: str, episodes: int = 100) -> list[EpisodeOutcome]:
@@ -46,10 +50,16 @@ def demo_outcomes(task_name: str, episodes: int = 100) -> list[EpisodeOutcome]:
                 goal_fixed_in_world=spec.goal_fixed_in_world,
             )
             sim.reset(tc)
+            start = sim.task_progress()
             result = sim.execute(resample_to_control(demo.times, poses, sim.control_dt))
             outcomes.append(
                 EpisodeOutcome(
-                    tc, sim.success(), result.collision, result.min_clearance, result.ik_failures
+                    tc,
+                    sim.success(),
+                    result.collision,
+                    result.min_clearance,
+                    result.ik_failures,
+                    sim.task_progress() - start,
                 )
             )
     finally:
@@ -58,7 +68,8 @@ def demo_outcomes(task_name: str, episodes: int = 100) -> list[EpisodeOutcome]:
 
 
 def summarise(outcomes: list[EpisodeOutcome]) -> dict[str, float]:
-    """Success, collision and fail-or-collide rates, 5th-percentile min clearance (m)."""
+    """Success, collision and fail-or-collide rates, 5th-percentile min clearance (m), mean
+    progress gained."""
     success = np.array([o.success for o in outcomes])
     collision = np.array([o.collision for o in outcomes])
     clearance = np.array([o.min_clearance for o in outcomes])
@@ -68,15 +79,17 @@ def summarise(outcomes: list[EpisodeOutcome]) -> dict[str, float]:
         "collision_rate": float(collision.mean()),
         "fail_or_collide_rate": float((~success | collision).mean()),
         "min_clearance_p5": float(np.percentile(clearance, 5)),
+        "progress": float(np.mean([o.progress for o in outcomes])),
     }
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Print the demo's rates on the evaluation TCs of each task."""
+    """Print the demo's rates on the evaluation TCs of each task (or of ``--task``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--task", choices=TASK_NAMES, action="append", help="task(s)")
     args = parser.parse_args(argv)
-    for name in TASK_NAMES:
+    for name in args.task or TASK_NAMES:
         summary = summarise(demo_outcomes(name, args.episodes))
         print(name, " ".join(f"{k}={v:.3f}" for k, v in summary.items()))
 
