@@ -18,6 +18,8 @@ from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
 from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
 from distgprl.envs.clearance import TimedClearance
+from distgprl.envs.episode import execute_segment, plan_segment
+from distgprl.envs.world import SimWorld
 from distgprl.methods import MethodSpec, get_method
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
@@ -189,6 +191,14 @@ class AdaptationEnv(gym.Env):
         # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
         self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
         self.field = self.clearance.field
+        # Where the segments run: the simulation, r_sd's tool clearance after each sample.
+        self.sim_world = SimWorld(
+            self.sim,
+            stop_on_collision=self.config.collision_ends_episode,
+            samples=self.config.sd_samples_per_segment,
+            tool_clearance=self._tool_clearance if self.method.distance_rewards else None,
+            cap_at_minimum=True,
+        )
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -315,13 +325,17 @@ class AdaptationEnv(gym.Env):
         """Move the EDF's moving obstacles to their current poses (static ones never move)."""
         self.field.update(self.sim.moving_obstacle_shapes())
 
-    def _clearance_penalty(self) -> float:
-        """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""
+    def _tool_clearance(self) -> np.ndarray:
+        """The tool points' distances (k,), m, to the obstacles where they are now."""
         self._refresh_field()
-        d = self.field.clearance(self.sim.tool_points())  # the distances only (same values)
-        close = d < self.config.sd_d_min
+        return self.field.clearance(self.sim.tool_points())  # the distances only (same values)
+
+    def _clearance_penalty(self, distance: np.ndarray) -> float:
+        """Eq. safety_reward at one instant from the tool points' distances (k,), m:
+        -beta sum 1[d<d_min]/(d+eps)."""
+        close = distance < self.config.sd_d_min
         return -self.config.sd_beta * float(
-            np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
+            np.sum(1.0 / (np.maximum(distance[close], 0.0) + self.config.sd_epsilon))
         )
 
     # -- the plan state's public API (delegated to `window_plan`; hardware adapter, bench) ----
@@ -405,6 +419,7 @@ class AdaptationEnv(gym.Env):
         self.start_plan(tc, self.sim.tcp_pose(), float(self.sim.time))
         self._episode_over = False
         self._refresh_field()
+        self.sim_world.begin_episode()
         self._progress = self.sim.task_progress()
         self._collision = False
         self._min_clearance = np.inf
@@ -425,30 +440,21 @@ class AdaptationEnv(gym.Env):
             # Eq. grad_alignment_reward: grad d at the window's via-points *before* the update
             # (v_j in Gamma_{t_s}^W, not the updated ones; v4).
             _, gradient = self.window_distance(indices)
-        delta = self.apply_action(step, action)  # Eq. transformed_action, updated_via_points
+        delta, poses = plan_segment(
+            self, step, action
+        )  # Eq. transformed_action, updated_via_points
         if self.method.distance_rewards:
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
-        poses = self.segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
 
-        # Execute the segment in chunks; r_sd is evaluated after each chunk.
-        segment_collision = False
-        stop = config.collision_ends_episode
-        chunks = np.array_split(np.arange(len(poses)), config.sd_samples_per_segment)
-        for chunk in chunks:
-            if len(chunk) == 0:
-                continue
-            # only a new episode minimum matters (the queries look no farther; same values)
-            below = self._min_clearance if 0.0 < self._min_clearance < np.inf else None
-            result = self.sim.execute(poses[chunk], stop_on_collision=stop, clearance_below=below)
-            segment_collision |= result.collision
-            self._min_clearance = min(self._min_clearance, result.min_clearance)
-            self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
-            if self.method.distance_rewards:
-                terms["r_sd"] += self._clearance_penalty()
-            if stop and result.collision:  # v5: a protective stop ends the episode here
-                break
-        self.mark_commanded(step, poses)
+        # Execute the segment in chunks; r_sd from the tool's clearance after each chunk.
+        report = execute_segment(self, self.sim_world, step, poses).report
+        assert report is not None  # no gate: nothing is refused
+        segment_collision = report.collision
+        self._min_clearance = min(self._min_clearance, report.min_clearance)
+        self._peak_joint_speed = max(self._peak_joint_speed, report.peak_joint_speed)
+        for clearance in report.tool_clearances:
+            terms["r_sd"] += self._clearance_penalty(clearance)
         self._collision |= segment_collision
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
@@ -463,7 +469,6 @@ class AdaptationEnv(gym.Env):
                     poses[:, :3], reference, config.signature_depth, config.signature_scale
                 )
             )
-        self.step_index += 1
         stopped = config.collision_ends_episode and segment_collision
         terminated = self.step_index >= self.layout.n_steps or stopped
         info: dict = {"step": step}
