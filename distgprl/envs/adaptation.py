@@ -6,10 +6,7 @@ Env ids: ``DistGPRL-DCP-v8`` and ``DistGPRL-DBM-v8`` (registered in `distgprl.en
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
-from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -17,17 +14,14 @@ from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build
 from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
 from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
+from distgprl.envs.base import TaskEnv
 from distgprl.envs.clearance import TimedClearance
 from distgprl.envs.episode import execute_segment, plan_segment
 from distgprl.envs.world import SimWorld
-from distgprl.methods import MethodSpec, get_method
+from distgprl.methods import MethodSpec
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
-
-#: Observed e_o and e_g are clipped to +-this per axis (m) before scaling (a knocked-off
-#: object must not blow the inputs up).
-RELATIVE_POSITION_CLIP = 0.8
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
@@ -51,7 +45,7 @@ def cosine(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> np.ndarray:
     return out
 
 
-class AdaptationEnv(gym.Env):
+class AdaptationEnv(TaskEnv):
     """Windowed, covariance-correlated via-point adaptation of a GP skill (Dist-GPRL).
 
     One episode adapts and executes the task's demonstrated skill, conditioned on a task
@@ -163,8 +157,6 @@ class AdaptationEnv(gym.Env):
     state inputs. v1 — floored via-point scale. v0 — first release. (CHANGELOG.md: in full.)
     """
 
-    metadata = {"render_modes": ["rgb_array"]}
-
     def __init__(
         self,
         task: str,
@@ -173,16 +165,15 @@ class AdaptationEnv(gym.Env):
         skill: GPSkill | None = None,
         render_mode: str | None = None,
     ) -> None:
-        from distgprl.envs.tasks import load_task_skill, make_task_sim
-
-        self.config = config or EnvConfig()
-        self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        if self.method.action_mode not in ("window", "global", "none", "residual"):
-            raise ValueError(f"method {self.method.name} does not use the via-point MDP")
-        self.task_name = task
-        self.spec_task, self.sim = make_task_sim(task)
-        self.skill = skill or load_task_skill(task, self.config.n_via_points)
-        self.render_mode = render_mode
+        self.build(
+            task,
+            method,
+            config,
+            render_mode,
+            ("window", "global", "none", "residual"),
+            "method {name} does not use the via-point MDP",
+            skill,
+        )
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(
@@ -238,9 +229,6 @@ class AdaptationEnv(gym.Env):
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, (n_points * 6,), np.float32)
-        self._rng = np.random.default_rng()
-        self.step_index = 0
-        self._episode_over = True  # until reset()
 
     # -- the trajectory model (ProMP-RRL's env overrides it) -----------------------------
     def trajectory_model(self) -> TrajectoryModel:
@@ -296,11 +284,6 @@ class AdaptationEnv(gym.Env):
             self.sim.moving_obstacle_shapes(), offset, half_extents, self.config.sd_d_min
         )
 
-    def _relative(self, vector: np.ndarray) -> np.ndarray:
-        """A relative position (3,), m, clipped and in units of relative_position_scale."""
-        clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
-        return clipped / self.config.relative_position_scale
-
     def observation(self) -> dict[str, np.ndarray]:
         """The current observation (``state`` and ``aux``, as returned by `step`)."""
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
@@ -313,8 +296,8 @@ class AdaptationEnv(gym.Env):
             [
                 ((window - self._via_mean) / self._via_std).ravel(),
                 np.clip(clearance, -clip, clip) / config.clearance_scale,
-                self._relative(self.sim.object_position() - tcp),
-                self._relative(self.sim.goal_position() - tcp),
+                self.relative(self.sim.object_position() - tcp),
+                self.relative(self.sim.goal_position() - tcp),
                 [self.step_index / self.layout.n_steps],
             ]
         ).astype(np.float32)
@@ -390,30 +373,9 @@ class AdaptationEnv(gym.Env):
         """The world's time (s) at the start of the current episode's plan."""
         return self.window_plan.start_time
 
-    @property
-    def tc_generator_state(self) -> Mapping[str, Any]:
-        """The state of the generator that draws the training TCs at ``reset()`` (NumPy
-        ``bit_generator.state``; a training checkpoint saves and restores it)."""
-        return self._rng.bit_generator.state
-
-    @tc_generator_state.setter
-    def tc_generator_state(self, state: dict) -> None:
-        self._rng.bit_generator.state = state
-
-    @property
-    def at_episode_start(self) -> bool:
-        """True between ``reset()`` and the episode's first step (where a training run can be
-        checkpointed and resumed exactly)."""
-        return self.step_index == 0 and not self._episode_over
-
     # -- gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
-        tc = (options or {}).get("tc")
-        if tc is None:
-            tc = self.spec_task.sample_tc(self._rng)
+        tc = self.episode_tc(seed, options)
         self.tc = tc
         self.sim.reset(tc)
         self.start_plan(tc, self.sim.tcp_pose(), float(self.sim.time))
@@ -498,11 +460,3 @@ class AdaptationEnv(gym.Env):
         reward = float(sum(terms.values()))
         info.update(terms)
         return self.observation(), reward, terminated, False, info
-
-    def render(self):
-        if self.render_mode == "rgb_array":
-            return self.sim.render_rgb(480, 360)
-        return None
-
-    def close(self) -> None:
-        self.sim.close()

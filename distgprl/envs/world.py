@@ -42,7 +42,8 @@ class SegmentReport:
             are after each of the segment's samples (`SimWorld` with a field; else empty).
         stop_reason: why it stopped ("" if it did not).
         protective_stop: the robot's controller stopped it (a contact or a limit).
-        limit_stop: the stop was at one of the controller's limits, not a contact.
+        limit_stop: the controller's limit the command exceeded where the stop was at a
+            limit, not a contact ("" otherwise).
         wall_s: wall-clock time the execution took, s (0 where not measured).
     """
 
@@ -54,7 +55,7 @@ class SegmentReport:
     tool_clearances: tuple[np.ndarray, ...] = ()
     stop_reason: str = ""
     protective_stop: bool = False
-    limit_stop: bool = False
+    limit_stop: str = ""
     wall_s: float = 0.0
 
 
@@ -140,11 +141,8 @@ class SimWorld:
         for chunk in np.array_split(np.arange(len(poses)), self.samples):
             if len(chunk) == 0:
                 continue
-            result = self.sim.execute(
-                poses[chunk],
-                stop_on_collision=self.stop_on_collision,
-                clearance_below=self._clearance_below(),
-            )
+            cap = {"clearance_below": self._clearance_below()} if self.cap_at_minimum else {}
+            result = self.sim.execute(poses[chunk], stop_on_collision=self.stop_on_collision, **cap)
             steps += result.steps
             collision |= result.collision
             stopped |= result.stopped
@@ -166,8 +164,6 @@ class SimWorld:
 
     def _clearance_below(self) -> float | None:
         """Only a new episode minimum matters (the queries look no farther; same values)."""
-        if not self.cap_at_minimum:
-            return None
         below = self.episode_min_clearance
         return below if 0.0 < below < np.inf else None
 

@@ -318,8 +318,6 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
     ) -> None:
         ResidualRLEnv.__init__(self, "dbm", method, config)
         self._attach_world(conveyor_velocity)
-        self._pending = np.zeros(6)
-        self._pending_poses = np.zeros((0, 6))
         self.image_steps = self._window_start_steps()
 
     decision_unit = "RL step"
@@ -349,29 +347,6 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
         """The conditioned nominal with the TCP pose (6,) blended in, residual 0."""
         self._start_episode(tc, tcp_pose)
         self._episode_over = False
-
-    def adapt(self, action: np.ndarray | None) -> np.ndarray:
-        """The residual at the end of the current RL step for the raw action (6,) (``None``
-        or the ``promp-nominal`` reference: 0), and the step's poses (m_j, 6) to check."""
-        step = self.step_index
-        raw = np.zeros(6) if action is None else np.asarray(action, dtype=float)
-        self._pending = self.step_residual(step, raw)
-        self._pending_poses = self.step_poses(step, self._pending)
-        return self._pending_poses.copy()
-
-    def mark_commanded(self, step: int, poses: np.ndarray) -> None:
-        """Record RL step ``step`` as executed: ``poses`` its commanded path (a re-timed
-        step's path has more instants than the step's control periods; fewer: stopped)."""
-        indices = self.schedule.steps[step]
-        done = len(indices) if len(poses) >= len(indices) else len(poses)
-        self.commanded_poses[indices[:done] + 1] = self._pending_poses[:done]
-        self._instants_done = int(indices[0]) + done
-        self._residuals[step] = self._pending
-
-    @property
-    def last_commanded(self) -> np.ndarray:
-        """The last commanded pose (6,) (the blended start before the first step)."""
-        return np.asarray(self.commanded_poses[self._instants_done], dtype=float).copy()
 
 
 TrialAdapter = PerceivedAdaptation | PerceivedResidual | PerceivedResidualControl
