@@ -16,7 +16,7 @@ from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.clearance import TimedClearance
-from distgprl.envs.episode import execute_segment, plan_segment
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.world import SimWorld
 from distgprl.methods import MethodSpec
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
@@ -383,9 +383,7 @@ class AdaptationEnv(TaskEnv):
         self._refresh_field()
         self.sim_world.begin_episode()
         self._progress = self.sim.task_progress()
-        self._collision = False
-        self._min_clearance = np.inf
-        self._peak_joint_speed = 0.0
+        self.tally = EpisodeTally()  # what the episode's segments add up to
         self._adaptation_times: list[float] = []
         return self.observation(), {"tc": tc}
 
@@ -413,11 +411,9 @@ class AdaptationEnv(TaskEnv):
         report = execute_segment(self, self.sim_world, step, poses).report
         assert report is not None  # no gate: nothing is refused
         segment_collision = report.collision
-        self._min_clearance = min(self._min_clearance, report.min_clearance)
-        self._peak_joint_speed = max(self._peak_joint_speed, report.peak_joint_speed)
+        self.tally.add(report)
         for clearance in report.tool_clearances:
             terms["r_sd"] += self._clearance_penalty(clearance)
-        self._collision |= segment_collision
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
         self._progress = progress
@@ -439,18 +435,18 @@ class AdaptationEnv(TaskEnv):
             completed = bool(self.sim.success())
             # v5: success is completion without collision (as on hardware, where a
             # collision is a protective stop); v4's success is kept as ``completed``.
-            success = completed and not (self._collision and config.collision_ends_episode)
+            success = completed and not (self.tally.collision and config.collision_ends_episode)
             if success:
                 terms["r_success"] = config.success_bonus
             velocity = self.window_plan.velocity(self._retention_tau)
             info.update(
                 success=success,
                 completed=completed,
-                collision=bool(self._collision),
+                collision=bool(self.tally.collision),
                 stopped_at_step=step if stopped else -1,
-                min_clearance=max(float(self._min_clearance), 0.0),
-                min_signed_clearance=float(self._min_clearance),
-                peak_joint_speed=float(self._peak_joint_speed),
+                min_clearance=max(float(self.tally.min_clearance), 0.0),
+                min_signed_clearance=float(self.tally.min_clearance),
+                peak_joint_speed=float(self.tally.peak_joint_speed),
                 kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
                 adaptation_time_s=list(self._adaptation_times),
                 final_parameters=self.gamma.copy(),

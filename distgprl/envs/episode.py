@@ -15,7 +15,7 @@ solves the IK the robot streams).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -23,7 +23,15 @@ import numpy as np
 if TYPE_CHECKING:
     from distgprl.envs.world import SegmentReport, World
 
-__all__ = ["Decision", "Gate", "PlanAdapter", "Reviewed", "execute_segment", "plan_segment"]
+__all__ = [
+    "Decision",
+    "EpisodeTally",
+    "Gate",
+    "PlanAdapter",
+    "Reviewed",
+    "execute_segment",
+    "plan_segment",
+]
 
 
 class PlanAdapter(Protocol):
@@ -118,3 +126,26 @@ def execute_segment(
     if gate is not None:
         gate.executed(reviewed, report)
     return Decision(reviewed, report)
+
+
+@dataclass
+class EpisodeTally:
+    """What an episode's executed segments add up to (`add` each `SegmentReport`).
+
+    Attributes:
+        collision: any segment had a contact.
+        min_clearance: the least robot/tool-obstacle distance, m (inf before any).
+        peak_joint_speed: the largest commanded joint speed, rad/s.
+        steps: control periods executed.
+    """
+
+    collision: bool = False
+    min_clearance: float = field(default=float(np.inf))
+    peak_joint_speed: float = 0.0
+    steps: int = 0
+
+    def add(self, report: SegmentReport) -> None:
+        self.collision |= report.collision
+        self.min_clearance = min(self.min_clearance, report.min_clearance)
+        self.peak_joint_speed = max(self.peak_joint_speed, report.peak_joint_speed)
+        self.steps += report.steps

@@ -34,7 +34,7 @@ from distgprl.adaptation.residual_control import (
 from distgprl.config import EnvConfig
 from distgprl.envs.adaptation import cosine
 from distgprl.envs.base import TaskEnv
-from distgprl.envs.episode import execute_segment, plan_segment
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.residual import load_task_promp
 from distgprl.envs.world import SimWorld
 from distgprl.methods import MethodSpec
@@ -394,9 +394,7 @@ class ResidualRLEnv(TaskEnv):
         self._start_episode(tc, self.sim.tcp_pose())
         self._episode_over = False
         self._progress = self.sim.task_progress()
-        self._collision = False
-        self._min_clearance = np.inf
-        self._peak_joint_speed = 0.0
+        self.tally = EpisodeTally()  # what the episode's RL steps add up to
         self._step_times: list[float] = []
         return self.observation(), {"tc": tc}
 
@@ -411,9 +409,7 @@ class ResidualRLEnv(TaskEnv):
         stop = config.collision_ends_episode
         result = execute_segment(self, self.sim_world, step, poses).report
         assert result is not None  # no gate: nothing is refused
-        self._collision |= result.collision
-        self._min_clearance = min(self._min_clearance, result.min_clearance)
-        self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
+        self.tally.add(result)
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
@@ -426,17 +422,17 @@ class ResidualRLEnv(TaskEnv):
         info: dict = {"step": step}
         if terminated:
             completed = bool(self.sim.success())
-            success = completed and not (self._collision and stop)
+            success = completed and not (self.tally.collision and stop)
             if success:
                 terms["r_success"] = config.success_bonus
             info.update(
                 success=success,
                 completed=completed,
-                collision=bool(self._collision),
+                collision=bool(self.tally.collision),
                 stopped_at_step=step if stopped else -1,
-                min_clearance=max(float(self._min_clearance), 0.0),
-                min_signed_clearance=float(self._min_clearance),
-                peak_joint_speed=float(self._peak_joint_speed),
+                min_clearance=max(float(self.tally.min_clearance), 0.0),
+                min_signed_clearance=float(self.tally.min_clearance),
+                peak_joint_speed=float(self.tally.peak_joint_speed),
                 kinematic_retention=self._kinematic_retention(residual),
                 adaptation_time_s=self._adaptation_times(),
                 final_parameters=self._residuals.copy(),

@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from distgprl.envs.episode import execute_segment, plan_segment
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.world import SimWorld
 from distgprl.errors import UserInputError
 from distgprl.hardware.gates import RepairGate
@@ -126,12 +126,9 @@ def run_repaired_episode(
     stop_on_collision = env.config.collision_ends_episode
     world = SimWorld(sim, stop_on_collision=stop_on_collision)
     gate = _simulated_safety_layer(env, limits, config)
-    collision = False
+    tally = EpisodeTally()  # what the executed windows add up to
     refused_window: int | str = ""  # the refused window (1-based); "" if none was
-    min_clearance = np.inf
     planned = np.inf
-    peak_speed = 0.0
-    executed_steps = 0
     policy_time = 0.0
     start_clearance = float(sim.clearance())
     for step in range(env.layout.n_steps):
@@ -149,10 +146,7 @@ def run_repaired_episode(
             break
         assert gate.last.check is not None  # accepted plans are checked
         planned = min(planned, gate.last.check.min_clearance)
-        executed_steps += segment.steps
-        collision |= segment.collision
-        min_clearance = min(min_clearance, segment.min_clearance)
-        peak_speed = max(peak_speed, segment.peak_joint_speed)
+        tally.add(segment)
         if stop_on_collision and segment.collision:
             break
         env.field.update(sim.moving_obstacle_shapes())  # as the env's step leaves it
@@ -164,9 +158,8 @@ def run_repaired_episode(
     dt = world.control_dt
     repair_time = gate.seconds
     completed = bool(sim.success())
-    success = completed and not refused and not (collision and stop_on_collision)
-    if not executed_steps:
-        min_clearance = start_clearance
+    success = completed and not refused and not (tally.collision and stop_on_collision)
+    min_clearance = tally.min_clearance if tally.steps else start_clearance
     added = [w.time_added for w in windows]
     displacement = [w.displacement for w in windows]
     return {
@@ -176,7 +169,7 @@ def run_repaired_episode(
         "obstacle_offset_y": float(tc.obstacle_offset[1]),
         "success": int(success),
         "completed": int(completed),
-        "collision": int(collision),
+        "collision": int(tally.collision),
         "refused": int(refused),
         "refused_window": refused_window,
         "refused_limits": refused_limits,
@@ -184,8 +177,8 @@ def run_repaired_episode(
         "min_clearance": max(float(min_clearance), 0.0),
         "min_signed_clearance": float(min_clearance),
         "planned_min_clearance": float(planned),
-        "peak_joint_speed": float(peak_speed),
-        "executed_s": executed_steps * dt,
+        "peak_joint_speed": float(tally.peak_joint_speed),
+        "executed_s": tally.steps * dt,
         "repair": ";".join(w.decision for w in windows),
         "repair_added_s": ";".join(f"{a:.3f}" for a in added),
         "repair_displacement_m": ";".join(f"{d:.4f}" for d in displacement),

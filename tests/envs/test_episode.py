@@ -79,3 +79,13 @@ def test_without_a_gate_the_poses_go_as_planned():
     poses = plan.segment_poses(2)
     execute_segment(plan, world, 2, poses)
     assert world.executed[0][0] is poses and world.executed[0][1] is None
+
+
+def test_the_tally_adds_the_segments_up():
+    from distgprl.envs.episode import EpisodeTally
+
+    tally = EpisodeTally()
+    tally.add(SegmentReport(3, min_clearance=0.02, peak_joint_speed=0.5))
+    tally.add(SegmentReport(2, collision=True, min_clearance=-0.001, peak_joint_speed=0.3))
+    tally.add(SegmentReport(1, min_clearance=0.05, peak_joint_speed=0.1))
+    assert tally == EpisodeTally(True, -0.001, 0.5, 6)
