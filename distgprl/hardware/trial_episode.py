@@ -206,41 +206,55 @@ def _run_decisions(setup, index, record, world, gate, perceive) -> None:
     """The trial's decisions through the episode loop (`distgprl.envs.episode`): update the
     perceived scene, observe, decide, pass the gate, execute; until the last decision, a
     refusal or a stop. An open motion stream is ended at the end."""
-    adapter, row = setup.adapter, record.row
+    adapter = setup.adapter
     streaming = False  # the robot's stream left open for the next RL step
     for step in range(adapter.trial_steps):
         if step > 0:
             _update_scene(setup, world, gate, step, perceive)
-        start = time.perf_counter()
-        observation = adapter.observe()
-        action = None if setup.policy is None else setup.policy(observation)
-        record.timings["policy"] += time.perf_counter() - start
-        _, poses = plan_segment(adapter, step, _raw_action(adapter, action))
+        poses = _decide(setup, record, step)
         # residual control streams its RL steps back to back (the robot's stream is not
         # ended between them); a window plan ends its stream
         last = not adapter.streams_decisions or step == adapter.trial_steps - 1
         checked = gate.seconds
-        decision = execute_segment(adapter, world, step, poses, gate, last)
+        report = execute_segment(adapter, world, step, poses, gate, last).report
         record.timings["check"] += gate.seconds - checked
-        _record_review(setup, index, step, row, gate.last)
-        report = decision.report
+        _record_review(setup, index, step, record.row, gate.last)
         if report is None:  # refused: nothing of it moved
             break
         record.planned = min(record.planned, gate.last.check.min_clearance)
         if setup.dry_run:
             continue
         streaming = not last and not report.stopped
-        record.timings["execution"] += report.wall_s
-        if report.stopped:  # a controller's limit stop is a failure, not a refusal
-            status = PROTECTIVE_STOP if report.limit_stop else "stopped"
-            row.update(status=status, stop_reason=report.stop_reason)
-            if report.collision:
-                row["collision"] = 1  # a contact (the real robot: any protective stop)
+        if _stopped(record, report):
             break
         if not setup.twin and not streaming:  # a continued stream goes on from its last target
             gate.q = setup.robot.joint_positions()
     if streaming:  # a refusal ended the trial with the robot's stream still open
         setup.robot.stop()
+
+
+def _decide(setup: TrialSetup, record: _TrialRecord, step: int) -> np.ndarray:
+    """The policy's decision ``step`` on the observation of the perceived scene: the
+    segment's poses (m, 6) to pass the gate (`plan_segment`)."""
+    adapter = setup.adapter
+    start = time.perf_counter()
+    observation = adapter.observe()
+    action = None if setup.policy is None else setup.policy(observation)
+    record.timings["policy"] += time.perf_counter() - start
+    return plan_segment(adapter, step, _raw_action(adapter, action))[1]
+
+
+def _stopped(record: _TrialRecord, report) -> bool:
+    """Record an executed decision; True if the robot stopped (the row says why: a
+    controller's limit stop is a failure, not a refusal; a contact is a collision)."""
+    record.timings["execution"] += report.wall_s
+    if not report.stopped:
+        return False
+    status = PROTECTIVE_STOP if report.limit_stop else "stopped"
+    record.row.update(status=status, stop_reason=report.stop_reason)
+    if report.collision:
+        record.row["collision"] = 1  # a contact (the real robot: any protective stop)
+    return True
 
 
 def _update_scene(setup: TrialSetup, world, gate, step: int, perceive) -> None:
