@@ -17,7 +17,7 @@ from distgprl.config import EnvConfig
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.clearance import TimedClearance
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
-from distgprl.envs.world import SimWorld
+from distgprl.envs.world import SimWorld, WorldState
 from distgprl.methods import MethodSpec
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
@@ -190,6 +190,8 @@ class AdaptationEnv(TaskEnv):
             tool_clearance=self._tool_clearance if self.method.distance_rewards else None,
             cap_at_minimum=True,
         )
+        # What the observation reads (the hardware trials' adapter: the perceived scene).
+        self.world: WorldState = self.sim_world
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -250,19 +252,19 @@ class AdaptationEnv(TaskEnv):
         points = self.window_plan.window_poses(indices)[:, :3]
         times = self.episode_start_time + self.skill.via_times[indices] * self.skill.duration
         return self.clearance.distance(
-            points, times, self.sim.moving_obstacle_shapes, self._anchors_at()
+            points, times, self.world.moving_obstacle_shapes, self._anchors_at()
         )
 
     def moving_obstacle_anchors(self) -> np.ndarray:
         """The moving obstacles' anchor at every via-point time, shape (N, 3), m (as for
         ``c``: where they will be when the trajectory reaches via-point j, or now)."""
         times = self.episode_start_time + self.skill.via_times * self.skill.duration
-        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes, self._anchors_at())
+        return self.clearance.anchors(times, self.world.moving_obstacle_shapes, self._anchors_at())
 
     def _anchors_at(self):
         """The simulator's vectorised ``moving_obstacle_anchors_at`` (None if it has none,
         e.g. a perceived scene: the anchors are then read shape by shape)."""
-        return getattr(self.sim, "moving_obstacle_anchors_at", None)
+        return getattr(self.world, "moving_obstacle_anchors_at", None)
 
     def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
@@ -291,13 +293,13 @@ class AdaptationEnv(TaskEnv):
         clearance, _ = self.window_distance(indices)
         config = self.config
         clip = config.clearance_clip
-        tcp = self.sim.tcp_pose()[:3]
+        tcp = self.world.tcp_pose()[:3]
         state = np.concatenate(
             [
                 ((window - self._via_mean) / self._via_std).ravel(),
                 np.clip(clearance, -clip, clip) / config.clearance_scale,
-                self.relative(self.sim.object_position() - tcp),
-                self.relative(self.sim.goal_position() - tcp),
+                self.relative(self.world.object_position() - tcp),
+                self.relative(self.world.goal_position() - tcp),
                 [self.step_index / self.layout.n_steps],
             ]
         ).astype(np.float32)
@@ -306,12 +308,12 @@ class AdaptationEnv(TaskEnv):
 
     def _refresh_field(self) -> None:
         """Move the EDF's moving obstacles to their current poses (static ones never move)."""
-        self.field.update(self.sim.moving_obstacle_shapes())
+        self.field.update(self.world.moving_obstacle_shapes())
 
     def _tool_clearance(self) -> np.ndarray:
         """The tool points' distances (k,), m, to the obstacles where they are now."""
         self._refresh_field()
-        return self.field.clearance(self.sim.tool_points())  # the distances only (same values)
+        return self.field.clearance(self.world.tool_points())  # the distances only (same values)
 
     def _clearance_penalty(self, distance: np.ndarray) -> float:
         """Eq. safety_reward at one instant from the tool points' distances (k,), m:

@@ -36,7 +36,7 @@ from distgprl.envs.adaptation import cosine
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.residual import load_task_promp
-from distgprl.envs.world import SimWorld
+from distgprl.envs.world import SimWorld, WorldState
 from distgprl.methods import MethodSpec
 from distgprl.safety.edf import DistanceField
 from distgprl.skill.demos import load_demonstration
@@ -285,8 +285,10 @@ class ResidualRLEnv(TaskEnv):
         self._residuals = np.zeros((self.n_steps, 6))
         self._pending = np.zeros(6)  # the current RL step's residual and poses (`apply_action`)
         self._pending_poses = np.zeros((0, 6))
-        # Where the RL steps run: the simulation.
+        # Where the RL steps run (the simulation) and what the observation reads (the
+        # hardware trials' adapter: the perceived scene).
         self.sim_world = SimWorld(self.sim, stop_on_collision=self.config.collision_ends_episode)
+        self.world: WorldState = self.sim_world
 
     # -- the episode's plan ------------------------------------------------------------------
     @property
@@ -365,10 +367,10 @@ class ResidualRLEnv(TaskEnv):
         """The current observation (``state``, as returned by `step`)."""
         config = self.config
         nominal = self.nominal_poses[self._instants_done]
-        tcp = self.sim.tcp_pose()
+        tcp = self.world.tcp_pose()
         rotation = rotation_error(tcp, nominal) / self.residual_scale[3:]
-        self.field.update(self.sim.moving_obstacle_shapes())
-        distance, gradient = self.field.distance(self.sim.tool_points())
+        self.field.update(self.world.moving_obstacle_shapes())
+        distance, gradient = self.field.distance(self.world.tool_points())
         closest = int(np.argmin(distance))
         clip = config.clearance_clip
         terminal = self.step_index >= self.n_steps
@@ -378,8 +380,8 @@ class ResidualRLEnv(TaskEnv):
                 self.relative(tcp[:3] - nominal[:3]),
                 np.clip(rotation, -ROTATION_ERROR_CLIP, ROTATION_ERROR_CLIP),
                 self._previous_residual(self.step_index) / self.residual_scale,
-                self.relative(self.sim.object_position() - tcp[:3]),
-                self.relative(self.sim.goal_position() - tcp[:3]),
+                self.relative(self.world.object_position() - tcp[:3]),
+                self.relative(self.world.goal_position() - tcp[:3]),
                 [self.step_index / self.n_steps, next_gate],
                 [np.clip(distance[closest], -clip, clip) / config.clearance_scale],
                 gradient[closest],

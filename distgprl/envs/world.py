@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from distgprl.safety.shapes import Shape
     from distgprl.sim.tasks.base import TaskSim
 
-__all__ = ["SegmentReport", "SimWorld", "World"]
+__all__ = ["SegmentReport", "SimWorld", "World", "WorldState"]
 
 
 @dataclass(frozen=True)
@@ -59,21 +59,8 @@ class SegmentReport:
     wall_s: float = 0.0
 
 
-class World(Protocol):
-    """What the episode loop needs of a world."""
-
-    @property
-    def control_dt(self) -> float:
-        """Control period, s (one pose per period)."""
-        ...
-
-    def execute(
-        self, poses: np.ndarray, joints: np.ndarray | None = None, last: bool = True
-    ) -> SegmentReport:
-        """Execute ``poses`` (m, 6), m and rad, one per control period; ``joints`` (m, 6),
-        rad, the safety layer's IK of them where it has one (a robot streams them; a
-        simulation runs its own IK); ``last``: the robot may end its stream after them."""
-        ...
+class WorldState(Protocol):
+    """What an episode reads of its world (the observation's inputs)."""
 
     def tcp_pose(self) -> np.ndarray:
         """The TCP pose (6,), m and rad."""
@@ -87,8 +74,29 @@ class World(Protocol):
         """The goal position (3,), m."""
         ...
 
-    def moving_obstacle_shapes(self) -> tuple[Shape, ...]:
-        """The moving obstacles where they are now."""
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        """The moving obstacles now (``time`` None) or predicted at episode time ``time`` (s)."""
+        ...
+
+    def tool_points(self) -> np.ndarray:
+        """The tool's surface points (k, 3), m."""
+        ...
+
+
+class World(WorldState, Protocol):
+    """What the episode loop needs of a world: its state, and execution."""
+
+    @property
+    def control_dt(self) -> float:
+        """Control period, s (one pose per period)."""
+        ...
+
+    def execute(
+        self, poses: np.ndarray, joints: np.ndarray | None = None, last: bool = True
+    ) -> SegmentReport:
+        """Execute ``poses`` (m, 6), m and rad, one per control period; ``joints`` (m, 6),
+        rad, the safety layer's IK of them where it has one (a robot streams them; a
+        simulation runs its own IK); ``last``: the robot may end its stream after them."""
         ...
 
 
@@ -177,5 +185,12 @@ class SimWorld:
     def goal_position(self) -> np.ndarray:
         return self.sim.goal_position()
 
-    def moving_obstacle_shapes(self) -> tuple[Shape, ...]:
-        return tuple(self.sim.moving_obstacle_shapes())
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple[Shape, ...]:
+        return self.sim.moving_obstacle_shapes(time)
+
+    def moving_obstacle_anchors_at(self, times: np.ndarray) -> np.ndarray:
+        """The moving obstacles' anchor at each of ``times`` (n,), s, shape (n, 3), m."""
+        return self.sim.moving_obstacle_anchors_at(times)
+
+    def tool_points(self) -> np.ndarray:
+        return self.sim.tool_points()

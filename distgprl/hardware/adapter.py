@@ -7,8 +7,9 @@
 action layout, TC conditioning, segment maps (control rate), continuity blending (or the
 residual's nominal, gate, slew limit and hold) and observation builder are used unchanged. The env's
 simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
-what the observation reads from the world (TCP pose, object position, goal, obstacles)
-comes from a :class:`PerceivedScene` filled by the perception and the robot backend.
+what the observation reads of its world (``world``: TCP pose, object position, goal,
+obstacles, tool points) is a :class:`PerceivedScene` filled by the perception and the robot
+backend.
 """
 
 from __future__ import annotations
@@ -61,9 +62,8 @@ class TrackedObject:
 class PerceivedScene:
     """The world as perceived: object tracks, obstacle shapes and the robot's TCP.
 
-    Implements the part of the task-simulation interface that
-    :meth:`AdaptationEnv.observation` reads (``tcp_pose``, ``object_position``,
-    ``goal_position``), from perception instead of simulation state.
+    A world's state (`distgprl.envs.world.WorldState`: what the observation reads), from
+    perception instead of simulation state.
 
     Args:
         static_shapes: the cell's fixed obstacles (rollers, rails), robot base frame.
@@ -129,7 +129,7 @@ class PerceivedScene:
         """The other bar predicted at ``time`` (default now)."""
         return bar_shapes(self.scene, self.object_transform("other_bar", time), "other_bar", True)
 
-    # -- the TaskSim subset the observation reads ------------------------------------------
+    # -- the world state the observation reads (`WorldState`) -----------------------------
     def tcp_pose(self) -> np.ndarray:
         return self._tcp.copy()
 
@@ -152,9 +152,6 @@ class PerceivedScene:
             [position[0], position[1], self.scene.bar_centre_z + self.scene.lift_height]
         )
 
-    def close(self) -> None:
-        """Nothing to release (the env's close() calls it)."""
-
 
 if TYPE_CHECKING:  # the mixin's host, for the type checker only (at run time: object)
     _Host = AdaptationEnv
@@ -166,20 +163,24 @@ class _PerceivedWorld(_Host):
     """The perceived-world half of a trial adapter, shared by the two environment kinds.
 
     Mixed into an environment class (:class:`AdaptationEnv` or its residual subclass) after
-    that environment is built: :meth:`_attach_world` keeps its simulation as the kinematic
-    model and makes the observation read the perceived world instead.
+    that environment is built: :meth:`_attach_world` makes the observation read the
+    perceived world (``world``); the environment's simulation is the kinematic model.
     """
 
-    model: TaskSim  # the environment's own simulation, kept as the kinematic model
-    sim: Any  # after `_attach_world`: the `PerceivedScene` (the TaskSim subset it reads)
+    world: PerceivedScene  # after `_attach_world`: what the observation reads
     decision_unit = "window"
     """What one decision of the policy (and one safety check) covers."""
     streams_decisions = False
     """Whether the robot streams consecutive decisions' poses without ending its stream
     between them (residual control's 0.1 s RL steps; a window plan ends its stream)."""
 
+    @property
+    def model(self) -> TaskSim:
+        """The environment's simulation, kept as the kinematic model (IK, tool geometry,
+        static cell geometry)."""
+        return self.sim
+
     def _attach_world(self, conveyor_velocity: Any) -> None:
-        self.model = self.sim
         static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
         robot = self.model.robot
 
@@ -188,8 +189,7 @@ class _PerceivedWorld(_Host):
 
         self.world = PerceivedScene(
             static, np.asarray(conveyor_velocity, dtype=float), tool_points_at=tool_points_at
-        )
-        self.sim = self.world  # the observation now reads the perceived world
+        )  # what the observation reads
 
     @property
     def control_dt(self) -> float:
@@ -259,9 +259,6 @@ class _PerceivedWorld(_Host):
         """Record that ``poses`` (the segment of the current step) were commanded."""
         self.mark_commanded(self.step_index, poses)
         self.step_index += 1
-
-    def close(self) -> None:
-        self.model.close()
 
 
 class PerceivedAdaptation(_PerceivedWorld, AdaptationEnv):

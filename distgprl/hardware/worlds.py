@@ -37,8 +37,11 @@ class _PerceivedState:
     def goal_position(self) -> np.ndarray:
         return self.scene.goal_position()
 
-    def moving_obstacle_shapes(self) -> tuple:
-        return self.scene.moving_obstacle_shapes()
+    def moving_obstacle_shapes(self, time: float | None = None) -> tuple:
+        return self.scene.moving_obstacle_shapes(time)
+
+    def tool_points(self) -> np.ndarray:
+        return self.scene.tool_points()
 
 
 class RobotWorld(_PerceivedState):
