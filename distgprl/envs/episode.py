@@ -29,6 +29,7 @@ __all__ = [
     "Gate",
     "PlanAdapter",
     "Reviewed",
+    "commit_segment",
     "execute_segment",
     "plan_segment",
 ]
@@ -102,6 +103,13 @@ def plan_segment(plan: PlanAdapter, step: int, action: np.ndarray) -> tuple[np.n
     return change, plan.segment_poses(step)
 
 
+def commit_segment(plan: PlanAdapter, step: int, path_poses: np.ndarray) -> None:
+    """Mark ``path_poses`` (m, 6), what decision ``step`` executed, commanded and move the
+    plan on to the next decision."""
+    plan.mark_commanded(step, path_poses)
+    plan.step_index += 1
+
+
 def execute_segment(
     plan: PlanAdapter,
     world: World,
@@ -121,8 +129,7 @@ def execute_segment(
     if reviewed.refused:
         return Decision(reviewed, None)
     report = world.execute(reviewed.poses, reviewed.joints, last)
-    plan.mark_commanded(step, reviewed.path_poses[: report.steps])
-    plan.step_index += 1
+    commit_segment(plan, step, reviewed.path_poses[: report.steps])
     if gate is not None:
         gate.executed(reviewed, report)
     return Decision(reviewed, report)

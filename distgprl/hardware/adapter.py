@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.episode import commit_segment, plan_segment
 from distgprl.envs.residual import ResidualEnv
 from distgprl.envs.residual_rl import ResidualRLEnv
 from distgprl.hardware.perception import OBJECTS, Percept
@@ -245,11 +246,9 @@ class _PerceivedWorld(_Host):
         ``None`` (or a method that trains no policy: ``demo``, ``promp-nominal``) keeps the
         conditioned demonstration (the ProMP nominal).
         """
-        step = self.step_index
         shape = cast("tuple[int, ...]", self.action_space.shape)  # a Box's
         raw = np.zeros(shape) if action is None else action
-        self.apply_action(step, raw)
-        return self.segment_poses(step)
+        return plan_segment(self, self.step_index, raw)[1]
 
     def segment_times(self, step: int) -> np.ndarray:
         """Trial times (s from the trial start) of the control instants of segment ``step``."""
@@ -257,8 +256,7 @@ class _PerceivedWorld(_Host):
 
     def executed(self, poses: np.ndarray) -> None:
         """Record that ``poses`` (the segment of the current step) were commanded."""
-        self.mark_commanded(self.step_index, poses)
-        self.step_index += 1
+        commit_segment(self, self.step_index, poses)
 
 
 class PerceivedAdaptation(_PerceivedWorld, AdaptationEnv):

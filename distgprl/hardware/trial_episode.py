@@ -9,11 +9,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
-from distgprl.envs.episode import execute_segment, plan_segment
+from distgprl.envs.episode import execute_segment
 from distgprl.hardware.gates import CheckGate, RepairGate, UncheckedGate
 from distgprl.hardware.perception import OBJECTS, MarkerPerception, pose_error
 from distgprl.hardware.repair import RepairConfig
@@ -235,13 +235,14 @@ def _run_decisions(setup, index, record, world, gate, perceive) -> None:
 
 def _decide(setup: TrialSetup, record: _TrialRecord, step: int) -> np.ndarray:
     """The policy's decision ``step`` on the observation of the perceived scene: the
-    segment's poses (m, 6) to pass the gate (`plan_segment`)."""
+    segment's poses (m, 6) to pass the gate."""
     adapter = setup.adapter
     start = time.perf_counter()
     observation = adapter.observe()
     action = None if setup.policy is None else setup.policy(observation)
     record.timings["policy"] += time.perf_counter() - start
-    return plan_segment(adapter, step, _raw_action(adapter, action))[1]
+    assert step == adapter.step_index  # the adapter plans its current decision
+    return adapter.adapt(action)  # `plan_segment` (the references: a zero action)
 
 
 def _stopped(record: _TrialRecord, report) -> bool:
@@ -266,13 +267,6 @@ def _update_scene(setup: TrialSetup, world, gate, step: int, perceive) -> None:
         perceive()
     else:
         world.sync_robot()
-
-
-def _raw_action(adapter, action: np.ndarray | None) -> np.ndarray:
-    """The policy's raw action; zeros (the conditioned demonstration, the ProMP nominal) for
-    ``None`` (the references, which run no policy)."""
-    shape = cast("tuple[int, ...]", adapter.action_space.shape)  # a Box's
-    return np.zeros(shape) if action is None else action
 
 
 def _record_review(setup: TrialSetup, index: int, step: int, row: dict[str, Any], review) -> None:
