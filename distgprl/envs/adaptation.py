@@ -6,10 +6,7 @@ Env ids: ``DistGPRL-DCP-v8`` and ``DistGPRL-DBM-v8`` (registered in `distgprl.en
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
-from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -17,15 +14,14 @@ from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build
 from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
 from distgprl.adaptation.trajectories import GPSkillTrajectory
 from distgprl.config import EnvConfig
+from distgprl.envs.base import TaskEnv
 from distgprl.envs.clearance import TimedClearance
-from distgprl.methods import MethodSpec, get_method
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
+from distgprl.envs.world import SimWorld, WorldState
+from distgprl.methods import MethodSpec
 from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
-
-#: Observed e_o and e_g are clipped to +-this per axis (m) before scaling (a knocked-off
-#: object must not blow the inputs up).
-RELATIVE_POSITION_CLIP = 0.8
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
@@ -49,7 +45,7 @@ def cosine(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> np.ndarray:
     return out
 
 
-class AdaptationEnv(gym.Env):
+class AdaptationEnv(TaskEnv):
     """Windowed, covariance-correlated via-point adaptation of a GP skill (Dist-GPRL).
 
     One episode adapts and executes the task's demonstrated skill, conditioned on a task
@@ -161,8 +157,6 @@ class AdaptationEnv(gym.Env):
     state inputs. v1 — floored via-point scale. v0 — first release. (CHANGELOG.md: in full.)
     """
 
-    metadata = {"render_modes": ["rgb_array"]}
-
     def __init__(
         self,
         task: str,
@@ -171,16 +165,15 @@ class AdaptationEnv(gym.Env):
         skill: GPSkill | None = None,
         render_mode: str | None = None,
     ) -> None:
-        from distgprl.envs.tasks import load_task_skill, make_task_sim
-
-        self.config = config or EnvConfig()
-        self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        if self.method.action_mode not in ("window", "global", "none", "residual"):
-            raise ValueError(f"method {self.method.name} does not use the via-point MDP")
-        self.task_name = task
-        self.spec_task, self.sim = make_task_sim(task)
-        self.skill = skill or load_task_skill(task, self.config.n_via_points)
-        self.render_mode = render_mode
+        self.build(
+            task,
+            method,
+            config,
+            render_mode,
+            ("window", "global", "none", "residual"),
+            "method {name} does not use the via-point MDP",
+            skill,
+        )
         self.interaction_index = self.skill.nearest_via_index(self.spec_task.interaction_time)
         frozen = (self.interaction_index,) if self.method.hold_tc_via_point else ()
         self.layout = build_action_layout(
@@ -189,6 +182,16 @@ class AdaptationEnv(gym.Env):
         # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
         self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
         self.field = self.clearance.field
+        # Where the segments run: the simulation, r_sd's tool clearance after each sample.
+        self.sim_world = SimWorld(
+            self.sim,
+            stop_on_collision=self.config.collision_ends_episode,
+            samples=self.config.sd_samples_per_segment,
+            tool_clearance=self._tool_clearance if self.method.distance_rewards else None,
+            cap_at_minimum=True,
+        )
+        # What the observation reads (the hardware trials' adapter: the perceived scene).
+        self.world: WorldState = self.sim_world
         # Demonstration reference: velocity samples for kinematic retention.
         self._retention_tau = np.linspace(0.0, 1.0, 100)
         self._demo_velocity = self.skill.velocity(self.skill.via_points, self._retention_tau)
@@ -228,9 +231,6 @@ class AdaptationEnv(gym.Env):
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, (n_points * 6,), np.float32)
-        self._rng = np.random.default_rng()
-        self.step_index = 0
-        self._episode_over = True  # until reset()
 
     # -- the trajectory model (ProMP-RRL's env overrides it) -----------------------------
     def trajectory_model(self) -> TrajectoryModel:
@@ -252,19 +252,19 @@ class AdaptationEnv(gym.Env):
         points = self.window_plan.window_poses(indices)[:, :3]
         times = self.episode_start_time + self.skill.via_times[indices] * self.skill.duration
         return self.clearance.distance(
-            points, times, self.sim.moving_obstacle_shapes, self._anchors_at()
+            points, times, self.world.moving_obstacle_shapes, self._anchors_at()
         )
 
     def moving_obstacle_anchors(self) -> np.ndarray:
         """The moving obstacles' anchor at every via-point time, shape (N, 3), m (as for
         ``c``: where they will be when the trajectory reaches via-point j, or now)."""
         times = self.episode_start_time + self.skill.via_times * self.skill.duration
-        return self.clearance.anchors(times, self.sim.moving_obstacle_shapes, self._anchors_at())
+        return self.clearance.anchors(times, self.world.moving_obstacle_shapes, self._anchors_at())
 
     def _anchors_at(self):
         """The simulator's vectorised ``moving_obstacle_anchors_at`` (None if it has none,
         e.g. a perceived scene: the anchors are then read shape by shape)."""
-        return getattr(self.sim, "moving_obstacle_anchors_at", None)
+        return getattr(self.world, "moving_obstacle_anchors_at", None)
 
     def tool_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box (centre relative to the TCP, half extents), each (3,), m, that
@@ -286,11 +286,6 @@ class AdaptationEnv(gym.Env):
             self.sim.moving_obstacle_shapes(), offset, half_extents, self.config.sd_d_min
         )
 
-    def _relative(self, vector: np.ndarray) -> np.ndarray:
-        """A relative position (3,), m, clipped and in units of relative_position_scale."""
-        clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
-        return clipped / self.config.relative_position_scale
-
     def observation(self) -> dict[str, np.ndarray]:
         """The current observation (``state`` and ``aux``, as returned by `step`)."""
         indices = self.layout.indices[min(self.step_index, self.layout.n_steps - 1)]
@@ -298,13 +293,13 @@ class AdaptationEnv(gym.Env):
         clearance, _ = self.window_distance(indices)
         config = self.config
         clip = config.clearance_clip
-        tcp = self.sim.tcp_pose()[:3]
+        tcp = self.world.tcp_pose()[:3]
         state = np.concatenate(
             [
                 ((window - self._via_mean) / self._via_std).ravel(),
                 np.clip(clearance, -clip, clip) / config.clearance_scale,
-                self._relative(self.sim.object_position() - tcp),
-                self._relative(self.sim.goal_position() - tcp),
+                self.relative(self.world.object_position() - tcp),
+                self.relative(self.world.goal_position() - tcp),
                 [self.step_index / self.layout.n_steps],
             ]
         ).astype(np.float32)
@@ -313,15 +308,19 @@ class AdaptationEnv(gym.Env):
 
     def _refresh_field(self) -> None:
         """Move the EDF's moving obstacles to their current poses (static ones never move)."""
-        self.field.update(self.sim.moving_obstacle_shapes())
+        self.field.update(self.world.moving_obstacle_shapes())
 
-    def _clearance_penalty(self) -> float:
-        """Eq. safety_reward at the current instant: -beta sum 1[d<d_min]/(d+eps)."""
+    def _tool_clearance(self) -> np.ndarray:
+        """The tool points' distances (k,), m, to the obstacles where they are now."""
         self._refresh_field()
-        d = self.field.clearance(self.sim.tool_points())  # the distances only (same values)
-        close = d < self.config.sd_d_min
+        return self.field.clearance(self.world.tool_points())  # the distances only (same values)
+
+    def _clearance_penalty(self, distance: np.ndarray) -> float:
+        """Eq. safety_reward at one instant from the tool points' distances (k,), m:
+        -beta sum 1[d<d_min]/(d+eps)."""
+        close = distance < self.config.sd_d_min
         return -self.config.sd_beta * float(
-            np.sum(1.0 / (np.maximum(d[close], 0.0) + self.config.sd_epsilon))
+            np.sum(1.0 / (np.maximum(distance[close], 0.0) + self.config.sd_epsilon))
         )
 
     # -- the plan state's public API (delegated to `window_plan`; hardware adapter, bench) ----
@@ -376,39 +375,17 @@ class AdaptationEnv(gym.Env):
         """The world's time (s) at the start of the current episode's plan."""
         return self.window_plan.start_time
 
-    @property
-    def tc_generator_state(self) -> Mapping[str, Any]:
-        """The state of the generator that draws the training TCs at ``reset()`` (NumPy
-        ``bit_generator.state``; a training checkpoint saves and restores it)."""
-        return self._rng.bit_generator.state
-
-    @tc_generator_state.setter
-    def tc_generator_state(self, state: dict) -> None:
-        self._rng.bit_generator.state = state
-
-    @property
-    def at_episode_start(self) -> bool:
-        """True between ``reset()`` and the episode's first step (where a training run can be
-        checkpointed and resumed exactly)."""
-        return self.step_index == 0 and not self._episode_over
-
     # -- gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
-        tc = (options or {}).get("tc")
-        if tc is None:
-            tc = self.spec_task.sample_tc(self._rng)
+        tc = self.episode_tc(seed, options)
         self.tc = tc
         self.sim.reset(tc)
         self.start_plan(tc, self.sim.tcp_pose(), float(self.sim.time))
         self._episode_over = False
         self._refresh_field()
+        self.sim_world.begin_episode()
         self._progress = self.sim.task_progress()
-        self._collision = False
-        self._min_clearance = np.inf
-        self._peak_joint_speed = 0.0
+        self.tally = EpisodeTally()  # what the episode's segments add up to
         self._adaptation_times: list[float] = []
         return self.observation(), {"tc": tc}
 
@@ -425,31 +402,20 @@ class AdaptationEnv(gym.Env):
             # Eq. grad_alignment_reward: grad d at the window's via-points *before* the update
             # (v_j in Gamma_{t_s}^W, not the updated ones; v4).
             _, gradient = self.window_distance(indices)
-        delta = self.apply_action(step, action)  # Eq. transformed_action, updated_via_points
+        delta, poses = plan_segment(
+            self, step, action
+        )  # Eq. transformed_action, updated_via_points
         if self.method.distance_rewards:
             terms["r_ga"] = config.lambda_ga * float(np.mean(cosine(delta[:, :3], gradient)))
-        poses = self.segment_poses(step)
         self._adaptation_times.append(time.perf_counter() - start)
 
-        # Execute the segment in chunks; r_sd is evaluated after each chunk.
-        segment_collision = False
-        stop = config.collision_ends_episode
-        chunks = np.array_split(np.arange(len(poses)), config.sd_samples_per_segment)
-        for chunk in chunks:
-            if len(chunk) == 0:
-                continue
-            # only a new episode minimum matters (the queries look no farther; same values)
-            below = self._min_clearance if 0.0 < self._min_clearance < np.inf else None
-            result = self.sim.execute(poses[chunk], stop_on_collision=stop, clearance_below=below)
-            segment_collision |= result.collision
-            self._min_clearance = min(self._min_clearance, result.min_clearance)
-            self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
-            if self.method.distance_rewards:
-                terms["r_sd"] += self._clearance_penalty()
-            if stop and result.collision:  # v5: a protective stop ends the episode here
-                break
-        self.mark_commanded(step, poses)
-        self._collision |= segment_collision
+        # Execute the segment in chunks; r_sd from the tool's clearance after each chunk.
+        report = execute_segment(self, self.sim_world, step, poses).report
+        assert report is not None  # no gate: nothing is refused
+        segment_collision = report.collision
+        self.tally.add(report)
+        for clearance in report.tool_clearances:
+            terms["r_sd"] += self._clearance_penalty(clearance)
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
         self._progress = progress
@@ -463,7 +429,6 @@ class AdaptationEnv(gym.Env):
                     poses[:, :3], reference, config.signature_depth, config.signature_scale
                 )
             )
-        self.step_index += 1
         stopped = config.collision_ends_episode and segment_collision
         terminated = self.step_index >= self.layout.n_steps or stopped
         info: dict = {"step": step}
@@ -472,18 +437,18 @@ class AdaptationEnv(gym.Env):
             completed = bool(self.sim.success())
             # v5: success is completion without collision (as on hardware, where a
             # collision is a protective stop); v4's success is kept as ``completed``.
-            success = completed and not (self._collision and config.collision_ends_episode)
+            success = completed and not (self.tally.collision and config.collision_ends_episode)
             if success:
                 terms["r_success"] = config.success_bonus
             velocity = self.window_plan.velocity(self._retention_tau)
             info.update(
                 success=success,
                 completed=completed,
-                collision=bool(self._collision),
+                collision=bool(self.tally.collision),
                 stopped_at_step=step if stopped else -1,
-                min_clearance=max(float(self._min_clearance), 0.0),
-                min_signed_clearance=float(self._min_clearance),
-                peak_joint_speed=float(self._peak_joint_speed),
+                min_clearance=max(float(self.tally.min_clearance), 0.0),
+                min_signed_clearance=float(self.tally.min_clearance),
+                peak_joint_speed=float(self.tally.peak_joint_speed),
                 kinematic_retention=float(np.mean(cosine(velocity, self._demo_velocity))),
                 adaptation_time_s=list(self._adaptation_times),
                 final_parameters=self.gamma.copy(),
@@ -493,11 +458,3 @@ class AdaptationEnv(gym.Env):
         reward = float(sum(terms.values()))
         info.update(terms)
         return self.observation(), reward, terminated, False, info
-
-    def render(self):
-        if self.render_mode == "rgb_array":
-            return self.sim.render_rgb(480, 360)
-        return None
-
-    def close(self) -> None:
-        self.sim.close()

@@ -12,11 +12,9 @@ demonstration); action mode ``residual-control``.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -34,9 +32,12 @@ from distgprl.adaptation.residual_control import (
     variance_gate,
 )
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import RELATIVE_POSITION_CLIP, cosine
+from distgprl.envs.adaptation import cosine
+from distgprl.envs.base import TaskEnv
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.residual import load_task_promp
-from distgprl.methods import MethodSpec, get_method
+from distgprl.envs.world import SimWorld, WorldState
+from distgprl.methods import MethodSpec
 from distgprl.safety.edf import DistanceField
 from distgprl.skill.demos import load_demonstration
 from distgprl.skill.promp import ObjectCentricProMP
@@ -119,7 +120,7 @@ def condition_nominal(
     return conditioned
 
 
-class ResidualRLEnv(gym.Env):
+class ResidualRLEnv(TaskEnv):
     """Residual RL on the object-offset ProMP nominal, one RL step per 0.1 s (ProMP-RRL).
 
     An episode executes the task's trajectory of T = the demonstration's duration (4.8 s
@@ -234,15 +235,7 @@ class ResidualRLEnv(gym.Env):
     over each third of the episode's RL steps, one entry per third reached, so the
     evaluation's three columns add up to the episode's) and ``final_parameters`` (the
     residuals r_j, shape (n, 6), m and rad; 0 for steps not reached).
-
-    **Versions**: v8 — Table I's ``promp-rrl`` fits the nominal and the gate on the 20
-    expert demonstrations (Protocol v8 rule 3); v7's one-demonstration ProMP-RRL is the
-    study method ``promp-rrl-1demo``, unchanged. v7 — unchanged (environment v7 changes
-    r_sd, which this env does not compute; its runs carry v7 in their config hash). v6 —
-    first release (environment v6, Protocol v6 rule 4; no gymnasium id registered yet).
     """
-
-    metadata = {"render_modes": ["rgb_array"]}
 
     def __init__(
         self,
@@ -254,16 +247,14 @@ class ResidualRLEnv(gym.Env):
     ) -> None:
         """``promp`` replaces the method's ProMP (`load_task_promp`): the gate's, and for an
         ``expert`` method the nominal's too."""
-        from distgprl.envs.tasks import load_task_skill, make_task_sim
-
-        self.config = config or EnvConfig()
-        self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        if self.method.action_mode != "residual-control":
-            raise ValueError(f"method {self.method.name} is not a residual-control method")
-        self.task_name = task
-        self.render_mode = render_mode
-        self.spec_task, self.sim = make_task_sim(task)
-        self.skill = load_task_skill(task, self.config.n_via_points)
+        self.build(
+            task,
+            method,
+            config,
+            render_mode,
+            ("residual-control",),
+            "method {name} is not a residual-control method",
+        )
         self.duration = float(self.skill.duration)
         self.schedule = control_schedule(self.duration, self.sim.control_dt, RL_RATE_HZ)
         self.n_steps = self.schedule.n_steps
@@ -290,11 +281,14 @@ class ResidualRLEnv(gym.Env):
             {"state": spaces.Box(-np.inf, np.inf, (24,), np.float32)}
         )
         self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
-        self._rng = np.random.default_rng()
-        self.step_index = 0
-        self._episode_over = True  # until reset()
         self.nominal_poses = self._reference.copy()
         self._residuals = np.zeros((self.n_steps, 6))
+        self._pending = np.zeros(6)  # the current RL step's residual and poses (`apply_action`)
+        self._pending_poses = np.zeros((0, 6))
+        # Where the RL steps run (the simulation) and what the observation reads (the
+        # hardware trials' adapter: the perceived scene).
+        self.sim_world = SimWorld(self.sim, stop_on_collision=self.config.collision_ends_episode)
+        self.world: WorldState = self.sim_world
 
     # -- the episode's plan ------------------------------------------------------------------
     @property
@@ -341,30 +335,53 @@ class ResidualRLEnv(gym.Env):
         held = hold_residual(self._previous_residual(step), residual, fraction)
         return compose(self.nominal_poses[indices + 1], held, self.gate[indices])
 
-    # -- observation -------------------------------------------------------------------------
-    def _relative(self, vector: np.ndarray) -> np.ndarray:
-        clipped = np.clip(vector, -RELATIVE_POSITION_CLIP, RELATIVE_POSITION_CLIP)
-        return clipped / self.config.relative_position_scale
+    # -- the plan's API (the episode loop's, `distgprl.envs.episode.PlanAdapter`) ------------
+    def apply_action(self, step: int, action: np.ndarray) -> np.ndarray:
+        """The residual (6,), m and rad, at the end of RL step ``step`` for the raw action
+        (6,) (`step_residual`; the ``promp-nominal`` reference: 0), and the step's poses."""
+        self._pending = self.step_residual(step, action)
+        self._pending_poses = self.step_poses(step, self._pending)
+        return self._pending
 
+    def segment_poses(self, step: int) -> np.ndarray:
+        """The poses (m_j, 6) RL step ``step`` commands (`step_poses` of `apply_action`'s
+        residual): nominal + gated residual, one per control period."""
+        return self._pending_poses.copy()
+
+    def mark_commanded(self, step: int, poses: np.ndarray) -> None:
+        """Record RL step ``step`` as executed: ``poses`` its commanded path (a re-timed
+        step's path has more instants than the step's control periods; fewer: stopped)."""
+        indices = self.schedule.steps[step]
+        done = len(indices) if len(poses) >= len(indices) else len(poses)
+        self.commanded_poses[indices[:done] + 1] = self._pending_poses[:done]
+        self._instants_done = int(indices[0]) + done
+        self._residuals[step] = self._pending
+
+    @property
+    def last_commanded(self) -> np.ndarray:
+        """The last commanded pose (6,) (the blended start before the first step)."""
+        return np.asarray(self.commanded_poses[self._instants_done], dtype=float).copy()
+
+    # -- observation -------------------------------------------------------------------------
     def observation(self) -> dict[str, np.ndarray]:
         """The current observation (``state``, as returned by `step`)."""
         config = self.config
         nominal = self.nominal_poses[self._instants_done]
-        tcp = self.sim.tcp_pose()
+        tcp = self.world.tcp_pose()
         rotation = rotation_error(tcp, nominal) / self.residual_scale[3:]
-        self.field.update(self.sim.moving_obstacle_shapes())
-        distance, gradient = self.field.distance(self.sim.tool_points())
+        self.field.update(self.world.moving_obstacle_shapes())
+        distance, gradient = self.field.distance(self.world.tool_points())
         closest = int(np.argmin(distance))
         clip = config.clearance_clip
         terminal = self.step_index >= self.n_steps
         next_gate = 0.0 if terminal else self.gate[self.schedule.steps[self.step_index][-1]]
         state = np.concatenate(
             [
-                self._relative(tcp[:3] - nominal[:3]),
+                self.relative(tcp[:3] - nominal[:3]),
                 np.clip(rotation, -ROTATION_ERROR_CLIP, ROTATION_ERROR_CLIP),
                 self._previous_residual(self.step_index) / self.residual_scale,
-                self._relative(self.sim.object_position() - tcp[:3]),
-                self._relative(self.sim.goal_position() - tcp[:3]),
+                self.relative(self.world.object_position() - tcp[:3]),
+                self.relative(self.world.goal_position() - tcp[:3]),
                 [self.step_index / self.n_steps, next_gate],
                 [np.clip(distance[closest], -clip, clip) / config.clearance_scale],
                 gradient[closest],
@@ -372,37 +389,14 @@ class ResidualRLEnv(gym.Env):
         ).astype(np.float32)
         return {"state": state}
 
-    # -- what the training loop and checkpoints use --------------------------------------------
-    @property
-    def tc_generator_state(self) -> Mapping[str, Any]:
-        """The state of the generator that draws the training TCs at ``reset()`` (NumPy
-        ``bit_generator.state``; a training checkpoint saves and restores it)."""
-        return self._rng.bit_generator.state
-
-    @tc_generator_state.setter
-    def tc_generator_state(self, state: dict) -> None:
-        self._rng.bit_generator.state = state
-
-    @property
-    def at_episode_start(self) -> bool:
-        """True between ``reset()`` and the episode's first step."""
-        return self.step_index == 0 and not self._episode_over
-
     # -- gymnasium API -----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
-        tc = (options or {}).get("tc")
-        if tc is None:
-            tc = self.spec_task.sample_tc(self._rng)
+        tc = self.episode_tc(seed, options)
         self.sim.reset(tc)
         self._start_episode(tc, self.sim.tcp_pose())
         self._episode_over = False
         self._progress = self.sim.task_progress()
-        self._collision = False
-        self._min_clearance = np.inf
-        self._peak_joint_speed = 0.0
+        self.tally = EpisodeTally()  # what the episode's RL steps add up to
         self._step_times: list[float] = []
         return self.observation(), {"tc": tc}
 
@@ -411,43 +405,36 @@ class ResidualRLEnv(gym.Env):
             raise RuntimeError("episode is over; call reset()")
         config, step = self.config, self.step_index
         start = time.perf_counter()
-        residual = self.step_residual(step, action)
-        poses = self.step_poses(step, residual)
+        residual, poses = plan_segment(self, step, action)
         self._step_times.append(time.perf_counter() - start)
 
         stop = config.collision_ends_episode
-        result = self.sim.execute(poses, stop_on_collision=stop)
-        indices = self.schedule.steps[step][: result.steps]
-        self.commanded_poses[indices + 1] = poses[: result.steps]
-        self._instants_done = int(self.schedule.steps[step][0]) + int(result.steps)
-        self._residuals[step] = residual
-        self._collision |= result.collision
-        self._min_clearance = min(self._min_clearance, result.min_clearance)
-        self._peak_joint_speed = max(self._peak_joint_speed, result.peak_joint_speed)
+        result = execute_segment(self, self.sim_world, step, poses).report
+        assert result is not None  # no gate: nothing is refused
+        self.tally.add(result)
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         progress = self.sim.task_progress()
         terms["r_progress"] = config.progress_weight * (progress - self._progress)
         self._progress = progress
         if result.collision:
             terms["r_collision"] = -config.collision_penalty
-        self.step_index += 1
         stopped = stop and result.collision
         terminated = self.step_index >= self.n_steps or stopped
         self._episode_over = terminated
         info: dict = {"step": step}
         if terminated:
             completed = bool(self.sim.success())
-            success = completed and not (self._collision and stop)
+            success = completed and not (self.tally.collision and stop)
             if success:
                 terms["r_success"] = config.success_bonus
             info.update(
                 success=success,
                 completed=completed,
-                collision=bool(self._collision),
+                collision=bool(self.tally.collision),
                 stopped_at_step=step if stopped else -1,
-                min_clearance=max(float(self._min_clearance), 0.0),
-                min_signed_clearance=float(self._min_clearance),
-                peak_joint_speed=float(self._peak_joint_speed),
+                min_clearance=max(float(self.tally.min_clearance), 0.0),
+                min_signed_clearance=float(self.tally.min_clearance),
+                peak_joint_speed=float(self.tally.peak_joint_speed),
                 kinematic_retention=self._kinematic_retention(residual),
                 adaptation_time_s=self._adaptation_times(),
                 final_parameters=self._residuals.copy(),
@@ -480,11 +467,3 @@ class ResidualRLEnv(gym.Env):
             for third in thirds
             if len(third) and third[0] < done
         ]
-
-    def render(self):
-        if self.render_mode == "rgb_array":
-            return self.sim.render_rgb(480, 360)
-        return None
-
-    def close(self) -> None:
-        self.sim.close()

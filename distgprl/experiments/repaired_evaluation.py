@@ -4,7 +4,9 @@
 references) on the fixed evaluation TCs exactly as `~distgprl.experiments.runner.evaluate_run`
 does, except that every window's plan passes the safety layer of the hardware trials
 (:mod:`distgprl.hardware.safety`, :mod:`distgprl.hardware.repair`) before it is executed,
-as in :func:`~distgprl.hardware.trials.run_trials`:
+as in :func:`~distgprl.hardware.trials.run_trials`: the episode loop's decisions
+(`distgprl.envs.episode`) in the simulator world (`distgprl.envs.world.SimWorld`) behind
+the safety layer's `~distgprl.hardware.gates.RepairGate`:
 
 1. the policy adapts the window (`AdaptationEnv.apply_action`) and the env gives the
    segment's poses (`AdaptationEnv.segment_poses`, continuity blend included);
@@ -58,13 +60,11 @@ from typing import Any
 
 import numpy as np
 
+from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
+from distgprl.envs.world import SimWorld
 from distgprl.errors import UserInputError
-from distgprl.hardware.repair import RepairConfig, RepairResult, repair_plan
-from distgprl.hardware.window_check import (
-    clearance_function,
-    gradient_function,
-    movable_via_points,
-)
+from distgprl.hardware.gates import RepairGate
+from distgprl.hardware.repair import RepairConfig
 from distgprl.limits import SafetyLimits
 from distgprl.schema import (
     REPAIR_EVALUATION_FIELDS,
@@ -123,24 +123,13 @@ def run_repaired_episode(
     config = config or RepairConfig()
     observation, _ = env.reset(options={"tc": tc})
     sim = env.sim
-    robot = sim.robot
-    dt = float(sim.control_dt)
-    from distgprl.safety.edf import DistanceField
-
-    field = DistanceField(sim.obstacle_shapes())  # the layer's own field (env's untouched)
     stop_on_collision = env.config.collision_ends_episode
-    q = sim.joint_positions()
-    velocity = np.zeros(6)
-    shift = np.zeros(3)
-    collision, refused = False, False
+    world = SimWorld(sim, stop_on_collision=stop_on_collision)
+    gate = _simulated_safety_layer(env, limits, config)
+    tally = EpisodeTally()  # what the executed windows add up to
     refused_window: int | str = ""  # the refused window (1-based); "" if none was
-    refused_limits, reason = "", ""
-    min_clearance = np.inf
     planned = np.inf
-    peak_speed = 0.0
-    executed_steps = 0
-    policy_time = repair_time = 0.0
-    windows: list[RepairResult] = []
+    policy_time = 0.0
     start_clearance = float(sim.clearance())
     for step in range(env.layout.n_steps):
         started = time.perf_counter()
@@ -150,58 +139,29 @@ def run_repaired_episode(
             else policy(observation)
         )
         policy_time += time.perf_counter() - started
-        env.apply_action(step, action)  # Eq. transformed_action, updated_via_points
-        poses = env.segment_poses(step)
-        started = time.perf_counter()
-        now = float(sim.time)
-        movable = movable_via_points(env, step)
-        conveyed = not sim.object_released and config.follow_belt
-        result = repair_plan(
-            poses,
-            q,
-            robot,
-            limits,
-            dt,
-            clearance_function(field, sim.obstacle_shapes, now, dt),
-            gradient_function(field, sim.obstacle_shapes, now, dt),
-            None if movable is None else movable[0],
-            v_start=velocity,
-            shift=shift,
-            belt_velocity=sim.conveying_velocity if conveyed else None,
-            config=config,
-        )
-        repair_time += time.perf_counter() - started
-        windows.append(result)
-        if result.decision == "refused":  # a protective refusal: nothing of it moves
-            refused, refused_window = True, step + 1
-            refused_limits, reason = ",".join(result.refused_limits), result.reason
+        _, poses = plan_segment(env, step, action)  # Eq. transformed_action, updated_via_points
+        segment = execute_segment(env, world, step, poses, gate).report
+        if segment is None:  # a protective refusal: nothing of it moves
+            refused_window = step + 1
             break
-        if result.decision == "repaired" and movable is not None:
-            env.gamma[movable[1], :3] += result.displacement
-        shift = result.shift_end
-        planned = min(planned, result.check.min_clearance)
-        segment = sim.execute(result.poses, stop_on_collision=stop_on_collision)
-        executed_steps += segment.steps
-        collision |= segment.collision
-        min_clearance = min(min_clearance, segment.min_clearance)
-        peak_speed = max(peak_speed, segment.peak_joint_speed)
-        env.mark_commanded(step, result.path_poses[: segment.steps])
-        env.step_index += 1
-        if segment.steps:  # commanded joints, as the hardware loop tracks them
-            joints = result.check.joints
-            previous = joints[segment.steps - 2] if segment.steps > 1 else q
-            q = joints[segment.steps - 1]
-            velocity = (q - previous) / dt
+        assert gate.last.check is not None  # accepted plans are checked
+        planned = min(planned, gate.last.check.min_clearance)
+        tally.add(segment)
         if stop_on_collision and segment.collision:
             break
         env.field.update(sim.moving_obstacle_shapes())  # as the env's step leaves it
         observation = env.observation()
+    refused = refused_window != ""
+    windows = gate.reviews
+    refused_limits = ",".join(gate.last.refused_limits) if refused else ""
+    reason = gate.last.reason if refused else ""
+    dt = world.control_dt
+    repair_time = gate.seconds
     completed = bool(sim.success())
-    success = completed and not refused and not (collision and stop_on_collision)
-    if not executed_steps:
-        min_clearance = start_clearance
+    success = completed and not refused and not (tally.collision and stop_on_collision)
+    min_clearance = tally.min_clearance if tally.steps else start_clearance
     added = [w.time_added for w in windows]
-    displacement = [w.max_displacement for w in windows]
+    displacement = [w.displacement for w in windows]
     return {
         "object_offset_x": float(tc.object_offset[0]),
         "object_offset_y": float(tc.object_offset[1]),
@@ -209,7 +169,7 @@ def run_repaired_episode(
         "obstacle_offset_y": float(tc.obstacle_offset[1]),
         "success": int(success),
         "completed": int(completed),
-        "collision": int(collision),
+        "collision": int(tally.collision),
         "refused": int(refused),
         "refused_window": refused_window,
         "refused_limits": refused_limits,
@@ -217,8 +177,8 @@ def run_repaired_episode(
         "min_clearance": max(float(min_clearance), 0.0),
         "min_signed_clearance": float(min_clearance),
         "planned_min_clearance": float(planned),
-        "peak_joint_speed": float(peak_speed),
-        "executed_s": executed_steps * dt,
+        "peak_joint_speed": float(tally.peak_joint_speed),
+        "executed_s": tally.steps * dt,
         "repair": ";".join(w.decision for w in windows),
         "repair_added_s": ";".join(f"{a:.3f}" for a in added),
         "repair_displacement_m": ";".join(f"{d:.4f}" for d in displacement),
@@ -227,6 +187,31 @@ def run_repaired_episode(
         "policy_ms": 1000.0 * policy_time,
         "repair_ms": 1000.0 * repair_time,
     }
+
+
+def _simulated_safety_layer(env, limits: SafetyLimits, config: RepairConfig) -> RepairGate:
+    """The safety layer of ``env``'s simulation: its own distance field (the env's is left
+    untouched) of the task's obstacles predicted along their known paths, the belt the
+    conveyed object rides while it is not released."""
+    from distgprl.safety.edf import DistanceField
+
+    sim = env.sim
+
+    def belt() -> np.ndarray | None:
+        return None if sim.object_released else sim.conveying_velocity
+
+    return RepairGate(
+        env,
+        sim.robot,
+        limits,
+        float(sim.control_dt),
+        sim.joint_positions(),
+        DistanceField(sim.obstacle_shapes()),
+        sim.obstacle_shapes,
+        lambda: float(sim.time),
+        belt,
+        config,
+    )
 
 
 def summarise_repaired(rows: list[dict[str, Any]]) -> dict[str, float]:

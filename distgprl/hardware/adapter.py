@@ -7,8 +7,9 @@
 action layout, TC conditioning, segment maps (control rate), continuity blending (or the
 residual's nominal, gate, slew limit and hold) and observation builder are used unchanged. The env's
 simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
-what the observation reads from the world (TCP pose, object position, goal, obstacles)
-comes from a :class:`PerceivedScene` filled by the perception and the robot backend.
+what the observation reads of its world (``world``: TCP pose, object position, goal,
+obstacles, tool points) is a :class:`PerceivedScene` filled by the perception and the robot
+backend.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.episode import commit_segment, plan_segment
 from distgprl.envs.residual import ResidualEnv
 from distgprl.envs.residual_rl import ResidualRLEnv
 from distgprl.hardware.perception import OBJECTS, Percept
@@ -61,9 +63,8 @@ class TrackedObject:
 class PerceivedScene:
     """The world as perceived: object tracks, obstacle shapes and the robot's TCP.
 
-    Implements the part of the task-simulation interface that
-    :meth:`AdaptationEnv.observation` reads (``tcp_pose``, ``object_position``,
-    ``goal_position``), from perception instead of simulation state.
+    A world's state (`distgprl.envs.world.WorldState`: what the observation reads), from
+    perception instead of simulation state.
 
     Args:
         static_shapes: the cell's fixed obstacles (rollers, rails), robot base frame.
@@ -129,7 +130,7 @@ class PerceivedScene:
         """The other bar predicted at ``time`` (default now)."""
         return bar_shapes(self.scene, self.object_transform("other_bar", time), "other_bar", True)
 
-    # -- the TaskSim subset the observation reads ------------------------------------------
+    # -- the world state the observation reads (`WorldState`) -----------------------------
     def tcp_pose(self) -> np.ndarray:
         return self._tcp.copy()
 
@@ -152,9 +153,6 @@ class PerceivedScene:
             [position[0], position[1], self.scene.bar_centre_z + self.scene.lift_height]
         )
 
-    def close(self) -> None:
-        """Nothing to release (the env's close() calls it)."""
-
 
 if TYPE_CHECKING:  # the mixin's host, for the type checker only (at run time: object)
     _Host = AdaptationEnv
@@ -166,20 +164,24 @@ class _PerceivedWorld(_Host):
     """The perceived-world half of a trial adapter, shared by the two environment kinds.
 
     Mixed into an environment class (:class:`AdaptationEnv` or its residual subclass) after
-    that environment is built: :meth:`_attach_world` keeps its simulation as the kinematic
-    model and makes the observation read the perceived world instead.
+    that environment is built: :meth:`_attach_world` makes the observation read the
+    perceived world (``world``); the environment's simulation is the kinematic model.
     """
 
-    model: TaskSim  # the environment's own simulation, kept as the kinematic model
-    sim: Any  # after `_attach_world`: the `PerceivedScene` (the TaskSim subset it reads)
+    world: PerceivedScene  # after `_attach_world`: what the observation reads
     decision_unit = "window"
     """What one decision of the policy (and one safety check) covers."""
     streams_decisions = False
     """Whether the robot streams consecutive decisions' poses without ending its stream
     between them (residual control's 0.1 s RL steps; a window plan ends its stream)."""
 
+    @property
+    def model(self) -> TaskSim:
+        """The environment's simulation, kept as the kinematic model (IK, tool geometry,
+        static cell geometry)."""
+        return self.sim
+
     def _attach_world(self, conveyor_velocity: Any) -> None:
-        self.model = self.sim
         static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
         robot = self.model.robot
 
@@ -188,8 +190,7 @@ class _PerceivedWorld(_Host):
 
         self.world = PerceivedScene(
             static, np.asarray(conveyor_velocity, dtype=float), tool_points_at=tool_points_at
-        )
-        self.sim = self.world  # the observation now reads the perceived world
+        )  # what the observation reads
 
     @property
     def control_dt(self) -> float:
@@ -245,11 +246,9 @@ class _PerceivedWorld(_Host):
         ``None`` (or a method that trains no policy: ``demo``, ``promp-nominal``) keeps the
         conditioned demonstration (the ProMP nominal).
         """
-        step = self.step_index
         shape = cast("tuple[int, ...]", self.action_space.shape)  # a Box's
         raw = np.zeros(shape) if action is None else action
-        self.apply_action(step, raw)
-        return self.segment_poses(step)
+        return plan_segment(self, self.step_index, raw)[1]
 
     def segment_times(self, step: int) -> np.ndarray:
         """Trial times (s from the trial start) of the control instants of segment ``step``."""
@@ -257,11 +256,7 @@ class _PerceivedWorld(_Host):
 
     def executed(self, poses: np.ndarray) -> None:
         """Record that ``poses`` (the segment of the current step) were commanded."""
-        self.mark_commanded(self.step_index, poses)
-        self.step_index += 1
-
-    def close(self) -> None:
-        self.model.close()
+        commit_segment(self, self.step_index, poses)
 
 
 class PerceivedAdaptation(_PerceivedWorld, AdaptationEnv):
@@ -318,8 +313,6 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
     ) -> None:
         ResidualRLEnv.__init__(self, "dbm", method, config)
         self._attach_world(conveyor_velocity)
-        self._pending = np.zeros(6)
-        self._pending_poses = np.zeros((0, 6))
         self.image_steps = self._window_start_steps()
 
     decision_unit = "RL step"
@@ -349,29 +342,6 @@ class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[
         """The conditioned nominal with the TCP pose (6,) blended in, residual 0."""
         self._start_episode(tc, tcp_pose)
         self._episode_over = False
-
-    def adapt(self, action: np.ndarray | None) -> np.ndarray:
-        """The residual at the end of the current RL step for the raw action (6,) (``None``
-        or the ``promp-nominal`` reference: 0), and the step's poses (m_j, 6) to check."""
-        step = self.step_index
-        raw = np.zeros(6) if action is None else np.asarray(action, dtype=float)
-        self._pending = self.step_residual(step, raw)
-        self._pending_poses = self.step_poses(step, self._pending)
-        return self._pending_poses.copy()
-
-    def mark_commanded(self, step: int, poses: np.ndarray) -> None:
-        """Record RL step ``step`` as executed: ``poses`` its commanded path (a re-timed
-        step's path has more instants than the step's control periods; fewer: stopped)."""
-        indices = self.schedule.steps[step]
-        done = len(indices) if len(poses) >= len(indices) else len(poses)
-        self.commanded_poses[indices[:done] + 1] = self._pending_poses[:done]
-        self._instants_done = int(indices[0]) + done
-        self._residuals[step] = self._pending
-
-    @property
-    def last_commanded(self) -> np.ndarray:
-        """The last commanded pose (6,) (the blended start before the first step)."""
-        return np.asarray(self.commanded_poses[self._instants_done], dtype=float).copy()
 
 
 TrialAdapter = PerceivedAdaptation | PerceivedResidual | PerceivedResidualControl

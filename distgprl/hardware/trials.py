@@ -36,7 +36,6 @@ never moves.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from datetime import UTC, datetime
@@ -48,32 +47,19 @@ import numpy as np
 from distgprl.errors import UserInputError
 from distgprl.hardware.controller import paper_protocol_meta
 from distgprl.hardware.perception import (
-    OBJECTS,
     CellCalibration,
     MarkerPerception,
     load_calibration,
-    pose_error,
 )
 from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import (
-    PlanCheck,
-    SafetyLimits,
-    UnsafePlanError,
-    check_plan,
-    ik_chain,
-)
+from distgprl.hardware.safety import SafetyLimits
+from distgprl.hardware.trial_episode import TrialSetup, one_trial
 from distgprl.hardware.trial_policy import load_trial_policy
-from distgprl.hardware.trial_rows import finish_row, judge_row, summarise_trials
-from distgprl.hardware.window_check import (
-    NO_VIA_POINTS,
-    clearance_function,
-    describe_repair,
-    repair_window,
-    safety_layer,
-)
+from distgprl.hardware.trial_rows import summarise_trials
+from distgprl.hardware.window_check import NO_VIA_POINTS, safety_layer
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
 from distgprl.schema import TRIAL_FIELDS
-from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP, UNCHECKED, check_protocol
+from distgprl.trial_protocol import PAPER, check_protocol
 
 
 @dataclass(frozen=True)
@@ -159,82 +145,25 @@ def run_trials(
     """
     from distgprl.config import load_config
     from distgprl.hardware.adapter import perceived_env
-    from distgprl.methods import get_method
-    from distgprl.schema import write_csv
 
-    if trials < 1:
-        raise UserInputError("trials must be at least 1")
-    if backend not in ("twin", "ur"):
-        raise UserInputError(f"backend must be 'twin' or 'ur', got {backend!r}")
-    if judge not in ("auto", "operator"):
-        raise UserInputError(f"judge must be 'auto' or 'operator', got {judge!r}")
-    get_method(method)  # an unknown name is a clear error before any hardware is touched
-    check_protocol(protocol)
+    _check_arguments(trials, method, backend, judge, force, protocol)
     paper = protocol == PAPER
-    if paper and force:
-        raise UserInputError(
-            "force overrides the safety layer's pre-flight check: use it with the "
-            "safety-layer protocol (the paper's protocol checks nothing before it moves)"
-        )
     limits = limits or SafetyLimits()
     config = load_config(preset, task="dbm")
     rng = np.random.default_rng(seed)
-
-    # -- calibration, backend -------------------------------------------------------------
-    cal: CellCalibration
-    robot: Any
     if backend == "twin":
-        from distgprl.hardware.backends import TwinBackend
-        from distgprl.hardware.twin import (
-            TwinConfig,
-            miscalibrated,
-            sensor_noise_level,
-            twin_calibration,
-        )
-
-        twin_config = twin_config or TwinConfig()
-        if sensor_noise is not None:
-            twin_config = replace(twin_config, noise=sensor_noise_level(sensor_noise))
-        noise = twin_config.noise
-        cal = load_calibration(calibration) if calibration else twin_calibration(twin_config)
-        cal = miscalibrated(cal, noise, np.random.default_rng([seed, 4]))
-    else:
-        if calibration is None:
-            raise UserInputError("the ur backend needs --calibration FILE (camera + markers)")
-        cal = load_calibration(calibration)
-        if camera is None:
-            raise UserInputError("the ur backend needs --camera INDEX|URL")
+        twin_config = _twin_config(twin_config, sensor_noise)
+    cal = _cell_calibration(backend, calibration, camera, twin_config, seed)
     adapter = perceived_env(method, config.env, cal.conveyor_velocity)
     try:
         policy, provenance = load_trial_policy(method, seed, preset, root, model_path, adapter)
-        if backend == "twin":
-            robot = TwinBackend(
-                twin_config,
-                rng=np.random.default_rng([seed, 1]),
-                noise_rng=np.random.default_rng([seed, 2]),
-                controller=controller,
-            )
-        else:
-            from distgprl.hardware.backends import OpenCVCamera, URBackend
-
-            robot = URBackend(robot_ip or "", limits, rtde_factory=rtde_factory)
-            if hasattr(camera, "capture"):
-                robot.camera = camera
-            else:
-                assert camera is not None  # the ur backend checked it above
-                robot.camera = OpenCVCamera(camera, robot.now, (cal.width, cal.height))
+        robot = _connect_robot(
+            backend, twin_config, seed, controller, robot_ip, limits, rtde_factory, camera, cal
+        )
     except BaseException:
         adapter.close()
         raise
-    perception: MarkerPerception
-    if backend == "twin" and twin_config.noise.corner_noise_px > 0:
-        from distgprl.hardware.twin import NoisyCornerPerception
-
-        perception = NoisyCornerPerception(
-            cal, twin_config.noise.corner_noise_px, np.random.default_rng([seed, 3])
-        )
-    else:
-        perception = MarkerPerception(cal)
+    perception = _perception(backend, twin_config, cal, seed)
     repair = repair and not paper  # the paper's protocol has no check to repair for
     handling = (repair_config or RepairConfig()) if repair else None
     layer = (
@@ -244,10 +173,7 @@ def run_trials(
     )
     if layer.get("push") == NO_VIA_POINTS:  # the push was asked for and does not apply
         echo(f"{method}: --repair-push {layer['push']}; retiming only")
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
-    prefix = "plans" if dry_run else "trials"
-    path = folder / f"{prefix}_{backend}_seed{seed}_{stamp}.csv"
+    path = _trial_file(root, method, backend, seed, dry_run)
     meta = {
         "kind": "hardware-trials",
         "protocol": protocol,  # the paper's (no pre-flight check) or the safety layer's
@@ -271,38 +197,136 @@ def run_trials(
         # (or why it does not apply); under the paper's protocol none, the controller's limits
         "safety_layer": layer,
     }
-    rows: list[dict[str, Any]] = []
-    dt = adapter.control_dt
+    setup = TrialSetup(
+        robot,
+        perception,
+        adapter,
+        policy,
+        limits,
+        dry_run,
+        judge,
+        force,
+        ask,
+        echo,
+        handling,
+        paper,
+    )
     tcs = [adapter.spec_task.sample_tc(rng) for _ in range(trials)]
+    rows = _run_all(setup, tcs, backend, path, meta)
+    return TrialReport(rows, path, summarise_trials(rows))
+
+
+def _check_arguments(
+    trials: int, method: str, backend: str, judge: str, force: bool, protocol: str
+) -> None:
+    """A clear error for a bad argument, before any hardware is touched."""
+    from distgprl.methods import get_method
+
+    if trials < 1:
+        raise UserInputError("trials must be at least 1")
+    if backend not in ("twin", "ur"):
+        raise UserInputError(f"backend must be 'twin' or 'ur', got {backend!r}")
+    if judge not in ("auto", "operator"):
+        raise UserInputError(f"judge must be 'auto' or 'operator', got {judge!r}")
+    get_method(method)  # an unknown name is a clear error
+    check_protocol(protocol)
+    if protocol == PAPER and force:
+        raise UserInputError(
+            "force overrides the safety layer's pre-flight check: use it with the "
+            "safety-layer protocol (the paper's protocol checks nothing before it moves)"
+        )
+
+
+def _twin_config(twin_config, sensor_noise: int | None):
+    """The twin's settings, at ``sensor_noise``'s level where it is given."""
+    from distgprl.hardware.twin import TwinConfig, sensor_noise_level
+
+    twin_config = twin_config or TwinConfig()
+    if sensor_noise is not None:
+        twin_config = replace(twin_config, noise=sensor_noise_level(sensor_noise))
+    return twin_config
+
+
+def _cell_calibration(backend: str, calibration, camera, twin_config, seed: int) -> CellCalibration:
+    """The cell's calibration: the file given, else the twin's own (miscalibrated by its
+    noise); the ur backend needs a file and a camera."""
+    if backend == "twin":
+        from distgprl.hardware.twin import miscalibrated, twin_calibration
+
+        noise = twin_config.noise
+        cal = load_calibration(calibration) if calibration else twin_calibration(twin_config)
+        return miscalibrated(cal, noise, np.random.default_rng([seed, 4]))
+    if calibration is None:
+        raise UserInputError("the ur backend needs --calibration FILE (camera + markers)")
+    cal = load_calibration(calibration)
+    if camera is None:
+        raise UserInputError("the ur backend needs --camera INDEX|URL")
+    return cal
+
+
+def _connect_robot(
+    backend, twin_config, seed, controller, robot_ip, limits, rtde_factory, camera, cal
+) -> Any:
+    """The robot backend: the twin (seeded) or the UR5e with its camera."""
+    if backend == "twin":
+        from distgprl.hardware.backends import TwinBackend
+
+        return TwinBackend(
+            twin_config,
+            rng=np.random.default_rng([seed, 1]),
+            noise_rng=np.random.default_rng([seed, 2]),
+            controller=controller,
+        )
+    from distgprl.hardware.backends import OpenCVCamera, URBackend
+
+    robot = URBackend(robot_ip or "", limits, rtde_factory=rtde_factory)
+    if hasattr(camera, "capture"):
+        robot.camera = camera
+    else:
+        assert camera is not None  # the ur backend checked it above
+        robot.camera = OpenCVCamera(camera, robot.now, (cal.width, cal.height))
+    return robot
+
+
+def _perception(backend: str, twin_config, cal: CellCalibration, seed: int) -> MarkerPerception:
+    """ArUco perception; the twin's with pixel noise on the corners where it has some."""
+    if backend == "twin" and twin_config.noise.corner_noise_px > 0:
+        from distgprl.hardware.twin import NoisyCornerPerception
+
+        return NoisyCornerPerception(
+            cal, twin_config.noise.corner_noise_px, np.random.default_rng([seed, 3])
+        )
+    return MarkerPerception(cal)
+
+
+def _trial_file(root, method: str, backend: str, seed: int, dry_run: bool) -> Path:
+    """Where the trials' rows go (the module docstring)."""
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    folder = Path(root) / "hardware" / ("dry-run" if dry_run else "") / method
+    prefix = "plans" if dry_run else "trials"
+    return folder / f"{prefix}_{backend}_seed{seed}_{stamp}.csv"
+
+
+def _run_all(setup: TrialSetup, tcs: list, backend: str, path: Path, meta: dict) -> list:
+    """Run a trial per TC, writing the rows after each; on an interrupt stop the robot and
+    save what finished. The robot and the adapter are closed at the end."""
+    from distgprl.schema import write_csv
+
+    robot, echo = setup.robot, setup.echo
+    rows: list[dict[str, Any]] = []
 
     def save() -> None:
         if rows:
             write_csv(path, rows, TRIAL_FIELDS, **meta)
 
     try:
-        for index in range(trials):
-            row = _one_trial(
-                index,
-                tcs[index],
-                robot,
-                perception,
-                adapter,
-                policy,
-                limits,
-                dt,
-                dry_run,
-                judge,
-                force,
-                ask,
-                echo,
-                handling,
-                paper,
-            )
+        for index, tc in enumerate(tcs):
+            row = one_trial(setup, index, tc)
             row["backend"] = backend
             rows.append(row)
             save()
             echo(
-                f"trial {index + 1}/{trials}: {row['status']} success={row['success']} "
+                f"trial {index + 1}/{len(tcs)}: {row['status']} success={row['success']} "
                 f"collision={row['collision']} min_clearance={row['min_clearance']}"
             )
     except KeyboardInterrupt:
@@ -312,209 +336,5 @@ def run_trials(
         raise
     finally:
         robot.close()
-        adapter.close()
-    return TrialReport(rows, path, summarise_trials(rows))
-
-
-def _one_trial(
-    index,
-    tc,
-    robot,
-    perception,
-    adapter,
-    policy,
-    limits,
-    dt,
-    dry_run,
-    judge,
-    force,
-    ask,
-    echo,
-    repair_config: RepairConfig | None = None,
-    paper: bool = False,
-) -> dict[str, Any]:
-    trial_start = time.perf_counter()
-    twin = robot.name == "twin"
-    row: dict[str, Any] = dict.fromkeys(TRIAL_FIELDS, "")
-    row.update(trial=index, status="ok", images=0)
-    # seconds, but "perception": the detections' times (ms) (`trial_rows.finish_row`)
-    timings: dict[str, Any] = {"perception": [], "policy": 0.0, "check": 0.0, "execution": 0.0}
-    errors: list[tuple[float, float]] = []
-    planned = np.inf
-
-    perception.reset_tracks()
-    adapter.world.tracks.clear()
-    if twin:
-        robot.start_trial(tc)
-        row["true_object_offset_y"] = tc.object_offset[1]
-        row["true_obstacle_offset_y"] = tc.obstacle_offset[1]
-    elif not dry_run:  # a dry run plans from wherever the robot is and never moves it
-        ask(f"trial {index + 1}: place both bars on the conveyor, then press Enter ")
-        q_home = adapter.model.start_joint_positions
-        path = np.linspace(robot.joint_positions(), q_home, 50)
-        poses = np.array([_fk_pose(adapter.model.robot, q) for q in path])
-        check_plan(poses, path[0], adapter.model.robot, limits, dt * 4, force=force)
-        result = robot.move_joints(q_home)
-        if result.stopped:
-            row.update(status="stopped", stop_reason=result.stop_reason)
-            return finish_row(row, trial_start, timings, errors, planned, judge_skip=True)
-
-    def perceive() -> bool:
-        image, stamp = robot.capture()
-        percept = perception.perceive(image, stamp)
-        timings["perception"].append(percept.detection_ms)
-        row["images"] += 1
-        adapter.world.update(percept)
-        adapter.world.set_robot(robot.tcp_pose(), robot.now(), robot.joint_positions())
-        if twin:
-            truth = robot.sim.object_transforms()
-            # the image was taken at `stamp`; compare with the truth predicted back to it
-            for name, pose in percept.objects.items():
-                true = truth[name].copy()
-                if adapter.world.on_belt(true):
-                    true[:3, 3] -= adapter.world.velocity * (robot.now() - stamp)
-                errors.append(pose_error(pose.transform, true))
-        return all(name in adapter.world.tracks for name in OBJECTS)
-
-    if not perceive():
-        row.update(status="not_perceived", stop_reason="a bar was not detected at the start")
-        return finish_row(row, trial_start, timings, errors, planned, judge_skip=True)
-    now = robot.now()
-    perceived_tc = adapter.begin(robot.tcp_pose(), now)
-    row["object_offset_y"] = round(perceived_tc.object_offset[1], 5)
-    row["obstacle_offset_y"] = round(perceived_tc.obstacle_offset[1], 5)
-    q = robot.joint_positions()
-    velocity = np.zeros(6)
-    clock = now  # predicted time in dry-run (nothing moves)
-    shift = np.zeros(3)  # belt shift of re-timed plans (repair module docstring)
-    last_pose = None  # last commanded pose (with the shift)
-    windows: list[tuple[str, float, float]] = []  # (decision, time added s, displacement m)
-    streaming = False  # the robot's stream left open for the next RL step
-    unit = adapter.decision_unit  # a window, or one 0.1 s RL step (residual RL)
-    for step in range(adapter.trial_steps):
-        if step > 0 and not dry_run and adapter.takes_image(step):
-            perceive()
-        elif step > 0 and not dry_run:  # no image: the tracks predict the bars; the robot's
-            adapter.world.set_robot(robot.tcp_pose(), robot.now(), robot.joint_positions())
-        elif step > 0:
-            adapter.world.set_robot(
-                adapter.last_commanded if last_pose is None else last_pose, clock, q
-            )
-        start = time.perf_counter()
-        observation = adapter.observe()
-        action = None if policy is None else policy(observation)
-        timings["policy"] += time.perf_counter() - start
-        poses = adapter.adapt(action)
-        reference = clock if dry_run else robot.now()
-        clearance_at = clearance_function(
-            adapter.field, adapter.world.obstacle_shapes, reference, dt
-        )
-        path_poses = poses
-        if paper:  # the paper's protocol: the poses go as made; the controller alone stops
-            check = PlanCheck(ik_chain(poses, q, adapter.model.robot)[0], np.inf)
-            windows.append((UNCHECKED, 0.0, 0.0))
-        elif repair_config is None:
-            try:
-                check = check_plan(
-                    poses,
-                    q,
-                    adapter.model.robot,
-                    limits,
-                    dt,
-                    clearance_at,
-                    force=force,
-                    v_start=velocity,
-                )
-            except UnsafePlanError as refused:
-                echo(f"trial {index + 1}, {unit} {step + 1}: {refused}")
-                windows.append(("refused", 0.0, 0.0))
-                row.update(
-                    status="refused",
-                    refused_limits=",".join(dict.fromkeys(v.limit for v in refused.violations)),
-                    stop_reason=str(refused),
-                )
-                break
-            windows.append(("refused" if check.violations else "none", 0.0, 0.0))
-            timings["check"] += check.check_ms / 1000.0
-        else:
-            started = time.perf_counter()
-            repaired = repair_window(
-                adapter,
-                step,
-                poses,
-                q,
-                velocity,
-                limits,
-                dt,
-                clearance_at,
-                reference,
-                shift,
-                repair_config,
-            )
-            timings["check"] += time.perf_counter() - started
-            windows.append((repaired.decision, repaired.time_added, repaired.max_displacement))
-            if repaired.decision != "none" or dry_run:
-                echo(f"trial {index + 1}, {unit} {step + 1}: {describe_repair(repaired)}")
-            if repaired.decision == "refused" and not force:
-                refusal = UnsafePlanError(repaired.remaining)
-                row.update(
-                    status="refused",
-                    refused_limits=",".join(repaired.refused_limits),
-                    stop_reason=f"after retiming and repair: {refusal}",
-                )
-                break
-            check, poses, path_poses = repaired.check, repaired.poses, repaired.path_poses
-            shift = repaired.shift_end
-            if repaired.decision == "refused":  # forced: executed as given, recorded
-                row["refused_limits"] = ",".join(repaired.refused_limits)
-        planned = min(planned, check.min_clearance)
-        if check.violations and repair_config is None:
-            row["refused_limits"] = ",".join(dict.fromkeys(v.limit for v in check.violations))
-        if dry_run:
-            adapter.executed(path_poses)
-            if len(poses):
-                last_pose = np.asarray(poses[-1], dtype=float).copy()
-            clock += len(poses) * dt
-            if len(check.joints):
-                velocity = (check.joints[-1] - (check.joints[-2] if len(poses) > 1 else q)) / dt
-                q = check.joints[-1]
-            continue
-        # residual control streams its RL steps back to back (the robot's stream is not
-        # ended between them); a window plan ends its stream
-        last = not adapter.streams_decisions or step == adapter.trial_steps - 1
-        result = robot.execute(check.joints, poses, last=last)
-        streaming = not last and not result.stopped
-        timings["execution"] += result.wall_s
-        adapter.executed(path_poses[: result.steps])
-        if result.steps:
-            last_pose = np.asarray(poses[result.steps - 1], dtype=float).copy()
-            previous = check.joints[result.steps - 2] if result.steps > 1 else q
-            q = check.joints[result.steps - 1]
-            velocity = (q - previous) / dt
-        if result.stopped:  # a controller's limit stop is a failure, not a refusal
-            status = PROTECTIVE_STOP if result.limit_stop else "stopped"
-            row.update(status=status, stop_reason=result.stop_reason)
-            if result.protective_stop and result.collision is not False:
-                row["collision"] = 1  # a contact (the real robot: any protective stop)
-            break
-        if not twin and not streaming:  # a continued stream goes on from its last target
-            q = robot.joint_positions()
-    if streaming:  # a refusal ended the trial with the robot's stream still open
-        robot.stop()
-    row["repair"] = ";".join(w[0] for w in windows)
-    row["repair_added_s"] = ";".join(f"{w[1]:.3f}" for w in windows)
-    row["repair_displacement_m"] = ";".join(f"{w[2]:.4f}" for w in windows)
-
-    # -- judge ---------------------------------------------------------------------------
-    if dry_run:
-        if row["status"] == "ok":
-            row["status"] = "planned"
-        return finish_row(row, trial_start, timings, errors, planned)
-    judge_row(row, robot, adapter, twin=twin, judge=judge, ask=ask, index=index, perceive=perceive)
-    return finish_row(row, trial_start, timings, errors, planned)
-
-
-def _fk_pose(robot, q: np.ndarray) -> np.ndarray:
-    from distgprl.sim.transforms import matrix_to_pose
-
-    return matrix_to_pose(robot.fk(q))
+        setup.adapter.close()
+    return rows

@@ -1,7 +1,7 @@
-"""The pre-flight handling of one window's plan in a hardware trial: the clearance and the
-distance-field gradient along the plan with the other bar predicted to each step's time, the
-window's movable via-points, and the retime / repair / refuse decision
-(`distgprl.hardware.repair.repair_plan`) written back into the adapter.
+"""The pre-flight handling of one window's plan: the clearance and the distance-field gradient
+along the plan with the obstacles predicted to each step's time, the window's movable
+via-points, what a trial file says of the safety layer, and a line for each repair decision
+(the gates of `distgprl.hardware.gates` use them).
 
 The same handling checks one 0.1 s RL step of residual control (ProMP-RRL) as a plan of its
 own: retiming applies to it, the push does not (`pushes_via_points`); `safety_layer` says
@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints, repair_plan
+from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints
 
 
 def clearance_function(
@@ -123,45 +123,6 @@ def movable_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | Non
             adapter.gamma = saved
 
     return ViaPoints(replan, len(movable)), movable
-
-
-def repair_window(
-    adapter, step, poses, q, velocity, limits, dt, clearance_at, reference, shift, config
-) -> RepairResult:
-    """Retime / repair / refuse the window's plan (:func:`repair_plan`).
-
-    Args: ``adapter`` the trial's environment (`~distgprl.hardware.adapter.perceived_env`),
-    ``step`` the window (0-based), ``poses`` its planned tool poses (n, 7), ``q`` and
-    ``velocity`` the joints (rad) and joint velocities (rad/s) at its start, ``limits`` the
-    safety limits, ``dt`` the control period (s), ``clearance_at`` `clearance_function`'s
-    callable, ``reference`` the time the plan starts at (s, the robot's clock), ``shift``
-    the belt shift of earlier re-timed windows (m, (3,)), ``config`` the `RepairConfig`.
-
-    The plan follows the belt (re-timed poses shifted by the belt's travel during the
-    added time) while the perceived target bar is still on the belt; once it is lifted
-    the shift stays as it is. Repaired via-points are written back into the adapter (the
-    policy sees them in its next observation, as if it had moved them).
-    """
-    world = adapter.world
-    on_belt = "target_bar" in world.tracks and world.on_belt(world.tracks["target_bar"].transform)
-    movable = movable_via_points(adapter, step)
-    result = repair_plan(
-        poses,
-        q,
-        adapter.model.robot,
-        limits,
-        dt,
-        clearance_at,
-        gradient_function(adapter.field, world.obstacle_shapes, reference, dt),
-        None if movable is None else movable[0],
-        v_start=velocity,
-        shift=shift,
-        belt_velocity=world.velocity if on_belt and config.follow_belt else None,
-        config=config,
-    )
-    if result.decision == "repaired" and movable is not None:
-        adapter.gamma[movable[1], :3] += result.displacement
-    return result
 
 
 def describe_repair(result: RepairResult) -> str:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from distgprl.agents.sac import NumpyActor
+from distgprl.envs.episode import plan_segment
 
 __all__ = ["AdaptationPipeline"]
 
@@ -52,9 +53,9 @@ class AdaptationPipeline:
         return self.field.distance(points)
 
     def gp_conditioning(self, step: int, action: np.ndarray) -> np.ndarray:
-        """Delta Gamma = S_W a on the window, then the segment's poses (m, 6)."""
-        self.env.apply_action(step, action)
-        return self.env.segment_poses(step)
+        """Delta Gamma = S_W a on the window, then the segment's poses (m, 6) (the episode
+        loop's `plan_segment`)."""
+        return plan_segment(self.env, step, action)[1]
 
     def policy(self) -> np.ndarray:
         """Deterministic action for the current observation, (A,) (`NumpyActor`)."""
