@@ -55,17 +55,16 @@ import math
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 from scipy.optimize import brentq
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import markdown_table
-from distgprl.schema import read_csv
 
 BOOTSTRAP_REPS = 2000
 """Bootstrap replicates per interval."""
@@ -280,8 +279,9 @@ def probability_of_improvement(
     return Estimate(point, min(low, score_low), max(high, score_high), seeds, sizes)
 
 
-def curve_measures(path: Path) -> dict[str, float]:
-    """Learning-curve measures of one run's ``progress.csv`` (points: step, curve success on
+def curve_measures(points: pd.DataFrame) -> dict[str, float]:
+    """Learning-curve measures of one run's curve points (its rows of a
+    `distgprl.report.frame.curves_of` frame: ``step``, ``success_rate``, the curve success on
     the fixed curve TCs), each against the run's start ``s0``, the untrained policy's curve
     success at step 0; empty without a step-0 point or with fewer than two trained points.
 
@@ -302,11 +302,10 @@ def curve_measures(path: Path) -> dict[str, float]:
       a run that never learned scores +inf, the worst, because a flat curve is not stable
       learning. Lower is better.
     """
-    if not path.exists():
+    if points.empty:
         return {}
-    _, rows = read_csv(path)
-    steps = np.array([float(r["step"]) for r in rows])
-    success = np.array([float(r["success_rate"]) for r in rows])
+    steps = points["step"].to_numpy(dtype=float)
+    success = points["success_rate"].to_numpy(dtype=float)
     trained = steps > 0
     if trained.sum() < 2 or not np.any(steps == 0):
         return {}
@@ -325,14 +324,14 @@ def curve_measures(path: Path) -> dict[str, float]:
     return {"learning_auc": float(auc), "steps_to_gain": steps_to, "learned_drop": drop}
 
 
-def run_scores(folder: Path, summary: Mapping[str, float]) -> dict[str, float]:
+def run_scores(summary: Mapping[str, float], points: pd.DataFrame) -> dict[str, float]:
     """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
-    retention (``summary``) and its `curve_measures` (``folder/progress.csv``; none for an
+    retention (``summary``) and the `curve_measures` of its curve ``points`` (none for an
     untrained reference)."""
     scores = {key: float(summary[key]) for key, _ in RATES if key in summary}
     if "mean_kinematic_retention" in summary:  # velocity cosine to the demonstration
         scores["mean_kinematic_retention"] = float(summary["mean_kinematic_retention"])
-    scores.update(curve_measures(folder / "progress.csv"))
+    scores.update(curve_measures(points))
     return scores
 
 

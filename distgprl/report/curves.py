@@ -36,9 +36,16 @@ from distgprl.report.aggregate import (
     estimate_rng,
 )
 from distgprl.report.figure_files import write_or_remove_figure
+from distgprl.report.frame import curve_frame
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
-from distgprl.report.seed_curves import PANELS, SEED_COLORS, reading_columns, seed_curves
+from distgprl.report.seed_curves import (
+    PANELS,
+    SEED_COLORS,
+    reading_columns,
+    run_curves,
+    seed_curves,
+)
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
 from distgprl.report.table2 import hardware_rows, select_trial_files
@@ -144,12 +151,13 @@ def plot_figure(
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
+    frame = curve_frame(root, preset)
     drawn = 0
     handles: dict[str, Line2D] = {}
     seeds_of: dict[str, dict[str, int]] = {}
     for row, task in enumerate(tasks):
         for method in methods:
-            data = load_curves(root, preset, task, method)
+            data = common_curves(run_curves(frame, task, method))
             if data is None:
                 continue
             steps, values = data

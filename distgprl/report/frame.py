@@ -23,7 +23,7 @@ frames' ``attrs["note"]`` says it (`EvaluationSelection.note`, `RunSelection.not
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Hashable, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +49,9 @@ TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")
 """The training record's (``done.json``) fields in `run_frame`: wall time (s) and process CPU
 time per RL step (s); missing for an untrained reference and for runs made before they were
 recorded."""
+
+RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_FIELDS)
+"""The columns `run_frame` always has, before the summaries' fields."""
 
 
 def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
@@ -95,26 +98,30 @@ def run_frame(
     seeds: Collection[int] | None = None,
 ) -> pd.DataFrame:
     """One row per run under ``<root>/<preset>`` that counts (`run_evaluations` of
-    ``policy``, ``seeds`` as there) in folder order: `EVALUATION_KEYS`, ``folder`` (Path),
-    ``config_hash``, ``numerics`` (the training machine's fingerprint, "" before it was
-    recorded), `TRAINING_FIELDS` and every field of the evaluation's summary (``object``
-    columns, None where a summary lacks a field). ``attrs["note"]``: the runs left out or
-    substituted."""
+    ``policy``, ``seeds`` as there) in folder order: `RUN_COLUMNS` — `EVALUATION_KEYS`,
+    ``folder`` (Path), ``config_hash``, ``numerics`` (the training machine's fingerprint, ""
+    before it was recorded), `TRAINING_FIELDS` — and every field of the evaluation's
+    summary (``object`` columns, None where a summary lacks a field). ``attrs["note"]``: the
+    runs left out or substituted."""
     selection = run_evaluations(root, preset, policy, seeds)
     records = [_run_record(evaluation) for evaluation in selection.evaluations]
-    columns = list(dict.fromkeys(key for record in records for key in record))
+    columns = list(dict.fromkeys([*RUN_COLUMNS, *(key for record in records for key in record)]))
     filled = [{column: record.get(column) for column in columns} for record in records]
-    frame = pd.DataFrame(filled, columns=columns or list(EVALUATION_KEYS), dtype=object)
+    frame = pd.DataFrame(filled, columns=columns, dtype=object)
     frame.attrs["note"] = selection.note()
     return frame
 
 
-def summaries(frame: pd.DataFrame) -> Iterator[tuple[tuple[Hashable, ...], dict[str, Any]]]:
-    """(run keys, summary) per row of a `run_frame`: the row's fields it holds (None left out,
-    as a summary without the field), with `EVALUATION_KEYS` as the key."""
+EvaluationKey = tuple[str, str, int, str]
+"""(task, method, seed, policy): `EVALUATION_KEYS` of one row."""
+
+
+def summaries(frame: pd.DataFrame) -> Iterator[tuple[EvaluationKey, dict[str, Any]]]:
+    """(`EvaluationKey`, summary) per row of a `run_frame`: the row's fields it holds (None
+    left out, as a summary without the field)."""
     for record in frame.to_dict("records"):
-        key = tuple(record[name] for name in EVALUATION_KEYS)
-        yield key, {str(k): v for k, v in record.items() if v is not None}
+        key = (str(record["task"]), str(record["method"]), int(record["seed"]))
+        yield (*key, str(record["policy"])), {str(k): v for k, v in record.items() if v is not None}
 
 
 def number(text: str) -> int | float | str:
@@ -160,25 +167,41 @@ def episode_frame(
     return frame
 
 
-def curve_frame(
-    root: str | Path, preset: str, seeds: Collection[int] | None = None
-) -> pd.DataFrame:
-    """One row per finished run of the current configuration (`select_runs` with
-    ``done.json``, ``seeds`` as there) × point of its learning curve (``progress.csv``), in
-    folder order: `RUN_KEYS`, then the file's columns as numbers (`number`; ``step`` an
-    int). ``attrs["note"]``: the runs left out."""
-    selection = select_runs(root, preset, marker="done.json", seeds=seeds)
+def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
+    """One row per run folder of ``folders`` (in their order) × point of its learning curve
+    (``progress.csv``; a run without one, or with an empty one, has no rows): `RUN_KEYS`,
+    then the file's columns as numbers (`number`; ``step`` an int)."""
     parts = []
-    for folder in sorted(selection.current):
-        path = folder / "progress.csv"
+    for folder in folders:
+        path = Path(folder) / "progress.csv"
         if path.exists():
             keys = {
-                "task": folder.parent.parent.name,
-                "method": folder.parent.name,
-                "seed": int(folder.name.removeprefix("seed")),
+                "task": path.parent.parent.parent.name,
+                "method": path.parent.parent.name,
+                "seed": int(path.parent.name.removeprefix("seed")),
             }
             parts.append(_csv_frame(path, keys))
     parts = [part for part in parts if len(part)]
-    frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
+
+
+def curve_frame(
+    root: str | Path, preset: str, seeds: Collection[int] | None = None
+) -> pd.DataFrame:
+    """`curves_of` the finished runs of the current configuration (`select_runs` with
+    ``done.json``, ``seeds`` as there), in folder order. ``attrs["note"]``: the runs left
+    out."""
+    selection = select_runs(root, preset, marker="done.json", seeds=seeds)
+    frame = curves_of(sorted(selection.current))
     frame.attrs["note"] = selection.note()
     return frame
+
+
+def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
+    """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
+    if frame.empty:
+        return {}
+    return {
+        (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
+        for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)
+    }

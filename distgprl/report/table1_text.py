@@ -25,12 +25,12 @@ import numpy as np
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_REPS, Estimate
+from distgprl.report.frame import COLLISION_FREE_MINCL
 from distgprl.report.markdown import markdown_table
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
     BEATS_UNTRAINED,
     CLEARANCE_METRICS,
-    COLLISION_FREE_MINCL,
     INTERVAL_METRICS,
     IQM_METRICS,
     LATE_CURVE,

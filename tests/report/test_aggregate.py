@@ -5,11 +5,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats
 
-from distgprl.experiments.results import write_csv
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.aggregate import (
     aggregate_rows,
     aggregate_texts,
@@ -112,56 +111,44 @@ def test_poi_rows_pair_the_proposed_method_with_each_partner_with_runs():
     assert pooled["seeds"] == "5;5" and pooled["ci_low"] > 0.5
 
 
-def _curve(path, successes, step=1000):
-    rows = []
-    for index, success in enumerate(successes):
-        row = dict.fromkeys(PROGRESS_FIELDS, "")
-        row.update(step=step * index, success_rate=success, collision_rate=0.0)
-        rows.append(row)
-    write_csv(path, rows, PROGRESS_FIELDS)
+def _curve(successes, step=1000):
+    """One run's curve points as `distgprl.report.frame.curves_of` gives them."""
+    steps = [step * index for index in range(len(successes))]
+    return pd.DataFrame({"step": steps, "success_rate": successes, "collision_rate": 0.0})
 
 
-def test_curve_measures_follow_their_stated_definitions(tmp_path):
+def test_curve_measures_follow_their_stated_definitions():
     """Against the start s0 (step 0): learning_auc the trapezoid mean of (curve - s0);
     steps_to_gain the first step from which two points hold s0 + 0.2; learned_drop the mean
     drop per period from there."""
-    path = tmp_path / "progress.csv"
-    assert curve_measures(path) == {}
+    assert curve_measures(_curve([])) == {}
     curve = [0.1, 0.2, 0.35, 0.5, 0.4, 0.7, 0.6]  # steps 0..6000; 0.3 first at 2000 then 3000
-    _curve(path, curve)
-    measures = curve_measures(path)
+    measures = curve_measures(_curve(curve))
     expected_auc = np.trapezoid(np.array(curve) - 0.1, np.arange(7) * 1000.0) / 6000.0
     assert measures["learning_auc"] == pytest.approx(expected_auc)
     assert measures["steps_to_gain"] == 2000.0
     assert measures["learned_drop"] == pytest.approx((0.1 + 0.1) / 4)  # 4 periods from 2000
 
 
-def test_a_flat_curve_neither_converges_nor_counts_as_stable(tmp_path):
+def test_a_flat_curve_neither_converges_nor_counts_as_stable():
     """A curve that stays at its start (or wanders within the margin) has no area above it,
     is censored one period past its last step and is the least stable (+inf); a curve that
     falls below its start has a negative area; a single point above the margin is noise."""
-    path = tmp_path / "progress.csv"
-    _curve(path, [0.44, 0.44, 0.44, 0.44, 0.44])
-    flat = curve_measures(path)
+    flat = curve_measures(_curve([0.44, 0.44, 0.44, 0.44, 0.44]))
     assert flat == {"learning_auc": 0.0, "steps_to_gain": 5000.0, "learned_drop": math.inf}
-    _curve(path, [0.4, 0.5, 0.3, 0.55, 0.45, 0.5])
-    wander = curve_measures(path)
+    wander = curve_measures(_curve([0.4, 0.5, 0.3, 0.55, 0.45, 0.5]))
     assert wander["steps_to_gain"] == 6000.0 and wander["learned_drop"] == math.inf
-    _curve(path, [0.3, 0.0, 0.0, 0.0])
-    assert curve_measures(path)["learning_auc"] < 0
-    _curve(path, [0.1, 0.1, 0.5, 0.1, 0.1])  # one point above 0.3: not learned
-    assert curve_measures(path)["learned_drop"] == math.inf
+    assert curve_measures(_curve([0.3, 0.0, 0.0, 0.0]))["learning_auc"] < 0
+    one_point = curve_measures(_curve([0.1, 0.1, 0.5, 0.1, 0.1]))  # one above 0.3: not learned
+    assert one_point["learned_drop"] == math.inf
 
 
-def test_a_steady_riser_is_stable_and_earlier_learning_scores_more(tmp_path):
+def test_a_steady_riser_is_stable_and_earlier_learning_scores_more():
     """A curve rising without a drop has learned_drop 0; the same rise one period earlier has
     the larger area and the earlier steps_to_gain."""
-    path = tmp_path / "progress.csv"
-    _curve(path, [0.1, 0.2, 0.4, 0.6, 0.8, 0.8])
-    late = curve_measures(path)
+    late = curve_measures(_curve([0.1, 0.2, 0.4, 0.6, 0.8, 0.8]))
     assert late["learned_drop"] == 0.0
-    _curve(path, [0.1, 0.4, 0.6, 0.8, 0.8, 0.8])
-    early = curve_measures(path)
+    early = curve_measures(_curve([0.1, 0.4, 0.6, 0.8, 0.8, 0.8]))
     assert early["learning_auc"] > late["learning_auc"]
     assert early["steps_to_gain"] < late["steps_to_gain"]
 

@@ -8,6 +8,7 @@ import math
 from distgprl.experiments.results import write_csv, write_json
 from distgprl.report.frame import (
     EVALUATION_KEYS,
+    RUN_COLUMNS,
     curve_frame,
     episode_frame,
     number,
@@ -95,7 +96,7 @@ def test_curve_frame_has_one_row_per_finished_run_and_curve_point(tmp_path, stud
 
 def test_an_empty_preset_gives_empty_frames_with_the_key_columns(tmp_path):
     (tmp_path / "paper" / "dcp").mkdir(parents=True)
-    assert list(run_frame(tmp_path, "paper").columns) == list(EVALUATION_KEYS)
+    assert list(run_frame(tmp_path, "paper").columns) == list(RUN_COLUMNS)
     assert list(episode_frame(tmp_path, "paper").columns) == list(EVALUATION_KEYS)
     assert list(curve_frame(tmp_path, "paper").columns) == ["task", "method", "seed"]
 

@@ -6,6 +6,7 @@ import csv
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
@@ -166,19 +167,24 @@ def _curve(path, successes):
     write_csv(path, rows, PROGRESS_FIELDS)
 
 
-def test_late_curve_averages_the_last_curve_points_only(tmp_path):
-    path = tmp_path / "progress.csv"
-    assert late_curve(path) == {"late_curve_success": "", "late_curve_success_range": ""}
+def _points(successes):
+    """One run's curve points (`distgprl.report.frame.curves_of`), every 1 500 steps."""
+    return pd.DataFrame(
+        {"step": [1500 * k for k in range(len(successes))], "success_rate": successes}
+    )
+
+
+def test_late_curve_averages_the_last_curve_points_only():
+    assert late_curve(_points([])) == {"late_curve_success": "", "late_curve_success_range": ""}
     early = [0.9, 0.0, 0.1, 0.2]  # step 0 (untrained) and early training are left out
     late = [0.8, 0.6, 0.9, 0.7, 0.5]
     assert len(late) == LATE_CURVE_POINTS
-    _curve(path, early + late)
-    assert late_curve(path) == {
+    assert late_curve(_points(early + late)) == {
         "late_curve_success": pytest.approx(0.7),
         "late_curve_success_range": pytest.approx(0.4),
     }
-    _curve(path, [0.9])  # only the untrained step-0 point: nothing to report
-    assert late_curve(path)["late_curve_success"] == ""
+    only_untrained = late_curve(_points([0.9]))  # the untrained step-0 point: nothing to report
+    assert only_untrained["late_curve_success"] == ""
 
 
 def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path):
