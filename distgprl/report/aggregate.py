@@ -6,20 +6,23 @@ the stratified bootstrap; per ablation pair (`PROPOSED` against each of `PARTNER
 probability of improvement (PoI) with its interval, on success (higher is better) and on
 collision (lower is better). Rows of task ``all`` pool both tasks, one stratum per task.
 
-This is `rliable` 1.2.0's ``get_interval_estimates`` (``method="percentile"``), written out
-here because rliable cannot be imported in this environment: it requires ``arch<8``, and
-arch 7.2.0 fails at import under pandas 3 (``deprecate_kwarg``). What it computes, following
-rliable's ``StratifiedBootstrap``, ``StratifiedIndependentBootstrap`` and ``metrics``:
+This is `rliable` 1.2.0's ``get_interval_estimates`` (``method="percentile"``) computed with
+`scipy.stats.bootstrap` and `scipy.stats.mannwhitneyu` (rliable itself cannot be imported
+in this environment: it requires ``arch<8``, and arch 7.2.0 fails at import under pandas 3).
+What it computes, following rliable's ``StratifiedBootstrap``,
+``StratifiedIndependentBootstrap`` and ``metrics``:
 
 - a bootstrap replicate resamples, with replacement, the runs (seeds) of every stratum
-  (task) on its own, the same number as the stratum has;
+  (task) on its own, the same number as the stratum has (scipy's bootstrap of one sample
+  per stratum, `bootstrap_interval`);
 - the mean is the mean over strata of the per-stratum means (``aggregate_mean``), the IQM
   is the 25 % trimmed mean of all the runs' scores pooled (``aggregate_iqm``);
 - the PoI of X over Y is, per stratum, P(X > Y) + P(X = Y) / 2 over every pair of a run of
   X and a run of Y (the Mann-Whitney U statistic over n_X n_Y, ``probability_of_improvement``)
   averaged over strata; its bootstrap resamples X and Y independently, each stratified;
   "lower is better" scores are negated first;
-- the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates.
+- the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates
+  (`numpy.percentile` of scipy's bootstrap distribution).
 
 A PoI's interval is never narrower than the data allow. When every run pair agrees (PoI 0
 or 1 on a task), every bootstrap replicate agrees too and the percentile interval has zero
@@ -178,31 +181,41 @@ def iqm(samples: list[np.ndarray]) -> np.ndarray:
     return trimmed
 
 
-def _improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """P(X > Y) + P(X = Y) / 2 over all run pairs, per replicate: (reps, n_x), (reps, n_y)
-    -> (reps,). Equals rliable's U / (n_x n_y), and 1/2 for identical samples."""
-    greater = (x[:, :, None] > y[:, None, :]).mean(axis=(1, 2))
-    equal = (x[:, :, None] == y[:, None, :]).mean(axis=(1, 2))
-    probability: np.ndarray = greater + 0.5 * equal
+    -> (reps,): scipy's Mann-Whitney U of X over n_x n_y (rliable's
+    ``probability_of_improvement``), 1/2 for identical samples."""
+    u = stats.mannwhitneyu(x, y, axis=-1, method="asymptotic", use_continuity=False).statistic
+    probability: np.ndarray = np.asarray(u) / (x.shape[-1] * y.shape[-1])
     return probability
 
 
-def _resample(values: np.ndarray, reps: int, rng: np.random.Generator) -> np.ndarray:
-    """``reps`` resamples with replacement of one stratum's runs: (n,) -> (reps, n)."""
-    return values[rng.integers(0, len(values), size=(reps, len(values)))]
-
-
-def _percentiles(replicates: np.ndarray) -> tuple[float, float]:
+def bootstrap_interval(
+    samples: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], rng: np.random.Generator,
+    reps: int = BOOTSTRAP_REPS,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
+    (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
+    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample with
+    replacement on its own (per sample = per stratum, rliable's stratified bootstrap) along
+    its first axis. The endpoints are `numpy.percentile`'s of scipy's bootstrap
+    distribution: scipy's own (`scipy.stats.quantile`) interpolates between the same two
+    replicates by another formula, a last bit apart."""
+    result = stats.bootstrap(
+        tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
+        method="percentile", confidence_level=CONFIDENCE, rng=rng,
+    )  # fmt: skip
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
-    low, high = np.percentile(replicates, [tail, 100.0 - tail])
-    return float(low), float(high)
+    low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
+    return low, high
 
 
 def interval_estimate(
     strata: Strata, statistic: Statistic, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> Estimate:
     """``statistic`` of ``strata`` (empty strata dropped) with its stratified-bootstrap
-    percentile interval (rliable ``get_interval_estimates``, one score array)."""
+    percentile interval (`bootstrap_interval`; rliable ``get_interval_estimates``, one score
+    array)."""
     arrays = [np.asarray(s, dtype=float) for s in strata if len(s)]
     seeds = tuple(len(a) for a in arrays)
     if not arrays:
@@ -210,8 +223,12 @@ def interval_estimate(
     point = float(statistic([a[None, :] for a in arrays])[0])
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds)
-    low, high = _percentiles(statistic([_resample(a, reps, rng) for a in arrays]))
-    return Estimate(point, low, high, seeds)
+
+    def of_resamples(*samples: np.ndarray, axis: int) -> np.ndarray:
+        return statistic(list(samples))  # samples: (reps, n_k) each, resampled along axis -1
+
+    low, high = bootstrap_interval(arrays, of_resamples, rng, reps)
+    return Estimate(point, float(low), float(high), seeds)
 
 
 def _hanley_mcneil_variance(theta: float, n_x: int, n_y: int) -> float:
@@ -262,15 +279,19 @@ def probability_of_improvement(
         return Estimate(math.nan, math.nan, math.nan, ())
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    per_stratum = [float(_improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
+    per_stratum = [float(improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
     point = float(np.mean(per_stratum))
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds, sizes)
-    replicates = np.mean(
-        [_improvement(_resample(x, reps, rng), _resample(y, reps, rng)) for x, y in pairs],
-        axis=0,
-    )
-    low, high = _percentiles(replicates)
+
+    def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
+        # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
+        per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
+        mean: np.ndarray = np.mean(per_pair, axis=0)
+        return mean
+
+    samples = [a for pair in pairs for a in pair]
+    low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
     bounds = [
         newcombe_interval(p, len(x), len(y)) for p, (x, y) in zip(per_stratum, pairs, strict=True)
     ]

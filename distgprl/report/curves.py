@@ -32,7 +32,7 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import (
     BOOTSTRAP_REPS,
     BOOTSTRAP_SEED,
-    CONFIDENCE,
+    bootstrap_interval,
     estimate_rng,
 )
 from distgprl.report.figure_files import write_or_remove_figure
@@ -110,16 +110,17 @@ def mean_and_band(
     values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """(mean, (low, high)) over seeds (axis 0) of a (seeds, k) array: the mean curve and its
-    `CONFIDENCE` percentile bootstrap band (``reps`` resamples of the seeds, each resample's
-    mean curve). The band is None for a single seed."""
+    `CONFIDENCE` percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the
+    seeds, whole curves, each resample's mean curve). The band is None for a single seed."""
     mean = values.mean(axis=0)
-    seeds = values.shape[0]
-    if seeds < 2:
+    if values.shape[0] < 2:
         return mean, None
-    resampled = values[rng.integers(0, seeds, size=(reps, seeds))].mean(axis=1)  # (reps, k)
-    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
-    low, high = np.percentile(resampled, [tail, 100.0 - tail], axis=0)
-    return mean, (low, high)
+
+    def mean_curve(sample: np.ndarray, axis: int) -> np.ndarray:
+        means: np.ndarray = sample.mean(axis=axis)
+        return means
+
+    return mean, bootstrap_interval([values], mean_curve, rng, reps)
 
 
 def method_color(method: str) -> str:

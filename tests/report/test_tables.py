@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
@@ -416,6 +417,17 @@ def test_moved_robot_reads_status_and_execution_time():
 def test_binomial_interval_is_the_exact_clopper_pearson_interval(successes, trials, expected):
     """Against the published exact 95 % intervals for 0, 7 and 10 successes in 10 trials."""
     assert binomial_interval(successes, trials) == pytest.approx(expected, abs=1e-4)
+
+
+def test_binomial_interval_is_scipys_exact_interval():
+    """Clopper-Pearson by the beta quantiles is `binomtest(...).proportion_ci`'s exact
+    interval (scipy finds it by root-finding: the two agree to 1e-12, not to the bit)."""
+    for trials in (1, 7, 10, 50):
+        for successes in range(trials + 1):
+            exact = stats.binomtest(successes, trials).proportion_ci(method="exact")
+            assert binomial_interval(successes, trials) == pytest.approx(
+                (exact.low, exact.high), abs=1e-12
+            )
 
 
 def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):
