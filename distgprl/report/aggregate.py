@@ -52,8 +52,6 @@ and the reason for each in `curve_measures`; issue 47 replaced the v5 measures `
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import zlib
 from collections.abc import Callable, Mapping, Sequence
@@ -67,7 +65,7 @@ from scipy.optimize import brentq
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 
 BOOTSTRAP_REPS = 2000
 """Bootstrap replicates per interval."""
@@ -455,12 +453,6 @@ def _task_label(task: str) -> str:
 def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
     """(CSV, Markdown) of the aggregates table (`aggregate_rows`)."""
     rows = aggregate_rows(scores, seed)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(
-        buffer, fieldnames=list(CSV_FIELDS), lineterminator="\n", extrasaction="ignore"
-    )
-    writer.writeheader()
-    writer.writerows(rows)
     cells = {(r["task"], r["method"], r["versus"], r["metric"], r["statistic"]): r for r in rows}
     caption = (
         f"Aggregates over seeds ({preset} preset): mean and IQM with 95 % stratified-bootstrap "
@@ -499,4 +491,4 @@ def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> 
         markdown += "\n" + markdown_table(poi_caption, poi_header, poi_table)
     else:
         markdown += f"\n{poi_caption}: no runs of Dist-GPRL and a partner yet.\n"
-    return buffer.getvalue(), markdown
+    return csv_text(rows, CSV_FIELDS), markdown

@@ -30,14 +30,12 @@ Reads result files only; `distgprl tables` writes ``onsets_<study>_<preset>.{csv
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.paired import FINAL_POLICY
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.seed_curves import reading_columns, seed_curves
@@ -266,10 +264,6 @@ def onset_texts(
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
     parts = [
@@ -320,4 +314,4 @@ def onset_texts(
                 f"{reading.label}, every finished seed on {task.upper()} (descriptive; no rule "
                 f"reads this count): {early} of {runs} learn early."
             )
-    return buffer.getvalue(), "\n\n".join(parts) + "\n"
+    return csv_text(rows, CSV_FIELDS), "\n\n".join(parts) + "\n"

@@ -25,8 +25,6 @@ of the evaluation stream (`supplementary_sizes` lists the N present).
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +33,7 @@ from scipy import stats
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.markdown import csv_text
 from distgprl.report.runs import select_runs
 from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, is_safe_success, read_csv
 
@@ -280,10 +279,6 @@ def paired_texts(
     """(CSV, Markdown) of `paired_rows` against ``reference`` (``episodes`` as there), or,
     with ``base_preset``, of `cross_preset_rows` against that preset; the Markdown has one
     line per run."""
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
     header = ["Task", "Method", "Seed", "TCs"]
     for _, label in OUTCOMES:
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
@@ -316,7 +311,7 @@ def paired_texts(
                 _p_text(row["p_value"]),
             ]
         lines.append("| " + " | ".join(cells) + " |")
-    return buffer.getvalue(), "\n".join(lines) + "\n"
+    return csv_text(rows, FIELDS), "\n".join(lines) + "\n"
 
 
 def _reference_text(reference: str) -> str:
