@@ -137,8 +137,9 @@ def number(text: str) -> int | float | str:
     return text
 
 
-def _csv_frame(path: Path, keys: dict[str, Any]) -> pd.DataFrame:
-    """The rows of one result CSV (`read_csv`), every cell a `number`, ``keys`` in front."""
+def csv_frame(path: Path, keys: dict[str, Any]) -> pd.DataFrame:
+    """The rows of one result CSV (`read_csv`), every cell a `number`, ``keys`` (the run's
+    `RUN_KEYS`, say) in front as columns of their own."""
     _, rows = read_csv(path)
     records = [{**keys, **{k: number(v) for k, v in row.items()}} for row in rows]
     return pd.DataFrame.from_records(records)
@@ -156,7 +157,7 @@ def episode_frame(
     runs left out or substituted."""
     selection = run_evaluations(root, preset, policy, seeds)
     parts = [
-        _csv_frame(
+        csv_frame(
             e.episodes, {"task": e.task, "method": e.method, "seed": e.seed, "policy": e.policy}
         )
         for e in selection.evaluations
@@ -180,7 +181,7 @@ def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
                 "method": path.parent.parent.name,
                 "seed": int(path.parent.name.removeprefix("seed")),
             }
-            parts.append(_csv_frame(path, keys))
+            parts.append(csv_frame(path, keys))
     parts = [part for part in parts if len(part)]
     return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
 
