@@ -227,10 +227,11 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     )  # fmt: skip
     drawn = 0
     handles: dict[str, Line2D] = {}
+    frames = {p: curve_frame(root, p, study.seeds) for p in dict.fromkeys(p for p, _, _ in columns)}
     for row, task in enumerate(tasks):
         for col, (preset, method, title) in enumerate(columns):
             ax = axes[row, col]
-            seeds = seed_curves(root, preset, task, method, study.seeds)
+            seeds = run_curves(frames[preset], task, method)
             for seed, (steps, values) in seeds.items():
                 (line,) = ax.plot(
                     steps, values["success_rate"], lw=0.9, alpha=0.85,
