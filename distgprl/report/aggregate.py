@@ -6,20 +6,23 @@ the stratified bootstrap; per ablation pair (`PROPOSED` against each of `PARTNER
 probability of improvement (PoI) with its interval, on success (higher is better) and on
 collision (lower is better). Rows of task ``all`` pool both tasks, one stratum per task.
 
-This is `rliable` 1.2.0's ``get_interval_estimates`` (``method="percentile"``), written out
-here because rliable cannot be imported in this environment: it requires ``arch<8``, and
-arch 7.2.0 fails at import under pandas 3 (``deprecate_kwarg``). What it computes, following
-rliable's ``StratifiedBootstrap``, ``StratifiedIndependentBootstrap`` and ``metrics``:
+This is `rliable` 1.2.0's ``get_interval_estimates`` (``method="percentile"``) computed with
+`scipy.stats.bootstrap` and `scipy.stats.mannwhitneyu` (rliable itself cannot be imported
+in this environment: it requires ``arch<8``, and arch 7.2.0 fails at import under pandas 3).
+What it computes, following rliable's ``StratifiedBootstrap``,
+``StratifiedIndependentBootstrap`` and ``metrics``:
 
 - a bootstrap replicate resamples, with replacement, the runs (seeds) of every stratum
-  (task) on its own, the same number as the stratum has;
+  (task) on its own, the same number as the stratum has (scipy's bootstrap of one sample
+  per stratum, `bootstrap_interval`);
 - the mean is the mean over strata of the per-stratum means (``aggregate_mean``), the IQM
   is the 25 % trimmed mean of all the runs' scores pooled (``aggregate_iqm``);
 - the PoI of X over Y is, per stratum, P(X > Y) + P(X = Y) / 2 over every pair of a run of
   X and a run of Y (the Mann-Whitney U statistic over n_X n_Y, ``probability_of_improvement``)
   averaged over strata; its bootstrap resamples X and Y independently, each stratified;
   "lower is better" scores are negated first;
-- the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates.
+- the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates
+  (`numpy.percentile` of scipy's bootstrap distribution).
 
 A PoI's interval is never narrower than the data allow. When every run pair agrees (PoI 0
 or 1 on a task), every bootstrap replicate agrees too and the percentile interval has zero
@@ -49,23 +52,20 @@ and the reason for each in `curve_measures`; issue 47 replaced the v5 measures `
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 from scipy.optimize import brentq
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
-from distgprl.schema import read_csv
+from distgprl.report.markdown import csv_text, markdown_table
 
 BOOTSTRAP_REPS = 2000
 """Bootstrap replicates per interval."""
@@ -179,31 +179,41 @@ def iqm(samples: list[np.ndarray]) -> np.ndarray:
     return trimmed
 
 
-def _improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """P(X > Y) + P(X = Y) / 2 over all run pairs, per replicate: (reps, n_x), (reps, n_y)
-    -> (reps,). Equals rliable's U / (n_x n_y), and 1/2 for identical samples."""
-    greater = (x[:, :, None] > y[:, None, :]).mean(axis=(1, 2))
-    equal = (x[:, :, None] == y[:, None, :]).mean(axis=(1, 2))
-    probability: np.ndarray = greater + 0.5 * equal
+    -> (reps,): scipy's Mann-Whitney U of X over n_x n_y (rliable's
+    ``probability_of_improvement``), 1/2 for identical samples."""
+    u = stats.mannwhitneyu(x, y, axis=-1, method="asymptotic", use_continuity=False).statistic
+    probability: np.ndarray = np.asarray(u) / (x.shape[-1] * y.shape[-1])
     return probability
 
 
-def _resample(values: np.ndarray, reps: int, rng: np.random.Generator) -> np.ndarray:
-    """``reps`` resamples with replacement of one stratum's runs: (n,) -> (reps, n)."""
-    return values[rng.integers(0, len(values), size=(reps, len(values)))]
-
-
-def _percentiles(replicates: np.ndarray) -> tuple[float, float]:
+def bootstrap_interval(
+    samples: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], rng: np.random.Generator,
+    reps: int = BOOTSTRAP_REPS,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
+    (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
+    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample with
+    replacement on its own (per sample = per stratum, rliable's stratified bootstrap) along
+    its first axis. The endpoints are `numpy.percentile`'s of scipy's bootstrap
+    distribution: scipy's own (`scipy.stats.quantile`) interpolates between the same two
+    replicates by another formula, a last bit apart."""
+    result = stats.bootstrap(
+        tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
+        method="percentile", confidence_level=CONFIDENCE, rng=rng,
+    )  # fmt: skip
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
-    low, high = np.percentile(replicates, [tail, 100.0 - tail])
-    return float(low), float(high)
+    low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
+    return low, high
 
 
 def interval_estimate(
     strata: Strata, statistic: Statistic, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> Estimate:
     """``statistic`` of ``strata`` (empty strata dropped) with its stratified-bootstrap
-    percentile interval (rliable ``get_interval_estimates``, one score array)."""
+    percentile interval (`bootstrap_interval`; rliable ``get_interval_estimates``, one score
+    array)."""
     arrays = [np.asarray(s, dtype=float) for s in strata if len(s)]
     seeds = tuple(len(a) for a in arrays)
     if not arrays:
@@ -211,8 +221,12 @@ def interval_estimate(
     point = float(statistic([a[None, :] for a in arrays])[0])
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds)
-    low, high = _percentiles(statistic([_resample(a, reps, rng) for a in arrays]))
-    return Estimate(point, low, high, seeds)
+
+    def of_resamples(*samples: np.ndarray, axis: int) -> np.ndarray:
+        return statistic(list(samples))  # samples: (reps, n_k) each, resampled along axis -1
+
+    low, high = bootstrap_interval(arrays, of_resamples, rng, reps)
+    return Estimate(point, float(low), float(high), seeds)
 
 
 def _hanley_mcneil_variance(theta: float, n_x: int, n_y: int) -> float:
@@ -263,15 +277,19 @@ def probability_of_improvement(
         return Estimate(math.nan, math.nan, math.nan, ())
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    per_stratum = [float(_improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
+    per_stratum = [float(improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
     point = float(np.mean(per_stratum))
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds, sizes)
-    replicates = np.mean(
-        [_improvement(_resample(x, reps, rng), _resample(y, reps, rng)) for x, y in pairs],
-        axis=0,
-    )
-    low, high = _percentiles(replicates)
+
+    def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
+        # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
+        per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
+        mean: np.ndarray = np.mean(per_pair, axis=0)
+        return mean
+
+    samples = [a for pair in pairs for a in pair]
+    low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
     bounds = [
         newcombe_interval(p, len(x), len(y)) for p, (x, y) in zip(per_stratum, pairs, strict=True)
     ]
@@ -280,8 +298,9 @@ def probability_of_improvement(
     return Estimate(point, min(low, score_low), max(high, score_high), seeds, sizes)
 
 
-def curve_measures(path: Path) -> dict[str, float]:
-    """Learning-curve measures of one run's ``progress.csv`` (points: step, curve success on
+def curve_measures(points: pd.DataFrame) -> dict[str, float]:
+    """Learning-curve measures of one run's curve points (its rows of a
+    `distgprl.report.frame.curves_of` frame: ``step``, ``success_rate``, the curve success on
     the fixed curve TCs), each against the run's start ``s0``, the untrained policy's curve
     success at step 0; empty without a step-0 point or with fewer than two trained points.
 
@@ -302,11 +321,10 @@ def curve_measures(path: Path) -> dict[str, float]:
       a run that never learned scores +inf, the worst, because a flat curve is not stable
       learning. Lower is better.
     """
-    if not path.exists():
+    if points.empty:
         return {}
-    _, rows = read_csv(path)
-    steps = np.array([float(r["step"]) for r in rows])
-    success = np.array([float(r["success_rate"]) for r in rows])
+    steps = points["step"].to_numpy(dtype=float)
+    success = points["success_rate"].to_numpy(dtype=float)
     trained = steps > 0
     if trained.sum() < 2 or not np.any(steps == 0):
         return {}
@@ -325,14 +343,14 @@ def curve_measures(path: Path) -> dict[str, float]:
     return {"learning_auc": float(auc), "steps_to_gain": steps_to, "learned_drop": drop}
 
 
-def run_scores(folder: Path, summary: Mapping[str, float]) -> dict[str, float]:
+def run_scores(summary: Mapping[str, float], points: pd.DataFrame) -> dict[str, float]:
     """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
-    retention (``summary``) and its `curve_measures` (``folder/progress.csv``; none for an
+    retention (``summary``) and the `curve_measures` of its curve ``points`` (none for an
     untrained reference)."""
     scores = {key: float(summary[key]) for key, _ in RATES if key in summary}
     if "mean_kinematic_retention" in summary:  # velocity cosine to the demonstration
         scores["mean_kinematic_retention"] = float(summary["mean_kinematic_retention"])
-    scores.update(curve_measures(folder / "progress.csv"))
+    scores.update(curve_measures(points))
     return scores
 
 
@@ -435,12 +453,6 @@ def _task_label(task: str) -> str:
 def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
     """(CSV, Markdown) of the aggregates table (`aggregate_rows`)."""
     rows = aggregate_rows(scores, seed)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(
-        buffer, fieldnames=list(CSV_FIELDS), lineterminator="\n", extrasaction="ignore"
-    )
-    writer.writeheader()
-    writer.writerows(rows)
     cells = {(r["task"], r["method"], r["versus"], r["metric"], r["statistic"]): r for r in rows}
     caption = (
         f"Aggregates over seeds ({preset} preset): mean and IQM with 95 % stratified-bootstrap "
@@ -479,4 +491,4 @@ def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> 
         markdown += "\n" + markdown_table(poi_caption, poi_header, poi_table)
     else:
         markdown += f"\n{poi_caption}: no runs of Dist-GPRL and a partner yet.\n"
-    return buffer.getvalue(), markdown
+    return csv_text(rows, CSV_FIELDS), markdown

@@ -3,8 +3,6 @@ verdicts: per task first, the pooled estimate beside, the overall verdict last."
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import replace
 
 from distgprl.report.aggregate import (
@@ -16,7 +14,7 @@ from distgprl.report.aggregate import (
     tasks_of,
 )
 from distgprl.report.claims import TaskVerdict, Verdict, evaluate_claims
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 
 __all__ = ["CSV_FIELDS", "claims_texts"]
 
@@ -60,14 +58,11 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
     beside, the overall verdict last."""
     verdicts = evaluate_claims(scores, seed)
     tasks = tasks_of(scores)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(CSV_FIELDS), lineterminator="\n")
-    writer.writeheader()
+    csv_rows = []
     for v in verdicts:
-        for task in v.per_task:
-            writer.writerow(_csv_row(v, task, overall=False))
+        csv_rows += [_csv_row(v, task, overall=False) for task in v.per_task]
         summary = v.pooled or TaskVerdict(ALL_TASKS, Estimate(float("nan"), 0, 0, ()), "")
-        writer.writerow(_csv_row(v, replace(summary, task=ALL_TASKS), overall=True))
+        csv_rows.append(_csv_row(v, replace(summary, task=ALL_TASKS), overall=True))
     caption = (
         f"Claims of the paper ({preset} preset): the verdict on each task, then the overall "
         f"verdict combined from the tasks' (reproduced only if no task refutes; 'the tasks "
@@ -86,4 +81,4 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
         also = [f"{t.task.upper()}: {t.detail}" for t in v.per_task if t.detail]
         also += [v.detail] if v.detail else []
         rows.append([*line, f"**{v.verdict}**", "; ".join(also) or "–"])
-    return buffer.getvalue(), markdown_table(caption, header, rows)
+    return csv_text(csv_rows, CSV_FIELDS), markdown_table(caption, header, rows)

@@ -32,13 +32,20 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import (
     BOOTSTRAP_REPS,
     BOOTSTRAP_SEED,
-    CONFIDENCE,
+    bootstrap_interval,
     estimate_rng,
 )
 from distgprl.report.figure_files import write_or_remove_figure
+from distgprl.report.frame import curve_frame
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
-from distgprl.report.seed_curves import PANELS, SEED_COLORS, reading_columns, seed_curves
+from distgprl.report.seed_curves import (
+    PANELS,
+    SEED_COLORS,
+    reading_columns,
+    run_curves,
+    seed_curves,
+)
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
 from distgprl.report.table2 import hardware_rows, select_trial_files
@@ -103,16 +110,17 @@ def mean_and_band(
     values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """(mean, (low, high)) over seeds (axis 0) of a (seeds, k) array: the mean curve and its
-    `CONFIDENCE` percentile bootstrap band (``reps`` resamples of the seeds, each resample's
-    mean curve). The band is None for a single seed."""
+    `CONFIDENCE` percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the
+    seeds, whole curves, each resample's mean curve). The band is None for a single seed."""
     mean = values.mean(axis=0)
-    seeds = values.shape[0]
-    if seeds < 2:
+    if values.shape[0] < 2:
         return mean, None
-    resampled = values[rng.integers(0, seeds, size=(reps, seeds))].mean(axis=1)  # (reps, k)
-    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
-    low, high = np.percentile(resampled, [tail, 100.0 - tail], axis=0)
-    return mean, (low, high)
+
+    def mean_curve(sample: np.ndarray, axis: int) -> np.ndarray:
+        means: np.ndarray = sample.mean(axis=axis)
+        return means
+
+    return mean, bootstrap_interval([values], mean_curve, rng, reps)
 
 
 def method_color(method: str) -> str:
@@ -144,12 +152,13 @@ def plot_figure(
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
+    frame = curve_frame(root, preset)
     drawn = 0
     handles: dict[str, Line2D] = {}
     seeds_of: dict[str, dict[str, int]] = {}
     for row, task in enumerate(tasks):
         for method in methods:
-            data = load_curves(root, preset, task, method)
+            data = common_curves(run_curves(frame, task, method))
             if data is None:
                 continue
             steps, values = data
@@ -218,10 +227,11 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     )  # fmt: skip
     drawn = 0
     handles: dict[str, Line2D] = {}
+    frames = {p: curve_frame(root, p, study.seeds) for p in dict.fromkeys(p for p, _, _ in columns)}
     for row, task in enumerate(tasks):
         for col, (preset, method, title) in enumerate(columns):
             ax = axes[row, col]
-            seeds = seed_curves(root, preset, task, method, study.seeds)
+            seeds = run_curves(frames[preset], task, method)
             for seed, (steps, values) in seeds.items():
                 (line,) = ax.plot(
                     steps, values["success_rate"], lw=0.9, alpha=0.85,

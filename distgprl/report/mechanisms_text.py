@@ -8,14 +8,12 @@ term. Pure functions of a `MechanismTable`; imports neither torch nor pybullet.
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.mechanism_shares import (
     CRITERION,
     NOT_RECORDED,
@@ -193,15 +191,6 @@ def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
             }
         )
     return rows
-
-
-def _csv_text(table: MechanismTable) -> str:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(CSV_COLUMNS), lineterminator="\n")
-    writer.writeheader()
-    for row in _csv_rows(table):
-        writer.writerow({column: row.get(column, "") for column in CSV_COLUMNS})
-    return buffer.getvalue()
 
 
 def _reach_markdown(table: MechanismTable) -> str:
@@ -463,4 +452,4 @@ def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
     ]
     if table.note:
         parts += ["", table.note + "."]
-    return _csv_text(table), "\n".join(parts) + "\n", verdicts
+    return csv_text(_csv_rows(table), CSV_COLUMNS), "\n".join(parts) + "\n", verdicts

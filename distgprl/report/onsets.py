@@ -30,18 +30,18 @@ Reads result files only; `distgprl tables` writes ``onsets_<study>_<preset>.{csv
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
+from distgprl.report.frame import curve_frame, run_frame, summaries
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.paired import FINAL_POLICY
 from distgprl.report.runs import TABLE_POLICY
-from distgprl.report.seed_curves import reading_columns, seed_curves
-from distgprl.report.table1 import per_seed_rows
+from distgprl.report.seed_curves import reading_columns, run_curves
 from distgprl.studies import OnsetRule, Study
 
 __all__ = [
@@ -96,7 +96,8 @@ def study_rule(study: Study) -> OnsetRule | None:
 def _evaluations(
     root: str | Path, preset: str, policy: str
 ) -> dict[tuple[str, str, int], dict[str, Any]]:
-    return {(r["task"], r["method"], r["seed"]): r for r in per_seed_rows(root, preset, policy)}
+    """{(task, method, seed): summary} of the ``policy`` evaluations (`run_frame`)."""
+    return {key[:3]: summary for key, summary in summaries(run_frame(root, preset, policy))}
 
 
 def onset_panels(study: Study) -> list[tuple[str, str, str]]:
@@ -124,13 +125,16 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
     evaluations: dict[tuple[str, str], dict[tuple[str, str, int], dict[str, Any]]] = {}
+    curves: dict[str, pd.DataFrame] = {}  # each preset's curve frame, read once
     rows = []
     for preset, method, reading in onset_panels(study):
         for policy in (TABLE_POLICY, FINAL_POLICY):
             if (preset, policy) not in evaluations:
                 evaluations[(preset, policy)] = _evaluations(root, preset, policy)
+        if preset not in curves:
+            curves[preset] = curve_frame(root, preset)
         for task in tasks:
-            for seed, (steps, values) in seed_curves(root, preset, task, method).items():
+            for seed, (steps, values) in run_curves(curves[preset], task, method).items():
                 onset = onset_step(steps, values["success_rate"], threshold)
                 best = evaluations[(preset, TABLE_POLICY)].get((task, method, seed), {})
                 final = evaluations[(preset, FINAL_POLICY)].get((task, method, seed), {})
@@ -266,10 +270,6 @@ def onset_texts(
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
     parts = [
@@ -320,4 +320,4 @@ def onset_texts(
                 f"{reading.label}, every finished seed on {task.upper()} (descriptive; no rule "
                 f"reads this count): {early} of {runs} learn early."
             )
-    return buffer.getvalue(), "\n\n".join(parts) + "\n"
+    return csv_text(rows, CSV_FIELDS), "\n\n".join(parts) + "\n"

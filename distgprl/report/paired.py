@@ -25,18 +25,20 @@ of the evaluation stream (`supplementary_sizes` lists the N present).
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
 from scipy import stats
 
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.frame import csv_frame
+from distgprl.report.markdown import csv_text
 from distgprl.report.runs import select_runs
-from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, is_safe_success, read_csv
+from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, is_safe_success
 
 UNADAPTED = "demo"
 """The unadapted reference: evaluated once per task (seed 0), paired with every seed."""
@@ -80,29 +82,29 @@ def mcnemar_exact(only_run: int, only_reference: int) -> float:
     return float(stats.binomtest(only_run, discordant, 0.5).pvalue)
 
 
-def _outcomes(rows: list[dict[str, str]]) -> dict[str, list[int]]:
-    return {
-        "success": [int(r["success"]) for r in rows],
-        "collision": [int(r["collision"]) for r in rows],
-        "safe_success": [int(is_safe_success(r)) for r in rows],
-    }
+def _outcomes(episodes: pd.DataFrame) -> dict[str, np.ndarray]:
+    """`OUTCOMES` of one evaluation's episodes (a `csv_frame`), each 0 or 1 per TC."""
+    success = episodes["success"].to_numpy(dtype=int)
+    collision = episodes["collision"].to_numpy(dtype=int)
+    pairs = zip(success, collision, strict=True)
+    safe = np.array([int(is_safe_success({"success": s, "collision": c})) for s, c in pairs])
+    return {"success": success, "collision": collision, "safe_success": safe}
 
 
-def _check_same_tcs(
-    run: Path, reference: Path, run_rows: list[dict[str, str]], reference_rows: list[dict[str, str]]
-) -> None:
-    """Raise ValueError unless both files hold the same TCs in the same order."""
-    if len(run_rows) != len(reference_rows):
+def _check_same_tcs(run: Path, reference: Path, mine: pd.DataFrame, theirs: pd.DataFrame) -> None:
+    """Raise ValueError unless both evaluations hold the same TCs in the same order."""
+    if len(mine) != len(theirs):
         raise ValueError(
-            f"{run}: {len(run_rows)} evaluation TCs, the reference {reference} has "
-            f"{len(reference_rows)}; re-evaluate one of them on the preset's TCs"
+            f"{run}: {len(mine)} evaluation TCs, the reference {reference} has "
+            f"{len(theirs)}; re-evaluate one of them on the preset's TCs"
         )
-    for a, b in zip(run_rows, reference_rows, strict=True):
-        if any(float(a[field]) != float(b[field]) for field in TC_FIELDS):
-            raise ValueError(
-                f"{run}: evaluation TC {a['episode']} differs from the reference's "
-                f"({reference}); the pairs would compare different TCs"
-            )
+    same = mine[list(TC_FIELDS)].to_numpy(float) == theirs[list(TC_FIELDS)].to_numpy(float)
+    if not same.all():
+        episode = mine["episode"].iloc[int(np.flatnonzero(~same.all(axis=1))[0])]
+        raise ValueError(
+            f"{run}: evaluation TC {episode} differs from the reference's "
+            f"({reference}); the pairs would compare different TCs"
+        )
 
 
 def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
@@ -202,24 +204,23 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
 
 def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
     """`FIELDS` rows (`_sorted`) of each (run, reference) pair of evaluation files of runs
-    ``.../<task>/<method>/seed<k>/``, TC by TC; a reference shared by several runs is read
-    once.
+    ``.../<task>/<method>/seed<k>/``, TC by TC (each file's episodes a `csv_frame`); a
+    reference shared by several runs is read once.
 
     Raises:
         ValueError: the two files of a pair hold different TCs.
     """
-    references: dict[Path, tuple[list[dict[str, str]], dict[str, list[int]]]] = {}
+    references: dict[Path, pd.DataFrame] = {}
     rows = []
     for run_file, reference_file in pairs:
         if reference_file not in references:
-            reference_rows = read_csv(reference_file)[1]
-            references[reference_file] = (reference_rows, _outcomes(reference_rows))
-        reference_rows, reference_outcomes = references[reference_file]
-        _, run_rows = read_csv(run_file)
-        _check_same_tcs(run_file, reference_file, run_rows, reference_rows)
+            references[reference_file] = csv_frame(reference_file, {})
+        theirs = references[reference_file]
+        mine = csv_frame(run_file, {})
+        _check_same_tcs(run_file, reference_file, mine, theirs)
         task, method, folder = run_file.parts[-4:-1]
         seed = int(folder.removeprefix("seed"))
-        rows += _pair(task, method, seed, run_rows, reference_outcomes)
+        rows += _pair(task, method, seed, _outcomes(mine), _outcomes(theirs))
     return _sorted(rows)
 
 
@@ -227,26 +228,24 @@ def _pair(
     task: str,
     method: str,
     seed: int,
-    run_rows: list[dict[str, str]],
-    reference_outcomes: dict[str, list[int]],
+    outcomes: dict[str, np.ndarray],
+    reference_outcomes: dict[str, np.ndarray],
 ) -> list[dict[str, Any]]:
     """One `FIELDS` row per outcome: a run's episodes against the reference's, TC by TC."""
-    outcomes = _outcomes(run_rows)
-    n = len(run_rows)
     rows = []
     for outcome, _ in OUTCOMES:
         mine, theirs = outcomes[outcome], reference_outcomes[outcome]
-        only_run = sum(a == 1 and b == 0 for a, b in zip(mine, theirs, strict=True))
-        only_reference = sum(a == 0 and b == 1 for a, b in zip(mine, theirs, strict=True))
+        only_run = int(((mine == 1) & (theirs == 0)).sum())
+        only_reference = int(((mine == 0) & (theirs == 1)).sum())
         rows.append(
             {
                 "task": task,
                 "method": method,
                 "seed": seed,
                 "outcome": outcome,
-                "tcs": n,
-                "run_rate": sum(mine) / n,
-                "reference_rate": sum(theirs) / n,
+                "tcs": len(mine),
+                "run_rate": int(mine.sum()) / len(mine),
+                "reference_rate": int(theirs.sum()) / len(theirs),
                 "only_run": only_run,
                 "only_reference": only_reference,
                 "p_value": mcnemar_exact(only_run, only_reference),
@@ -280,10 +279,6 @@ def paired_texts(
     """(CSV, Markdown) of `paired_rows` against ``reference`` (``episodes`` as there), or,
     with ``base_preset``, of `cross_preset_rows` against that preset; the Markdown has one
     line per run."""
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
     header = ["Task", "Method", "Seed", "TCs"]
     for _, label in OUTCOMES:
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
@@ -316,7 +311,7 @@ def paired_texts(
                 _p_text(row["p_value"]),
             ]
         lines.append("| " + " | ".join(cells) + " |")
-    return buffer.getvalue(), "\n".join(lines) + "\n"
+    return csv_text(rows, FIELDS), "\n".join(lines) + "\n"
 
 
 def _reference_text(reference: str) -> str:

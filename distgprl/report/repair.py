@@ -21,15 +21,13 @@ evaluation's, is left out of the row and listed under the table.
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.runs import select_runs
 from distgprl.schema import (
     evaluation_file_names,
@@ -195,11 +193,9 @@ def repair_texts(
     """(CSV, Markdown) of `repair_rows`; None if there are no rows."""
     if not rows:
         return None
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=FIELDS, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()})
+    rounded = [
+        {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows
+    ]
     header = [
         "Task",
         "Method",
@@ -239,4 +235,4 @@ def repair_texts(
     markdown = markdown_table(title, header, table)
     if excluded:
         markdown += f"\nNot tabulated ({len(excluded)}): " + "; ".join(excluded) + "\n"
-    return buffer.getvalue(), markdown
+    return csv_text(rounded, FIELDS), markdown

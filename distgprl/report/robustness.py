@@ -49,15 +49,13 @@ and the claim's ``across`` row over every reading) and ``.md`` (a column per rea
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
 from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
-from distgprl.report.markdown import markdown_table
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
 __all__ = [
@@ -241,16 +239,14 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
     claims = [v.claim for v in results[0].verdicts]
     studies = list(dict.fromkeys(r.study for r in results if r.study))
     per_study = len(studies) > 1  # then each study's own across column, before the overall one
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
-    writer.writeheader()
+    csv_rows: list[dict[str, str]] = []
     rows = []
     seeds = {r.reading.label: r.seeds for r in results}
     for index, claim in enumerate(claims):
         pairs = [(r.reading.label, r.verdicts[index].verdict) for r in results]
         for result in results:
             verdict = result.verdicts[index]
-            writer.writerow(
+            csv_rows.append(
                 {
                     "claim": claim,
                     "reading": result.reading.label,
@@ -269,7 +265,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
                 ],
                 seeds,
             )
-            writer.writerow(
+            csv_rows.append(
                 {
                     "claim": claim,
                     "reading": f"across {name}",
@@ -280,7 +276,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
             )
             study_columns.append(within)
         across = across_readings(pairs, seeds)
-        writer.writerow(
+        csv_rows.append(
             {"claim": claim, "reading": "across", "preset": "", "verdict": across, "detail": ""}
         )
         rows.append([claim, *(f"{v}" for _, v in pairs), *study_columns, f"**{across}**"])
@@ -324,4 +320,4 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
             f"'{NOT_RUN}' there while the study trains them, '{OUTSIDE}' where it does "
             "not): " + "; ".join(missing) + ".\n"
         )
-    return buffer.getvalue(), markdown
+    return csv_text(csv_rows, CSV_FIELDS), markdown

@@ -12,14 +12,14 @@ from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import PROPOSED
-from distgprl.report.runs import select_runs
-from distgprl.schema import read_csv
+from distgprl.report.frame import by_run, curve_frame
 from distgprl.studies import Study
 
-__all__ = ["PANELS", "SEED_COLORS", "reading_columns", "seed_curves"]
+__all__ = ["PANELS", "SEED_COLORS", "reading_columns", "run_curves", "seed_curves"]
 
 PANELS = (
     ("success_rate", "success rate"),
@@ -41,19 +41,26 @@ def seed_curves(
     seeds: Collection[int] | None = None,
 ) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
     """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
-    a run of the current configuration (`select_runs`), each on its own steps. Runs still in
-    progress are left out, and so are seeds with an empty learning curve."""
-    current = select_runs(root, preset, marker="done.json", seeds=seeds).current
-    out = {}
-    for path in sorted((Path(root) / preset / task / method).glob("seed*/progress.csv")):
-        if path.parent not in current:
-            continue
-        _, rows = read_csv(path)
-        if rows:
-            steps = np.array([int(r["step"]) for r in rows])
-            values = {key: np.array([float(r[key]) for r in rows]) for key, _ in PANELS}
-            out[int(path.parent.name.removeprefix("seed"))] = (steps, values)
-    return dict(sorted(out.items()))
+    a run of the current configuration (`distgprl.report.frame.curve_frame`), each on its own
+    steps. Runs still in progress are left out, and so are seeds with an empty learning
+    curve."""
+    return run_curves(curve_frame(root, preset, seeds), task, method)
+
+
+def run_curves(
+    frame: pd.DataFrame, task: str, method: str
+) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
+    """`seed_curves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
+    runs = {
+        seed: points for (t, m, seed), points in by_run(frame).items() if (t, m) == (task, method)
+    }
+    return {
+        seed: (
+            runs[seed]["step"].to_numpy(),
+            {key: runs[seed][key].to_numpy(dtype=float) for key, _ in PANELS},
+        )
+        for seed in sorted(runs)
+    }
 
 
 def reading_columns(study: Study) -> list[tuple[str, str, str]]:

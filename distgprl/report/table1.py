@@ -33,19 +33,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 
 from distgprl.data import task_order
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import BOOTSTRAP_SEED, Scores, method_estimate, run_scores
-from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations
-from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
+from distgprl.report.frame import (
+    COLLISION_FREE_MINCL,
+    EVALUATION_KEYS,
+    by_run,
+    curves_of,
+    run_frame,
+    summaries,
+)
+from distgprl.report.runs import TABLE_POLICY
 
-COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""The summary field of MinCl as pre-registered (FINDINGS "Protocol v6", rule 5): the 5th
-percentile of the episode-wise minimum clearance (robot links and tool vs obstacles, m) over
-the episodes without a collision (`distgprl.schema.collision_free_min_clearance_p5`); None
-where every episode collided. ``collision_free_episodes`` beside it counts those episodes."""
+NO_POINTS = pd.DataFrame({"step": [], "success_rate": []})
+"""The curve points of a run without a learning curve (an untrained reference)."""
 
 METRICS = (
     ("success_rate", "Success"),
@@ -163,36 +168,14 @@ def metric_values(summaries: list[dict[str, Any]], key: str) -> list[float]:
     return [float(s[key]) for s in summaries if s.get(key) is not None]
 
 
-def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
-    """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
-    or, for a summary written before they were (environment v5 and earlier), computed from
-    its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`, the very function
-    `summarise` records them with); unchanged if it has neither (no rows, or rows without
-    the ``collision`` and ``min_clearance`` columns)."""
-    if COLLISION_FREE_MINCL in summary or not episodes.exists():
-        return summary
-    rows = read_csv(episodes)[1]
-    if not rows or not all({"collision", "min_clearance"} <= row.keys() for row in rows):
-        return summary
-    value, count = collision_free_min_clearance_p5(rows)
-    return {**summary, COLLISION_FREE_MINCL: value, "collision_free_episodes": count}
-
-
-def run_summary(evaluation: RunEvaluation) -> dict[str, Any]:
-    """The summary of one run's evaluation, with its collision-free MinCl."""
-    summary: dict[str, Any] = read_json(evaluation.summary)["summary"]
-    return with_collision_free_clearance(summary, evaluation.episodes)
-
-
 def collect_summaries(
     root: str | Path, preset: str, policy: str = TABLE_POLICY
 ) -> dict[tuple[str, str], list[dict[str, Any]]]:
     """{(task, method): [summary per seed]} of the ``policy`` evaluations (module docstring)
-    of the runs under ``<root>/<preset>/<task>/<method>/seed*/`` that count."""
+    of the runs under ``<root>/<preset>/<task>/<method>/seed*/`` that count (`run_frame`)."""
     out: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for evaluation in run_evaluations(root, preset, policy).evaluations:
-        key = (evaluation.task, evaluation.method)
-        out.setdefault(key, []).append(run_summary(evaluation))
+    for (task, method, _, _), summary in summaries(run_frame(root, preset, policy)):
+        out.setdefault((task, method), []).append(summary)
     return out
 
 
@@ -206,10 +189,12 @@ def collect_scores(
     aggregates and the claims table bootstrap, from the same evaluations as Table I
     (``policy``, by default `TABLE_POLICY`, the best policy: the one switch that keeps the
     claims on Table I's evaluation); with ``seeds``, of those seeds' runs only."""
+    runs = run_frame(root, preset, policy, seeds)
+    curves = by_run(curves_of(runs["folder"]))
     out: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for evaluation in run_evaluations(root, preset, policy, seeds).evaluations:
-        scores = run_scores(evaluation.folder, run_summary(evaluation))
-        out.setdefault((evaluation.task, evaluation.method), []).append(scores)
+    for (task, method, seed, _), summary in summaries(runs):
+        points = curves.get((task, method, seed), NO_POINTS)
+        out.setdefault((task, method), []).append(run_scores(summary, points))
     return out
 
 
@@ -225,34 +210,23 @@ def per_seed_rows(
     for runs made before it was recorded), the numerics fingerprint of the machine that
     trained it (`distgprl.machine`; empty before it was recorded) and the config hash. Task,
     table order, seed."""
+    runs = run_frame(root, preset, policy)
+    curves = by_run(curves_of(runs["folder"]))
     rows = []
-    for evaluation in run_evaluations(root, preset, policy).evaluations:
-        document = read_json(evaluation.summary)
-        summary = with_collision_free_clearance(document["summary"], evaluation.episodes)
-        done = evaluation.folder / "done.json"
-        done_document = read_json(done) if done.exists() else {}
-        wall = done_document.get("train_wall_time_s")
-        cpu = done_document.get("cpu_s_per_step")
-        row: dict[str, Any] = {
-            "task": evaluation.task,
-            "method": evaluation.method,
-            "seed": evaluation.seed,
-            "policy": evaluation.policy,
-            "policy_step": summary.get("policy_step", ""),
-            "collision_free_episodes": summary.get("collision_free_episodes", ""),
-        }
-        for key in (BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS):
-            value = summary.get(key)
-            row[key] = "" if value is None else value
-        for key, _ in (*METRICS, *PER_SEED_EXTRA):
-            value = summary.get(key)
-            row[key] = "" if value is None else value
-        row.update(late_curve(evaluation.folder / "progress.csv"))
+    for key, summary in summaries(runs):
+        row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
+        row["policy_step"] = summary.get("policy_step", "")
+        row["collision_free_episodes"] = summary.get("collision_free_episodes", "")
+        for name, _ in ((BEATS_UNTRAINED, ""), (UNTRAINED_CURVE_SUCCESS, ""), *METRICS):
+            row[name] = summary.get(name, "")
+        for name, _ in PER_SEED_EXTRA:
+            row[name] = summary.get(name, "")
+        row.update(late_curve(curves.get((row["task"], row["method"], row["seed"]), NO_POINTS)))
+        wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
-        machine = (done_document.get("meta") or {}).get("machine") or {}
-        row["numerics"] = machine.get("numerics", "")
-        row["config_hash"] = document["meta"].get("config_hash", "")
+        row["numerics"] = summary["numerics"]
+        row["config_hash"] = summary["config_hash"]
         rows.append(row)
     rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
     return rows
@@ -281,15 +255,13 @@ to the final 100-TC success they show how much the final policy's number depends
 training stopped (empty for `demo`, which has no curve)."""
 
 
-def late_curve(path: Path) -> dict[str, float | str]:
-    """`LATE_CURVE` values of one run's ``progress.csv`` (empty strings if it has none)."""
-    empty: dict[str, float | str] = {key: "" for key, _ in LATE_CURVE}
-    if not path.exists():
-        return empty
-    _, rows = read_csv(path)
-    success = [float(r["success_rate"]) for r in rows[-LATE_CURVE_POINTS:] if r["step"] != "0"]
+def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
+    """`LATE_CURVE` values of one run's curve points (its rows of a `curves_of` frame; empty
+    strings without a trained point among the last `LATE_CURVE_POINTS`)."""
+    late = points.tail(LATE_CURVE_POINTS)
+    success = late["success_rate"][late["step"] != 0].tolist() if len(late) else []
     if not success:
-        return empty
+        return {key: "" for key, _ in LATE_CURVE}
     return {
         "late_curve_success": float(np.mean(success)),
         "late_curve_success_range": float(max(success) - min(success)),

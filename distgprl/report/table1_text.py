@@ -17,20 +17,18 @@ CSV counts those seeds and gives the figure. Pure functions of the rows they are
 
 from __future__ import annotations
 
-import csv
-import io
 from typing import Any
 
 import numpy as np
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_REPS, Estimate
-from distgprl.report.markdown import markdown_table
+from distgprl.report.frame import COLLISION_FREE_MINCL
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
     BEATS_UNTRAINED,
     CLEARANCE_METRICS,
-    COLLISION_FREE_MINCL,
     INTERVAL_METRICS,
     IQM_METRICS,
     LATE_CURVE,
@@ -149,12 +147,7 @@ def per_seed_texts(
     fields += [BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS, "collision_free_episodes"]
     fields += [*(key for key, _ in columns), "train_wall_min"]
     fields += ["train_cpu_ms_per_step", "numerics", "config_hash"]
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(
-        [{**dict.fromkeys((BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS), ""), **r} for r in rows]
-    )
+    table_csv = csv_text(rows, fields)
     header = ["Task", "Method", "Seed", "Policy", "Collision-free episodes"]
     header += [*(label for _, label in columns), "Train wall (min)", "Train CPU (ms/step)"]
     table = []
@@ -176,7 +169,7 @@ def per_seed_texts(
     title = f"Table I per run ({preset} preset, {POLICY_TITLES[policy]})"
     marked = any(row.get(BEATS_UNTRAINED) is False for row in rows)
     note = f"\n{UNTRAINED_RUN_NOTE}.\n" if marked else ""
-    return buffer.getvalue(), markdown_table(title, header, table) + note
+    return table_csv, markdown_table(title, header, table) + note
 
 
 def _run_mark(row: dict[str, Any]) -> str:
@@ -189,7 +182,6 @@ def _run_mark(row: dict[str, Any]) -> str:
 
 
 def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
-    buffer = io.StringIO()
     fields = ["method", "label"]
     for task in tasks:
         fields.append(f"{task}_seeds")
@@ -199,8 +191,7 @@ def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
         fields += [f"{task}_{UNTRAINED_SEEDS}", f"{task}_{UNTRAINED_FIGURE}"]
         for key, _ in IQM_METRICS:
             fields += [f"{task}_{key}_{part}" for part in ("iqm", "iqm_low", "iqm_high")]
-    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
+    table = []
     for row in rows:
         out = {"method": row["method"], "label": row["label"]}
         for task in tasks:
@@ -225,8 +216,8 @@ def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
                 parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
                 for part, value in zip(("iqm", "iqm_low", "iqm_high"), parts, strict=True):
                     out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
-        writer.writerow(out)
-    return buffer.getvalue()
+        table.append(out)
+    return csv_text(table, fields)
 
 
 def _iqm_parts(estimate: Estimate) -> tuple[float, float, float]:

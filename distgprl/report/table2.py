@@ -18,8 +18,6 @@ backend and twin noise level, the paper's protocol first.
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,6 +26,7 @@ import numpy as np
 from scipy import stats
 
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.markdown import csv_text
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
@@ -252,14 +251,11 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     levels = sorted({r["sensor_noise"] for r in twin}, key=int)
     if len(levels) < 2:
         return None
-    buffer = io.StringIO()
     fields = ["method", "protocol", "repair", "sensor_noise", "perception_error_mm_median"]
     fields.append("trials")
     fields += list(INTERVAL_METRICS)
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
-    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(twin)
+    table_csv = csv_text(twin, fields)
     by_setting: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
     for r in twin:
         by_setting.setdefault((r["method"], setting_label(r)), {})[r["sensor_noise"]] = r
@@ -288,7 +284,7 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
         "calibration), the median over trials of each trial's largest marker position error "
         "(mm), exact 95 % binomial intervals"
     )
-    return buffer.getvalue(), _markdown_table(caption, header, table)
+    return table_csv, _markdown_table(caption, header, table)
 
 
 def setting_label(row: dict[str, Any]) -> str:
@@ -391,16 +387,16 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows: the CSV one row per
     protocol setting, Markdown and LaTeX one per method, backend and noise level with the
     paper's protocol's columns first (`_groups`)."""
-    buffer = io.StringIO()
     fields = ["method", "backend", "protocol", "repair", "sensor_noise", "trials", "refused"]
     fields += ["protective_stops", "success_rate", "collision_rate", "min_clearance_p5"]
     fields += ["executed"]
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
-    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        value = row["min_clearance_p5"]
-        writer.writerow({**row, "min_clearance_p5": "" if np.isnan(value) else value})
+    cleared = [dict(row) for row in rows]  # MinCl empty, not nan, where no trial moved
+    for row in cleared:
+        row["min_clearance_p5"] = (
+            "" if np.isnan(row["min_clearance_p5"]) else row["min_clearance_p5"]
+        )
+    table_csv = csv_text(cleared, fields)
 
     groups = _groups(rows)
     wide = _wide_rows(rows)
@@ -418,7 +414,7 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     markdown = _markdown_table(f"Table II: {caption}", header, body)
     if note:
         markdown += f"\n{note}.\n"
-    return buffer.getvalue(), markdown, _latex(caption, groups, body)
+    return table_csv, markdown, _latex(caption, groups, body)
 
 
 def _latex(

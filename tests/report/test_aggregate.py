@@ -5,16 +5,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
+from numpy.polynomial import Polynomial
 from scipy import stats
 
-from distgprl.experiments.results import write_csv
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.aggregate import (
     aggregate_rows,
     aggregate_texts,
     curve_measures,
     estimate_rng,
+    improvement,
     interval_estimate,
     iqm,
     mean_of_strata,
@@ -45,6 +46,58 @@ def test_poi_point_is_the_mann_whitney_u_over_pairs():
     assert probability_of_improvement([x], [x], rng).point == 0.5
     lower = probability_of_improvement([x], [y], rng, higher_is_better=False).point
     assert lower == pytest.approx(1 - u / 12)
+
+
+TAIL = 100.0 * (1.0 - 0.95) / 2.0
+"""The lower tail of a 95 % percentile interval, in percent, as the interval is computed."""
+
+
+def _pair_counts(x, y):
+    """P(X > Y) + P(X = Y) / 2 by counting the run pairs, per row: (reps, n_x), (reps, n_y)."""
+    greater = (x[:, :, None] > y[:, None, :]).sum(axis=(1, 2))
+    equal = (x[:, :, None] == y[:, None, :]).sum(axis=(1, 2))
+    return (greater + equal / 2) / (x.shape[1] * y.shape[1])
+
+
+def test_improvement_is_the_pair_count_exactly():
+    """scipy's U over n_x n_y is the share of run pairs favouring X, ties half, to the bit."""
+    rng = np.random.default_rng(1)
+    x = rng.integers(0, 5, size=(200, 4)) / 4
+    y = rng.integers(0, 5, size=(200, 3)) / 4
+    assert np.array_equal(improvement(x, y), _pair_counts(x, y))
+
+
+def test_the_stratified_bootstrap_resamples_each_stratum_on_its_own():
+    """scipy's bootstrap with one sample per stratum is rliable's stratified bootstrap: the
+    interval is the percentile interval of replicates drawn stratum by stratum from the
+    same generator (n_k runs of stratum k with replacement), to the bit."""
+    strata = [np.array([0.1, 0.5, 0.7, 0.2]), np.array([0.9, 0.3, 0.4])]
+    estimate = interval_estimate(strata, mean_of_strata, np.random.default_rng(4), reps=500)
+    rng = np.random.default_rng(4)
+    resampled = [s[rng.integers(0, len(s), size=(500, len(s)))] for s in strata]
+    replicates = np.mean([r.mean(axis=1) for r in resampled], axis=0)
+    assert (estimate.low, estimate.high) == tuple(np.percentile(replicates, [TAIL, 100 - TAIL]))
+
+
+def test_the_poi_bootstrap_resamples_both_methods_in_every_stratum_independently():
+    """The PoI's percentile interval: per replicate, X's and Y's runs of each stratum drawn
+    in turn from one generator, the pair shares averaged over strata; the interval widened
+    to the mean of the strata's Newcombe bounds."""
+    x = [np.array([0.2, 0.6, 0.6, 0.9]), np.array([0.5, 0.1, 0.7])]
+    y = [np.array([0.3, 0.6, 0.1]), np.array([0.2, 0.4, 0.4, 0.8, 0.3])]
+    estimate = probability_of_improvement(x, y, np.random.default_rng(2), reps=400)
+    rng = np.random.default_rng(2)
+    shares = []
+    for a, b in zip(x, y, strict=True):
+        resampled_a = a[rng.integers(0, len(a), size=(400, len(a)))]
+        resampled_b = b[rng.integers(0, len(b), size=(400, len(b)))]
+        shares.append(_pair_counts(resampled_a, resampled_b))
+    low, high = np.percentile(np.mean(shares, axis=0), [TAIL, 100 - TAIL])
+    points = [_pair_counts(a[None], b[None])[0] for a, b in zip(x, y, strict=True)]
+    bounds = [newcombe_interval(p, len(a), len(b)) for p, a, b in zip(points, x, y, strict=True)]
+    assert estimate.point == np.mean(points)
+    assert estimate.low == min(low, np.mean([b[0] for b in bounds]))
+    assert estimate.high == max(high, np.mean([b[1] for b in bounds]))
 
 
 def test_clear_improvement_has_a_poi_interval_above_one_half():
@@ -112,56 +165,44 @@ def test_poi_rows_pair_the_proposed_method_with_each_partner_with_runs():
     assert pooled["seeds"] == "5;5" and pooled["ci_low"] > 0.5
 
 
-def _curve(path, successes, step=1000):
-    rows = []
-    for index, success in enumerate(successes):
-        row = dict.fromkeys(PROGRESS_FIELDS, "")
-        row.update(step=step * index, success_rate=success, collision_rate=0.0)
-        rows.append(row)
-    write_csv(path, rows, PROGRESS_FIELDS)
+def _curve(successes, step=1000):
+    """One run's curve points as `distgprl.report.frame.curves_of` gives them."""
+    steps = [step * index for index in range(len(successes))]
+    return pd.DataFrame({"step": steps, "success_rate": successes, "collision_rate": 0.0})
 
 
-def test_curve_measures_follow_their_stated_definitions(tmp_path):
+def test_curve_measures_follow_their_stated_definitions():
     """Against the start s0 (step 0): learning_auc the trapezoid mean of (curve - s0);
     steps_to_gain the first step from which two points hold s0 + 0.2; learned_drop the mean
     drop per period from there."""
-    path = tmp_path / "progress.csv"
-    assert curve_measures(path) == {}
+    assert curve_measures(_curve([])) == {}
     curve = [0.1, 0.2, 0.35, 0.5, 0.4, 0.7, 0.6]  # steps 0..6000; 0.3 first at 2000 then 3000
-    _curve(path, curve)
-    measures = curve_measures(path)
+    measures = curve_measures(_curve(curve))
     expected_auc = np.trapezoid(np.array(curve) - 0.1, np.arange(7) * 1000.0) / 6000.0
     assert measures["learning_auc"] == pytest.approx(expected_auc)
     assert measures["steps_to_gain"] == 2000.0
     assert measures["learned_drop"] == pytest.approx((0.1 + 0.1) / 4)  # 4 periods from 2000
 
 
-def test_a_flat_curve_neither_converges_nor_counts_as_stable(tmp_path):
+def test_a_flat_curve_neither_converges_nor_counts_as_stable():
     """A curve that stays at its start (or wanders within the margin) has no area above it,
     is censored one period past its last step and is the least stable (+inf); a curve that
     falls below its start has a negative area; a single point above the margin is noise."""
-    path = tmp_path / "progress.csv"
-    _curve(path, [0.44, 0.44, 0.44, 0.44, 0.44])
-    flat = curve_measures(path)
+    flat = curve_measures(_curve([0.44, 0.44, 0.44, 0.44, 0.44]))
     assert flat == {"learning_auc": 0.0, "steps_to_gain": 5000.0, "learned_drop": math.inf}
-    _curve(path, [0.4, 0.5, 0.3, 0.55, 0.45, 0.5])
-    wander = curve_measures(path)
+    wander = curve_measures(_curve([0.4, 0.5, 0.3, 0.55, 0.45, 0.5]))
     assert wander["steps_to_gain"] == 6000.0 and wander["learned_drop"] == math.inf
-    _curve(path, [0.3, 0.0, 0.0, 0.0])
-    assert curve_measures(path)["learning_auc"] < 0
-    _curve(path, [0.1, 0.1, 0.5, 0.1, 0.1])  # one point above 0.3: not learned
-    assert curve_measures(path)["learned_drop"] == math.inf
+    assert curve_measures(_curve([0.3, 0.0, 0.0, 0.0]))["learning_auc"] < 0
+    one_point = curve_measures(_curve([0.1, 0.1, 0.5, 0.1, 0.1]))  # one above 0.3: not learned
+    assert one_point["learned_drop"] == math.inf
 
 
-def test_a_steady_riser_is_stable_and_earlier_learning_scores_more(tmp_path):
+def test_a_steady_riser_is_stable_and_earlier_learning_scores_more():
     """A curve rising without a drop has learned_drop 0; the same rise one period earlier has
     the larger area and the earlier steps_to_gain."""
-    path = tmp_path / "progress.csv"
-    _curve(path, [0.1, 0.2, 0.4, 0.6, 0.8, 0.8])
-    late = curve_measures(path)
+    late = curve_measures(_curve([0.1, 0.2, 0.4, 0.6, 0.8, 0.8]))
     assert late["learned_drop"] == 0.0
-    _curve(path, [0.1, 0.4, 0.6, 0.8, 0.8, 0.8])
-    early = curve_measures(path)
+    early = curve_measures(_curve([0.1, 0.4, 0.6, 0.8, 0.8, 0.8]))
     assert early["learning_auc"] > late["learning_auc"]
     assert early["steps_to_gain"] < late["steps_to_gain"]
 
@@ -181,6 +222,33 @@ def test_newcombe_interval_is_wilson_like():
         low, high = newcombe_interval(theta, 5, 5)
         assert low < theta < high
     assert np.diff(newcombe_interval(0.8, 20, 20)) < np.diff(newcombe_interval(0.8, 5, 5))
+
+
+def _newcombe_by_polynomial(theta, n_x, n_y):
+    """Newcombe's method-5 interval found another way: (θ̂ − θ)² = z² V(θ) times
+    (2 − θ)(1 + θ) n_x n_y is a quartic in θ; the interval runs between its real roots in
+    [0, 1] around θ̂ (0 or 1 where the inequality already holds there)."""
+    z = stats.norm.ppf(0.975)
+    n = (n_x + n_y) / 2
+    t = Polynomial([0.0, 1.0])
+    shape = (2 - t) * (1 + t) + (n - 1) * (1 - t) * (1 + t) + (n - 1) * t * (2 - t)
+    quartic = n_x * n_y * (theta - t) ** 2 * (2 - t) * (1 + t) - z**2 * t * (1 - t) * shape
+    roots = [r.real for r in quartic.roots() if abs(r.imag) < 1e-12 and -1e-12 <= r.real <= 1]
+    below = [r for r in roots if r < theta - 1e-9]  # θ̂ = 0 or 1 is itself a root: V(θ̂) = 0
+    above = [r for r in roots if r > theta + 1e-9]
+    low = 0.0 if quartic(0.0) <= 1e-12 else max(below)
+    high = 1.0 if quartic(1.0) <= 1e-12 else min(above)
+    return low, high
+
+
+@pytest.mark.parametrize(
+    ("theta", "n_x", "n_y"), [(1.0, 5, 5), (0.0, 5, 5), (0.8, 5, 5), (0.5, 3, 7), (0.92, 20, 20)]
+)
+def test_newcombe_interval_is_the_roots_of_its_quartic(theta, n_x, n_y):
+    """The bisection interval and the polynomial roots of the same inequality agree."""
+    assert newcombe_interval(theta, n_x, n_y) == pytest.approx(
+        _newcombe_by_polynomial(theta, n_x, n_y), abs=1e-9
+    )
 
 
 def test_a_poi_interval_is_never_narrower_than_its_score_bound():

@@ -64,6 +64,7 @@ def test_the_blocker_blocks():
         "distgprl.report.onset_figure",
         "distgprl.report.paired",
         "distgprl.report.runs",
+        "distgprl.report.frame",
         "distgprl.report.check",
         "distgprl.report.aggregate",
         "distgprl.report.claims",

@@ -6,7 +6,9 @@ import csv
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
+from scipy import stats
 
 from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
@@ -166,19 +168,24 @@ def _curve(path, successes):
     write_csv(path, rows, PROGRESS_FIELDS)
 
 
-def test_late_curve_averages_the_last_curve_points_only(tmp_path):
-    path = tmp_path / "progress.csv"
-    assert late_curve(path) == {"late_curve_success": "", "late_curve_success_range": ""}
+def _points(successes):
+    """One run's curve points (`distgprl.report.frame.curves_of`), every 1 500 steps."""
+    return pd.DataFrame(
+        {"step": [1500 * k for k in range(len(successes))], "success_rate": successes}
+    )
+
+
+def test_late_curve_averages_the_last_curve_points_only():
+    assert late_curve(_points([])) == {"late_curve_success": "", "late_curve_success_range": ""}
     early = [0.9, 0.0, 0.1, 0.2]  # step 0 (untrained) and early training are left out
     late = [0.8, 0.6, 0.9, 0.7, 0.5]
     assert len(late) == LATE_CURVE_POINTS
-    _curve(path, early + late)
-    assert late_curve(path) == {
+    assert late_curve(_points(early + late)) == {
         "late_curve_success": pytest.approx(0.7),
         "late_curve_success_range": pytest.approx(0.4),
     }
-    _curve(path, [0.9])  # only the untrained step-0 point: nothing to report
-    assert late_curve(path)["late_curve_success"] == ""
+    only_untrained = late_curve(_points([0.9]))  # the untrained step-0 point: nothing to report
+    assert only_untrained["late_curve_success"] == ""
 
 
 def test_per_seed_table_shows_the_late_curve_next_to_the_final_success(tmp_path):
@@ -410,6 +417,17 @@ def test_moved_robot_reads_status_and_execution_time():
 def test_binomial_interval_is_the_exact_clopper_pearson_interval(successes, trials, expected):
     """Against the published exact 95 % intervals for 0, 7 and 10 successes in 10 trials."""
     assert binomial_interval(successes, trials) == pytest.approx(expected, abs=1e-4)
+
+
+def test_binomial_interval_is_scipys_exact_interval():
+    """Clopper-Pearson by the beta quantiles is `binomtest(...).proportion_ci`'s exact
+    interval (scipy finds it by root-finding: the two agree to 1e-12, not to the bit)."""
+    for trials in (1, 7, 10, 50):
+        for successes in range(trials + 1):
+            exact = stats.binomtest(successes, trials).proportion_ci(method="exact")
+            assert binomial_interval(successes, trials) == pytest.approx(
+                (exact.low, exact.high), abs=1e-12
+            )
 
 
 def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):

@@ -1,0 +1,208 @@
+"""The committed runs of a preset as tidy pandas frames, the one input of every table, claim
+and figure.
+
+Three frames, each keyed by the run (``task``, ``method``, ``seed``, and for an evaluation the
+``policy`` evaluated, `distgprl.report.runs.run_evaluations`):
+
+- `run_frame`: one row per run that counts and its evaluation of one policy — the summary's
+  fields (``summary[_best].json``, MinCl over the collision-free episodes included,
+  `with_collision_free_clearance`), the training record's (``done.json``) and the config
+  hash;
+- `episode_frame`: one row per run × evaluation episode (``evaluation[_best].csv``);
+- `curve_frame`: one row per trained run × learning-curve point (``progress.csv`` of the
+  finished runs, `select_runs` with ``done.json``).
+
+Values are the result files' own: a summary field keeps its JSON type (the run frame's
+columns are ``object``, so a count stays an ``int`` and a rate a ``float``), a CSV number is
+parsed by Python's ``int`` or ``float`` (never a parser of its own, which may round
+differently), and a value a file does not hold is missing (``None`` in the run frame, NaN in
+the others). Which runs count, and why others do not, is `distgprl.report.runs`'; the
+frames' ``attrs["note"]`` says it (`EvaluationSelection.note`, `RunSelection.note`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, select_runs
+from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
+
+RUN_KEYS = ("task", "method", "seed")
+"""The columns naming a run in every frame."""
+
+EVALUATION_KEYS = (*RUN_KEYS, "policy")
+"""The columns naming a run's evaluation: the run and the policy evaluated (``best``,
+``final`` or ``untrained``)."""
+
+COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
+"""The summary field of MinCl as pre-registered (FINDINGS "Protocol v6", rule 5): the 5th
+percentile of the episode-wise minimum clearance (robot links and tool vs obstacles, m) over
+the episodes without a collision (`distgprl.schema.collision_free_min_clearance_p5`); None
+where every episode collided. ``collision_free_episodes`` beside it counts those episodes."""
+
+TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")
+"""The training record's (``done.json``) fields in `run_frame`: wall time (s) and process CPU
+time per RL step (s); missing for an untrained reference and for runs made before they were
+recorded."""
+
+RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_FIELDS)
+"""The columns `run_frame` always has, before the summaries' fields."""
+
+
+def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
+    """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
+    or, for a summary written before they were (environment v5 and earlier), computed from
+    its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`, the very function
+    `summarise` records them with); unchanged if it has neither (no rows, or rows without
+    the ``collision`` and ``min_clearance`` columns)."""
+    if COLLISION_FREE_MINCL in summary or not episodes.exists():
+        return summary
+    rows = read_csv(episodes)[1]
+    if not rows or not all({"collision", "min_clearance"} <= row.keys() for row in rows):
+        return summary
+    value, count = collision_free_min_clearance_p5(rows)
+    return {**summary, COLLISION_FREE_MINCL: value, "collision_free_episodes": count}
+
+
+def _run_record(evaluation: RunEvaluation) -> dict[str, Any]:
+    """One `run_frame` row: the evaluation's keys, its summary's fields (the evaluation's
+    ``policy`` stands for the summary's own), the training record's and the hashes."""
+    document = read_json(evaluation.summary)
+    summary = with_collision_free_clearance(document["summary"], evaluation.episodes)
+    done_path = evaluation.folder / "done.json"
+    done = read_json(done_path) if done_path.exists() else {}
+    machine = (done.get("meta") or {}).get("machine") or {}
+    record: dict[str, Any] = {
+        "task": evaluation.task,
+        "method": evaluation.method,
+        "seed": evaluation.seed,
+        "policy": evaluation.policy,
+        "folder": evaluation.folder,
+        "config_hash": document["meta"].get("config_hash", ""),
+        "numerics": machine.get("numerics", ""),
+    }
+    record.update({key: done.get(key) for key in TRAINING_FIELDS})
+    record.update({k: v for k, v in summary.items() if k not in record})
+    return record
+
+
+def run_frame(
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
+) -> pd.DataFrame:
+    """One row per run under ``<root>/<preset>`` that counts (`run_evaluations` of
+    ``policy``, ``seeds`` as there) in folder order: `RUN_COLUMNS` — `EVALUATION_KEYS`,
+    ``folder`` (Path), ``config_hash``, ``numerics`` (the training machine's fingerprint, ""
+    before it was recorded), `TRAINING_FIELDS` — and every field of the evaluation's
+    summary (``object`` columns, None where a summary lacks a field). ``attrs["note"]``: the
+    runs left out or substituted."""
+    selection = run_evaluations(root, preset, policy, seeds)
+    records = [_run_record(evaluation) for evaluation in selection.evaluations]
+    columns = list(dict.fromkeys([*RUN_COLUMNS, *(key for record in records for key in record)]))
+    filled = [{column: record.get(column) for column in columns} for record in records]
+    frame = pd.DataFrame(filled, columns=columns, dtype=object)
+    frame.attrs["note"] = selection.note()
+    return frame
+
+
+EvaluationKey = tuple[str, str, int, str]
+"""(task, method, seed, policy): `EVALUATION_KEYS` of one row."""
+
+
+def summaries(frame: pd.DataFrame) -> Iterator[tuple[EvaluationKey, dict[str, Any]]]:
+    """(`EvaluationKey`, summary) per row of a `run_frame`: the row's fields it holds (None
+    left out, as a summary without the field)."""
+    for record in frame.to_dict("records"):
+        key = (str(record["task"]), str(record["method"]), int(record["seed"]))
+        yield (*key, str(record["policy"])), {str(k): v for k, v in record.items() if v is not None}
+
+
+def number(text: str) -> int | float | str:
+    """A result CSV's cell as a number: Python's ``int`` where it is one, else its ``float``
+    (NaN for an empty cell); a cell that is no number stays its text."""
+    if text == "":
+        return math.nan
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def csv_frame(path: Path, keys: dict[str, Any]) -> pd.DataFrame:
+    """The rows of one result CSV (`read_csv`), every cell a `number`, ``keys`` (the run's
+    `RUN_KEYS`, say) in front as columns of their own."""
+    _, rows = read_csv(path)
+    records = [{**keys, **{k: number(v) for k, v in row.items()}} for row in rows]
+    return pd.DataFrame.from_records(records)
+
+
+def episode_frame(
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
+) -> pd.DataFrame:
+    """One row per run that counts (`run_evaluations` of ``policy``) × episode of its
+    evaluation (``evaluation[_best].csv``; a run without the file has no rows): the
+    `EVALUATION_KEYS`, then the file's columns as numbers (`number`). ``attrs["note"]``: the
+    runs left out or substituted."""
+    selection = run_evaluations(root, preset, policy, seeds)
+    parts = [
+        csv_frame(
+            e.episodes, {"task": e.task, "method": e.method, "seed": e.seed, "policy": e.policy}
+        )
+        for e in selection.evaluations
+        if e.episodes.exists()
+    ]
+    frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=EVALUATION_KEYS)
+    frame.attrs["note"] = selection.note()
+    return frame
+
+
+def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
+    """One row per run folder of ``folders`` (in their order) × point of its learning curve
+    (``progress.csv``; a run without one, or with an empty one, has no rows): `RUN_KEYS`,
+    then the file's columns as numbers (`number`; ``step`` an int)."""
+    parts = []
+    for folder in folders:
+        path = Path(folder) / "progress.csv"
+        if path.exists():
+            keys = {
+                "task": path.parent.parent.parent.name,
+                "method": path.parent.parent.name,
+                "seed": int(path.parent.name.removeprefix("seed")),
+            }
+            parts.append(csv_frame(path, keys))
+    parts = [part for part in parts if len(part)]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
+
+
+def curve_frame(
+    root: str | Path, preset: str, seeds: Collection[int] | None = None
+) -> pd.DataFrame:
+    """`curves_of` the finished runs of the current configuration (`select_runs` with
+    ``done.json``, ``seeds`` as there), in folder order. ``attrs["note"]``: the runs left
+    out."""
+    selection = select_runs(root, preset, marker="done.json", seeds=seeds)
+    frame = curves_of(sorted(selection.current))
+    frame.attrs["note"] = selection.note()
+    return frame
+
+
+def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
+    """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
+    if frame.empty:
+        return {}
+    return {
+        (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
+        for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)
+    }
