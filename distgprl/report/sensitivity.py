@@ -143,7 +143,6 @@ def plot_sensitivity(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.transforms import offset_copy
 
     reach_path = Path(root) / study.name / "reach.json"
     method = study.methods[0]
@@ -166,45 +165,8 @@ def plot_sensitivity(
     for row, task in enumerate(tasks):
         for col, (key, label) in enumerate(PANELS):
             ax = axes[row][col]
-            for index, ref in enumerate(REFERENCES):
-                estimate = _reference(reference, task, ref, key, seed)
-                if estimate is None:
-                    continue
-                color = f"C{index + 1}"
-                name = METHODS[ref].label
-                ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=name)
-                if estimate.has_interval:
-                    ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
-            for reading in study.all_readings:
-                for point in points:
-                    if (point["task"], point["score"], point["preset"]) != (
-                        task,
-                        key,
-                        reading.preset,
-                    ):
-                        continue
-                    estimate = point["estimate"]
-                    yerr = None
-                    if estimate.has_interval:
-                        yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
-                    seeds = min(estimate.seeds)
-                    transform = ax.transData
-                    if reading.control:  # beside the reading with its gain, same x value
-                        transform = offset_copy(
-                            transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points"
-                        )
-                    ax.errorbar(
-                        [point["gain"]],
-                        [estimate.point],
-                        yerr=yerr,
-                        fmt=markers.get(reading.preset, "o"),
-                        color="0.5" if reading.control else "black",
-                        markerfacecolor="white" if reading.control else None,
-                        transform=transform,
-                        capsize=3,
-                        label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
-                        f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
-                    )
+            _draw_references(ax, reference, task, key, seed)
+            _draw_readings(ax, fig, study, method, points, task, key, markers)
             if key != "mean_kinematic_retention":
                 ax.set_ylim(-0.02, 1.02)
             ax.set_xlabel("mean operator gain on a raw action")
@@ -229,3 +191,57 @@ def plot_sensitivity(
     legend_rows = (len(labels) + 2) // 3
     fig.tight_layout(rect=(0.0, 0.04 + 0.035 * legend_rows, 1.0, 0.95))
     return fig
+
+
+def _draw_references(ax: Any, reference: Scores, task: str, key: str, seed: int) -> None:
+    """One panel's reference methods: a dashed line at each one's estimate, its interval
+    shaded."""
+    for index, ref in enumerate(REFERENCES):
+        estimate = _reference(reference, task, ref, key, seed)
+        if estimate is None:
+            continue
+        color = f"C{index + 1}"
+        name = METHODS[ref].label
+        ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=name)
+        if estimate.has_interval:
+            ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
+
+
+def _draw_readings(
+    ax: Any,
+    fig: Figure,
+    study: Study,
+    method: str,
+    points: list[dict[str, Any]],
+    task: str,
+    key: str,
+    markers: dict[str, str],
+) -> None:
+    """One panel's readings: each reading's estimate at its operator gain with its interval,
+    a control drawn hollow beside the reading whose gain it shares."""
+    from matplotlib.transforms import offset_copy
+
+    for reading in study.all_readings:
+        for point in points:
+            if (point["task"], point["score"], point["preset"]) != (task, key, reading.preset):
+                continue
+            estimate = point["estimate"]
+            yerr = None
+            if estimate.has_interval:
+                yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
+            seeds = min(estimate.seeds)
+            transform = ax.transData
+            if reading.control:  # beside the reading with its gain, same x value
+                transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
+            ax.errorbar(
+                [point["gain"]],
+                [estimate.point],
+                yerr=yerr,
+                fmt=markers.get(reading.preset, "o"),
+                color="0.5" if reading.control else "black",
+                markerfacecolor="white" if reading.control else None,
+                transform=transform,
+                capsize=3,
+                label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
+                f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
+            )
