@@ -171,6 +171,25 @@ def has_checkpoint(folder: Path) -> bool:
     return bool(_generations(paths))
 
 
+def checkpoint_step(folder: Path) -> int | None:
+    """The step of the newest checkpoint generation on disk (an interrupted save settled
+    first, as `has_checkpoint` does), None if the run has none: from its manifest, or, for a
+    generation written before manifests, from its pickled RNG state. Read at the moment it
+    is asked, so it holds whenever a save was cut short."""
+    if not has_checkpoint(folder):
+        return None
+    for directory in _generations(checkpoint_paths(folder)):
+        manifest = _read_manifest(directory / MANIFEST_NAME)
+        if manifest is not None and isinstance(manifest.get("num_timesteps"), int):
+            return int(manifest["num_timesteps"])
+        try:
+            state = pickle.loads((directory / PIECE_FILES["state"]).read_bytes())
+            return int(state["num_timesteps"])
+        except (OSError, EOFError, pickle.UnpicklingError, KeyError, TypeError, ValueError):
+            continue  # damaged: a resume falls back to the generation before it
+    return None
+
+
 def rng_state(model, env) -> dict[str, Any]:
     """Everything random a resumed run needs to continue exactly where the run stopped.
 
