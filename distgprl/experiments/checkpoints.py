@@ -188,8 +188,8 @@ def checkpoint_step(folder: Path) -> int | None:
         try:
             state = pickle.loads((directory / PIECE_FILES["state"]).read_bytes())
             return int(state["num_timesteps"])
-        except Exception:  # noqa: BLE001 - unreadable: the resume would try the next one
-            continue
+        except (OSError, EOFError, pickle.UnpicklingError, KeyError, TypeError, ValueError):
+            continue  # damaged: a resume falls back to the generation before it
     return None
 
 

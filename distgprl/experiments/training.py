@@ -20,6 +20,7 @@ from typing import Any
 from distgprl.errors import UserInputError
 from distgprl.experiments.checkpoints import (
     checkpoint_paths,
+    checkpoint_step,
     has_checkpoint,
     load_checkpoint,
     save_checkpoint,
@@ -363,13 +364,12 @@ class _TrainingLoop:
         of a fresh run), a checkpoint every ``checkpoint_every``, both at the end.
 
         Raises:
-            TrainingInterrupted: on KeyboardInterrupt, with the last checkpoint's step.
+            TrainingInterrupted: on KeyboardInterrupt, with the step of the checkpoint on disk
+                then (`checkpoint_step`).
         """
         model, total = self.model, self.total
         eval_every = self.run.config.run.eval_every
         checkpoint_every = self.run.config.run.checkpoint_every
-        # The step of the checkpoint on disk (None: none yet), for the message of an interrupt.
-        checkpoint_step = model.num_timesteps if has_checkpoint(self.folder) else None
         try:
             if model.num_timesteps == 0 and not self.started.progress_rows:
                 self.record_curve()
@@ -384,11 +384,12 @@ class _TrainingLoop:
                     self.record_curve()
                 if model.num_timesteps % checkpoint_every == 0 or model.num_timesteps >= total:
                     self.checkpoint()
-                    checkpoint_step = model.num_timesteps
         except KeyboardInterrupt as interrupt:
             self.close()
+            # The checkpoint as it is on disk now (an interrupt can land inside or just after
+            # a save): the one a resume continues from.
             raise TrainingInterrupted(
-                self.folder, model.num_timesteps, total, checkpoint_step
+                self.folder, model.num_timesteps, total, checkpoint_step(self.folder)
             ) from interrupt
         self.close()
 

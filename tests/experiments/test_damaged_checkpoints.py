@@ -2,7 +2,8 @@
 or replay buffer, or a buffer that no longer matches its manifest's SHA-256, makes
 ``--resume`` fall back to the previous good checkpoint, or restart the run from step 0 when
 there is none, printing one line that names the damaged file and what was done, never a
-traceback, and ending with the same model as a run that was never killed.
+traceback, and ending with the same model as a run that was never killed. An interrupt that
+lands in or just after a save names the checkpoint on disk (the one a resume continues from).
 
 The runs are a `ci`-like preset cut to the bone (a user preset, `--preset-file`'s code path):
 checkpoints every 6 steps, 18 steps in all, a run trains in about a second."""
@@ -281,3 +282,58 @@ def test_the_cli_resumes_a_damaged_checkpoint_with_one_line_and_exit_0(
     assert "Traceback" not in result.output
     for ours, reference in zip(actor_parameters(folder), uninterrupted, strict=True):
         np.testing.assert_array_equal(ours, reference)
+
+
+@pytest.mark.parametrize("moment", ["saved", "committed", "staged"])
+def test_an_interrupt_names_the_checkpoint_on_disk(tmp_path, preset, monkeypatch, moment):
+    """A KeyboardInterrupt landing in or just after the second checkpoint's save: the
+    interrupt's checkpoint step, and the line `distgprl train` prints, are the step of the
+    checkpoint on disk that a resume continues from — the second's once its pieces are
+    committed (``saved``: the save had returned; ``committed``: stopped before the pieces
+    were moved into place, which the message's settling finishes), the first's when stopped
+    before the commit marker (``staged``: the new pieces are dropped)."""
+    from distgprl.experiments.run_control import TrainingInterrupted
+
+    saves: list[int] = []
+    installs_stopped: list[bool] = []
+    save, install, fsync = (
+        training.save_checkpoint,
+        checkpoints.install_checkpoint,
+        checkpoints.fsync_file,
+    )
+
+    def save_and_stop(folder, model, env, extra):
+        saves.append(int(model.num_timesteps))
+        save(folder, model, env, extra)
+        if moment == "saved" and len(saves) == 2:
+            raise KeyboardInterrupt
+
+    def install_and_stop(paths):
+        if moment == "committed" and len(saves) == 2 and not installs_stopped:
+            installs_stopped.append(True)
+            raise KeyboardInterrupt
+        install(paths)
+
+    def fsync_and_stop(path):
+        if moment == "staged" and len(saves) == 2:
+            raise KeyboardInterrupt
+        fsync(path)
+
+    monkeypatch.setattr(training, "save_checkpoint", save_and_stop)
+    monkeypatch.setattr(checkpoints, "install_checkpoint", install_and_stop)
+    monkeypatch.setattr(checkpoints, "fsync_file", fsync_and_stop)
+    with pytest.raises(TrainingInterrupted) as raised:
+        train(tmp_path, preset)
+    assert len(saves) == 2 and saves[0] < saves[1]
+    expected = saves[0] if moment == "staged" else saves[1]
+    assert raised.value.checkpoint_step == expected
+    paths = checkpoints.checkpoint_paths(runner.run_dir(tmp_path, preset, "dcp", METHOD, 0))
+    assert pickle.loads(paths["state"].read_bytes())["num_timesteps"] == expected
+    assert json.loads(paths["manifest"].read_text())["num_timesteps"] == expected
+    assert not paths["commit"].exists()
+    assert f"its checkpoint of step {expected} is kept" in raised.value.describe("distgprl")
+
+
+def test_checkpoint_step_is_none_without_a_checkpoint(tmp_path):
+    """A run folder without a checkpoint: no checkpoint step (a resume starts over)."""
+    assert checkpoints.checkpoint_step(tmp_path) is None

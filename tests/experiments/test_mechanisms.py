@@ -1,8 +1,14 @@
 """Reach for the mechanism table (`distgprl.experiments.mechanisms`) against hand
-computations, the reach rule on the real layouts, and `distgprl mechanisms` end to end on
-two ci-size runs."""
+computations, the reach rule on the real layouts, the committed table's reach rows under two
+BLAS kernels, and `distgprl mechanisms` end to end on two ci-size runs."""
 
 from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -93,6 +99,69 @@ def test_real_layouts_follow_the_reach_rule(task):
     reach = layout_reach(gprl)
     np.testing.assert_allclose(reach["episode_min"], 3 * reach["one_step_min"])
     assert np.all(reach["episode_min"] >= floor - 1e-9)
+
+
+REPOSITORY = Path(__file__).resolve().parents[2]
+
+REACH_TABLE = """
+import json, sys
+from distgprl.experiments.mechanisms import reach_rows
+from distgprl.machine import numerics_fingerprint
+from distgprl.report.mechanism_shares import MechanismTable
+from distgprl.report.mechanisms_text import mechanism_texts
+
+rows = reach_rows(sys.argv[1], "paper")
+csv_text, markdown, _ = mechanism_texts(MechanismTable("paper", tuple(rows), (), ()))
+exact = [{key: repr(value) for key, value in row.items()} for row in rows]
+print(json.dumps(
+    {"numerics": numerics_fingerprint(), "csv": csv_text, "markdown": markdown, "rows": exact}
+))
+"""
+"""Prints the mechanism table's reach rows of the committed `paper` runs: as the table's CSV
+and Markdown write them, and every number as its repr (all its bits)."""
+FITTED_AT_LOAD = {"gate_max"}
+"""Reach-row fields computed from a fit made when the environment is built, with BLAS, not
+from a committed one: ProMP-RRL's variance gate (its ProMP over 20 demonstrations). Its last
+bits follow the BLAS kernel (DCP: 0.9604333359703792 under the default AVX-512 kernel,
+0.9604333359703835 under Haswell); the table writes it to two decimals."""
+
+
+def reach_table_under(kernel: str | None) -> dict:
+    """`REACH_TABLE`'s output in a process whose OpenBLAS kernel is ``kernel`` (None: the
+    default numpy picks; read when numpy loads, so it needs a process of its own)."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    if kernel is not None:
+        env["OPENBLAS_CORETYPE"] = kernel
+    completed = subprocess.run(
+        [sys.executable, "-c", REACH_TABLE, str(REPOSITORY / "results")],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    result: dict = json.loads(completed.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_the_committed_reach_rows_are_the_same_under_both_blas_kernels():
+    """Issue 68: the mechanism table's reach rows, which rebuild each committed run's
+    environment from the committed skill fit (`reach_rows`), are the same bit for bit under
+    numpy's default BLAS kernel and OpenBLAS' AVX2 kernel (``OPENBLAS_CORETYPE=Haswell``,
+    checked to take effect) but for the fields of `FITTED_AT_LOAD`; the table's CSV and
+    Markdown reach rows are the same byte for byte, and the CSV lines are the committed
+    table's (`tests/report/test_committed_tables.py` checks the rest of the table)."""
+    default, haswell = reach_table_under(None), reach_table_under("Haswell")
+    assert haswell["numerics"].startswith("openblas-Haswell_"), haswell["numerics"]
+    assert default["rows"], "no committed trainable run under results/paper"
+    assert len(default["rows"]) == len(haswell["rows"])
+    for ours, theirs in zip(default["rows"], haswell["rows"], strict=True):
+        differing = sorted(k for k in ours.keys() | theirs.keys() if ours.get(k) != theirs.get(k))
+        assert set(differing) <= FITTED_AT_LOAD, (ours, theirs, default["numerics"])
+    assert default["csv"] == haswell["csv"]
+    assert default["markdown"] == haswell["markdown"]
+    committed = (REPOSITORY / "paper_figures" / "mechanisms_paper.csv").read_text()
+    reach_lines = [line for line in committed.splitlines() if line.startswith("reach,")]
+    assert default["csv"].splitlines()[1:] == reach_lines
 
 
 def test_the_command_tabulates_two_trained_ci_runs(tmp_path):
