@@ -387,9 +387,10 @@ class _TrainingLoop:
         except KeyboardInterrupt as interrupt:
             self.close()
             # The checkpoint as it is on disk now (an interrupt can land inside or just after
-            # a save): the one a resume continues from.
+            # a save; `has_checkpoint` settles it first): the one a resume continues from.
+            on_disk = checkpoint_step(self.folder) if has_checkpoint(self.folder) else None
             raise TrainingInterrupted(
-                self.folder, model.num_timesteps, total, checkpoint_step(self.folder)
+                self.folder, model.num_timesteps, total, on_disk
             ) from interrupt
         self.close()
 
