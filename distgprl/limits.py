@@ -8,9 +8,9 @@ Two sets of limits apply to a hardware trial, and they are kept apart:
   arm, whatever this project's code does; the paper's protocol (Table II as the paper ran
   it, `distgprl.trial_protocol`) applies these and nothing else.
 - :class:`SafetyLimits`: the project's own, stricter safety layer
-  (:mod:`distgprl.hardware.safety`: pre-flight check, retiming, watchdog), run beside the
-  paper's protocol. The evaluation also reports the share of simulated episodes whose peak
-  joint speed is above its ``max_joint_speed`` (:mod:`distgprl.experiments.rollout`), so
+  (`distgprl.safety_layer`: pre-flight check, retiming; `distgprl.hardware.watchdog`), run
+  beside the paper's protocol. The evaluation also reports the share of simulated episodes
+  whose peak joint speed is above its ``max_joint_speed`` (:mod:`distgprl.experiments.rollout`), so
   the limits live below both.
 """
 
@@ -72,7 +72,7 @@ UR5E_CONTROLLER = ControllerLimits()
 class SafetyLimits:
     """The hardware safety layer's own limits (this project's, stricter than the UR5e's
     `UR5E_CONTROLLER`): every motion of a safety-layer trial is checked against them before
-    it moves (`distgprl.hardware.safety.check_plan`) and watched while it moves.
+    it moves (`distgprl.safety_layer.plan_check.check_plan`) and watched while it moves.
 
     Attributes:
         workspace_lower, workspace_upper: TCP workspace box (3,), m, robot base frame.

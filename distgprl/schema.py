@@ -476,7 +476,7 @@ def trial_file_exclusion(meta: dict[str, Any], current_policy_hash: str | None) 
     (the hash the code resolves now for the policy's run; None where it is not checked: an
     untrained reference, or a preset this checkout does not know). The one rule both Table II
     (`distgprl.report.table2`) and the sweep's trial bookkeeping
-    (`distgprl.hardware.table2_trials`) apply."""
+    (`distgprl.experiments.table2_trials`) apply."""
     if meta.get("force"):
         return "pre-flight check overridden, --force"
     if meta.get("dry_run"):

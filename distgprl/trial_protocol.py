@@ -7,8 +7,9 @@ retiming or repair; only the robot's own controller limits apply
 ``protective_stop``), not a refusal and not a collision unless the arm touched something
 first; a contact is a collision.
 
-``safety-layer``: this project's safety layer (`distgprl.hardware.safety.check_plan`, the plan
-repair of `distgprl.hardware.repair`) checks every decision's poses against its own, stricter
+``safety-layer``: this project's safety layer
+(`distgprl.safety_layer.plan_check.check_plan`, the plan repair of
+`distgprl.safety_layer.repair`) checks every decision's poses against its own, stricter
 :class:`~distgprl.limits.SafetyLimits` before they move, and refuses (or retimes) what fails;
 reported beside the paper's protocol, never in its place.
 

@@ -745,8 +745,9 @@ API_PAGES: dict[str, str] = {
     "sim": "The PyBullet simulation: robot, tasks, control loop, rendering.",
     "envs": "The gymnasium environments: the adaptation MDP and ProMP-RRL's residual RL.",
     "agents": "SAC with the regularised actor loss (L_sim, L_hap).",
-    "experiments": "Training, evaluation, sweeps, run state and the benchmarks.",
-    "hardware": "Hardware trials: UR5e and digital-twin backends, perception, the safety layer.",
+    "safety_layer": "The safety layer: pre-flight check, retiming, via-point push, the gates.",
+    "hardware": "Hardware trials: UR5e and digital-twin backends, perception, the watchdog.",
+    "experiments": "Training, evaluation, sweeps, run state, Table II's twin trials, the bench.",
     "report": "Tables, claims, learning curves and the mechanism table, from results only.",
 }
 """One reference page per subpackage (and ``distgprl.api``), with its one-line summary."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,3 +40,42 @@ def smooth_demo_file(tmp_path, smooth_demo):
     path = tmp_path / "synthetic.csv"
     save_demonstration(path, smooth_demo.times, smooth_demo.poses)
     return path
+
+
+@pytest.fixture(scope="session")
+def untrained_dbm_policy(tmp_path_factory):
+    """``save(method) -> path``: a freshly constructed (untrained) DBM ``ci`` actor of
+    ``method`` saved like a trained run's ``model.zip``, its run's config beside it (the
+    hardware trials and the sweep's twin trials run it)."""
+
+    def save(method: str) -> Path:
+        # built without the regulariser (only the actor runs in a trial): no HAP subspace
+        from distgprl.agents.sac import RegularisedSAC, StateOnlyExtractor
+        from distgprl.experiments.factories import make_env
+        from distgprl.identity import resolve_run
+        from distgprl.schema import write_json
+
+        run = resolve_run("dbm", method, 0, preset="ci")
+        env = make_env(run)
+        try:
+            agent = RegularisedSAC(
+                "MultiInputPolicy",
+                env,
+                buffer_size=100,
+                learning_starts=0,
+                policy_kwargs={
+                    "features_extractor_class": StateOnlyExtractor,
+                    "net_arch": list(run.config.sac.net_arch),
+                },
+                seed=0,
+                device="cpu",
+            )
+            path = tmp_path_factory.mktemp("model") / "model.zip"
+            agent.save(path)
+            # beside it, as in a run folder: the run's config (its hash goes into the trials)
+            write_json(path.parent / "config.json", {"config_hash": run.hash}, kind="config")
+        finally:
+            env.close()
+        return path
+
+    return save

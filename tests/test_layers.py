@@ -150,6 +150,24 @@ def test_io_uses_only_the_standard_library(module):
     assert {name.split(".")[0] for name in imports(module)} <= set(sys.stdlib_module_names)
 
 
+def test_hardware_never_imports_experiments():
+    """The hardware trials run whatever policy they are given (`hardware.trials.PolicyLoader`):
+    no module of hardware/ imports experiments/, nor the safety layer below both."""
+    assert offending("distgprl.hardware", ("distgprl.experiments",)) == []
+    assert offending("distgprl.safety_layer", ("distgprl.experiments", "distgprl.hardware")) == []
+
+
+def test_experiments_reach_hardware_through_the_twin_trials_only():
+    """One direction and one door: experiments/ imports hardware/ only where a sweep runs
+    Table II's twin trials (`experiments.table2_trials`, passing its policy loader in); the
+    simulated evaluations use the safety layer (`distgprl.safety_layer`) below both."""
+    assert "distgprl.safety_layer.gates" in imports("distgprl.experiments.repaired_evaluation")
+    doors = {
+        line.split(" -> ")[0] for line in offending("distgprl.experiments", ("distgprl.hardware",))
+    }
+    assert doors == {"distgprl.experiments.table2_trials"}
+
+
 def test_report_does_not_import_the_runner_or_hardware():
     """report/ reads results through the schema and identity modules."""
     assert offending("distgprl.report", ("distgprl.experiments", "distgprl.hardware")) == []
@@ -245,7 +263,9 @@ LAYERS: tuple[frozenset[str], ...] = tuple(
         ("skill", "safety", "adaptation"),
         ("sim",),
         ("envs", "agents"),
-        ("experiments", "hardware"),
+        ("safety_layer",),
+        ("hardware",),
+        ("experiments",),
         ("report",),
         ("cli", "api", "__main__"),
     )

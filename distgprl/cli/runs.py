@@ -29,7 +29,7 @@ from distgprl.cli.common import (
     user_errors,
 )
 from distgprl.errors import UserInputError
-from distgprl.hardware.table2_trials import TABLE2_TRIALS
+from distgprl.experiments.table2_trials import TABLE2_TRIALS
 from distgprl.studies import get_study, is_study, study_of_reading
 
 
@@ -248,7 +248,7 @@ def status(
         return
     finished_dbm = [(method, seed) for task, method, seed in finished if task == "dbm"]
     if finished_dbm:
-        from distgprl.hardware.table2_trials import coverage
+        from distgprl.experiments.table2_trials import coverage
 
         typer.echo(coverage(root, preset, finished_dbm).describe())
     if finished:
@@ -371,7 +371,7 @@ def evaluate(
         raise UserInputError("--repair-push needs --plan-repair")
     if plan_repair:
         from distgprl.experiments.repaired_evaluation import evaluate_with_repair
-        from distgprl.hardware.repair import RepairConfig
+        from distgprl.safety_layer.retime import RepairConfig
 
         summary = evaluate_with_repair(
             task, method, seed, preset, episodes, root, policy, RepairConfig(repair=repair_push)

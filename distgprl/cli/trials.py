@@ -83,8 +83,9 @@ def hardware(
 
     The paper's protocol by default (`distgprl.trial_protocol`); an unknown
     ``--protocol`` is a user error (exit 2)."""
-    from distgprl.hardware.repair import RepairConfig
+    from distgprl.experiments.trial_policy import load_trial_policy
     from distgprl.hardware.trials import run_trials
+    from distgprl.safety_layer.retime import RepairConfig
 
     preset = resolve_preset(preset, config)
     report = run_trials(
@@ -105,5 +106,6 @@ def hardware(
         repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
         protocol=protocol,
+        load_policy=load_trial_policy,
     )
     typer.echo(f"{report.path}: {report.summary}")

@@ -2,7 +2,7 @@
 
 A trained policy's weights are not committed, so whatever needs the policy beyond its plain
 evaluation has to run where it was trained: the Table II digital-twin trials of a DBM policy
-(`distgprl.hardware.table2_trials`, ``Job.twin_trials``: the paper's protocol first, then the
+(`distgprl.experiments.table2_trials`, ``Job.twin_trials``: the paper's protocol first, then the
 safety layer's settings beside it, `distgprl.trial_protocol`) and the evaluations with the
 hardware safety layer in the loop of every run (`distgprl.experiments.repair_evaluations`,
 ``Job.repair_evaluations``). `distgprl.experiments.sweep` runs them right after training, and
@@ -63,7 +63,7 @@ def trials_due(job: Job) -> bool:
     """True if the job should run Table II twin trials now (`table2_trials.trials_due`)."""
     if job.twin_trials <= 0 or job.task != "dbm":
         return False
-    from distgprl.hardware.table2_trials import trials_due as due
+    from distgprl.experiments.table2_trials import trials_due as due
 
     return due(job.method, job.seed, job.preset, job.root, job.twin_trials)
 
@@ -72,6 +72,6 @@ def run_job_trials(job: Job) -> str:
     """Run the job's missing Table II twin trials (the paper's protocol and the safety
     layer's settings, `table2_trials.table2_settings`): a report
     (`table2_trials.run_and_report`)."""
-    from distgprl.hardware.table2_trials import run_and_report
+    from distgprl.experiments.table2_trials import run_and_report
 
     return run_and_report(job.method, job.seed, job.preset, job.root, job.twin_trials)

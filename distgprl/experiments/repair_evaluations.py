@@ -3,7 +3,7 @@
 A trained policy's weights are not committed, so what the hardware safety layer costs and
 saves in simulation (`distgprl.experiments.repaired_evaluation`) has to be measured where
 the policy was trained, while its ``model.zip`` is on disk, as the Table II twin trials are
-(`distgprl.hardware.table2_trials`). `distgprl sweep` (``--repair-evaluations``, on by
+(`distgprl.experiments.table2_trials`). `distgprl sweep` (``--repair-evaluations``, on by
 default) evaluates every finished run of either task on the preset's evaluation TCs in the
 two modes of :data:`SWEEP_REPAIR_MODES`:
 
@@ -23,9 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from distgprl.hardware.repair import RepairConfig
 from distgprl.identity import resolve_run
 from distgprl.methods import get_method, has_via_point_plan
+from distgprl.safety_layer.retime import RepairConfig
 from distgprl.schema import read_json, repair_evaluation_file_names, run_dir
 
 SWEEP_REPAIR_MODES = ("check", "repair")

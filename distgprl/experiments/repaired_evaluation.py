@@ -3,15 +3,15 @@
 `evaluate_with_repair` runs a trained policy (or the untrained ``demo`` / ``promp-nominal``
 references) on the fixed evaluation TCs exactly as `~distgprl.experiments.runner.evaluate_run`
 does, except that every window's plan passes the safety layer of the hardware trials
-(:mod:`distgprl.hardware.safety`, :mod:`distgprl.hardware.repair`) before it is executed,
-as in :func:`~distgprl.hardware.trials.run_trials`: the episode loop's decisions
+(:mod:`distgprl.safety_layer.plan_check`, :mod:`distgprl.safety_layer.repair`) before it is
+executed, as in :func:`~distgprl.hardware.trials.run_trials`: the episode loop's decisions
 (`distgprl.envs.episode`) in the simulator world (`distgprl.envs.world.SimWorld`) behind
-the safety layer's `~distgprl.hardware.gates.RepairGate`:
+the safety layer's `~distgprl.safety_layer.gates.RepairGate`:
 
 1. the policy adapts the window (`AdaptationEnv.apply_action`) and the env gives the
    segment's poses (`AdaptationEnv.segment_poses`, continuity blend included);
-2. :func:`~distgprl.hardware.repair.repair_plan` pre-flight checks them
-   (:func:`~distgprl.hardware.safety.check_plan`: workspace, IK, joint limits, joint speed
+2. :func:`~distgprl.safety_layer.repair.repair_plan` pre-flight checks them
+   (:func:`~distgprl.safety_layer.plan_check.check_plan`: workspace, IK, joint limits, joint speed
    and acceleration, TCP speed, predicted clearance) and, if unsafe, retimes them
    (TOPP-RA), pushes the window's via-points along the distance field's gradient (only with
    ``push``), or refuses them. The clearance oracle is the simulation's own: the task's
@@ -30,7 +30,7 @@ the obstacles move along their paths (DCP's cube oscillates on, DBM's other bar 
 belt on) and the object is conveyed on until the robot touches it. Later windows start
 that much later (their clearance is predicted at the real times; the policy's observation
 is built by the env as in training, from its plan times). While the object is conveyed
-(not yet touched), the retimed poses follow it (:mod:`distgprl.hardware.repair`, "belt
+(not yet touched), the retimed poses follow it (:mod:`distgprl.safety_layer.repair`, "belt
 frame": each pose shifted by the object's conveying velocity times the delay, and later
 windows by the shift accumulated so far), so the engagement with the conveyed object is
 kept; on DCP only the target cube drifts, the obstacle cube does not ride with it, and the
@@ -63,9 +63,9 @@ import numpy as np
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.world import SimWorld
 from distgprl.errors import UserInputError
-from distgprl.hardware.gates import RepairGate
-from distgprl.hardware.repair import RepairConfig
 from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.gates import RepairGate
+from distgprl.safety_layer.retime import RepairConfig
 from distgprl.schema import (
     REPAIR_EVALUATION_FIELDS,
     read_json,

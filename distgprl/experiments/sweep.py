@@ -28,7 +28,7 @@
   is not.
 - The `demo` reference is evaluated once per task (seed 0); it has no training.
 - With ``twin_trials`` (`distgprl sweep --twin-trials N`), a DBM job also runs the digital-
-  twin trials Table II counts for its policy (`distgprl.hardware.table2_trials`), in the
+  twin trials Table II counts for its policy (`distgprl.experiments.table2_trials`), in the
   same process, right after training: a policy's weights are not committed, so its trials
   must run where it was trained. A finished DBM run whose ``model.zip`` is still on disk and
   whose trials are missing is picked up again for them alone; trials that fail are reported

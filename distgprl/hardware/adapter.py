@@ -1,35 +1,47 @@
 """Online window-by-window adaptation from perceived poses (the policy side of a trial).
 
-:class:`PerceivedAdaptation` reuses :class:`~distgprl.envs.adaptation.AdaptationEnv` (and
-:class:`PerceivedResidual` the windowed-weights residual's
-:class:`~distgprl.envs.residual.ResidualEnv`, :class:`PerceivedResidualControl` ProMP-RRL's
-:class:`~distgprl.envs.residual_rl.ResidualRLEnv`) for everything but the world: its skill,
-action layout, TC conditioning, segment maps (control rate), continuity blending (or the
-residual's nominal, gate, slew limit and hold) and observation builder are used unchanged. The env's
-simulation is kept as a *kinematic model* only (IK, tool geometry, static cell geometry);
-what the observation reads of its world (``world``: TCP pose, object position, goal,
-obstacles, tool points) is a :class:`PerceivedScene` filled by the perception and the robot
-backend.
+A trial runs the environment the policy trained in (`AdaptationEnv`, the windowed residual's
+`ResidualEnv` or ProMP-RRL's `ResidualRLEnv`), built as in training, with one difference:
+its ``world`` (what the observation reads: TCP pose, object position, goal, obstacles, tool
+points) is a :class:`PerceivedScene` filled by the perception and the robot backend. Its
+skill, action layout, TC conditioning, segment maps (control rate), continuity blending (or
+the residual's nominal, gate, slew limit and hold) and observation builder are used
+unchanged; its simulation is kept as a *kinematic model* only (IK, tool geometry, static cell
+geometry). :class:`TrialAdapter` holds that env and what a trial needs to know of it; the
+trial's steps are free functions: `begin_trial` (condition on the perceived bars),
+`observe`, `adapt` (the decision's poses, `distgprl.envs.episode.plan_segment`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import numpy as np
 
 from distgprl.envs.adaptation import AdaptationEnv
-from distgprl.envs.episode import commit_segment, plan_segment
+from distgprl.envs.episode import plan_segment
 from distgprl.envs.residual import ResidualEnv
 from distgprl.envs.residual_rl import ResidualRLEnv
 from distgprl.hardware.perception import OBJECTS, Percept
-from distgprl.hardware.safety import tool_check_points
 from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape
+from distgprl.safety_layer.plan_check import tool_check_points
 from distgprl.sim.tasks.base import TaskConfig, TaskSim
 from distgprl.sim.tasks.dbm import SCENE, DBMScene, bar_boxes
+
+__all__ = [
+    "PerceivedScene",
+    "TrackedObject",
+    "TrialAdapter",
+    "adapt",
+    "bar_shapes",
+    "begin_trial",
+    "observe",
+    "perceived_env",
+    "perceived_tc",
+]
 
 
 def bar_shapes(
@@ -154,207 +166,145 @@ class PerceivedScene:
         )
 
 
-if TYPE_CHECKING:  # the mixin's host, for the type checker only (at run time: object)
-    _Host = AdaptationEnv
-else:
-    _Host = object
+TrialEnv = AdaptationEnv | ResidualRLEnv
+"""The environment a trial's policy trained in (`ResidualEnv` is an `AdaptationEnv`)."""
 
 
-class _PerceivedWorld(_Host):
-    """The perceived-world half of a trial adapter, shared by the two environment kinds.
+@dataclass
+class TrialAdapter:
+    """A trial's policy side: the training environment of the method, its ``world`` the
+    perceived scene (`perceived_env` builds it).
 
-    Mixed into an environment class (:class:`AdaptationEnv` or its residual subclass) after
-    that environment is built: :meth:`_attach_world` makes the observation read the
-    perceived world (``world``); the environment's simulation is the kinematic model.
+    Attributes:
+        env: the environment, built as in training; ``env.world`` is ``world``, ``env.sim``
+            the kinematic model (a ``DBMSim``: IK, tool points, static obstacles).
+        world: the :class:`PerceivedScene` the observation reads.
+        decision_unit: what one decision of the policy (and one safety check) covers:
+            ``window`` (a via-point plan or windowed residual weights) or ``RL step``
+            (ProMP-RRL's 10 Hz residual control).
+        streams_decisions: the robot streams consecutive decisions' poses without ending its
+            stream between them (residual control's 0.1 s RL steps; a window plan ends it).
+        image_steps: the decisions before which the trial takes a fresh image (every window;
+            residual control: the first RL step of each window's span, `_window_start_steps`).
     """
 
-    world: PerceivedScene  # after `_attach_world`: what the observation reads
-    decision_unit = "window"
-    """What one decision of the policy (and one safety check) covers."""
-    streams_decisions = False
-    """Whether the robot streams consecutive decisions' poses without ending its stream
-    between them (residual control's 0.1 s RL steps; a window plan ends its stream)."""
+    env: TrialEnv
+    world: PerceivedScene
+    decision_unit: str
+    streams_decisions: bool
+    image_steps: tuple[int, ...]
 
     @property
     def model(self) -> TaskSim:
-        """The environment's simulation, kept as the kinematic model (IK, tool geometry,
-        static cell geometry)."""
-        return self.sim
-
-    def _attach_world(self, conveyor_velocity: Any) -> None:
-        static = tuple(s for s in self.model.obstacle_shapes() if not s.dynamic)
-        robot = self.model.robot
-
-        def tool_points_at(joints: np.ndarray) -> np.ndarray:
-            return tool_check_points(robot, joints)[:-1]  # without the flange origin
-
-        self.world = PerceivedScene(
-            static, np.asarray(conveyor_velocity, dtype=float), tool_points_at=tool_points_at
-        )  # what the observation reads
-
-    @property
-    def control_dt(self) -> float:
-        return float(self.model.control_dt)
+        """The environment's simulation, kept as the kinematic model."""
+        return self.env.sim
 
     @property
     def trial_steps(self) -> int:
-        """Decisions per trial: the windows (a via-point plan or windowed residual weights)."""
-        return int(self.layout.n_steps)
+        """Decisions per trial: the windows, or residual control's RL steps (10 Hz)."""
+        if isinstance(self.env, ResidualRLEnv):
+            return int(self.env.n_steps)
+        return int(self.env.layout.n_steps)
 
-    def takes_image(self, step: int) -> bool:
-        """Whether the trial takes a fresh image before decision ``step``: before every
-        window (between images the tracks predict the bars along the belt)."""
-        return True
-
-    def perceived_tc(self, start_time: float) -> TaskConfig:
-        """TC from the perceived bars predicted at the trial's start time (s)."""
-        scene = self.world.scene
-        target = self.world.object_transform("target_bar", start_time)[:3, 3]
-        other = self.world.object_transform("other_bar", start_time)[:3, 3]
-        return TaskConfig(
-            object_offset=(
-                float(target[0] - scene.conveyor_x),
-                float(target[1] - scene.target_start_y),
-            ),
-            obstacle_offset=(
-                float(other[0] - scene.conveyor_x),
-                float(other[1] - scene.other_start_y),
-            ),
-        )
-
-    def begin(self, tcp_pose: np.ndarray, start_time: float) -> TaskConfig:
-        """Start an episode at the robot's TCP pose (6,); returns the perceived TC."""
-        self.world.set_robot(tcp_pose, start_time)
-        tc = self.perceived_tc(start_time)
-        # The environment's own plan start: the TC-conditioned via-points (GP methods) or
-        # zero residual weights on the ProMP nominal (ProMP-RRL), from the robot's pose.
-        self.start_plan(tc, tcp_pose, start_time)
-        self.field.update(self.world.obstacle_shapes())
-        return tc
-
-    def observe(self) -> dict[str, np.ndarray]:
-        """The policy's observation from the perceived world (same layout as in training)."""
-        self.field.update(self.world.obstacle_shapes())
-        return self.observation()
-
-    def adapt(self, action: np.ndarray | None) -> np.ndarray:
-        """Apply the (raw) action to the current window; return the segment's poses (m, 6).
-
-        The action updates what the environment adapts: the window's via-points (GP methods)
-        or its residual weights (ProMP-RRL), exactly as in training (`AdaptationEnv.apply_action`).
-
-        ``None`` (or a method that trains no policy: ``demo``, ``promp-nominal``) keeps the
-        conditioned demonstration (the ProMP nominal).
-        """
-        shape = cast("tuple[int, ...]", self.action_space.shape)  # a Box's
-        raw = np.zeros(shape) if action is None else action
-        return plan_segment(self, self.step_index, raw)[1]
-
-    def segment_times(self, step: int) -> np.ndarray:
-        """Trial times (s from the trial start) of the control instants of segment ``step``."""
-        return self.segment_tau(step) * self.skill.duration
-
-    def executed(self, poses: np.ndarray) -> None:
-        """Record that ``poses`` (the segment of the current step) were commanded."""
-        commit_segment(self, self.step_index, poses)
-
-
-class PerceivedAdaptation(_PerceivedWorld, AdaptationEnv):
-    """:class:`AdaptationEnv` whose world is a :class:`PerceivedScene` (DBM only).
-
-    Use: :meth:`begin` (conditions the skill on the perceived target bar), then per window
-    :meth:`observe` -> policy -> :meth:`adapt` (returns the segment's poses to check and
-    execute) -> :meth:`executed`.
-
-    Attributes:
-        model: the kinematic model (a ``DBMSim``: IK, tool points, static obstacles).
-        world: the :class:`PerceivedScene`.
-    """
-
-    def __init__(self, method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> None:
-        AdaptationEnv.__init__(self, "dbm", method, config)
-        self._attach_world(conveyor_velocity)
-
-
-class PerceivedResidual(_PerceivedWorld, ResidualEnv):
-    """ProMP-RRL's :class:`ResidualEnv` whose world is a :class:`PerceivedScene` (DBM only).
-
-    The nominal trajectory is the object-centric ProMP's mean for the *perceived* target
-    bar, conditioned on the robot's TCP pose; the policy sets residual weights window by
-    window. Same use as :class:`PerceivedAdaptation`.
-    """
-
-    def __init__(
-        self, method: str = "promp-rrl-windowed", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
-    ) -> None:
-        ResidualEnv.__init__(self, "dbm", config, method=method)
-        self._attach_world(conveyor_velocity)
-
-
-# the mixin is typed against AdaptationEnv (its other two hosts); ResidualRLEnv is no subclass
-class PerceivedResidualControl(_PerceivedWorld, ResidualRLEnv):  # type: ignore[misc]
-    """ProMP-RRL's residual RL (:class:`ResidualRLEnv`) whose world is a
-    :class:`PerceivedScene` (DBM only).
-
-    One decision per RL step (10 Hz, 50 per DBM trial) instead of per window: :meth:`begin`
-    conditions the nominal on the perceived target bar and blends the robot's TCP pose in;
-    then per RL step :meth:`observe` (the training observation, from the perceived world and
-    the robot's joints: the tool's clearance needs them; a fresh image before the steps of
-    `image_steps`, one per window as the via-point methods get) -> policy -> :meth:`adapt` (the
-    slew-limited residual and the step's 2-3 control-period poses, nominal + gated residual,
-    exactly as `ResidualRLEnv.step` commands them) -> the trial checks the poses and streams
-    them -> :meth:`executed`. The safety layer checks each 0.1 s segment before it moves (a
-    plan of one RL step: what residual control knows ahead); retiming applies to it as to a
-    window, pushing via-points does not (there are none).
-    """
-
-    def __init__(
-        self, method: str = "promp-rrl", config=None, conveyor_velocity=(0.0, 0.04, 0.0)
-    ) -> None:
-        ResidualRLEnv.__init__(self, "dbm", method, config)
-        self._attach_world(conveyor_velocity)
-        self.image_steps = self._window_start_steps()
-
-    decision_unit = "RL step"
-    streams_decisions = True
-
-    @property
-    def trial_steps(self) -> int:
-        """Decisions per trial: the RL steps (10 Hz)."""
-        return int(self.n_steps)
-
-    def _window_start_steps(self) -> tuple[int, ...]:
-        """The RL steps before which the trial takes a fresh image (``image_steps``): the
-        first step starting at or after each window start k T / n_windows — the images the
-        via-point methods get (one per window), so that Table II compares the policies, not
-        perception rates. Between images the tracks predict the bars along the belt; the
-        robot's pose and joints are read before every step."""
-        starts = np.concatenate([[0.0], np.cumsum(self.schedule.step_duration)[:-1]])
-        windows = self.config.n_windows
-        at = [k * self.duration / windows for k in range(windows)]
-        return tuple(sorted({int(np.searchsorted(starts, t - 1e-9)) for t in at}))
-
-    def takes_image(self, step: int) -> bool:
-        """Whether the trial takes a fresh image before RL step ``step`` (`image_steps`)."""
-        return step in self.image_steps
-
-    def start_plan(self, tc: TaskConfig, tcp_pose: np.ndarray, start_time: float) -> None:
-        """The conditioned nominal with the TCP pose (6,) blended in, residual 0."""
-        self._start_episode(tc, tcp_pose)
-        self._episode_over = False
-
-
-TrialAdapter = PerceivedAdaptation | PerceivedResidual | PerceivedResidualControl
-"""A trial's environment (`perceived_env`)."""
+    def close(self) -> None:
+        self.env.close()
 
 
 def perceived_env(method: str, config=None, conveyor_velocity=(0.0, 0.04, 0.0)) -> TrialAdapter:
-    """The trial adapter for ``method``: residual RL for Table I's ProMP-RRL and its
-    ``promp-nominal`` reference (action mode ``residual-control``), windowed residual weights
-    for ``promp-rrl-windowed`` / ``promp-rrl-expert``, via-points otherwise."""
+    """The trial adapter for ``method`` (DBM only): residual RL for Table I's ProMP-RRL and
+    its ``promp-nominal`` reference (action mode ``residual-control``), windowed residual
+    weights for ``promp-rrl-windowed`` / ``promp-rrl-expert``, via-points otherwise; the
+    conveyor's velocity (3,), m/s, predicts the perceived bars along the belt."""
     spec = get_method(method)
+    env: TrialEnv
     if spec.action_mode == "residual-control":
-        return PerceivedResidualControl(method, config, conveyor_velocity)
-    if spec.action_mode == "residual":
-        return PerceivedResidual(method, config, conveyor_velocity)
-    return PerceivedAdaptation(method, config, conveyor_velocity)
+        env = ResidualRLEnv("dbm", method, config)
+    elif spec.action_mode == "residual":
+        env = ResidualEnv("dbm", config, method=method)
+    else:
+        env = AdaptationEnv("dbm", method, config)
+    world = _perceived_scene(env.sim, conveyor_velocity)
+    env.world = world  # what the observation reads
+    if isinstance(env, ResidualRLEnv):
+        return TrialAdapter(env, world, "RL step", True, _window_start_steps(env))
+    return TrialAdapter(env, world, "window", False, tuple(range(env.layout.n_steps)))
+
+
+def _perceived_scene(model: TaskSim, conveyor_velocity: Any) -> PerceivedScene:
+    """An empty perceived scene with the kinematic model's static cell geometry and tool."""
+    static = tuple(s for s in model.obstacle_shapes() if not s.dynamic)
+    robot = model.robot
+
+    def tool_points_at(joints: np.ndarray) -> np.ndarray:
+        return tool_check_points(robot, joints)[:-1]  # without the flange origin
+
+    return PerceivedScene(
+        static, np.asarray(conveyor_velocity, dtype=float), tool_points_at=tool_points_at
+    )
+
+
+def _window_start_steps(env: ResidualRLEnv) -> tuple[int, ...]:
+    """The RL steps before which a residual-control trial takes a fresh image: the first step
+    starting at or after each window start k T / n_windows — the images the via-point
+    methods get (one per window), so that Table II compares the policies, not perception
+    rates. Between images the tracks predict the bars along the belt; the robot's pose and
+    joints are read before every step."""
+    starts = np.concatenate([[0.0], np.cumsum(env.schedule.step_duration)[:-1]])
+    windows = env.config.n_windows
+    at = [k * env.duration / windows for k in range(windows)]
+    return tuple(sorted({int(np.searchsorted(starts, t - 1e-9)) for t in at}))
+
+
+def perceived_tc(scene: PerceivedScene, start_time: float) -> TaskConfig:
+    """TC from the perceived bars predicted at the trial's start time (s)."""
+    geometry = scene.scene
+    target = scene.object_transform("target_bar", start_time)[:3, 3]
+    other = scene.object_transform("other_bar", start_time)[:3, 3]
+    return TaskConfig(
+        object_offset=(
+            float(target[0] - geometry.conveyor_x),
+            float(target[1] - geometry.target_start_y),
+        ),
+        obstacle_offset=(
+            float(other[0] - geometry.conveyor_x),
+            float(other[1] - geometry.other_start_y),
+        ),
+    )
+
+
+def begin_trial(adapter: TrialAdapter, tcp_pose: np.ndarray, start_time: float) -> TaskConfig:
+    """Start an episode at the robot's TCP pose (6,) at ``start_time`` (s); the perceived TC.
+
+    The environment's own plan start: the TC-conditioned via-points (GP methods), zero
+    residual weights on the ProMP nominal, or (residual control) the conditioned nominal with
+    the TCP pose blended in and residual 0, all from the robot's pose."""
+    env, scene = adapter.env, adapter.world
+    scene.set_robot(tcp_pose, start_time)
+    tc = perceived_tc(scene, start_time)
+    if isinstance(env, ResidualRLEnv):
+        env._start_episode(tc, tcp_pose)
+        env._episode_over = False
+    else:
+        env.start_plan(tc, tcp_pose, start_time)
+    env.field.update(scene.obstacle_shapes())
+    return tc
+
+
+def observe(adapter: TrialAdapter) -> dict[str, np.ndarray]:
+    """The policy's observation from the perceived world (the layout it trained on)."""
+    adapter.env.field.update(adapter.world.obstacle_shapes())
+    return adapter.env.observation()
+
+
+def adapt(adapter: TrialAdapter, action: np.ndarray | None) -> np.ndarray:
+    """Apply the (raw) action to the current decision; its segment's poses (m, 6).
+
+    The action updates what the environment adapts: the window's via-points (GP methods),
+    its residual weights or the RL step's residual (ProMP-RRL), exactly as in training
+    (`distgprl.envs.episode.plan_segment`). ``None`` (or a method that trains no policy:
+    ``demo``, ``promp-nominal``) keeps the conditioned demonstration (the ProMP nominal).
+    """
+    env = adapter.env
+    shape = cast("tuple[int, ...]", env.action_space.shape)  # a Box's
+    raw = np.zeros(shape) if action is None else action
+    return plan_segment(env, env.step_index, raw)[1]

@@ -20,8 +20,8 @@ import numpy as np
 
 from distgprl.errors import UserInputError
 from distgprl.hardware.controller import controller_stop
-from distgprl.hardware.safety import SafetyLimits, StopRequested, Watchdog
-from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
+from distgprl.hardware.watchdog import StopRequested, Watchdog
+from distgprl.limits import UR5E_CONTROLLER, ControllerLimits, SafetyLimits
 from distgprl.sim.tasks.base import TaskConfig
 
 
@@ -368,7 +368,7 @@ class URBackend:
     def _ready(self) -> None:
         mode = self.safety_mode()
         if mode not in (1, 2):
-            from distgprl.hardware.safety import SAFETY_MODES
+            from distgprl.hardware.watchdog import SAFETY_MODES
 
             raise StopRequested(f"robot not ready: safety mode {mode} ({SAFETY_MODES.get(mode)})")
 

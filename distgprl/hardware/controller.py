@@ -92,7 +92,8 @@ def controller_stop(
 
 def paper_protocol_meta(limits: ControllerLimits = UR5E_CONTROLLER) -> dict[str, object]:
     """What runs before and during a motion under the paper's protocol, for a trial file's
-    meta (the safety layer's own description is `distgprl.hardware.window_check.safety_layer`)."""
+    meta (the safety layer's own description is
+    `distgprl.safety_layer.window_check.safety_layer`)."""
     return {
         "check": "none: the policy's poses execute as made (no pre-flight check, retiming "
         "or repair)",

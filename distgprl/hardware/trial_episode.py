@@ -1,7 +1,7 @@
 """One hardware trial as named stages (`one_trial`), for `distgprl.hardware.trials.run_trials`:
 set the cell up, perceive, start the episode on the perceived bars, run its decisions through
 the episode loop (`distgprl.envs.episode`: the robot or a dry run's prediction as the world
-(`distgprl.hardware.worlds`), the protocol's gate (`distgprl.hardware.gates`) before it),
+(`distgprl.hardware.worlds`), the protocol's gate (`distgprl.safety_layer.gates`) before it),
 judge it."""
 
 from __future__ import annotations
@@ -14,13 +14,15 @@ from typing import Any
 import numpy as np
 
 from distgprl.envs.episode import execute_segment
-from distgprl.hardware.gates import CheckGate, RepairGate, UncheckedGate
+from distgprl.hardware.adapter import TrialAdapter, adapt, begin_trial, observe
 from distgprl.hardware.perception import OBJECTS, MarkerPerception, pose_error
-from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import SafetyLimits, UnsafePlanError, check_plan
 from distgprl.hardware.trial_rows import finish_row, judge_row
-from distgprl.hardware.window_check import describe_repair
 from distgprl.hardware.worlds import DryRunWorld, RobotWorld
+from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.gates import CheckGate, RepairGate, UncheckedGate
+from distgprl.safety_layer.plan_check import UnsafePlanError, check_plan
+from distgprl.safety_layer.retime import RepairConfig
+from distgprl.safety_layer.window_check import describe_repair
 from distgprl.schema import TRIAL_FIELDS
 from distgprl.trial_protocol import PROTECTIVE_STOP
 
@@ -33,7 +35,7 @@ class TrialSetup:
 
     robot: Any
     perception: MarkerPerception
-    adapter: Any
+    adapter: TrialAdapter
     policy: Callable | None
     limits: SafetyLimits
     dry_run: bool
@@ -120,12 +122,11 @@ def _set_up_cell(setup: TrialSetup, index: int, tc, row: dict[str, Any]) -> bool
     if setup.dry_run:  # a dry run plans from wherever the robot is and never moves it
         return True
     setup.ask(f"trial {index + 1}: place both bars on the conveyor, then press Enter ")
-    q_home = adapter.model.start_joint_positions
+    model = adapter.model
+    q_home = model.start_joint_positions
     path = np.linspace(robot.joint_positions(), q_home, 50)
-    poses = np.array([_fk_pose(adapter.model.robot, q) for q in path])
-    check_plan(
-        poses, path[0], adapter.model.robot, setup.limits, adapter.control_dt * 4, force=setup.force
-    )
+    poses = np.array([_fk_pose(model.robot, q) for q in path])
+    check_plan(poses, path[0], model.robot, setup.limits, model.control_dt * 4, force=setup.force)
     result = robot.move_joints(q_home)
     if result.stopped:
         row.update(status="stopped", stop_reason=result.stop_reason)
@@ -159,10 +160,10 @@ def _start_episode(setup: TrialSetup, row: dict[str, Any]):
     (the robot, or the dry run's prediction) and the protocol's gate."""
     robot, adapter = setup.robot, setup.adapter
     now = robot.now()
-    perceived_tc = adapter.begin(robot.tcp_pose(), now)
+    perceived_tc = begin_trial(adapter, robot.tcp_pose(), now)
     row["object_offset_y"] = round(perceived_tc.object_offset[1], 5)
     row["obstacle_offset_y"] = round(perceived_tc.obstacle_offset[1], 5)
-    dt = adapter.control_dt
+    dt = adapter.model.control_dt
     world: RobotWorld | DryRunWorld = (
         DryRunWorld(adapter.world, dt, now)
         if setup.dry_run
@@ -175,12 +176,13 @@ def _trial_gate(setup: TrialSetup, q: np.ndarray, clock: Callable[[], float]):
     """The protocol's gate from joints ``q`` (rad): the paper's (the poses as made), the
     safety layer's check, or its repair; clearance from the perceived scene at ``clock()``."""
     adapter = setup.adapter
-    scene, robot, dt = adapter.world, adapter.model.robot, adapter.control_dt
+    env, scene = adapter.env, adapter.world
+    robot, dt = adapter.model.robot, adapter.model.control_dt
     if setup.paper:
         return UncheckedGate(robot, setup.limits, dt, q)
     if setup.repair_config is None:
         return CheckGate(
-            robot, setup.limits, dt, q, adapter.field, scene.obstacle_shapes, clock, setup.force
+            robot, setup.limits, dt, q, env.field, scene.obstacle_shapes, clock, setup.force
         )
 
     def belt() -> np.ndarray | None:
@@ -188,12 +190,12 @@ def _trial_gate(setup: TrialSetup, q: np.ndarray, clock: Callable[[], float]):
         return scene.velocity if track is not None and scene.on_belt(track.transform) else None
 
     return RepairGate(
-        adapter,
+        env,
         robot,
         setup.limits,
         dt,
         q,
-        adapter.field,
+        env.field,
         scene.obstacle_shapes,
         clock,
         belt,
@@ -216,7 +218,7 @@ def _run_decisions(setup, index, record, world, gate, perceive) -> None:
         # ended between them); a window plan ends its stream
         last = not adapter.streams_decisions or step == adapter.trial_steps - 1
         checked = gate.seconds
-        report = execute_segment(adapter, world, step, poses, gate, last).report
+        report = execute_segment(adapter.env, world, step, poses, gate, last).report
         record.timings["check"] += gate.seconds - checked
         _record_review(setup, index, step, record.row, gate.last)
         if report is None:  # refused: nothing of it moved
@@ -238,11 +240,11 @@ def _decide(setup: TrialSetup, record: _TrialRecord, step: int) -> np.ndarray:
     segment's poses (m, 6) to pass the gate."""
     adapter = setup.adapter
     start = time.perf_counter()
-    observation = adapter.observe()
+    observation = observe(adapter)
     action = None if setup.policy is None else setup.policy(observation)
     record.timings["policy"] += time.perf_counter() - start
-    assert step == adapter.step_index  # the adapter plans its current decision
-    return adapter.adapt(action)  # `plan_segment` (the references: a zero action)
+    assert step == adapter.env.step_index  # the env plans its current decision
+    return adapt(adapter, action)  # `plan_segment` (the references: a zero action)
 
 
 def _stopped(record: _TrialRecord, report) -> bool:
@@ -262,8 +264,8 @@ def _update_scene(setup: TrialSetup, world, gate, step: int, perceive) -> None:
     """Before decision ``step`` (> 0): a fresh image where the adapter takes one, else the
     robot's pose only (the tracks predict the bars); a dry run's predicted pose and time."""
     if setup.dry_run:
-        world.sync_robot(setup.adapter.last_commanded, gate.q)
-    elif setup.adapter.takes_image(step):
+        world.sync_robot(setup.adapter.env.last_commanded, gate.q)
+    elif step in setup.adapter.image_steps:
         perceive()
     else:
         world.sync_robot()

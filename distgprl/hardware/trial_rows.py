@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from distgprl.hardware.safety import tool_check_points
+from distgprl.safety_layer.plan_check import tool_check_points
 from distgprl.schema import moved_robot
 from distgprl.trial_protocol import PROTECTIVE_STOP
 
@@ -106,8 +106,8 @@ def judge_row(
 def _edf_clearance(adapter: Any, robot: Any) -> float:
     """Min distance (m) of the tool/flange at the actual joints to the perceived obstacles."""
     points = tool_check_points(adapter.model.robot, robot.joint_positions())
-    adapter.field.update(adapter.world.obstacle_shapes())
-    return float(adapter.field.clearance(points).min())
+    adapter.env.field.update(adapter.world.obstacle_shapes())
+    return float(adapter.env.field.clearance(points).min())
 
 
 def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:

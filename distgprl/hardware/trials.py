@@ -15,7 +15,7 @@ One trial on the DBM cell:
    default, `distgprl.trial_protocol`) as they are, the robot's controller alone
    enforcing its own limits (a command beyond them ends the trial in a protective stop);
    under the ``safety-layer`` protocol after the plan repair
-   (:mod:`distgprl.hardware.repair`: re-timed if too fast, via-points pushed along the
+   (:mod:`distgprl.safety_layer.repair`: re-timed if too fast, via-points pushed along the
    distance field's gradient if too close — a residual step has none to push) and the
    safety layer's pre-flight check (refused if still unsafe, unless ``force``);
 4. the trial is judged (twin: from the simulation; real robot: operator prompt, or the
@@ -40,7 +40,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -51,13 +51,11 @@ from distgprl.hardware.perception import (
     MarkerPerception,
     load_calibration,
 )
-from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import SafetyLimits
 from distgprl.hardware.trial_episode import TrialSetup, one_trial
-from distgprl.hardware.trial_policy import load_trial_policy
 from distgprl.hardware.trial_rows import summarise_trials
-from distgprl.hardware.window_check import NO_VIA_POINTS, safety_layer
-from distgprl.limits import UR5E_CONTROLLER, ControllerLimits
+from distgprl.limits import UR5E_CONTROLLER, ControllerLimits, SafetyLimits
+from distgprl.safety_layer.retime import RepairConfig
+from distgprl.safety_layer.window_check import NO_VIA_POINTS, safety_layer
 from distgprl.schema import TRIAL_FIELDS
 from distgprl.trial_protocol import PAPER, check_protocol
 
@@ -69,6 +67,23 @@ class TrialReport:
     rows: list[dict[str, Any]]
     path: Path
     summary: dict[str, float]
+
+
+class PolicyLoader(Protocol):
+    """Loads the policy a trial runs: ``(method, seed, preset, root, model_path, env) ->
+    (policy or None, provenance)``, the policy mapping an observation to an action (None for
+    a reference method), ``env`` the trial's environment (`TrialAdapter.env`); the CLI and
+    the sweep's twin trials pass `distgprl.experiments.trial_policy.load_trial_policy`."""
+
+    def __call__(
+        self,
+        method: str,
+        seed: int,
+        preset: str,
+        root: str | Path,
+        model_path: str | Path | None,
+        env: Any,
+    ) -> tuple[Callable[[Any], np.ndarray] | None, dict[str, Any]]: ...
 
 
 def run_trials(
@@ -95,6 +110,7 @@ def run_trials(
     sensor_noise: int | None = None,
     protocol: str = PAPER,
     controller: ControllerLimits = UR5E_CONTROLLER,
+    load_policy: PolicyLoader | None = None,
 ) -> TrialReport:
     """Run hardware trials of a trained DBM policy (see the module docstring).
 
@@ -126,7 +142,7 @@ def run_trials(
         repair_config: settings of the repair (default :class:`RepairConfig`); its push
             (``repair=True``) does not apply to the residual ProMP methods, which have no
             via-points: the trial file's ``safety_layer`` says so and ``repair_push`` is
-            False (`distgprl.hardware.window_check.safety_layer`).
+            False (`distgprl.safety_layer.window_check.safety_layer`).
         sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
             0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
             Ignored by the ur backend (a real camera).
@@ -135,6 +151,8 @@ def run_trials(
             and repair before every motion), `distgprl.trial_protocol`.
         controller: the twin's emulated controller limits (default the UR5e's documented
             ones; the real robot enforces its own).
+        load_policy: loads the trained policy (`PolicyLoader`); required for a trained
+            method, None runs a reference method (``demo``, ``promp-nominal``).
 
     Returns:
         The rows, the CSV path and a summary (success/collision rates, MinCl).
@@ -156,7 +174,9 @@ def run_trials(
     cal = _cell_calibration(backend, calibration, camera, twin_config, seed)
     adapter = perceived_env(method, config.env, cal.conveyor_velocity)
     try:
-        policy, provenance = load_trial_policy(method, seed, preset, root, model_path, adapter)
+        policy, provenance = _trial_policy(
+            load_policy, method, seed, preset, root, model_path, adapter
+        )
         robot = _connect_robot(
             backend, twin_config, seed, controller, robot_ip, limits, rtde_factory, camera, cal
         )
@@ -169,7 +189,7 @@ def run_trials(
     layer = (
         {"checked_unit": str(adapter.decision_unit), **paper_protocol_meta(controller)}
         if paper
-        else safety_layer(adapter, handling, force)
+        else safety_layer(adapter.env, adapter.decision_unit, handling, force)
     )
     if layer.get("push") == NO_VIA_POINTS:  # the push was asked for and does not apply
         echo(f"{method}: --repair-push {layer['push']}; retiming only")
@@ -211,9 +231,23 @@ def run_trials(
         handling,
         paper,
     )
-    tcs = [adapter.spec_task.sample_tc(rng) for _ in range(trials)]
+    tcs = [adapter.env.spec_task.sample_tc(rng) for _ in range(trials)]
     rows = _run_all(setup, tcs, backend, path, meta)
     return TrialReport(rows, path, summarise_trials(rows))
+
+
+def _trial_policy(
+    load_policy: PolicyLoader | None, method, seed, preset, root, model_path, adapter
+):
+    """(policy or None, provenance) from ``load_policy``; a reference method needs none."""
+    if load_policy is not None:
+        return load_policy(method, seed, preset, root, model_path, adapter.env)
+    if adapter.env.method.trainable:
+        raise UserInputError(
+            f"{method}: a trained method's trials need a policy loader (load_policy, e.g. "
+            "distgprl.experiments.trial_policy.load_trial_policy)"
+        )
+    return None, {}
 
 
 def _check_arguments(

@@ -28,7 +28,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import pybullet
 
 from distgprl.errors import UserInputError
 from distgprl.hardware.markers import (
@@ -306,6 +305,8 @@ class TwinSim(DBMSim):
 
     # -- scene ---------------------------------------------------------------------------------
     def _plate_body(self, spec: MarkerSpec, plate_side: float, world: np.ndarray) -> int:
+        import pybullet  # after distgprl.sim's quiet import (no build banner)
+
         client = self.client
         # A grid with one vertex per marker cell corner: TinyRenderer interpolates texture
         # coordinates affinely per triangle, so only vertices land exactly where they should;
@@ -400,6 +401,8 @@ class TwinSim(DBMSim):
             noise_rng: generator for the image effects of ``twin.noise`` (exposure, blur,
                 extra noise), applied before the pixel noise; None = none of them.
         """
+        import pybullet  # after distgprl.sim's quiet import (no build banner)
+
         self._sync_markers()
         twin = self.twin
         client = self.client

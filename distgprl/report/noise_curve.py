@@ -2,7 +2,7 @@
 
 One figure per preset (``table2_noise_<preset>.png`` / ``.pdf``, issue 50 item 5): for every
 method with twin trials at two or more sensor-noise levels (plan repair on, the setting every
-noise level runs with, `distgprl.hardware.table2_trials`), its success and collision rates at
+noise level runs with, `distgprl.experiments.table2_trials`), its success and collision rates at
 each level, with their exact 95 % binomial intervals, against the median over that level's
 trials of each trial's largest marker position error (mm; `report.table2.hardware_rows`). The
 noise levels are labelled at their points. A level whose trials recorded no perception error

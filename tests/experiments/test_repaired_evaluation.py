@@ -9,8 +9,8 @@ import pytest
 
 from distgprl.experiments import repaired_evaluation as repaired
 from distgprl.experiments.runner import evaluate_policy, make_env, resolve_run
-from distgprl.hardware.repair import RepairConfig
 from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.retime import RepairConfig
 from distgprl.schema import (
     REPAIR_EVALUATION_FIELDS,
     read_csv,
@@ -195,7 +195,7 @@ def test_residual_control_methods_get_twin_trials_but_no_simulated_repair_evalua
         job = Job("dbm", method, 0, "ci", str(tmp_path), twin_trials=2, repair_evaluations=True)
         assert not repairs_due(job)
         assert trials_due(job) == (method == "promp-nominal")  # promp-rrl: no model.zip yet
-    from distgprl.hardware.table2_trials import NOISE_LEVELS, model_path, table2_settings
+    from distgprl.experiments.table2_trials import NOISE_LEVELS, model_path, table2_settings
 
     model_path(tmp_path, "ci", "promp-rrl", 0).parent.mkdir(parents=True)
     model_path(tmp_path, "ci", "promp-rrl", 0).write_bytes(b"")  # trained: its model on disk

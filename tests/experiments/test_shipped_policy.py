@@ -107,6 +107,7 @@ def test_a_changed_shipped_actor_is_refused_with_both_hashes(shipped_run, tmp_pa
 def test_twin_trials_run_the_shipped_policy_without_the_model(tmp_path):
     """`distgprl hardware --backend twin` on a run folder with only its small files: the
     trials run Table I's shipped best actor, and the trial file names it."""
+    from distgprl.experiments.trial_policy import load_trial_policy
     from distgprl.hardware.trials import run_trials
     from distgprl.hardware.twin import TwinConfig
 
@@ -125,6 +126,7 @@ def test_twin_trials_run_the_shipped_policy_without_the_model(tmp_path):
         preset="ci",
         twin_config=TwinConfig(width=640, height=480),
         echo=lambda _: None,
+        load_policy=load_trial_policy,
     )
     meta, rows = read_csv(report.path)
     provenance = meta["policy"]

@@ -9,7 +9,7 @@ import math
 import pytest
 
 from distgprl.experiments.runner import EVALUATION_FIELDS, summarise
-from distgprl.hardware.safety import SafetyLimits
+from distgprl.limits import SafetyLimits
 
 # success, collision, min_clearance (m), return, kinematic retention, w1, w2, w3, policy (ms),
 # peak joint speed (rad/s)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_csv, write_json
+from distgprl.experiments.results import read_csv
+from distgprl.experiments.trial_policy import load_trial_policy
 from distgprl.hardware.trials import TRIAL_FIELDS, run_trials
 from distgprl.hardware.twin import TwinConfig, TwinSim, twin_calibration
 from distgprl.methods import TABLE_ORDER
@@ -14,45 +15,12 @@ from distgprl.methods import TABLE_ORDER
 SMALL = TwinConfig(width=640, height=480)
 
 
-def _untrained_policy(tmp_path_factory, method: str):
-    """A freshly constructed actor (untrained) of ``method`` saved like a trained run's model.
-
-    Built without the regulariser (only the actor is used at trial time), so the test does
-    not need the HAP subspace.
-    """
-    from distgprl.agents.sac import RegularisedSAC, StateOnlyExtractor
-    from distgprl.experiments.runner import make_env, resolve_run
-
-    run = resolve_run("dbm", method, 0, preset="ci")
-    env = make_env(run)
-    try:
-        agent = RegularisedSAC(
-            "MultiInputPolicy",
-            env,
-            buffer_size=100,
-            learning_starts=0,
-            policy_kwargs={
-                "features_extractor_class": StateOnlyExtractor,
-                "net_arch": list(run.config.sac.net_arch),
-            },
-            seed=0,
-            device="cpu",
-        )
-        path = tmp_path_factory.mktemp("model") / "model.zip"
-        agent.save(path)
-        # beside it, as in a run folder: the run's config (its hash goes into the trials)
-        write_json(path.parent / "config.json", {"config_hash": run.hash}, kind="config")
-    finally:
-        env.close()
-    return path
-
-
 # via-points; residual ProMP weights (v5's ProMP-RRL); residual RL (Table I's ProMP-RRL)
 @pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl-windowed", "promp-rrl"])
-def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
+def test_twin_trials_end_to_end(tmp_path, untrained_dbm_policy, method):
     from distgprl.report.tables import hardware_table
 
-    policy_zip = _untrained_policy(tmp_path_factory, method)
+    policy_zip = untrained_dbm_policy(method)
     report = run_trials(
         trials=2,
         method=method,
@@ -63,6 +31,7 @@ def test_twin_trials_end_to_end(tmp_path, tmp_path_factory, method):
         twin_config=SMALL,
         echo=lambda _: None,
         protocol="safety-layer",
+        load_policy=load_trial_policy,
     )
     assert report.path.parent == tmp_path / "hardware" / method
     meta, rows = read_csv(report.path)
@@ -187,7 +156,9 @@ def test_dry_run_on_the_ur_sends_no_motion(tmp_path, model_sim):
 
 def test_clear_errors(tmp_path):
     with pytest.raises(UserInputError, match="no trained model"):
-        run_trials(trials=1, root=tmp_path, twin_config=SMALL)
+        run_trials(trials=1, root=tmp_path, twin_config=SMALL, load_policy=load_trial_policy)
+    with pytest.raises(UserInputError, match="policy loader"):
+        run_trials(trials=1, root=tmp_path, twin_config=SMALL)  # a trained method, no loader
     with pytest.raises(UserInputError, match="calibration"):
         run_trials(trials=1, method="demo", backend="ur", robot_ip="10.0.0.2", root=tmp_path)
     with pytest.raises(UserInputError, match="not found"):
@@ -252,8 +223,8 @@ def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
 def test_too_fast_plans_are_retimed_not_refused(tmp_path):
     """Under a 0.6 rad/s joint-speed limit the demo's plans are too fast: with repair they
     are re-timed (recorded per window), without it the first window is refused."""
-    from distgprl.hardware.repair import DECISIONS
-    from distgprl.hardware.safety import SafetyLimits
+    from distgprl.limits import SafetyLimits
+    from distgprl.safety_layer.repair import DECISIONS
 
     slow = SafetyLimits(max_joint_speed=0.6)
     kwargs = dict(
@@ -337,6 +308,7 @@ def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
     assert result.exit_code == 0, result.output
     assert seen["repair"] is False and seen["sensor_noise"] == 2
     assert seen["protocol"] == "safety-layer"
+    assert seen["load_policy"] is load_trial_policy  # the run's trained policy, or the shipped one
     assert runner.invoke(app, ["hardware"]).exit_code == 0
     assert seen["repair"] is True and seen["sensor_noise"] == 0 and seen["protocol"] == "paper"
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
@@ -375,9 +347,9 @@ def test_an_unsafe_rl_step_is_retimed_or_refused_before_it_moves_and_never_pushe
     it is re-timed (time added, recorded per step) and the trial goes on. The via-point push
     does not apply (no via-points): asked for, it is said so once and in the file's meta,
     never run (no step is `repaired`), and the file counts as the retiming setting."""
-    from distgprl.hardware.repair import RepairConfig
-    from distgprl.hardware.safety import SafetyLimits
-    from distgprl.hardware.window_check import NO_VIA_POINTS
+    from distgprl.limits import SafetyLimits
+    from distgprl.safety_layer.retime import RepairConfig
+    from distgprl.safety_layer.window_check import NO_VIA_POINTS
 
     kwargs = dict(
         trials=1,

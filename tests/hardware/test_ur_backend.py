@@ -7,13 +7,9 @@ import pytest
 from fake_rtde import FakeRTDE  # tests/hardware is on sys.path (rootdir conftest)
 
 from distgprl.hardware.backends import URBackend, URConfig
-from distgprl.hardware.safety import (
-    SafetyLimits,
-    StopRequested,
-    UnsafePlanError,
-    Watchdog,
-    check_plan,
-)
+from distgprl.hardware.watchdog import StopRequested, Watchdog
+from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.plan_check import UnsafePlanError, check_plan
 from distgprl.sim.transforms import matrix_to_pose
 
 DT = 0.04

@@ -274,7 +274,8 @@ def test_moving_obstacles_are_the_dynamic_part_of_the_obstacles(sim_name, when, 
 def test_peak_joint_speed_is_the_largest_joint_target_finite_difference(dbm_sim):
     """As the hardware safety layer computes it: IK targets (nearest branch) differenced at
     the control period, starting from the previous target; maximum over joints and poses."""
-    from distgprl.hardware.safety import SafetyLimits, check_plan
+    from distgprl.limits import SafetyLimits
+    from distgprl.safety_layer.plan_check import check_plan
     from distgprl.sim.transforms import pose_to_matrix
 
     spec = get_task("dbm")

@@ -1,7 +1,7 @@
 """The pre-flight handling of one window's plan: the clearance and the distance-field gradient
 along the plan with the obstacles predicted to each step's time, the window's movable
 via-points, what a trial file says of the safety layer, and a line for each repair decision
-(the gates of `distgprl.hardware.gates` use them).
+(the gates of `distgprl.safety_layer.gates` use them).
 
 The same handling checks one 0.1 s RL step of residual control (ProMP-RRL) as a plan of its
 own: retiming applies to it, the push does not (`pushes_via_points`); `safety_layer` says
@@ -13,7 +13,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from distgprl.hardware.repair import RepairConfig, RepairResult, ViaPoints
+from distgprl.safety_layer.repair import RepairResult, ViaPoints
+from distgprl.safety_layer.retime import RepairConfig
 
 
 def clearance_function(
@@ -72,27 +73,30 @@ NO_VIA_POINTS = (
 """Why the via-point push never runs for the residual ProMP methods (`safety_layer`)."""
 
 
-def pushes_via_points(adapter) -> bool:
-    """Whether the repair's push applies to ``adapter``'s plans: the via-point methods; not
-    the residual ProMP methods (their parameters are weights or a residual, not via-points:
-    `NO_VIA_POINTS`)."""
-    return adapter.method.action_mode not in ("residual", "residual-control")
+def pushes_via_points(plan) -> bool:
+    """Whether the repair's push applies to ``plan``'s segments (an env with its ``method``):
+    the via-point methods; not the residual ProMP methods (their parameters are weights or a
+    residual, not via-points: `NO_VIA_POINTS`)."""
+    return plan.method.action_mode not in ("residual", "residual-control")
 
 
-def safety_layer(adapter, config: RepairConfig | None, force: bool = False) -> dict[str, str]:
+def safety_layer(
+    plan, decision_unit: str, config: RepairConfig | None, force: bool = False
+) -> dict[str, str]:
     """What a trial's safety layer does before each decision's poses move, for its file's
     meta (nothing skipped silently): what one check covers (``checked_unit``: a ``window``
     plan, or one ``RL step`` of residual control, 0.1 s), the pre-flight check, and whether
     retiming and the via-point push ran (``on``, ``off`` or `NO_VIA_POINTS`).
 
     Args:
-        adapter: the trial's environment (`~distgprl.hardware.adapter.perceived_env`).
+        plan: the trial's environment (its ``method``).
+        decision_unit: what one decision covers (``window`` or ``RL step``).
         config: the repair settings, None with repair off (refused at once).
         force: unsafe poses execute anyway (the violations recorded).
     """
     push = "off" if config is None or not config.repair else "on"
     return {
-        "checked_unit": str(adapter.decision_unit),
+        "checked_unit": decision_unit,
         "check": (
             "pre-flight, every control instant before it moves (safety.check_plan: workspace, "
             "IK and joint margins, joint speed and acceleration, TCP speed, predicted "
@@ -100,27 +104,27 @@ def safety_layer(adapter, config: RepairConfig | None, force: bool = False) -> d
         ),
         "unsafe": "executed anyway (force), violations recorded" if force else "refused",
         "retime": "on" if config is not None and config.retime else "off",
-        "push": push if pushes_via_points(adapter) or push == "off" else NO_VIA_POINTS,
+        "push": push if pushes_via_points(plan) or push == "off" else NO_VIA_POINTS,
     }
 
 
-def movable_via_points(adapter, step: int) -> tuple[ViaPoints, np.ndarray] | None:
+def movable_via_points(plan, step: int) -> tuple[ViaPoints, np.ndarray] | None:
     """The window's movable via-points (not frozen ones) and how its plan depends on them;
     None for the residual ProMP methods (`pushes_via_points`)."""
-    if not pushes_via_points(adapter):
+    if not pushes_via_points(plan):
         return None
-    frozen = set(adapter.layout.frozen)
-    movable = np.array([i for i in adapter.layout.indices[step] if int(i) not in frozen], int)
+    frozen = set(plan.layout.frozen)
+    movable = np.array([i for i in plan.layout.indices[step] if int(i) not in frozen], int)
     if not len(movable):
         return None
 
     def replan(displacement: np.ndarray) -> np.ndarray:
-        saved = adapter.gamma.copy()
+        saved = plan.gamma.copy()
         try:
-            adapter.gamma[movable, :3] += np.asarray(displacement, dtype=float)
-            return adapter.segment_poses(step)
+            plan.gamma[movable, :3] += np.asarray(displacement, dtype=float)
+            return plan.segment_poses(step)
         finally:
-            adapter.gamma = saved
+            plan.gamma = saved
 
     return ViaPoints(replan, len(movable)), movable
 

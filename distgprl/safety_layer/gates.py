@@ -4,9 +4,9 @@ protocol:
 - `UncheckedGate` — the paper's protocol: the poses go as made; only their IK is solved
   (the joints a robot streams), the robot's controller alone enforces its limits;
 - `CheckGate` — the safety layer without repair: the pre-flight check
-  (`distgprl.hardware.safety.check_plan`), an unsafe plan refused (or, with ``force``,
+  (`distgprl.safety_layer.plan_check.check_plan`), an unsafe plan refused (or, with ``force``,
   executed with its violations recorded);
-- `RepairGate` — the safety layer with repair (`distgprl.hardware.repair.repair_plan`):
+- `RepairGate` — the safety layer with repair (`distgprl.safety_layer.repair.repair_plan`):
   an unsafe plan retimed, its via-points pushed along the distance field's gradient (only
   with ``config.repair``), or refused; pushed via-points are written back into the plan.
 
@@ -26,9 +26,11 @@ import numpy as np
 
 from distgprl.envs.episode import Reviewed
 from distgprl.envs.world import SegmentReport
-from distgprl.hardware.repair import RepairConfig, RepairResult, repair_plan
-from distgprl.hardware.safety import PlanCheck, SafetyLimits, UnsafePlanError, check_plan, ik_chain
-from distgprl.hardware.window_check import (
+from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.plan_check import PlanCheck, UnsafePlanError, check_plan, ik_chain
+from distgprl.safety_layer.repair import RepairResult, repair_plan
+from distgprl.safety_layer.retime import RepairConfig
+from distgprl.safety_layer.window_check import (
     clearance_function,
     gradient_function,
     movable_via_points,
@@ -44,7 +46,7 @@ class Review:
 
     Attributes:
         decision: ``UNCHECKED`` (the paper's protocol), ``none``, ``retimed``, ``repaired``
-            or ``refused`` (`distgprl.hardware.repair.DECISIONS`).
+            or ``refused`` (`distgprl.safety_layer.repair.DECISIONS`).
         check: the pre-flight check of the poses let through (None: refused by the check).
         refused: nothing of the decision moved.
         time_added: s the decision got longer (retiming).
@@ -159,7 +161,7 @@ class RepairGate(_Clearance):
     Args (beyond `CheckGate`'s): ``plan`` the adapter whose via-points a push moves (its
     ``gamma`` and ``layout``), ``belt()`` the velocity (3,), m/s, the object is conveyed
     with now (None once it is not: lifted, or touched), ``config`` the repair settings. A
-    plan retimed while the object is conveyed follows the belt (`distgprl.hardware.repair`,
+    plan retimed while the object is conveyed follows the belt (`distgprl.safety_layer.repair`,
     "belt frame"); the belt shift accumulates over the episode.
     """
 

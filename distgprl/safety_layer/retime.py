@@ -2,8 +2,8 @@
 
 The plan keeps its *path* and gets a new *timing* within a fraction of the safety limits,
 never faster than the plan itself, ending at rest, kept in the belt's frame while the
-target bar rides the belt (:mod:`distgprl.hardware.repair` describes the method and the
-belt frame; :func:`~distgprl.hardware.repair.repair_plan` orchestrates the stages).
+target bar rides the belt (:mod:`distgprl.safety_layer.repair` describes the method and the
+belt frame; :func:`~distgprl.safety_layer.repair.repair_plan` orchestrates the stages).
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from distgprl.hardware.safety import PlanCheck, SafetyLimits, check_plan
+from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.plan_check import PlanCheck, check_plan
 from distgprl.sim.transforms import matrix_to_pose, pose_to_matrix
 from distgprl.skill.rotations import nearest_equivalent_rotvec
 

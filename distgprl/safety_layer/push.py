@@ -2,8 +2,8 @@
 
 One push is the least-norm via-point displacement that moves every control instant closer
 than the target clearance out by its deficit along the distance field's gradient
-(linearised through the plan's dependence on its via-points; :mod:`distgprl.hardware.repair`
-describes the method, :func:`~distgprl.hardware.repair.repair_plan` iterates, bounds and
+(linearised through the plan's dependence on its via-points; :mod:`distgprl.safety_layer.repair`
+describes the method, :func:`~distgprl.safety_layer.repair.repair_plan` iterates, bounds and
 backtracks the pushes).
 """
 
@@ -13,8 +13,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from distgprl.hardware.retime import Candidate
-from distgprl.hardware.safety import tool_check_points
+from distgprl.safety_layer.plan_check import tool_check_points
+from distgprl.safety_layer.retime import Candidate
 
 GradientAt = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``(points (m, 3) m, control instants (m,)) -> (distance (m,) m, unit gradient (m, 3))``."""

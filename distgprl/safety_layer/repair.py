@@ -1,6 +1,6 @@
 """Plan repair between a window's plan and the pre-flight check: retime, push, or refuse.
 
-A window plan that fails :func:`~distgprl.hardware.safety.check_plan` is not refused at
+A window plan that fails :func:`~distgprl.safety_layer.plan_check.check_plan` is not refused at
 once. :func:`repair_plan` tries, in order:
 
 1. **Retime** (joint speed, joint acceleration, TCP speed violated): the plan keeps its
@@ -53,8 +53,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from distgprl.hardware.push import GradientAt, push_step
-from distgprl.hardware.retime import (
+from distgprl.limits import SafetyLimits
+from distgprl.safety_layer.plan_check import PlanCheck, Violation
+from distgprl.safety_layer.push import GradientAt, push_step
+from distgprl.safety_layer.retime import (
     KINEMATIC_LIMITS,
     Candidate,
     ClearanceAt,
@@ -63,20 +65,8 @@ from distgprl.hardware.retime import (
     retime_plan,
     violated_limits,
 )
-from distgprl.hardware.safety import PlanCheck, SafetyLimits, Violation
 
-__all__ = [
-    "DECISIONS",
-    "KINEMATIC_LIMITS",
-    "REPAIRABLE_LIMITS",
-    "ClearanceAt",
-    "GradientAt",
-    "RepairConfig",
-    "RepairResult",
-    "ViaPoints",
-    "repair_plan",
-    "retime_plan",
-]
+__all__ = ["DECISIONS", "REPAIRABLE_LIMITS", "RepairResult", "ViaPoints", "repair_plan"]
 
 DECISIONS = ("none", "retimed", "repaired", "refused")
 """Per-window outcomes: passed as planned, re-timed, via-points pushed (and possibly

@@ -1,5 +1,5 @@
 """The Table II twin trials of one policy: which settings are due, and the sweep running
-them while the policy is on disk (`distgprl.hardware.table2_trials`, `experiments.sweep`)."""
+them while the policy is on disk (`distgprl.experiments.table2_trials`, `experiments.sweep`)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from distgprl.experiments import sweep
 from distgprl.experiments.results import read_csv, write_json
-from distgprl.hardware.table2_trials import (
+from distgprl.experiments.table2_trials import (
     TrialSetting,
     missing_settings,
     model_path,
@@ -104,12 +104,10 @@ def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def gprl_on_disk(tmp_path_factory):
+def gprl_on_disk(tmp_path_factory, untrained_dbm_policy):
     """A results root with an (untrained) DBM ``gprl`` ci policy where its run keeps it."""
-    from test_trials import _untrained_policy
-
     root = tmp_path_factory.mktemp("results")
-    source = _untrained_policy(tmp_path_factory, "gprl")
+    source = untrained_dbm_policy("gprl")
     target = model_path(root, "ci", "gprl", 0)
     target.parent.mkdir(parents=True)
     target.write_bytes(source.read_bytes())
@@ -154,7 +152,7 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
 def test_a_failing_trial_is_reported_with_the_job_and_leaves_the_run_done(
     gprl_on_disk, monkeypatch
 ):
-    from distgprl.hardware import table2_trials
+    from distgprl.experiments import table2_trials
 
     def broken(*args, **kwargs):
         raise RuntimeError("camera unplugged")
@@ -168,7 +166,7 @@ def test_a_failing_trial_is_reported_with_the_job_and_leaves_the_run_done(
 def test_coverage_tells_complete_pending_and_lost_policies_apart(gprl_on_disk, tmp_path):
     """A policy with every setting is complete; one lacking settings is pending while its
     model is on disk and lost without it; the references need no model."""
-    from distgprl.hardware.table2_trials import coverage
+    from distgprl.experiments.table2_trials import coverage
 
     root = tmp_path
     target = model_path(root, "ci", "gprl", 0)

@@ -51,7 +51,7 @@ ROBUSTNESS_METHODS = TABLE_ORDER
 """Methods whose trials also run at every sensor-noise level (the robustness table and its
 curve): every method of Table I and its references (issue 50 item 5: where does each policy
 break?); ProMP-RRL's residual RL one 0.1 s step at a time
-(`distgprl.hardware.adapter.PerceivedResidualControl`)."""
+(`distgprl.hardware.adapter.TrialAdapter`'s ``RL step`` decisions)."""
 
 NOISE_LEVELS = (1, 2, 3, 4)
 """The twin's sensor-noise levels above none (`distgprl.hardware.twin.SENSOR_NOISE`)."""
@@ -140,8 +140,9 @@ def run_table2_trials(
         UserInputError: a trained method's DBM model is not on disk (``model.zip``, nor the
             shipped best actor).
     """
-    from distgprl.hardware.repair import RepairConfig
+    from distgprl.experiments.trial_policy import load_trial_policy
     from distgprl.hardware.trials import run_trials
+    from distgprl.safety_layer.retime import RepairConfig
 
     written = []
     for setting in missing_settings(root, preset, method, seed, trials):
@@ -157,6 +158,7 @@ def run_table2_trials(
             sensor_noise=setting.sensor_noise,
             protocol=setting.protocol,
             echo=lambda line: None,
+            load_policy=load_trial_policy,
         )
         summary = report.summary
         stopped = (

@@ -6,10 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.hardware.repair import RepairConfig, ViaPoints, repair_plan, retime_plan
-from distgprl.hardware.safety import SafetyLimits, check_plan, tool_check_points
+from distgprl.limits import SafetyLimits
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.shapes import Box
+from distgprl.safety_layer.plan_check import check_plan, tool_check_points
+from distgprl.safety_layer.repair import ViaPoints, repair_plan
+from distgprl.safety_layer.retime import RepairConfig, retime_plan
 from distgprl.sim.transforms import matrix_to_pose, matrix_to_rotvec, rotvec_to_matrix
 
 DT = 0.04

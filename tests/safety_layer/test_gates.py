@@ -11,11 +11,12 @@ import pytest
 from test_repair import DT, fast_plan  # tests/hardware is on sys.path (rootdir conftest)
 
 from distgprl.envs.world import SegmentReport
-from distgprl.hardware.gates import CheckGate, RepairGate, UncheckedGate
-from distgprl.hardware.repair import RepairConfig
-from distgprl.hardware.safety import SafetyLimits, ik_chain
+from distgprl.limits import SafetyLimits
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.shapes import Box
+from distgprl.safety_layer.gates import CheckGate, RepairGate, UncheckedGate
+from distgprl.safety_layer.plan_check import ik_chain
+from distgprl.safety_layer.retime import RepairConfig
 
 
 def _far_field():
