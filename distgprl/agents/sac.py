@@ -23,8 +23,11 @@ Neither touches a random stream, so training stays bit-identical with or without
 
 from __future__ import annotations
 
+import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -69,16 +72,59 @@ def tensorboard_available() -> bool:
     return True
 
 
+@contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM (main thread, where a Python handler is installed) until the
+    block ends, then deliver them to that handler.
+
+    TensorBoard's writer hands records to its thread through a `queue.Queue`; a
+    KeyboardInterrupt raised between the queue's append and its task count leaves the count
+    one short, and the writer thread dies with ``task_done() called too many times`` — a
+    traceback on every such Ctrl-C. Deferred, the interrupt lands between two writes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    handlers = {
+        number: signal.getsignal(number)
+        for number in (signal.SIGINT, signal.SIGTERM)
+        if callable(signal.getsignal(number))
+    }
+    for number in handlers:
+        signal.signal(number, lambda received, _frame: pending.append(received))
+    try:
+        yield
+    finally:
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        for number in pending:
+            cast(Callable[[int, Any], Any], handlers[number])(number, None)
+
+
 class _ResumableTensorBoard(TensorBoardOutputFormat):
     """SB3's TensorBoard writer with a ``purge_step``: on a resume from step k, TensorBoard
     discards the earlier event files' records at steps > k (written after the checkpoint by
-    the killed process), so the resumed curves do not overlap."""
+    the killed process), so the resumed curves do not overlap. A signal arriving while it
+    writes is delivered when the write is done (`_interrupts_deferred`)."""
 
     def __init__(self, folder: str, purge_step: int | None) -> None:
         from torch.utils.tensorboard import SummaryWriter
 
         self.writer = SummaryWriter(log_dir=folder, purge_step=purge_step)
         self._is_closed = False
+
+    def write(
+        self,
+        key_values: dict[str, Any],
+        key_excluded: dict[str, tuple[str, ...]],
+        step: int = 0,
+    ) -> None:
+        with _interrupts_deferred():
+            super().write(key_values, key_excluded, step)
+
+    def close(self) -> None:
+        with _interrupts_deferred():
+            super().close()
 
 
 def training_logger(tb_dir: Path | None, start_step: int = 0) -> Logger:

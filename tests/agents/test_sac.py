@@ -8,7 +8,7 @@ import torch
 
 from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, build_action_layout
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
-from distgprl.agents.sac import exponential_anneal
+from distgprl.agents.sac import exponential_anneal, training_logger
 from distgprl.config import EnvConfig
 from distgprl.methods import get_method
 from distgprl.safety.hap import MovingObstacleFilter
@@ -545,3 +545,33 @@ def test_active_hap_norms_average_over_the_samples_outside_c_safe():
     # with the outside flags (the raw soft-min pulls inside C_safe too): only flagged samples
     flagged = active_hap_norms(gradient, 3, torch.tensor([False, False, True]))
     assert flagged == pytest.approx({"hap_active_fraction": 1 / 3, "grad_hap_active": 5.0})
+
+
+def test_a_signal_during_a_tensorboard_write_lands_after_the_write(tmp_path):
+    """Ctrl-C while the training logger writes its TensorBoard records: every record of the
+    dump is handed to the writer, then the KeyboardInterrupt is raised, and the writer
+    still closes (its thread's queue count intact: no ``task_done() called too many times``
+    traceback)."""
+    import os
+    import signal
+
+    pytest.importorskip("tensorboard")
+    logger = training_logger(tmp_path / "tb")
+    (board,) = logger.output_formats
+    add_scalar = board.writer.add_scalar
+    written: list[str] = []
+
+    def add_scalar_and_interrupt(tag, *args, **kwargs):
+        if not written:
+            os.kill(os.getpid(), signal.SIGINT)
+        written.append(tag)
+        return add_scalar(tag, *args, **kwargs)
+
+    board.writer.add_scalar = add_scalar_and_interrupt
+    logger.record("train/a", 1.0)
+    logger.record("train/b", 2.0)
+    with pytest.raises(KeyboardInterrupt):
+        logger.dump(1)
+    assert written == ["train/a", "train/b"]
+    logger.close()
+    assert list((tmp_path / "tb").glob("events.out.tfevents.*"))
