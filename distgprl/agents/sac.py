@@ -97,8 +97,8 @@ def _interrupts_deferred() -> Iterator[None]:
     finally:
         for number, handler in handlers.items():
             signal.signal(number, handler)
-        for number in pending:
-            cast(Callable[[int, Any], Any], handlers[number])(number, None)
+        for received in pending:
+            cast(Callable[[int, Any], Any], handlers[signal.Signals(received)])(received, None)
 
 
 class _ResumableTensorBoard(TensorBoardOutputFormat):
