@@ -84,6 +84,7 @@ def hardware(
     The paper's protocol by default (`distgprl.trial_protocol`); an unknown
     ``--protocol`` is a user error (exit 2)."""
     from distgprl.experiments.trial_policy import load_trial_policy
+    from distgprl.hardware.trial_rows import describe_summary
     from distgprl.hardware.trials import run_trials
     from distgprl.safety_layer.retime import RepairConfig
 
@@ -108,4 +109,4 @@ def hardware(
         protocol=protocol,
         load_policy=load_trial_policy,
     )
-    typer.echo(f"{report.path}: {report.summary}")
+    typer.echo(f"{describe_summary(report.summary, protocol)} -> {report.path}")

@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from distgprl.hardware.trial_rows import describe_summary
 from distgprl.identity import resolve_run
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
@@ -160,17 +161,9 @@ def run_table2_trials(
             echo=lambda line: None,
             load_policy=load_trial_policy,
         )
-        summary = report.summary
-        stopped = (
-            f"protective stops {int(summary.get('protective_stops', 0))}"
-            if setting.protocol == PAPER
-            else f"refused {int(summary.get('refused', 0))}"
-        )
         echo(
             f"twin trials {method} seed {seed} ({setting.describe()}): "
-            f"success {summary.get('success_rate', 0.0):.2f}, "
-            f"collision {summary.get('collision_rate', 0.0):.2f}, "
-            f"{stopped} of {int(summary['trials'])} -> {report.path}"
+            f"{describe_summary(report.summary, setting.protocol)} -> {report.path}"
         )
         written.append(report.path)
     return written

@@ -13,7 +13,7 @@ import numpy as np
 
 from distgprl.safety_layer.plan_check import tool_check_points
 from distgprl.schema import moved_robot
-from distgprl.trial_protocol import PROTECTIVE_STOP
+from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP
 
 
 def finish_row(
@@ -132,3 +132,33 @@ def summarise_trials(rows: list[dict[str, Any]]) -> dict[str, float]:
         clearance = [float(r["min_clearance"]) for r in moved]
         summary["min_clearance_p5"] = float(np.percentile(clearance, 5))
     return summary
+
+
+def describe_summary(summary: dict[str, float], protocol: str) -> str:
+    """One line of a `summarise_trials` summary, as the CLI and the sweep print it: the
+    success and collision rates, the protocol's stops (the paper's: protective stops;
+    the safety layer's: refusals) of the trials, and MinCl in millimetres."""
+    stops = (
+        f"protective stops {int(summary.get('protective_stops', 0))}"
+        if protocol == PAPER
+        else f"refused {int(summary.get('refused', 0))}"
+    )
+    line = (
+        f"success {summary.get('success_rate', 0.0):.2f}, "
+        f"collision {summary.get('collision_rate', 0.0):.2f}, "
+        f"{stops} of {int(summary['trials'])}"
+    )
+    if "min_clearance_p5" in summary:
+        line += f", MinCl {1000 * summary['min_clearance_p5']:.1f} mm"
+    return line
+
+
+def describe_trial(row: dict[str, Any]) -> str:
+    """One trial's row in a line: its status, then (when judged) success, collision and its
+    minimum clearance in millimetres."""
+    line = str(row["status"])
+    if row["success"] != "":
+        line += f", success {row['success']}, collision {row['collision']}"
+    if row.get("min_clearance") not in ("", None):
+        line += f", min clearance {1000 * float(row['min_clearance']):.1f} mm"
+    return line

@@ -52,7 +52,7 @@ from distgprl.hardware.perception import (
     load_calibration,
 )
 from distgprl.hardware.trial_episode import TrialSetup, one_trial
-from distgprl.hardware.trial_rows import summarise_trials
+from distgprl.hardware.trial_rows import describe_trial, summarise_trials
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits, SafetyLimits
 from distgprl.safety_layer.retime import RepairConfig
 from distgprl.safety_layer.window_check import NO_VIA_POINTS, safety_layer
@@ -359,10 +359,7 @@ def _run_all(setup: TrialSetup, tcs: list, backend: str, path: Path, meta: dict)
             row["backend"] = backend
             rows.append(row)
             save()
-            echo(
-                f"trial {index + 1}/{len(tcs)}: {row['status']} success={row['success']} "
-                f"collision={row['collision']} min_clearance={row['min_clearance']}"
-            )
+            echo(f"trial {index + 1}/{len(tcs)}: {describe_trial(row)}")
     except KeyboardInterrupt:
         robot.stop()
         echo(f"interrupted: robot stopped; {len(rows)} finished trial(s) saved to {path}")

@@ -218,6 +218,19 @@ def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
     assert summary["success_rate"] == pytest.approx(1 / 3)
     only_refused = summarise_trials([row("refused", "0.0", "0.060")])
     assert only_refused["moved"] == 0 and "min_clearance_p5" not in only_refused
+    from distgprl.hardware.trial_rows import describe_summary, describe_trial
+
+    # printed as the sweep and the CLI print it: the protocol's stops, MinCl in mm
+    assert describe_summary(summary, "safety-layer") == (
+        "success 0.33, collision 0.00, refused 2 of 3, "
+        f"MinCl {1000 * summary['min_clearance_p5']:.1f} mm"
+    )
+    assert describe_summary(only_refused, "paper").startswith(
+        "success 0.00, collision 0.00, protective stops 0 of 1"
+    )
+    assert "MinCl" not in describe_summary(only_refused, "paper")
+    assert describe_trial(rows[0]) == "ok, success 1, collision 0, min clearance 10.0 mm"
+    assert describe_trial({**rows[1], "success": "", "min_clearance": ""}) == "refused"
 
 
 def test_too_fast_plans_are_retimed_not_refused(tmp_path):
