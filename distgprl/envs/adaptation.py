@@ -52,11 +52,11 @@ class AdaptationEnv(TaskEnv):
     An episode adapts and executes the task's demonstrated skill, conditioned on a task
     configuration (TC), in ``n_windows`` = 3 steps: step t_s updates window t_s (L = 5 of
     the N = 15 via-points) and executes the trajectory's segment t_s. Global methods
-    (``action_mode == "global"``) observe and update all 13 interior via-points at every
-    step; the ``demo`` reference (``action_mode == "none"``) ignores the action.
+    (``action_mode == "global"``) have L = 13, all interior via-points, at every step; the
+    ``demo`` reference (``action_mode == "none"``) ignores the action.
 
-    **Observation space**: ``Dict`` of float32 boxes; the networks see only ``state``,
-    (Gamma_W, c, e_o, e_g, phi) concatenated:
+    **Observation space**: ``Dict`` of float32 boxes; the networks see only ``state``, the
+    concatenation of:
 
     - Gamma_W (L x 6, dimensionless): the window via-points (position, rotation vector)
       minus the demonstration via-points' mean, over their std floored at
@@ -107,13 +107,17 @@ class AdaptationEnv(TaskEnv):
 
     **Episode end**: ``terminated`` after ``n_windows`` steps or, with
     ``collision_ends_episode``, at the step whose segment collides (execution stops at that
-    control period, like a protective stop); never ``truncated``. The last ``info`` adds
-    ``success`` (completed, and no collision when collisions end the episode),
+    control period, like a protective stop); never ``truncated``. The last step's ``info``
+    adds ``success`` (completed, and no collision when collisions end the episode),
     ``completed`` (the task's success criterion at the end), ``collision``,
-    ``stopped_at_step`` (-1 if none), ``min_clearance`` (m, >= 0) and
-    ``min_signed_clearance`` (m, negative = penetration), ``peak_joint_speed`` (rad/s,
-    commanded), ``kinematic_retention`` (mean velocity cosine to the demonstration),
-    ``adaptation_time_s`` (s, per step) and ``final_parameters`` (Gamma, N x 6).
+    ``stopped_at_step`` (-1 if none), ``min_clearance`` (m, >= 0), ``min_signed_clearance``
+    (m, negative = penetration), ``peak_joint_speed`` (rad/s, the largest commanded; the
+    hardware safety layer bounds it), ``kinematic_retention`` (mean velocity cosine to the
+    demonstration), ``adaptation_time_s`` (s, per step) and ``final_parameters`` (Gamma,
+    N x 6).
+
+    How these rules read the paper's equations, with their arguments: protocol rule 4
+    ("Equations as written", docs/FINDINGS.md); what each replaced: CHANGELOG.md.
 
     Args:
         task: the task name (``"dcp"`` or ``"dbm"``).
@@ -121,9 +125,6 @@ class AdaptationEnv(TaskEnv):
         config: the env's constants (`EnvConfig`; paper defaults if None).
         skill: the task's GP skill (the committed fit if None).
         render_mode: ``"rgb_array"`` or None.
-
-    How these rules read the paper's equations, with their arguments: protocol rule 4
-    ("Equations as written", docs/FINDINGS.md); what each replaced: CHANGELOG.md.
     """
 
     def __init__(
