@@ -19,8 +19,10 @@ __all__ = [
 
 ENVIRONMENT_VERSION = 8
 """The environment version every run records (it enters the config hash, so runs of an older
-version are stale). What each version changed, and why: CHANGELOG.md and docs/FINDINGS.md
-(the current protocol: docs/findings/environment-v8.md "Protocol v8")."""
+version are stale). What each version changed, and why: CHANGELOG.md and docs/FINDINGS.md.
+Docstrings cite the current protocol's rules as "protocol rule N" (their text:
+docs/findings/environment-v8.md "Protocol v8") and the earlier protocol's rules that still
+stand as "docs/findings/protocol.md, rule N"."""
 
 
 @dataclass(frozen=True)

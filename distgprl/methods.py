@@ -207,7 +207,7 @@ is the same 10 Hz residual RL as Table I's ``promp-rrl``, its
 nominal the ProMP of the one demonstration every GP method gets, its gate's ProMP fitted to
 20 TC-conditioned copies of it (the paper's §V-A "a single expert demonstration for each
 task", where its §V-B defines ProMP-RRL on 20 demonstrated trajectories;
-docs/findings/environment-v8.md "Protocol v8", rule 3) — and ``promp-nominal-1demo`` its
+protocol rule 3, "ProMP-RRL as the paper defines it") — and ``promp-nominal-1demo`` its
 nominal with zero residual."""
 
 

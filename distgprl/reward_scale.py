@@ -1,4 +1,4 @@
-"""r_tc's scale against λ_ga's stated purpose (protocol v8, rule 1).
+"""r_tc's scale against λ_ga's stated purpose (protocol rule 1).
 
 The paper sets λ_ga = 0.2 "to provide more importance to the task completion while avoiding
 local collisions" (§V-A) but gives r_tc no unit. The unit is chosen so that the purpose holds,

@@ -1,4 +1,7 @@
-"""`distgprl mechanisms`: the mechanism table of a preset's runs (Protocol v6 rule 7)."""
+"""`distgprl mechanisms`: the mechanism table of a preset's runs.
+
+The table's rule: docs/findings/protocol.md, rule 7.
+"""
 
 from __future__ import annotations
 
@@ -25,7 +28,7 @@ def mechanisms(
     from distgprl.reward_scale import describe_reward_scale
 
     preset = resolve_preset(preset, config)
-    for task in TASK_NAMES:  # protocol v8 rule 1's two ratios, from the preset's reward scale
+    for task in TASK_NAMES:  # protocol rule 1's two ratios, from the preset's reward scale
         typer.echo(describe_reward_scale(load_config(preset, task=task).env, task))
     written, verdicts = write_mechanisms(root, preset, out_dir, reach_rows(root, preset))
     for line in verdicts:

@@ -3,14 +3,14 @@
 Registered ids (``gymnasium.make(id, method=...)``), one pair per task of
 `distgprl.data.TASK_NAMES`:
 
-- ``DistGPRL-DCP-v8``, ``DistGPRL-DBM-v8``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v8``, ``ProMPRRL-DBM-v8``: `distgprl.envs.residual.ResidualEnv`.
+- ``DistGPRL-DCP-v<N>``, ``DistGPRL-DBM-v<N>``: `distgprl.envs.adaptation.AdaptationEnv`;
+- ``ProMPRRL-DCP-v<N>``, ``ProMPRRL-DBM-v<N>``: `distgprl.envs.residual.ResidualEnv`,
 
-The version is `distgprl.config.ENVIRONMENT_VERSION`. ``import distgprl`` registers them
+N the environment version, `distgprl.config.ENVIRONMENT_VERSION`. ``import distgprl`` registers them
 without importing gymnasium: if gymnasium's registry is loaded they are registered at once,
 otherwise as soon as it loads (a finder on `sys.meta_path` waits for
 ``gymnasium.envs.registration``, then removes itself; the ids are computed only then).
-Gymnasium 1.x reads no plugin entry points; ``gymnasium.make("distgprl:DistGPRL-DCP-v8")``
+Gymnasium 1.x reads no plugin entry points; ``gymnasium.make("distgprl:DistGPRL-DCP-v<N>")``
 imports the package itself.
 """
 
@@ -36,7 +36,7 @@ _REGISTRY_MODULE = "gymnasium.envs.registration"
 
 
 def environment_id(prefix: str, task: str) -> str:
-    """The gymnasium id of ``task``'s environment, e.g. ``DistGPRL-DCP-v8``."""
+    """The gymnasium id of ``task``'s environment, ``<prefix>-<TASK>-v<ENVIRONMENT_VERSION>``."""
     from distgprl.config_types import ENVIRONMENT_VERSION
 
     return f"{prefix}-{task.upper()}-v{ENVIRONMENT_VERSION}"

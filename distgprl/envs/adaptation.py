@@ -1,6 +1,7 @@
 """The windowed via-point adaptation MDP of Dist-GPRL (paper §IV; DESIGN §3).
 
-Env ids: ``DistGPRL-DCP-v8`` and ``DistGPRL-DBM-v8`` (registered in `distgprl.envs`).
+Env ids: ``DistGPRL-DCP-v<N>`` and ``DistGPRL-DBM-v<N>``, N the environment version
+(registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -48,113 +49,82 @@ def cosine(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> np.ndarray:
 class AdaptationEnv(TaskEnv):
     """Windowed, covariance-correlated via-point adaptation of a GP skill (Dist-GPRL).
 
-    One episode adapts and executes the task's demonstrated skill, conditioned on a task
-    configuration (TC), in ``n_windows`` = 3 RL steps. Everything below is for the
-    windowed methods (L = 5, N = 15); global methods (``action_mode == "global"``) use
-    the same steps and segments with all 13 interior via-points in state and action.
+    An episode adapts and executes the task's demonstrated skill, conditioned on a task
+    configuration (TC), in ``n_windows`` = 3 steps: step t_s updates window t_s (L = 5 of
+    the N = 15 via-points) and executes the trajectory's segment t_s. Global methods
+    (``action_mode == "global"``) have L = 13, all interior via-points, at every step; the
+    ``demo`` reference (``action_mode == "none"``) ignores the action.
 
-    **Observation** (``Dict``; networks see only ``state``):
+    **Observation space**: ``Dict`` of float32 boxes; the networks see only ``state``, the
+    concatenation of:
 
-    ========================  ========  ==================================================
-    ``state`` slice           size      meaning (units)
-    ========================  ========  ==================================================
-    Gamma_W                   L x 6     window via-points, standardised per axis by the
-                                        demonstration via-points' mean and std, the std
-                                        floored at 0.05 m / 0.2 rad (dimensionless)
-    c                         L         EDF clearance at the window via-point positions,
-                                        each against the obstacles where they will be
-                                        when the trajectory reaches that via-point
-                                        (``clearance_timing``), clipped to
-                                        [-clip, clip] m, in units of
-                                        ``clearance_scale`` (dimensionless)
-    e_o                       3         object position - TCP position, clipped to
-                                        +-0.8 m, in units of
-                                        ``relative_position_scale`` (dimensionless)
-    e_g                       3         goal position - TCP position, likewise
-    phi                       1         phase t_s / n_windows in [0, 1] (1 only in the
-                                        terminal observation)
-    ========================  ========  ==================================================
+    - Gamma_W (L x 6, dimensionless): the window via-points (position, rotation vector)
+      minus the demonstration via-points' mean, over their std floored at
+      `OBSERVATION_SCALE_FLOOR` (0.05 m, 0.2 rad);
+    - c (L, units of ``clearance_scale`` m): EDF clearance at each window via-point
+      against the obstacles where they are at that via-point's time
+      (``clearance_timing``), clipped to +-``clearance_clip`` m;
+    - e_o, e_g (3 each, units of ``relative_position_scale`` m): object - TCP and
+      goal - TCP position, clipped to +-0.8 m per axis;
+    - phi (1, dimensionless): t_s / n_windows (1 only in the terminal observation).
 
-    ``aux`` (not seen by the networks; used by the regularised actor loss): the full
-    current via-points Gamma (N x 6, m and rad, flattened), a one-hot of the step and, for
-    methods with the HAP prior, the moving obstacles' anchor position at every via-point's
-    time (N x 3, m; `moving_obstacle_anchors`), from which L_hap filters C_safe.
+    ``aux`` (the regularised actor loss only): Gamma (N x 6, m and rad), a one-hot of t_s
+    and, with the HAP prior, the moving obstacles' anchor at each via-point's time
+    (N x 3, m; `moving_obstacle_anchors`).
 
-    **Action**: raw a in [-1, 1]^(L x 6), row-major (via-point, axis). It is scaled per
-    axis (``position_action_scale`` m, ``rotation_action_scale`` rad; a third of that per
-    step for the global methods, which set ``episode_range``), then correlated
-    Delta Gamma = S_W a (Eq. transformed_action; identity for ``dist-gprl-nocov`` and
-    global methods) and added to the window's via-points (Eq. updated_via_points).
-    Via-points 0 (start) and N-1 (end) never change; GPRL also freezes the TC via-point.
+    **Action space**: ``Box(-1, 1, (L x 6,))``, row-major (via-point, axis). Scaled per
+    axis by ``action_scale_rule`` (a third per step for methods with ``episode_range``),
+    correlated Delta Gamma = S_W a (Eq. transformed_action; S_W from the K named by
+    ``covariance_scale``, the identity for ``dist-gprl-nocov`` and the global methods) and
+    added to the window (Eq. updated_via_points). Via-points 0 and N-1 never change; GPRL
+    also holds the TC via-point.
 
-    **Transition**: the adapted trajectory's segment for this step (from the window's
-    first via-point time to the next window's, the first from t = 0 and the last to the
-    end) is executed in the simulator at its control rate while the object and the
-    obstacles keep moving. If updating the overlap via-point moved the planned pose at the
-    segment start away from where the robot is, the difference is blended out with a
-    minimum-jerk weight over ``blend_fraction`` of the segment (continuity).
+    **Transition**: segment t_s (from the window's first via-point time to the next
+    window's; the first from t = 0, the last to the end) runs in the simulator at its
+    control rate while the object and the obstacles move; a jump of the planned pose at
+    the segment start is blended out over ``blend_fraction`` of it (minimum jerk).
 
-    **Reward** (Eq. total_reward) r = r_tc + r_sd + lambda_ga r_ga (+ r_signature for
-    GPRL), with r_tc = r_progress + r_success + r_collision. Each term is in ``info``
-    under its name and they sum to the reward:
+    **Reward** (Eq. total_reward): the sum of the terms below, each in ``info`` under its
+    name (r_tc = r_progress + r_success + r_collision):
 
-    - ``r_progress`` = progress_weight * (task progress after - before), progress in [0, 1];
-    - ``r_success`` = success_bonus at the last step if the episode succeeded (v5: the
-      task completed without collision);
-    - ``r_collision`` = -collision_penalty if the segment had a collision (v5: the
-      episode's last step);
-    - ``r_sd`` = -beta sum_i 1[d_i < d_min] / (d_i + eps) over the tool points at
-      ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward; 0 if the
-      method has no distance rewards);
-    - ``r_ga`` = lambda_ga * mean_j cos(Delta Gamma_j[xyz], grad d(v_j)) over the window
-      via-points v_j *before* this step's update (the points ``c`` was observed at), grad d
-      from the same time-indexed field as ``c`` (Eq. grad_alignment_reward; 0 without
-      distance rewards). ``info["r_ga"]`` already includes lambda_ga;
-    - ``r_signature`` = signature_weight * signature similarity between the executed
-      segment's planned path and the demonstration's (GPRL only).
+    - ``r_progress``: ``progress_weight`` x the change of task progress (in [0, 1]);
+    - ``r_success``: ``success_bonus`` at the last step if ``success``;
+    - ``r_collision``: -``collision_penalty`` if the segment had a collision;
+    - ``r_sd``: -``sd_beta`` sum 1[d < d_min] / (d + eps) over the tool points at
+      ``sd_samples_per_segment`` instants of the segment (Eq. safety_reward);
+    - ``r_ga``: ``lambda_ga`` x mean_j cos(Delta Gamma_j[xyz], grad d(v_j)) over the window
+      via-points before this step's update, grad d from the field of ``c``
+      (Eq. grad_alignment_reward);
+    - ``r_signature``: ``signature_weight`` x the signature similarity of the segment's
+      planned path to the demonstration's (GPRL only).
 
-    **Start**: ``reset(seed, options={"tc": TaskConfig})`` or a TC sampled from the
-    task's training distribution with the env's generator. The via-points are the
-    demonstration's, conditioned on the TC: the interaction via-point and its successors
-    move by the object's start offset; via-point 0 is the robot's start pose.
+    r_sd and r_ga are 0 for methods without distance rewards.
 
-    **End**: ``terminated`` after ``n_windows`` steps, or (v5, ``collision_ends_episode``)
-    at the step whose segment collides: execution stops at the control period of the
-    collision, as a protective stop ends a hardware trial, and the episode ends there
-    (``stopped_at_step``; -1 if it ran to the end). ``info`` at the end carries ``success``
-    (v5: the task completed and no collision; with ``collision_ends_episode=False``, v4's
-    completion regardless of collision), ``completed`` (the task's success criterion at the
-    end, whatever happened before), ``collision``, ``min_clearance`` (m, the minimum
-    robot/tool-obstacle distance, >= 0), ``min_signed_clearance`` (m, negative =
-    penetration depth), ``peak_joint_speed`` (rad/s, the
-    largest commanded joint speed of the episode; not part of the MDP, recorded because
-    the hardware safety layer bounds it), ``kinematic_retention`` (mean velocity cosine to
-    the demonstration) and ``adaptation_time_s`` per step.
+    **Starting state**: ``reset(seed, options={"tc": TaskConfig})``, else a TC drawn from
+    the task's training distribution by the env's generator; the via-points are the
+    demonstration's conditioned on the TC (the interaction via-point and its successors
+    move by the object's offset; via-point 0 is the robot's start pose).
 
-    The ``demo`` reference (``action_mode == "none"``) runs the same episodes with the
-    action ignored (Delta Gamma = 0): the TC-conditioned demonstration executed as is.
+    **Episode end**: ``terminated`` after ``n_windows`` steps or, with
+    ``collision_ends_episode``, at the step whose segment collides (execution stops at that
+    control period, like a protective stop); never ``truncated``. The last step's ``info``
+    adds ``success`` (completed, and no collision when collisions end the episode),
+    ``completed`` (the task's success criterion at the end), ``collision``,
+    ``stopped_at_step`` (-1 if none), ``min_clearance`` (m, >= 0), ``min_signed_clearance``
+    (m, negative = penetration), ``peak_joint_speed`` (rad/s, the largest commanded; the
+    hardware safety layer bounds it), ``kinematic_retention`` (mean velocity cosine to the
+    demonstration), ``adaptation_time_s`` (s, per step) and ``final_parameters`` (Gamma,
+    N x 6).
 
-    **Versions**: v7 — r_sd's beta = eps / (instants x tool points): the whole tool at
-    contact for a segment costs one collision penalty (docs/FINDINGS.md "Environment v7").
-    v6 (docs/FINDINGS.md "Protocol v6") — (a) r_tc in units of one task and
-    beta = eps / 4; (b) S_W from the zero-mean GP of Eq. 1 per axis; (c) action scales from
-    the reach rule; (d) TC conditioning by `distgprl.skill.conditioning` (DCP's push ends at
-    the world-fixed goal).
-    v5 — (a) a collision ends the episode (protective stop) and success is
-    completion without collision (``completed`` keeps v4's success); (b) S_W is built per
-    axis from the GP's covariance in via-point units (``covariance_scale="signal"``; v4's
-    unit-variance K made S_W nearly the identity); (c) DBM's bars vary across the belt too
-    (scene revision 2); (d) ``min_clearance`` is a distance (>= 0), the signed value is
-    ``min_signed_clearance``. docs/FINDINGS.md "Environment v5".
-    v4 — (a) r_ga takes grad d at the window's via-points before the step's
-    update, as Eq. grad_alignment_reward defines v_j (v3 used the updated via-points, so a
-    move across an obstacle's medial axis could be scored against the gradient on the far
-    side); (b) for methods with the HAP prior, ``aux`` carries the moving obstacles'
-    anchors, with which L_hap leaves out the C_safe points the moving obstacles block
-    (v3's L_hap used the static C_safe only). Methods without distance rewards or HAP
-    prior (GPRL, the ``demo`` reference) behave exactly as in v3.
-    v3 — position action scale 0.1 m. v2 — time-indexed clearances and r_ga gradients; O(1)
-    state inputs. v1 — floored via-point scale. v0 — first release. (CHANGELOG.md: in full.)
+    How these rules read the paper's equations, with their arguments: protocol rule 4
+    ("Equations as written", docs/FINDINGS.md); what each replaced: CHANGELOG.md.
+
+    Args:
+        task: the task name (``"dcp"`` or ``"dbm"``).
+        method: a method name or spec whose ``action_mode`` this MDP runs.
+        config: the env's constants (`EnvConfig`; paper defaults if None).
+        skill: the task's GP skill (the committed fit if None).
+        render_mode: ``"rgb_array"`` or None.
     """
 
     def __init__(
@@ -179,7 +149,7 @@ class AdaptationEnv(TaskEnv):
         self.layout = build_action_layout(
             self.skill, self.config, self.method, frozen, np.asarray(self.spec_task.tc_range)
         )
-        # Time-indexed clearances (v2); ``field``: all obstacles as they are now.
+        # Time-indexed clearances (``clearance_timing``); ``field``: all obstacles as they are now.
         self.clearance = TimedClearance(self.sim.obstacle_shapes(), self.config.clearance_timing)
         self.field = self.clearance.field
         # Where the segments run: the simulation, r_sd's tool clearance after each sample.
@@ -220,7 +190,7 @@ class AdaptationEnv(TaskEnv):
         n_points = self.layout.points_per_step
         state_dim = n_points * 6 + n_points + 3 + 3 + 1
         n = self.config.n_via_points
-        # aux: Gamma, the step's one-hot and, for L_hap's moving-obstacle filter (v4), the
+        # aux: Gamma, the step's one-hot and, for L_hap's moving-obstacle filter, the
         # moving obstacles' anchor at every via-point time.
         self.aux_layout = AuxLayout(n, self.layout.n_steps, self.method.hap_prior)
         aux_dim = self.aux_layout.size
@@ -276,7 +246,7 @@ class AdaptationEnv(TaskEnv):
         return tool_bounds(in_tcp, rotations)
 
     def moving_obstacle_filter(self) -> MovingObstacleFilter:
-        """Which C_safe points the moving obstacles block, given their anchor (L_hap, v4).
+        """Which C_safe points the moving obstacles block, given their anchor (for L_hap).
 
         A C_safe point is blocked when the `tool_box` held there would come within
         ``sd_d_min`` (the d_min of r_sd) of a moving obstacle.
@@ -400,7 +370,7 @@ class AdaptationEnv(TaskEnv):
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         if self.method.distance_rewards:
             # Eq. grad_alignment_reward: grad d at the window's via-points *before* the update
-            # (v_j in Gamma_{t_s}^W, not the updated ones; v4).
+            # (v_j in Gamma_{t_s}^W, not the updated ones).
             _, gradient = self.window_distance(indices)
         delta, poses = plan_segment(
             self, step, action
@@ -435,8 +405,8 @@ class AdaptationEnv(TaskEnv):
         self._episode_over = terminated
         if terminated:
             completed = bool(self.sim.success())
-            # v5: success is completion without collision (as on hardware, where a
-            # collision is a protective stop); v4's success is kept as ``completed``.
+            # Success is completion without collision (as on hardware, where a collision
+            # is a protective stop); completion alone is ``completed``.
             success = completed and not (self.tally.collision and config.collision_ends_episode)
             if success:
                 terms["r_success"] = config.success_bonus

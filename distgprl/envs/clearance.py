@@ -1,9 +1,9 @@
-"""Time-indexed clearance of the adaptation env's window (environment v2; DESIGN §3).
+"""Time-indexed clearance of the adaptation env's window (DESIGN §3).
 
 The observation's ``c`` and r_ga's gradients are taken at the window's poses against the
 obstacles where they will be when the trajectory reaches each pose
 (``clearance_timing == "predicted"``), or where they are now (``"current"``); L_hap's
-moving-obstacle anchors likewise (v4).
+moving-obstacle anchors likewise.
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
 
-Env ids: ``ProMPRRL-DCP-v8`` and ``ProMPRRL-DBM-v8``.
+Env ids: ``ProMPRRL-DCP-v<N>`` and ``ProMPRRL-DBM-v<N>``, N the environment version
+(registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -132,9 +133,9 @@ def check_demonstrations_succeed(spec: TaskSpec, entries: list[DemonstrationSetE
 @lru_cache(maxsize=8)
 def load_task_promp(task: str, source: str = "one") -> ObjectCentricProMP:
     """The object-centric ProMP of ProMP-RRL: fitted to `expert_demonstration_set`
-    (``"expert"``, the 20 demonstrations of Table I's ProMP-RRL since environment v8) or to
+    (``"expert"``, the 20 demonstrations of Table I's ProMP-RRL) or to
     `one_demonstration_set` (``"one"``, 20 TC-conditioned copies of the one demonstration:
-    the gate of the study method ``promp-rrl-1demo``, environment v5-v7's Table I baseline).
+    the gate of the study method ``promp-rrl-1demo``).
 
     Each demonstration is expressed in its object's frame by subtracting the object's start
     offset (x, y, 0) before the fit.
@@ -152,21 +153,20 @@ class ResidualEnv(AdaptationEnv):
     """Residual RL on the ProMP nominal trajectory, with the Dist-GPRL episode structure.
 
     The nominal trajectory is the object-centric ProMP's mean for the observed object
-    start offset, conditioned to start at the robot's current pose. The ProMP is fitted to
-    the one demonstration conditioned on training-distribution TCs (`load_task_promp`,
-    ``"one"``; the exploration method ``promp-rrl-expert`` fits it to 20 TC-aware expert
-    demonstrations instead). The policy learns a residual correction on top of it
-    (Johannink et al. 2018):
+    start offset, conditioned to start at the robot's current pose. The ProMP is
+    `load_task_promp`'s for the method's ``demonstrations``: ``"one"`` (the one
+    demonstration conditioned on training-distribution TCs) or ``"expert"`` (20 TC-aware
+    expert demonstrations, e.g. the exploration method ``promp-rrl-expert``). The policy
+    learns a residual correction on top of it (Johannink et al. 2018):
 
         pose(tau) = nominal(tau) + sum_j g_j w_j phi_j(tau),
 
     with N = 15 Gaussian radial basis functions centred at the via-point times (width =
-    their spacing), *normalised* to sum to 1 (v5: so a residual of the same size on every
-    weight moves the pose by exactly that size — the GP methods' total range; v4's
-    unnormalised basis gave about 2.5 times it), the ProMP's `variance_gate` g_j, and
-    residual weights w (N x 6, m and rad), all zero at the start of an episode (a zero
-    action executes the nominal trajectory exactly). RL step
-    k adds to the weights of the same windows as Dist-GPRL (W_k, L = 5, one-point overlap)
+    their spacing), *normalised* to sum to 1 (a residual of the same size on every weight
+    moves the pose by exactly that size, the GP methods' total range), the ProMP's
+    `variance_gate` g_j, and residual weights w (N x 6, m and rad), all zero at the start
+    of an episode (a zero action executes the nominal trajectory exactly). RL step k adds
+    to the weights of the same windows as Dist-GPRL (W_k, L = 5, one-point overlap)
     from a raw action a in [-1, 1]^(L x 6) scaled per axis — no covariance transform —
     and the same segments are executed with the same blending (the overlap via-point's
     weight accumulates both windows' updates).
@@ -178,15 +178,8 @@ class ResidualEnv(AdaptationEnv):
     **Reward**: the task reward only, r = r_progress + r_success + r_collision (the
     collision penalty included); no distance shaping, no HAP prior, no L_sim.
 
-    **Versions**: v6, v7 — no change of its own (the exploration method
-    ``promp-rrl-windowed``; see `AdaptationEnv` for what those versions changed).
-    v5 — the ProMP is fitted to the one demonstration the GP methods get (v4:
-    20 TC-aware expert demonstrations, now ``promp-rrl-expert``); normalised residual basis;
-    the variance gate; the AdaptationEnv v5 outcome semantics. v4 was not released for
-    this env (its ids went from v3 to v5).
-    v3 — position action scale 0.1 m (see `AdaptationEnv`). v2 — time-indexed
-    clearances and O(1) observation units (see `AdaptationEnv`). v1 — floored observation
-    scale. v0 — first release.
+    **Start** and **End**: as `AdaptationEnv` (the same ``info`` at the end).
+    What each environment version changed for this env: CHANGELOG.md.
     """
 
     def __init__(

@@ -1,12 +1,12 @@
 """ProMP-RRL as residual RL: a 10 Hz Cartesian residual on the object-offset ProMP nominal
-(Johannink et al. 2018; Carvalho et al. 2022; issue 48 item 4, Protocol v6 rule 4).
+(Johannink et al. 2018; Carvalho et al. 2022; docs/findings/protocol.md, rule 4).
 
 The numerics (schedule, range, gate, hold, composition) are `distgprl.adaptation.
 residual_control`; this module adds the simulator, the nominal and the MDP. Methods
-``promp-rrl`` (Table I's ProMP-RRL: the ProMP of the 20 expert demonstrations, Protocol v8
-rule 3) and the ``promp-nominal`` reference (its nominal, zero residual); the study methods
-``promp-rrl-1demo`` and ``promp-nominal-1demo`` (environment v7's ProMP-RRL, one
-demonstration); action mode ``residual-control``.
+``promp-rrl`` (Table I's ProMP-RRL: the ProMP of the 20 expert demonstrations, protocol
+rule 3, "ProMP-RRL as the paper defines it") and the ``promp-nominal`` reference (its nominal,
+zero residual); the study methods ``promp-rrl-1demo`` and ``promp-nominal-1demo`` (the ProMP
+of one demonstration); action mode ``residual-control``.
 """
 
 from __future__ import annotations
@@ -63,8 +63,7 @@ GATE_MODE: GateMode = "certain"
 """Which reading of the variance gate the env uses (`residual_control.GATE_MODES`):
 ``certain`` — Carvalho et al. use the demonstrations' variability "as a decision variable to
 reduce the search space for RRL": the residual acts where the ProMP's variance is low (the
-demonstrations agree, the task needs precision there) and is held back where it is high, as
-v5's ProMP-RRL read it (docs/FINDINGS.md "Environment v5", item 5)."""
+demonstrations agree, the task needs precision there) and is held back where it is high."""
 
 ROTATION_ERROR_CLIP = 4.0
 """The observed orientation error is clipped to +-this many rotation ranges per axis."""
@@ -93,11 +92,11 @@ def condition_nominal(
     """The nominal of a ``one``-demonstration method conditioned on ``tc``: the one place
     that says how the TC moves it.
 
-    Rule 2 of Protocol v6, as every method gets it for a dense trajectory
-    (`distgprl.sim.tasks.base.condition_by_translation`): the poses are translated by the
-    object offset (dx, dy, 0) weighted by w(tau) — 1 at the task's interaction time, ramping
-    in with a minimum-jerk blend before it, and after it falling linearly to 0 at the end
-    where the goal is fixed in the world (DCP) or staying 1 (DBM).
+    The TC conditioning of docs/findings/protocol.md, rule 2, as every method gets it for a
+    dense trajectory (`distgprl.sim.tasks.base.condition_by_translation`): the poses are
+    translated by the object offset (dx, dy, 0) weighted by w(tau) — 1 at the task's
+    interaction time, ramping in with a minimum-jerk blend before it, and after it falling
+    linearly to 0 at the end where the goal is fixed in the world (DCP) or staying 1 (DBM).
 
     Args:
         spec: the `TaskSpec` (interaction time, goal rule).
@@ -134,7 +133,7 @@ class ResidualRLEnv(TaskEnv):
     (``promp-rrl``, ``promp-nominal``) — one object-centric ProMP fitted over the 20 shipped
     expert demonstrations (`load_task_promp`, refused unless they are exactly 20, each
     successful and collision-free for its TC), the nominal's and the gate's; ``one``
-    (``promp-rrl-1demo``, ``promp-nominal-1demo``, environment v7's ProMP-RRL) — the nominal
+    (``promp-rrl-1demo``, ``promp-nominal-1demo``) — the nominal
     from the ProMP of the one demonstration (`load_nominal_promp`; its mean fits the
     demonstration to about 2 mm), the gate from the ProMP of 20 copies of it conditioned on
     training TCs.

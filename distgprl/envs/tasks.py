@@ -126,7 +126,7 @@ def _hap_prior_cached(task: str, k: int, temperature: float, hinge: bool):
 
 def load_task_hap_prior(task: str, k: int = 8, temperature: float = 0.05, hinge: bool = False):
     """The L_hap prior over the task's static C_safe: Eq. hap_compact as written (the raw
-    soft-min in m, no offset; environment v8), or with ``hinge`` environment v6–v7's variant,
-    hinged at a safe cell's soft-min and in units of the task's HAP grid step
+    soft-min in m, no offset), or with ``hinge`` the variant hinged at a safe cell's
+    soft-min and in units of the task's HAP grid step
     (`distgprl.safety.hap_loss.HapPrior`'s ``hinge_step``; ``SACConfig.hap_hinge``)."""
     return _hap_prior_cached(task, int(k), float(temperature), bool(hinge))

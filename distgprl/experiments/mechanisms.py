@@ -1,4 +1,6 @@
-"""Reach of each trainable method's raw action, for the mechanism table (Protocol v6 rule 7).
+"""Reach of each trainable method's raw action, for the mechanism table.
+
+The mechanism table is docs/findings/protocol.md, rule 7.
 
 How far a raw action in [-1, 1] can move what a method adapts, per position axis (x, y, z, m),
 computed from the environment the method's runs train in (`distgprl.experiments.factories.

@@ -31,7 +31,7 @@ def curve_policy_path(folder: Path, step: int) -> Path:
 
 def curve_rank(row: dict[str, Any]) -> tuple[float, ...]:
     """How learning-curve points are ordered when Algorithm 1's "best policy" is selected,
-    as pre-registered (docs/FINDINGS.md "Protocol v6", rule 6): by the success rate on the
+    as pre-registered (docs/findings/protocol.md, rule 6): by the success rate on the
     learning-curve TCs alone; equal ones go to the later point (`best_curve_row`). The curve
     TCs are drawn from their own stream, disjoint from the evaluation TCs, so selecting on
     them and evaluating on the evaluation TCs is an honest model selection."""
@@ -218,7 +218,7 @@ def load_curve_policy(folder: Path, model, step: int) -> None:
 
 
 SHIPPED_POLICY = "policy_best.pt"
-"""The actor Table I evaluates (Algorithm 1's best policy), committed with a v6 run's small
+"""The actor Table I evaluates (Algorithm 1's best policy), committed with a run's small
 files (weights only: no critic, optimiser state or replay buffer); its step (> learning_starts),
 SHA-256 and comparison with the untrained step-0 point (``beats_untrained``,
 ``untrained_curve_success_rate``) are in `SHIPPED_POLICY_RECORD`."""

@@ -20,7 +20,7 @@ the safety layer's `~distgprl.safety_layer.gates.RepairGate`:
 3. a refused window ends the episode there, before it moves: a *protective refusal*,
    neither a success nor a collision, recorded as ``refused`` with the window and the
    reason; an accepted plan is executed in the PyBullet task simulation (`TaskSim.execute`,
-   stopping at a collision as the v5 environment does).
+   stopping at a collision as the environment does).
 
 **How a retimed segment is executed.** As the twin backend does
 (:class:`~distgprl.hardware.backends.TwinBackend`): the retimed plan is a longer list of

@@ -66,17 +66,17 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate, collision rate, MinCl as pre-registered for environment v6
-    (``min_clearance_p5_collision_free``: the 5th percentile of the episode-wise minimum
-    clearance over the ``collision_free_episodes`` episodes without a collision, None where
-    every episode collided; `collision_free_min_clearance_p5`), v5's MinCl over all episodes
-    (``min_clearance_p5``: the 5th percentile of episode min clearance, clamped at 0: a
-    distance), safe success (success without collision; equal to success
-    from environment v5 on), for v5 rows the completion rate (v4's success) and the 5th
-    percentile of the signed minimum clearance (negative: penetration), means of the
-    per-episode columns and, for
-    rows that record it, the 95th percentile of the episodes' peak joint speed (rad/s) and
-    the share of episodes above the hardware safety layer's joint speed limit."""
+    """Success rate, collision rate, MinCl (``min_clearance_p5_collision_free``: the 5th
+    percentile of the episode-wise minimum clearance over the ``collision_free_episodes``
+    episodes without a collision, None where every episode collided;
+    `collision_free_min_clearance_p5`; docs/findings/protocol.md, rule 5), MinCl over all
+    episodes (``min_clearance_p5``: the 5th percentile of episode min clearance, clamped at
+    0: a distance), safe success (success without collision; equal to success wherever a
+    collision ends the episode), for rows that record ``completed`` the completion rate
+    (the task completed, collision or not) and the 5th percentile of the signed minimum
+    clearance (negative: penetration), means of the per-episode columns and, for rows that
+    record it, the 95th percentile of the episodes' peak joint speed (rad/s) and the share
+    of episodes above the hardware safety layer's joint speed limit."""
     if not rows:
         raise ValueError("no episodes to summarise")
 
@@ -86,18 +86,18 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     adaptation = np.nansum(
         np.stack([column(f"adaptation_ms_w{k}") for k in (1, 2, 3)], axis=1), axis=1
     )
-    distance = np.maximum(column("min_clearance"), 0.0)  # v4 rows hold the signed value
+    distance = np.maximum(column("min_clearance"), 0.0)  # the oldest rows hold the signed value
     collision_free_p5, collision_free = collision_free_min_clearance_p5(rows)
     summary: dict[str, Any] = {
         "episodes": len(rows),
         "success_rate": float(column("success").mean()),
         "collision_rate": float(column("collision").mean()),
         "safe_success_rate": safe_success_rate(rows),
-        # v5's MinCl, over all episodes: a distance, >= 0 (from v6 a secondary column); the
-        # signed minimum (negative = penetration depth) separately.
+        # MinCl over all episodes (a secondary column): a distance, >= 0; the signed
+        # minimum (negative = penetration depth) separately.
         "min_clearance_p5": float(np.percentile(distance, 5)),
         "mean_min_clearance": float(distance.mean()),
-        # MinCl of environment v6 (FINDINGS "Protocol v6", rule 5): collision-free episodes.
+        # MinCl (docs/findings/protocol.md, rule 5): over the collision-free episodes.
         "min_clearance_p5_collision_free": collision_free_p5,
         "collision_free_episodes": collision_free,
         "mean_return": float(column("return").mean()),
@@ -105,8 +105,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "median_adaptation_ms_per_episode": float(np.median(adaptation + column("policy_ms"))),
         "median_policy_ms_per_episode": float(np.median(column("policy_ms"))),
     }
-    if all(r.get("completed", "") != "" for r in rows):  # v5 rows
-        # v4's success: the task completed, whether or not a collision happened first.
+    if all(r.get("completed", "") != "" for r in rows):  # rows that record completion
+        # Completion: the task completed, whether or not a collision happened first.
         summary["completion_rate"] = float(column("completed").mean())
         summary["min_signed_clearance_p5"] = float(np.percentile(column("min_signed_clearance"), 5))
     if all(r.get("peak_joint_speed", "") != "" for r in rows):

@@ -48,8 +48,8 @@ def correlation_summary(
     eigenvectors; 1 = unchanged), the largest off-diagonal entry (how much a via-point's raw
     action moves its neighbours) and the same per axis. Also the kernel's correlation between
     neighbouring via-points, k(spacing) / k(0), and the same spectrum under every candidate
-    scale of K (``candidates``: ``"signal"`` — the GP's covariance in via-point units, v5;
-    ``"unit"`` — the unit-variance correlation matrix, v4), so `distgprl fit` shows them side
+    scale of K (``candidates``: ``"signal"`` — the GP's covariance in via-point units;
+    ``"unit"`` — the unit-variance correlation matrix), so `distgprl fit` shows them side
     by side. When every eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the
     identity: the transform then barely correlates the update (see docs/FINDINGS.md).
 
@@ -58,7 +58,7 @@ def correlation_summary(
     max_i sum_j |S_W[i, j]| times the action's scale on that axis (m for x, y, z; rad for
     rx, ry, rz). Without the transform (``dist-gprl-nocov``) it is the action scale itself;
     a via-point shared by two windows can move by the sum of both. ``reach_min`` is the
-    smallest reach over the window via-points: environment v6's action scales
+    smallest reach over the window via-points: the reach rule's action scales
     (``action_scale_rule="reach"``, needing the task's ``tc_range`` (3,), m) make it
     max(TC range, minimum reach) on every axis under the Table I operator; without a
     ``tc_range`` the summary uses the configured fixed scales (``action_scale_rule``

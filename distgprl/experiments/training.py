@@ -347,8 +347,8 @@ class _TrainingLoop:
 
     def checkpoint(self) -> None:
         """Save a checkpoint at the end of the current episode."""
-        # Checkpoints are taken between episodes (`rng_state`); since environment v5 a
-        # collision ends an episode early, so a checkpoint step can fall inside one: train
+        # Checkpoints are taken between episodes (`rng_state`); a collision can end an
+        # episode early, so a checkpoint step can fall inside one: train
         # on to the episode's end first (at most n_windows - 1 steps).
         while not self.started.env.at_episode_start and self.model.num_timesteps < self.total:
             self.learn(1)

@@ -46,8 +46,8 @@ Learning-curve measures per run (`curve_measures`, from ``progress.csv``) are sc
 (`run_scores`). They are measured against the start of learning, the untrained policy's
 curve success (step 0, same fixed curve TCs), never against the run's own final value, so
 that a curve that does not learn neither converges fast nor counts as stable (definitions
-and the reason for each in `curve_measures`; issue 47 replaced the v5 measures ``steps_to_80``,
-``late_variance`` and ``curve_auc``, which rewarded flat curves).
+and the reason for each in `curve_measures`; the measures they replaced, and why:
+docs/findings/protocol.md, "Claims rules that cannot mislead").
 """
 
 from __future__ import annotations

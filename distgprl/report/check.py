@@ -2,8 +2,8 @@
 
 `python -m distgprl.report.check TABLE.csv [--tasks dcp,dbm]`: every method of the
 registry has a row, every task has at least one seed per row, rates lie in [0, 1], success
-does not exceed completion and success + collision does not exceed 1 (environment v5: success
-is completion without collision), and MinCl is a finite, non-negative distance of plausible
+does not exceed completion and success + collision does not exceed 1 (success is
+completion without collision), and MinCl is a finite, non-negative distance of plausible
 size.
 Exit code 1 with a line per problem.
 """
@@ -33,7 +33,7 @@ def check_table(path: str | Path, tasks: list[str]) -> list[str]:
                 value = float(row[f"{task}_{key}_mean"])
                 if not (-1.0 <= value <= 1.0) or (key != "mean_kinematic_retention" and value < 0):
                     problems.append(f"{method} {task} {key} out of range: {value}")
-            # environment v5: success is completion without collision
+            # success is completion without collision
             success = float(row[f"{task}_success_rate_mean"])
             collision = float(row[f"{task}_collision_rate_mean"])
             completed = float(row[f"{task}_completion_rate_mean"])

@@ -6,8 +6,8 @@ PoI's interval never narrower than its score bound), its value, interval and ver
 **each task alone**, then an overall verdict combined from the tasks' by the rule below.
 The estimate pooling both tasks (one stratum per task) is shown beside the per-task ones,
 never instead of them: pooled, opposite decisive effects (a PoI of 1 on DCP and 0 on DBM)
-average to 0.5 and read as "no effect". The rules were rewritten by issue 47 on the complete
-v5 runs, as rules that cannot mislead, not to move any verdict.
+average to 0.5 and read as "no effect". Why each rule is as it is: docs/findings/protocol.md,
+"Claims rules that cannot mislead".
 
 Per task, probability-of-improvement claims (Dist-GPRL over one other method, on one score;
 "fewer" or "lower" scores are improvements where the claim says so):

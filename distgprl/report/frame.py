@@ -40,7 +40,7 @@ EVALUATION_KEYS = (*RUN_KEYS, "policy")
 ``final`` or ``untrained``)."""
 
 COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""The summary field of MinCl as pre-registered (FINDINGS "Protocol v6", rule 5): the 5th
+"""The summary field of MinCl as pre-registered (docs/findings/protocol.md, rule 5): the 5th
 percentile of the episode-wise minimum clearance (robot links and tool vs obstacles, m) over
 the episodes without a collision (`distgprl.schema.collision_free_min_clearance_p5`); None
 where every episode collided. ``collision_free_episodes`` beside it counts those episodes."""
@@ -56,7 +56,7 @@ RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_
 
 def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
     """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
-    or, for a summary written before they were (environment v5 and earlier), computed from
+    or, for a summary written before they were recorded, computed from
     its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`, the very function
     `summarise` records them with); unchanged if it has neither (no rows, or rows without
     the ``collision`` and ``min_clearance`` columns)."""

@@ -292,8 +292,8 @@ class PlateauCell:
     """How often a distance-reward method's policy idles on the r_ga plateau: evaluation
     episodes with no success, no collision and r_tc < `IDLE_PROGRESS` of the task's progress
     weight, pooled over seeds, and the mean lambda_ga r_ga they collect (the alignment reward
-    paid for moving away from the obstacles instead of doing the task; FINDINGS "The first v7
-    runs").
+    paid for moving away from the obstacles instead of doing the task; docs/FINDINGS.md,
+    "... the attractor is r_ga, not r_sd").
 
     Attributes:
         task, method, policy: what the cell is.

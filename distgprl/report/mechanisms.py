@@ -1,4 +1,4 @@
-"""The mechanism table (docs/FINDINGS.md "Protocol v6", rule 7; issue 48 item 7).
+"""The mechanism table (docs/findings/protocol.md, rule 7; issue 48 item 7).
 
 Whether the paper's mechanisms act, for a preset's runs, in three parts:
 

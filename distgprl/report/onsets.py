@@ -112,7 +112,7 @@ def onset_panels(study: Study) -> list[tuple[str, str, str]]:
 
 def run_label(study: Study, method: str, reading: str) -> str:
     """A table row's or figure row's name for ``method`` under ``reading`` (a row's
-    ``reading``): "Dist-GPRL: per-axis signal (v5)"; a method the study does not train (an
+    ``reading``): "Dist-GPRL: correlation only"; a method the study does not train (an
     operator study's NoCov) by its reading label alone, which names it."""
     if method in study.methods:
         return f"{METHODS[method].label.removesuffix(' (ours)')}: {reading}"

@@ -19,8 +19,8 @@ preset or to a part of the method changes which runs count, not their figures.
 (``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
 (``evaluation_best.csv`` / ``summary_best.json``); an untrained reference (`demo`,
 `promp-nominal`) has one, used for both. Table I, its per-run table, the aggregates and the
-claims report :data:`TABLE_POLICY`, the best policy: Algorithm 1's output (docs/FINDINGS.md
-"Protocol v6", rule 6); the final policy's Table I is written beside it.
+claims report :data:`TABLE_POLICY`, the best policy: Algorithm 1's output
+(docs/findings/protocol.md, rule 6); the final policy's Table I is written beside it.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 TABLE_POLICY = "best"
 """The policy whose evaluation Table I (``table1_<preset>``) reports, and with it the per-run
 table, the aggregates and the claims (`distgprl.report.table1.collect_scores`): the best
-learning-curve policy, Algorithm 1's output ("query GP updated by best policy"; FINDINGS
-"Protocol v6", rule 6). The one switch between the two evaluations: the final policy's
+learning-curve policy, Algorithm 1's output ("query GP updated by best policy";
+docs/findings/protocol.md, rule 6). The one switch between the two evaluations: the final policy's
 Table I (``table1_final_<preset>``) is written beside it."""
 
 UNTRAINED = "untrained"

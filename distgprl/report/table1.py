@@ -5,7 +5,7 @@ with its stratified-bootstrap interval (`IQM_METRICS`), and Table I per run.
 
 Which evaluation: every function takes ``policy`` (`distgprl.report.runs.run_evaluations`),
 by default :data:`~distgprl.report.runs.TABLE_POLICY`, the best learning-curve policy
-(``summary_best.json``; Algorithm 1's output, FINDINGS "Protocol v6" rule 6); ``"final"``
+(``summary_best.json``; Algorithm 1's output, docs/findings/protocol.md, rule 6); ``"final"``
 reads ``summary.json``, the final policy's Table I beside it. An untrained reference's only
 evaluation stands in both.
 
@@ -15,7 +15,8 @@ before it was recorded has it computed from its ``evaluation[_best].csv``
 its cell is over the other seeds, ``(n=k)``, or ``– (all collided)``.
 
 A best-policy cell where, at any of its seeds, no trained learning-curve point beat the
-untrained step-0 one (the summary's ``beats_untrained`` is false; protocol v8, rule 2) still
+untrained step-0 one (the summary's ``beats_untrained`` is false; protocol rule 2, "Table I
+reports a trained policy") still
 reports the best trained policy, and counts those seeds with their mean untrained curve
 success (`untrained_marks`, shown with `distgprl.report.table1_text.UNTRAINED_MARK`); a
 summary without ``beats_untrained`` (written before it was recorded) is unknown, not marked.
@@ -61,11 +62,11 @@ METRICS = (
     ("completion_rate", "Completed"),
     ("mean_kinematic_retention", "KinRet"),
 )
-"""Columns per task (environment v6): the paper's three — Success (the task completed without
-collision), Collision, MinCl (`COLLISION_FREE_MINCL`: over the collision-free episodes) —
-then four it does not tabulate: v5's MinCl over all episodes (0 wherever 5 % or more
-collide), the signed clearance's 5th percentile over all episodes (negative = penetration
-depth), completion regardless of collision (v4's Success) and kinematic retention."""
+"""Columns per task: the paper's three — Success (the task completed without collision),
+Collision, MinCl (`COLLISION_FREE_MINCL`: over the collision-free episodes) — then four it
+does not tabulate: MinCl over all episodes (0 wherever 5 % or more collide), the signed
+clearance's 5th percentile over all episodes (negative = penetration depth), completion
+regardless of collision and kinematic retention."""
 
 CLEARANCE_METRICS = (COLLISION_FREE_MINCL, "min_clearance_p5", "min_signed_clearance_p5")
 """Metrics in metres, shown to the millimetre."""
@@ -250,7 +251,7 @@ LATE_CURVE = (
 )
 """Per-run columns from ``progress.csv``: the mean learning-curve success over the last
 `LATE_CURVE_POINTS` evaluations (the preset's ``curve_episodes`` fixed TCs each, 50 in
-`paper` since environment v5; deterministic policy of that step) and their max - min. Next
+`paper`; deterministic policy of that step) and their max - min. Next
 to the final 100-TC success they show how much the final policy's number depends on where
 training stopped (empty for `demo`, which has no curve)."""
 

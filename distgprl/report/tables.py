@@ -11,7 +11,7 @@ the hardware trial files); this module writes them, with a metadata sidecar per 
 (`table_meta_text`), and removes a table the results no longer make. Pure functions of the
 files they read.
 
-**Which policy** (FINDINGS "Protocol v6", rule 6): Table I (``table1_<preset>``), its
+**Which policy** (docs/findings/protocol.md, rule 6): Table I (``table1_<preset>``), its
 per-run table, the aggregates and the claims report each run's best learning-curve policy,
 Algorithm 1's output (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
 policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An

@@ -1,5 +1,5 @@
 """The committed GP skills: every number the skill fit decides, shipped with the package
-(protocol v8, rule 7: one skill for every machine).
+(protocol rule 7: one skill for every machine).
 
 The fit (`distgprl.skill.gp.fit_skill`: the shared kernel's and the six zero-mean axis
 kernels' marginal-likelihood optima, the via-points Gamma_0, the prior mean and the axis

@@ -1,4 +1,4 @@
-"""Arithmetic that gives the same bits on every x86-64 CPU (protocol v8, rule 7).
+"""Arithmetic that gives the same bits on every x86-64 CPU (protocol rule 7).
 
 Two of numpy's paths pick their code from the CPU at run time, and the last digits differ
 between the choices: matrix products and LAPACK (OpenBLAS' kernel families, e.g. ``Haswell``

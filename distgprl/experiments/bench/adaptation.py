@@ -94,7 +94,7 @@ def bench_adaptation(env, model, sizes: BenchSizes) -> dict[str, Any]:
     policy = deterministic_policy(model)
     tcs = env.spec_task.evaluation_tcs(sizes.in_env_episodes)
     rows = [run_episode(env, tc, policy) for tc in tcs]
-    # Windows an episode did not reach (it ended at a collision: environment v5) have no
+    # Windows an episode did not reach (a collision ended it) have no
     # time (NaN in the rows): only the windows that ran are timed, and an episode's total
     # is over its windows that ran.
     ran = [[r[f"adaptation_ms_w{k}"] for k in (1, 2, 3)] for r in rows]
