@@ -1,19 +1,46 @@
-"""The texts every report table is written as: Markdown pipe tables and CSV (by pandas)."""
+"""The texts every report table is written as — Markdown pipe tables, LaTeX tables and CSV
+(by pandas) — and the files they are written to."""
 
 from __future__ import annotations
 
+import csv
+import json
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from distgprl.io import atomic_write_text
+from distgprl.schema import SCHEMA_VERSION, csv_meta_path
 
-def markdown_table(title: str | None, header: list[str], rows: list[list[str]]) -> str:
+
+def markdown_table(title: str | None, header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
     """A Markdown pipe table, under ``title`` and a blank line if given."""
     lines = [] if title is None else [title, ""]
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cells) + " |" for cells in rows]
     return "\n".join(lines) + "\n"
+
+
+def latex_table(
+    caption: str,
+    label: str,
+    columns: str,
+    header: Sequence[str],
+    rows: Iterable[Sequence[str]],
+    footnote: str = "",
+) -> str:
+    """A LaTeX ``table`` float of a booktabs ``tabular`` (column spec ``columns``): the
+    ``header`` lines (each already a row, ``\\\\`` added), a rule, one line per row of cells,
+    and ``footnote`` in small type under the tabular if given."""
+    lines = ["\\begin{table}[htb]", "\\centering", f"\\caption{{{caption}}}"]
+    lines += [f"\\label{{{label}}}", f"\\begin{{tabular}}{{{columns}}}", "\\toprule"]
+    lines += [f"{line} \\\\" for line in header]
+    lines += ["\\midrule", *(" & ".join(cells) + " \\\\" for cells in rows)]
+    lines += ["\\bottomrule", "\\end{tabular}"]
+    lines += ["", f"\\footnotesize {footnote}"] if footnote else []
+    return "\n".join([*lines, "\\end{table}", ""])
 
 
 def csv_text(rows: Iterable[Mapping[str, Any]], columns: Sequence[str]) -> str:
@@ -24,3 +51,42 @@ def csv_text(rows: Iterable[Mapping[str, Any]], columns: Sequence[str]) -> str:
     cells = [{c: "" if row.get(c) is None else row[c] for c in columns} for row in rows]
     frame = pd.DataFrame(cells, columns=list(columns), dtype=object)
     return frame.to_csv(index=False, lineterminator="\n", na_rep="nan")
+
+
+def table_meta_text(text: str, preset: str, description: str, **extra: Any) -> str:
+    """The metadata sidecar (`csv_meta_path`) of a table's CSV ``text``, in the result files'
+    convention (``{"meta": ..., "columns": ...}``, `distgprl.schema.write_csv`) so that
+    `read_csv` reads the table and a plain ``pandas.read_csv`` reads the CSV; ``extra`` meta
+    fields follow the description. Only what the committed results determine (no time, no
+    commit): ``make tables`` stays byte for byte."""
+    columns = next(csv.reader([text.split("\n", 1)[0]]))
+    meta = {"schema_version": SCHEMA_VERSION, "kind": "table", "preset": preset}
+    meta |= {"description": description, **extra}
+    return json.dumps({"meta": meta, "columns": columns}, indent=2) + "\n"
+
+
+def write_table_files(
+    stem: Path,
+    suffixes: Sequence[str],
+    texts: Sequence[str] | None,
+    preset: str,
+    description: str,
+    **extra: Any,
+) -> list[Path]:
+    """Write ``texts`` (one per suffix) to ``stem`` + suffix, a CSV with its sidecar
+    (`table_meta_text`); with ``texts`` None (nothing to tabulate, e.g. no trial files any
+    more) remove those files instead, so no stale table from earlier results is left."""
+    paths = [Path(f"{stem}{suffix}") for suffix in suffixes]
+    if texts is None:
+        for path in paths:
+            path.unlink(missing_ok=True)
+            if path.suffix == ".csv":
+                csv_meta_path(path).unlink(missing_ok=True)
+        return []
+    written = []
+    for path, text in zip(paths, texts, strict=True):
+        written.append(atomic_write_text(path, text))
+        if path.suffix == ".csv":
+            meta = table_meta_text(text, preset, description, **extra)
+            written.append(atomic_write_text(csv_meta_path(path), meta))
+    return written

@@ -37,40 +37,21 @@ from typing import Any
 
 from distgprl.config_types import EnvConfig
 from distgprl.errors import UserInputError
-from distgprl.io import atomic_write_text
 from distgprl.methods import METHODS
+from distgprl.report.markdown import write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
-    NOT_RECORDED,
-    POINTS,
     GradientCell,
     MechanismTable,
     PlateauCell,
     ReturnCell,
-    episode_ratios,
     gradient_cells,
-    gradient_points,
     plateau_cell,
     return_cells,
 )
 from distgprl.report.mechanisms_text import mechanism_texts
 from distgprl.report.runs import select_runs
-from distgprl.schema import SCHEMA_VERSION, csv_meta_path, evaluation_file_names, read_csv
-
-__all__ = [
-    "CRITERION",
-    "NOT_RECORDED",
-    "POINTS",
-    "GradientCell",
-    "MechanismTable",
-    "ReturnCell",
-    "episode_ratios",
-    "gradient_cells",
-    "gradient_points",
-    "mechanism_table",
-    "return_cells",
-    "write_mechanisms",
-]
+from distgprl.schema import evaluation_file_names, read_csv
 
 
 def _env(folder: Path, field: str) -> float:
@@ -140,32 +121,15 @@ DESCRIPTION = (
 )
 
 
-def _meta_text(csv_text: str, preset: str) -> str:
-    """The CSV's metadata sidecar in the tables' convention (`distgprl.report.tables.
-    table_meta_text`): only what the results determine, so the file is reproducible."""
-    columns = csv_text.split("\n", 1)[0].split(",")
-    meta = {
-        "schema_version": SCHEMA_VERSION,
-        "kind": "table",
-        "preset": preset,
-        "description": DESCRIPTION,
-        "criterion": CRITERION,
-    }
-    return json.dumps({"meta": meta, "columns": columns}, indent=2) + "\n"
-
-
 def write_mechanisms(
     root: str | Path, preset: str, out_dir: str | Path, reach: Sequence[Mapping[str, Any]]
 ) -> tuple[list[Path], list[str]]:
-    """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar) and ``.md``; returns
-    (the paths written, the one-line verdicts per term)."""
-    table = mechanism_table(root, preset, reach)
-    csv_text, markdown, verdicts = mechanism_texts(table)
+    """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar, `write_table_files`)
+    and ``.md``; returns (the paths written, the one-line verdicts per term)."""
+    csv_text, markdown, verdicts = mechanism_texts(mechanism_table(root, preset, reach))
     stem = Path(out_dir) / f"mechanisms_{preset}"
-    csv_path = Path(f"{stem}.csv")
-    written = [
-        atomic_write_text(csv_path, csv_text),
-        atomic_write_text(csv_meta_path(csv_path), _meta_text(csv_text, preset)),
-        atomic_write_text(Path(f"{stem}.md"), markdown),
-    ]
+    texts = (csv_text, markdown)
+    written = write_table_files(
+        stem, (".csv", ".md"), texts, preset, DESCRIPTION, criterion=CRITERION
+    )
     return written, verdicts

@@ -1,15 +1,12 @@
-"""Table I (simulation) and Table II (hardware) from result files only.
+"""Every results table of a preset from its result files only (`write_tables`).
 
-`write_tables` also writes Table I per run, each run's paired comparisons, TC by TC,
-with the `demo` reference and with `dist-gprl` (`distgprl.report.paired`), the robust
-aggregates with stratified-bootstrap intervals (`distgprl.report.aggregate`) and the claims
-table (`distgprl.report.claims`).
-
-The tables themselves are made by `distgprl.report.table1` (Table I: cells over seeds, the
-per-run table; texts `distgprl.report.table1_text`) and `distgprl.report.table2` (Table II:
-the hardware trial files); this module writes them, with a metadata sidecar per CSV
-(`table_meta_text`), and removes a table the results no longer make. Pure functions of the
-files they read.
+The tables themselves are made by their modules — Table I by `distgprl.report.table1` (texts
+`distgprl.report.table1_text`), Table II by `distgprl.report.table2`, the aggregates by
+`distgprl.report.aggregate`, the claims by `distgprl.report.claims_table` and
+`distgprl.report.robustness`, the onsets by `distgprl.report.onsets`, the paired
+comparisons by `distgprl.report.paired`, Table I + repair by `distgprl.report.repair` —
+and written here with a metadata sidecar per CSV (`write_table_files`); a table the results
+no longer make is removed.
 
 **Which policy** (docs/findings/protocol.md, rule 6): Table I (``table1_<preset>``), its
 per-run table, the aggregates and the claims report each run's best learning-curve policy,
@@ -20,14 +17,13 @@ untrained reference's one evaluation is in both.
 
 from __future__ import annotations
 
-import csv
-import json
+from collections.abc import Iterator
 from pathlib import Path
 
 from distgprl.errors import UserInputError
-from distgprl.io import atomic_write_text
-from distgprl.report.aggregate import aggregate_texts, tasks_of
+from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
 from distgprl.report.claims_table import claims_texts
+from distgprl.report.markdown import write_table_files
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
     FINAL_POLICY,
@@ -41,252 +37,204 @@ from distgprl.report.paired import (
 from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
 from distgprl.report.runs import TABLE_POLICY, run_evaluations
-from distgprl.report.table1 import (
-    LATE_CURVE_POINTS,
-    RATE_BOUNDS,
-    aggregate,
-    collect_scores,
-    late_curve,
-    per_seed_rows,
-    simulation_table,
-)
+from distgprl.report.table1 import RATE_BOUNDS, collect_scores, per_seed_rows, simulation_table
 from distgprl.report.table1_text import per_seed_texts, table1_texts
-from distgprl.report.table2 import (
-    binomial_interval,
-    hardware_rows,
-    hardware_table,
-    hardware_texts,
-    noise_texts,
-    select_trial_files,
-)
-from distgprl.schema import SCHEMA_VERSION, csv_meta_path, moved_robot
+from distgprl.report.table2 import hardware_rows, hardware_texts, noise_texts, select_trial_files
 from distgprl.studies import studies_of
 
-__all__ = [  # the tables' functions, importable from here as before the split
-    "LATE_CURVE_POINTS",
-    "aggregate",
-    "binomial_interval",
-    "hardware_table",
-    "late_curve",
-    "moved_robot",
-    "per_seed_rows",
-    "select_trial_files",
-    "simulation_table",
-    "table_meta_text",
-    "write_tables",
-]
+Table = tuple[str, tuple[str, ...], tuple[str, ...] | None, str]
+"""One table to write: (file stem, suffixes, texts — one per suffix, None to remove the
+files —, description for the CSV's sidecar)."""
+
+CSV_MD, CSV_MD_TEX = (".csv", ".md"), (".csv", ".md", ".tex")
 
 
 def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
-    """Write Table I of the best policy (``table1_<preset>``, `TABLE_POLICY`) and of the
-    final policy (``table1_final_<preset>``), each with its table per run
-    (``..._per_seed``: every seed's numbers and wall time), and Table II when hardware
-    trials exist, as CSV, Markdown, LaTeX; the
-    stratified-bootstrap aggregates (``aggregates_<preset>``: mean, IQM and Dist-GPRL's
-    probability of improvement, `distgprl.report.aggregate`) and the claims table
-    (``claims_<preset>``: a verdict per paper claim, `distgprl.report.claims`), both on
-    Table I's evaluations (`collect_scores` with `TABLE_POLICY`), CSV and Markdown, and
-    every run paired TC by TC with the `demo` reference and with `dist-gprl` of the same
-    seed where those were evaluated (``paired_vs_<reference>_<preset>``, CSV and Markdown;
-    ``..._n<N>`` for supplementary evaluations on N TCs), and, for runs whose best
-    learning-curve policy was evaluated, that policy paired with the run's final one
-    (``paired_best_vs_final_<preset>``). With ``against`` (another preset), also every run
-    paired with the same run of that preset (``paired_<preset>_vs_<against>``, CSV and
-    Markdown; `cross_preset_rows`). Table I + repair (``table1_repair_<preset>``, CSV and
-    Markdown; `distgprl.report.repair`) where runs have their safety-layer evaluations."""
-    rows, tasks = simulation_table(root, preset, TABLE_POLICY)
-    if not rows:
-        raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
-    cross = None  # computed first: a refused pairing writes nothing
-    if against is not None:
-        cross = cross_preset_rows(root, preset, against)
-        if not cross:
-            raise UserInputError(
-                f"--against {against}: no run of {Path(root) / preset} has a finished "
-                f"counterpart (same task, method and seed) under {Path(root) / against}"
-            )
-    out_dir = Path(out_dir)
-    written: list[Path] = []
-    for policy in (TABLE_POLICY, "final"):
-        written += _write_table_one(root, preset, out_dir, policy)
+    """Write every table of ``<root>/<preset>`` to ``out_dir`` and return the paths:
+
+    - Table I of the best policy (``table1_<preset>``, `TABLE_POLICY`) and of the final
+      policy (``table1_final_<preset>``), each with its table per run (``..._per_seed``),
+      CSV, Markdown and LaTeX (`_table_one`);
+    - on Table I's evaluations, the stratified-bootstrap aggregates (``aggregates_<preset>``)
+      and the claims (``claims_<preset>``), and beside a study the claims under each of its
+      readings and its onsets (`_study_tables`);
+    - every run paired TC by TC with the `demo` reference and with `dist-gprl`
+      (``paired_vs_<reference>_<preset>[_n<N>]``), its best policy with its final one
+      (``paired_best_vs_final_<preset>``), and with ``against`` (another preset) with the
+      same run of that preset (``paired_<preset>_vs_<against>``; `_paired_tables`);
+    - Table II and its noise table where hardware trials exist, Table I + repair where runs
+      have their safety-layer evaluations (`_hardware_tables`).
+    """
+    tables = _table_one(root, preset, TABLE_POLICY)  # first: no runs, nothing written
+    cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
+    tables += _table_one(root, preset, "final")
     scores = collect_scores(root, preset, TABLE_POLICY)  # the claims follow Table I
-    written += _write_or_remove(
-        out_dir / f"aggregates_{preset}",
-        (".csv", ".md"),
-        aggregate_texts(scores, preset),
-        preset,
-        "mean, IQM and probability of improvement over seeds with 95 % stratified-bootstrap "
-        "intervals (distgprl.report.aggregate)",
-    )
-    written += _write_or_remove(
-        out_dir / f"claims_{preset}",
-        (".csv", ".md"),
-        claims_texts(scores, preset),
-        preset,
-        "each claim of the paper, the statistic testing it and the verdict "
-        "(rules: distgprl.report.claims)",
-    )
-    studies = studies_of(preset)
-    if studies:  # each claim under every reading of every study read beside this preset
-        if len({study.seeds for study in studies}) > 1:
-            raise ValueError(f"the studies beside {preset} compare at different seeds")
-        # every reading, Table I's included, at the studies' seeds (`Study.seeds`): runs a
-        # rule alone reads, at further seeds, stay out of every cross-reading verdict
-        seeds = studies[0].seeds
-        at_seeds = collect_scores(root, preset, TABLE_POLICY, seeds=seeds)
-        results = study_verdicts(
-            studies, at_seeds, lambda p: collect_scores(root, p, TABLE_POLICY, seeds=seeds)
-        )
-        written += _write_or_remove(
-            out_dir / f"claims_robustness_{preset}",
-            (".csv", ".md"),
-            robustness_texts(results, preset),
-            preset,
-            "each claim's verdict under every reading of "
-            f"{', '.join(s.name for s in studies)} (rules: distgprl.report.robustness)",
-        )
-        for study in studies:  # when each run of each reading learns; a control's verdict
-            written += _write_or_remove(
-                out_dir / f"onsets_{study.name}_{preset}",
-                (".csv", ".md"),
-                onset_texts(root, study, tasks_of(scores), preset),
-                preset,
-                f"the {study.name} study's learning-curve onsets per reading and seed "
-                "(rules: distgprl.report.onsets)",
-            )
-    sizes = supplementary_sizes(root, preset)
-    for reference in REFERENCES:
-        for episodes in (None, *sizes):
-            pairs = paired_rows(root, preset, reference, episodes)
-            written += _write_or_remove(
-                out_dir / f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}",
-                (".csv", ".md"),
-                paired_texts(pairs, preset, reference, episodes) if pairs else None,
-                preset,
-                f"each run paired TC by TC with the {reference} reference (McNemar)",
-            )
+    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, scores)]
+    tables += [*_paired_tables(root, preset, cross, against), *_hardware_tables(root, preset)]
+    out_dir = Path(out_dir)
+    written = []
+    for stem, suffixes, texts, description in tables:
+        extra = {"rate_intervals_clipped_to": list(RATE_BOUNDS)}
+        written += write_table_files(out_dir / stem, suffixes, texts, preset, description, **extra)
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
             stale.unlink()
-    best = best_vs_final_rows(root, preset)
-    written += _write_or_remove(
-        out_dir / f"paired_best_vs_final_{preset}",
-        (".csv", ".md"),
-        paired_texts(best, preset, FINAL_POLICY) if best else None,
-        preset,
-        "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
-    )
-    if cross is not None:
-        written += _write_or_remove(
-            out_dir / f"paired_{preset}_vs_{against}",
-            (".csv", ".md"),
-            paired_texts(cross, preset, base_preset=against),
-            preset,
-            f"each run paired TC by TC with the same run of the {against} preset (McNemar)",
-        )
-    trial_files = select_trial_files(root, preset)
-    hardware = hardware_rows(trial_files)
-    written += _write_or_remove(
-        out_dir / f"table2_{preset}",
-        (".csv", ".md", ".tex"),
-        hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
-        preset,
-        "Table II: hardware trials per method; rates with the exact 95 % binomial interval",
-    )
-    written += _write_or_remove(
-        out_dir / f"table2_noise_{preset}",
-        (".csv", ".md"),
-        noise_texts(hardware, preset),
-        preset,
-        "digital twin success and collision against the sensor-noise level",
-    )
-    repair_rows, repair_excluded = repair_table(root, preset)
-    written += _write_or_remove(
-        out_dir / f"table1_repair_{preset}",
-        (".csv", ".md"),
-        repair_texts(repair_rows, preset, repair_excluded),
-        preset,
-        "Table I + repair: the hardware safety layer in the loop in simulation "
-        "(distgprl.report.repair)",
-    )
     return written
 
 
-def _write_table_one(root: str | Path, preset: str, out_dir: Path, policy: str) -> list[Path]:
+def _table_one(root: str | Path, preset: str, policy: str) -> list[Table]:
     """Table I and Table I per run of the ``policy`` evaluations: ``table1_<preset>`` for
-    `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other."""
-    stem = out_dir / (f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}")
+    `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other.
+
+    Raises:
+        UserInputError: the preset has no evaluated run.
+    """
     rows, tasks = simulation_table(root, preset, policy)
+    if not rows:
+        raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
+    stem = f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}"
     note = run_evaluations(root, preset, policy).note()
     which = "best learning-curve policy" if policy == "best" else f"{policy} policy"
-    table_one = (
+    about = (
         f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
         "over seeds (ci_low, ci_high; empty for one seed)"
     )
-    written = _write_or_remove(
-        stem,
-        (".csv", ".md", ".tex"),
-        table1_texts(rows, tasks, preset, note, policy),
-        preset,
-        table_one,
+    per_run = per_seed_texts(per_seed_rows(root, preset, policy), preset, policy)
+    return [
+        (stem, CSV_MD_TEX, table1_texts(rows, tasks, preset, note, policy), about),
+        (
+            f"{stem}_per_seed",
+            CSV_MD,
+            per_run,
+            f"Table I per run ({which}): every seed's metrics, late learning-curve means and "
+            "training wall time",
+        ),
+    ]
+
+
+def _claim_tables(scores: Scores, preset: str) -> list[Table]:
+    """The aggregates and the claims table of Table I's evaluations (``scores``)."""
+    return [
+        (
+            f"aggregates_{preset}",
+            CSV_MD,
+            aggregate_texts(scores, preset),
+            "mean, IQM and probability of improvement over seeds with 95 % "
+            "stratified-bootstrap intervals (distgprl.report.aggregate)",
+        ),
+        (
+            f"claims_{preset}",
+            CSV_MD,
+            claims_texts(scores, preset),
+            "each claim of the paper, the statistic testing it and the verdict "
+            "(rules: distgprl.report.claims)",
+        ),
+    ]
+
+
+def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Table]:
+    """Beside a preset with studies (`studies_of`): each claim under every reading of every
+    study, Table I's included, at the studies' seeds (runs a rule alone reads, at further
+    seeds, stay out of every cross-reading verdict), and per study when each run of each
+    reading learns (its onsets, a control's verdict)."""
+    studies = studies_of(preset)
+    if not studies:
+        return
+    if len({study.seeds for study in studies}) > 1:
+        raise ValueError(f"the studies beside {preset} compare at different seeds")
+    seeds = studies[0].seeds
+    results = study_verdicts(
+        studies,
+        collect_scores(root, preset, TABLE_POLICY, seeds=seeds),
+        lambda p: collect_scores(root, p, TABLE_POLICY, seeds=seeds),
     )
-    written += _write_or_remove(
-        Path(f"{stem}_per_seed"),
-        (".csv", ".md"),
-        per_seed_texts(per_seed_rows(root, preset, policy), preset, policy),
-        preset,
-        f"Table I per run ({which}): every seed's metrics, late learning-curve means and "
-        "training wall time",
+    names = ", ".join(s.name for s in studies)
+    about = (
+        f"each claim's verdict under every reading of {names} (rules: distgprl.report.robustness)"
     )
-    return written
-
-
-def table_meta_text(csv_text: str, preset: str, description: str) -> str:
-    """The metadata sidecar (`csv_meta_path`) of a table's CSV, in the result files'
-    convention (``{"meta": ..., "columns": ...}``, `distgprl.schema.write_csv`) so that
-    `read_csv` reads the table and a plain ``pandas.read_csv`` reads the CSV. Only what the
-    committed results determine (no time, no commit): ``make tables`` stays byte for byte."""
-    columns = next(csv.reader([csv_text.split("\n", 1)[0]]))
-    meta = {
-        "schema_version": SCHEMA_VERSION,
-        "kind": "table",
-        "preset": preset,
-        "description": description,
-        "rate_intervals_clipped_to": list(RATE_BOUNDS),
-    }
-    return json.dumps({"meta": meta, "columns": columns}, indent=2) + "\n"
-
-
-def _write_table(path: Path, text: str, preset: str, description: str) -> list[Path]:
-    """Write one table file; a CSV with its metadata sidecar (`table_meta_text`)."""
-    written = [atomic_write_text(path, text)]
-    if path.suffix == ".csv":
-        written.append(
-            atomic_write_text(csv_meta_path(path), table_meta_text(text, preset, description))
+    yield (f"claims_robustness_{preset}", CSV_MD, robustness_texts(results, preset), about)
+    for study in studies:
+        yield (
+            f"onsets_{study.name}_{preset}",
+            CSV_MD,
+            onset_texts(root, study, tasks_of(scores), preset),
+            f"the {study.name} study's learning-curve onsets per reading and seed "
+            "(rules: distgprl.report.onsets)",
         )
-    return written
 
 
-def _write_or_remove(
-    stem: Path,
-    suffixes: tuple[str, ...],
-    texts: tuple[str, ...] | None,
-    preset: str,
-    description: str,
-) -> list[Path]:
-    """Write ``texts`` (one per suffix) to ``stem`` + suffix; with ``texts`` None
-    (nothing to tabulate, e.g. no trial files any more) remove those files instead, so no
-    stale table from earlier results is left behind."""
-    paths = [Path(f"{stem}{suffix}") for suffix in suffixes]
-    if texts is None:
-        for path in paths:
-            path.unlink(missing_ok=True)
-            if path.suffix == ".csv":
-                csv_meta_path(path).unlink(missing_ok=True)
-        return []
-    written = []
-    for path, text in zip(paths, texts, strict=True):
-        written += _write_table(path, text, preset, description)
-    return written
+def _cross_preset(root: str | Path, preset: str, against: str | None) -> Table | None:
+    """Every run paired with the same run of the preset ``against`` (None without one).
+
+    Raises:
+        UserInputError: no run of ``preset`` has a finished counterpart under ``against``.
+    """
+    if against is None:
+        return None
+    cross = cross_preset_rows(root, preset, against)
+    if not cross:
+        raise UserInputError(
+            f"--against {against}: no run of {Path(root) / preset} has a finished "
+            f"counterpart (same task, method and seed) under {Path(root) / against}"
+        )
+    return (
+        f"paired_{preset}_vs_{against}",
+        CSV_MD,
+        paired_texts(cross, preset, base_preset=against),
+        f"each run paired TC by TC with the same run of the {against} preset (McNemar)",
+    )
+
+
+def _paired_tables(
+    root: str | Path, preset: str, cross: Table | None, against: str | None
+) -> Iterator[Table]:
+    """Every run paired TC by TC with each of `REFERENCES` (on the preset's TCs and on each
+    supplementary evaluation's), each run's best policy with its final one, then ``cross``."""
+    for reference in REFERENCES:
+        for episodes in (None, *supplementary_sizes(root, preset)):
+            pairs = paired_rows(root, preset, reference, episodes)
+            yield (
+                f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}",
+                CSV_MD,
+                paired_texts(pairs, preset, reference, episodes) if pairs else None,
+                f"each run paired TC by TC with the {reference} reference (McNemar)",
+            )
+    best = best_vs_final_rows(root, preset)
+    yield (
+        f"paired_best_vs_final_{preset}",
+        CSV_MD,
+        paired_texts(best, preset, FINAL_POLICY) if best else None,
+        "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
+    )
+    if cross is not None:
+        yield cross
+
+
+def _hardware_tables(root: str | Path, preset: str) -> list[Table]:
+    """Table II and its noise table of the preset's trial files, and Table I + repair."""
+    trial_files = select_trial_files(root, preset)
+    hardware = hardware_rows(trial_files)
+    repair_rows, repair_excluded = repair_table(root, preset)
+    return [
+        (
+            f"table2_{preset}",
+            CSV_MD_TEX,
+            hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
+            "Table II: hardware trials per method; rates with the exact 95 % binomial interval",
+        ),
+        (
+            f"table2_noise_{preset}",
+            CSV_MD,
+            noise_texts(hardware, preset),
+            "digital twin success and collision against the sensor-noise level",
+        ),
+        (
+            f"table1_repair_{preset}",
+            CSV_MD,
+            repair_texts(repair_rows, preset, repair_excluded),
+            "Table I + repair: the hardware safety layer in the loop in simulation "
+            "(distgprl.report.repair)",
+        ),
+    ]

@@ -18,7 +18,7 @@ SMALL = TwinConfig(width=640, height=480)
 # via-points; residual ProMP weights (v5's ProMP-RRL); residual RL (Table I's ProMP-RRL)
 @pytest.mark.parametrize("method", ["dist-gprl", "promp-rrl-windowed", "promp-rrl"])
 def test_twin_trials_end_to_end(tmp_path, untrained_dbm_policy, method):
-    from distgprl.report.tables import hardware_table
+    from distgprl.report.table2 import hardware_table
 
     policy_zip = untrained_dbm_policy(method)
     report = run_trials(

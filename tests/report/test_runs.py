@@ -7,7 +7,8 @@ from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS, resolve_run
 from distgprl.report.curves import load_curves
 from distgprl.report.runs import select_runs
-from distgprl.report.tables import simulation_table, write_tables
+from distgprl.report.table1 import simulation_table
+from distgprl.report.tables import write_tables
 
 SUMMARY = {
     "success_rate": 0.5,

@@ -13,18 +13,16 @@ from scipy import stats
 from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.machine import machine_info
-from distgprl.report.tables import (
+from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
     aggregate,
-    binomial_interval,
-    hardware_table,
     late_curve,
-    moved_robot,
     per_seed_rows,
-    select_trial_files,
     simulation_table,
-    write_tables,
 )
+from distgprl.report.table2 import binomial_interval, hardware_table, select_trial_files
+from distgprl.report.tables import write_tables
+from distgprl.schema import moved_robot
 
 
 def test_aggregate_mean_std_and_t_interval():
