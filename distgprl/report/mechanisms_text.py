@@ -398,18 +398,12 @@ def _plateau_markdown(table: MechanismTable) -> str:
         for cell in sorted(table.plateau, key=lambda c: (_order(c.task, c.method), c.policy))
     ]
     header = ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
-    lines = ["### The r_ga plateau", "", "| " + " | ".join(header) + " |"]
-    lines.append("|" + "---|" * len(header))
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    lines += [
-        "",
-        "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
+    return markdown_table("### The r_ga plateau", header, rows) + (
+        "\nIdle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
         "still collects is paid for moving the via-points along ∇d "
-        '(docs/FINDINGS.md "The first v7 runs").',
-        "",
-    ]
-    return "\n".join(lines) + "\n"
+        '(docs/FINDINGS.md "The first v7 runs").\n\n'
+    )
 
 
 def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:

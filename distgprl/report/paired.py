@@ -36,7 +36,7 @@ from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.frame import csv_frame
-from distgprl.report.markdown import csv_text
+from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.runs import select_runs
 from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, is_safe_success
 
@@ -282,24 +282,19 @@ def paired_texts(
     header = ["Task", "Method", "Seed", "TCs"]
     for _, label in OUTCOMES:
         header += [f"{label} run / ref", f"{label} only run / only ref", f"{label} p"]
-    lines = [
-        "Each run against "
-        + (
-            f"the run of the same task, method and seed in the {base_preset} preset"
-            if base_preset
-            else _reference_text(reference)
-        )
-        + " on the same evaluation TCs "
-        f"({preset} preset"
-        + (f"; supplementary evaluation on the first {episodes} TCs)" if episodes else ")"),
-        "",
-        "Rates of the run and of the reference; discordant TCs (only the run / only the "
-        "reference has the outcome); exact two-sided McNemar p-value, per comparison "
-        "(not corrected for multiple comparisons).",
-        "",
-        "| " + " | ".join(header) + " |",
-        "|" + "---|" * len(header),
-    ]
+    against = (
+        f"the run of the same task, method and seed in the {base_preset} preset"
+        if base_preset
+        else _reference_text(reference)
+    )
+    supplementary = f"; supplementary evaluation on the first {episodes} TCs" if episodes else ""
+    title = (
+        f"Each run against {against} on the same evaluation TCs ({preset} preset"
+        f"{supplementary})\n\nRates of the run and of the reference; discordant TCs (only the "
+        "run / only the reference has the outcome); exact two-sided McNemar p-value, per "
+        "comparison (not corrected for multiple comparisons)."
+    )
+    table = []
     for start in range(0, len(rows), len(OUTCOMES)):
         run = rows[start : start + len(OUTCOMES)]
         cells = [run[0]["task"].upper(), METHODS[run[0]["method"]].label, str(run[0]["seed"])]
@@ -310,8 +305,8 @@ def paired_texts(
                 f"{row['only_run']} / {row['only_reference']}",
                 _p_text(row["p_value"]),
             ]
-        lines.append("| " + " | ".join(cells) + " |")
-    return csv_text(rows, FIELDS), "\n".join(lines) + "\n"
+        table.append(cells)
+    return csv_text(rows, FIELDS), markdown_table(title, header, table)
 
 
 def _reference_text(reference: str) -> str:

@@ -24,7 +24,7 @@ import numpy as np
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_REPS, Estimate
 from distgprl.report.frame import COLLISION_FREE_MINCL
-from distgprl.report.markdown import csv_text, markdown_table
+from distgprl.report.markdown import csv_text, latex_table, markdown_table
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
     BEATS_UNTRAINED,
@@ -269,24 +269,16 @@ def _markdown(
 
 
 def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: str) -> str:
-    columns = "l" + "c" * (len(tasks) * len(METRICS))
-    label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
-    lines = [
-        "\\begin{table}[htb]",
-        "\\centering",
-        f"\\caption{{Simulation results ({preset} preset, {POLICY_TITLES[policy]}), mean "
+    caption = (
+        f"Simulation results ({preset} preset, {POLICY_TITLES[policy]}), mean "
         "$\\pm$ std over seeds; Success and Collision also give the 95\\,\\% t-interval over "
         "seeds [low, high], clipped to [0, 1], where there are two or more seeds; MinCl over "
-        "the episodes without a collision, (n=k) over the k seeds that have one}",
-        f"\\label{{{label}}}",
-        f"\\begin{{tabular}}{{{columns}}}",
-        "\\toprule",
-        " & "
-        + " & ".join(f"\\multicolumn{{{len(METRICS)}}}{{c}}{{{t.upper()}}}" for t in tasks)
-        + " \\\\",
-        "Method & " + " & ".join(name for _ in tasks for _, name in METRICS) + " \\\\",
-        "\\midrule",
-    ]
+        "the episodes without a collision, (n=k) over the k seeds that have one"
+    )
+    spans = (f"\\multicolumn{{{len(METRICS)}}}{{c}}{{{t.upper()}}}" for t in tasks)
+    header = [" & " + " & ".join(spans)]
+    header.append("Method & " + " & ".join(name for _ in tasks for _, name in METRICS))
+    table = []
     for row in rows:
         cells = [row["label"].replace("_", "\\_")]
         for task in tasks:
@@ -297,12 +289,12 @@ def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: st
                         row.get(f"{task}_untrained"), row.get(f"{task}_seeds", 0)
                     )
                 cells.append(_latex_text(text))
-        lines.append(" & ".join(cells) + " \\\\")
-    lines += ["\\bottomrule", "\\end{tabular}"]
-    if _has_untrained_marks(rows, tasks):
-        lines += ["", f"\\footnotesize {_latex_text(UNTRAINED_NOTE)}."]
-    lines += ["\\end{table}", ""]
-    return "\n".join(lines)
+        table.append(cells)
+    label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
+    columns = "l" + "c" * (len(tasks) * len(METRICS))
+    marked = _has_untrained_marks(rows, tasks)
+    footnote = f"{_latex_text(UNTRAINED_NOTE)}." if marked else ""
+    return latex_table(caption, label, columns, header, table, footnote)
 
 
 def _latex_text(text: str) -> str:

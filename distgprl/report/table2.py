@@ -26,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import csv_text
+from distgprl.report.markdown import csv_text, latex_table
 from distgprl.report.markdown import markdown_table as _markdown_table
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
@@ -423,30 +423,9 @@ def _latex(
     """Table II as LaTeX: a row of column-group titles over the column names."""
     latex_caption = caption.replace("—", "---").replace("–", "--").replace(" %", "\\,\\%")
     latex_caption = latex_caption.replace("pi rad/s", "$\\pi$ rad/s").replace("s^2", "s$^2$")
-    titles = " & ".join(
-        f"\\multicolumn{{{len(columns)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, columns in groups
-    )
-    names = [
-        "Method",
-        "Backend",
-        "Noise",
-        *(label for _, columns in groups for _, label in columns),
-    ]
-    width = sum(len(columns) for _, columns in groups)
-    lines = [
-        "\\begin{table}[htb]",
-        "\\centering",
-        f"\\caption{{{latex_caption}}}",
-        "\\label{tab:hardware_results}",
-        "\\begin{tabular}{lll" + "c" * width + "}",
-        "\\toprule",
-        f" & & & {titles} \\\\",
-        " & ".join(names) + " \\\\",
-        "\\midrule",
-        *(" & ".join(row).replace("–", "--") + " \\\\" for row in body),
-        "\\bottomrule",
-        "\\end{tabular}",
-        "\\end{table}",
-        "",
-    ]
-    return "\n".join(lines)
+    titles = (f"\\multicolumn{{{len(columns)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, columns in groups)
+    names = ["Method", "Backend", "Noise", *(label for _, cs in groups for _, label in cs)]
+    header = [" & & & " + " & ".join(titles), " & ".join(names)]
+    columns = "lll" + "c" * sum(len(columns) for _, columns in groups)
+    rows = ([cell.replace("–", "--") for cell in row] for row in body)
+    return latex_table(latex_caption, "tab:hardware_results", columns, header, rows)
