@@ -134,19 +134,29 @@ def paired_rows(
     """
     if reference not in METHODS:
         raise ValueError(f"unknown reference method {reference!r}")
-    base = Path(root) / preset
     file_name = evaluation_file_names(episodes)[0]
     current = select_runs(root, preset).current
     pairs = []
-    for run_file in sorted(base.glob(f"*/*/seed*/{file_name}")):
-        task, method, folder = run_file.parts[-4:-1]
-        if method in (reference, UNADAPTED) or method not in METHODS:
+    for task, method, folder in _evaluated(current, file_name):
+        if method in (reference, UNADAPTED):
             continue
-        reference_folder = "seed0" if reference == UNADAPTED else folder
-        reference_file = base / task / reference / reference_folder / file_name
-        if reference_file.exists() and {run_file.parent, reference_file.parent} <= current:
-            pairs.append((run_file, reference_file))
-    return _paired_files(pairs)
+        reference_folder = Path(root) / preset / task / reference
+        reference_file = reference_folder / ("seed0" if reference == UNADAPTED else folder.name)
+        pairs.append((folder / file_name, reference_file / file_name))
+    return _paired_files(
+        [(mine, theirs) for mine, theirs in pairs if theirs.parent in current and theirs.exists()]
+    )
+
+
+def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str, Path]]:
+    """(task, method, folder) of every run folder ``.../<task>/<method>/seed<k>`` of a method
+    among ``current`` (the runs that count, `select_runs`) that holds
+    ``file_name``, in folder order."""
+    return [
+        (folder.parent.parent.name, folder.parent.name, folder)
+        for folder in sorted(current)
+        if folder.parent.name in METHODS and (folder / file_name).exists()
+    ]
 
 
 def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict[str, Any]]:
@@ -163,16 +173,15 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
     if preset == base_preset:
         raise UserInputError(f"--against {base_preset}: pair a preset with another preset")
     file_name = evaluation_file_names()[0]
-    current = select_runs(root, preset).current
-    base_current = select_runs(root, base_preset).current
+    current, base_current = (
+        select_runs(root, preset).current,
+        select_runs(root, base_preset).current,
+    )
     pairs = []
-    for run_file in sorted((Path(root) / preset).glob(f"*/*/seed*/{file_name}")):
-        task, method, folder = run_file.parts[-4:-1]
-        base_file = Path(root) / base_preset / task / method / folder / file_name
-        if method == UNADAPTED or method not in METHODS or run_file.parent not in current:
-            continue
-        if base_file.parent in base_current and base_file.exists():
-            pairs.append((run_file, base_file))
+    for task, method, folder in _evaluated(current, file_name):
+        base_file = Path(root) / base_preset / task / method / folder.name / file_name
+        if method != UNADAPTED and base_file.parent in base_current and base_file.exists():
+            pairs.append((folder / file_name, base_file))
     try:
         return _paired_files(pairs)
     except ValueError as exc:
@@ -190,15 +199,14 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
     Raises:
         ValueError: the two evaluations of a run hold different TCs.
     """
-    base = Path(root) / preset
     best_name = evaluation_file_names(None, "best")[0]
     final_name = evaluation_file_names()[0]
     current = select_runs(root, preset).current
-    pairs = []
-    for best_file in sorted(base.glob(f"*/*/seed*/{best_name}")):
-        final_file = best_file.parent / final_name
-        if best_file.parts[-3] in METHODS and best_file.parent in current and final_file.exists():
-            pairs.append((best_file, final_file))
+    pairs = [
+        (folder / best_name, folder / final_name)
+        for _, _, folder in _evaluated(current, best_name)
+        if (folder / final_name).exists()
+    ]
     return _paired_files(pairs)
 
 
