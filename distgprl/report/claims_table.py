@@ -16,8 +16,6 @@ from distgprl.report.aggregate import (
 from distgprl.report.claims import TaskVerdict, Verdict, evaluate_claims
 from distgprl.report.markdown import csv_text, markdown_table
 
-__all__ = ["CSV_FIELDS", "claims_texts"]
-
 CSV_FIELDS: tuple[str, ...] = ("claim", "test", "task", "value", "ci_low", "ci_high", "seeds")
 CSV_FIELDS += ("pairs",)
 CSV_FIELDS += ("verdict", "detail")

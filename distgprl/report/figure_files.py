@@ -12,7 +12,6 @@ from distgprl.io import atomic_write_bytes
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["PNG_DPI", "SUFFIXES", "remove_figure", "write_figure", "write_or_remove_figure"]
 
 PNG_DPI = 150
 """PNG resolution (dots per inch); the PDF is vector."""

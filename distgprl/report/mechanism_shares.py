@@ -16,20 +16,6 @@ import numpy as np
 
 from distgprl.methods import METHODS
 
-__all__ = [
-    "CRITERION",
-    "NOT_RECORDED",
-    "POINTS",
-    "EpisodeRatios",
-    "GradientCell",
-    "MechanismTable",
-    "ReturnCell",
-    "episode_ratios",
-    "gradient_cells",
-    "gradient_points",
-    "return_cells",
-]
-
 CRITERION = 0.05
 """The pre-registered share (rule 7): each shaping term ≥ 5 % of the return where it acts,
 each regulariser's actor gradient ≥ 5 % of the Q term's (L_hap: outside C_safe)."""

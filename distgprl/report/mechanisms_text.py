@@ -23,30 +23,10 @@ from distgprl.report.mechanism_shares import (
     ReturnCell,
 )
 
-__all__ = ["CSV_COLUMNS", "covers_tc_range", "mechanism_texts", "verdict_lines"]
-
-CSV_COLUMNS = (
-    "section",
-    "task",
-    "method",
-    "item",
-    "where",
-    "step",
-    "kind",
-    "one_step_min_m",
-    "one_step_max_m",
-    "episode_min_m",
-    "episode_max_m",
-    "tc_range_m",
-    "covers_tc_range",
-    "seeds",
-    "episodes",
-    "episodes_within_d_min",
-    "episodes_zero_tc",
-    "share_mean",
-    "share_median",
-    "active_fraction",
-    "meets_criterion",
+CSV_COLUMNS = tuple(
+    "section task method item where step kind one_step_min_m one_step_max_m episode_min_m "
+    "episode_max_m tc_range_m covers_tc_range seeds episodes episodes_within_d_min "
+    "episodes_zero_tc share_mean share_median active_fraction meets_criterion".split()
 )
 """Columns of ``mechanisms_<preset>.csv``. ``section``: ``reach`` (``item`` the axis; reach
 in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and y),

@@ -19,8 +19,6 @@ import numpy as np
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.figure_files import remove_figure, write_figure
 
-__all__ = ["curve_series", "write_noise_curve"]
-
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
 

@@ -44,18 +44,6 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = [
-    "NEVER_BAND",
-    "NEVER_X",
-    "SEED_SHAPES",
-    "SEED_SPREAD",
-    "marker_gid",
-    "plot_onset_figure",
-    "run_length",
-    "seed_marker",
-    "seed_offsets",
-    "write_onset_figure",
-]
 
 NEVER_X = 1.125
 """Where a run that never reaches the threshold is drawn, as a multiple of the run length."""

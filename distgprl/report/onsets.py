@@ -44,38 +44,13 @@ from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.seed_curves import reading_columns, run_curves
 from distgprl.studies import OnsetRule, Study
 
-__all__ = [
-    "CSV_FIELDS",
-    "THRESHOLD",
-    "RuleVerdict",
-    "onset_panels",
-    "onset_rows",
-    "onset_step",
-    "onset_texts",
-    "rule_verdict",
-    "run_label",
-    "seeds_text",
-    "step_text",
-    "study_rule",
-]
-
 THRESHOLD = 0.5
 """Curve success that counts as learned for a study without a control rule."""
 
-CSV_FIELDS = [
-    "study",
-    "task",
-    "reading",
-    "preset",
-    "method",
-    "seed",
-    "onset_step",
-    "early",
-    "best_success",
-    "best_collision",
-    "final_success",
-    "final_collision",
-]
+CSV_FIELDS = list(
+    "study task reading preset method seed onset_step early best_success best_collision "
+    "final_success final_collision".split()
+)
 
 
 def onset_step(steps: Any, success: Any, threshold: float) -> int | None:

@@ -59,17 +59,8 @@ OUTCOMES = (
 )
 """Per-episode outcomes compared (each 0 or 1)."""
 
-FIELDS = (
-    "task",
-    "method",
-    "seed",
-    "outcome",
-    "tcs",
-    "run_rate",
-    "reference_rate",
-    "only_run",
-    "only_reference",
-    "p_value",
+FIELDS = tuple(
+    "task method seed outcome tcs run_rate reference_rate only_run only_reference p_value".split()
 )
 """Columns of ``paired_vs_<reference>_<preset>.csv``: one row per (run, outcome)."""
 

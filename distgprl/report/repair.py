@@ -30,6 +30,7 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.runs import select_runs
 from distgprl.schema import (
+    EVALUATION_FIELDS,
     evaluation_file_names,
     is_safe_success,
     read_csv,
@@ -40,25 +41,10 @@ from distgprl.schema import (
 MODES = ("check", "repair")
 """The sweep's modes (`distgprl.experiments.repair_evaluations.SWEEP_REPAIR_MODES`)."""
 
-FIELDS = (
-    "task",
-    "method",
-    "seeds",
-    "n_seeds",
-    "episodes",
-    "plain_success",
-    "plain_collision",
-    "check_success",
-    "check_collision",
-    "check_refused",
-    "repair_success",
-    "repair_collision",
-    "repair_refused",
-    "repair_retimed_windows",
-    "repair_time_added_s",
-    "gained",
-    "lost",
-    "averted",
+FIELDS = tuple(
+    "task method seeds n_seeds episodes plain_success plain_collision check_success "
+    "check_collision check_refused repair_success repair_collision repair_refused "
+    "repair_retimed_windows repair_time_added_s gained lost averted".split()
 )
 
 
@@ -74,18 +60,9 @@ class RunOutcomes:
     summaries: dict[str, dict[str, Any]]
 
 
-TC_COLUMNS = (
-    "episode",
-    "object_offset_x",
-    "object_offset_y",
-    "obstacle_offset_x",
-    "obstacle_offset_y",
-)
-
-
 def _tc(row: dict[str, str]) -> tuple[float, ...]:
     """A row's TC: its episode index and offsets (m), the columns both evaluations share."""
-    return tuple(round(float(row[name]), 9) for name in TC_COLUMNS)
+    return tuple(round(float(row[name]), 9) for name in EVALUATION_FIELDS[:5])
 
 
 def _outcomes(rows: list[dict[str, str]], refused: bool) -> tuple[tuple[bool, ...], ...]:

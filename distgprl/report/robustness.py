@@ -58,17 +58,6 @@ from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
-__all__ = [
-    "CSV_FIELDS",
-    "NOT_RUN",
-    "OUTSIDE",
-    "ReadingVerdicts",
-    "across_readings",
-    "reading_scores",
-    "robustness_texts",
-    "study_verdicts",
-]
-
 NOT_RUN = "not run under this reading"
 """A reading's verdict for a claim whose test reads a method the reading acts on and that has
 no run under it."""

@@ -19,8 +19,6 @@ from distgprl.report.aggregate import PROPOSED
 from distgprl.report.frame import by_run, curve_frame
 from distgprl.studies import Study
 
-__all__ = ["PANELS", "SEED_COLORS", "reading_columns", "run_curves", "seed_curves"]
-
 PANELS = (
     ("success_rate", "success rate"),
     ("collision_rate", "collision rate"),

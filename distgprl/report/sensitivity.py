@@ -34,15 +34,6 @@ from distgprl.studies import Study
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = [
-    "CONTROL_SHIFT_POINTS",
-    "PANELS",
-    "REFERENCES",
-    "plot_sensitivity",
-    "reading_gains",
-    "sensitivity_points",
-    "write_sensitivity",
-]
 
 PANELS = (
     ("success_rate", "success rate"),
