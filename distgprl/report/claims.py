@@ -193,7 +193,8 @@ BALANCE_AXES = (
 """The balance claim's axes: (score, higher is better, label)."""
 
 
-def _label(method: str) -> str:
+def short_label(method: str) -> str:
+    """The method's label without the paper's "(ours)"."""
     return METHODS[method].label.removesuffix(" (ours)")
 
 
@@ -275,7 +276,7 @@ def poi_task_verdict(scores: Scores, tasks: list[str], claim: PoiClaim, seed: in
         task = tasks[0]
         parts.append(
             f"runs that learned: Dist-GPRL {_learned(scores, task, PROPOSED)}, "
-            f"{_label(claim.versus)} {_learned(scores, task, claim.versus)}"
+            f"{short_label(claim.versus)} {_learned(scores, task, claim.versus)}"
         )
     name = tasks[0] if single else ALL_TASKS
     return TaskVerdict(name, estimate, poi_verdict(estimate), ", ".join(parts))
@@ -289,7 +290,9 @@ def extreme_verdict(
     own = estimates[method]
     others = {m: e for m, e in estimates.items() if m != method}
     rival = max(others, key=lambda m: -1.0 if not others[m].seeds else others[m].point)
-    detail = f"highest other: {_label(rival)} {others[rival].text()}" if others[rival].seeds else ""
+    detail = (
+        f"highest other: {short_label(rival)} {others[rival].text()}" if others[rival].seeds else ""
+    )
     verdict = _availability(list(estimates.values()))
     if verdict is None:
         if all(_above(own, other) for other in others.values()):
@@ -371,9 +374,9 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
     detail = (
         f"success IQM {estimates['success_rate'][PROPOSED].text()}, collision IQM "
         f"{estimates['collision_rate'][PROPOSED].text()}; dominates "
-        f"{', '.join(_label(m) for m in dominating) or 'none'}; dominated by "
-        f"{', '.join(_label(m) for m in dominated_by[PROPOSED]) or 'none'}; non-dominated: "
-        f"{', '.join(_label(m) for m in front)}"
+        f"{', '.join(short_label(m) for m in dominating) or 'none'}; dominated by "
+        f"{', '.join(short_label(m) for m in dominated_by[PROPOSED]) or 'none'}; non-dominated: "
+        f"{', '.join(short_label(m) for m in front)}"
     )
     return TaskVerdict(name, own, verdict, detail)
 
@@ -402,7 +405,7 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
         def rule(tasks: list[str], claim: PoiClaim = claim) -> TaskVerdict:
             return poi_task_verdict(scores, tasks, claim, seed)
 
-        test = f"PoI of Dist-GPRL over {_label(claim.versus)}, {claim.measure}"
+        test = f"PoI of Dist-GPRL over {short_label(claim.versus)}, {claim.measure}"
         verdicts.append(_claim(scores, claim.claim, test, rule, (PROPOSED, claim.versus)))
     ranking: list[tuple[str, str, TaskRule]] = [
         (
@@ -442,7 +445,7 @@ def _name_the_missing(
     for method in needed:
         lacking = [task for task in tasks if not scores.get((task, method))]
         if not tasks or len(lacking) == len(tasks):
-            missing.append(_label(method))
+            missing.append(short_label(method))
         elif lacking:
-            missing.append(f"{_label(method)} ({', '.join(t.upper() for t in lacking)})")
+            missing.append(f"{short_label(method)} ({', '.join(t.upper() for t in lacking)})")
     return replace(verdict, detail=f"no runs yet: {', '.join(missing)}")

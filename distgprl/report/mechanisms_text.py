@@ -196,15 +196,9 @@ def _reach_markdown(table: MechanismTable) -> str:
                 covers + MARKS.get(covers, ""),
             ]
         )
-    header = [
-        "Task",
-        "Method",
-        "Adapts",
-        "TC range x / y / z (m)",
-        "One step min–max x / y / z (m)",
-        "One episode min–max x / y / z (m)",
-        "Covers TC range (x, y)",
-    ]
+    header = ["Task", "Method", "Adapts", "TC range x / y / z (m)"]
+    header += ["One step min–max x / y / z (m)", "One episode min–max x / y / z (m)"]
+    header += ["Covers TC range (x, y)"]
     return markdown_table("### Reach of a raw action in [-1, 1]", header, rows)
 
 
@@ -238,16 +232,9 @@ def _return_markdown(table: MechanismTable) -> str:
                 *cells,
             ]
         )
-    header = [
-        "Task",
-        "Method",
-        "Policy",
-        "Seeds",
-        "Episodes within d_min",
-        "r_tc = 0 (left out)",
-        "\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)",
-        "\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)",
-    ]
+    header = ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
+    header += ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
+    header += ["\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)"]
     return markdown_table("### Shaping shares of the return", header, rows)
 
 
@@ -279,16 +266,9 @@ def _gradient_markdown(table: MechanismTable) -> str:
                 _percent(sum(fractions) / len(fractions)) if fractions else "—",
             ]
         )
-    header = [
-        "Task",
-        "Method",
-        "Point (step)",
-        "Seeds",
-        TERM_LABELS["l_sim"],
-        TERM_LABELS["l_hap"],
-        TERM_LABELS["l_hap_active"],
-        "Samples outside C_safe",
-    ]
+    header = ["Task", "Method", "Point (step)", "Seeds"]
+    header += [TERM_LABELS[item] for item in ("l_sim", "l_hap", "l_hap_active")]
+    header += ["Samples outside C_safe"]
     return markdown_table("### Regulariser shares of the actor gradient", header, rows)
 
 

@@ -173,34 +173,22 @@ def repair_texts(
     rounded = [
         {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows
     ]
-    header = [
-        "Task",
-        "Method",
-        "Seeds",
-        "Plain S / C",
-        "Check S / C / R",
-        "Repair S / C / R",
-        "Retimed",
-        "Added (s)",
-        "Gained / lost / averted",
+    header = ["Task", "Method", "Seeds", "Plain S / C", "Check S / C / R", "Repair S / C / R"]
+    header += ["Retimed", "Added (s)", "Gained / lost / averted"]
+    outcomes = ("success", "collision", "refused")
+    table = [
+        [
+            row["task"].upper(),
+            METHODS[row["method"]].label,
+            row["seeds"],
+            f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
+            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in outcomes) for mode in MODES),
+            f"{row['repair_retimed_windows']:.2f}",
+            f"{row['repair_time_added_s']:.2f}",
+            f"{row['gained']} / {row['lost']} / {row['averted']}",
+        ]
+        for row in rows
     ]
-    table = []
-    for row in rows:
-        table.append(
-            [
-                row["task"].upper(),
-                METHODS[row["method"]].label,
-                row["seeds"],
-                f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
-                " / ".join(f"{row[f'check_{k}']:.2f}" for k in ("success", "collision", "refused")),
-                " / ".join(
-                    f"{row[f'repair_{k}']:.2f}" for k in ("success", "collision", "refused")
-                ),
-                f"{row['repair_retimed_windows']:.2f}",
-                f"{row['repair_time_added_s']:.2f}",
-                f"{row['gained']} / {row['lost']} / {row['averted']}",
-            ]
-        )
     title = (
         f"Table I + repair ({preset} preset, simulation): the hardware safety layer in the loop "
         "on the evaluation TCs; S success, C collision, R refused (means over the seeds listed); "

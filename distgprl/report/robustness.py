@@ -52,9 +52,8 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
-from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
-from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
+from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims, short_label
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
@@ -79,10 +78,6 @@ verdict over the tasks, `distgprl.report.claims.combine`), then, with several st
 per claim and study with reading ``across <study>`` (Table I's reading and that study's), and
 one row per claim with reading ``across`` and the verdict across every reading
 (`across_readings`)."""
-
-
-def _label(method: str) -> str:
-    return METHODS[method].label.removesuffix(" (ours)")
 
 
 @dataclass(frozen=True)
@@ -168,13 +163,15 @@ def study_verdicts(
             for verdict in evaluate_claims(scores, seed):
                 lacking = [m for m in verdict.needs if m in not_run]
                 if lacking:
-                    names = ", ".join(map(_label, lacking))
+                    names = ", ".join(map(short_label, lacking))
                     if all(m in study.methods for m in lacking):
                         detail = f"{names} under {reading.preset}: the reading changes it; run it"
                         status = NOT_RUN
                     else:
-                        trained = ", ".join(map(_label, study.methods))
-                        outside = ", ".join(_label(m) for m in lacking if m not in study.methods)
+                        trained = ", ".join(map(short_label, study.methods))
+                        outside = ", ".join(
+                            short_label(m) for m in lacking if m not in study.methods
+                        )
                         detail = (
                             f"{names} under {reading.preset}: the reading changes it, and the "
                             f"{study.name} study trains {trained} only (not {outside})"
@@ -273,7 +270,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
     header += [f"Across Table I and the {name} study" for name in studies if per_study]
     header.append("Across readings")
     missing = [
-        f"{r.reading.label}: {', '.join(map(_label, r.not_run))}" for r in results if r.not_run
+        f"{r.reading.label}: {', '.join(map(short_label, r.not_run))}" for r in results if r.not_run
     ]
     intro = (
         f"Claims per reading ({preset} preset beside its studies): each claim's overall "
