@@ -181,42 +181,43 @@ def _run_mark(row: dict[str, Any]) -> str:
     return f" {UNTRAINED_MARK} (untrained {'–' if figure == '' else f'{float(figure):.2f}'})"
 
 
+def _number(value: float) -> str:
+    """A CSV number to 6 significant digits, empty for NaN."""
+    return "" if np.isnan(value) else f"{value:.6g}"
+
+
+def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
+    """The CSV cells of one row's ``task`` columns (`_csv_text`)."""
+    out = {f"{task}_seeds": row.get(f"{task}_seeds", 0)}
+    for key, _ in METRICS:
+        cell = row.get(f"{task}_{key}", aggregate([]))
+        for part in ("mean", "std", "ci_low", "ci_high"):
+            value = getattr(cell, part)
+            if part.startswith("ci_") and key.endswith("_rate"):
+                value = float(np.clip(value, *RATE_BOUNDS))  # NaN stays NaN
+            out[f"{task}_{key}_{part}"] = _number(value)
+    out[f"{task}_{MINCL_SEEDS}"] = row.get(f"{task}_{COLLISION_FREE_MINCL}", aggregate([])).n
+    out[f"{task}_all_collided_seeds"] = row.get(f"{task}_all_collided_seeds", 0)
+    marks = row.get(f"{task}_untrained") or UntrainedMarks(0, float("nan"))
+    out[f"{task}_{UNTRAINED_SEEDS}"] = marks.seeds
+    out[f"{task}_{UNTRAINED_FIGURE}"] = _number(marks.untrained_curve_success)
+    for key, _ in IQM_METRICS:
+        estimate = row.get(f"{task}_{key}_iqm")
+        parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
+        for part, value in zip(("iqm", "iqm_low", "iqm_high"), parts, strict=True):
+            out[f"{task}_{key}_{part}"] = _number(value)
+    return out
+
+
 def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
+    """Table I's CSV: per row the method, its label and every task's `_csv_cells`."""
+    table = [
+        {"method": row["method"], "label": row["label"]}
+        | {k: v for task in tasks for k, v in _csv_cells(row, task).items()}
+        for row in rows
+    ]
     fields = ["method", "label"]
-    for task in tasks:
-        fields.append(f"{task}_seeds")
-        for key, _ in METRICS:
-            fields += [f"{task}_{key}_{part}" for part in ("mean", "std", "ci_low", "ci_high")]
-        fields += [f"{task}_{MINCL_SEEDS}", f"{task}_all_collided_seeds"]
-        fields += [f"{task}_{UNTRAINED_SEEDS}", f"{task}_{UNTRAINED_FIGURE}"]
-        for key, _ in IQM_METRICS:
-            fields += [f"{task}_{key}_{part}" for part in ("iqm", "iqm_low", "iqm_high")]
-    table = []
-    for row in rows:
-        out = {"method": row["method"], "label": row["label"]}
-        for task in tasks:
-            out[f"{task}_seeds"] = row.get(f"{task}_seeds", 0)
-            for key, _ in METRICS:
-                cell = row.get(f"{task}_{key}", aggregate([]))
-                for part in ("mean", "std", "ci_low", "ci_high"):
-                    value = getattr(cell, part)
-                    if part.startswith("ci_") and key.endswith("_rate"):
-                        value = float(np.clip(value, *RATE_BOUNDS))  # NaN stays NaN
-                    out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
-            out[f"{task}_{MINCL_SEEDS}"] = row.get(
-                f"{task}_{COLLISION_FREE_MINCL}", aggregate([])
-            ).n
-            out[f"{task}_all_collided_seeds"] = row.get(f"{task}_all_collided_seeds", 0)
-            marks = row.get(f"{task}_untrained") or UntrainedMarks(0, float("nan"))
-            out[f"{task}_{UNTRAINED_SEEDS}"] = marks.seeds
-            figure = marks.untrained_curve_success
-            out[f"{task}_{UNTRAINED_FIGURE}"] = "" if np.isnan(figure) else f"{figure:.6g}"
-            for key, _ in IQM_METRICS:
-                estimate = row.get(f"{task}_{key}_iqm")
-                parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
-                for part, value in zip(("iqm", "iqm_low", "iqm_high"), parts, strict=True):
-                    out[f"{task}_{key}_{part}"] = "" if np.isnan(value) else f"{value:.6g}"
-        table.append(out)
+    fields += [k for task in tasks for k in _csv_cells({}, task)]
     return csv_text(table, fields)
 
 
