@@ -20,27 +20,31 @@ Whether the paper's mechanisms act, for a preset's runs, in three parts:
    acts (``grad_hap_active`` / grad_q over the samples outside C_safe, with the share of
    such samples ``hap_active_fraction``), each the mean over seeds.
 
-Each share is marked against the pre-registered criterion (`CRITERION`: ≥ 5 %; for L_hap
-outside C_safe) and each term gets a one-line verdict. Written as
-``mechanisms_<preset>.csv`` (with its metadata sidecar, as `distgprl.report.tables` writes
-tables) and ``.md``. The cells are computed by `distgprl.report.mechanism_shares` (pure
-functions of rows), the texts by `distgprl.report.mechanisms_text`; this module reads the
-files. Imports neither torch nor pybullet.
+Each share is marked ✓/✗ against the pre-registered criterion (`CRITERION`: ≥ 5 %; for
+L_hap outside C_safe) and each term gets a one-line verdict. Written as
+``mechanisms_<preset>.csv`` (one long CSV, `CSV_COLUMNS`: a ``section`` per part, the columns
+a part does not use empty; with its metadata sidecar, `write_table_files`) and ``.md`` (one
+table per part; `mechanism_texts`). The cells are computed by
+`distgprl.report.mechanism_shares` (pure functions of rows); this module reads the files and
+writes the texts. Imports neither torch nor pybullet.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from distgprl.config_types import EnvConfig
+from distgprl.data import task_order
 from distgprl.errors import UserInputError
-from distgprl.methods import METHODS
-from distgprl.report.markdown import write_table_files
+from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
+    NOT_RECORDED,
+    POINTS,
     GradientCell,
     MechanismTable,
     PlateauCell,
@@ -49,7 +53,6 @@ from distgprl.report.mechanism_shares import (
     plateau_cell,
     return_cells,
 )
-from distgprl.report.mechanisms_text import mechanism_texts
 from distgprl.report.runs import select_runs
 from distgprl.schema import evaluation_file_names, read_csv
 
@@ -133,3 +136,389 @@ def write_mechanisms(
         stem, (".csv", ".md"), texts, preset, DESCRIPTION, criterion=CRITERION
     )
     return written, verdicts
+
+
+CSV_COLUMNS = tuple(
+    "section task method item where step kind one_step_min_m one_step_max_m episode_min_m "
+    "episode_max_m tc_range_m covers_tc_range seeds episodes episodes_within_d_min "
+    "episodes_zero_tc share_mean share_median active_fraction meets_criterion".split()
+)
+"""Columns of ``mechanisms_<preset>.csv``. ``section``: ``reach`` (``item`` the axis; reach
+in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and y),
+``return_share`` (``item`` ``r_sd`` or ``r_ga`` (= lambda_ga r_ga), ``where`` the policy,
+shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``) or
+``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
+``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
+``seeds``). ``meets_criterion``: ``yes``/``no`` (≥ 5 %), ``not recorded``, ``inactive``,
+``n/a``."""
+
+COVER_TOLERANCE = 1e-9
+"""Reach equal to the TC range up to rounding (m) covers it (the reach rule sets it equal)."""
+
+MARKS = {"yes": " ✓", "no": " ✗"}
+TERM_LABELS = {
+    "r_sd": "r_sd / r_tc",
+    "r_ga": "λ_ga r_ga / r_tc",
+    "l_sim": "λ_sim L_sim / Q",
+    "l_hap": "λ_hap L_hap / Q (all samples)",
+    "l_hap_active": "λ_hap L_hap / Q outside C_safe",
+}
+
+
+def _method_order(method: str) -> tuple[int, str]:
+    return (TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER), method)
+
+
+def _order(task: str, method: str) -> tuple[int, tuple[int, str]]:
+    return task_order(task), _method_order(method)
+
+
+def _label(method: str) -> str:
+    return METHODS[method].label if method in METHODS else method
+
+
+def _number(value: float | None, digits: int = 6) -> str:
+    return "" if value is None else f"{value:.{digits}g}"
+
+
+def _percent(value: float | None) -> str:
+    return "–" if value is None else f"{100 * value:.1f} %"
+
+
+def _steps(steps: Sequence[int]) -> str:
+    if not steps:
+        return ""
+    low, high = min(steps), max(steps)
+    return str(low) if low == high else f"{low}–{high}"
+
+
+def covers_tc_range(rows: Sequence[Mapping[str, Any]]) -> str:
+    """``yes`` where a method and task's smallest one-episode reach is at least the TC range
+    on x and on y, ``no`` otherwise, ``n/a`` for reach in ProMP weight units."""
+    if any(row["kind"] == "ProMP weight" for row in rows):
+        return "n/a"
+    planar = [row for row in rows if row["axis"] in ("x", "y")]
+    ok = all(row["episode_min_m"] >= row["tc_range_m"] - COVER_TOLERANCE for row in planar)
+    return "yes" if ok and planar else "no"
+
+
+def _reach_groups(
+    reach: Iterable[Mapping[str, Any]],
+) -> list[tuple[tuple[str, str], list[Mapping[str, Any]]]]:
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for row in reach:
+        groups.setdefault((row["task"], row["method"]), []).append(row)
+    return sorted(groups.items(), key=lambda item: _order(*item[0]))
+
+
+def _return_cells(table: MechanismTable) -> list[ReturnCell]:
+    policies = ("final", "best")
+    return sorted(
+        table.returns,
+        key=lambda c: (*_order(c.task, c.method), policies.index(c.policy), c.term),
+    )
+
+
+def _gradient_cells(table: MechanismTable) -> list[GradientCell]:
+    items = list(TERM_LABELS)
+    return sorted(
+        table.gradients,
+        key=lambda c: (*_order(c.task, c.method), POINTS.index(c.point), items.index(c.item)),
+    )
+
+
+def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
+    for (task, method), group in _reach_groups(table.reach):
+        covers = covers_tc_range(group)
+        for row in group:
+            rows.append(
+                {
+                    "section": "reach",
+                    "task": task,
+                    "method": method,
+                    "item": row["axis"],
+                    "kind": row["kind"],
+                    **{
+                        key: _number(row[key])
+                        for key in (
+                            "one_step_min_m",
+                            "one_step_max_m",
+                            "episode_min_m",
+                            "episode_max_m",
+                            "tc_range_m",
+                        )
+                    },
+                    "covers_tc_range": covers,
+                }
+            )
+    for cell in _return_cells(table):
+        rows.append(
+            {
+                "section": "return_share",
+                "task": cell.task,
+                "method": cell.method,
+                "item": cell.term,
+                "where": cell.policy,
+                "seeds": cell.seeds,
+                "episodes": cell.episodes,
+                "episodes_within_d_min": cell.within,
+                "episodes_zero_tc": cell.zero_tc,
+                "share_mean": _number(cell.mean),
+                "share_median": _number(cell.median),
+                "meets_criterion": cell.verdict,
+            }
+        )
+    for gradient in _gradient_cells(table):
+        fractions = gradient.active_fraction
+        rows.append(
+            {
+                "section": "gradient_share",
+                "task": gradient.task,
+                "method": gradient.method,
+                "item": gradient.item,
+                "where": gradient.point,
+                "step": _steps(gradient.steps),
+                "seeds": len(gradient.steps),
+                "share_mean": _number(gradient.mean),
+                "active_fraction": _number(sum(fractions) / len(fractions)) if fractions else "",
+                "meets_criterion": gradient.verdict,
+            }
+        )
+    return rows
+
+
+def _reach_markdown(table: MechanismTable) -> str:
+    rows = []
+    for (task, method), group in _reach_groups(table.reach):
+        by_axis = sorted(group, key=lambda row: "xyz".index(row["axis"]))
+
+        def span(low: str, high: str, axes: list[Mapping[str, Any]] = by_axis) -> str:
+            return " / ".join(f"{row[low]:.3f}–{row[high]:.3f}" for row in axes)
+
+        kind = group[0]["kind"]
+        gate = group[0].get("gate_max")
+        note = kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}"
+        covers = covers_tc_range(group)
+        rows.append(
+            [
+                task.upper(),
+                _label(method),
+                note,
+                " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
+                span("one_step_min_m", "one_step_max_m"),
+                span("episode_min_m", "episode_max_m"),
+                covers + MARKS.get(covers, ""),
+            ]
+        )
+    header = ["Task", "Method", "Adapts", "TC range x / y / z (m)"]
+    header += ["One step min–max x / y / z (m)", "One episode min–max x / y / z (m)"]
+    header += ["Covers TC range (x, y)"]
+    return markdown_table("### Reach of a raw action in [-1, 1]", header, rows)
+
+
+def _return_markdown(table: MechanismTable) -> str:
+    grouped: dict[tuple[str, str, str], dict[str, ReturnCell]] = {}
+    for cell in _return_cells(table):
+        grouped.setdefault((cell.task, cell.method, cell.policy), {})[cell.term] = cell
+    rows = []
+    for (task, method, policy), terms in grouped.items():
+        first = next(iter(terms.values()))
+        cells = []
+        for term in ("r_sd", "r_ga"):
+            cell = terms[term]
+            if cell.verdict == NOT_RECORDED:
+                cells.append(NOT_RECORDED)
+            elif cell.mean is None:
+                cells.append("– (no episode within d_min)")
+            else:
+                cells.append(
+                    f"{_percent(cell.mean)} (median {_percent(cell.median)})" + MARKS[cell.verdict]
+                )
+        recorded = first.recorded > 0
+        rows.append(
+            [
+                task.upper(),
+                _label(method),
+                policy,
+                str(first.seeds),
+                f"{first.within} of {first.episodes}" if recorded else NOT_RECORDED,
+                str(first.zero_tc) if recorded else "",
+                *cells,
+            ]
+        )
+    header = ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
+    header += ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
+    header += ["\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)"]
+    return markdown_table("### Shaping shares of the return", header, rows)
+
+
+def _gradient_text(cell: GradientCell | None) -> str:
+    if cell is None:
+        return "—"
+    verdict = cell.verdict
+    if cell.mean is None:
+        return verdict
+    return _percent(cell.mean) + MARKS.get(verdict, "")
+
+
+def _gradient_markdown(table: MechanismTable) -> str:
+    grouped: dict[tuple[str, str, str], dict[str, GradientCell]] = {}
+    for cell in _gradient_cells(table):
+        grouped.setdefault((cell.task, cell.method, cell.point), {})[cell.item] = cell
+    rows = []
+    for (task, method, point), items in grouped.items():
+        first = next(iter(items.values()))
+        active = items.get("l_hap_active")
+        fractions = active.active_fraction if active is not None else ()
+        rows.append(
+            [
+                task.upper(),
+                _label(method),
+                f"{point} ({_steps(first.steps)})",
+                str(len(first.steps)),
+                *(_gradient_text(items.get(item)) for item in ("l_sim", "l_hap", "l_hap_active")),
+                _percent(sum(fractions) / len(fractions)) if fractions else "—",
+            ]
+        )
+    header = ["Task", "Method", "Point (step)", "Seeds"]
+    header += [TERM_LABELS[item] for item in ("l_sim", "l_hap", "l_hap_active")]
+    header += ["Samples outside C_safe"]
+    return markdown_table("### Regulariser shares of the actor gradient", header, rows)
+
+
+LISTED_FAILURES = 4
+"""A verdict line names at most this many failing cells (else their count and range)."""
+
+OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
+"""How a verdict line names the cells the criterion does not judge."""
+
+
+def _verdict(label: str, judged: list[tuple[str, str, float | None]]) -> str:
+    """One line: how many cells meet the criterion, which do not, and the term's verdict."""
+    yes = [name for name, verdict, _ in judged if verdict == "yes"]
+    no = [(name, value) for name, verdict, value in judged if verdict == "no"]
+    other: dict[str, int] = {}
+    for _, verdict, _ in judged:
+        if verdict not in ("yes", "no"):
+            other[verdict] = other.get(verdict, 0) + 1
+    decided = len(yes) + len(no)
+    if not decided:
+        outcome = "undecided (no cell where it acts and is recorded)"
+    elif no:
+        outcome = "does not meet the criterion"
+    else:
+        outcome = "meets the criterion"
+    line = f"{label}: {outcome}"
+    if decided:
+        line += f" — ≥ {100 * CRITERION:.0f} % in {len(yes)} of {decided} cells"
+    if len(no) > LISTED_FAILURES:
+        ranked = sorted(no, key=lambda item: item[1] if item[1] is not None else 0.0)
+        (low, low_value), (high, high_value) = ranked[0], ranked[-1]
+        line += (
+            f"; below in {len(no)} cells, from {low} {_percent(low_value)} "
+            f"to {high} {_percent(high_value)}"
+        )
+    elif no:
+        line += "; below: " + ", ".join(f"{name} {_percent(value)}" for name, value in no)
+    if other:
+        line += "; " + ", ".join(
+            f"{OTHER_VERDICTS.get(verdict, verdict)}: {count}"
+            for verdict, count in sorted(other.items())
+        )
+    return line + "."
+
+
+def verdict_lines(table: MechanismTable) -> list[str]:
+    """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim and lambda_hap
+    L_hap (outside C_safe)."""
+    lines = []
+    groups = _reach_groups(table.reach)
+    if groups:
+        covered = [(key, covers_tc_range(group)) for key, group in groups]
+        pairs = [(key, c) for key, c in covered if c != "n/a"]
+        missing = [f"{task}/{method}" for (task, method), c in pairs if c == "no"]
+        line = (
+            f"Reach: the one-episode reach covers the TC range on x and y for "
+            f"{sum(c == 'yes' for _, c in pairs)} of {len(pairs)} method–task pairs"
+        )
+        lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
+    for term in ("r_sd", "r_ga"):
+        cells = [c for c in _return_cells(table) if c.term == term]
+        if cells:
+            judged = [(f"{c.task}/{c.method} ({c.policy})", c.verdict, c.mean) for c in cells]
+            lines.append(_verdict(f"{TERM_LABELS[term]} (episodes within d_min)", judged))
+    for item in ("l_sim", "l_hap_active"):
+        gradients = [c for c in _gradient_cells(table) if c.item == item]
+        if gradients:
+            judged = [(f"{c.task}/{c.method} {c.point}", c.verdict, c.mean) for c in gradients]
+            lines.append(_verdict(TERM_LABELS[item], judged))
+    return lines
+
+
+def _plateau_markdown(table: MechanismTable) -> str:
+    """The idle episodes on the r_ga plateau per distance-reward method (no verdict: a
+    description of where the alignment reward is paid for not doing the task)."""
+    if not table.plateau:
+        return ""
+    rows = [
+        [
+            cell.task.upper(),
+            _label(cell.method),
+            cell.policy,
+            str(cell.seeds),
+            f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
+            "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
+        ]
+        for cell in sorted(table.plateau, key=lambda c: (_order(c.task, c.method), c.policy))
+    ]
+    header = ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
+    return markdown_table("### The r_ga plateau", header, rows) + (
+        "\nIdle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
+        "task's progress weight — the policy did not do the task; the alignment reward it "
+        "still collects is paid for moving the via-points along ∇d "
+        '(docs/FINDINGS.md "The first v7 runs").\n\n'
+    )
+
+
+def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
+    """(CSV text, Markdown text, verdict lines) of the table."""
+    verdicts = verdict_lines(table)
+    parts = [
+        f"## Mechanism table ({table.preset})",
+        "",
+        'Whether the paper\'s mechanisms act (docs/FINDINGS.md "Protocol v6", rule 7). '
+        f"Criterion, pre-registered: each shaping term ≥ {100 * CRITERION:.0f} % of |r_tc| over "
+        "the evaluation episodes that pass within d_min, each regulariser's actor gradient ≥ "
+        f"{100 * CRITERION:.0f} % of the Q term's at the start, middle and end of a paper-size "
+        "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell.",
+        "",
+        _reach_markdown(table),
+        "Reach: one step = action scale × the smallest and largest row sum Σ_j |S_W,ij| over "
+        "the adapted via-points (1 without S); one episode = summed over the steps that adapt "
+        "a via-point (1 windowed, 2 at a window overlap, 3 global). ProMP-RRL: its residual, "
+        "slew-limited per 0.1 s RL step, over an episode its range (the commanded offset is "
+        "the residual × the variance gate). Frozen via-points (GPRL's TC via-point) left out.",
+        "",
+        _return_markdown(table),
+        "Per episode |Σ r_sd| / |Σ r_tc| and |Σ λ_ga r_ga| / |Σ r_tc| (the evaluation rows' "
+        "return_sd, return_ga, return_tc), over the episodes whose minimum clearance is below "
+        "the run's d_min, pooled over seeds; episodes with Σ r_tc = 0 have no ratio and are "
+        f'left out (counted). "{NOT_RECORDED}": evaluation files written before those '
+        "columns.",
+        "",
+        _gradient_markdown(table),
+        "grad_sim / grad_q, grad_hap / grad_q and grad_hap_active / grad_q of progress.csv "
+        "(mean per-sample gradient norms on the actor's output, "
+        "`RegularisedSAC.actor_loss_gradient_norms`), at the first, middle and last "
+        "learning-curve points with a gradient, mean over seeds; only the outside-C_safe "
+        "share is judged.",
+        "",
+        _plateau_markdown(table),
+        "### Verdicts",
+        "",
+        *(f"- {line}" for line in verdicts),
+    ]
+    if table.note:
+        parts += ["", table.note + "."]
+    return csv_text(_csv_rows(table), CSV_COLUMNS), "\n".join(parts) + "\n", verdicts

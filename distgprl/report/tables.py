@@ -1,12 +1,11 @@
 """Every results table of a preset from its result files only (`write_tables`).
 
-The tables themselves are made by their modules — Table I by `distgprl.report.table1` (texts
-`distgprl.report.table1_text`), Table II by `distgprl.report.table2`, the aggregates by
-`distgprl.report.aggregate`, the claims by `distgprl.report.claims_table` and
-`distgprl.report.robustness`, the onsets by `distgprl.report.onsets`, the paired
-comparisons by `distgprl.report.paired`, Table I + repair by `distgprl.report.repair` —
-and written here with a metadata sidecar per CSV (`write_table_files`); a table the results
-no longer make is removed.
+The tables themselves are made by their modules — Table I by `distgprl.report.table1`,
+Table II by `distgprl.report.table2`, the aggregates by `distgprl.report.aggregate`, the
+claims by `distgprl.report.claims` and `distgprl.report.robustness`, the onsets by
+`distgprl.report.onsets`, the paired comparisons by `distgprl.report.paired`, Table I +
+repair by `distgprl.report.repair` — and written here with a metadata sidecar per CSV
+(`write_table_files`); a table the results no longer make is removed.
 
 **Which policy** (docs/findings/protocol.md, rule 6): Table I (``table1_<preset>``), its
 per-run table, the aggregates and the claims report each run's best learning-curve policy,
@@ -22,7 +21,7 @@ from pathlib import Path
 
 from distgprl.errors import UserInputError
 from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
-from distgprl.report.claims_table import claims_texts
+from distgprl.report.claims import claims_texts
 from distgprl.report.markdown import write_table_files
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
@@ -37,8 +36,14 @@ from distgprl.report.paired import (
 from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
 from distgprl.report.runs import TABLE_POLICY, run_evaluations
-from distgprl.report.table1 import RATE_BOUNDS, collect_scores, per_seed_rows, simulation_table
-from distgprl.report.table1_text import per_seed_texts, table1_texts
+from distgprl.report.table1 import (
+    RATE_BOUNDS,
+    collect_scores,
+    per_seed_rows,
+    per_seed_texts,
+    simulation_table,
+    table1_texts,
+)
 from distgprl.report.table2 import hardware_rows, hardware_texts, noise_texts, select_trial_files
 from distgprl.studies import studies_of
 

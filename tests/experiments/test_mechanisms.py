@@ -108,7 +108,7 @@ import json, sys
 from distgprl.experiments.mechanisms import reach_rows
 from distgprl.machine import numerics_fingerprint
 from distgprl.report.mechanism_shares import MechanismTable
-from distgprl.report.mechanisms_text import mechanism_texts
+from distgprl.report.mechanisms import mechanism_texts
 
 rows = reach_rows(sys.argv[1], "paper")
 csv_text, markdown, _ = mechanism_texts(MechanismTable("paper", tuple(rows), (), ()))

@@ -13,8 +13,13 @@ from pathlib import Path
 import pytest
 
 from distgprl.experiments.results import write_json
-from distgprl.report.table1 import simulation_table, untrained_marks
-from distgprl.report.table1_text import UNTRAINED_MARK, UNTRAINED_NOTE, untrained_text
+from distgprl.report.table1 import (
+    UNTRAINED_MARK,
+    UNTRAINED_NOTE,
+    simulation_table,
+    untrained_marks,
+    untrained_text,
+)
 from distgprl.report.tables import write_tables
 
 NOT_BEATEN = "no trained policy beat the untrained one"
