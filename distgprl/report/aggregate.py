@@ -405,45 +405,35 @@ empty below two runs in a stratum."""
 
 
 def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
-    """Every estimate of the aggregates table (`CSV_FIELDS`): per task group and method
-    (table order) the mean and IQM of each rate, then per task group the PoI of
-    `PROPOSED` over each of `PARTNERS` that both have runs of."""
+    """Every estimate of the aggregates table (`CSV_FIELDS`, the `Estimate` beside as
+    ``estimate``): per task group and method (table order) the mean and IQM of each rate,
+    then per task group the PoI of `PROPOSED` over each of `PARTNERS` that both have runs
+    of."""
     rows: list[dict[str, Any]] = []
-
-    def row(
-        task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
-    ) -> None:
-        interval = estimate.has_interval
-        rows.append(
-            {
-                "task": task,
-                "method": method,
-                "versus": versus,
-                "metric": key,
-                "statistic": statistic,
-                "value": estimate.point,
-                "ci_low": estimate.low if interval else "",
-                "ci_high": estimate.high if interval else "",
-                "seeds": ";".join(str(n) for n in estimate.seeds),
-                "estimate": estimate,
-            }
-        )
-
     for name, tasks in task_groups(scores):
         for method in TABLE_ORDER:
-            if not any((task, method) in scores for task in tasks):
-                continue
-            for key, _ in RATES:
-                for statistic in ("mean", "iqm"):
-                    estimate = method_estimate(scores, tasks, method, key, statistic, seed)
-                    row(name, method, "", key, statistic, estimate)
+            if any((task, method) in scores for task in tasks):
+                for key, _ in RATES:
+                    for statistic in ("mean", "iqm"):
+                        estimate = method_estimate(scores, tasks, method, key, statistic, seed)
+                        rows.append(_row(name, method, "", key, statistic, estimate))
     for name, tasks in task_groups(scores):
         for partner in PARTNERS:
             for key, _ in RATES:
                 estimate = poi(scores, tasks, PROPOSED, partner, key, seed)
                 if estimate.seeds:
-                    row(name, PROPOSED, partner, key, "poi", estimate)
+                    rows.append(_row(name, PROPOSED, partner, key, "poi", estimate))
     return rows
+
+
+def _row(
+    task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
+) -> dict[str, Any]:
+    """One `aggregate_rows` row (the interval empty without one)."""
+    low, high = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
+    seeds = ";".join(str(n) for n in estimate.seeds)
+    values = (task, method, versus, key, statistic, estimate.point, low, high, seeds)
+    return dict(zip(CSV_FIELDS, values, strict=True)) | {"estimate": estimate}
 
 
 def _task_label(task: str) -> str:

@@ -232,39 +232,20 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
         pairs = [(r.reading.label, r.verdicts[index].verdict) for r in results]
         for result in results:
             verdict = result.verdicts[index]
-            csv_rows.append(
-                {
-                    "claim": claim,
-                    "reading": result.reading.label,
-                    "preset": result.reading.preset,
-                    "verdict": verdict.verdict,
-                    "detail": verdict.detail,
-                }
-            )
+            fields = (result.reading.label, result.reading.preset, verdict.verdict, verdict.detail)
+            csv_rows.append(dict(zip(CSV_FIELDS, (claim, *fields), strict=True)))
         study_columns = []
         for name in studies if per_study else []:
-            within = across_readings(
-                [
-                    (r.reading.label, r.verdicts[index].verdict)
-                    for r in results
-                    if r.study in ("", name)
-                ],
-                seeds,
-            )
-            csv_rows.append(
-                {
-                    "claim": claim,
-                    "reading": f"across {name}",
-                    "preset": "",
-                    "verdict": within,
-                    "detail": "",
-                }
-            )
-            study_columns.append(within)
+            own = [
+                (r.reading.label, r.verdicts[index].verdict)
+                for r in results
+                if r.study in ("", name)
+            ]
+            study_columns.append(across_readings(own, seeds))
+            fields = (f"across {name}", "", study_columns[-1], "")
+            csv_rows.append(dict(zip(CSV_FIELDS, (claim, *fields), strict=True)))
         across = across_readings(pairs, seeds)
-        csv_rows.append(
-            {"claim": claim, "reading": "across", "preset": "", "verdict": across, "detail": ""}
-        )
+        csv_rows.append(dict(zip(CSV_FIELDS, (claim, "across", "", across, ""), strict=True)))
         rows.append([claim, *(f"{v}" for _, v in pairs), *study_columns, f"**{across}**"])
     header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
     header += [f"Across Table I and the {name} study" for name in studies if per_study]
