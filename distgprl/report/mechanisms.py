@@ -227,64 +227,34 @@ def _gradient_cells(table: MechanismTable) -> list[GradientCell]:
     )
 
 
+REACH_COLUMNS = ("one_step_min_m", "one_step_max_m", "episode_min_m", "episode_max_m", "tc_range_m")
+"""The reach rows' distances (m) in the CSV."""
+
+
 def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
+    """The `CSV_COLUMNS` rows: reach, then the return shares, then the gradient shares."""
     rows: list[dict[str, Any]] = []
     for (task, method), group in _reach_groups(table.reach):
-        covers = covers_tc_range(group)
+        covers = {"covers_tc_range": covers_tc_range(group)}
         for row in group:
-            rows.append(
-                {
-                    "section": "reach",
-                    "task": task,
-                    "method": method,
-                    "item": row["axis"],
-                    "kind": row["kind"],
-                    **{
-                        key: _number(row[key])
-                        for key in (
-                            "one_step_min_m",
-                            "one_step_max_m",
-                            "episode_min_m",
-                            "episode_max_m",
-                            "tc_range_m",
-                        )
-                    },
-                    "covers_tc_range": covers,
-                }
-            )
+            cells = {"section": "reach", "task": task, "method": method, "item": row["axis"]}
+            distances = {key: _number(row[key]) for key in REACH_COLUMNS}
+            rows.append(cells | {"kind": row["kind"]} | distances | covers)
     for cell in _return_cells(table):
-        rows.append(
-            {
-                "section": "return_share",
-                "task": cell.task,
-                "method": cell.method,
-                "item": cell.term,
-                "where": cell.policy,
-                "seeds": cell.seeds,
-                "episodes": cell.episodes,
-                "episodes_within_d_min": cell.within,
-                "episodes_zero_tc": cell.zero_tc,
-                "share_mean": _number(cell.mean),
-                "share_median": _number(cell.median),
-                "meets_criterion": cell.verdict,
-            }
-        )
+        where = {"section": "return_share", "task": cell.task, "method": cell.method}
+        counts = {"seeds": cell.seeds, "episodes": cell.episodes}
+        counts |= {"episodes_within_d_min": cell.within, "episodes_zero_tc": cell.zero_tc}
+        shares = {"share_mean": _number(cell.mean), "share_median": _number(cell.median)}
+        what = {"item": cell.term, "where": cell.policy, "meets_criterion": cell.verdict}
+        rows.append(where | what | counts | shares)
     for gradient in _gradient_cells(table):
         fractions = gradient.active_fraction
-        rows.append(
-            {
-                "section": "gradient_share",
-                "task": gradient.task,
-                "method": gradient.method,
-                "item": gradient.item,
-                "where": gradient.point,
-                "step": _steps(gradient.steps),
-                "seeds": len(gradient.steps),
-                "share_mean": _number(gradient.mean),
-                "active_fraction": _number(sum(fractions) / len(fractions)) if fractions else "",
-                "meets_criterion": gradient.verdict,
-            }
-        )
+        active = _number(sum(fractions) / len(fractions)) if fractions else ""
+        where = {"section": "gradient_share", "task": gradient.task, "method": gradient.method}
+        what = {"item": gradient.item, "where": gradient.point, "step": _steps(gradient.steps)}
+        shares = {"share_mean": _number(gradient.mean), "active_fraction": active}
+        verdict = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
+        rows.append(where | what | shares | verdict)
     return rows
 
 
