@@ -436,6 +436,11 @@ def _row(
     return dict(zip(CSV_FIELDS, values, strict=True)) | {"estimate": estimate}
 
 
+def short_label(method: str) -> str:
+    """The method's label without the paper's "(ours)"."""
+    return METHODS[method].label.removesuffix(" (ours)")
+
+
 def _task_label(task: str) -> str:
     return "Both (stratified)" if task == ALL_TASKS else task.upper()
 

@@ -87,6 +87,7 @@ from distgprl.report.aggregate import (
     Scores,
     method_estimate,
     poi,
+    short_label,
     strata,
     tasks_of,
 )
@@ -196,11 +197,6 @@ BALANCE_AXES = (
     ("mean_kinematic_retention", True, "retention"),
 )
 """The balance claim's axes: (score, higher is better, label)."""
-
-
-def short_label(method: str) -> str:
-    """The method's label without the paper's "(ours)"."""
-    return METHODS[method].label.removesuffix(" (ours)")
 
 
 def _availability(estimates: list[Estimate]) -> str | None:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.figure_files import remove_figure, write_figure
+from distgprl.report.figure_files import remove_figure, write_or_remove_figure
 
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
@@ -95,6 +95,4 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0.0, 0.08 + 0.04 * (len(labels) // 4), 1.0, 0.93))
-    written = write_figure(fig, stem)
-    plt.close(fig)
-    return written
+    return write_or_remove_figure((fig, len(series)), stem)

@@ -36,7 +36,8 @@ from typing import Any
 
 import pandas as pd
 
-from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.methods import TABLE_ORDER
+from distgprl.report.aggregate import short_label
 from distgprl.report.frame import curve_frame, run_frame, summaries
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.report.paired import FINAL_POLICY
@@ -90,7 +91,7 @@ def run_label(study: Study, method: str, reading: str) -> str:
     ``reading``): "Dist-GPRL: correlation only"; a method the study does not train (an
     operator study's NoCov) by its reading label alone, which names it."""
     if method in study.methods:
-        return f"{METHODS[method].label.removesuffix(' (ours)')}: {reading}"
+        return f"{short_label(method)}: {reading}"
     return reading
 
 

@@ -52,8 +52,8 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
-from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
-from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims, short_label
+from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, short_label, tasks_of
+from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 

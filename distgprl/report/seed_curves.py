@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from distgprl.methods import METHODS
-from distgprl.report.aggregate import PROPOSED
+from distgprl.report.aggregate import PROPOSED, short_label
 from distgprl.report.frame import by_run, curve_frame
 from distgprl.studies import Study
 
@@ -67,7 +67,7 @@ def reading_columns(study: Study) -> list[tuple[str, str, str]]:
     reading, the reference's first, and for an operator study Dist-GPRL-NoCov from the
     reference preset (no operator, so no reading changes it)."""
     method = PROPOSED if PROPOSED in study.methods else study.methods[0]
-    label = METHODS[method].label.removesuffix(" (ours)")
+    label = short_label(method)
     columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
     if study.reads_the_operator:
         nocov = "dist-gprl-nocov"

@@ -26,8 +26,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from distgprl.methods import METHODS
-from distgprl.report.aggregate import BOOTSTRAP_SEED, Estimate, Scores, method_estimate
-from distgprl.report.figure_files import remove_figure, write_figure
+from distgprl.report.aggregate import (
+    BOOTSTRAP_SEED,
+    Estimate,
+    Scores,
+    method_estimate,
+    short_label,
+)
+from distgprl.report.figure_files import remove_figure, write_or_remove_figure
 from distgprl.schema import read_json
 from distgprl.studies import Study
 
@@ -110,16 +116,12 @@ def write_sensitivity(
     ``<out_dir>/sensitivity_<study>_<reference preset>.{png,pdf}``; with nothing to draw,
     remove an earlier one. ``scores_of`` maps each reading's preset to its scores
     (`distgprl.report.table1.collect_scores`)."""
-    import matplotlib.pyplot as plt
-
     stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
     fig = plot_sensitivity(root, study, scores_of, seed)
     if fig is None:
         remove_figure(stem)
         return []
-    written = write_figure(fig, stem)
-    plt.close(fig)
-    return written
+    return write_or_remove_figure((fig, 1), stem)
 
 
 def plot_sensitivity(
@@ -173,7 +175,7 @@ def plot_sensitivity(
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     control = any(r.control for r in study.readings)
     fig.suptitle(
-        f"Operator study: {METHODS[method].label.removesuffix(' (ours)')} per reading of K_tt"
+        f"Operator study: {short_label(method)} per reading of K_tt"
         f"{' and control (hollow, drawn beside its gain)' if control else ''} "
         f"(means over seeds, 95 % bootstrap intervals; {study.reference.preset} preset's "
         "references dashed)",
@@ -233,6 +235,6 @@ def _draw_readings(
                 markerfacecolor="white" if reading.control else None,
                 transform=transform,
                 capsize=3,
-                label=f"{METHODS[method].label.removesuffix(' (ours)')}: "
+                label=f"{short_label(method)}: "
                 f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
             )
