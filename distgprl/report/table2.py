@@ -251,8 +251,7 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     levels = sorted({r["sensor_noise"] for r in twin}, key=int)
     if len(levels) < 2:
         return None
-    fields = ["method", "protocol", "repair", "sensor_noise", "perception_error_mm_median"]
-    fields.append("trials")
+    fields = "method protocol repair sensor_noise perception_error_mm_median trials".split()
     fields += list(INTERVAL_METRICS)
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
     table_csv = csv_text(twin, fields)
@@ -260,11 +259,8 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     for r in twin:
         by_setting.setdefault((r["method"], setting_label(r)), {})[r["sensor_noise"]] = r
     header = ["Method", "Protocol / repair"]
-    header += [
-        f"Noise {level} {name}"
-        for level in levels
-        for name in ("error (mm)", "Success", "Collision")
-    ]
+    names = ("error (mm)", "Success", "Collision")
+    header += [f"Noise {level} {name}" for level in levels for name in names]
     table = []
     for (method, repair), per_level in by_setting.items():
         cells = [METHODS[method].label, repair]
@@ -387,15 +383,11 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     """(CSV, Markdown, LaTeX) of Table II from `hardware_table` rows: the CSV one row per
     protocol setting, Markdown and LaTeX one per method, backend and noise level with the
     paper's protocol's columns first (`_groups`)."""
-    fields = ["method", "backend", "protocol", "repair", "sensor_noise", "trials", "refused"]
-    fields += ["protective_stops", "success_rate", "collision_rate", "min_clearance_p5"]
-    fields += ["executed"]
+    fields = "method backend protocol repair sensor_noise trials refused protective_stops".split()
+    fields += ["success_rate", "collision_rate", "min_clearance_p5", "executed"]
     fields += [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
-    cleared = [dict(row) for row in rows]  # MinCl empty, not nan, where no trial moved
-    for row in cleared:
-        row["min_clearance_p5"] = (
-            "" if np.isnan(row["min_clearance_p5"]) else row["min_clearance_p5"]
-        )
+    mincl = "min_clearance_p5"  # empty, not nan, where no trial moved
+    cleared = [row | {mincl: "" if np.isnan(row[mincl]) else row[mincl]} for row in rows]
     table_csv = csv_text(cleared, fields)
 
     groups = _groups(rows)
