@@ -19,10 +19,7 @@ PAGE = REPOSITORY / "site" / "guides" / "python-api-notebook" / "index.html"
 MACHINE_DEPENDENT = "machine-dependent"
 """The tag of the cells whose outputs are a rollout on this machine: bit-exact only where the
 numerics are the run's (docs/findings/reproducibility.md), so never compared with the stored."""
-REFRESH = (
-    ".venv/bin/jupyter nbconvert --to notebook --execute --inplace "
-    "docs/guides/python-api-notebook.ipynb"
-)
+REFRESH = "make notebook (make tables runs it: the outputs read the committed results)"
 
 
 def _code_cells(notebook) -> list:

@@ -138,6 +138,8 @@ def describe_summary(summary: dict[str, float], protocol: str) -> str:
     """One line of a `summarise_trials` summary, as the CLI and the sweep print it: the
     success and collision rates, the protocol's stops (the paper's: protective stops;
     the safety layer's: refusals) of the trials, and MinCl in millimetres."""
+    if not summary.get("judged"):
+        return f"no trial judged of {int(summary['trials'])}"
     stops = (
         f"protective stops {int(summary.get('protective_stops', 0))}"
         if protocol == PAPER

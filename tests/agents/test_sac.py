@@ -552,10 +552,21 @@ def test_a_signal_during_a_tensorboard_write_lands_after_the_write(tmp_path):
     dump is handed to the writer, then the KeyboardInterrupt is raised, and the writer
     still closes (its thread's queue count intact: no ``task_done() called too many times``
     traceback)."""
-    import os
     import signal
 
     pytest.importorskip("tensorboard")
+    # Python's own Ctrl-C handler, as in a command (a pytest-xdist worker ignores SIGINT)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupt_a_tensorboard_write(tmp_path)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupt_a_tensorboard_write(tmp_path):
+    import os
+    import signal
+
     logger = training_logger(tmp_path / "tb")
     (board,) = logger.output_formats
     add_scalar = board.writer.add_scalar

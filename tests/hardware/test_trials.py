@@ -229,6 +229,7 @@ def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
         "success 0.00, collision 0.00, protective stops 0 of 1"
     )
     assert "MinCl" not in describe_summary(only_refused, "paper")
+    assert describe_summary(summarise_trials([]), "paper") == "no trial judged of 0"
     assert describe_trial(rows[0]) == "ok, success 1, collision 0, min clearance 10.0 mm"
     assert describe_trial({**rows[1], "success": "", "min_clearance": ""}) == "refused"
 
@@ -312,7 +313,7 @@ def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
 
     def fake_run_trials(**kwargs):
         seen.update(kwargs)
-        return trials.TrialReport([], Path(tmp_path / "t.csv"), {})
+        return trials.TrialReport([], Path(tmp_path / "t.csv"), trials.summarise_trials([]))
 
     monkeypatch.setattr(trials, "run_trials", fake_run_trials)
     runner = CliRunner()
