@@ -66,8 +66,8 @@ def bench_via_point_scaling(
 
     Windows keep covering the interior, so the action (6 L) and observation sizes grow with N.
     """
-    from distgprl.envs.adaptation import AdaptationEnv
     from distgprl.envs.tasks import load_task_skill
+    from distgprl.envs.via_point_env import AdaptationEnv
     from distgprl.experiments.runner import make_agent
 
     base = load_task_skill(task)

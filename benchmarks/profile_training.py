@@ -32,7 +32,7 @@ start = time.perf_counter()
 if sys.argv[1] == "cached":
     import distgprl.envs.tasks as tasks
     from distgprl.skill.gp import GPSkill
-    from distgprl.experiments.results import file_sha256
+    from distgprl.io import file_sha256
     from pathlib import Path
     original, cache = tasks.load_task_skill, Path(sys.argv[2])
 

@@ -353,7 +353,7 @@ REPAIR_EVALUATION_FIELDS = (
     "repair_ms",
 )
 """Columns of an evaluation with the safety layer in the loop
-(:func:`repair_evaluation_file_names`; `distgprl.experiments.repaired_evaluation`).
+(:func:`repair_evaluation_file_names`; `distgprl.experiments.safety_layer_evaluation`).
 ``success``/``completed``/``collision``/``refused`` 0/1 (a refused episode is neither a
 success nor a collision); ``refused_window`` 1-based, ``""`` unless refused; clearances m
 (``min_clearance`` of the executed motion, the start pose's if nothing moved;

@@ -42,7 +42,7 @@ import sys
 
 import numpy as np
 
-from distgprl.experiments.results import read_csv
+from distgprl.schema import read_csv
 from distgprl.sim.tasks.dbm import SCENE
 
 
@@ -107,7 +107,7 @@ def failures(paths: list[str]) -> None:
 
 def oracle(scale: float, episodes: int = 100) -> None:
     from distgprl.config import EnvConfig
-    from distgprl.envs.adaptation import AdaptationEnv
+    from distgprl.envs.via_point_env import AdaptationEnv
 
     env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(position_action_scale=scale))
     results = []

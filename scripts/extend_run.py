@@ -24,7 +24,6 @@ import os
 import shutil
 from pathlib import Path
 
-from distgprl.experiments.results import read_json, write_json
 from distgprl.experiments.runner import (
     checkpoint_dir,
     has_checkpoint,
@@ -32,6 +31,7 @@ from distgprl.experiments.runner import (
     run_dir,
     train_run,
 )
+from distgprl.schema import read_json, write_json
 
 
 def main() -> None:

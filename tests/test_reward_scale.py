@@ -11,7 +11,7 @@ import pytest
 
 from distgprl.config import Config, load_config
 from distgprl.config_types import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.via_point_env import AdaptationEnv
 from distgprl.errors import ConfigError, UserInputError
 from distgprl.reward_scale import (
     MAX_GA_SHARE_OF_SUCCESS,

@@ -21,7 +21,7 @@ def render_demo_episode(task: str, tc_index: int | None, out_path: str | Path) -
 
     Returns the episode summary of `distgprl.sim.render.render_episode`.
     """
-    from distgprl.envs.adaptation import AdaptationEnv
+    from distgprl.envs.via_point_env import AdaptationEnv
     from distgprl.sim.render import render_episode
 
     if tc_index is not None and not 0 <= tc_index < N_EVALUATION_TCS:

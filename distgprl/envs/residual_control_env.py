@@ -32,10 +32,10 @@ from distgprl.adaptation.residual_control import (
     variance_gate,
 )
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import cosine
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
-from distgprl.envs.residual import load_task_promp
+from distgprl.envs.via_point_env import cosine
+from distgprl.envs.windowed_residual_env import load_task_promp
 from distgprl.envs.world import SimWorld, WorldState
 from distgprl.methods import MethodSpec
 from distgprl.safety.edf import DistanceField

@@ -14,7 +14,7 @@ import numpy as np
 
 from distgprl.adaptation.trajectories import ResidualProMPTrajectory, variance_gate
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.via_point_env import AdaptationEnv
 from distgprl.errors import UserInputError
 from distgprl.methods import PROMP_DEMONSTRATIONS, MethodSpec, get_method
 from distgprl.skill.demos import (

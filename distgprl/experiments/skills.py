@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from distgprl.config import EnvConfig
-from distgprl.experiments.results import read_json, write_json
 from distgprl.io import atomic_write_bytes
+from distgprl.schema import read_json, write_json
 from distgprl.skill.committed import CommittedSkill, read_skill_file
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error

@@ -18,7 +18,7 @@ from test_sac import QuadraticPrior, small_skill
 
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import build_action_layout
+from distgprl.envs.via_point_env import build_action_layout
 from distgprl.methods import get_method
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior

@@ -14,7 +14,7 @@ import pytest
 from _reference_clearance import ReferenceTimedClearance
 
 from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.envs.via_point_env import AdaptationEnv
 
 TASKS = ("dcp", "dbm")
 

@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
 from distgprl.config import ENVIRONMENT_VERSION, EnvConfig
-from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
+from distgprl.envs.via_point_env import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
 from distgprl.safety.hap import MovingObstacleFilter
 from distgprl.sim.tasks import TaskConfig

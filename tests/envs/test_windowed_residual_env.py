@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.envs.residual import (
+from distgprl.envs.windowed_residual_env import (
     ResidualEnv,
     expert_demonstration_set,
     load_task_promp,

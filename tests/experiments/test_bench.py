@@ -17,7 +17,7 @@ import pytest
 import torch
 
 from distgprl.experiments import bench
-from distgprl.experiments.results import read_json
+from distgprl.schema import read_json
 
 
 def _numbers(node, path=""):

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from distgprl.cli import app
 from distgprl.errors import UserInputError
 from distgprl.experiments import policies, runner, training
-from distgprl.experiments.results import read_csv, read_json, write_json
+from distgprl.schema import read_csv, read_json, write_json
 
 STEPS = 240  # the `ci` preset shortened: curve points at 0, 120, 240
 CI_LEARNING_STARTS = 60  # the `ci` preset's sac.learning_starts: 120 and 240 are trained
@@ -428,8 +428,8 @@ def test_ship_best_policy_copies_the_best_actor_with_its_hash(tmp_path, monkeypa
 def synthetic_run(folder, curve):
     """A run folder with a ``progress.csv`` of ``curve`` ((step, success) pairs) and a
     ``config.json`` giving learning_starts `LS`."""
-    from distgprl.experiments.results import write_csv
     from distgprl.experiments.runner import PROGRESS_FIELDS
+    from distgprl.schema import write_csv
 
     rows = []
     for step, success in curve:

@@ -1,11 +1,11 @@
-"""The safety-layer evaluations a sweep runs after each run (`experiments.repair_evaluations`),
+"""The safety-layer evaluations a sweep runs after each run (`experiments.repair_follow_ups`),
 on the ci preset's untrained `demo` reference (no training needed)."""
 
 from __future__ import annotations
 
 import pytest
 
-from distgprl.experiments import repair_evaluations as follow
+from distgprl.experiments import repair_follow_ups as follow
 from distgprl.experiments import sweep
 from distgprl.experiments.evaluation import evaluate_run
 from distgprl.schema import read_csv, read_json, repair_evaluation_file_names, run_dir, write_json
@@ -77,7 +77,7 @@ def test_a_failing_evaluation_is_reported_and_does_not_raise(demo_evaluated, mon
     def broken(*args, **kwargs):
         raise RuntimeError("simulator lost")
 
-    monkeypatch.setattr("distgprl.experiments.repaired_evaluation.evaluate_with_repair", broken)
+    monkeypatch.setattr("distgprl.experiments.safety_layer_evaluation.evaluate_with_repair", broken)
     report = follow.run_and_report(demo_evaluated, "ci", "dbm", "demo", 0)
     assert report == "safety-layer evaluation failed: RuntimeError: simulator lost"
 

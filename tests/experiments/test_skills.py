@@ -131,7 +131,7 @@ def independent_axis_operator(length_scale, correlation_lambda, variance, window
 def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units():
     """v5: axis a's S_W is built from K_a = sigma_f^2 max(s_a, floor_a)^2 R (checked against an
     independent operator), so axes with a smaller prior variance are shrunk more."""
-    from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR
+    from distgprl.envs.via_point_env import OBSERVATION_SCALE_FLOOR
 
     skill = make_skill(0.06)
     summary = correlation_summary(skill, SIGNAL)

@@ -13,7 +13,6 @@ from typer.testing import CliRunner
 from distgprl.cli import app
 from distgprl.experiments import pace, sweep
 from distgprl.experiments.checkpoints import checkpoint_paths
-from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
 from distgprl.experiments.status import (
     count_states,
@@ -21,6 +20,7 @@ from distgprl.experiments.status import (
     run_status,
     sweep_status,
 )
+from distgprl.schema import write_csv, write_json
 
 
 def _job(tmp_path, method="gprl-d", seed=0):

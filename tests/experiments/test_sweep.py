@@ -13,10 +13,10 @@ import pytest
 
 from distgprl.errors import UserInputError
 from distgprl.experiments import sweep
-from distgprl.experiments.results import read_csv, read_json
 from distgprl.experiments.runner import run_dir, run_lock
 from distgprl.report.curves import write_curves
 from distgprl.report.tables import write_tables
+from distgprl.schema import read_csv, read_json
 
 
 def test_plan_validates_names_and_runs_demo_once_per_task():

@@ -6,7 +6,6 @@ from __future__ import annotations
 import pytest
 
 from distgprl.experiments import sweep
-from distgprl.experiments.results import read_csv, write_json
 from distgprl.experiments.table2_trials import (
     TrialSetting,
     missing_settings,
@@ -15,7 +14,7 @@ from distgprl.experiments.table2_trials import (
     table2_settings,
 )
 from distgprl.identity import resolve_run
-from distgprl.schema import TRIAL_FIELDS, write_csv
+from distgprl.schema import TRIAL_FIELDS, read_csv, write_csv, write_json
 
 
 def test_every_method_gets_the_papers_protocol_first_then_the_safety_layer_settings():

@@ -11,9 +11,9 @@ import pytest
 
 from distgprl.errors import UserInputError
 from distgprl.experiments import checkpoints, runner, training
-from distgprl.experiments.results import read_csv, read_json, write_json
 from distgprl.limits import SafetyLimits
 from distgprl.methods import METHODS
+from distgprl.schema import read_csv, read_json, write_json
 
 STEPS = 120  # the `ci` preset shortened further; still past learning_starts
 

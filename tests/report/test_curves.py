@@ -10,9 +10,9 @@ import sys
 import numpy as np
 import pytest
 
-from distgprl.experiments.results import write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.curves import load_curves, mean_and_band, plot_figure
+from distgprl.schema import write_csv, write_json
 
 EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 EPISODE += ("obstacle_offset_y", "success", "collision")

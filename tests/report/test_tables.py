@@ -10,7 +10,6 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
 from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.machine import machine_info
 from distgprl.report.table1 import (
@@ -22,7 +21,7 @@ from distgprl.report.table1 import (
 )
 from distgprl.report.table2 import binomial_interval, hardware_table, select_trial_files
 from distgprl.report.tables import write_tables
-from distgprl.schema import moved_robot
+from distgprl.schema import SchemaVersionError, moved_robot, write_csv, write_json
 
 
 def test_aggregate_mean_std_and_t_interval():
