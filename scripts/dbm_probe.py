@@ -106,7 +106,7 @@ def failures(paths: list[str]) -> None:
 
 
 def oracle(scale: float, episodes: int = 100) -> None:
-    from distgprl.config import EnvConfig
+    from distgprl.config_types import EnvConfig
     from distgprl.envs.via_point_env import AdaptationEnv
 
     env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(position_action_scale=scale))
@@ -144,7 +144,9 @@ def trained_policy(run_folder: str):
     from pathlib import Path
 
     from distgprl.agents.sac import RegularisedSAC
-    from distgprl.experiments.runner import deterministic_policy, make_env, resolve_run
+    from distgprl.experiments.factories import make_env
+    from distgprl.experiments.rollout import deterministic_policy
+    from distgprl.identity import resolve_run
 
     folder = Path(run_folder)
     config = read_csv(folder / "evaluation.csv")[0]

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.runner import resolve_run
+from distgprl.identity import resolve_run
 from distgprl.methods import (
     EXPLORATION_METHODS,
     METHODS,

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.config import Config, load_config
-from distgprl.config_types import EnvConfig
+from distgprl.config import load_config
+from distgprl.config_types import Config, EnvConfig
 from distgprl.envs.via_point_env import AdaptationEnv
 from distgprl.errors import ConfigError, UserInputError
 from distgprl.reward_scale import (

@@ -65,13 +65,9 @@ from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.checkpoints import checkpoint_dir, trained_steps
 from distgprl.experiments.evaluation import evaluate_run
-from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
+from distgprl.experiments.follow_ups import (
     follow_up_due,
-    repairs_due,
     run_follow_ups,
-    run_job_repairs,
-    run_job_trials,
-    trials_due,
 )
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.policies import ship_if_missing

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from distgprl.envs.via_point_env import min_jerk
+from distgprl.adaptation.plan import min_jerk
 
 
 def test_min_jerk_blend_endpoints():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from distgprl.adaptation.residual_control import RL_RATE_HZ, rotation_error
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.envs.residual_control_env import (
     REWARD_TERMS,
     ResidualRLEnv,

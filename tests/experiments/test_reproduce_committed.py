@@ -76,9 +76,11 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.data import TASK_NAMES
-from distgprl.experiments.runner import evaluate_run, resolve_run, train_run
+from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.training import train_run
+from distgprl.identity import resolve_run
 from distgprl.schema import read_csv
 
 PAPER_RESULTS = Path(__file__).resolve().parents[2] / "results" / "paper"

@@ -8,7 +8,9 @@ from dataclasses import replace
 import pytest
 
 from distgprl.experiments import safety_layer_evaluation as repaired
-from distgprl.experiments.runner import evaluate_policy, make_env, resolve_run
+from distgprl.experiments.factories import make_env
+from distgprl.experiments.rollout import evaluate_policy
+from distgprl.identity import resolve_run
 from distgprl.limits import SafetyLimits
 from distgprl.safety_layer.retime import RepairConfig
 from distgprl.schema import (

@@ -3,12 +3,12 @@ configuration is listed, not averaged in)."""
 
 from __future__ import annotations
 
-from distgprl.experiments.runner import PROGRESS_FIELDS, resolve_run
+from distgprl.identity import resolve_run
 from distgprl.report.curves import load_curves
 from distgprl.report.runs import select_runs
 from distgprl.report.table1 import simulation_table
 from distgprl.report.tables import write_tables
-from distgprl.schema import write_csv, write_json
+from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
 
 SUMMARY = {
     "success_rate": 0.5,

@@ -40,7 +40,7 @@ def run_benchmarks(
     """
     import torch
 
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
     from distgprl.schema import write_json
 
     sizes = sizes or sizes_for(quick)
