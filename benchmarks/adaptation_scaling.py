@@ -66,9 +66,9 @@ def bench_via_point_scaling(
 
     Windows keep covering the interior, so the action (6 L) and observation sizes grow with N.
     """
-    from distgprl.envs.adaptation import AdaptationEnv
     from distgprl.envs.tasks import load_task_skill
-    from distgprl.experiments.runner import make_agent
+    from distgprl.envs.via_point_env import AdaptationEnv
+    from distgprl.experiments.factories import make_agent
 
     base = load_task_skill(task)
     rows = []
@@ -133,7 +133,7 @@ def bench_obstacle_scaling(
 ) -> list[dict[str, Any]]:
     """Per-episode adaptation compute and the EDF query vs number of boxes, with PyBullet
     closest points on the same points and boxes, ``repeats`` samples per point."""
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
 
     run = run_spec(task)
     env = make_env(run)

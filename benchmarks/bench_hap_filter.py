@@ -16,7 +16,8 @@ import time
 import numpy as np
 import torch
 
-from distgprl.experiments.runner import build_regulariser, make_env, resolve_run
+from distgprl.experiments.factories import build_regulariser, make_env
+from distgprl.identity import resolve_run
 
 
 def main(task: str) -> None:

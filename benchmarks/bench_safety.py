@@ -25,7 +25,7 @@ from pybullet_utils.bullet_client import BulletClient
 from scipy.spatial.transform import Rotation
 
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import HapConfig, build_subspace
+from distgprl.safety.hap_build import HapConfig, build_subspace
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box, Cylinder, Plane
 

@@ -26,7 +26,9 @@ import numpy as np
 
 import distgprl.sim.tasks.base as task_base
 from distgprl.api import load_policy
-from distgprl.experiments.runner import evaluate_policy, make_env, resolve_run
+from distgprl.experiments.factories import make_env
+from distgprl.experiments.rollout import evaluate_policy
+from distgprl.identity import resolve_run
 from distgprl.sim.bullet import PhysicsConfig
 
 

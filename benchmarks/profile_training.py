@@ -32,7 +32,7 @@ start = time.perf_counter()
 if sys.argv[1] == "cached":
     import distgprl.envs.tasks as tasks
     from distgprl.skill.gp import GPSkill
-    from distgprl.experiments.results import file_sha256
+    from distgprl.io import file_sha256
     from pathlib import Path
     original, cache = tasks.load_task_skill, Path(sys.argv[2])
 
@@ -47,7 +47,8 @@ if sys.argv[1] == "cached":
         return skill
 
     tasks.load_task_skill = load_task_skill
-from distgprl.experiments.runner import make_agent, make_env, resolve_run
+from distgprl.experiments.factories import make_agent, make_env
+from distgprl.identity import resolve_run
 imported = time.perf_counter()
 run = resolve_run("dcp", "dist-gprl", 0, "ci")
 env = make_env(run)
@@ -63,7 +64,8 @@ def profile_training(steps: int) -> None:
     import torch
 
     from distgprl.config import load_config
-    from distgprl.experiments.runner import RunSpec, make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.identity import RunSpec
     from distgprl.methods import get_method
 
     torch.set_num_threads(1)

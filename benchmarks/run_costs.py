@@ -74,7 +74,7 @@ def main() -> None:
     }
     print(json.dumps(report, indent=1))
     if args.out is not None:
-        from distgprl.experiments.results import write_json
+        from distgprl.schema import write_json
 
         write_json(args.out, report, kind="bench")  # with the meta block (commit, machine)
 

@@ -134,7 +134,7 @@ def bench_training(learning_starts: int, steps: int, task: str = BENCH_TASK) -> 
     ``learning_starts`` random ones, one torch thread) and where the time goes."""
     import torch
 
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
@@ -177,7 +177,7 @@ def training_worker(task: str, learning_starts: int, steps: int) -> None:
 
     import torch
 
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
 
     torch.set_num_threads(1)
     run = run_spec(task, sac_overrides={"learning_starts": learning_starts})

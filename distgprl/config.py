@@ -38,8 +38,6 @@ import yaml
 
 from distgprl.config_checks import check_config
 from distgprl.config_types import (
-    ENVIRONMENT_VERSION,
-    HASH_STABLE_DEFAULTS,
     Config,
     EnvConfig,
     RunConfig,
@@ -66,16 +64,10 @@ OVERRIDE_SEPARATOR = "+"
 
 
 __all__ = [
-    "ENVIRONMENT_VERSION",
     "EXTENDS_KEY",
-    "HASH_STABLE_DEFAULTS",
     "OVERRIDE_SEPARATOR",
     "PRESET_DIR",
     "USER_PRESETS_ENV",
-    "Config",
-    "EnvConfig",
-    "RunConfig",
-    "SACConfig",
     "load_config",
     "parse_override",
     "preset_names",

@@ -15,7 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from distgprl.config import ENVIRONMENT_VERSION, Config, load_config
+from distgprl.config import load_config
+from distgprl.config_types import ENVIRONMENT_VERSION, Config
 from distgprl.data import DATA_DIR, SCENE_REVISIONS, check_task_name
 from distgprl.errors import UserInputError
 from distgprl.io import config_hash, sha256_hex

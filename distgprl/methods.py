@@ -26,7 +26,7 @@ class MethodSpec:
         action_mode: ``window`` (L via-points per RL step), ``global`` (all adaptable
             via-points every step), ``residual`` (ProMP-RRL residual weights on a nominal
             trajectory, at the windowed steps), ``residual-control`` (ProMP-RRL as residual
-            RL: a Cartesian residual at 10 Hz, `distgprl.envs.residual_rl`), ``none`` (no
+            RL: a Cartesian residual at 10 Hz, `distgprl.envs.residual_control_env`), ``none`` (no
             learning).
         covariance_transform: apply Delta Gamma = S_W a (Eq. transformed_action).
         distance_rewards: add r_sd and lambda_ga r_ga (Eq. total_reward).
@@ -96,7 +96,7 @@ class MethodSpec:
 PROMP_DEMONSTRATIONS: dict[str, int] = {"one": 1, "expert": 20}
 """Distinct demonstrations per `MethodSpec.demonstrations` source: the one shipped
 demonstration, or the 20 demonstrated trajectories of the paper's ProMP-RRL (§V-B). The
-loader refuses an ``expert`` set of any other size (`distgprl.envs.residual`)."""
+loader refuses an ``expert`` set of any other size (`distgprl.envs.windowed_residual_env`)."""
 
 
 #: Fields added to `MethodSpec` after committed results, with their old-behaviour default.
@@ -198,7 +198,7 @@ EXPLORATION_METHODS: tuple[str, ...] = ("promp-rrl-windowed", "promp-rrl-expert"
 """Methods outside Table I and the default sweep (run them by name): ``promp-rrl-windowed`` adapts
 the residual ProMP weights at the three windowed steps (not residual RL) on the one
 demonstration; ``promp-rrl-expert`` the same on the 20 expert
-demonstrations. Table I's ``promp-rrl`` is residual RL (`distgprl.envs.residual_rl`)."""
+demonstrations. Table I's ``promp-rrl`` is residual RL (`distgprl.envs.residual_control_env`)."""
 
 STUDY_METHODS: tuple[str, ...] = ("promp-rrl-1demo", "promp-nominal-1demo")
 """Methods reported beside Table I, not in it, and outside the default sweep (run them by
@@ -218,7 +218,7 @@ NO_SAFETY_LAYER = (
     "trials check and re-time each 0.1 s step instead, `distgprl hardware`)"
 )
 """Why `has_via_point_plan` methods are the only ones the simulated safety-layer evaluation
-(`distgprl.experiments.repaired_evaluation`) runs."""
+(`distgprl.experiments.safety_layer_evaluation`) runs."""
 
 
 def has_via_point_plan(spec: MethodSpec) -> bool:

@@ -13,7 +13,7 @@ block is in the JSON sidecar ``<name>.csv.meta.json`` (:func:`csv_meta_path`); C
 before the sidecar carry it as a first ``# meta: {json}`` line, and :func:`read_csv` reads both.
 
 **Run folders** ``<root>/<preset>/<task>/<method>/seed<k>/`` (:func:`run_dir`; the files are
-described in :mod:`distgprl.experiments.runner`): ``config.json``, ``progress.csv``
+described in :mod:`distgprl.experiments`): ``config.json``, ``progress.csv``
 (:data:`PROGRESS_FIELDS`), ``evaluation[_best][_n<N>].csv`` (:data:`EVALUATION_FIELDS`) with
 its ``summary[_best][_n<N>].json`` (:func:`evaluation_file_names`), ``done.json``.
 
@@ -353,7 +353,7 @@ REPAIR_EVALUATION_FIELDS = (
     "repair_ms",
 )
 """Columns of an evaluation with the safety layer in the loop
-(:func:`repair_evaluation_file_names`; `distgprl.experiments.repaired_evaluation`).
+(:func:`repair_evaluation_file_names`; `distgprl.experiments.safety_layer_evaluation`).
 ``success``/``completed``/``collision``/``refused`` 0/1 (a refused episode is neither a
 success nor a collision); ``refused_window`` 1-based, ``""`` unless refused; clearances m
 (``min_clearance`` of the executed motion, the start pose's if nothing moved;

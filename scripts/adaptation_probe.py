@@ -30,9 +30,9 @@ import numpy as np
 
 from distgprl.experiments.factories import make_env
 from distgprl.experiments.policies import load_trained_policy
-from distgprl.experiments.results import read_json
 from distgprl.experiments.rollout import deterministic_policy
 from distgprl.identity import resolve_run
+from distgprl.schema import read_json
 
 POSITION_AXES = ("x", "y", "z")
 

@@ -42,7 +42,7 @@ import sys
 
 import numpy as np
 
-from distgprl.experiments.results import read_csv
+from distgprl.schema import read_csv
 from distgprl.sim.tasks.dbm import SCENE
 
 
@@ -106,8 +106,8 @@ def failures(paths: list[str]) -> None:
 
 
 def oracle(scale: float, episodes: int = 100) -> None:
-    from distgprl.config import EnvConfig
-    from distgprl.envs.adaptation import AdaptationEnv
+    from distgprl.config_types import EnvConfig
+    from distgprl.envs.via_point_env import AdaptationEnv
 
     env = AdaptationEnv("dbm", "dist-gprl", EnvConfig(position_action_scale=scale))
     results = []
@@ -144,7 +144,9 @@ def trained_policy(run_folder: str):
     from pathlib import Path
 
     from distgprl.agents.sac import RegularisedSAC
-    from distgprl.experiments.runner import deterministic_policy, make_env, resolve_run
+    from distgprl.experiments.factories import make_env
+    from distgprl.experiments.rollout import deterministic_policy
+    from distgprl.identity import resolve_run
 
     folder = Path(run_folder)
     config = read_csv(folder / "evaluation.csv")[0]

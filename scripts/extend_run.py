@@ -24,14 +24,10 @@ import os
 import shutil
 from pathlib import Path
 
-from distgprl.experiments.results import read_json, write_json
-from distgprl.experiments.runner import (
-    checkpoint_dir,
-    has_checkpoint,
-    resolve_run,
-    run_dir,
-    train_run,
-)
+from distgprl.experiments.checkpoints import checkpoint_dir, has_checkpoint
+from distgprl.experiments.training import train_run
+from distgprl.identity import resolve_run
+from distgprl.schema import read_json, run_dir, write_json
 
 
 def main() -> None:

@@ -6,7 +6,7 @@ import pytest
 from typer.testing import CliRunner
 
 from distgprl.cli import app
-from distgprl.experiments.results import read_json
+from distgprl.schema import read_json
 
 runner = CliRunner()
 

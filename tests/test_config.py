@@ -10,7 +10,8 @@ from dataclasses import replace
 import pytest
 
 from distgprl import config as config_module
-from distgprl.config import Config, EnvConfig, load_config
+from distgprl.config import load_config
+from distgprl.config_types import Config, EnvConfig
 from distgprl.errors import UserInputError
 
 
@@ -175,7 +176,7 @@ def test_a_user_presets_run_hash_does_not_depend_on_where_the_file_is(
 ):
     """The same file in two folders gives the same run (config hash), so moving a preset
     file never makes its runs stale."""
-    from distgprl.experiments.runner import resolve_run
+    from distgprl.identity import resolve_run
 
     hashes = []
     for folder in ("a", "b/c"):

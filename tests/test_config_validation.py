@@ -26,8 +26,9 @@ from typer.testing import CliRunner
 from distgprl import api
 from distgprl import config as config_module
 from distgprl.cli import app
-from distgprl.config import CHOICES, Config, EnvConfig, load_config
+from distgprl.config import CHOICES, load_config
 from distgprl.config_checks import BOUNDS, NON_NEGATIVE
+from distgprl.config_types import Config, EnvConfig
 from distgprl.errors import ConfigError, UserInputError
 from distgprl.reward_scale import check_reward_scale
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED

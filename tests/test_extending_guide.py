@@ -148,7 +148,7 @@ def test_following_the_guide_adds_a_task_and_a_method_that_train_and_evaluate(tm
             sys.executable,
             "-c",
             "import distgprl, gymnasium; from distgprl.methods import TABLE_ORDER; "
-            "from distgprl.config import ENVIRONMENT_VERSION as N; "
+            "from distgprl.config_types import ENVIRONMENT_VERSION as N; "
             f"print(gymnasium.spec(f'DistGPRL-{TASK.upper()}-v{{N}}').kwargs, "
             f"{METHOD!r} in TABLE_ORDER)",
         ],

@@ -161,7 +161,7 @@ def test_experiments_reach_hardware_through_the_twin_trials_only():
     """One direction and one door: experiments/ imports hardware/ only where a sweep runs
     Table II's twin trials (`experiments.table2_trials`, passing its policy loader in); the
     simulated evaluations use the safety layer (`distgprl.safety_layer`) below both."""
-    assert "distgprl.safety_layer.gates" in imports("distgprl.experiments.repaired_evaluation")
+    assert "distgprl.safety_layer.gates" in imports("distgprl.experiments.safety_layer_evaluation")
     doors = {
         line.split(" -> ")[0] for line in offending("distgprl.experiments", ("distgprl.hardware",))
     }

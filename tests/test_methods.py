@@ -9,8 +9,7 @@ from pathlib import Path
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_json
-from distgprl.experiments.runner import resolve_run
+from distgprl.identity import resolve_run
 from distgprl.methods import (
     EXPLORATION_METHODS,
     METHODS,
@@ -18,6 +17,7 @@ from distgprl.methods import (
     TABLE_ORDER,
     get_method,
 )
+from distgprl.schema import read_json
 
 
 def test_registry_matches_the_design_table():

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.config import Config, load_config
-from distgprl.config_types import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.config import load_config
+from distgprl.config_types import Config, EnvConfig
+from distgprl.envs.via_point_env import AdaptationEnv
 from distgprl.errors import ConfigError, UserInputError
 from distgprl.reward_scale import (
     MAX_GA_SHARE_OF_SUCCESS,

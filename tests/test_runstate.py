@@ -15,12 +15,12 @@ from typer.testing import CliRunner
 
 from distgprl.cli import app
 from distgprl.experiments import sweep
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import EVALUATION_FIELDS, PROGRESS_FIELDS, resolve_run, run_dir
 from distgprl.experiments.status import run_status
+from distgprl.identity import resolve_run
 from distgprl.report.curves import write_curves
 from distgprl.report.tables import write_tables
 from distgprl.runstate import DamagedRunError, job_state, run_state
+from distgprl.schema import EVALUATION_FIELDS, PROGRESS_FIELDS, run_dir, write_csv, write_json
 
 TASK, METHOD, SEED, PRESET = "dcp", "gprl-d", 0, "ci"
 

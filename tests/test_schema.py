@@ -97,7 +97,7 @@ def test_tables_command_on_unknown_summary_version_exits_2_with_one_line(tmp_pat
 
     root, out = tmp_path / "results", tmp_path / "tables"
     if preset == "ci":  # beside a valid run of the current configuration
-        from distgprl.experiments.runner import resolve_run
+        from distgprl.identity import resolve_run
 
         schema.write_json(
             root / "ci" / "dcp" / "demo" / "seed0" / "summary.json",

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.methods import MethodSpec
 from distgprl.skill.gp import GPSkill
 from distgprl.skill.operator import axis_operator, row_gain_diagonal, row_gains, row_normalised

@@ -41,7 +41,7 @@ def min_jerk(u: np.ndarray) -> np.ndarray:
 
 class TaskConfigLike(Protocol):
     """What a trajectory model is conditioned on: a task configuration's start offset of the
-    manipulated object, (dx, dy) in m (`distgprl.sim.tasks.TaskConfig`, which this layer
+    manipulated object, (dx, dy) in m (`distgprl.sim.tasks.base.TaskConfig`, which this layer
     does not import)."""
 
     @property

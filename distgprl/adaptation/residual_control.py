@@ -1,6 +1,6 @@
 """Residual control on a nominal trajectory: ProMP-RRL as residual RL (issue 48, item 4).
 
-The numerics of `distgprl.envs.residual_rl.ResidualRLEnv` (numpy and scipy only, no
+The numerics of `distgprl.envs.residual_control_env.ResidualRLEnv` (numpy and scipy only, no
 simulator): when the RL steps fall (`control_schedule`), how far the residual may reach per
 axis (`residual_range`) and how fast it may move there (`slew_limited`), how much of it
 passes at each control instant (`variance_gate`), how it moves from one RL step's value to

@@ -5,7 +5,7 @@
 moving the interaction via-point and its successors with the object, weighted by
 `distgprl.skill.conditioning.conditioning_weights` (DESIGN §2, §8).
 :class:`ResidualProMPTrajectory`: ProMP-RRL's residual weights Gamma (N, 6) on the
-object-centric ProMP's nominal (`distgprl.envs.residual.ResidualEnv`).
+object-centric ProMP's nominal (`distgprl.envs.windowed_residual_env.ResidualEnv`).
 """
 
 from __future__ import annotations

@@ -23,8 +23,8 @@ from torch import nn
 
 from distgprl.adaptation.layout import ActionLayout, AuxLayout
 from distgprl.agents.similarity import similarity_with_gradient
-from distgprl.config import SACConfig
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.config_types import SACConfig
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_loss import ValueWithGradient
 from distgprl.skill.gp import GPSkill
 
@@ -64,7 +64,7 @@ class RegulariserWeights:
     lambda_a weighs the *relative* L1 acceleration error: `ActorRegulariser` divides the L1 term
     by the demonstration's own mean L1 acceleration (``acceleration_reference``), so that both
     terms of Eq. sim_compact are dimensionless like 1 - cos (DESIGN §3). The
-    defaults are `distgprl.config.SACConfig`'s.
+    defaults are `distgprl.config_types.SACConfig`'s.
     """
 
     lambda_sim: float = SACConfig.lambda_sim

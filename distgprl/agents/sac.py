@@ -43,14 +43,12 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.sac.policies import MultiInputPolicy
 from torch.nn import functional as F
 
-from distgprl.agents.numpy_actor import NumpyActor
 from distgprl.agents.update import ReplaySampler, polyak_lerp, squashed_gaussian_sample
 
 SB3_VERSION_COPIED = "2.9.2"
 
 __all__ = [
     "EpisodeLogCallback",
-    "NumpyActor",
     "RegularisedSAC",
     "RegularisedSACPolicy",
     "StateOnlyExtractor",
@@ -545,7 +543,7 @@ class RegularisedSAC(SAC):
     @classmethod
     def load_saved(cls, path, env=None) -> RegularisedSAC:
         """A saved model on the CPU; its regulariser and entropy schedule, never pickled, are
-        left unset (attach them again to train on, e.g. as `runner` does)."""
+        left unset (attach them again to train on, as `distgprl.experiments.checkpoints` does)."""
         return cls.load(
             path,
             env=env,

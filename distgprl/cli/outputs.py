@@ -27,7 +27,8 @@ def bench(
     out_dir: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/bench"),
 ) -> None:
     """The paper's §V figures: adaptation latency, env step, SAC update, suite vs floor."""
-    from distgprl.experiments.bench import load_results, markdown_table, run_benchmarks
+    from distgprl.experiments.bench.markdown import markdown_table
+    from distgprl.experiments.bench.run import load_results, run_benchmarks
 
     path = run_benchmarks(quick, out_dir, progress=typer.echo)
     typer.echo(markdown_table(load_results(path)))

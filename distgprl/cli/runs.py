@@ -252,7 +252,7 @@ def status(
 
         typer.echo(coverage(root, preset, finished_dbm).describe())
     if finished:
-        from distgprl.experiments.repair_evaluations import coverage as repair_coverage
+        from distgprl.experiments.repair_follow_ups import coverage as repair_coverage
 
         typer.echo(repair_coverage(root, preset, finished).describe())
 
@@ -298,7 +298,7 @@ def train(
     typer.echo(f"trained {task}/{method}/seed{seed} -> {folder}")
     if evaluate and (folder / "summary.json").exists():
         from distgprl.experiments.evaluation import summary_table
-        from distgprl.experiments.results import read_json
+        from distgprl.schema import read_json
 
         summary = read_json(folder / "summary.json")["summary"]
         typer.echo(summary_table(summary, f"evaluation ({folder / 'summary.json'}):"))
@@ -370,7 +370,7 @@ def evaluate(
     if repair_push and not plan_repair:
         raise UserInputError("--repair-push needs --plan-repair")
     if plan_repair:
-        from distgprl.experiments.repaired_evaluation import evaluate_with_repair
+        from distgprl.experiments.safety_layer_evaluation import evaluate_with_repair
         from distgprl.safety_layer.retime import RepairConfig
 
         summary = evaluate_with_repair(

@@ -3,12 +3,12 @@
 Registered ids (``gymnasium.make(id, method=...)``), one pair per task of
 `distgprl.data.TASK_NAMES`:
 
-- ``DistGPRL-DCP-v<N>``, ``DistGPRL-DBM-v<N>``: `distgprl.envs.adaptation.AdaptationEnv`;
-- ``ProMPRRL-DCP-v<N>``, ``ProMPRRL-DBM-v<N>``: `distgprl.envs.residual.ResidualEnv`,
+- ``DistGPRL-DCP-v<N>``, ``DistGPRL-DBM-v<N>``: `distgprl.envs.via_point_env.AdaptationEnv`;
+- ``ProMPRRL-DCP-v<N>``, ``ProMPRRL-DBM-v<N>``: `distgprl.envs.windowed_residual_env.ResidualEnv`,
 
-N the environment version, `distgprl.config.ENVIRONMENT_VERSION`. ``import distgprl`` registers them
-without importing gymnasium: if gymnasium's registry is loaded they are registered at once,
-otherwise as soon as it loads (a finder on `sys.meta_path` waits for
+N the environment version, `distgprl.config_types.ENVIRONMENT_VERSION`. ``import distgprl``
+registers them without importing gymnasium: if gymnasium's registry is loaded they are
+registered at once, otherwise as soon as it loads (a finder on `sys.meta_path` waits for
 ``gymnasium.envs.registration``, then removes itself; the ids are computed only then).
 Gymnasium 1.x reads no plugin entry points; ``gymnasium.make("distgprl:DistGPRL-DCP-v<N>")``
 imports the package itself.
@@ -27,8 +27,8 @@ if TYPE_CHECKING:
     from importlib.abc import Loader
 
 ENTRY_POINTS: dict[str, str] = {
-    "DistGPRL": "distgprl.envs.adaptation:AdaptationEnv",
-    "ProMPRRL": "distgprl.envs.residual:ResidualEnv",
+    "DistGPRL": "distgprl.envs.via_point_env:AdaptationEnv",
+    "ProMPRRL": "distgprl.envs.windowed_residual_env:ResidualEnv",
 }
 """Id prefix -> the environment class its ids create (``module:Class``)."""
 

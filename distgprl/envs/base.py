@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.methods import MethodSpec, get_method
 from distgprl.skill.gp import GPSkill
 

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.shapes import Shape
 
 __all__ = ["CLEARANCE_TIMINGS", "TimedClearance"]

@@ -3,7 +3,7 @@ safety layer review it, execute it in the world, record what was commanded.
 
 Every episode runs its decisions through `plan_segment` and `execute_segment`: training and
 Table I's evaluation (`AdaptationEnv.step`, `ResidualRLEnv.step` in a `SimWorld`), the
-evaluation with the safety layer (`distgprl.experiments.repaired_evaluation`: a `SimWorld`
+evaluation with the safety layer (`distgprl.experiments.safety_layer_evaluation`: a `SimWorld`
 behind a gate) and the hardware trials (`distgprl.hardware.trials`: the twin or the robot,
 behind the paper's protocol or the safety layer).
 

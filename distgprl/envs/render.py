@@ -21,7 +21,7 @@ def render_demo_episode(task: str, tc_index: int | None, out_path: str | Path) -
 
     Returns the episode summary of `distgprl.sim.render.render_episode`.
     """
-    from distgprl.envs.adaptation import AdaptationEnv
+    from distgprl.envs.via_point_env import AdaptationEnv
     from distgprl.sim.render import render_episode
 
     if tc_index is not None and not 0 <= tc_index < N_EVALUATION_TCS:
@@ -92,7 +92,7 @@ def record_episode(
     (the same control steps in the same order, so the episode's outcome is the one an
     evaluation of this policy on ``tc`` records), then the wrapper is removed.
     """
-    from distgprl.sim.tasks.base import SegmentResult
+    from distgprl.sim.control import SegmentResult
 
     sim = env.unwrapped.sim
     execute = sim.execute
@@ -209,7 +209,7 @@ def render_policy_episode(
     """A trained policy's adapted episode beside the unadapted demonstration, to PNG/GIF.
 
     Args:
-        env: the policy's environment (the run's, `distgprl.experiments.runner.make_env`).
+        env: the policy's environment (the run's, `distgprl.experiments.factories.make_env`).
         policy: ``obs -> action`` (e.g. `distgprl.api.Policy`).
         demo_env: the `demo` reference's environment of the same task and preset.
         tc_index: evaluation TC index, or None for the nominal TC.

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from distgprl.data import check_task_name
-from distgprl.safety.hap import HapConfig, SafeSubspace, build_or_load, tqdm_progress
+from distgprl.safety.hap_build import HapConfig, SafeSubspace, tqdm_progress
+from distgprl.safety.hap_cache import build_or_load
 from distgprl.skill.committed import load_committed_skill
 from distgprl.skill.gp import GPSkill
 

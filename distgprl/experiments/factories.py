@@ -14,14 +14,14 @@ def make_env(run: RunSpec):
     """The adaptation environment for a run (ProMP-RRL uses its residual environment, the
     residual-RL variant `ResidualRLEnv`)."""
     if run.method.action_mode == "residual-control":
-        from distgprl.envs.residual_rl import ResidualRLEnv
+        from distgprl.envs.residual_control_env import ResidualRLEnv
 
         return ResidualRLEnv(run.task, run.method, run.config.env)
     if run.method.action_mode == "residual":
-        from distgprl.envs.residual import ResidualEnv
+        from distgprl.envs.windowed_residual_env import ResidualEnv
 
         return ResidualEnv(run.task, run.config.env, method=run.method)
-    from distgprl.envs.adaptation import AdaptationEnv
+    from distgprl.envs.via_point_env import AdaptationEnv
 
     return AdaptationEnv(run.task, run.method, run.config.env)
 

@@ -4,7 +4,7 @@ A trained policy's weights are not committed, so whatever needs the policy beyon
 evaluation has to run where it was trained: the Table II digital-twin trials of a DBM policy
 (`distgprl.experiments.table2_trials`, ``Job.twin_trials``: the paper's protocol first, then the
 safety layer's settings beside it, `distgprl.trial_protocol`) and the evaluations with the
-hardware safety layer in the loop of every run (`distgprl.experiments.repair_evaluations`,
+hardware safety layer in the loop of every run (`distgprl.experiments.repair_follow_ups`,
 ``Job.repair_evaluations``). `distgprl.experiments.sweep` runs them right after training, and
 picks a finished run up again for them alone when they are due. Each report is a
 `JobResult` field (``trials``, ``repairs``); a follow-up failure never fails its job.
@@ -43,18 +43,18 @@ def run_follow_ups(job: Job) -> FollowUpReports:
 
 def repairs_due(job: Job) -> bool:
     """True if the job should evaluate its run with the safety layer now
-    (`repair_evaluations.evaluations_due`)."""
+    (`repair_follow_ups.evaluations_due`)."""
     if not job.repair_evaluations or not has_via_point_plan(get_method(job.method)):
         return False  # methods.NO_SAFETY_LAYER: not implemented for residual-control methods
-    from distgprl.experiments.repair_evaluations import evaluations_due
+    from distgprl.experiments.repair_follow_ups import evaluations_due
 
     return evaluations_due(job.root, job.preset, job.task, job.method, job.seed)
 
 
 def run_job_repairs(job: Job) -> str:
     """Run the job's missing safety-layer evaluations: a report
-    (`repair_evaluations.run_and_report`)."""
-    from distgprl.experiments.repair_evaluations import run_and_report
+    (`repair_follow_ups.run_and_report`)."""
+    from distgprl.experiments.repair_follow_ups import run_and_report
 
     return run_and_report(job.root, job.preset, job.task, job.method, job.seed)
 

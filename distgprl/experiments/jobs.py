@@ -2,7 +2,7 @@
 
 Its own module so that what a sweep does with a job (`distgprl.experiments.follow_ups`, the
 `distgprl.experiments.status` of its run) imports it from below the sweep instead of from
-the sweep itself; `distgprl.experiments.sweep` re-exports it.
+the sweep itself.
 """
 
 from __future__ import annotations

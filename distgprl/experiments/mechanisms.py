@@ -15,7 +15,7 @@ S_W per axis, the frozen via-points, ``episode_range``):
 - **one episode**: the sum of via-point i's one-step reaches over the steps that adapt it —
   one step for a windowed via-point, two for the overlap via-point two windows share, every
   step (3) for a global method;
-- **ProMP-RRL as residual RL** (``residual-control``, `distgprl.envs.residual_rl`): its
+- **ProMP-RRL as residual RL** (``residual-control``, `distgprl.envs.residual_control_env`): its
   residual (m) moves at most range * dt / ``SLEW_TIME_S`` per RL step of span dt (one step:
   the shortest and longest step) and reaches its range rho per axis over an episode
   (`distgprl.adaptation.residual_control.residual_range`); the commanded pose gets g(t) rho,

@@ -137,7 +137,7 @@ def evaluate_policy(env, tcs, policy=None, progress: bool = False) -> list[dict[
 def deterministic_policy(model):
     """The actor's deterministic action, computed with NumPy (`NumpyActor`, same weights;
     ~30x faster than ``model.predict`` for one observation)."""
-    from distgprl.agents.sac import NumpyActor
+    from distgprl.agents.numpy_actor import NumpyActor
 
     actor = NumpyActor(model.actor)
 

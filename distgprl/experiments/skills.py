@@ -11,15 +11,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from distgprl.config import EnvConfig
-from distgprl.experiments.results import read_json, write_json
+from distgprl.config_types import EnvConfig
 from distgprl.io import atomic_write_bytes
+from distgprl.schema import read_json, write_json
 from distgprl.skill.committed import CommittedSkill, read_skill_file
 from distgprl.skill.demos import Demonstration, load_demonstration
 from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
 
 if TYPE_CHECKING:
-    from distgprl.safety.hap import SafeSubspace
+    from distgprl.safety.hap_build import SafeSubspace
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -344,7 +344,7 @@ def plot_task_subspace(task: str, out_path: str | Path) -> tuple[SafeSubspace, b
     """
     from distgprl.data import check_task_name
     from distgprl.envs.tasks import load_task_subspace
-    from distgprl.safety.hap import plot_subspace
+    from distgprl.safety.hap_plot import plot_subspace
     from distgprl.sim.tasks import get_task
 
     check_task_name(task)

@@ -24,12 +24,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from distgprl.experiments.jobs import Job
-from distgprl.experiments.results import read_csv, read_json
 from distgprl.experiments.run_control import ResumePoint, resume_point
 from distgprl.identity import RunSpec, resolve_run
 from distgprl.methods import get_method
 from distgprl.runstate import VERDICTS, run_state
-from distgprl.schema import run_dir
+from distgprl.schema import read_csv, read_json, run_dir
 
 STATES = VERDICTS
 

@@ -35,7 +35,7 @@
   with the job (``trials`` of its result) and leave the run done.
 - With ``repair_evaluations`` (`distgprl sweep --repair-evaluations`, on by default), every
   finished run is also evaluated with the hardware safety layer in the loop (check only,
-  and retime-then-refuse; `distgprl.experiments.repair_evaluations`), for the same reason
+  and retime-then-refuse; `distgprl.experiments.repair_follow_ups`), for the same reason
   and in the same way: right after training, or later for a finished run whose model is
   still on disk; the report is ``repairs`` of the job's result.
 
@@ -65,24 +65,19 @@ from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.errors import RunBusyError, UserInputError
 from distgprl.experiments.checkpoints import checkpoint_dir, trained_steps
 from distgprl.experiments.evaluation import evaluate_run
-from distgprl.experiments.follow_ups import (  # noqa: F401  (the sweep API)
+from distgprl.experiments.follow_ups import (
     follow_up_due,
-    repairs_due,
     run_follow_ups,
-    run_job_repairs,
-    run_job_trials,
-    trials_due,
 )
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.policies import ship_if_missing
-from distgprl.experiments.results import write_json
 from distgprl.experiments.run_control import describe_resume
 from distgprl.experiments.training import train_run
 from distgprl.identity import SWEEP_SEEDS, check_seed, resolve_run
 from distgprl.io import is_locked
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
-from distgprl.schema import run_dir
+from distgprl.schema import run_dir, write_json
 from distgprl.studies import get_study, is_study
 
 

@@ -20,10 +20,10 @@ from typing import Any, cast
 
 import numpy as np
 
-from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.envs.episode import plan_segment
-from distgprl.envs.residual import ResidualEnv
-from distgprl.envs.residual_rl import ResidualRLEnv
+from distgprl.envs.residual_control_env import ResidualRLEnv
+from distgprl.envs.via_point_env import AdaptationEnv
+from distgprl.envs.windowed_residual_env import ResidualEnv
 from distgprl.hardware.perception import OBJECTS, Percept
 from distgprl.methods import get_method
 from distgprl.safety.shapes import Box, Shape

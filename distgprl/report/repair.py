@@ -3,7 +3,7 @@
 From the runs of the current configuration (`select_runs`) whose folders hold the
 evaluations with the safety layer in the loop in both sweep modes (``check``: refuse every
 unsafe window at once; ``repair``: re-time what is too fast, then refuse what is still
-unsafe; `distgprl.experiments.repair_evaluations`), one row per task and method pooling the
+unsafe; `distgprl.experiments.repair_follow_ups`), one row per task and method pooling the
 seeds that have both, beside the plain evaluation of the same seeds and TCs:
 
 - Success / Collision (plain, check, repair) and Refused (check, repair): means over those
@@ -39,7 +39,7 @@ from distgprl.schema import (
 )
 
 MODES = ("check", "repair")
-"""The sweep's modes (`distgprl.experiments.repair_evaluations.SWEEP_REPAIR_MODES`)."""
+"""The sweep's modes (`distgprl.experiments.repair_follow_ups.SWEEP_REPAIR_MODES`)."""
 
 FIELDS = tuple(
     "task method seeds n_seeds episodes plain_success plain_collision check_success "

@@ -41,7 +41,7 @@ import torch
 from scipy.spatial import cKDTree
 from torch.autograd.function import BackwardCFunction, FunctionCtx
 
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_kernels import (
     GridTable,
     grid_candidates,

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.data import TASK_NAMES
-from distgprl.sim.tasks.base import DEMO_DIR, TaskConfig, TaskSim, resample_to_control
+from distgprl.data import DEMO_DIR, TASK_NAMES
+from distgprl.sim.tasks.base import TaskConfig, TaskSim, resample_to_control
 from distgprl.skill.demos import save_demonstration
 
 VARIED_SEED = 3_141_592

@@ -185,7 +185,7 @@ def load_demonstration_set(
     in ``folder/tcs.json``, each a valid CSV with a TC of two finite offsets.
 
     Whether each demonstration succeeds for its TC is the simulator's to say
-    (`distgprl.envs.residual.expert_demonstration_set` executes them).
+    (`distgprl.envs.windowed_residual_env.expert_demonstration_set` executes them).
 
     Args:
         folder: the set's folder.

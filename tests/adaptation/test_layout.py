@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from distgprl.adaptation.layout import AuxLayout, build_action_layout, reach_scales
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.methods import get_method
-from distgprl.skill.gp import GPSkill, KernelParams
+from distgprl.skill.gp import GPSkill
+from distgprl.skill.kernels import KernelParams
 from distgprl.skill.operator import axis_operator
 
 V5 = EnvConfig(covariance_scale="signal", action_scale_rule="fixed")

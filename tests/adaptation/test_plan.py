@@ -11,9 +11,10 @@ import pytest
 from distgprl.adaptation.layout import build_action_layout
 from distgprl.adaptation.plan import WindowPlan, min_jerk, segment_instants
 from distgprl.adaptation.trajectories import GPSkillTrajectory
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.methods import get_method
-from distgprl.skill.gp import GPSkill, KernelParams
+from distgprl.skill.gp import GPSkill
+from distgprl.skill.kernels import KernelParams
 
 # v5's operator and fixed scales: these tests check the plumbing, not the v6 reading
 # (tests/adaptation/test_layout.py checks the Table I operator and the reach rule).

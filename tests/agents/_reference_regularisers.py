@@ -12,7 +12,7 @@ import torch
 from torch import nn
 
 from distgprl.agents.regularisers import RegulariserWeights
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.skill.gp import GPSkill
 
 

@@ -16,11 +16,11 @@ import torch
 from _reference_regularisers import ReferenceActorRegulariser
 from test_sac import QuadraticPrior, small_skill
 
+from distgprl.adaptation.layout import build_action_layout
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
-from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import build_action_layout
+from distgprl.config_types import EnvConfig
 from distgprl.methods import get_method
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box
 

@@ -9,12 +9,13 @@ import torch
 from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, build_action_layout
 from distgprl.agents.regularisers import ActorRegulariser, RegulariserWeights
 from distgprl.agents.sac import exponential_anneal, training_logger
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.methods import get_method
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior
 from distgprl.safety.shapes import Box
-from distgprl.skill.gp import GPSkill, KernelParams
+from distgprl.skill.gp import GPSkill
+from distgprl.skill.kernels import KernelParams
 
 # v5's operator and fixed scales: these tests check the plumbing, not the v6 reading
 # (tests/adaptation/test_layout.py checks the Table I operator and the reach rule).
@@ -251,7 +252,8 @@ def test_critic_frozen_in_the_actor_loss_leaves_the_update_unchanged():
     """The actor loss backpropagates through the critic with its parameters frozen (a
     speed-up); the update must equal SB3's, where they are not, and the critic must be
     trainable again afterwards."""
-    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.identity import resolve_run
 
     def trained(freeze: bool) -> torch.Tensor:
         torch.manual_seed(0)
@@ -291,7 +293,8 @@ def real_observations(env, episodes=2):
 
 @pytest.fixture(scope="module")
 def dist_gprl_agent():
-    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.identity import resolve_run
 
     torch.manual_seed(0)
     run = resolve_run("dcp", "dist-gprl", 0, "ci")
@@ -362,7 +365,8 @@ def test_real_agent_regulariser_only_has_the_terms_the_method_weights(method, ex
     """build_regulariser / make_agent: GPRL and ProMP-RRL (no L_sim, no L_hap) get no
     regulariser; GPRL-D (no HAP) gets lambda_hap = 0, no prior and total = lambda_sim L_sim;
     GPRL-H keeps both terms."""
-    from distgprl.experiments.runner import build_regulariser, make_agent, make_env, resolve_run
+    from distgprl.experiments.factories import build_regulariser, make_agent, make_env
+    from distgprl.identity import resolve_run
 
     torch.manual_seed(0)
     run = resolve_run("dcp", method, 0, "ci")
@@ -392,7 +396,8 @@ def test_learning_leaves_no_logger_folder_in_the_temp_dir(tmp_path, monkeypatch)
     an empty SB3-<time> folder in the temporary directory at every learn() call."""
     import tempfile
 
-    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.identity import resolve_run
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     run = resolve_run("dcp", "dist-gprl", 0, "ci")

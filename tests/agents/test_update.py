@@ -23,7 +23,8 @@ from distgprl.agents.update import ReplaySampler, polyak_lerp, squashed_gaussian
 @pytest.fixture(scope="module")
 def agent():
     """The ci preset's DCP dist-gprl agent with 300 real transitions in its buffer."""
-    from distgprl.experiments.runner import make_agent, make_env, resolve_run
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.identity import resolve_run
 
     torch.manual_seed(0)
     run = resolve_run("dcp", "dist-gprl", 0, "ci")

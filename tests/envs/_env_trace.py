@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from distgprl.config import ENVIRONMENT_VERSION
+from distgprl.config_types import ENVIRONMENT_VERSION
 from distgprl.machine import numerics_fingerprint
 
 DATA = Path(__file__).parent / "data"

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from _reference_clearance import ReferenceTimedClearance
 
-from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.config_types import EnvConfig
+from distgprl.envs.via_point_env import AdaptationEnv
 
 TASKS = ("dcp", "dbm")
 

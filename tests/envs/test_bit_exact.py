@@ -34,7 +34,7 @@ from _env_trace import (
     trace_fingerprint,
 )
 
-from distgprl.config import ENVIRONMENT_VERSION
+from distgprl.config_types import ENVIRONMENT_VERSION
 
 TRACES = sorted(DATA.glob(f"env_trace_v{ENVIRONMENT_VERSION}*.npz"))
 OUTCOMES = ("terminated", "info/success", "info/collision")

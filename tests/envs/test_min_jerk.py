@@ -1,10 +1,10 @@
-"""The continuity blend of the adaptation env (distgprl/envs/adaptation.py: min_jerk)."""
+"""The continuity blend of the adaptation env (distgprl/envs/via_point_env.py: min_jerk)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from distgprl.envs.adaptation import min_jerk
+from distgprl.adaptation.plan import min_jerk
 
 
 def test_min_jerk_blend_endpoints():

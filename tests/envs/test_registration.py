@@ -22,11 +22,11 @@ def test_import_distgprl_registers_the_ids_once_gymnasium_loads():
         "import sys, distgprl\n"
         "assert 'gymnasium' not in sys.modules and 'numpy' not in sys.modules\n"
         "import gymnasium\n"
-        "from distgprl.config import ENVIRONMENT_VERSION\n"
+        "from distgprl.config_types import ENVIRONMENT_VERSION\n"
         "from distgprl.data import TASK_NAMES\n"
         "for task in TASK_NAMES:\n"
-        "    for prefix, cls in (('DistGPRL', 'adaptation:AdaptationEnv'),\n"
-        "                        ('ProMPRRL', 'residual:ResidualEnv')):\n"
+        "    for prefix, cls in (('DistGPRL', 'via_point_env:AdaptationEnv'),\n"
+        "                        ('ProMPRRL', 'windowed_residual_env:ResidualEnv')):\n"
         "        spec = gymnasium.spec(f'{prefix}-{task.upper()}-v{ENVIRONMENT_VERSION}')\n"
         "        assert spec.entry_point == 'distgprl.envs.' + cls, spec\n"
         "        assert spec.kwargs == {'task': task}, spec\n"
@@ -42,7 +42,7 @@ def test_ids_are_registered_when_gymnasium_was_imported_first():
         "import gymnasium, distgprl\n"
         "print(sorted(i for i in gymnasium.registry if i.startswith(('DistGPRL', 'ProMPRRL'))))"
     )
-    from distgprl.config import ENVIRONMENT_VERSION
+    from distgprl.config_types import ENVIRONMENT_VERSION
 
     assert out.strip() == str(
         sorted(
@@ -56,7 +56,7 @@ def test_ids_are_registered_when_gymnasium_was_imported_first():
 def test_gymnasium_make_imports_the_package_from_a_module_prefixed_id():
     """Gymnasium 1.x reads no plugin entry points; ``"distgprl:<id>"`` is its way to make an
     environment of a package that was not imported."""
-    from distgprl.config import ENVIRONMENT_VERSION
+    from distgprl.config_types import ENVIRONMENT_VERSION
 
     out = run(
         "import sys, gymnasium\n"

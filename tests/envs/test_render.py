@@ -18,7 +18,10 @@ from distgprl.envs.render import (
     record_episode,
 )
 from distgprl.errors import UserInputError
-from distgprl.experiments import runner
+from distgprl.experiments.factories import make_env
+from distgprl.experiments.rollout import run_episode
+from distgprl.experiments.training import train_run
+from distgprl.identity import resolve_run
 
 
 def _seeded_policy(env, seed=5):
@@ -30,13 +33,13 @@ def _seeded_policy(env, seed=5):
 def test_a_filmed_episode_has_the_outcome_its_evaluation_records():
     """Splitting each executed segment into filmed pieces changes nothing: success,
     collision, clearance and return equal `run_episode`'s on the same TC and actions."""
-    run = runner.resolve_run("dcp", "dist-gprl", 0, "ci")
-    env = runner.make_env(run)
+    run = resolve_run("dcp", "dist-gprl", 0, "ci")
+    env = make_env(run)
     try:
         tc = evaluation_tc(env, 3)
-        evaluated = runner.run_episode(env, tc, _seeded_policy(env))
+        evaluated = run_episode(env, tc, _seeded_policy(env))
         filmed = record_episode(env, tc, _seeded_policy(env), width=64, height=48)
-        again = runner.run_episode(env, tc, _seeded_policy(env))  # the wrapper is gone
+        again = run_episode(env, tc, _seeded_policy(env))  # the wrapper is gone
     finally:
         env.close()
     for key in ("success", "collision", "min_clearance", "min_signed_clearance"):
@@ -47,7 +50,7 @@ def test_a_filmed_episode_has_the_outcome_its_evaluation_records():
 
 
 def test_a_tc_index_outside_the_evaluation_tcs_is_refused():
-    env = runner.make_env(runner.resolve_run("dcp", "demo", 0, "ci"))
+    env = make_env(resolve_run("dcp", "demo", 0, "ci"))
     try:
         with pytest.raises(UserInputError, match="out of range"):
             evaluation_tc(env, 100)
@@ -79,7 +82,7 @@ def test_composed_frames_put_the_faded_demo_beside_and_hold_the_shorter_episode(
 def trained_root(tmp_path_factory):
     """A `ci` dcp/dist-gprl seed-0 run of 120 steps (not evaluated)."""
     root = tmp_path_factory.mktemp("runs")
-    runner.train_run(
+    train_run(
         "dcp",
         "dist-gprl",
         0,

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from distgprl.experiments import runner, training
+from distgprl.experiments import training
+from distgprl.experiments.training import train_run
 
 
 @pytest.fixture
@@ -22,7 +23,7 @@ def kill_at_the_first_checkpoint(monkeypatch):
 
         monkeypatch.setattr(training, "save_checkpoint", save_then_die)
         with pytest.raises(KeyboardInterrupt):
-            runner.train_run(
+            train_run(
                 "dcp",
                 method,
                 0,

@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 
 from distgprl.config import USER_PRESETS_ENV, register_preset
-from distgprl.experiments import runner, training
+from distgprl.experiments import training
 from distgprl.experiments.audit import TIMING_FIELDS, audit_run, compare_runs
 from distgprl.experiments.checkpoints import checkpoint_paths
+from distgprl.experiments.training import train_run
 from distgprl.schema import PROGRESS_FIELDS, read_json
 
 TINY_PRESET = """\
@@ -46,7 +47,7 @@ def preset(tmp_path_factory) -> str:
 
 
 def train(root: Path, preset: str, resume: bool = False) -> Path:
-    return runner.train_run(
+    return train_run(
         "dcp", "gprl-h", 0, preset=preset, root=root, show_progress=False, resume=resume
     )
 

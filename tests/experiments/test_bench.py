@@ -16,8 +16,20 @@ import numpy as np
 import pytest
 import torch
 
-from distgprl.experiments import bench
-from distgprl.experiments.results import read_json
+from distgprl.agents.numpy_actor import NumpyActor
+from distgprl.experiments.bench.markdown import markdown_table
+from distgprl.experiments.bench.run import run_benchmarks
+from distgprl.experiments.bench.sizes import (
+    FULL_SIZES,
+    QUICK_SIZES,
+    SIZE_PRESETS,
+    TINY_SIZES,
+    BenchSizes,
+    sizes_for,
+)
+from distgprl.experiments.bench.suite import suite_cpu_hours
+from distgprl.experiments.bench.timing import Timing, measure, measure_interleaved
+from distgprl.schema import read_json
 
 
 def _numbers(node, path=""):
@@ -33,10 +45,10 @@ def _numbers(node, path=""):
 
 
 def test_measure_and_timing():
-    timing = bench.measure(lambda: sum(range(10)), repeats=5, warmup=1, inner=2)
+    timing = measure(lambda: sum(range(10)), repeats=5, warmup=1, inner=2)
     assert 0 < timing.p10_us <= timing.median_us <= timing.p90_us
-    assert bench.Timing.from_samples([1e-3, 2e-3, 3e-3]).median_us == pytest.approx(2000.0)
-    paired = bench.measure_interleaved({"a": lambda: None, "b": lambda: None}, repeats=3)
+    assert Timing.from_samples([1e-3, 2e-3, 3e-3]).median_us == pytest.approx(2000.0)
+    paired = measure_interleaved({"a": lambda: None, "b": lambda: None}, repeats=3)
     assert set(paired) == {"a", "b"}
 
 
@@ -51,11 +63,11 @@ def test_numpy_actor_matches_torch_actor():
     state = np.random.default_rng(0).normal(size=(5, 12)).astype(np.float32)
     with torch.no_grad():
         expected = actor(torch.as_tensor(state), deterministic=True).numpy()
-    np.testing.assert_allclose(bench.NumpyActor(actor)(state), expected, atol=1e-5)
+    np.testing.assert_allclose(NumpyActor(actor)(state), expected, atol=1e-5)
 
 
 def test_run_benchmarks_tiny(tmp_path):
-    path = bench.run_benchmarks(True, tmp_path, sizes=bench.TINY_SIZES)
+    path = run_benchmarks(True, tmp_path, sizes=TINY_SIZES)
     assert path.exists() and path.with_suffix(".png").stat().st_size > 0
     document = read_json(path)
     assert set(document) - {"meta"} == {
@@ -74,7 +86,7 @@ def test_run_benchmarks_tiny(tmp_path):
     assert set(adaptation["per_window"]) == {"edf", "gp_conditioning", "policy", "total"}
     assert set(adaptation["naive_per_window"]) >= {"edf_pybullet", "gp_resolve"}
     # Issue 29's headline keys: env step over the physics in it, the suite's cost.
-    for task in bench.TINY_SIZES.tasks:
+    for task in TINY_SIZES.tasks:
         environment = document["environment"][task]
         assert document["ratios"]["env_step_over_bare_physics"][task] == pytest.approx(
             environment["env_step_per_episode"]["median_us"]
@@ -87,8 +99,8 @@ def test_run_benchmarks_tiny(tmp_path):
     # The floor: the products of a plain update and the bare physics of section 2b.
     floor = suite["floor"]
     assert floor["hours_idle_cores"] == pytest.approx(floor["cpu_hours"] / 2)
-    assert set(floor["physics_cpu_ms_per_step"]) == set(bench.TINY_SIZES.tasks)
-    for task in bench.TINY_SIZES.tasks:
+    assert set(floor["physics_cpu_ms_per_step"]) == set(TINY_SIZES.tasks)
+    for task in TINY_SIZES.tasks:
         assert (
             floor["physics_cpu_ms_per_step"][task]
             == document["environment"][task]["bare_physics_cpu_ms"]
@@ -114,7 +126,7 @@ def test_run_benchmarks_tiny(tmp_path):
             continue  # an idle load can be 0
         else:
             assert value > 0, where
-    table = bench.markdown_table(document)
+    table = markdown_table(document)
     assert table.count("|") > 40 and "per episode" in table and "its floor" in table
     assert "env step" in table and "SAC gradient step" in table
     assert "over its floor" in table and "framework work" in table
@@ -124,30 +136,30 @@ def test_suite_cpu_hours_is_seeds_times_steps_times_cost():
     """`suite_cpu_hours` at a size checkable by hand: 2 methods x 2 tasks x 3 seeds, 10 and 20
     steps per run, per-step costs 1-4 s: (10 (1 + 3) + 20 (2 + 4)) x 3 s = 480 s."""
     costs = {("a", "dcp"): 1.0, ("a", "dbm"): 2.0, ("b", "dcp"): 3.0, ("b", "dbm"): 4.0}
-    hours = bench.suite_cpu_hours(costs, {"dcp": 10, "dbm": 20}, seeds=3)
+    hours = suite_cpu_hours(costs, {"dcp": 10, "dbm": 20}, seeds=3)
     assert hours == pytest.approx(480.0 / 3600.0)
-    assert bench.suite_cpu_hours({}, {"dcp": 10}, seeds=5) == 0.0
+    assert suite_cpu_hours({}, {"dcp": 10}, seeds=5) == 0.0
 
 
 def test_size_presets_are_one_table():
     """Every preset is a `BenchSizes` with every field set from the table; the named constants
     and ``sizes_for`` are the table's rows, and each preset measures no more than the next
     larger one (tiny <= quick <= full, field by field)."""
-    assert set(bench.SIZE_PRESETS) == {"full", "quick", "tiny"}
-    assert bench.SIZE_PRESETS["full"] is bench.FULL_SIZES is bench.sizes_for(False)
-    assert bench.SIZE_PRESETS["quick"] is bench.QUICK_SIZES is bench.sizes_for(True)
-    assert bench.SIZE_PRESETS["tiny"] is bench.TINY_SIZES
+    assert set(SIZE_PRESETS) == {"full", "quick", "tiny"}
+    assert SIZE_PRESETS["full"] is FULL_SIZES is sizes_for(False)
+    assert SIZE_PRESETS["quick"] is QUICK_SIZES is sizes_for(True)
+    assert SIZE_PRESETS["tiny"] is TINY_SIZES
     for small, large in (
-        (bench.TINY_SIZES, bench.QUICK_SIZES),
-        (bench.QUICK_SIZES, bench.FULL_SIZES),
+        (TINY_SIZES, QUICK_SIZES),
+        (QUICK_SIZES, FULL_SIZES),
     ):
-        for field in fields(bench.BenchSizes):
+        for field in fields(BenchSizes):
             a, b = getattr(small, field.name), getattr(large, field.name)
             if isinstance(a, tuple):
                 assert 0 < len(a) <= len(b), field.name
             else:
                 assert 0 < a <= b, field.name
-    assert asdict(bench.FULL_SIZES)["suite_steps"] == 150
+    assert asdict(FULL_SIZES)["suite_steps"] == 150
 
 
 def test_module_entry_point_parses_its_arguments():

@@ -8,7 +8,12 @@ from __future__ import annotations
 import pytest
 import torch
 
-from distgprl.experiments import bench
+from distgprl.experiments.bench.floor import (
+    MatrixProductClock,
+    sac_update_matrix_products,
+    suite_floor,
+)
+from distgprl.experiments.bench.sizes import run_spec
 
 
 def test_clock_counts_linear_forward_and_backward_products():
@@ -18,7 +23,7 @@ def test_clock_counts_linear_forward_and_backward_products():
     torch.manual_seed(0)
     linear = torch.nn.Linear(8, 4)
     x = torch.randn(5, 8, requires_grad=True)
-    with bench.MatrixProductClock() as clock:
+    with MatrixProductClock() as clock:
         linear(x).relu().square().sum().backward()
         torch.bmm(torch.randn(3, 2, 4), torch.randn(3, 4, 6))
     assert clock.calls == 4
@@ -59,9 +64,9 @@ def test_plain_sac_update_runs_the_products_of_the_algorithm():
     from stable_baselines3.common.logger import configure
 
     from distgprl.experiments.bench.sac_update import fill_replay_buffer
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
 
-    run = bench.run_spec("dcp")
+    run = run_spec("dcp")
     env = make_env(run)
     try:
         model = make_agent(env, run)
@@ -69,7 +74,7 @@ def test_plain_sac_update_runs_the_products_of_the_algorithm():
         fill_replay_buffer(model, env, 300)
         regulariser = model.regulariser
         assert regulariser is not None
-        result = bench.sac_update_matrix_products(model, updates=2, warmup=1)
+        result = sac_update_matrix_products(model, updates=2, warmup=1)
         assert model.regulariser is regulariser
         state = env.observation_space["state"].shape[0]
         action = env.action_space.shape[0]
@@ -94,7 +99,7 @@ def test_suite_floor_by_hand():
     """Two tasks: 4 runs of 10 steps (2 before learning) at 0.5 s of physics per step and 3 s
     of products per update: 4 (10 x 0.5 + 8 x 3) = 116 s; 4 runs of 20 steps (5 before) at
     1 s: 4 (20 x 1 + 15 x 3) = 260 s; 376 s in all, half of it on two cores."""
-    floor = bench.suite_floor(
+    floor = suite_floor(
         3.0, {"a": 0.5, "b": 1.0}, {"a": 10, "b": 20}, {"a": 2, "b": 5}, {"a": 4, "b": 4}, 2
     )
     assert floor["cpu_hours"] == pytest.approx(376 / 3600)
@@ -102,5 +107,5 @@ def test_suite_floor_by_hand():
     assert floor["per_task"]["a"]["physics_cpu_hours"] == pytest.approx(20 / 3600)
     assert floor["per_task"]["b"]["matrix_product_cpu_hours"] == pytest.approx(180 / 3600)
     # learning_starts beyond the run: no update, physics only
-    alone = bench.suite_floor(3.0, {"a": 0.5}, {"a": 10}, {"a": 50}, {"a": 1}, 1)
+    alone = suite_floor(3.0, {"a": 0.5}, {"a": 10}, {"a": 50}, {"a": 1}, 1)
     assert alone["cpu_hours"] == pytest.approx(5 / 3600)

@@ -10,8 +10,16 @@ from typer.testing import CliRunner
 
 from distgprl.cli import app
 from distgprl.errors import UserInputError
-from distgprl.experiments import policies, runner, training
-from distgprl.experiments.results import read_csv, read_json, write_json
+from distgprl.experiments import policies, training
+from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.policies import (
+    best_curve_row,
+    curve_policy_dir,
+    curve_policy_path,
+    curve_rank,
+)
+from distgprl.experiments.training import train_run
+from distgprl.schema import evaluation_file_names, read_csv, read_json, run_dir, write_json
 
 STEPS = 240  # the `ci` preset shortened: curve points at 0, 120, 240
 CI_LEARNING_STARTS = 60  # the `ci` preset's sac.learning_starts: 120 and 240 are trained
@@ -19,20 +27,20 @@ LS = 50  # learning_starts of the synthetic curves below (steps 0, 100, 200, ...
 
 
 def train(root, steps=STEPS, **kwargs):
-    return runner.train_run(
+    return train_run(
         "dcp", "dist-gprl", 0, preset="ci", steps=steps, root=root, show_progress=False, **kwargs
     )
 
 
 def kept_steps(folder) -> list[int]:
-    directory = runner.curve_policy_dir(folder)
+    directory = curve_policy_dir(folder)
     return sorted(int(p.stem.removeprefix("step")) for p in directory.glob("step*.pt"))
 
 
 def kept_actor(folder, step):
     import torch
 
-    state = torch.load(runner.curve_policy_path(folder, step), weights_only=True)
+    state = torch.load(curve_policy_path(folder, step), weights_only=True)
     return [value.numpy() for value in state.values()]
 
 
@@ -58,11 +66,11 @@ def test_best_point_is_the_highest_trained_curve_success_ties_to_the_later_point
         row(0.8, 0.6, 0.0, 300),  # ...loses to the latest point of that success
         row(0.7, 0.0, 99.0, 400),
     ]
-    assert runner.best_curve_row(rows, LS, "run")["step"] == 300
+    assert best_curve_row(rows, LS, "run")["step"] == 300
     as_read = [{k: str(v) for k, v in r.items()} for r in rows]  # progress.csv gives strings
-    assert runner.best_curve_row(as_read, LS, "run")["step"] == "300"
+    assert best_curve_row(as_read, LS, "run")["step"] == "300"
     all_tie = [row(0.3, 0, 0, s) for s in (0, 100, 200, 300)]
-    assert runner.best_curve_row(all_tie, LS, "run")["step"] == 300
+    assert best_curve_row(all_tie, LS, "run")["step"] == 300
 
 
 def test_step_zero_never_qualifies_even_with_the_highest_curve_success():
@@ -70,7 +78,7 @@ def test_step_zero_never_qualifies_even_with_the_highest_curve_success():
     never the best, however high its curve success; the selection says the untrained point
     was not beaten, and gives its curve success."""
     rows = [row(0.9, 0, 0, 0), row(0.95, 0, 0, LS), row(0.3, 0, 0, LS + 1), row(0.2, 0, 0, 200)]
-    assert runner.best_curve_row(rows, LS, "run")["step"] == LS + 1
+    assert best_curve_row(rows, LS, "run")["step"] == LS + 1
     selection = policies.select_best(rows, LS, "run")
     assert (selection.step, selection.beats_untrained) == (LS + 1, False)
     assert selection.untrained_curve_success_rate == 0.9
@@ -98,7 +106,7 @@ def test_a_curve_without_a_trained_point_is_an_error_naming_the_run_folder():
         with pytest.raises(
             UserInputError, match=r"^results/x/seed0: no learning-curve point after"
         ):
-            runner.best_curve_row(rows, LS, "results/x/seed0")
+            best_curve_row(rows, LS, "results/x/seed0")
 
 
 def test_a_point_is_kept_when_it_is_trained_and_ranks_at_least_as_high_as_every_earlier_one():
@@ -118,7 +126,7 @@ def test_a_point_is_kept_when_it_is_trained_and_ranks_at_least_as_high_as_every_
     kept = [
         r["step"] for i, r in enumerate(curve) if policies.beats_every_earlier(curve[:i], r, LS)
     ]
-    assert kept == [100, 300, 400] and runner.best_curve_row(curve, LS, "run")["step"] == kept[-1]
+    assert kept == [100, 300, 400] and best_curve_row(curve, LS, "run")["step"] == kept[-1]
 
 
 @pytest.fixture(scope="module")
@@ -133,9 +141,9 @@ def test_a_curve_policy_is_kept_exactly_where_a_trained_point_beats_every_earlie
     for r in progress:
         if int(r["step"]) <= CI_LEARNING_STARTS:
             continue
-        if best is None or runner.curve_rank(r) >= best:
+        if best is None or curve_rank(r) >= best:
             expected.append(int(r["step"]))
-            best = runner.curve_rank(r)
+            best = curve_rank(r)
     assert kept_steps(trained) == expected
     assert expected[0] == 120  # the first trained point; step 0 is never kept
 
@@ -185,8 +193,8 @@ def test_a_killed_and_resumed_run_keeps_the_same_curve_policies(
     discards (left by a kill between that point and the next checkpoint) is dropped, and the
     resumed run ends with the same kept policies, bit for bit, as the uninterrupted one."""
     kill_at_the_first_checkpoint(tmp_path)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
-    stale = runner.curve_policy_path(folder, 180)
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    stale = curve_policy_path(folder, 180)
     stale.write_bytes(b"a point the resume discards")
     resumed = train(tmp_path, evaluate_after=False, resume=True)
     assert not stale.exists()
@@ -204,7 +212,7 @@ def test_best_policy_evaluation_writes_its_own_files_and_records_the_selection(
     root, folder = ranked_by_step
     monkeypatch.setattr(policies, "curve_rank", lambda r: (float(r["step"]),))
     final_text = (folder / "evaluation.csv").read_text()
-    summary = runner.evaluate_run(
+    summary = evaluate_run(
         "dcp", "dist-gprl", 0, "ci", root=root, show_progress=False, policy="best"
     )
     assert (folder / "evaluation.csv").read_text() == final_text
@@ -234,7 +242,7 @@ def test_best_policy_evaluation_loads_the_selected_points_actor(tmp_path, monkey
         loaded["actor"] = [v.numpy().copy() for v in model.actor.state_dict().values()]
 
     monkeypatch.setattr(policies, "load_curve_policy", spy)
-    summary = runner.evaluate_run(
+    summary = evaluate_run(
         "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
     )
     assert loaded["step"] == 120 and summary["policy_step"] == 120
@@ -321,29 +329,27 @@ def test_a_best_point_without_its_kept_policy_is_a_clear_error(tmp_path):
     """Runs trained before curve policies were kept (or on another machine), that ship no
     best actor either, are refused, naming what is missing."""
     folder = train(tmp_path, steps=120, evaluate_after=False)
-    for path in runner.curve_policy_dir(folder).glob("*.pt"):
+    for path in curve_policy_dir(folder).glob("*.pt"):
         path.unlink()
     with pytest.raises(UserInputError, match=r"neither the trained model with its kept curve"):
-        runner.evaluate_run(
-            "dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best"
-        )
+        evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False, policy="best")
 
 
 def test_bad_policy_choices_are_clear_errors(tmp_path):
     with pytest.raises(UserInputError, match="not trained"):
-        runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="best")
+        evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="best")
     with pytest.raises(UserInputError, match="unknown policy 'worst'"):
-        runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="worst")
+        evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, policy="worst")
 
 
 def test_file_names_keep_the_final_policys_and_tag_the_best():
-    assert runner.evaluation_file_names() == ("evaluation.csv", "summary.json")
-    assert runner.evaluation_file_names(1000) == ("evaluation_n1000.csv", "summary_n1000.json")
-    assert runner.evaluation_file_names(None, "best") == (
+    assert evaluation_file_names() == ("evaluation.csv", "summary.json")
+    assert evaluation_file_names(1000) == ("evaluation_n1000.csv", "summary_n1000.json")
+    assert evaluation_file_names(None, "best") == (
         "evaluation_best.csv",
         "summary_best.json",
     )
-    assert runner.evaluation_file_names(1000, "best") == (
+    assert evaluation_file_names(1000, "best") == (
         "evaluation_best_n1000.csv",
         "summary_best_n1000.json",
     )
@@ -428,8 +434,7 @@ def test_ship_best_policy_copies_the_best_actor_with_its_hash(tmp_path, monkeypa
 def synthetic_run(folder, curve):
     """A run folder with a ``progress.csv`` of ``curve`` ((step, success) pairs) and a
     ``config.json`` giving learning_starts `LS`."""
-    from distgprl.experiments.results import write_csv
-    from distgprl.experiments.runner import PROGRESS_FIELDS
+    from distgprl.schema import PROGRESS_FIELDS, write_csv
 
     rows = []
     for step, success in curve:

@@ -22,9 +22,10 @@ from typer.testing import CliRunner
 
 from distgprl.cli import app
 from distgprl.config import USER_PRESETS_ENV, register_preset
-from distgprl.experiments import checkpoints, runner, training
+from distgprl.experiments import checkpoints, training
+from distgprl.experiments.training import train_run
 from distgprl.io import file_sha256
-from distgprl.schema import read_csv, read_json
+from distgprl.schema import read_csv, read_json, run_dir
 
 TINY_PRESET = """\
 # The smallest run that keeps two checkpoints: 6-step checkpoints and curve points.
@@ -62,7 +63,7 @@ def preset(preset_file) -> str:
 
 def train(root: Path, preset: str, resume: bool = False) -> Path:
     """Train the tiny dcp seed-0 run under ``root`` (no evaluation); its folder."""
-    return runner.train_run(
+    return train_run(
         "dcp",
         METHOD,
         0,
@@ -103,7 +104,7 @@ def kill_after_checkpoint(root: Path, preset: str, count: int, monkeypatch) -> P
         patch.setattr(training, "save_checkpoint", save_then_die)
         with pytest.raises(KeyboardInterrupt):
             train(root, preset)
-    return runner.run_dir(root, preset, "dcp", METHOD, 0)
+    return run_dir(root, preset, "dcp", METHOD, 0)
 
 
 def damage(path: Path, how: str) -> None:
@@ -148,7 +149,7 @@ def resume_damaged(
 def resume(root: Path, preset: str, capsys, spoiled: Path) -> Resumed:
     """Resume the killed tiny run under ``root`` whose checkpoint file ``spoiled`` was
     damaged; it must print exactly one line on stderr."""
-    folder = runner.run_dir(root, preset, "dcp", METHOD, 0)
+    folder = run_dir(root, preset, "dcp", METHOD, 0)
     reached = checkpoints.trained_steps(folder / "progress.csv")
     capsys.readouterr()
     train(root, preset, resume=True)
@@ -327,7 +328,7 @@ def test_an_interrupt_names_the_checkpoint_on_disk(tmp_path, preset, monkeypatch
     assert len(saves) == 2 and saves[0] < saves[1]
     expected = saves[0] if moment == "staged" else saves[1]
     assert raised.value.checkpoint_step == expected
-    paths = checkpoints.checkpoint_paths(runner.run_dir(tmp_path, preset, "dcp", METHOD, 0))
+    paths = checkpoints.checkpoint_paths(run_dir(tmp_path, preset, "dcp", METHOD, 0))
     assert pickle.loads(paths["state"].read_bytes())["num_timesteps"] == expected
     assert json.loads(paths["manifest"].read_text())["num_timesteps"] == expected
     assert not paths["commit"].exists()

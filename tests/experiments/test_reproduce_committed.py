@@ -62,7 +62,7 @@ and 2.9; DCP Dist-GPRL-Global's grad_q by 3 % against 28 %, its entropy coeffici
 0.07 % against 0.6 %. On another machine the archived v7 DBM Dist-GPRL run gave grad_q 0.311
 against 0.294 committed (6 %; bound from v7's seeds: a factor 2.5).
 
-Same-machine exactness is tested in `tests/experiments/test_runner.py` (same seed, identical
+Same-machine exactness is tested in `tests/experiments/test_training.py` (same seed, identical
 progress)"""
 
 from __future__ import annotations
@@ -76,10 +76,12 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.data import TASK_NAMES
-from distgprl.experiments.results import read_csv
-from distgprl.experiments.runner import evaluate_run, resolve_run, train_run
+from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.training import train_run
+from distgprl.identity import resolve_run
+from distgprl.schema import read_csv
 
 PAPER_RESULTS = Path(__file__).resolve().parents[2] / "results" / "paper"
 ARCHIVED_V7 = Path(__file__).resolve().parents[2] / "results" / "archive" / "env-v7" / "paper"

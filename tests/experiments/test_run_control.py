@@ -23,8 +23,7 @@ from distgprl.experiments.run_control import (
     resume_command,
     resume_point,
 )
-from distgprl.experiments.runner import PROGRESS_FIELDS
-from distgprl.schema import run_dir, write_csv
+from distgprl.schema import PROGRESS_FIELDS, run_dir, write_csv
 
 
 def test_resume_command_repeats_every_choice_of_the_run():

@@ -7,9 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.experiments.skills import correlation_summary
-from distgprl.skill.gp import GPSkill, KernelParams
+from distgprl.skill.gp import GPSkill
+from distgprl.skill.kernels import KernelParams
 
 PAPER_WINDOWS = ([1, 2, 3, 4, 5], [5, 6, 7, 8, 9], [9, 10, 11, 12, 13])
 
@@ -131,7 +132,7 @@ def independent_axis_operator(length_scale, correlation_lambda, variance, window
 def test_signal_scale_builds_each_axis_from_the_gp_covariance_in_via_point_units():
     """v5: axis a's S_W is built from K_a = sigma_f^2 max(s_a, floor_a)^2 R (checked against an
     independent operator), so axes with a smaller prior variance are shrunk more."""
-    from distgprl.envs.adaptation import OBSERVATION_SCALE_FLOOR
+    from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR
 
     skill = make_skill(0.06)
     summary = correlation_summary(skill, SIGNAL)
@@ -234,7 +235,7 @@ DERIVED_NUMBERS = """
 import hashlib, json
 import numpy as np
 from distgprl.adaptation.layout import COVARIANCE_SCALES, build_action_layout
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.envs.tasks import load_task_skill, task_hap_config
 from distgprl.experiments.mechanisms import layout_reach
 from distgprl.experiments.skills import correlation_summary, task_tc_range

@@ -13,14 +13,16 @@ from typer.testing import CliRunner
 from distgprl.cli import app
 from distgprl.experiments import pace, sweep
 from distgprl.experiments.checkpoints import checkpoint_paths
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS, is_locked, resolve_run, run_dir, run_lock
+from distgprl.experiments.run_control import run_lock
 from distgprl.experiments.status import (
     count_states,
     format_duration,
     run_status,
     sweep_status,
 )
+from distgprl.identity import resolve_run
+from distgprl.io import is_locked
+from distgprl.schema import PROGRESS_FIELDS, run_dir, write_csv, write_json
 
 
 def _job(tmp_path, method="gprl-d", seed=0):

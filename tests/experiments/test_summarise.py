@@ -1,4 +1,4 @@
-"""`distgprl.experiments.runner.summarise`: the Table I numbers of one run from its
+"""`distgprl.experiments.rollout.summarise`: the Table I numbers of one run from its
 per-episode rows, checked against expectations computed here by hand (no numpy
 statistics), on rows as `evaluate_policy` returns them and as the CSV gives them back."""
 
@@ -8,8 +8,9 @@ import math
 
 import pytest
 
-from distgprl.experiments.runner import EVALUATION_FIELDS, summarise
+from distgprl.experiments.rollout import summarise
 from distgprl.limits import SafetyLimits
+from distgprl.schema import EVALUATION_FIELDS
 
 # success, collision, min_clearance (m), return, kinematic retention, w1, w2, w3, policy (ms),
 # peak joint speed (rad/s)

@@ -13,10 +13,11 @@ import pytest
 
 from distgprl.errors import UserInputError
 from distgprl.experiments import sweep
-from distgprl.experiments.results import read_csv, read_json
-from distgprl.experiments.runner import run_dir, run_lock
+from distgprl.experiments.jobs import Job
+from distgprl.experiments.run_control import run_lock
 from distgprl.report.curves import write_curves
 from distgprl.report.tables import write_tables
+from distgprl.schema import read_csv, read_json, run_dir
 
 
 def test_plan_validates_names_and_runs_demo_once_per_task():
@@ -108,9 +109,9 @@ def test_a_worker_that_dies_fails_its_own_job_only(tmp_path, monkeypatch):
     monkeypatch.setattr(sweep, "_job_process", crash_helper.job_process)
     crash, other = str(tmp_path / "crash"), str(tmp_path / "other")
     jobs = [
-        sweep.Job("dcp", "demo", 0, "ci", crash),
-        sweep.Job("dbm", "demo", 0, "ci", crash),
-        sweep.Job("dcp", "demo", 0, "ci", other),
+        Job("dcp", "demo", 0, "ci", crash),
+        Job("dbm", "demo", 0, "ci", crash),
+        Job("dcp", "demo", 0, "ci", other),
     ]
     results = sweep.run_sweep(jobs, workers=2)
     status = {(r.job.root, r.job.task): r for r in results}
@@ -135,7 +136,7 @@ def test_a_job_interrupted_before_the_sweep_interrupts_the_sweep(tmp_path, monke
 
     monkeypatch.setattr(sweep, "_job_process", crash_helper.job_process)
     root = str(tmp_path / "interrupt")
-    jobs = [sweep.Job("dcp", "demo", 0, "ci", root), sweep.Job("dbm", "demo", 0, "ci", root)]
+    jobs = [Job("dcp", "demo", 0, "ci", root), Job("dbm", "demo", 0, "ci", root)]
     with pytest.raises(KeyboardInterrupt):
         sweep.run_sweep(jobs, workers=2)
     assert not list(Path(root).rglob("error.json"))
@@ -218,7 +219,7 @@ def test_a_run_another_process_trains_is_reported_busy_and_left_alone(
             sys.executable,
             "-c",
             "import sys, time\n"
-            "from distgprl.experiments.runner import run_lock\n"
+            "from distgprl.experiments.run_control import run_lock\n"
             "with run_lock(__import__('pathlib').Path(sys.argv[1])):\n"
             "    print('locked', flush=True); time.sleep(60)",
             str(folder),

@@ -6,7 +6,8 @@ from __future__ import annotations
 import pytest
 
 from distgprl.experiments import sweep
-from distgprl.experiments.results import read_csv, write_json
+from distgprl.experiments.follow_ups import run_job_trials, trials_due
+from distgprl.experiments.jobs import Job
 from distgprl.experiments.table2_trials import (
     TrialSetting,
     missing_settings,
@@ -15,7 +16,7 @@ from distgprl.experiments.table2_trials import (
     table2_settings,
 )
 from distgprl.identity import resolve_run
-from distgprl.schema import TRIAL_FIELDS, write_csv
+from distgprl.schema import TRIAL_FIELDS, read_csv, write_csv, write_json
 
 
 def test_every_method_gets_the_papers_protocol_first_then_the_safety_layer_settings():
@@ -123,11 +124,11 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
     """A finished DBM run with its model on disk is picked up for its trials alone (no
     training), every setting runs once, and the next sweep finds nothing due."""
     root = gprl_on_disk
-    job = sweep.Job("dbm", "gprl", 0, "ci", str(root), twin_trials=1)
-    assert sweep.trials_due(job)
-    assert not sweep.trials_due(sweep.Job("dbm", "gprl", 0, "ci", str(root)))  # not asked
-    assert not sweep.trials_due(sweep.Job("dbm", "gprl", 1, "ci", str(root), 1))  # no model
-    assert not sweep.trials_due(sweep.Job("dcp", "gprl", 0, "ci", str(root), 1))  # not DBM
+    job = Job("dbm", "gprl", 0, "ci", str(root), twin_trials=1)
+    assert trials_due(job)
+    assert not trials_due(Job("dbm", "gprl", 0, "ci", str(root)))  # not asked
+    assert not trials_due(Job("dbm", "gprl", 1, "ci", str(root), 1))  # no model
+    assert not trials_due(Job("dcp", "gprl", 0, "ci", str(root), 1))  # not DBM
 
     def already_trained(job):
         return sweep.JobResult(job, "skipped", 0.0)
@@ -144,7 +145,7 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
         (s.protocol, s.repair, s.sensor_noise) for s in settings
     }
     assert all(len(read_csv(path)[1]) == 1 for path in files)
-    assert not sweep.trials_due(job)
+    assert not trials_due(job)
     assert sweep.run_sweep([job], workers=1)[0].trials == ""  # nothing due: nothing run
     assert run_table2_trials("gprl", 0, "ci", root, trials=1) == []
 
@@ -159,8 +160,8 @@ def test_a_failing_trial_is_reported_with_the_job_and_leaves_the_run_done(
 
     monkeypatch.setattr(table2_trials, "missing_settings", lambda *a, **k: (TrialSetting(True, 2),))
     monkeypatch.setattr("distgprl.hardware.trials.run_trials", broken)
-    job = sweep.Job("dbm", "gprl", 0, "ci", str(gprl_on_disk), twin_trials=3)
-    assert sweep.run_job_trials(job) == "twin trials failed: RuntimeError: camera unplugged"
+    job = Job("dbm", "gprl", 0, "ci", str(gprl_on_disk), twin_trials=3)
+    assert run_job_trials(job) == "twin trials failed: RuntimeError: camera unplugged"
 
 
 def test_coverage_tells_complete_pending_and_lost_policies_apart(gprl_on_disk, tmp_path):

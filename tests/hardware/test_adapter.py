@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.envs.adaptation import AdaptationEnv
 from distgprl.envs.episode import commit_segment
-from distgprl.envs.residual import ResidualEnv
-from distgprl.envs.residual_rl import ResidualRLEnv
+from distgprl.envs.residual_control_env import ResidualRLEnv
+from distgprl.envs.via_point_env import AdaptationEnv
+from distgprl.envs.windowed_residual_env import ResidualEnv
 from distgprl.hardware.adapter import (
     PerceivedScene,
     TrackedObject,

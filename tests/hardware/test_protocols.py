@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_csv
 from distgprl.hardware.backends import TwinBackend
 from distgprl.hardware.controller import controller_stop
 from distgprl.hardware.trials import run_trials
 from distgprl.hardware.twin import TwinConfig
 from distgprl.limits import UR5E_CONTROLLER, ControllerLimits, SafetyLimits
 from distgprl.safety_layer.plan_check import UnsafePlanError, check_plan
+from distgprl.schema import read_csv
 from distgprl.sim.tasks.base import TaskConfig
 from distgprl.sim.transforms import matrix_to_pose
 

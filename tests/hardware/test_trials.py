@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import read_csv
 from distgprl.experiments.trial_policy import load_trial_policy
-from distgprl.hardware.trials import TRIAL_FIELDS, run_trials
+from distgprl.hardware.trials import run_trials
 from distgprl.hardware.twin import TwinConfig, TwinSim, twin_calibration
 from distgprl.methods import TABLE_ORDER
+from distgprl.schema import TRIAL_FIELDS, read_csv
 
 SMALL = TwinConfig(width=640, height=480)
 
@@ -37,7 +37,7 @@ def test_twin_trials_end_to_end(tmp_path, untrained_dbm_policy, method):
     meta, rows = read_csv(report.path)
     assert meta["backend"] == "twin" and meta["method"] == method
     assert meta["protocol"] == "safety-layer"
-    from distgprl.experiments.results import file_sha256
+    from distgprl.io import file_sha256
 
     assert meta["policy"]["model_sha256"] == file_sha256(policy_zip)
     assert list(rows[0]) == list(TRIAL_FIELDS) and len(rows) == 2
@@ -195,7 +195,7 @@ def test_unreachable_robot_is_a_user_error(tmp_path):
 def test_trial_summary_min_clearance_is_over_trials_that_moved_the_robot():
     """The CLI's trial summary uses Table II's MinCl: the 5th percentile over trials that
     moved the robot only (a refusal before any motion keeps the start pose's clearance)."""
-    from distgprl.hardware.trials import summarise_trials
+    from distgprl.hardware.trial_rows import summarise_trials
 
     def row(status, execution, clearance, success="0", collision="0"):
         return {

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS
+from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
 
 EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 EPISODE += ("obstacle_offset_y", "success", "collision")

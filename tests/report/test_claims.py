@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.claims import (
     BALANCE,
     FEW_SEEDS,
@@ -20,7 +18,7 @@ from distgprl.report.claims import (
     evaluate_claims,
 )
 from distgprl.report.tables import write_tables
-from distgprl.schema import read_csv
+from distgprl.schema import PROGRESS_FIELDS, read_csv, write_csv, write_json
 
 SEEDS = 5
 JITTER = np.array([-0.02, -0.01, 0.0, 0.01, 0.02])

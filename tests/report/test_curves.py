@@ -10,9 +10,8 @@ import sys
 import numpy as np
 import pytest
 
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.curves import load_curves, mean_and_band, plot_figure
+from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
 
 EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 EPISODE += ("obstacle_offset_y", "success", "collision")
@@ -253,7 +252,7 @@ def test_figures_are_a_vector_pdf_and_a_150_dpi_png(tmp_path):
 
 
 def test_seed_curves_keep_each_seed_on_its_own_steps(tmp_path):
-    from distgprl.report.curves import seed_curves
+    from distgprl.report.seed_curves import seed_curves
 
     _run(tmp_path, "dist-gprl", 0, [0, 100, 200], [0.0, 0.2, 0.4])
     _run(tmp_path, "dist-gprl", 3, [0, 100], [0.1, 0.5])
@@ -267,7 +266,8 @@ def test_seed_curves_keep_each_seed_on_its_own_steps(tmp_path):
 def test_a_studys_curves_show_every_seed_of_every_reading_and_the_mean(study_tree):
     """One panel per reading (Table I's first) and NoCov's for the operator study; a line
     per finished seed plus the mean where there are several; a reading without runs says so."""
-    from distgprl.report.curves import plot_reading_curves, reading_columns
+    from distgprl.report.curves import plot_reading_curves
+    from distgprl.report.seed_curves import reading_columns
     from distgprl.studies import get_study
 
     study = get_study("operators")

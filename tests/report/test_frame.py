@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-from distgprl.experiments.results import write_csv, write_json
 from distgprl.report.frame import (
     EVALUATION_KEYS,
     RUN_COLUMNS,
@@ -16,6 +15,7 @@ from distgprl.report.frame import (
     summaries,
 )
 from distgprl.report.runs import current_hash
+from distgprl.schema import write_csv, write_json
 
 EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 EPISODE += ("obstacle_offset_y", "success", "collision", "min_clearance")

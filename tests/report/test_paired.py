@@ -10,8 +10,6 @@ import shutil
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import evaluation_file_names
 from distgprl.report.paired import (
     FINAL_POLICY,
     OUTCOMES,
@@ -23,6 +21,7 @@ from distgprl.report.paired import (
     supplementary_sizes,
 )
 from distgprl.report.tables import write_tables
+from distgprl.schema import evaluation_file_names, write_csv, write_json
 
 FIELDS = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
 FIELDS += ("obstacle_offset_y", "success", "collision")

@@ -3,12 +3,12 @@ configuration is listed, not averaged in)."""
 
 from __future__ import annotations
 
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS, resolve_run
+from distgprl.identity import resolve_run
 from distgprl.report.curves import load_curves
 from distgprl.report.runs import select_runs
 from distgprl.report.table1 import simulation_table
 from distgprl.report.tables import write_tables
+from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
 
 SUMMARY = {
     "success_rate": 0.5,
@@ -71,7 +71,7 @@ def test_a_result_file_of_an_unknown_schema_stops_the_reports_of_a_checked_prese
 
     import pytest
 
-    from distgprl.experiments.results import SchemaVersionError
+    from distgprl.schema import SchemaVersionError
 
     _run(tmp_path, "gprl", 0, resolve_run("dcp", "gprl", 0, "ci").hash)
     odd = _run(tmp_path, "gprl", 1, resolve_run("dcp", "gprl", 1, "ci").hash)

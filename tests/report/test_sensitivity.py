@@ -7,13 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.experiments.results import write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.report.curves import write_curves
 from distgprl.report.runs import current_hash
 from distgprl.report.sensitivity import reading_gains
 from distgprl.report.tables import write_tables
-from distgprl.schema import read_csv
+from distgprl.schema import PROGRESS_FIELDS, read_csv, write_csv, write_json
 from distgprl.studies import get_study
 
 STUDY = get_study("operators")

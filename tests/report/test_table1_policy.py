@@ -16,11 +16,10 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments.results import write_csv, write_json
 from distgprl.report.runs import TABLE_POLICY, run_evaluations
 from distgprl.report.table1 import collect_scores, per_seed_rows, simulation_table
 from distgprl.report.tables import write_tables
-from distgprl.schema import EVALUATION_FIELDS, read_csv, read_json
+from distgprl.schema import EVALUATION_FIELDS, read_csv, read_json, write_csv, write_json
 
 ARCHIVE = Path(__file__).resolve().parents[2] / "results" / "archive" / "env-v5" / "paper"
 RUNS = [("dcp", "dist-gprl", 0), ("dcp", "dist-gprl", 1), ("dcp", "gprl", 0), ("dcp", "demo", 0)]

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 
-from distgprl.experiments.results import write_json
 from distgprl.report.table1 import (
     UNTRAINED_MARK,
     UNTRAINED_NOTE,
@@ -21,6 +20,7 @@ from distgprl.report.table1 import (
     untrained_text,
 )
 from distgprl.report.tables import write_tables
+from distgprl.schema import write_json
 
 NOT_BEATEN = "no trained policy beat the untrained one"
 

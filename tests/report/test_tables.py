@@ -10,8 +10,6 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from distgprl.experiments.results import SchemaVersionError, write_csv, write_json
-from distgprl.experiments.runner import PROGRESS_FIELDS
 from distgprl.machine import machine_info
 from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
@@ -22,7 +20,7 @@ from distgprl.report.table1 import (
 )
 from distgprl.report.table2 import binomial_interval, hardware_table, select_trial_files
 from distgprl.report.tables import write_tables
-from distgprl.schema import moved_robot
+from distgprl.schema import PROGRESS_FIELDS, SchemaVersionError, moved_robot, write_csv, write_json
 
 
 def test_aggregate_mean_std_and_t_interval():
@@ -88,7 +86,7 @@ def episodes(pairs):
 
 
 def test_safe_success_counts_only_successes_without_collision():
-    from distgprl.experiments.runner import safe_success_rate
+    from distgprl.schema import safe_success_rate
 
     rows = episodes([(1, 0), (1, 1), (0, 0), (0, 1)])
     assert safe_success_rate(rows) == pytest.approx(0.25)
@@ -433,7 +431,7 @@ def test_table2_of_a_preset_counts_its_current_unforced_policies_only(tmp_path):
     configuration; trials run with the pre-flight check overridden (--force) or with a
     policy of another configuration are listed under it, not counted; another preset's
     trials are not this table's, and its Table II file is left alone."""
-    from distgprl.experiments.runner import resolve_run
+    from distgprl.identity import resolve_run
 
     write_json(
         tmp_path / "ci" / "dbm" / "demo" / "seed0" / "summary.json",

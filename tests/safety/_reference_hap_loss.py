@@ -12,7 +12,7 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPriorConfig
 
 

@@ -12,7 +12,7 @@ import ur_analytic_ik
 from scipy.spatial.transform import Rotation
 
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import HapConfig
+from distgprl.safety.hap_build import HapConfig
 from distgprl.safety.shapes import Box, Cylinder, Plane
 
 # UR5e standard DH parameters (official kinematics), m and rad.

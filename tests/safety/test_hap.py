@@ -1,4 +1,5 @@
-"""Tests of distgprl.safety.hap: the HAP safe subspace (real UR5e IK, sphere collision model)."""
+"""Tests of the HAP safe subspace (distgprl.safety.hap_build, hap_cache, hap_filter; real UR5e
+IK, sphere collision model)."""
 
 from __future__ import annotations
 
@@ -11,17 +12,10 @@ from conftest import SphereRobotChecker, ur5e_ik_all
 from scipy.spatial.transform import Rotation
 
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import (
-    HapConfig,
-    MovingObstacleFilter,
-    build_or_load,
-    build_subspace,
-    filter_with_edf,
-    plot_subspace,
-    safe_mask,
-    subspace_cache_key,
-    tool_bounds,
-)
+from distgprl.safety.hap_build import HapConfig, build_subspace
+from distgprl.safety.hap_cache import build_or_load, subspace_cache_key
+from distgprl.safety.hap_filter import MovingObstacleFilter, filter_with_edf, safe_mask, tool_bounds
+from distgprl.safety.hap_plot import plot_subspace
 from distgprl.safety.shapes import Box, Cylinder, with_pose
 
 

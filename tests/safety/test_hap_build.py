@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 
-from distgprl.safety import hap
 from distgprl.safety.hap_build import tqdm_progress
 
 
@@ -43,9 +42,3 @@ def test_progress_bars_stay_silent_off_a_terminal():
     report("ik", 1, 10)
     report("ik", 10, 10)
     assert stream.getvalue() == ""
-
-
-def test_public_names_stay_importable_from_hap():
-    """Callers keep importing the split module's names from distgprl.safety.hap."""
-    for name in hap.__all__:
-        assert getattr(hap, name) is not None

@@ -13,7 +13,7 @@ import pytest
 from _reference_numpy_softmin import blocked as reference_blocked
 from _reference_numpy_softmin import softmin_values as reference_softmin
 
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_kernels import grid_candidates, grid_softmin, softmin_with_gradient
 from distgprl.safety.shapes import Box
 

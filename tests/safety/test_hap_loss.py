@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from distgprl.safety.hap import MovingObstacleFilter
+from distgprl.safety.hap_filter import MovingObstacleFilter
 from distgprl.safety.hap_loss import HapPrior, HapPriorConfig
 from distgprl.safety.shapes import Box
 

@@ -7,8 +7,12 @@ import pybullet
 import pytest
 
 from distgprl.safety.shapes import Box
-from distgprl.sim.bullet import MAX_SHAPES_PER_ARRAY, create_compound_body, make_client
-from distgprl.sim.tasks.base import PhysicsConfig
+from distgprl.sim.bullet import (
+    MAX_SHAPES_PER_ARRAY,
+    PhysicsConfig,
+    create_compound_body,
+    make_client,
+)
 
 
 def _row_of_boxes(n: int) -> tuple[Box, ...]:

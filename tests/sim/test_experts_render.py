@@ -10,7 +10,8 @@ import pytest
 from distgprl.errors import UserInputError
 from distgprl.sim.experts import VARIED_COUNT, generate
 from distgprl.sim.render import render_episode
-from distgprl.sim.tasks import TaskConfig, get_task
+from distgprl.sim.tasks import get_task
+from distgprl.sim.tasks.base import TaskConfig
 from distgprl.skill.demos import load_demonstration
 
 

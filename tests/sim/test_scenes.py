@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from distgprl.safety.shapes import Box, Cylinder
-from distgprl.sim.tasks import TaskConfig, get_task
-from distgprl.sim.tasks.base import resample_to_control
+from distgprl.sim.tasks import get_task
+from distgprl.sim.tasks.base import TaskConfig, resample_to_control
 from distgprl.skill.demos import load_demonstration
 
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.sim.tasks import TASKS, TaskConfig, get_task
+from distgprl.sim.tasks import TASKS, get_task
+from distgprl.sim.tasks.base import TaskConfig
 from distgprl.sim.tasks.dbm import SCENE as DBM_SCENE
 from distgprl.sim.tasks.dcp import SCENE as DCP_SCENE
 

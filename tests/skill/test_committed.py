@@ -159,7 +159,7 @@ def test_no_code_path_fits_a_skill_implicitly(monkeypatch):
     with pytest.raises(AssertionError, match="implicitly"):  # the patches catch a fit
         committed.fit_task_skill("dcp")
 
-    from distgprl.config import EnvConfig
+    from distgprl.config_types import EnvConfig
     from distgprl.envs.tasks import load_task_skill, task_hap_config
     from distgprl.experiments.factories import build_regulariser, make_env
     from distgprl.experiments.mechanisms import env_reach

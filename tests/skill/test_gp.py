@@ -8,13 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from distgprl.skill.gp import (
-    FitConfig,
-    GPSkill,
-    KernelParams,
-    fit_skill,
-    reconstruction_error,
-)
+from distgprl.skill.gp import FitConfig, GPSkill, fit_skill, reconstruction_error
+from distgprl.skill.kernels import KernelParams
 
 
 def make_skill(length_scale=0.12, noise=1e-10, n=15, duration=4.0, seed=0) -> GPSkill:

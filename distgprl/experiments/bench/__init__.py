@@ -28,7 +28,7 @@ studies around these figures (a simulated episode, the GP micro-benchmark, adapt
 against via-points and obstacles, training throughput and its breakdown, worker scaling) are
 scripts in the repository's ``benchmarks/`` folder, built on the modules here.
 
-Modules (one per section, plus what they share; every name below is re-exported here):
+Modules (one per section, plus what they share; each name is imported from its module):
 
 - `timing`: `Timing`, `measure`, `measure_interleaved`, `machine_info`.
 - `sizes`: `BenchSizes` and the presets table `SIZE_PRESETS` (`FULL_SIZES`, `QUICK_SIZES`,
@@ -39,78 +39,3 @@ Modules (one per section, plus what they share; every name below is re-exported 
   `run`: `run_benchmarks`, `load_results`; `cli`: the argparse `main` of ``python -m
   distgprl.experiments.bench``.
 """
-
-from __future__ import annotations
-
-from distgprl.agents.sac import NumpyActor
-from distgprl.experiments.bench.adaptation import (
-    PAPER_MS_PER_EPISODE,
-    PAPER_MS_PER_WINDOW,
-    TARGET_MS_PER_EPISODE,
-    bench_adaptation,
-)
-from distgprl.experiments.bench.baselines import BulletDistance, naive_pipeline
-from distgprl.experiments.bench.cli import main
-from distgprl.experiments.bench.environment import bench_env_step
-from distgprl.experiments.bench.floor import (
-    MatrixProductClock,
-    bench_floor,
-    sac_update_matrix_products,
-    suite_floor,
-)
-from distgprl.experiments.bench.markdown import markdown_table
-from distgprl.experiments.bench.pipeline import AdaptationPipeline
-from distgprl.experiments.bench.plots import plot_results
-from distgprl.experiments.bench.run import load_results, run_benchmarks
-from distgprl.experiments.bench.sac_update import bench_sac_step, fill_replay_buffer
-from distgprl.experiments.bench.sizes import (
-    BENCH_METHOD,
-    BENCH_TASK,
-    FULL_SIZES,
-    QUICK_SIZES,
-    SIZE_PRESETS,
-    TINY_SIZES,
-    BenchSizes,
-    run_spec,
-    sizes_for,
-)
-from distgprl.experiments.bench.suite import bench_suite, suite_cpu_hours
-from distgprl.experiments.bench.timing import Timing, machine_info, measure, measure_interleaved
-
-__all__ = [
-    "BENCH_METHOD",
-    "BENCH_TASK",
-    "FULL_SIZES",
-    "PAPER_MS_PER_EPISODE",
-    "PAPER_MS_PER_WINDOW",
-    "QUICK_SIZES",
-    "SIZE_PRESETS",
-    "TARGET_MS_PER_EPISODE",
-    "TINY_SIZES",
-    "AdaptationPipeline",
-    "BenchSizes",
-    "BulletDistance",
-    "MatrixProductClock",
-    "NumpyActor",
-    "Timing",
-    "bench_adaptation",
-    "bench_env_step",
-    "bench_floor",
-    "bench_sac_step",
-    "bench_suite",
-    "fill_replay_buffer",
-    "load_results",
-    "machine_info",
-    "main",
-    "markdown_table",
-    "measure",
-    "measure_interleaved",
-    "naive_pipeline",
-    "plot_results",
-    "run_benchmarks",
-    "run_spec",
-    "sac_update_matrix_products",
-    "sizes_for",
-    "suite_cpu_hours",
-    "suite_floor",
-]

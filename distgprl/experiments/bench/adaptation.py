@@ -26,7 +26,7 @@ TARGET_MS_PER_EPISODE = 1.0
 
 def bench_adaptation(env, model, sizes: BenchSizes) -> dict[str, Any]:
     """Section 1: per-window and per-episode adaptation compute vs paper and naive versions."""
-    from distgprl.experiments.runner import deterministic_policy, run_episode
+    from distgprl.experiments.rollout import deterministic_policy, run_episode
 
     pipeline = AdaptationPipeline(env, model.actor)
     bullet = BulletDistance(pipeline.shapes)

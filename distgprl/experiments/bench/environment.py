@@ -45,7 +45,7 @@ def bench_env_step(task: str, episodes: int, method: str = BENCH_METHOD) -> dict
     (the suite floor's physics, section 7), and ``env_step_over_bare_physics`` (ratio of the
     per-episode medians).
     """
-    from distgprl.experiments.runner import make_env
+    from distgprl.experiments.factories import make_env
 
     env = make_env(run_spec(task, method))
     calls = env.unwrapped.sim.calls

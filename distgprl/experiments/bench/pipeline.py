@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from distgprl.agents.sac import NumpyActor
+from distgprl.agents.numpy_actor import NumpyActor
 from distgprl.envs.episode import plan_segment
 
 __all__ = ["AdaptationPipeline"]

@@ -36,12 +36,12 @@ def run_benchmarks(
         progress: called with a short message before each section (e.g. ``print``).
 
     Returns:
-        The path of the JSON written with `distgprl.experiments.results.write_json`.
+        The path of the JSON written with `distgprl.schema.write_json`.
     """
     import torch
 
-    from distgprl.experiments.results import write_json
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
+    from distgprl.schema import write_json
 
     sizes = sizes or sizes_for(quick)
     say = progress or (lambda message: None)
@@ -98,6 +98,6 @@ def run_benchmarks(
 
 def load_results(path: Path) -> dict[str, Any]:
     """Read a benchmark JSON (schema-checked)."""
-    from distgprl.experiments.results import read_json
+    from distgprl.schema import read_json
 
     return read_json(path)

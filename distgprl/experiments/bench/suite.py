@@ -42,7 +42,7 @@ def training_step_cpu_s(task: str, method: str, learning_starts: int, steps: int
     ``task`` (paper preset), over ``steps`` steps after ``learning_starts`` random ones."""
     import torch
 
-    from distgprl.experiments.runner import make_agent, make_env
+    from distgprl.experiments.factories import make_agent, make_env
 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)

@@ -10,17 +10,7 @@ from __future__ import annotations
 
 from distgprl.data import TASK_NAMES, check_task_name
 from distgprl.sim.tasks import dbm, dcp
-from distgprl.sim.tasks.base import (
-    DEMO_DIR,
-    EVALUATION_SEED,
-    TRAINING_CURVE_SEED,
-    SegmentResult,
-    TaskConfig,
-    TaskSim,
-    TaskSpec,
-)
-from distgprl.sim.tasks.dbm import DBMSim
-from distgprl.sim.tasks.dcp import DCPSim
+from distgprl.sim.tasks.base import TaskSpec
 
 _DECLARED: dict[str, TaskSpec] = {spec.name: spec for spec in (dcp.TASK, dbm.TASK)}
 
@@ -34,15 +24,6 @@ def get_task(name: str) -> TaskSpec:
 
 
 __all__ = [
-    "DEMO_DIR",
-    "EVALUATION_SEED",
     "TASKS",
-    "TRAINING_CURVE_SEED",
-    "DBMSim",
-    "DCPSim",
-    "SegmentResult",
-    "TaskConfig",
-    "TaskSim",
-    "TaskSpec",
     "get_task",
 ]

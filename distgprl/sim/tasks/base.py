@@ -24,14 +24,13 @@ from pathlib import Path
 import numpy as np
 import pybullet
 
-from distgprl.data import DEMO_DIR
 from distgprl.errors import UserInputError
 from distgprl.safety.shapes import Shape
 from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 from distgprl.sim.bullet import PhysicsConfig, make_client
 from distgprl.sim.control import BulletCalls, ControlLoop, SegmentResult
 from distgprl.sim.robot import Robot, RobotFactory, ToolSpec, UR5e
-from distgprl.skill.conditioning import conditioning_weights, smooth_step
+from distgprl.skill.conditioning import conditioning_weights
 
 
 def _as_xy(value: object, name: str) -> tuple[float, float]:
@@ -476,14 +475,9 @@ def resample_to_control(times: np.ndarray, poses: np.ndarray, control_dt: float)
 
 
 __all__ = [
-    "DEMO_DIR",
-    "EVALUATION_SEED",
-    "TRAINING_CURVE_SEED",
-    "SegmentResult",
     "TaskConfig",
     "TaskSim",
     "TaskSpec",
     "condition_by_translation",
     "resample_to_control",
-    "smooth_step",
 ]

@@ -10,16 +10,21 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
-from distgprl.experiments import checkpoints, runner, training
-from distgprl.experiments.results import read_csv, read_json, write_json
+from distgprl.experiments import checkpoints, training
+from distgprl.experiments.checkpoints import checkpoint_dir, has_checkpoint, save_checkpoint
+from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.run_control import TrainingInterrupted
+from distgprl.experiments.training import train_run
+from distgprl.identity import resolve_run
 from distgprl.limits import SafetyLimits
 from distgprl.methods import METHODS
+from distgprl.schema import read_csv, read_json, run_dir, write_json
 
 STEPS = 120  # the `ci` preset shortened further; still past learning_starts
 
 
 def train(tmp_path, method, task="dcp", seed=0, steps=STEPS, **kwargs):
-    return runner.train_run(
+    return train_run(
         task,
         method,
         seed,
@@ -90,7 +95,7 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     monkeypatch.setattr(training, "save_checkpoint", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     assert not (folder / "done.json").exists()
     with pytest.raises(UserInputError, match="pass --resume"):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
@@ -99,12 +104,12 @@ def test_resume_after_a_kill_reaches_the_same_step_count_with_the_buffer(tmp_pat
     done = read_json(folder / "done.json")
     assert done["steps"] == 240
     # process CPU seconds of training, carried over the resume by the checkpoint
-    state = pickle.loads((runner.checkpoint_dir(folder) / "state.pkl").read_bytes())
+    state = pickle.loads((checkpoint_dir(folder) / "state.pkl").read_bytes())
     checkpoint_cpu = state["cpu_time_s"]
     assert 0.0 < checkpoint_cpu <= done["train_cpu_time_s"]
     assert done["cpu_s_per_step"] == pytest.approx(done["train_cpu_time_s"] / 240)
-    model = _load_model(runner.checkpoint_dir(folder) / "model.zip")
-    model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
+    model = _load_model(checkpoint_dir(folder) / "model.zip")
+    model.load_replay_buffer(checkpoint_dir(folder) / "replay_buffer.pkl")
     assert model.num_timesteps == 240
     assert model.replay_buffer.size() == 240
     _, progress = read_csv(folder / "progress.csv")
@@ -126,7 +131,7 @@ def test_a_resume_removes_the_partial_write_a_killed_process_left(tmp_path, caps
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
     monkeypatch.setattr(training, "save_checkpoint", original)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     leftover = folder / ".progress.csv.meta.json.wsaoftax.tmp"
     leftover.write_text("a write that never finished")
     capsys.readouterr()
@@ -148,8 +153,8 @@ def test_resume_without_its_checkpoint_restarts_visibly_and_on_record(
     """A killed run whose checkpoint is gone (checkpoints stay on the machine that trained)
     restarts from step 0 with a warning naming the lost step, and done.json records it."""
     kill_at_the_first_checkpoint(tmp_path)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
-    shutil.rmtree(runner.checkpoint_dir(folder))
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    shutil.rmtree(checkpoint_dir(folder))
     capsys.readouterr()
     train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     err = capsys.readouterr().err
@@ -227,11 +232,11 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
     with pytest.raises(KeyboardInterrupt):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
     monkeypatch.undo()
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     resumed = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)
     [resume] = read_json(folder / "done.json")["resumes"]
     assert resume["exact"] and resumed_at <= resume["step"] < resumed_at + 3  # see above
-    assert sorted(p.name for p in runner.checkpoint_dir(folder).iterdir()) == [
+    assert sorted(p.name for p in checkpoint_dir(folder).iterdir()) == [
         "curve_policies",  # the best-so-far learning-curve actors (`--policy best`)
         "manifest.json",  # size and SHA-256 of the three pieces
         "model.zip",
@@ -247,21 +252,21 @@ def test_a_kill_inside_a_checkpoint_write_resumes_exactly(
         "replay_buffer.pkl",
         "state.pkl",
     ]
-    model = _load_model(runner.checkpoint_dir(folder) / "model.zip")
-    model.load_replay_buffer(runner.checkpoint_dir(folder) / "replay_buffer.pkl")
+    model = _load_model(checkpoint_dir(folder) / "model.zip")
+    model.load_replay_buffer(checkpoint_dir(folder) / "replay_buffer.pkl")
     assert model.replay_buffer.size() == 240
     for a, b in zip(_actor_parameters(uninterrupted_run), _actor_parameters(resumed), strict=True):
         np.testing.assert_array_equal(a, b)
 
 
 def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeypatch):
-    first = runner.run_dir(tmp_path / "results", "paper", "dbm", "dist-gprl", 1)
-    second = runner.run_dir(tmp_path / "exploration" / "longer", "paper", "dbm", "dist-gprl", 1)
+    first = run_dir(tmp_path / "results", "paper", "dbm", "dist-gprl", 1)
+    second = run_dir(tmp_path / "exploration" / "longer", "paper", "dbm", "dist-gprl", 1)
     monkeypatch.delenv("DISTGPRL_CHECKPOINT_ROOT", raising=False)
-    assert runner.checkpoint_dir(first) == first / "checkpoints"
+    assert checkpoint_dir(first) == first / "checkpoints"
     cache = tmp_path / "cache"
     monkeypatch.setenv("DISTGPRL_CHECKPOINT_ROOT", str(cache))
-    paths = runner.checkpoint_dir(first), runner.checkpoint_dir(second)
+    paths = checkpoint_dir(first), checkpoint_dir(second)
     assert paths[0] != paths[1]
     for folder, path in zip((first, second), paths, strict=True):
         assert path.is_relative_to(cache)
@@ -269,10 +274,10 @@ def test_checkpoints_of_two_results_roots_never_share_a_folder(tmp_path, monkeyp
 
 
 def test_evaluate_demo_reference_writes_summary(tmp_path):
-    summary = runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
-    episodes = runner.resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
+    summary = evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    episodes = resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
     assert summary["episodes"] == episodes
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    folder = run_dir(tmp_path, "ci", "dcp", "demo", 0)
     meta, rows = read_csv(folder / "evaluation.csv")
     assert meta["method"] == "demo" and len(rows) == episodes
     assert np.isfinite(float(rows[0]["min_clearance"]))
@@ -289,10 +294,10 @@ def test_a_fresh_evaluation_csv_reads_with_plain_pandas_one_row_per_episode(tmp_
     pandas = pytest.importorskip("pandas")
     from distgprl.schema import EVALUATION_FIELDS
 
-    runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    folder = run_dir(tmp_path, "ci", "dcp", "demo", 0)
     frame = pandas.read_csv(folder / "evaluation.csv")
-    episodes = runner.resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
+    episodes = resolve_run("dcp", "demo", 0, "ci").config.run.eval_episodes
     assert list(frame.columns) == list(EVALUATION_FIELDS)
     assert len(frame) == episodes
     _, rows = read_csv(folder / "evaluation.csv")
@@ -304,15 +309,13 @@ def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp
     """``--episodes N`` other than the preset's writes ``evaluation_n<N>.csv`` whose first
     TCs are the preset's (same outcomes), and leaves the preset's evaluation and the
     config untouched."""
-    runner.evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "demo", 0)
+    evaluate_run("dcp", "demo", 0, "ci", root=tmp_path, show_progress=False)
+    folder = run_dir(tmp_path, "ci", "dcp", "demo", 0)
     preset_text = (folder / "evaluation.csv").read_text()
     config_text = (folder / "config.json").read_text()
     _, preset_rows = read_csv(folder / "evaluation.csv")
     n = len(preset_rows) + 2
-    summary = runner.evaluate_run(
-        "dcp", "demo", 0, "ci", episodes=n, root=tmp_path, show_progress=False
-    )
+    summary = evaluate_run("dcp", "demo", 0, "ci", episodes=n, root=tmp_path, show_progress=False)
     assert summary["episodes"] == n
     assert (folder / "evaluation.csv").read_text() == preset_text
     assert (folder / "config.json").read_text() == config_text
@@ -328,18 +331,18 @@ def test_a_supplementary_evaluation_extends_the_presets_tcs_beside_its_files(tmp
 
 def test_missing_model_and_bad_names_are_clear_errors(tmp_path):
     with pytest.raises(UserInputError, match="no trained model"):
-        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+        evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
     with pytest.raises(UserInputError, match="valid methods"):
-        runner.evaluate_run("dcp", "nope", 0, "ci", root=tmp_path)
+        evaluate_run("dcp", "nope", 0, "ci", root=tmp_path)
     with pytest.raises(UserInputError, match="valid tasks"):
-        runner.evaluate_run("nope", "demo", 0, "ci", root=tmp_path)
+        evaluate_run("nope", "demo", 0, "ci", root=tmp_path)
     with pytest.raises(UserInputError, match="does not train"):
-        runner.train_run("dcp", "demo", 0, "ci", root=tmp_path)
+        train_run("dcp", "demo", 0, "ci", root=tmp_path)
 
 
 def _model_folder(root, config_hash):
     """A dist-gprl run folder with a junk model and a config.json recording ``config_hash``."""
-    folder = runner.run_dir(root, "ci", "dcp", "dist-gprl", 0)
+    folder = run_dir(root, "ci", "dcp", "dist-gprl", 0)
     folder.mkdir(parents=True)
     (folder / "model.zip").write_bytes(b"junk")
     write_json(folder / "config.json", {"config_hash": config_hash}, config_hash=config_hash)
@@ -347,9 +350,9 @@ def _model_folder(root, config_hash):
 
 
 def test_incompatible_model_file_is_a_clear_error(tmp_path):
-    _model_folder(tmp_path, runner.resolve_run("dcp", "dist-gprl", 0, "ci").hash)
+    _model_folder(tmp_path, resolve_run("dcp", "dist-gprl", 0, "ci").hash)
     with pytest.raises(UserInputError, match="cannot load model"):
-        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+        evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
 
 
 def test_a_model_of_another_configuration_is_not_evaluated_under_the_current_one(tmp_path):
@@ -357,18 +360,18 @@ def test_a_model_of_another_configuration_is_not_evaluated_under_the_current_one
     hash) is refused: evaluating it would stamp the current hash on an old model."""
     _model_folder(tmp_path, "0123456789abcdef")
     with pytest.raises(UserInputError, match="trained with configuration 0123456789abcdef"):
-        runner.evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
+        evaluate_run("dcp", "dist-gprl", 0, "ci", root=tmp_path, show_progress=False)
 
 
 def test_the_evaluation_and_curve_seeds_are_reserved():
     """No run may use the seeds that draw the evaluation or learning-curve TCs (training
     on them would train on the test set)."""
-    from distgprl.sim.tasks import EVALUATION_SEED, TRAINING_CURVE_SEED
+    from distgprl.schema import EVALUATION_SEED, TRAINING_CURVE_SEED
 
     for seed in (EVALUATION_SEED, TRAINING_CURVE_SEED):
         with pytest.raises(UserInputError, match="reserved"):
-            runner.resolve_run("dcp", "dist-gprl", seed, "ci")
-    assert runner.resolve_run("dcp", "dist-gprl", 3, "ci").seed == 3
+            resolve_run("dcp", "dist-gprl", seed, "ci")
+    assert resolve_run("dcp", "dist-gprl", 3, "ci").seed == 3
 
 
 def test_checkpoint_pieces_reach_the_disk_before_the_commit_marker(tmp_path, monkeypatch):
@@ -399,10 +402,10 @@ def test_checkpoint_pieces_reach_the_disk_before_the_commit_marker(tmp_path, mon
         real_fsync(descriptor)
 
     monkeypatch.setattr(os, "fsync", fsync)
-    runner.save_checkpoint(tmp_path, Model(), Env(), {})
+    save_checkpoint(tmp_path, Model(), Env(), {})
     commit = next(i for i, name in enumerate(synced) if name.startswith(".commit.json."))
     assert {".model.tmp.zip", ".buffer.tmp.pkl"} <= set(synced[:commit])
-    assert runner.has_checkpoint(tmp_path)
+    assert has_checkpoint(tmp_path)
 
 
 @pytest.mark.parametrize("seed", [-1, 2**32, 1.5, True])
@@ -410,13 +413,13 @@ def test_a_seed_outside_0_to_2_32_is_refused_before_anything_is_written(tmp_path
     """`resolve_run` (where train, evaluate and the sweep start) refuses a seed NumPy and
     torch would reject mid-start, and `train_run` / `evaluate_run` create no folder."""
     with pytest.raises(UserInputError, match="must be an integer from 0 to 2\\*\\*32 - 1"):
-        runner.resolve_run("dcp", "dist-gprl", seed, "ci")
+        resolve_run("dcp", "dist-gprl", seed, "ci")
     with pytest.raises(UserInputError, match="seed"):
-        runner.train_run("dcp", "dist-gprl", seed, "ci", root=tmp_path, show_progress=False)
+        train_run("dcp", "dist-gprl", seed, "ci", root=tmp_path, show_progress=False)
     with pytest.raises(UserInputError, match="seed"):
-        runner.evaluate_run("dcp", "demo", seed, "ci", root=tmp_path, show_progress=False)
+        evaluate_run("dcp", "demo", seed, "ci", root=tmp_path, show_progress=False)
     assert list(tmp_path.iterdir()) == []
-    assert runner.resolve_run("dcp", "dist-gprl", 2**32 - 1, "ci").seed == 2**32 - 1
+    assert resolve_run("dcp", "dist-gprl", 2**32 - 1, "ci").seed == 2**32 - 1
 
 
 @pytest.mark.parametrize("steps", [0, -3, 4, 121])
@@ -424,16 +427,16 @@ def test_steps_must_be_a_positive_multiple_of_the_episode_length(tmp_path, steps
     """Total steps of 0, a negative multiple or a non-multiple of the episode (3 RL steps)
     are refused by `resolve_run`, before `train_run` writes anything."""
     with pytest.raises(UserInputError, match="positive multiple of the episode length"):
-        runner.resolve_run("dcp", "dist-gprl", 0, "ci", steps)
+        resolve_run("dcp", "dist-gprl", 0, "ci", steps)
     with pytest.raises(UserInputError, match="positive multiple"):
         train(tmp_path, "dist-gprl", steps=steps)
     assert list(tmp_path.iterdir()) == []
-    assert runner.resolve_run("dcp", "dist-gprl", 0, "ci", 3).config.run.total_steps == 3
+    assert resolve_run("dcp", "dist-gprl", 0, "ci", 3).config.run.total_steps == 3
 
 
 def test_a_bad_preset_is_refused_before_anything_is_written(tmp_path):
     with pytest.raises(UserInputError, match="unknown preset 'nope'"):
-        runner.train_run("dcp", "dist-gprl", 0, "nope", root=tmp_path, show_progress=False)
+        train_run("dcp", "dist-gprl", 0, "nope", root=tmp_path, show_progress=False)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -441,7 +444,7 @@ def test_a_start_that_fails_before_training_leaves_nothing_behind(tmp_path, monk
     """An error while the run is set up (after config.json and .lock were written) removes
     what this start created: the next try is not told "run exists". Folders that existed
     before (here the task folder of another run) stay."""
-    other = runner.run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
+    other = run_dir(tmp_path, "ci", "dcp", "gprl-d", 0)
     other.mkdir(parents=True)
 
     def broken_env(run):
@@ -450,7 +453,7 @@ def test_a_start_that_fails_before_training_leaves_nothing_behind(tmp_path, monk
     monkeypatch.setattr(training, "make_env", broken_env)
     with pytest.raises(RuntimeError, match="simulated start-up failure"):
         train(tmp_path, "dist-gprl")
-    assert not runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0).parent.exists()
+    assert not run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0).parent.exists()
     assert sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*")) == [
         "ci",
         "ci/dcp",
@@ -462,9 +465,9 @@ def test_a_start_that_fails_before_training_leaves_nothing_behind(tmp_path, monk
 def test_a_failed_resume_keeps_the_runs_files(tmp_path, monkeypatch):
     """A start-up failure of a resumed run removes nothing it did not create: the run's
     config.json (from the earlier start) stays."""
-    folder = runner.run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
+    folder = run_dir(tmp_path, "ci", "dcp", "dist-gprl", 0)
     folder.mkdir(parents=True)
-    run = runner.resolve_run("dcp", "dist-gprl", 0, "ci", STEPS)
+    run = resolve_run("dcp", "dist-gprl", 0, "ci", STEPS)
     write_json(folder / "config.json", {"run": run.to_dict(), "config_hash": run.hash})
 
     def broken_env(run):
@@ -547,7 +550,7 @@ def test_a_resumed_runs_events_purge_what_the_killed_process_logged_after_its_ch
         original(folder, model, env, extra)
 
     monkeypatch.setattr(training, "save_checkpoint", die_at_the_second)
-    with pytest.raises(runner.TrainingInterrupted):
+    with pytest.raises(TrainingInterrupted):
         train(tmp_path, "dist-gprl", steps=240, evaluate_after=False)
     monkeypatch.setattr(training, "save_checkpoint", original)
     folder = train(tmp_path, "dist-gprl", steps=240, evaluate_after=False, resume=True)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from distgprl.envs.residual import (
+from distgprl.adaptation.trajectories import variance_gate
+from distgprl.envs.windowed_residual_env import (
     ResidualEnv,
     expert_demonstration_set,
     load_task_promp,
     one_demonstration_set,
-    variance_gate,
 )
 from distgprl.sim.tasks import get_task
 from distgprl.sim.tasks.base import condition_by_translation

@@ -1,7 +1,7 @@
 """Evaluation in simulation with the hardware safety layer between the plan and execution.
 
 `evaluate_with_repair` runs a trained policy (or the untrained ``demo`` / ``promp-nominal``
-references) on the fixed evaluation TCs exactly as `~distgprl.experiments.runner.evaluate_run`
+references) on the fixed evaluation TCs exactly as `~distgprl.experiments.evaluation.evaluate_run`
 does, except that every window's plan passes the safety layer of the hardware trials
 (:mod:`distgprl.safety_layer.plan_check`, :mod:`distgprl.safety_layer.repair`) before it is
 executed, as in :func:`~distgprl.hardware.trials.run_trials`: the episode loop's decisions
@@ -266,7 +266,7 @@ def evaluate_with_repair(
 ) -> dict[str, Any]:
     """Evaluate a trained run (or a reference) with the safety layer in the loop.
 
-    Same run, policy and TCs as `~distgprl.experiments.runner.evaluate_run` (the first
+    Same run, policy and TCs as `~distgprl.experiments.evaluation.evaluate_run` (the first
     ``episodes`` evaluation TCs, default the preset's); every episode is
     `run_repaired_episode`. Writes the CSV and summary of
     :func:`~distgprl.schema.repair_evaluation_file_names` (mode `repair_mode` of
@@ -286,12 +286,10 @@ def evaluate_with_repair(
 
     if not has_via_point_plan(get_method(method)):
         raise UserInputError(f"{method}: {NO_SAFETY_LAYER}")
-    from distgprl.experiments.runner import (
-        deterministic_policy,
-        load_trained_policy,
-        make_env,
-        resolve_run,
-    )
+    from distgprl.experiments.factories import make_env
+    from distgprl.experiments.policies import load_trained_policy
+    from distgprl.experiments.rollout import deterministic_policy
+    from distgprl.identity import resolve_run
 
     config = config or RepairConfig()
     run = resolve_run(task, method, seed, preset)

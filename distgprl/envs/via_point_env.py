@@ -12,27 +12,24 @@ import numpy as np
 from gymnasium import spaces
 
 from distgprl.adaptation.layout import OBSERVATION_SCALE_FLOOR, AuxLayout, build_action_layout
-from distgprl.adaptation.plan import TrajectoryModel, WindowPlan, min_jerk
+from distgprl.adaptation.plan import TrajectoryModel, WindowPlan
 from distgprl.adaptation.trajectories import GPSkillTrajectory
-from distgprl.config import EnvConfig
+from distgprl.config_types import EnvConfig
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.clearance import TimedClearance
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
 from distgprl.envs.world import SimWorld, WorldState
 from distgprl.methods import MethodSpec
-from distgprl.safety.hap import MovingObstacleFilter, tool_bounds
+from distgprl.safety.hap_filter import MovingObstacleFilter, tool_bounds
 from distgprl.sim.transforms import rotvec_to_matrix
 from distgprl.skill.gp import GPSkill
 
 REWARD_TERMS = ("r_progress", "r_success", "r_collision", "r_sd", "r_ga", "r_signature")
 
 __all__ = [
-    "OBSERVATION_SCALE_FLOOR",
     "REWARD_TERMS",
     "AdaptationEnv",
-    "build_action_layout",
     "cosine",
-    "min_jerk",
 ]
 
 

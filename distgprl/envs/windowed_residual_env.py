@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from distgprl.adaptation.trajectories import ResidualProMPTrajectory, variance_gate
-from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import AdaptationEnv
+from distgprl.config_types import EnvConfig
+from distgprl.envs.via_point_env import AdaptationEnv
 from distgprl.errors import UserInputError
 from distgprl.methods import PROMP_DEMONSTRATIONS, MethodSpec, get_method
 from distgprl.skill.demos import (
@@ -34,7 +34,6 @@ __all__ = [
     "expert_demonstration_set",
     "load_task_promp",
     "one_demonstration_set",
-    "variance_gate",
 ]
 
 DEMONSTRATION_SOURCES = ("one", "expert")

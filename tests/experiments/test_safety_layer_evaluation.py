@@ -1,4 +1,4 @@
-"""Evaluation in simulation with the safety layer in the loop (`repaired_evaluation`), on
+"""Evaluation in simulation with the safety layer in the loop (`safety_layer_evaluation`), on
 the ci preset's untrained references (`demo`, `promp-nominal`: no training needed)."""
 
 from __future__ import annotations
@@ -7,8 +7,10 @@ from dataclasses import replace
 
 import pytest
 
-from distgprl.experiments import repaired_evaluation as repaired
-from distgprl.experiments.runner import evaluate_policy, make_env, resolve_run
+from distgprl.experiments import safety_layer_evaluation as repaired
+from distgprl.experiments.factories import make_env
+from distgprl.experiments.rollout import evaluate_policy
+from distgprl.identity import resolve_run
 from distgprl.limits import SafetyLimits
 from distgprl.safety_layer.retime import RepairConfig
 from distgprl.schema import (

@@ -21,7 +21,6 @@ from gymnasium import spaces
 from distgprl.adaptation.plan import min_jerk
 from distgprl.adaptation.residual_control import (
     RL_RATE_HZ,
-    SLEW_TIME_S,
     GateMode,
     compose,
     control_schedule,
@@ -31,11 +30,11 @@ from distgprl.adaptation.residual_control import (
     slew_limited,
     variance_gate,
 )
-from distgprl.config import EnvConfig
-from distgprl.envs.adaptation import cosine
+from distgprl.config_types import EnvConfig
 from distgprl.envs.base import TaskEnv
 from distgprl.envs.episode import EpisodeTally, execute_segment, plan_segment
-from distgprl.envs.residual import load_task_promp
+from distgprl.envs.via_point_env import cosine
+from distgprl.envs.windowed_residual_env import load_task_promp
 from distgprl.envs.world import SimWorld, WorldState
 from distgprl.methods import MethodSpec
 from distgprl.safety.edf import DistanceField
@@ -50,7 +49,6 @@ __all__ = [
     "GATE_MODE",
     "REWARD_TERMS",
     "ROTATION_ERROR_CLIP",
-    "SLEW_TIME_S",
     "ResidualRLEnv",
     "condition_nominal",
     "load_nominal_promp",

@@ -1,7 +1,7 @@
 """The safety-layer evaluations a sweep runs for each finished run ("Table I + repair").
 
 A trained policy's weights are not committed, so what the hardware safety layer costs and
-saves in simulation (`distgprl.experiments.repaired_evaluation`) has to be measured where
+saves in simulation (`distgprl.experiments.safety_layer_evaluation`) has to be measured where
 the policy was trained, while its ``model.zip`` is on disk, as the Table II twin trials are
 (`distgprl.experiments.table2_trials`). `distgprl sweep` (``--repair-evaluations``, on by
 default) evaluates every finished run of either task on the preset's evaluation TCs in the
@@ -71,7 +71,7 @@ def evaluations_due(root: str | Path, preset: str, task: str, method: str, seed:
 def run_and_report(root: str | Path, preset: str, task: str, method: str, seed: int) -> str:
     """Evaluate the run in every missing mode; a report line for a sweep's log. A failure
     never raises here (the run it follows is done; the next sweep tries again)."""
-    from distgprl.experiments.repaired_evaluation import evaluate_with_repair
+    from distgprl.experiments.safety_layer_evaluation import evaluate_with_repair
 
     lines = []
     try:

@@ -8,11 +8,11 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import distgprl.envs  # noqa: F401  (registers the env ids)
-from distgprl.config import ENVIRONMENT_VERSION, EnvConfig
-from distgprl.envs.adaptation import REWARD_TERMS, AdaptationEnv
+from distgprl.config_types import ENVIRONMENT_VERSION, EnvConfig
+from distgprl.envs.via_point_env import REWARD_TERMS, AdaptationEnv
 from distgprl.safety.edf import DistanceField
-from distgprl.safety.hap import MovingObstacleFilter
-from distgprl.sim.tasks import TaskConfig
+from distgprl.safety.hap_filter import MovingObstacleFilter
+from distgprl.sim.tasks.base import TaskConfig
 from distgprl.skill.operator import axis_operator
 
 
@@ -488,7 +488,7 @@ def _v7_env(task: str, monkeypatch):
     from _reference_edf import reference_distance
 
     from distgprl.experiments.bench.sizes import run_spec
-    from distgprl.experiments.runner import make_env
+    from distgprl.experiments.factories import make_env
 
     env = make_env(run_spec(task, "dist-gprl"))
     sim, field = env.unwrapped.sim, env.unwrapped.field
@@ -518,7 +518,7 @@ def test_v8_speed_work_keeps_v7s_episodes(task, monkeypatch):
     tests/safety/test_edf.py; r_sd's 1 / (d + eps) and the float32 state amplify that far
     below these bounds)."""
     from distgprl.experiments.bench.sizes import run_spec
-    from distgprl.experiments.runner import make_env
+    from distgprl.experiments.factories import make_env
 
     new, old = make_env(run_spec(task, "dist-gprl")), _v7_env(task, monkeypatch)
     rng = np.random.default_rng(66)

@@ -1,13 +1,15 @@
-"""The safety-layer evaluations a sweep runs after each run (`experiments.repair_evaluations`),
+"""The safety-layer evaluations a sweep runs after each run (`experiments.repair_follow_ups`),
 on the ci preset's untrained `demo` reference (no training needed)."""
 
 from __future__ import annotations
 
 import pytest
 
-from distgprl.experiments import repair_evaluations as follow
+from distgprl.experiments import repair_follow_ups as follow
 from distgprl.experiments import sweep
 from distgprl.experiments.evaluation import evaluate_run
+from distgprl.experiments.follow_ups import follow_up_due, repairs_due
+from distgprl.experiments.jobs import Job
 from distgprl.schema import read_csv, read_json, repair_evaluation_file_names, run_dir, write_json
 
 
@@ -31,10 +33,10 @@ def test_a_sweep_evaluates_a_finished_run_in_both_modes_once(demo_evaluated, mon
     evaluated or trained again), both modes are written for the run's configuration, and the
     next sweep finds nothing due."""
     root = demo_evaluated
-    job = sweep.Job("dbm", "demo", 0, "ci", str(root), repair_evaluations=True)
-    assert sweep.repairs_due(job) and sweep.follow_up_due(job)
-    assert not sweep.repairs_due(sweep.Job("dbm", "demo", 0, "ci", str(root)))  # not asked
-    assert not sweep.repairs_due(sweep.Job("dcp", "demo", 0, "ci", str(root), 0, True))  # no run
+    job = Job("dbm", "demo", 0, "ci", str(root), repair_evaluations=True)
+    assert repairs_due(job) and follow_up_due(job)
+    assert not repairs_due(Job("dbm", "demo", 0, "ci", str(root)))  # not asked
+    assert not repairs_due(Job("dcp", "demo", 0, "ci", str(root), 0, True))  # no run
     monkeypatch.setattr(sweep, "finished_result", lambda job: sweep.JobResult(job, "skipped", 0))
     monkeypatch.setattr(sweep, "evaluate_run", lambda *a, **k: pytest.fail("evaluated again"))
     results = sweep.run_sweep([job], workers=1)
@@ -51,7 +53,7 @@ def test_a_sweep_evaluates_a_finished_run_in_both_modes_once(demo_evaluated, mon
         meta, rows = read_csv(folder / csv_name)
         assert meta["repair_mode"] == mode and meta["config_hash"] == current and len(rows) == 6
     assert follow.missing_modes(root, "ci", "dbm", "demo", 0) == ()
-    assert not sweep.repairs_due(job)
+    assert not repairs_due(job)
     assert sweep.run_sweep([job], workers=1)[0].repairs == ""
 
 
@@ -77,7 +79,7 @@ def test_a_failing_evaluation_is_reported_and_does_not_raise(demo_evaluated, mon
     def broken(*args, **kwargs):
         raise RuntimeError("simulator lost")
 
-    monkeypatch.setattr("distgprl.experiments.repaired_evaluation.evaluate_with_repair", broken)
+    monkeypatch.setattr("distgprl.experiments.safety_layer_evaluation.evaluate_with_repair", broken)
     report = follow.run_and_report(demo_evaluated, "ci", "dbm", "demo", 0)
     assert report == "safety-layer evaluation failed: RuntimeError: simulator lost"
 

@@ -1,4 +1,4 @@
-"""ProMP-RRL as residual RL (`distgprl.envs.residual_rl.ResidualRLEnv`, issue 48 item 4;
+"""ProMP-RRL as residual RL (`distgprl.envs.residual_control_env.ResidualRLEnv`, issue 48 item 4;
 its ProMP over the 20 expert demonstrations, Protocol v8 rule 3)."""
 
 from __future__ import annotations
@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from distgprl.adaptation.residual_control import RL_RATE_HZ, rotation_error
-from distgprl.config import EnvConfig
-from distgprl.envs.residual import expert_demonstration_set, load_task_promp
-from distgprl.envs.residual_rl import (
+from distgprl.config_types import EnvConfig
+from distgprl.envs.residual_control_env import (
     REWARD_TERMS,
     ResidualRLEnv,
     condition_nominal,
     load_nominal_promp,
 )
+from distgprl.envs.windowed_residual_env import expert_demonstration_set, load_task_promp
 from distgprl.methods import METHODS
 from distgprl.skill.promp import ObjectCentricProMP
 
@@ -231,7 +231,7 @@ def test_a_promp_without_variance_passes_the_whole_residual():
     """A ProMP with zero variance everywhere (one demonstration, no jitter) gives the gate
     nothing to decide on: it passes the residual whole at every instant (gate 1), so full
     actions move every commanded pose after the first step away from the nominal."""
-    from distgprl.envs.residual_rl import load_nominal_promp
+    from distgprl.envs.residual_control_env import load_nominal_promp
 
     nominal = load_nominal_promp("dcp")
     flat = ObjectCentricProMP(
