@@ -36,7 +36,7 @@ from distgprl.report.aggregate import (
     estimate_rng,
 )
 from distgprl.report.figure_files import write_or_remove_figure
-from distgprl.report.frame import curve_frame
+from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
 from distgprl.report.seed_curves import (
@@ -303,7 +303,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)
         if study.reads_the_operator:  # an operator study's sensitivity figure
             scores_of = {
-                r.preset: collect_scores(root, r.preset, seeds=study.seeds)
+                r.preset: collect_scores(load_frames(root, r.preset, seeds=study.seeds))
                 for r in study.all_readings
             }
             written += write_sensitivity(root, study, scores_of, out_dir)

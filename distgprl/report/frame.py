@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -112,6 +113,9 @@ def run_frame(
     return frame
 
 
+RunCurves = dict[tuple[str, str, int], pd.DataFrame]
+"""{(task, method, seed): the run's learning-curve points}, `by_run` of a `curves_of` frame."""
+
 EvaluationKey = tuple[str, str, int, str]
 """(task, method, seed, policy): `EVALUATION_KEYS` of one row."""
 
@@ -198,7 +202,7 @@ def curve_frame(
     return frame
 
 
-def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
+def by_run(frame: pd.DataFrame) -> RunCurves:
     """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
     if frame.empty:
         return {}
@@ -206,3 +210,24 @@ def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
         (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
         for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)
     }
+
+
+@dataclass(frozen=True)
+class Frames:
+    """One evaluation's frames, loaded once (`load_frames`) and passed to every table of it:
+    the `run_frame` and the learning curves of its runs (`RunCurves`)."""
+
+    runs: pd.DataFrame
+    curves: RunCurves
+
+
+def load_frames(
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
+) -> Frames:
+    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (``seeds`` as in
+    `run_frame`)."""
+    runs = run_frame(root, preset, policy, seeds)
+    return Frames(runs, by_run(curves_of(runs["folder"])))

@@ -35,9 +35,7 @@ beat the untrained one carries `UNTRAINED_MARK` (`untrained_text`, `UNTRAINED_NO
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -54,14 +52,7 @@ from distgprl.report.aggregate import (
     method_estimate,
     run_scores,
 )
-from distgprl.report.frame import (
-    COLLISION_FREE_MINCL,
-    EVALUATION_KEYS,
-    by_run,
-    curves_of,
-    run_frame,
-    summaries,
-)
+from distgprl.report.frame import COLLISION_FREE_MINCL, EVALUATION_KEYS, Frames, summaries
 from distgprl.report.markdown import csv_text, latex_table, markdown_table
 from distgprl.report.runs import TABLE_POLICY
 
@@ -184,39 +175,18 @@ def metric_values(summaries: list[dict[str, Any]], key: str) -> list[float]:
     return [float(s[key]) for s in summaries if s.get(key) is not None]
 
 
-def collect_summaries(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> dict[tuple[str, str], list[dict[str, Any]]]:
-    """{(task, method): [summary per seed]} of the ``policy`` evaluations (module docstring)
-    of the runs under ``<root>/<preset>/<task>/<method>/seed*/`` that count (`run_frame`)."""
-    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for (task, method, _, _), summary in summaries(run_frame(root, preset, policy)):
-        out.setdefault((task, method), []).append(summary)
-    return out
-
-
-def collect_scores(
-    root: str | Path,
-    preset: str,
-    policy: str = TABLE_POLICY,
-    seeds: Collection[int] | None = None,
-) -> Scores:
-    """{(task, method): [`run_scores` per seed]}: the rates and learning-curve measures the
-    aggregates and the claims table bootstrap, from the same evaluations as Table I
-    (``policy``, by default `TABLE_POLICY`, the best policy: the one switch that keeps the
-    claims on Table I's evaluation); with ``seeds``, of those seeds' runs only."""
-    runs = run_frame(root, preset, policy, seeds)
-    curves = by_run(curves_of(runs["folder"]))
+def collect_scores(frames: Frames) -> Scores:
+    """{(task, method): [`run_scores` per seed]} of ``frames`` (`load_frames`): the rates and
+    learning-curve measures the aggregates and the claims bootstrap, from Table I's
+    evaluations when ``frames`` are Table I's (the one switch, `TABLE_POLICY`)."""
     out: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for (task, method, seed, _), summary in summaries(runs):
-        points = curves.get((task, method, seed), NO_POINTS)
+    for (task, method, seed, _), summary in summaries(frames.runs):
+        points = frames.curves.get((task, method, seed), NO_POINTS)
         out.setdefault((task, method), []).append(run_scores(summary, points))
     return out
 
 
-def per_seed_rows(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> list[dict[str, Any]]:
+def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
     """One row per run: task, method, seed, the policy evaluated (``best``, ``final`` or
     ``untrained``) and, for the best, its learning-curve step and whether it beat the
     untrained step-0 point (`BEATS_UNTRAINED`, `UNTRAINED_CURVE_SUCCESS`; empty where not
@@ -226,10 +196,8 @@ def per_seed_rows(
     for runs made before it was recorded), the numerics fingerprint of the machine that
     trained it (`distgprl.machine`; empty before it was recorded) and the config hash. Task,
     table order, seed."""
-    runs = run_frame(root, preset, policy)
-    curves = by_run(curves_of(runs["folder"]))
     rows = []
-    for key, summary in summaries(runs):
+    for key, summary in summaries(frames.runs):
         row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
         row["policy_step"] = summary.get("policy_step", "")
         row["collision_free_episodes"] = summary.get("collision_free_episodes", "")
@@ -237,7 +205,7 @@ def per_seed_rows(
             row[name] = summary.get(name, "")
         for name, _ in PER_SEED_EXTRA:
             row[name] = summary.get(name, "")
-        row.update(late_curve(curves.get((row["task"], row["method"], row["seed"]), NO_POINTS)))
+        row.update(late_curve(frames.curves.get(key[:3], NO_POINTS)))
         wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
@@ -284,21 +252,21 @@ def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
     }
 
 
-def simulation_table(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> tuple[list[dict[str, Any]], list[str]]:
-    """Rows of Table I of the ``policy`` evaluations: one per (method), columns per task and
+def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rows of Table I of ``frames``' evaluations: one per (method), columns per task and
     metric (and, for MinCl, the seeds whose every episode collided; ``<task>_untrained``:
     the cell's `UntrainedMarks`)."""
-    summaries = collect_summaries(root, preset, policy)
-    tasks = sorted({task for task, _ in summaries}, key=task_order)
+    by_cell: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for (task, method, _, _), summary in summaries(frames.runs):
+        by_cell.setdefault((task, method), []).append(summary)
+    tasks = sorted({task for task, _ in by_cell}, key=task_order)
     rows = []
     for method in TABLE_ORDER:
-        if not any((task, method) in summaries for task in tasks):
+        if not any((task, method) in by_cell for task in tasks):
             continue
         row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
         for task in tasks:
-            seeds = summaries.get((task, method), [])
+            seeds = by_cell.get((task, method), [])
             row[f"{task}_seeds"] = len(seeds)
             for key, _ in METRICS:
                 row[f"{task}_{key}"] = aggregate(metric_values(seeds, key))

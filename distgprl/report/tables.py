@@ -22,6 +22,7 @@ from pathlib import Path
 from distgprl.errors import UserInputError
 from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
 from distgprl.report.claims import claims_texts
+from distgprl.report.frame import Frames, load_frames
 from distgprl.report.markdown import write_table_files
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
@@ -35,7 +36,7 @@ from distgprl.report.paired import (
 )
 from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
-from distgprl.report.runs import TABLE_POLICY, run_evaluations
+from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
     RATE_BOUNDS,
     collect_scores,
@@ -72,10 +73,11 @@ def write_tables(
     - Table II and its noise table where hardware trials exist, Table I + repair where runs
       have their safety-layer evaluations (`_hardware_tables`).
     """
-    tables = _table_one(root, preset, TABLE_POLICY)  # first: no runs, nothing written
+    best = load_frames(root, preset, TABLE_POLICY)
+    tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
-    tables += _table_one(root, preset, "final")
-    scores = collect_scores(root, preset, TABLE_POLICY)  # the claims follow Table I
+    tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
+    scores = collect_scores(best)  # the claims follow Table I
     tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, scores)]
     tables += [*_paired_tables(root, preset, cross, against), *_hardware_tables(root, preset)]
     out_dir = Path(out_dir)
@@ -89,24 +91,24 @@ def write_tables(
     return written
 
 
-def _table_one(root: str | Path, preset: str, policy: str) -> list[Table]:
-    """Table I and Table I per run of the ``policy`` evaluations: ``table1_<preset>`` for
-    `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other.
+def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> list[Table]:
+    """Table I and Table I per run of the ``policy`` evaluations (``frames``):
+    ``table1_<preset>`` for `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other.
 
     Raises:
         UserInputError: the preset has no evaluated run.
     """
-    rows, tasks = simulation_table(root, preset, policy)
+    rows, tasks = simulation_table(frames)
     if not rows:
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
     stem = f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}"
-    note = run_evaluations(root, preset, policy).note()
+    note = frames.runs.attrs["note"]
     which = "best learning-curve policy" if policy == "best" else f"{policy} policy"
     about = (
         f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
         "over seeds (ci_low, ci_high; empty for one seed)"
     )
-    per_run = per_seed_texts(per_seed_rows(root, preset, policy), preset, policy)
+    per_run = per_seed_texts(per_seed_rows(frames), preset, policy)
     return [
         (stem, CSV_MD_TEX, table1_texts(rows, tasks, preset, note, policy), about),
         (
@@ -152,8 +154,8 @@ def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Tab
     seeds = studies[0].seeds
     results = study_verdicts(
         studies,
-        collect_scores(root, preset, TABLE_POLICY, seeds=seeds),
-        lambda p: collect_scores(root, p, TABLE_POLICY, seeds=seeds),
+        collect_scores(load_frames(root, preset, TABLE_POLICY, seeds)),
+        lambda p: collect_scores(load_frames(root, p, TABLE_POLICY, seeds)),
     )
     names = ", ".join(s.name for s in studies)
     about = (
