@@ -40,6 +40,7 @@ from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
@@ -54,7 +55,7 @@ from distgprl.report.mechanism_shares import (
     return_cells,
 )
 from distgprl.report.runs import select_runs
-from distgprl.schema import evaluation_file_names, read_csv
+from distgprl.schema import evaluation_file_names
 
 
 def _env(folder: Path, field: str) -> float:
@@ -64,9 +65,9 @@ def _env(folder: Path, field: str) -> float:
     return float(env.get(field, getattr(EnvConfig, field)))
 
 
-def _d_min(folder: Path) -> float:
-    """``sd_d_min`` (m) of the run's recorded config (`EnvConfig`'s default if absent)."""
-    return _env(folder, "sd_d_min")
+def _records(path: Path) -> list[dict[str, Any]]:
+    """The rows of a result CSV, every cell a number (`csv_frame`; NaN where empty)."""
+    return [{str(k): v for k, v in row.items()} for row in csv_frame(path, {}).to_dict("records")]
 
 
 def _key(folder: Path) -> tuple[str, str]:
@@ -92,8 +93,8 @@ def mechanism_table(
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
             found = [f for f in folders if (f / name).exists()]
-            rows = {f: read_csv(f / name)[1] for f in found}
-            runs = [(rows[f], _d_min(f)) for f in found]
+            rows = {f: _records(f / name) for f in found}
+            runs = [(rows[f], _env(f, "sd_d_min")) for f in found]
             if runs:
                 returns += return_cells(task, method, policy, runs)
             cell = plateau_cell(
@@ -108,7 +109,7 @@ def mechanism_table(
         if spec.trainable and (spec.similarity_loss or spec.hap_prior):
             progress.setdefault(_key(folder), []).append(folder)
     for (task, method), folders in sorted(progress.items()):
-        runs_rows = [read_csv(f / "progress.csv")[1] for f in folders]
+        runs_rows = [_records(f / "progress.csv") for f in folders]
         gradients += gradient_cells(task, method, runs_rows)
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
