@@ -1,23 +1,13 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
-and figure.
+and figure: `run_frame` (one row per run's evaluation of one policy), `episode_frame` (per
+run × evaluation episode) and `curve_frame` (per trained run × learning-curve point), each
+keyed by `RUN_KEYS` (and the ``policy``); `load_frames` gives one evaluation's run frame and
+curves, loaded once for every table of it.
 
-Three frames, each keyed by the run (``task``, ``method``, ``seed``, and for an evaluation the
-``policy`` evaluated, `distgprl.report.runs.run_evaluations`):
-
-- `run_frame`: one row per run that counts and its evaluation of one policy — the summary's
-  fields (``summary[_best].json``, MinCl over the collision-free episodes included,
-  `with_collision_free_clearance`), the training record's (``done.json``) and the config
-  hash;
-- `episode_frame`: one row per run × evaluation episode (``evaluation[_best].csv``);
-- `curve_frame`: one row per trained run × learning-curve point (``progress.csv`` of the
-  finished runs, `select_runs` with ``done.json``).
-
-Values are the result files' own: a summary field keeps its JSON type (the run frame's
-columns are ``object``, so a count stays an ``int`` and a rate a ``float``), a CSV number is
-parsed by Python's ``int`` or ``float`` (never a parser of its own, which may round
-differently), and a value a file does not hold is missing (``None`` in the run frame, NaN in
-the others). Which runs count, and why others do not, is `distgprl.report.runs`'; the
-frames' ``attrs["note"]`` says it (`EvaluationSelection.note`, `RunSelection.note`).
+Values are the result files' own: a summary field keeps its JSON type (``object`` columns),
+a CSV cell is parsed by Python's ``int`` or ``float`` (`number`), a value a file does not
+hold is missing (None in the run frame, NaN in the others). Which runs count is
+`distgprl.report.runs`'; each frame's ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations

@@ -1,36 +1,13 @@
-"""Table I (simulation) from the runs' summary files: one row per method, per task
-each metric's mean ± sample standard deviation (ddof = 1) over seeds with a 95 % confidence
-interval (Student t over seeds; a single seed has neither), the IQM of success and collision
-with its stratified-bootstrap interval (`IQM_METRICS`), and Table I per run.
+"""Table I (simulation): one row per method (the paper's order, then the ablation and the
+`demo` reference), per task each metric's mean ± sample std over seeds with its 95 %
+t-interval (`aggregate`) and the IQM of success and collision with its stratified-bootstrap
+interval (`IQM_METRICS`); and Table I per run (`per_seed_rows`).
 
-Which evaluation: every function takes ``policy`` (`distgprl.report.runs.run_evaluations`),
-by default :data:`~distgprl.report.runs.TABLE_POLICY`, the best learning-curve policy
-(``summary_best.json``; Algorithm 1's output, docs/findings/protocol.md, rule 6); ``"final"``
-reads ``summary.json``, the final policy's Table I beside it. An untrained reference's only
-evaluation stands in both.
-
-MinCl (`COLLISION_FREE_MINCL`, rule 5) is over the collision-free episodes; a summary written
-before it was recorded has it computed from its ``evaluation[_best].csv``
-(`with_collision_free_clearance`). A run whose every episode collided has no MinCl (not 0):
-its cell is over the other seeds, ``(n=k)``, or ``– (all collided)``.
-
-A best-policy cell where, at any of its seeds, no trained learning-curve point beat the
-untrained step-0 one (the summary's ``beats_untrained`` is false; protocol rule 2, "Table I
-reports a trained policy") still
-reports the best trained policy, and counts those seeds with their mean untrained curve
-success (`untrained_marks`, shown with `UNTRAINED_MARK`); a
-summary without ``beats_untrained`` (written before it was recorded) is unknown, not marked.
-
-Rows follow the paper's order, then the ablation and the `demo` reference. Pure functions
-of the files they read (the texts: of the rows they are given).
-
-The texts (`table1_texts`, `per_seed_texts`): the CSV has all four numbers of every cell; the
-Markdown and LaTeX tables show the interval, as ``0.88 ± 0.06 [0.73, 1.00]``, on the Success
-and Collision columns only (their caption says so), clipped to [0, 1] like the CSV's
-intervals of every rate (`RATE_BOUNDS`); a single seed's cell is ``mean``, the seed count
-follows the Success cell in brackets (``[3]``), MinCl's cells say over how many seeds they
-are (`cell_text`, `MINCL_NOTE`), and a Success cell with seeds at which no trained policy
-beat the untrained one carries `UNTRAINED_MARK` (`untrained_text`, `UNTRAINED_NOTE`).
+Both are of one evaluation, the `Frames` they are given: by default the best learning-curve
+policy's (`distgprl.report.runs.TABLE_POLICY`, Algorithm 1's output, docs/findings/protocol.md
+rule 6), or the final policy's beside it. MinCl is `COLLISION_FREE_MINCL` (rule 5); a cell
+at whose seeds no trained policy beat the untrained one (rule 2) carries `UNTRAINED_MARK`
+(`untrained_marks`). How each cell is written: `cell_text`, `untrained_text`, `_csv_cells`.
 """
 
 from __future__ import annotations

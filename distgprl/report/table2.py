@@ -1,19 +1,11 @@
-"""Table II (hardware) from the trial files of a preset's policies.
-
-Table II (``table2_<preset>``) counts the trial files of the preset's policies
-(`select_trial_files`: never trials with the pre-flight check overridden, dry runs,
-policies of an older configuration, or a twin file that repeats another's trials; those are
-listed under the table). Its first columns are the paper's protocol (every trial executes
-the policy's trajectory; only the UR5e's own limits apply, and a protective stop at them is
-a failed trial, `distgprl.trial_protocol`); the safety layer's settings (its pre-flight
-check with plan repair off, or retiming) follow as columns beside it. Each file says which
-protocol its trials ran under (its meta's ``protocol``; a file without one ran behind the
-safety layer). Rates are over all trials (a refused or protectively stopped trial is a
-failure, a collision only where the arm touched something), with the exact
-(Clopper-Pearson) 95 % binomial interval over the trials; MinCl is over the trials that
-moved the robot only (`moved_robot`), and says over how many when that is fewer than the
-trials. The CSV has one row per protocol setting; Markdown and LaTeX one per method,
-backend and twin noise level, the paper's protocol first.
+"""Table II (hardware) from the trial files of a preset's policies (`select_trial_files`;
+the files left out are listed under the table), one CSV row per protocol setting
+(`hardware_rows`), one Markdown and LaTeX row per method, backend and twin noise level
+(`hardware_texts`): the paper's protocol first (every trial executes the policy's
+trajectory, only the UR5e's own limits apply, a protective stop at them is a failed trial,
+`distgprl.trial_protocol`), then the safety layer's settings as column groups. Rates over
+all trials with the exact (Clopper-Pearson) 95 % binomial interval; MinCl over the trials
+that moved the robot (`moved_robot`).
 """
 
 from __future__ import annotations

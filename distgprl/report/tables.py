@@ -58,21 +58,11 @@ CSV_MD, CSV_MD_TEX = (".csv", ".md"), (".csv", ".md", ".tex")
 def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
-    """Write every table of ``<root>/<preset>`` to ``out_dir`` and return the paths:
-
-    - Table I of the best policy (``table1_<preset>``, `TABLE_POLICY`) and of the final
-      policy (``table1_final_<preset>``), each with its table per run (``..._per_seed``),
-      CSV, Markdown and LaTeX (`_table_one`);
-    - on Table I's evaluations, the stratified-bootstrap aggregates (``aggregates_<preset>``)
-      and the claims (``claims_<preset>``), and beside a study the claims under each of its
-      readings and its onsets (`_study_tables`);
-    - every run paired TC by TC with the `demo` reference and with `dist-gprl`
-      (``paired_vs_<reference>_<preset>[_n<N>]``), its best policy with its final one
-      (``paired_best_vs_final_<preset>``), and with ``against`` (another preset) with the
-      same run of that preset (``paired_<preset>_vs_<against>``; `_paired_tables`);
-    - Table II and its noise table where hardware trials exist, Table I + repair where runs
-      have their safety-layer evaluations (`_hardware_tables`).
-    """
+    """Write every table of ``<root>/<preset>`` to ``out_dir`` (module docstring) and return
+    the paths: Table I of the best and the final policy with their per-run tables
+    (`_table_one`), the aggregates and claims of Table I's evaluations (`_claim_tables`,
+    `_study_tables`), the paired comparisons (`_paired_tables`, ``against``: another preset,
+    `_cross_preset`) and the hardware tables (`_hardware_tables`)."""
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
