@@ -35,7 +35,7 @@ from distgprl.report.aggregate import (
     bootstrap_interval,
     estimate_rng,
 )
-from distgprl.report.figure_files import write_or_remove_figure
+from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
@@ -146,12 +146,8 @@ def plot_figure(
     """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
     entry, one legend below the panels. Returns (figure, number of (task, method) curves
     drawn)."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
+    fig, axes = subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     frame = curve_frame(root, preset)
     drawn = 0
     handles: dict[str, Line2D] = {}
@@ -215,13 +211,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     steps (black, bold). Where a mean over seeds hides it, this shows *when* each seed
     learns — a plateau left early, late or never — which the sensitivity figure's end points
     cannot. Returns (figure, number of panels with a curve)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     columns = reading_columns(study)
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
         squeeze=False, sharey=True,
     )  # fmt: skip
