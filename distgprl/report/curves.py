@@ -261,15 +261,10 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF; for
-    each study read beside ``preset``, its readings' learning curves seed by seed
-    (`plot_reading_curves`), for an operator study its sensitivity figure
-    (`distgprl.report.sensitivity`), and its onset figure (`distgprl.report.onset_figure`:
-    when each run first learns); and Table II's noise curve where twin trials ran at
-    several noise levels (`distgprl.report.noise_curve`).
-
-    A figure none of whose methods has a finished run is not drawn, and an earlier file of
-    it is removed (figures are functions of the current results only).
+    """Write the `FIGURES` and, per study beside ``preset``, its seed-by-seed curves, its
+    sensitivity figure (an operator study) and its onset figure, and Table II's noise curve,
+    each as PNG and PDF; a figure with nothing to draw is removed instead
+    (`write_or_remove_figure`).
 
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).

@@ -1,32 +1,12 @@
-"""The mechanism table (docs/findings/protocol.md, rule 7; issue 48 item 7).
-
-Whether the paper's mechanisms act, for a preset's runs, in three parts:
-
-1. **Reach** per trainable method, task and position axis: one-step and one-episode reach (m)
-   of a raw action in [-1, 1] against the task's TC range, and whether the smallest
-   one-episode reach covers the TC range on x and y. Computed from the methods' environments
-   by `distgprl.experiments.mechanisms.reach_rows` and passed in as rows (this module reads
-   result files only).
-2. **Shaping shares of the return**, per method with distance rewards and policy (final,
-   best): over the evaluation episodes that pass within d_min (``min_clearance`` <
-   ``sd_d_min`` of the run's config), the per-episode |sum r_sd| / |sum r_tc| and
-   |sum lambda_ga r_ga| / |sum r_tc| (``return_sd``, ``return_ga``, ``return_tc`` of the
-   evaluation rows), their mean and median over the episodes of every seed. An episode whose
-   r_tc sums to 0 has no ratio: it is counted and left out. Evaluation files written before
-   these columns: "not recorded".
-3. **Regulariser shares of the actor gradient**, per method with L_sim or L_hap: at the
-   first, middle and last learning-curve points that recorded gradients (``grad_q`` > 0 in
-   ``progress.csv``), grad_sim / grad_q and grad_hap / grad_q, and L_hap's share where it
-   acts (``grad_hap_active`` / grad_q over the samples outside C_safe, with the share of
-   such samples ``hap_active_fraction``), each the mean over seeds.
-
-Each share is marked ✓/✗ against the pre-registered criterion (`CRITERION`: ≥ 5 %; for
-L_hap outside C_safe) and each term gets a one-line verdict. Written as
-``mechanisms_<preset>.csv`` (one long CSV, `CSV_COLUMNS`: a ``section`` per part, the columns
-a part does not use empty; with its metadata sidecar, `write_table_files`) and ``.md`` (one
-table per part; `mechanism_texts`). The cells are computed by
-`distgprl.report.mechanism_shares` (pure functions of rows); this module reads the files and
-writes the texts. Imports neither torch nor pybullet.
+"""The mechanism table (docs/findings/protocol.md, rule 7): whether the paper's mechanisms
+act, for a preset's runs, in three parts — the reach of a raw action against the TC range
+(rows of `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the
+return over the evaluation episodes that pass within d_min, and the regulariser shares of the
+actor gradient at the first, middle and last learning-curve points — each share marked ✓/✗
+against the pre-registered `CRITERION` (≥ 5 %; L_hap outside C_safe), each term with a
+one-line verdict (`verdict_lines`). The cells are `distgprl.report.mechanism_shares`'; this
+module reads the files and writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
+(`mechanism_texts`, which states each part's definition under its table).
 """
 
 from __future__ import annotations

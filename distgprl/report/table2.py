@@ -175,18 +175,12 @@ def _median_perception_error(rows: list[dict[str, Any]]) -> float:
 
 
 def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
-    """Rows of Table II from the trial files ``files`` counts, one per (method, backend,
-    protocol, repair, sensor noise), the paper's protocol first within a method and backend:
-    trials on the real robot (``ur``) and on the digital twin are never mixed, nor trials
-    under the paper's protocol and behind the safety layer (`file_protocol`), with plan
-    repair on and off (`repair_label`) or at different twin sensor-noise levels
-    (`noise_label`). Refused trials (the safety layer's pre-flight check refused a window's
-    plan) and protective stops (the robot's controller stopped the arm at its own limits,
-    status ``protective_stop``) count as failures without collision and are also counted on
-    their own. Success and collision rates are over all trials, each with its exact 95 %
-    binomial interval (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of
-    the trials' minimum clearance, only over the ``executed`` trials that moved the robot
-    (`moved_robot`; NaN if none did)."""
+    """Rows of Table II, one per (method, backend, `file_protocol`, `repair_label`,
+    `noise_label`) of the files ``files`` counts, the paper's protocol first within a method
+    and backend. Refused trials and protective stops are failures without collision, also
+    counted on their own; rates are over all trials with their exact 95 % interval
+    (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl over the ``executed`` trials that moved
+    the robot (NaN if none did)."""
     groups: dict[tuple[str, str, str, str, str], list[dict[str, Any]]] = {}
     for method, meta, trial_rows in files.counted:  # counted in table order
         for row in trial_rows:
