@@ -20,6 +20,7 @@ from typing import Any
 
 import pandas as pd
 
+from distgprl.methods import METHODS
 from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, select_runs
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
@@ -209,6 +210,13 @@ class Frames:
 
     runs: pd.DataFrame
     curves: RunCurves
+
+    def of_seeds(self, seeds: Collection[int]) -> Frames:
+        """These frames with a trained method's runs of ``seeds`` only, as `load_frames`
+        with ``seeds`` gives them (an untrained reference stays; ``attrs["note"]`` kept)."""
+        pairs = zip(self.runs["method"], self.runs["seed"], strict=True)
+        keep = [not METHODS[method].trainable or int(seed) in seeds for method, seed in pairs]
+        return Frames(self.runs[keep], self.curves)
 
 
 def load_frames(

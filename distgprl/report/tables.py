@@ -68,7 +68,7 @@ def write_tables(
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
     scores = collect_scores(best)  # the claims follow Table I
-    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, scores)]
+    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, best, scores)]
     tables += [*_paired_tables(root, preset, cross, against), *_hardware_tables(root, preset)]
     out_dir = Path(out_dir)
     written = []
@@ -131,9 +131,9 @@ def _claim_tables(scores: Scores, preset: str) -> list[Table]:
     ]
 
 
-def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Table]:
+def _study_tables(root: str | Path, preset: str, frames: Frames, scores: Scores) -> Iterator[Table]:
     """Beside a preset with studies (`studies_of`): each claim under every reading of every
-    study, Table I's included, at the studies' seeds (runs a rule alone reads, at further
+    study, Table I's included (``frames``), at the studies' seeds (runs a rule alone reads, at further
     seeds, stay out of every cross-reading verdict), and per study when each run of each
     reading learns (its onsets, a control's verdict)."""
     studies = studies_of(preset)
@@ -144,7 +144,7 @@ def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Tab
     seeds = studies[0].seeds
     results = study_verdicts(
         studies,
-        collect_scores(load_frames(root, preset, TABLE_POLICY, seeds)),
+        collect_scores(frames.of_seeds(seeds)),
         lambda p: collect_scores(load_frames(root, p, TABLE_POLICY, seeds)),
     )
     names = ", ".join(s.name for s in studies)
