@@ -133,9 +133,9 @@ def _claim_tables(scores: Scores, preset: str) -> list[Table]:
 
 def _study_tables(root: str | Path, preset: str, frames: Frames, scores: Scores) -> Iterator[Table]:
     """Beside a preset with studies (`studies_of`): each claim under every reading of every
-    study, Table I's included (``frames``), at the studies' seeds (runs a rule alone reads, at further
-    seeds, stay out of every cross-reading verdict), and per study when each run of each
-    reading learns (its onsets, a control's verdict)."""
+    study, Table I's included (``frames``), at the studies' seeds (runs a rule alone reads,
+    at further seeds, stay out of every cross-reading verdict), and per study when each run
+    of each reading learns (its onsets, a control's verdict)."""
     studies = studies_of(preset)
     if not studies:
         return
