@@ -335,12 +335,14 @@ def untrained_text(marks: UntrainedMarks | None, seeds: int) -> str:
     return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
 
 
-def _success_text(row: dict[str, Any], task: str) -> str:
-    """The Success cell of ``row`` and ``task`` with its seed count and `untrained_text`."""
+def _metric_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
+    """`cell_text` of ``row``'s `METRICS` of ``task``, the Success cell (the first) followed
+    by the seed count in brackets if ``seed_count`` and its `untrained_text`."""
     n = row.get(f"{task}_seeds", 0)
-    text = _row_cell_text(row, task, "success_rate")
-    text = f"{text} [{n}]" if n else text
-    return text + untrained_text(row.get(f"{task}_untrained"), n)
+    cells = [_row_cell_text(row, task, key) for key, _ in METRICS]
+    cells[0] += f" [{n}]" if n and seed_count else ""
+    cells[0] += untrained_text(row.get(f"{task}_untrained"), n)
+    return cells
 
 
 def _has_untrained_marks(rows: list[dict[str, Any]], tasks: list[str]) -> bool:
@@ -469,11 +471,7 @@ def _markdown(
     for row in rows:
         cells = [row["label"]]
         for task in tasks:
-            for key, _ in METRICS:
-                success = key == "success_rate"
-                cells.append(
-                    _success_text(row, task) if success else _row_cell_text(row, task, key)
-                )
+            cells += _metric_cells(row, task, seed_count=True)
             cells += [_iqm_text(row.get(f"{task}_{key}_iqm")) for key, _ in IQM_METRICS]
         table.append(cells)
     title = (
@@ -502,13 +500,7 @@ def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: st
     for row in rows:
         cells = [row["label"].replace("_", "\\_")]
         for task in tasks:
-            for key, _ in METRICS:
-                text = _row_cell_text(row, task, key)
-                if key == "success_rate":
-                    text += untrained_text(
-                        row.get(f"{task}_untrained"), row.get(f"{task}_seeds", 0)
-                    )
-                cells.append(_latex_text(text))
+            cells += [_latex_text(text) for text in _metric_cells(row, task, seed_count=False)]
         table.append(cells)
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
     columns = "l" + "c" * (len(tasks) * len(METRICS))
