@@ -35,8 +35,8 @@ from distgprl.report.aggregate import (
     bootstrap_interval,
     estimate_rng,
 )
-from distgprl.report.figure_files import write_or_remove_figure
-from distgprl.report.frame import curve_frame
+from distgprl.report.figure_files import subplots, write_or_remove_figure
+from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
 from distgprl.report.seed_curves import (
@@ -146,12 +146,8 @@ def plot_figure(
     """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
     entry, one legend below the panels. Returns (figure, number of (task, method) curves
     drawn)."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
+    fig, axes = subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     frame = curve_frame(root, preset)
     drawn = 0
     handles: dict[str, Line2D] = {}
@@ -215,13 +211,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     steps (black, bold). Where a mean over seeds hides it, this shows *when* each seed
     learns — a plateau left early, late or never — which the sensitivity figure's end points
     cannot. Returns (figure, number of panels with a curve)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     columns = reading_columns(study)
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
         squeeze=False, sharey=True,
     )  # fmt: skip
@@ -269,15 +261,10 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the HAP-effect, covariance-effect and all-methods figures as PNG and PDF; for
-    each study read beside ``preset``, its readings' learning curves seed by seed
-    (`plot_reading_curves`), for an operator study its sensitivity figure
-    (`distgprl.report.sensitivity`), and its onset figure (`distgprl.report.onset_figure`:
-    when each run first learns); and Table II's noise curve where twin trials ran at
-    several noise levels (`distgprl.report.noise_curve`).
-
-    A figure none of whose methods has a finished run is not drawn, and an earlier file of
-    it is removed (figures are functions of the current results only).
+    """Write the `FIGURES` and, per study beside ``preset``, its seed-by-seed curves, its
+    sensitivity figure (an operator study) and its onset figure, and Table II's noise curve,
+    each as PNG and PDF; a figure with nothing to draw is removed instead
+    (`write_or_remove_figure`).
 
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
@@ -303,7 +290,7 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)
         if study.reads_the_operator:  # an operator study's sensitivity figure
             scores_of = {
-                r.preset: collect_scores(root, r.preset, seeds=study.seeds)
+                r.preset: collect_scores(load_frames(root, r.preset, seeds=study.seeds))
                 for r in study.all_readings
             }
             written += write_sensitivity(root, study, scores_of, out_dir)

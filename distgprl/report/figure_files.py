@@ -5,12 +5,23 @@ from __future__ import annotations
 
 import io
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from distgprl.io import atomic_write_bytes
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+
+def subplots(rows: int, columns: int, **options: Any) -> tuple[Figure, Any]:
+    """`matplotlib.pyplot.subplots` on the non-interactive Agg backend (figures go to files
+    only): (figure, axes array)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(rows, columns, **options)
 
 
 PNG_DPI = 150

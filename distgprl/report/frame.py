@@ -1,34 +1,26 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
-and figure.
+and figure: `run_frame` (one row per run's evaluation of one policy), `episode_frame` (per
+run × evaluation episode) and `curve_frame` (per trained run × learning-curve point), each
+keyed by `RUN_KEYS` (and the ``policy``); `load_frames` gives one evaluation's run frame and
+curves, loaded once for every table of it.
 
-Three frames, each keyed by the run (``task``, ``method``, ``seed``, and for an evaluation the
-``policy`` evaluated, `distgprl.report.runs.run_evaluations`):
-
-- `run_frame`: one row per run that counts and its evaluation of one policy — the summary's
-  fields (``summary[_best].json``, MinCl over the collision-free episodes included,
-  `with_collision_free_clearance`), the training record's (``done.json``) and the config
-  hash;
-- `episode_frame`: one row per run × evaluation episode (``evaluation[_best].csv``);
-- `curve_frame`: one row per trained run × learning-curve point (``progress.csv`` of the
-  finished runs, `select_runs` with ``done.json``).
-
-Values are the result files' own: a summary field keeps its JSON type (the run frame's
-columns are ``object``, so a count stays an ``int`` and a rate a ``float``), a CSV number is
-parsed by Python's ``int`` or ``float`` (never a parser of its own, which may round
-differently), and a value a file does not hold is missing (``None`` in the run frame, NaN in
-the others). Which runs count, and why others do not, is `distgprl.report.runs`'; the
-frames' ``attrs["note"]`` says it (`EvaluationSelection.note`, `RunSelection.note`).
+Values are the result files' own: a summary field keeps its JSON type (``object`` columns),
+a CSV cell is parsed by Python's ``int`` or ``float`` (`number`), a value a file does not
+hold is missing (None in the run frame, NaN in the others). Which runs count is
+`distgprl.report.runs`'; each frame's ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Collection, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from distgprl.methods import METHODS
 from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, select_runs
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
@@ -111,6 +103,9 @@ def run_frame(
     frame.attrs["note"] = selection.note()
     return frame
 
+
+RunCurves = dict[tuple[str, str, int], pd.DataFrame]
+"""{(task, method, seed): the run's learning-curve points}, `by_run` of a `curves_of` frame."""
 
 EvaluationKey = tuple[str, str, int, str]
 """(task, method, seed, policy): `EVALUATION_KEYS` of one row."""
@@ -198,7 +193,7 @@ def curve_frame(
     return frame
 
 
-def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
+def by_run(frame: pd.DataFrame) -> RunCurves:
     """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
     if frame.empty:
         return {}
@@ -206,3 +201,31 @@ def by_run(frame: pd.DataFrame) -> dict[tuple[str, str, int], pd.DataFrame]:
         (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
         for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)
     }
+
+
+@dataclass(frozen=True)
+class Frames:
+    """One evaluation's frames, loaded once (`load_frames`) and passed to every table of it:
+    the `run_frame` and the learning curves of its runs (`RunCurves`)."""
+
+    runs: pd.DataFrame
+    curves: RunCurves
+
+    def of_seeds(self, seeds: Collection[int]) -> Frames:
+        """These frames with a trained method's runs of ``seeds`` only, as `load_frames`
+        with ``seeds`` gives them (an untrained reference stays; ``attrs["note"]`` kept)."""
+        pairs = zip(self.runs["method"], self.runs["seed"], strict=True)
+        keep = [not METHODS[method].trainable or int(seed) in seeds for method, seed in pairs]
+        return Frames(self.runs[keep], self.curves)
+
+
+def load_frames(
+    root: str | Path,
+    preset: str,
+    policy: str = TABLE_POLICY,
+    seeds: Collection[int] | None = None,
+) -> Frames:
+    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (``seeds`` as in
+    `run_frame`)."""
+    runs = run_frame(root, preset, policy, seeds)
+    return Frames(runs, by_run(curves_of(runs["folder"])))

@@ -55,8 +55,8 @@ class EpisodeRatios:
 
 
 def _number(value: Any) -> float | None:
-    """A CSV cell as a float; None where it is empty or absent."""
-    if value is None or value == "":
+    """A CSV cell as a float; None where it is empty, NaN or absent."""
+    if value is None or value == "" or (isinstance(value, float) and np.isnan(value)):
         return None
     return float(value)
 

@@ -1,32 +1,12 @@
-"""The mechanism table (docs/findings/protocol.md, rule 7; issue 48 item 7).
-
-Whether the paper's mechanisms act, for a preset's runs, in three parts:
-
-1. **Reach** per trainable method, task and position axis: one-step and one-episode reach (m)
-   of a raw action in [-1, 1] against the task's TC range, and whether the smallest
-   one-episode reach covers the TC range on x and y. Computed from the methods' environments
-   by `distgprl.experiments.mechanisms.reach_rows` and passed in as rows (this module reads
-   result files only).
-2. **Shaping shares of the return**, per method with distance rewards and policy (final,
-   best): over the evaluation episodes that pass within d_min (``min_clearance`` <
-   ``sd_d_min`` of the run's config), the per-episode |sum r_sd| / |sum r_tc| and
-   |sum lambda_ga r_ga| / |sum r_tc| (``return_sd``, ``return_ga``, ``return_tc`` of the
-   evaluation rows), their mean and median over the episodes of every seed. An episode whose
-   r_tc sums to 0 has no ratio: it is counted and left out. Evaluation files written before
-   these columns: "not recorded".
-3. **Regulariser shares of the actor gradient**, per method with L_sim or L_hap: at the
-   first, middle and last learning-curve points that recorded gradients (``grad_q`` > 0 in
-   ``progress.csv``), grad_sim / grad_q and grad_hap / grad_q, and L_hap's share where it
-   acts (``grad_hap_active`` / grad_q over the samples outside C_safe, with the share of
-   such samples ``hap_active_fraction``), each the mean over seeds.
-
-Each share is marked ✓/✗ against the pre-registered criterion (`CRITERION`: ≥ 5 %; for
-L_hap outside C_safe) and each term gets a one-line verdict. Written as
-``mechanisms_<preset>.csv`` (one long CSV, `CSV_COLUMNS`: a ``section`` per part, the columns
-a part does not use empty; with its metadata sidecar, `write_table_files`) and ``.md`` (one
-table per part; `mechanism_texts`). The cells are computed by
-`distgprl.report.mechanism_shares` (pure functions of rows); this module reads the files and
-writes the texts. Imports neither torch nor pybullet.
+"""The mechanism table (docs/findings/protocol.md, rule 7): whether the paper's mechanisms
+act, for a preset's runs, in three parts — the reach of a raw action against the TC range
+(rows of `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the
+return over the evaluation episodes that pass within d_min, and the regulariser shares of the
+actor gradient at the first, middle and last learning-curve points — each share marked ✓/✗
+against the pre-registered `CRITERION` (≥ 5 %; L_hap outside C_safe), each term with a
+one-line verdict (`verdict_lines`). The cells are `distgprl.report.mechanism_shares`'; this
+module reads the files and writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
+(`mechanism_texts`, which states each part's definition under its table).
 """
 
 from __future__ import annotations
@@ -40,6 +20,7 @@ from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
@@ -54,7 +35,7 @@ from distgprl.report.mechanism_shares import (
     return_cells,
 )
 from distgprl.report.runs import select_runs
-from distgprl.schema import evaluation_file_names, read_csv
+from distgprl.schema import evaluation_file_names
 
 
 def _env(folder: Path, field: str) -> float:
@@ -64,9 +45,9 @@ def _env(folder: Path, field: str) -> float:
     return float(env.get(field, getattr(EnvConfig, field)))
 
 
-def _d_min(folder: Path) -> float:
-    """``sd_d_min`` (m) of the run's recorded config (`EnvConfig`'s default if absent)."""
-    return _env(folder, "sd_d_min")
+def _records(path: Path) -> list[dict[str, Any]]:
+    """The rows of a result CSV, every cell a number (`csv_frame`; NaN where empty)."""
+    return [{str(k): v for k, v in row.items()} for row in csv_frame(path, {}).to_dict("records")]
 
 
 def _key(folder: Path) -> tuple[str, str]:
@@ -92,8 +73,8 @@ def mechanism_table(
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
             found = [f for f in folders if (f / name).exists()]
-            rows = {f: read_csv(f / name)[1] for f in found}
-            runs = [(rows[f], _d_min(f)) for f in found]
+            rows = {f: _records(f / name) for f in found}
+            runs = [(rows[f], _env(f, "sd_d_min")) for f in found]
             if runs:
                 returns += return_cells(task, method, policy, runs)
             cell = plateau_cell(
@@ -108,7 +89,7 @@ def mechanism_table(
         if spec.trainable and (spec.similarity_loss or spec.hap_prior):
             progress.setdefault(_key(folder), []).append(folder)
     for (task, method), folders in sorted(progress.items()):
-        runs_rows = [read_csv(f / "progress.csv")[1] for f in folders]
+        runs_rows = [_records(f / "progress.csv") for f in folders]
         gradients += gradient_cells(task, method, runs_rows)
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.figure_files import remove_figure, write_or_remove_figure
+from distgprl.report.figure_files import remove_figure, subplots, write_or_remove_figure
 
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
@@ -42,17 +42,13 @@ def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
 def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: str) -> list[Path]:
     """Draw `curve_series` of Table II's ``rows`` into ``<out_dir>/table2_noise_<preset>``
     (PNG, PDF); with no method at two levels, remove an earlier figure instead."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     stem = Path(out_dir) / f"table2_noise_{preset}"
     series = curve_series(rows)
     if not series:
         remove_figure(stem)
         return []
-    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
+    fig, axes = subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
     for index, (method, points) in enumerate(series.items()):
         color = "black" if method == "dist-gprl" else f"C{index % 10}"
         x = np.array([p["perception_error_mm_median"] for p in points])

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from distgprl.config import load_config
-from distgprl.report.figure_files import write_or_remove_figure
+from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.onsets import (
     THRESHOLD,
     onset_rows,
@@ -141,21 +141,18 @@ def plot_onset_figure(
     """The onset figure of ``study`` beside ``preset`` (module docstring): one panel per task
     of ``tasks``, one row per `onset_rows` panel with a finished run on any of them. Returns
     (figure, number of markers drawn: one per finished run, `onset_rows`' rows)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.figure
     from matplotlib.lines import Line2D
 
     rows = onset_rows(root, study, tasks)
     if not rows:  # nothing to draw (`write_onset_figure` writes no file)
-        return plt.figure(), 0
+        return matplotlib.figure.Figure(), 0
     rule = study_rule(study)
     threshold = rule.threshold if rule else THRESHOLD
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         1, len(tasks), figsize=(3.4 + 4.4 * len(tasks), 2.1 + row_height * len(panels)),
         squeeze=False, sharey=True,
     )  # fmt: skip

@@ -1,26 +1,14 @@
 """Each run against a reference, TC by TC (exact McNemar tests).
 
-Every run of a preset is evaluated on the same fixed evaluation TCs (the same episode index
-is the same object and obstacle offsets), so two runs' outcomes on one TC form a pair.
-Table I compares rates; these tables say whether a difference is more than the luck of 100
-TCs. Two references: the unadapted `demo` (evaluated once per task, paired with every run)
-and the full method `dist-gprl` (paired with every other method's run of the same seed: the
-baselines and ablations). Per run and outcome (success, collision, safe success = success
-without collision) the table counts the discordant TCs — where only the run has the outcome
-(``only_run``) and where only the reference has it (``only_reference``) — and gives the
-exact two-sided McNemar p-value: a binomial test of ``only_run`` out of
-``only_run + only_reference`` against 1/2 (1 when there is no discordant TC). Seeds are
-tested one by one; they share the TCs, so their counts are not independent and are not
-pooled. p-values are per comparison, not corrected for the number of comparisons in a
-table. Pure functions of the evaluation files.
-
-An exploration preset is paired with the configuration it varies (`cross_preset_rows`,
-``distgprl tables --preset correlated --against paper``): each of its runs against the run of
-the same task, method and seed in the other preset, on the same TCs.
-
-The same tables pair supplementary evaluations on more TCs (``evaluation_n<N>.csv``,
-``distgprl evaluate --episodes N``): runs and reference evaluated on the same first N TCs
-of the evaluation stream (`supplementary_sizes` lists the N present).
+Every run of a preset is evaluated on the same fixed evaluation TCs, so two runs' outcomes on
+one TC form a pair: these tables say whether a rate difference of Table I is more than the
+luck of 100 TCs. References (`REFERENCES`): the unadapted `demo` (its seed 0, paired with
+every run) and `dist-gprl` (paired with every other method's run of the same seed); also each
+run's best policy against its final one (`best_vs_final_rows`), a preset against the one it
+varies (`cross_preset_rows`) and supplementary evaluations on N TCs (`supplementary_sizes`).
+Per run and outcome (`OUTCOMES`) the discordant TCs and the exact two-sided McNemar p-value
+(`mcnemar_exact`); seeds share the TCs and are tested one by one, never pooled; p-values are
+per comparison, not corrected for the number of comparisons.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ from distgprl.report.aggregate import (
     method_estimate,
     short_label,
 )
-from distgprl.report.figure_files import remove_figure, write_or_remove_figure
+from distgprl.report.figure_files import remove_figure, subplots, write_or_remove_figure
 from distgprl.schema import read_json
 from distgprl.studies import Study
 
@@ -132,10 +132,6 @@ def plot_sensitivity(
 ) -> Figure | None:
     """The study's sensitivity figure (module docstring), or None with nothing to draw (no
     reach file, or no run of the studied method)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     reach_path = Path(root) / study.name / "reach.json"
     method = study.methods[0]
@@ -151,7 +147,7 @@ def plot_sensitivity(
         return None
     tasks = [t for t in tasks if any(p["task"] == t for p in points)]
     reference = scores_of.get(study.reference.preset, {})
-    fig, axes = plt.subplots(
+    fig, axes = subplots(
         len(tasks), len(PANELS), figsize=(4.2 * len(PANELS), 3.2 * len(tasks)), squeeze=False
     )
     markers = {r.preset: m for r, m in zip(study.all_readings, "o^sDvP", strict=False)}

@@ -1,43 +1,18 @@
-"""Table I (simulation) from the runs' summary files: one row per method, per task
-each metric's mean ± sample standard deviation (ddof = 1) over seeds with a 95 % confidence
-interval (Student t over seeds; a single seed has neither), the IQM of success and collision
-with its stratified-bootstrap interval (`IQM_METRICS`), and Table I per run.
+"""Table I (simulation): one row per method (the paper's order, then the ablation and the
+`demo` reference), per task each metric's mean ± sample std over seeds with its 95 %
+t-interval (`aggregate`) and the IQM of success and collision with its stratified-bootstrap
+interval (`IQM_METRICS`); and Table I per run (`per_seed_rows`).
 
-Which evaluation: every function takes ``policy`` (`distgprl.report.runs.run_evaluations`),
-by default :data:`~distgprl.report.runs.TABLE_POLICY`, the best learning-curve policy
-(``summary_best.json``; Algorithm 1's output, docs/findings/protocol.md, rule 6); ``"final"``
-reads ``summary.json``, the final policy's Table I beside it. An untrained reference's only
-evaluation stands in both.
-
-MinCl (`COLLISION_FREE_MINCL`, rule 5) is over the collision-free episodes; a summary written
-before it was recorded has it computed from its ``evaluation[_best].csv``
-(`with_collision_free_clearance`). A run whose every episode collided has no MinCl (not 0):
-its cell is over the other seeds, ``(n=k)``, or ``– (all collided)``.
-
-A best-policy cell where, at any of its seeds, no trained learning-curve point beat the
-untrained step-0 one (the summary's ``beats_untrained`` is false; protocol rule 2, "Table I
-reports a trained policy") still
-reports the best trained policy, and counts those seeds with their mean untrained curve
-success (`untrained_marks`, shown with `UNTRAINED_MARK`); a
-summary without ``beats_untrained`` (written before it was recorded) is unknown, not marked.
-
-Rows follow the paper's order, then the ablation and the `demo` reference. Pure functions
-of the files they read (the texts: of the rows they are given).
-
-The texts (`table1_texts`, `per_seed_texts`): the CSV has all four numbers of every cell; the
-Markdown and LaTeX tables show the interval, as ``0.88 ± 0.06 [0.73, 1.00]``, on the Success
-and Collision columns only (their caption says so), clipped to [0, 1] like the CSV's
-intervals of every rate (`RATE_BOUNDS`); a single seed's cell is ``mean``, the seed count
-follows the Success cell in brackets (``[3]``), MinCl's cells say over how many seeds they
-are (`cell_text`, `MINCL_NOTE`), and a Success cell with seeds at which no trained policy
-beat the untrained one carries `UNTRAINED_MARK` (`untrained_text`, `UNTRAINED_NOTE`).
+Both are of one evaluation, the `Frames` they are given: by default the best learning-curve
+policy's (`distgprl.report.runs.TABLE_POLICY`, Algorithm 1's output, docs/findings/protocol.md
+rule 6), or the final policy's beside it. MinCl is `COLLISION_FREE_MINCL` (rule 5); a cell
+at whose seeds no trained policy beat the untrained one (rule 2) carries `UNTRAINED_MARK`
+(`untrained_marks`). How each cell is written: `cell_text`, `untrained_text`, `_csv_cells`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -54,14 +29,7 @@ from distgprl.report.aggregate import (
     method_estimate,
     run_scores,
 )
-from distgprl.report.frame import (
-    COLLISION_FREE_MINCL,
-    EVALUATION_KEYS,
-    by_run,
-    curves_of,
-    run_frame,
-    summaries,
-)
+from distgprl.report.frame import COLLISION_FREE_MINCL, EVALUATION_KEYS, Frames, summaries
 from distgprl.report.markdown import csv_text, latex_table, markdown_table
 from distgprl.report.runs import TABLE_POLICY
 
@@ -184,39 +152,18 @@ def metric_values(summaries: list[dict[str, Any]], key: str) -> list[float]:
     return [float(s[key]) for s in summaries if s.get(key) is not None]
 
 
-def collect_summaries(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> dict[tuple[str, str], list[dict[str, Any]]]:
-    """{(task, method): [summary per seed]} of the ``policy`` evaluations (module docstring)
-    of the runs under ``<root>/<preset>/<task>/<method>/seed*/`` that count (`run_frame`)."""
-    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for (task, method, _, _), summary in summaries(run_frame(root, preset, policy)):
-        out.setdefault((task, method), []).append(summary)
-    return out
-
-
-def collect_scores(
-    root: str | Path,
-    preset: str,
-    policy: str = TABLE_POLICY,
-    seeds: Collection[int] | None = None,
-) -> Scores:
-    """{(task, method): [`run_scores` per seed]}: the rates and learning-curve measures the
-    aggregates and the claims table bootstrap, from the same evaluations as Table I
-    (``policy``, by default `TABLE_POLICY`, the best policy: the one switch that keeps the
-    claims on Table I's evaluation); with ``seeds``, of those seeds' runs only."""
-    runs = run_frame(root, preset, policy, seeds)
-    curves = by_run(curves_of(runs["folder"]))
+def collect_scores(frames: Frames) -> Scores:
+    """{(task, method): [`run_scores` per seed]} of ``frames`` (`load_frames`): the rates and
+    learning-curve measures the aggregates and the claims bootstrap, from Table I's
+    evaluations when ``frames`` are Table I's (the one switch, `TABLE_POLICY`)."""
     out: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for (task, method, seed, _), summary in summaries(runs):
-        points = curves.get((task, method, seed), NO_POINTS)
+    for (task, method, seed, _), summary in summaries(frames.runs):
+        points = frames.curves.get((task, method, seed), NO_POINTS)
         out.setdefault((task, method), []).append(run_scores(summary, points))
     return out
 
 
-def per_seed_rows(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> list[dict[str, Any]]:
+def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
     """One row per run: task, method, seed, the policy evaluated (``best``, ``final`` or
     ``untrained``) and, for the best, its learning-curve step and whether it beat the
     untrained step-0 point (`BEATS_UNTRAINED`, `UNTRAINED_CURVE_SUCCESS`; empty where not
@@ -226,10 +173,8 @@ def per_seed_rows(
     for runs made before it was recorded), the numerics fingerprint of the machine that
     trained it (`distgprl.machine`; empty before it was recorded) and the config hash. Task,
     table order, seed."""
-    runs = run_frame(root, preset, policy)
-    curves = by_run(curves_of(runs["folder"]))
     rows = []
-    for key, summary in summaries(runs):
+    for key, summary in summaries(frames.runs):
         row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
         row["policy_step"] = summary.get("policy_step", "")
         row["collision_free_episodes"] = summary.get("collision_free_episodes", "")
@@ -237,7 +182,7 @@ def per_seed_rows(
             row[name] = summary.get(name, "")
         for name, _ in PER_SEED_EXTRA:
             row[name] = summary.get(name, "")
-        row.update(late_curve(curves.get((row["task"], row["method"], row["seed"]), NO_POINTS)))
+        row.update(late_curve(frames.curves.get(key[:3], NO_POINTS)))
         wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
         row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
@@ -284,21 +229,21 @@ def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
     }
 
 
-def simulation_table(
-    root: str | Path, preset: str, policy: str = TABLE_POLICY
-) -> tuple[list[dict[str, Any]], list[str]]:
-    """Rows of Table I of the ``policy`` evaluations: one per (method), columns per task and
+def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rows of Table I of ``frames``' evaluations: one per (method), columns per task and
     metric (and, for MinCl, the seeds whose every episode collided; ``<task>_untrained``:
     the cell's `UntrainedMarks`)."""
-    summaries = collect_summaries(root, preset, policy)
-    tasks = sorted({task for task, _ in summaries}, key=task_order)
+    by_cell: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for (task, method, _, _), summary in summaries(frames.runs):
+        by_cell.setdefault((task, method), []).append(summary)
+    tasks = sorted({task for task, _ in by_cell}, key=task_order)
     rows = []
     for method in TABLE_ORDER:
-        if not any((task, method) in summaries for task in tasks):
+        if not any((task, method) in by_cell for task in tasks):
             continue
         row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
         for task in tasks:
-            seeds = summaries.get((task, method), [])
+            seeds = by_cell.get((task, method), [])
             row[f"{task}_seeds"] = len(seeds)
             for key, _ in METRICS:
                 row[f"{task}_{key}"] = aggregate(metric_values(seeds, key))
@@ -390,12 +335,14 @@ def untrained_text(marks: UntrainedMarks | None, seeds: int) -> str:
     return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
 
 
-def _success_text(row: dict[str, Any], task: str) -> str:
-    """The Success cell of ``row`` and ``task`` with its seed count and `untrained_text`."""
+def _metric_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
+    """`cell_text` of ``row``'s `METRICS` of ``task``, the Success cell (the first) followed
+    by the seed count in brackets if ``seed_count`` and its `untrained_text`."""
     n = row.get(f"{task}_seeds", 0)
-    text = _row_cell_text(row, task, "success_rate")
-    text = f"{text} [{n}]" if n else text
-    return text + untrained_text(row.get(f"{task}_untrained"), n)
+    cells = [_row_cell_text(row, task, key) for key, _ in METRICS]
+    cells[0] += f" [{n}]" if n and seed_count else ""
+    cells[0] += untrained_text(row.get(f"{task}_untrained"), n)
+    return cells
 
 
 def _has_untrained_marks(rows: list[dict[str, Any]], tasks: list[str]) -> bool:
@@ -524,11 +471,7 @@ def _markdown(
     for row in rows:
         cells = [row["label"]]
         for task in tasks:
-            for key, _ in METRICS:
-                success = key == "success_rate"
-                cells.append(
-                    _success_text(row, task) if success else _row_cell_text(row, task, key)
-                )
+            cells += _metric_cells(row, task, seed_count=True)
             cells += [_iqm_text(row.get(f"{task}_{key}_iqm")) for key, _ in IQM_METRICS]
         table.append(cells)
     title = (
@@ -557,13 +500,7 @@ def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: st
     for row in rows:
         cells = [row["label"].replace("_", "\\_")]
         for task in tasks:
-            for key, _ in METRICS:
-                text = _row_cell_text(row, task, key)
-                if key == "success_rate":
-                    text += untrained_text(
-                        row.get(f"{task}_untrained"), row.get(f"{task}_seeds", 0)
-                    )
-                cells.append(_latex_text(text))
+            cells += [_latex_text(text) for text in _metric_cells(row, task, seed_count=False)]
         table.append(cells)
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
     columns = "l" + "c" * (len(tasks) * len(METRICS))

@@ -1,19 +1,11 @@
-"""Table II (hardware) from the trial files of a preset's policies.
-
-Table II (``table2_<preset>``) counts the trial files of the preset's policies
-(`select_trial_files`: never trials with the pre-flight check overridden, dry runs,
-policies of an older configuration, or a twin file that repeats another's trials; those are
-listed under the table). Its first columns are the paper's protocol (every trial executes
-the policy's trajectory; only the UR5e's own limits apply, and a protective stop at them is
-a failed trial, `distgprl.trial_protocol`); the safety layer's settings (its pre-flight
-check with plan repair off, or retiming) follow as columns beside it. Each file says which
-protocol its trials ran under (its meta's ``protocol``; a file without one ran behind the
-safety layer). Rates are over all trials (a refused or protectively stopped trial is a
-failure, a collision only where the arm touched something), with the exact
-(Clopper-Pearson) 95 % binomial interval over the trials; MinCl is over the trials that
-moved the robot only (`moved_robot`), and says over how many when that is fewer than the
-trials. The CSV has one row per protocol setting; Markdown and LaTeX one per method,
-backend and twin noise level, the paper's protocol first.
+"""Table II (hardware) from the trial files of a preset's policies (`select_trial_files`;
+the files left out are listed under the table), one CSV row per protocol setting
+(`hardware_rows`), one Markdown and LaTeX row per method, backend and twin noise level
+(`hardware_texts`): the paper's protocol first (every trial executes the policy's
+trajectory, only the UR5e's own limits apply, a protective stop at them is a failed trial,
+`distgprl.trial_protocol`), then the safety layer's settings as column groups. Rates over
+all trials with the exact (Clopper-Pearson) 95 % binomial interval; MinCl over the trials
+that moved the robot (`moved_robot`).
 """
 
 from __future__ import annotations
@@ -183,18 +175,12 @@ def _median_perception_error(rows: list[dict[str, Any]]) -> float:
 
 
 def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
-    """Rows of Table II from the trial files ``files`` counts, one per (method, backend,
-    protocol, repair, sensor noise), the paper's protocol first within a method and backend:
-    trials on the real robot (``ur``) and on the digital twin are never mixed, nor trials
-    under the paper's protocol and behind the safety layer (`file_protocol`), with plan
-    repair on and off (`repair_label`) or at different twin sensor-noise levels
-    (`noise_label`). Refused trials (the safety layer's pre-flight check refused a window's
-    plan) and protective stops (the robot's controller stopped the arm at its own limits,
-    status ``protective_stop``) count as failures without collision and are also counted on
-    their own. Success and collision rates are over all trials, each with its exact 95 %
-    binomial interval (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl, the 5th percentile of
-    the trials' minimum clearance, only over the ``executed`` trials that moved the robot
-    (`moved_robot`; NaN if none did)."""
+    """Rows of Table II, one per (method, backend, `file_protocol`, `repair_label`,
+    `noise_label`) of the files ``files`` counts, the paper's protocol first within a method
+    and backend. Refused trials and protective stops are failures without collision, also
+    counted on their own; rates are over all trials with their exact 95 % interval
+    (``<rate>_ci_low``, ``<rate>_ci_high``); MinCl over the ``executed`` trials that moved
+    the robot (NaN if none did)."""
     groups: dict[tuple[str, str, str, str, str], list[dict[str, Any]]] = {}
     for method, meta, trial_rows in files.counted:  # counted in table order
         for row in trial_rows:

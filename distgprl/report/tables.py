@@ -22,6 +22,7 @@ from pathlib import Path
 from distgprl.errors import UserInputError
 from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
 from distgprl.report.claims import claims_texts
+from distgprl.report.frame import Frames, load_frames
 from distgprl.report.markdown import write_table_files
 from distgprl.report.onsets import onset_texts
 from distgprl.report.paired import (
@@ -35,7 +36,7 @@ from distgprl.report.paired import (
 )
 from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
-from distgprl.report.runs import TABLE_POLICY, run_evaluations
+from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
     RATE_BOUNDS,
     collect_scores,
@@ -57,26 +58,17 @@ CSV_MD, CSV_MD_TEX = (".csv", ".md"), (".csv", ".md", ".tex")
 def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
-    """Write every table of ``<root>/<preset>`` to ``out_dir`` and return the paths:
-
-    - Table I of the best policy (``table1_<preset>``, `TABLE_POLICY`) and of the final
-      policy (``table1_final_<preset>``), each with its table per run (``..._per_seed``),
-      CSV, Markdown and LaTeX (`_table_one`);
-    - on Table I's evaluations, the stratified-bootstrap aggregates (``aggregates_<preset>``)
-      and the claims (``claims_<preset>``), and beside a study the claims under each of its
-      readings and its onsets (`_study_tables`);
-    - every run paired TC by TC with the `demo` reference and with `dist-gprl`
-      (``paired_vs_<reference>_<preset>[_n<N>]``), its best policy with its final one
-      (``paired_best_vs_final_<preset>``), and with ``against`` (another preset) with the
-      same run of that preset (``paired_<preset>_vs_<against>``; `_paired_tables`);
-    - Table II and its noise table where hardware trials exist, Table I + repair where runs
-      have their safety-layer evaluations (`_hardware_tables`).
-    """
-    tables = _table_one(root, preset, TABLE_POLICY)  # first: no runs, nothing written
+    """Write every table of ``<root>/<preset>`` to ``out_dir`` (module docstring) and return
+    the paths: Table I of the best and the final policy with their per-run tables
+    (`_table_one`), the aggregates and claims of Table I's evaluations (`_claim_tables`,
+    `_study_tables`), the paired comparisons (`_paired_tables`, ``against``: another preset,
+    `_cross_preset`) and the hardware tables (`_hardware_tables`)."""
+    best = load_frames(root, preset, TABLE_POLICY)
+    tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
-    tables += _table_one(root, preset, "final")
-    scores = collect_scores(root, preset, TABLE_POLICY)  # the claims follow Table I
-    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, scores)]
+    tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
+    scores = collect_scores(best)  # the claims follow Table I
+    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, best, scores)]
     tables += [*_paired_tables(root, preset, cross, against), *_hardware_tables(root, preset)]
     out_dir = Path(out_dir)
     written = []
@@ -89,24 +81,24 @@ def write_tables(
     return written
 
 
-def _table_one(root: str | Path, preset: str, policy: str) -> list[Table]:
-    """Table I and Table I per run of the ``policy`` evaluations: ``table1_<preset>`` for
-    `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other.
+def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> list[Table]:
+    """Table I and Table I per run of the ``policy`` evaluations (``frames``):
+    ``table1_<preset>`` for `TABLE_POLICY`, ``table1_<policy>_<preset>`` for the other.
 
     Raises:
         UserInputError: the preset has no evaluated run.
     """
-    rows, tasks = simulation_table(root, preset, policy)
+    rows, tasks = simulation_table(frames)
     if not rows:
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
     stem = f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}"
-    note = run_evaluations(root, preset, policy).note()
+    note = frames.runs.attrs["note"]
     which = "best learning-curve policy" if policy == "best" else f"{policy} policy"
     about = (
         f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
         "over seeds (ci_low, ci_high; empty for one seed)"
     )
-    per_run = per_seed_texts(per_seed_rows(root, preset, policy), preset, policy)
+    per_run = per_seed_texts(per_seed_rows(frames), preset, policy)
     return [
         (stem, CSV_MD_TEX, table1_texts(rows, tasks, preset, note, policy), about),
         (
@@ -139,11 +131,11 @@ def _claim_tables(scores: Scores, preset: str) -> list[Table]:
     ]
 
 
-def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Table]:
+def _study_tables(root: str | Path, preset: str, frames: Frames, scores: Scores) -> Iterator[Table]:
     """Beside a preset with studies (`studies_of`): each claim under every reading of every
-    study, Table I's included, at the studies' seeds (runs a rule alone reads, at further
-    seeds, stay out of every cross-reading verdict), and per study when each run of each
-    reading learns (its onsets, a control's verdict)."""
+    study, Table I's included (``frames``), at the studies' seeds (runs a rule alone reads,
+    at further seeds, stay out of every cross-reading verdict), and per study when each run
+    of each reading learns (its onsets, a control's verdict)."""
     studies = studies_of(preset)
     if not studies:
         return
@@ -152,8 +144,8 @@ def _study_tables(root: str | Path, preset: str, scores: Scores) -> Iterator[Tab
     seeds = studies[0].seeds
     results = study_verdicts(
         studies,
-        collect_scores(root, preset, TABLE_POLICY, seeds=seeds),
-        lambda p: collect_scores(root, p, TABLE_POLICY, seeds=seeds),
+        collect_scores(frames.of_seeds(seeds)),
+        lambda p: collect_scores(load_frames(root, p, TABLE_POLICY, seeds)),
     )
     names = ", ".join(s.name for s in studies)
     about = (

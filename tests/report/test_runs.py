@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from distgprl.identity import resolve_run
 from distgprl.report.curves import load_curves
+from distgprl.report.frame import load_frames
 from distgprl.report.runs import select_runs
 from distgprl.report.table1 import simulation_table
 from distgprl.report.tables import write_tables
@@ -46,7 +47,7 @@ def test_a_run_of_an_older_configuration_is_left_out_and_listed(tmp_path):
     assert selection.excluded == (
         "dcp/gprl/seed1 (configuration changed since; `distgprl status`: stale)",
     )
-    rows, _ = simulation_table(tmp_path, "ci")
+    rows, _ = simulation_table(load_frames(tmp_path, "ci"))
     (row,) = rows
     assert row["dcp_seeds"] == 1 and row["dcp_success_rate"].mean == 0.2
     steps, values = load_curves(tmp_path, "ci", "dcp", "gprl")

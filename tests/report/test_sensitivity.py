@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from distgprl.report.curves import write_curves
+from distgprl.report.frame import load_frames
 from distgprl.report.runs import current_hash
 from distgprl.report.sensitivity import reading_gains
 from distgprl.report.tables import write_tables
@@ -117,7 +118,7 @@ def test_a_control_is_drawn_hollow_beside_the_reading_with_its_gain(tree):
     for seed in range(3):
         _run(tree, "operator-signal-uncoupled", "dcp", "dist-gprl", seed, 0.5)
     _reach(tree, {"paper": 1.0, "operator-signal": 0.2, "operator-signal-uncoupled": 0.2})
-    scores_of = {r.preset: collect_scores(tree, r.preset) for r in STUDY.all_readings}
+    scores_of = {r.preset: collect_scores(load_frames(tree, r.preset)) for r in STUDY.all_readings}
     fig = plot_sensitivity(tree, STUDY, scores_of)
     success = fig.axes[0]
     points = [line for line in success.get_lines() if line.get_marker() in tuple("o^sDvP")]

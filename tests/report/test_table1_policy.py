@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from distgprl.errors import UserInputError
+from distgprl.report.frame import load_frames
 from distgprl.report.runs import TABLE_POLICY, run_evaluations
 from distgprl.report.table1 import collect_scores, per_seed_rows, simulation_table
 from distgprl.report.tables import write_tables
@@ -86,15 +87,15 @@ def test_mincl_of_v5_summaries_is_computed_from_their_episode_rows(archived):
     """The archived summaries predate the collision-free MinCl: Table I computes it from the
     matching evaluation CSV (the best's from ``evaluation_best.csv``); where >= 5 % of the
     episodes collide it is positive while the all-episode MinCl is 0."""
-    rows, _ = simulation_table(archived, "p")
-    final_rows, _ = simulation_table(archived, "p", "final")
+    rows, _ = simulation_table(load_frames(archived, "p"))
+    final_rows, _ = simulation_table(load_frames(archived, "p", "final"))
     for table, csv_name in ((rows, "evaluation_best.csv"), (final_rows, "evaluation.csv")):
         gprl = next(row for row in table if row["method"] == "gprl")
         all_episodes, free, count = by_hand(ARCHIVE / "dcp" / "gprl" / "seed0" / csv_name)
         assert count <= 95 and all_episodes == 0.0 < free
         assert gprl["dcp_min_clearance_p5"].mean == all_episodes
         assert gprl["dcp_min_clearance_p5_collision_free"].mean == pytest.approx(free)
-    per_seed = {(r["method"], r["seed"]): r for r in per_seed_rows(archived, "p")}
+    per_seed = {(r["method"], r["seed"]): r for r in per_seed_rows(load_frames(archived, "p"))}
     _, free, count = by_hand(ARCHIVE / "dcp" / "dist-gprl" / "seed1" / "evaluation_best.csv")
     ours = per_seed[("dist-gprl", 1)]
     assert ours["min_clearance_p5_collision_free"] == pytest.approx(free)
@@ -116,13 +117,13 @@ def test_the_aggregates_and_claims_read_the_same_evaluation_as_table_one(archive
     """`collect_scores` (what the aggregates and the claims bootstrap) defaults to Table I's
     policy, the best: its rates are the best evaluations', not the final ones'."""
     assert TABLE_POLICY == "best"
-    scores = collect_scores(archived, "p")
-    assert scores == collect_scores(archived, "p", "best")
+    scores = collect_scores(load_frames(archived, "p"))
+    assert scores == collect_scores(load_frames(archived, "p", "best"))
     best = read_json(ARCHIVE / "dcp" / "gprl" / "seed0" / "summary_best.json")["summary"]
     final = read_json(ARCHIVE / "dcp" / "gprl" / "seed0" / "summary.json")["summary"]
     assert scores[("dcp", "gprl")][0]["collision_rate"] == best["collision_rate"]
     assert (
-        collect_scores(archived, "p", "final")[("dcp", "gprl")][0]["collision_rate"]
+        collect_scores(load_frames(archived, "p", "final"))[("dcp", "gprl")][0]["collision_rate"]
         == (final["collision_rate"])
     )
     out = archived / "out_scores"
@@ -206,11 +207,11 @@ def test_a_recorded_collision_free_mincl_is_read_not_recomputed(tmp_path):
     document = {"summary": {"success_rate": 0.5, "collision_rate": 0.5}}
     document["summary"].update(min_clearance_p5_collision_free=0.123, collision_free_episodes=1)
     write_json(folder / "summary.json", document)
-    (row,), _ = simulation_table(tmp_path, "p")
+    (row,), _ = simulation_table(load_frames(tmp_path, "p"))
     assert row["dcp_min_clearance_p5_collision_free"].mean == 0.123
     document["summary"].update(min_clearance_p5_collision_free=None, collision_free_episodes=0)
     write_json(folder / "summary.json", document)
-    (row,), _ = simulation_table(tmp_path, "p")
+    (row,), _ = simulation_table(load_frames(tmp_path, "p"))
     assert row["dcp_min_clearance_p5_collision_free"].n == 0 and row["dcp_all_collided_seeds"] == 1
 
 

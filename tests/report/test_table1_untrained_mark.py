@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from distgprl.report.frame import load_frames
 from distgprl.report.table1 import (
     UNTRAINED_MARK,
     UNTRAINED_NOTE,
@@ -73,7 +74,7 @@ def test_only_an_explicit_false_counts_and_the_untrained_figure_is_their_mean():
 
 
 def test_a_cell_is_marked_exactly_where_a_seed_did_not_beat_the_untrained_policy(marked_tree):
-    rows, _ = simulation_table(marked_tree, "p")
+    rows, _ = simulation_table(load_frames(marked_tree, "p"))
     marks = {row["method"]: row["dcp_untrained"].seeds for row in rows}
     assert marks == {"gprl": 2, "dist-gprl": 0, "promp-rrl": 0, "demo": 0}
     out = marked_tree / "out"

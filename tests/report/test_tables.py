@@ -11,6 +11,7 @@ import pytest
 from scipy import stats
 
 from distgprl.machine import machine_info
+from distgprl.report.frame import load_frames
 from distgprl.report.table1 import (
     LATE_CURVE_POINTS,
     aggregate,
@@ -61,7 +62,7 @@ def test_rows_follow_the_paper_order_with_the_demo_last(tmp_path):
                 tmp_path / "p" / "dcp" / method / f"seed{seed}" / "summary.json",
                 summary(0.5 + 0.1 * seed, 0.1, 0.01),
             )
-    rows, tasks = simulation_table(tmp_path, "p")
+    rows, tasks = simulation_table(load_frames(tmp_path, "p"))
     assert tasks == ["dcp"]
     assert [r["method"] for r in rows] == ["gprl", "dist-gprl", "demo"]
     assert rows[1]["dcp_success_rate"].mean == pytest.approx(0.55)
@@ -134,7 +135,7 @@ def test_per_seed_table_lists_every_run_with_its_wall_and_cpu_time(tmp_path):
                     [{**dict.fromkeys(EPISODE_FIELDS, 0), "success": 1}],
                     EPISODE_FIELDS,
                 )
-    rows = per_seed_rows(tmp_path, "p")
+    rows = per_seed_rows(load_frames(tmp_path, "p"))
     assert [(r["method"], r["seed"]) for r in rows] == [
         ("gprl", 0),
         ("dist-gprl", 0),
