@@ -448,19 +448,13 @@ def _latex(
     header.append("Method & " + " & ".join(name for _ in tasks for _, name in METRICS))
     table = [
         [row["label"].replace("_", "\\_")]
-        + [_latex_text(text) for task in tasks for text in _task_cells(row, task, seed_count=False)]
+        + [text for task in tasks for text in _task_cells(row, task, seed_count=False)]
         for row in rows
     ]
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
     columns = "l" + "c" * (len(tasks) * len(METRICS))
-    footnote = f"{_latex_text(UNTRAINED_NOTE)}." if marked else ""
+    footnote = f"{UNTRAINED_NOTE}." if marked else ""
     return latex_table(caption, label, columns, header, table, footnote)
-
-
-def _latex_text(text: str) -> str:
-    """``text`` with the table's Unicode signs as LaTeX."""
-    replaced = text.replace("±", "$\\pm$").replace("—", "---").replace("–", "--")
-    return replaced.replace(UNTRAINED_MARK, "$^\\dagger$")
 
 
 def table1_texts(

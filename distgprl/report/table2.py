@@ -351,11 +351,10 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
 
 def _latex(caption: str, groups: list[tuple[str, Columns]], body: list[list[str]]) -> str:
     """Table II as LaTeX: a row of column-group titles over the column names."""
-    latex_caption = caption.replace("—", "---").replace("–", "--").replace(" %", "\\,\\%")
-    latex_caption = latex_caption.replace("pi rad/s", "$\\pi$ rad/s").replace("s^2", "s$^2$")
+    latex_caption = caption.replace(" %", "\\,\\%").replace("pi rad/s", "$\\pi$ rad/s")
+    latex_caption = latex_caption.replace("s^2", "s$^2$")
     titles = (f"\\multicolumn{{{len(columns)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, columns in groups)
     names = ["Method", "Backend", "Noise", *(label for _, cs in groups for _, label in cs)]
     header = [" & & & " + " & ".join(titles), " & ".join(names)]
     columns = "lll" + "c" * sum(len(columns) for _, columns in groups)
-    rows = ([cell.replace("–", "--") for cell in row] for row in body)
-    return latex_table(latex_caption, "tab:hardware_results", columns, header, rows)
+    return latex_table(latex_caption, "tab:hardware_results", columns, header, body)
