@@ -53,8 +53,8 @@ FIELDS = tuple(
 
 @dataclass(frozen=True)
 class RunOutcomes:
-    """One run's `OUTCOMES` per TC in the plain evaluation and each mode (``plain``, then
-    `MODES`; a plain TC is never refused), and its repair evaluation's summary."""
+    """One run's `OUTCOMES` per TC in the plain evaluation (never refused) and each of
+    `MODES` (``outcomes``), and its repair evaluation's summary."""
 
     task: str
     method: str
@@ -144,25 +144,22 @@ def _row(group: list[RunOutcomes]) -> dict[str, Any]:
     return row
 
 
-def repair_rows(runs: list[RunOutcomes]) -> list[dict[str, Any]]:
-    """One row of :data:`FIELDS` per task and method (module docstring), in table order."""
+def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
+    """One row of :data:`FIELDS` per task and method (module docstring) of the runs
+    `collect` finds, in table order, and what it left out."""
+    runs, excluded = collect(root, preset)
     groups: dict[tuple[str, str], list[RunOutcomes]] = {}
     for run in runs:
         groups.setdefault((run.task, run.method), []).append(run)
     rows = [_row(group) for group in groups.values()]
-    return sorted(rows, key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
-
-
-def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
-    """`repair_rows` of the runs `collect` finds, and what it left out."""
-    runs, excluded = collect(root, preset)
-    return repair_rows(runs), excluded
+    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
+    return rows, excluded
 
 
 def repair_texts(
     rows: list[dict[str, Any]], preset: str, excluded: list[str]
 ) -> tuple[str, str] | None:
-    """(CSV, Markdown) of `repair_rows`; None if there are no rows."""
+    """(CSV, Markdown) of `repair_table`'s rows; None if there are no rows."""
     if not rows:
         return None
     rounded = [
@@ -170,14 +167,13 @@ def repair_texts(
     ]
     header = ["Task", "Method", "Seeds", "Plain S / C", "Check S / C / R", "Repair S / C / R"]
     header += ["Retimed", "Added (s)", "Gained / lost / averted"]
-    outcomes = ("success", "collision", "refused")
     table = [
         [
             row["task"].upper(),
             METHODS[row["method"]].label,
             row["seeds"],
             f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
-            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in outcomes) for mode in MODES),
+            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in OUTCOMES) for mode in MODES),
             f"{row['repair_retimed_windows']:.2f}",
             f"{row['repair_time_added_s']:.2f}",
             f"{row['gained']} / {row['lost']} / {row['averted']}",
