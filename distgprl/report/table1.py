@@ -245,7 +245,7 @@ def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
     """`LATE_CURVE` values of one run's curve points (its rows of a `curves_of` frame; empty
     strings without a trained point among the last `LATE_CURVE_POINTS`)."""
     late = points.tail(LATE_CURVE_POINTS)
-    success = late["success_rate"][late["step"] != 0].tolist() if len(late) else []
+    success = late["success_rate"][late["step"] != 0].tolist()
     if not success:
         return {key: "" for key, _ in LATE_CURVE}
     return {
@@ -323,9 +323,7 @@ def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
     return cells
 
 
-def per_seed_texts(
-    rows: list[dict[str, Any]], preset: str, policy: str = TABLE_POLICY
-) -> tuple[str, str]:
+def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows` of the ``policy`` evaluations."""
     fields = [*EVALUATION_KEYS, *PER_SEED_SUMMARY, *(key for key, _ in LATE_CURVE)]
     fields += ["train_wall_min", "train_cpu_ms_per_step", "numerics", "config_hash"]
@@ -369,9 +367,8 @@ def _iqm_parts(estimate: Estimate) -> tuple[float, float, float]:
     """(IQM, low, high) of an estimate; NaN where it has no runs or no interval."""
     if not estimate.seeds:
         return (np.nan, np.nan, np.nan)
-    if not estimate.has_interval:
-        return (estimate.point, np.nan, np.nan)
-    return (estimate.point, estimate.low, estimate.high)
+    low, high = (estimate.low, estimate.high) if estimate.has_interval else (np.nan, np.nan)
+    return (estimate.point, low, high)
 
 
 def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
@@ -403,9 +400,8 @@ def _iqm_text(estimate: Estimate) -> str:
     """``0.88 [0.80, 0.95]``, the IQM alone for one seed, ``–`` without runs."""
     if not estimate.seeds:
         return "–"
-    if not estimate.has_interval:
-        return f"{estimate.point:.2f}"
-    return f"{estimate.point:.2f} [{estimate.low:.2f}, {estimate.high:.2f}]"
+    interval = f" [{estimate.low:.2f}, {estimate.high:.2f}]" if estimate.has_interval else ""
+    return f"{estimate.point:.2f}{interval}"
 
 
 def _markdown(
@@ -458,11 +454,7 @@ def _latex(
 
 
 def table1_texts(
-    rows: list[dict[str, Any]],
-    tasks: list[str],
-    preset: str,
-    note: str = "",
-    policy: str = TABLE_POLICY,
+    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str
 ) -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table I from `simulation_table`'s rows and tasks of the
     ``policy`` evaluations; ``note`` (the runs left out or substituted, `run_evaluations`)
