@@ -1,15 +1,10 @@
-"""Every results table of a preset from its result files only (`write_tables`).
-
-The tables themselves are made by their modules — Table I by `distgprl.report.table1`,
-Table II by `distgprl.report.table2`, the aggregates by `distgprl.report.aggregate`, the
-claims by `distgprl.report.claims` and `distgprl.report.robustness`, the onsets by
-`distgprl.report.onsets`, the paired comparisons by `distgprl.report.paired`, Table I +
-repair by `distgprl.report.repair` — and written here with a metadata sidecar per CSV
+"""Every results table of a preset from its result files only (`write_tables`): each made
+by its module (imported below), written here with a metadata sidecar per CSV
 (`write_table_files`); a table the results no longer make is removed.
 
-**Which policy** (docs/findings/protocol.md, rule 6): Table I (``table1_<preset>``), its
-per-run table, the aggregates and the claims report each run's best learning-curve policy,
-Algorithm 1's output (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
+**Which policy** (protocol v6, rule 6, docs/findings/protocol.md): Table I
+(``table1_<preset>``), its per-run table, the aggregates and the claims report each run's
+best learning-curve policy (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
 policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An
 untrained reference's one evaluation is in both.
 """
@@ -61,8 +56,8 @@ def write_tables(
     """Write every table of ``<root>/<preset>`` to ``out_dir`` (module docstring) and return
     the paths: Table I of the best and the final policy with their per-run tables, the
     aggregates and claims of Table I's evaluations and the studies beside the preset, the
-    paired comparisons (``against``: another preset, `_cross_preset`) and the hardware
-    tables."""
+    paired comparisons (and with another preset, ``against``: `_cross_preset`) and the
+    hardware tables."""
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
@@ -84,7 +79,8 @@ def write_tables(
             "(rules: distgprl.report.claims)",
         ),
         *_study_tables(root, preset, best, scores),
-        *_paired_tables(root, preset, cross, against),
+        *_paired_tables(root, preset),
+        *([] if cross is None else [cross]),
         *_hardware_tables(root, preset),
     ]
     out_dir = Path(out_dir)
@@ -182,11 +178,9 @@ def _cross_preset(root: str | Path, preset: str, against: str | None) -> Table |
     )
 
 
-def _paired_tables(
-    root: str | Path, preset: str, cross: Table | None, against: str | None
-) -> Iterator[Table]:
+def _paired_tables(root: str | Path, preset: str) -> Iterator[Table]:
     """Every run paired TC by TC with each of `REFERENCES` (on the preset's TCs and on each
-    supplementary evaluation's), each run's best policy with its final one, then ``cross``."""
+    supplementary evaluation's), and each run's best policy with its final one."""
     for reference in REFERENCES:
         for episodes in (None, *supplementary_sizes(root, preset)):
             pairs = paired_rows(root, preset, reference, episodes)
@@ -203,8 +197,6 @@ def _paired_tables(
         paired_texts(best, preset, FINAL_POLICY) if best else None,
         "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
     )
-    if cross is not None:
-        yield cross
 
 
 def _hardware_tables(root: str | Path, preset: str) -> list[Table]:
