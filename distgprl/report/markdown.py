@@ -23,6 +23,17 @@ def markdown_table(title: str | None, header: Sequence[str], rows: Iterable[Sequ
     return "\n".join(lines) + "\n"
 
 
+LATEX_SIGNS = {"±": "$\\pm$", "—": "---", "–": "--", "†": "$^\\dagger$"}
+"""The Unicode signs of the tables and how LaTeX writes them."""
+
+
+def latex_text(text: str) -> str:
+    """``text`` with `LATEX_SIGNS` as LaTeX (ASCII text is unchanged)."""
+    for sign, latex in LATEX_SIGNS.items():
+        text = text.replace(sign, latex)
+    return text
+
+
 def latex_table(
     caption: str,
     label: str,
@@ -33,13 +44,14 @@ def latex_table(
 ) -> str:
     """A LaTeX ``table`` float of a booktabs ``tabular`` (column spec ``columns``): the
     ``header`` lines (each already a row, ``\\\\`` added), a rule, one line per row of cells,
-    and ``footnote`` in small type under the tabular if given."""
-    lines = ["\\begin{table}[htb]", "\\centering", f"\\caption{{{caption}}}"]
+    and ``footnote`` in small type under the tabular if given; caption, cells and footnote
+    through `latex_text`."""
+    lines = ["\\begin{table}[htb]", "\\centering", f"\\caption{{{latex_text(caption)}}}"]
     lines += [f"\\label{{{label}}}", f"\\begin{{tabular}}{{{columns}}}", "\\toprule"]
     lines += [f"{line} \\\\" for line in header]
-    lines += ["\\midrule", *(" & ".join(cells) + " \\\\" for cells in rows)]
+    lines += ["\\midrule", *(latex_text(" & ".join(cells)) + " \\\\" for cells in rows)]
     lines += ["\\bottomrule", "\\end{tabular}"]
-    lines += ["", f"\\footnotesize {footnote}"] if footnote else []
+    lines += ["", f"\\footnotesize {latex_text(footnote)}"] if footnote else []
     return "\n".join([*lines, "\\end{table}", ""])
 
 

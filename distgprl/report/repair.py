@@ -41,6 +41,9 @@ from distgprl.schema import (
 MODES = ("check", "repair")
 """The sweep's modes (`distgprl.experiments.repair_follow_ups.SWEEP_REPAIR_MODES`)."""
 
+OUTCOMES = ("success", "collision", "refused")
+"""One TC's outcomes, each a bool: safe success (`is_safe_success`), collision, refused."""
+
 FIELDS = tuple(
     "task method seeds n_seeds episodes plain_success plain_collision check_success "
     "check_collision check_refused repair_success repair_collision repair_refused "
@@ -50,14 +53,14 @@ FIELDS = tuple(
 
 @dataclass(frozen=True)
 class RunOutcomes:
-    """One run's per-TC outcomes in the plain evaluation and each mode, and its summaries."""
+    """One run's `OUTCOMES` per TC in the plain evaluation (never refused) and each of
+    `MODES` (``outcomes``), and its repair evaluation's summary."""
 
     task: str
     method: str
     seed: int
-    plain: tuple[tuple[bool, ...], ...]  # (safe success, collision) per TC
-    modes: dict[str, tuple[tuple[bool, ...], ...]]  # (safe success, collision, refused)
-    summaries: dict[str, dict[str, Any]]
+    outcomes: dict[str, list[tuple[bool, bool, bool]]]
+    repair_summary: dict[str, Any]
 
 
 def _tc(row: dict[str, str]) -> tuple[float, ...]:
@@ -65,12 +68,13 @@ def _tc(row: dict[str, str]) -> tuple[float, ...]:
     return tuple(round(float(row[name]), 9) for name in EVALUATION_FIELDS[:5])
 
 
-def _outcomes(rows: list[dict[str, str]], refused: bool) -> tuple[tuple[bool, ...], ...]:
-    out = []
-    for row in rows:
-        cell = (is_safe_success(row), int(float(row["collision"])) == 1)
-        out.append((*cell, int(float(row["refused"])) == 1) if refused else cell)
-    return tuple(out)
+def _outcomes(rows: list[dict[str, str]]) -> list[tuple[bool, bool, bool]]:
+    """`OUTCOMES` of each row (a row without a ``refused`` column was not refused)."""
+    return [(is_safe_success(row), _flag(row, "collision"), _flag(row, "refused")) for row in rows]
+
+
+def _flag(row: dict[str, str], column: str) -> bool:
+    return int(float(row.get(column, "0"))) == 1
 
 
 def collect(root: str | Path, preset: str) -> tuple[list[RunOutcomes], list[str]]:
@@ -78,19 +82,16 @@ def collect(root: str | Path, preset: str) -> tuple[list[RunOutcomes], list[str]
     evaluation left out (its run and why)."""
     runs, excluded = [], []
     for folder in sorted(select_runs(root, preset).current):
-        task, method, seed = folder.parts[-3], folder.parts[-2], folder.parts[-1]
-        if method not in METHODS:
-            continue
-        name = f"{task}/{method}/{seed}"
+        task, method, seed = folder.parts[-3:]
         paths = {
             m: [folder / f for f in repair_evaluation_file_names(None, "final", m)] for m in MODES
         }
-        if not all(summary.exists() for _, summary in paths.values()):
+        if method not in METHODS or not all(summary.exists() for _, summary in paths.values()):
             continue
         current = read_json(folder / "config.json").get("config_hash")
         _, plain_rows = read_csv(folder / evaluation_file_names()[0])
-        modes, summaries, reason = {}, {}, ""
-        for mode, (csv_path, summary_path) in paths.items():
+        outcomes, reason = {"plain": _outcomes(plain_rows)}, ""
+        for mode, (csv_path, _) in paths.items():
             meta, rows = read_csv(csv_path)
             if meta.get("config_hash") != current:
                 reason = (
@@ -99,15 +100,14 @@ def collect(root: str | Path, preset: str) -> tuple[list[RunOutcomes], list[str]
             elif [_tc(r) for r in rows] != [_tc(r) for r in plain_rows]:
                 reason = f"{mode} evaluation on other TCs than the plain one"
             if reason:
+                excluded.append(f"{task}/{method}/{seed} ({reason})")
                 break
-            modes[mode] = _outcomes(rows, refused=True)
-            summaries[mode] = read_json(summary_path)["summary"]
-        if reason:
-            excluded.append(f"{name} ({reason})")
-            continue
-        seed_number = int(seed.removeprefix("seed"))
-        plain = _outcomes(plain_rows, refused=False)
-        runs.append(RunOutcomes(task, method, seed_number, plain, modes, summaries))
+            outcomes[mode] = _outcomes(rows)
+        else:
+            summary = read_json(paths["repair"][1])["summary"]
+            runs.append(
+                RunOutcomes(task, method, int(seed.removeprefix("seed")), outcomes, summary)
+            )
     return runs, excluded
 
 
@@ -115,59 +115,51 @@ def _mean(values: list[float]) -> float:
     return sum(values) / len(values)
 
 
-def repair_rows(runs: list[RunOutcomes]) -> list[dict[str, Any]]:
-    """One row of :data:`FIELDS` per task and method (module docstring), in table order."""
-    groups: dict[tuple[str, str], list[RunOutcomes]] = {}
-    for run in runs:
-        groups.setdefault((run.task, run.method), []).append(run)
-    rows = []
-    for (task, method), group in groups.items():
-        group.sort(key=lambda r: r.seed)
+def _rate(outcomes: list[tuple[bool, bool, bool]], index: int) -> float:
+    return sum(outcome[index] for outcome in outcomes) / len(outcomes)
 
-        def rate(outcomes: tuple[tuple[bool, ...], ...], index: int) -> float:
-            return sum(o[index] for o in outcomes) / len(outcomes)
 
-        row: dict[str, Any] = {
-            "task": task,
-            "method": method,
-            "seeds": " ".join(str(r.seed) for r in group),
-            "n_seeds": len(group),
-            "episodes": sum(len(r.plain) for r in group),
-            "plain_success": _mean([rate(r.plain, 0) for r in group]),
-            "plain_collision": _mean([rate(r.plain, 1) for r in group]),
-        }
-        for mode in MODES:
-            for index, name in enumerate(("success", "collision", "refused")):
-                row[f"{mode}_{name}"] = _mean([rate(r.modes[mode], index) for r in group])
-        windows = [
-            (s["windows_retimed"], s["windows_none"] + s["windows_retimed"] + s["windows_refused"])
-            for s in (r.summaries["repair"] for r in group)
-        ]
-        row["repair_retimed_windows"] = sum(w for w, _ in windows) / max(
-            sum(t for _, t in windows), 1
-        )
-        row["repair_time_added_s"] = _mean(
-            [r.summaries["repair"]["mean_time_added_s"] for r in group]
-        )
-        pairs = [(p, q) for r in group for p, q in zip(r.plain, r.modes["repair"], strict=True)]
-        row["gained"] = sum(1 for p, q in pairs if not p[0] and q[0])
-        row["lost"] = sum(1 for p, q in pairs if p[0] and not q[0])
-        row["averted"] = sum(1 for p, q in pairs if p[1] and not q[1])
-        rows.append(row)
-    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
-    return rows
+def _row(group: list[RunOutcomes]) -> dict[str, Any]:
+    """The `FIELDS` row of one task and method's runs (module docstring), by seed."""
+    group = sorted(group, key=lambda r: r.seed)
+    row: dict[str, Any] = {"task": group[0].task, "method": group[0].method}
+    row["seeds"] = " ".join(str(r.seed) for r in group)
+    row["n_seeds"], row["episodes"] = len(group), sum(len(r.outcomes["plain"]) for r in group)
+    for mode in ("plain", *MODES):
+        for index, name in enumerate(OUTCOMES[: 2 if mode == "plain" else 3]):
+            row[f"{mode}_{name}"] = _mean([_rate(r.outcomes[mode], index) for r in group])
+    summaries = [r.repair_summary for r in group]
+    retimed = sum(s["windows_retimed"] for s in summaries)
+    windows = sum(
+        s["windows_none"] + s["windows_retimed"] + s["windows_refused"] for s in summaries
+    )
+    row["repair_retimed_windows"] = retimed / max(windows, 1)
+    row["repair_time_added_s"] = _mean([s["mean_time_added_s"] for s in summaries])
+    pairs = [
+        pair for r in group for pair in zip(r.outcomes["plain"], r.outcomes["repair"], strict=True)
+    ]
+    row["gained"] = sum(not p[0] and q[0] for p, q in pairs)
+    row["lost"] = sum(p[0] and not q[0] for p, q in pairs)
+    row["averted"] = sum(p[1] and not q[1] for p, q in pairs)
+    return row
 
 
 def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
-    """`repair_rows` of the runs `collect` finds, and what it left out."""
+    """One row of :data:`FIELDS` per task and method (module docstring) of the runs
+    `collect` finds, in table order, and what it left out."""
     runs, excluded = collect(root, preset)
-    return repair_rows(runs), excluded
+    groups: dict[tuple[str, str], list[RunOutcomes]] = {}
+    for run in runs:
+        groups.setdefault((run.task, run.method), []).append(run)
+    rows = [_row(group) for group in groups.values()]
+    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
+    return rows, excluded
 
 
 def repair_texts(
     rows: list[dict[str, Any]], preset: str, excluded: list[str]
 ) -> tuple[str, str] | None:
-    """(CSV, Markdown) of `repair_rows`; None if there are no rows."""
+    """(CSV, Markdown) of `repair_table`'s rows; None if there are no rows."""
     if not rows:
         return None
     rounded = [
@@ -175,14 +167,13 @@ def repair_texts(
     ]
     header = ["Task", "Method", "Seeds", "Plain S / C", "Check S / C / R", "Repair S / C / R"]
     header += ["Retimed", "Added (s)", "Gained / lost / averted"]
-    outcomes = ("success", "collision", "refused")
     table = [
         [
             row["task"].upper(),
             METHODS[row["method"]].label,
             row["seeds"],
             f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
-            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in outcomes) for mode in MODES),
+            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in OUTCOMES) for mode in MODES),
             f"{row['repair_retimed_windows']:.2f}",
             f"{row['repair_time_added_s']:.2f}",
             f"{row['gained']} / {row['lost']} / {row['averted']}",

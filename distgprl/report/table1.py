@@ -4,10 +4,10 @@ t-interval (`aggregate`) and the IQM of success and collision with its stratifie
 interval (`IQM_METRICS`); and Table I per run (`per_seed_rows`).
 
 Both are of one evaluation, the `Frames` they are given: by default the best learning-curve
-policy's (`distgprl.report.runs.TABLE_POLICY`, Algorithm 1's output, docs/findings/protocol.md
-rule 6), or the final policy's beside it. MinCl is `COLLISION_FREE_MINCL` (rule 5); a cell
-at whose seeds no trained policy beat the untrained one (rule 2) carries `UNTRAINED_MARK`
-(`untrained_marks`). How each cell is written: `cell_text`, `untrained_text`, `_csv_cells`.
+policy's (`distgprl.report.runs.TABLE_POLICY`; protocol v6, rule 6, docs/findings/protocol.md),
+or the final policy's beside it. MinCl is `COLLISION_FREE_MINCL` (rule 5); a cell at whose
+seeds no trained policy beat the untrained one carries `UNTRAINED_MARK` (protocol v8, rule 2,
+docs/findings/environment-v8.md).
 """
 
 from __future__ import annotations
@@ -46,69 +46,24 @@ METRICS = (
     ("mean_kinematic_retention", "KinRet"),
 )
 """Columns per task: the paper's three — Success (the task completed without collision),
-Collision, MinCl (`COLLISION_FREE_MINCL`: over the collision-free episodes) — then four it
-does not tabulate: MinCl over all episodes (0 wherever 5 % or more collide), the signed
-clearance's 5th percentile over all episodes (negative = penetration depth), completion
-regardless of collision and kinematic retention."""
+Collision, MinCl (`COLLISION_FREE_MINCL`) — then MinCl over all episodes (0 wherever 5 % or
+more collide), the signed clearance's 5th percentile over all episodes (negative =
+penetration depth, m), completion regardless of collision and kinematic retention."""
 
 CLEARANCE_METRICS = (COLLISION_FREE_MINCL, "min_clearance_p5", "min_signed_clearance_p5")
 """Metrics in metres, shown to the millimetre."""
 
 RATE_BOUNDS = (0.0, 1.0)
-"""The range of a rate (metrics named ``*_rate``): their CSV intervals are clipped to it."""
+"""The range of a rate (metrics named ``*_rate``): their intervals are clipped to it."""
 
 INTERVAL_METRICS = ("success_rate", "collision_rate")
-"""Metrics whose Markdown and LaTeX cells also show the 95 % interval (clipped to [0, 1])."""
+"""Metrics whose Markdown and LaTeX cells also show the 95 % interval."""
 
 IQM_METRICS = (("success_rate", "Success IQM"), ("collision_rate", "Collision IQM"))
-"""Metrics with a robust-aggregate column per task (issue 33): the interquartile mean over
-seeds with its 95 % stratified-bootstrap interval, the same estimate (same generator) as the
-aggregates table's (`distgprl.report.aggregate.method_estimate`, one stratum: the task). In
-the CSV and the Markdown table; the LaTeX table keeps the paper's layout."""
-
-
-@dataclass(frozen=True)
-class Cell:
-    """Aggregate of one metric over seeds."""
-
-    mean: float
-    std: float
-    ci_low: float
-    ci_high: float
-    n: int
-
-    def text(
-        self, digits: int = 2, interval: bool = False, bounds: tuple[float, float] | None = None
-    ) -> str:
-        """``mean ± std`` (``mean`` for one seed, ``–`` for none); with ``interval`` and at
-        least two seeds followed by the 95 % interval ``[low, high]``, clipped to ``bounds``
-        if given."""
-        if self.n == 0:
-            return "–"
-        if self.n == 1:
-            return f"{self.mean:.{digits}f}"
-        text = f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
-        if interval:
-            low, high = self.ci_low, self.ci_high
-            if bounds is not None:
-                low, high = max(low, bounds[0]), min(high, bounds[1])
-            text += f" [{low:.{digits}f}, {high:.{digits}f}]"
-        return text
-
-
-def aggregate(values: list[float]) -> Cell:
-    """Mean, sample std and 95 % t-interval over seeds."""
-    array = np.asarray(values, dtype=float)
-    n = len(array)
-    if n == 0:
-        return Cell(np.nan, np.nan, np.nan, np.nan, 0)
-    mean = float(array.mean())
-    if n == 1:
-        return Cell(mean, 0.0, np.nan, np.nan, 1)
-    std = float(array.std(ddof=1))
-    half = float(stats.t.ppf(0.975, n - 1) * std / np.sqrt(n))
-    return Cell(mean, std, mean - half, mean + half, n)
-
+"""Metrics with a column per task of the interquartile mean over seeds and its 95 %
+stratified-bootstrap interval: the aggregates table's estimate (`method_estimate`, one
+stratum: the task). In the CSV and the Markdown table, not the LaTeX one (the paper's
+layout)."""
 
 BEATS_UNTRAINED = "beats_untrained"
 """The best-policy summary field (`distgprl.experiments.policies.BestSelection`): whether the
@@ -118,89 +73,12 @@ false; absent, or None, where unknown)."""
 UNTRAINED_CURVE_SUCCESS = "untrained_curve_success_rate"
 """The best-policy summary field: the untrained step-0 point's curve success (curve TCs)."""
 
-
-@dataclass(frozen=True)
-class UntrainedMarks:
-    """The seeds of one Table I cell at which no trained policy beat the untrained one.
-
-    Attributes:
-        seeds: how many of the cell's seeds record ``beats_untrained`` false.
-        untrained_curve_success: the mean over those seeds of the untrained step-0 point's
-            learning-curve success (NaN where ``seeds`` is 0 or none records it).
-    """
-
-    seeds: int
-    untrained_curve_success: float
-
-
-def untrained_marks(summaries: list[dict[str, Any]]) -> UntrainedMarks:
-    """`UntrainedMarks` of one cell's summaries (one per seed): only an explicit false
-    ``beats_untrained`` counts; a missing one is unknown and not counted."""
-    beaten = [s for s in summaries if s.get(BEATS_UNTRAINED) is False]
-    figures = [
-        float(s[UNTRAINED_CURVE_SUCCESS])
-        for s in beaten
-        if s.get(UNTRAINED_CURVE_SUCCESS) is not None
-    ]
-    mean = float(np.mean(figures)) if figures else float("nan")
-    return UntrainedMarks(len(beaten), mean)
-
-
-def metric_values(summaries: list[dict[str, Any]], key: str) -> list[float]:
-    """``key`` of each summary that has a value (MinCl is None where every episode
-    collided, and absent from summaries written before it was recorded)."""
-    return [float(s[key]) for s in summaries if s.get(key) is not None]
-
-
-def collect_scores(frames: Frames) -> Scores:
-    """{(task, method): [`run_scores` per seed]} of ``frames`` (`load_frames`): the rates and
-    learning-curve measures the aggregates and the claims bootstrap, from Table I's
-    evaluations when ``frames`` are Table I's (the one switch, `TABLE_POLICY`)."""
-    out: dict[tuple[str, str], list[dict[str, float]]] = {}
-    for (task, method, seed, _), summary in summaries(frames.runs):
-        points = frames.curves.get((task, method, seed), NO_POINTS)
-        out.setdefault((task, method), []).append(run_scores(summary, points))
-    return out
-
-
-def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
-    """One row per run: task, method, seed, the policy evaluated (``best``, ``final`` or
-    ``untrained``) and, for the best, its learning-curve step and whether it beat the
-    untrained step-0 point (`BEATS_UNTRAINED`, `UNTRAINED_CURVE_SUCCESS`; empty where not
-    recorded), the Table I metrics and the
-    collision-free episodes MinCl is over, the training wall time
-    (min) and process CPU time per RL step (ms, both from ``done.json``; empty for `demo` and
-    for runs made before it was recorded), the numerics fingerprint of the machine that
-    trained it (`distgprl.machine`; empty before it was recorded) and the config hash. Task,
-    table order, seed."""
-    rows = []
-    for key, summary in summaries(frames.runs):
-        row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
-        row["policy_step"] = summary.get("policy_step", "")
-        row["collision_free_episodes"] = summary.get("collision_free_episodes", "")
-        for name, _ in ((BEATS_UNTRAINED, ""), (UNTRAINED_CURVE_SUCCESS, ""), *METRICS):
-            row[name] = summary.get(name, "")
-        for name, _ in PER_SEED_EXTRA:
-            row[name] = summary.get(name, "")
-        row.update(late_curve(frames.curves.get(key[:3], NO_POINTS)))
-        wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
-        row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
-        row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
-        row["numerics"] = summary["numerics"]
-        row["config_hash"] = summary["config_hash"]
-        rows.append(row)
-    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
-    return rows
-
-
 PER_SEED_EXTRA = (
     ("peak_joint_speed_p95", "PeakJS p95 (rad/s)"),
     ("joint_speed_over_limit_rate", "JS > limit"),
 )
 """Per-run columns beyond Table I: the 95th percentile of the episodes' peak commanded joint
-speed and the share of episodes above the hardware safety layer's joint speed limit (empty
-for evaluations written before they were recorded)."""
-
+speed and the share of episodes above the hardware safety layer's joint speed limit."""
 
 LATE_CURVE_POINTS = 5
 """How many of the last learning-curve evaluations `late_curve` averages."""
@@ -209,56 +87,13 @@ LATE_CURVE = (
     ("late_curve_success", "Late curve succ"),
     ("late_curve_success_range", "Late curve range"),
 )
-"""Per-run columns from ``progress.csv``: the mean learning-curve success over the last
-`LATE_CURVE_POINTS` evaluations (the preset's ``curve_episodes`` fixed TCs each, 50 in
-`paper`; deterministic policy of that step) and their max - min. Next
-to the final 100-TC success they show how much the final policy's number depends on where
-training stopped (empty for `demo`, which has no curve)."""
+"""Per-run columns from ``progress.csv``: the mean curve success over the last
+`LATE_CURVE_POINTS` evaluations (the preset's ``curve_episodes`` fixed TCs each,
+deterministic policy of that step) and their max - min: how much the final policy's number
+depends on where training stopped (empty for `demo`, which has no curve)."""
 
-
-def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
-    """`LATE_CURVE` values of one run's curve points (its rows of a `curves_of` frame; empty
-    strings without a trained point among the last `LATE_CURVE_POINTS`)."""
-    late = points.tail(LATE_CURVE_POINTS)
-    success = late["success_rate"][late["step"] != 0].tolist() if len(late) else []
-    if not success:
-        return {key: "" for key, _ in LATE_CURVE}
-    return {
-        "late_curve_success": float(np.mean(success)),
-        "late_curve_success_range": float(max(success) - min(success)),
-    }
-
-
-def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
-    """Rows of Table I of ``frames``' evaluations: one per (method), columns per task and
-    metric (and, for MinCl, the seeds whose every episode collided; ``<task>_untrained``:
-    the cell's `UntrainedMarks`)."""
-    by_cell: dict[tuple[str, str], list[dict[str, Any]]] = {}
-    for (task, method, _, _), summary in summaries(frames.runs):
-        by_cell.setdefault((task, method), []).append(summary)
-    tasks = sorted({task for task, _ in by_cell}, key=task_order)
-    rows = []
-    for method in TABLE_ORDER:
-        if not any((task, method) in by_cell for task in tasks):
-            continue
-        row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
-        for task in tasks:
-            seeds = by_cell.get((task, method), [])
-            row[f"{task}_seeds"] = len(seeds)
-            for key, _ in METRICS:
-                row[f"{task}_{key}"] = aggregate(metric_values(seeds, key))
-            row[f"{task}_all_collided_seeds"] = sum(
-                s.get("collision_free_episodes") == 0 for s in seeds
-            )
-            row[f"{task}_untrained"] = untrained_marks(seeds)
-            scores = {(task, method): [{k: float(s[k]) for k, _ in IQM_METRICS} for s in seeds]}
-            for key, _ in IQM_METRICS:
-                row[f"{task}_{key}_iqm"] = method_estimate(
-                    scores, [task], method, key, "iqm", BOOTSTRAP_SEED
-                )
-        rows.append(row)
-    return rows, tasks
-
+PER_SEED_COLUMNS = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
+"""The metric columns of Table I per run, after its identifying columns."""
 
 ALL_COLLIDED = "– (all collided)"
 """MinCl's text where every episode collided (of the run; of every seed, in Table I)."""
@@ -285,7 +120,7 @@ UNTRAINED_NOTE = (
     f"at k of the cell's n seeds: {_UNTRAINED_WHAT}, and x is the untrained policy's "
     "learning-curve success (curve TCs, not the evaluation TCs), mean over those k seeds"
 )
-"""The footnote of `UNTRAINED_MARK`, under the Markdown and LaTeX Table I where it is used."""
+"""The footnote of `UNTRAINED_MARK` under the Markdown and LaTeX Table I where it is used."""
 
 UNTRAINED_RUN_NOTE = (
     f"{UNTRAINED_MARK} (untrained x): no trained policy beat the untrained one: "
@@ -299,107 +134,228 @@ POLICY_TITLES = {
 }
 """How a table's title names the evaluation it reports."""
 
-MINCL_SEEDS = f"{COLLISION_FREE_MINCL}_seeds"
-"""CSV column per task: the seeds MinCl's cell is over (those with a collision-free episode)."""
 
-UNTRAINED_SEEDS = "untrained_best_seeds"
-"""CSV column per task: the seeds at which no trained policy beat the untrained one."""
+@dataclass(frozen=True)
+class Cell:
+    """Aggregate of one metric over seeds: mean, sample std, 95 % t-interval, seed count."""
 
-UNTRAINED_FIGURE = "untrained_curve_success_mean"
-"""CSV column per task: those seeds' mean untrained (step-0) curve success (empty: none)."""
+    mean: float
+    std: float
+    ci_low: float
+    ci_high: float
+    n: int
+
+    def rate_interval(self) -> tuple[float, float]:
+        """The interval clipped to `RATE_BOUNDS` (NaN stays NaN)."""
+        return float(np.clip(self.ci_low, *RATE_BOUNDS)), float(np.clip(self.ci_high, *RATE_BOUNDS))
+
+    def text(self, digits: int = 2, interval: bool = False) -> str:
+        """``mean ± std`` (``mean`` for one seed, ``–`` for none); with ``interval`` and at
+        least two seeds followed by the `rate_interval` ``[low, high]``."""
+        if self.n == 0:
+            return "–"
+        if self.n == 1:
+            return f"{self.mean:.{digits}f}"
+        text = f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
+        if interval:
+            low, high = self.rate_interval()
+            text += f" [{low:.{digits}f}, {high:.{digits}f}]"
+        return text
 
 
-def cell_text(cell: Cell, key: str, seeds: int = 0, all_collided: int = 0) -> str:
-    """A Table I cell as the Markdown and LaTeX tables show it; for MinCl with ``seeds``
-    (the cell's seed count) and ``all_collided`` (seeds whose every episode collided) also
-    ``(n=k)`` where only k seeds have a MinCl, `ALL_COLLIDED` where none has."""
-    if key in INTERVAL_METRICS:
-        return cell.text(2, interval=True, bounds=RATE_BOUNDS)
-    text = cell.text(3 if key in CLEARANCE_METRICS else 2)
-    if key == COLLISION_FREE_MINCL:
-        if cell.n == 0 and seeds and all_collided == seeds:
-            return ALL_COLLIDED
-        if 0 < cell.n < seeds:
-            return f"{text} (n={cell.n})"
-    return text
+def aggregate(values: list[float]) -> Cell:
+    """Mean, sample std and 95 % t-interval over seeds."""
+    array = np.asarray(values, dtype=float)
+    n = len(array)
+    if n == 0:
+        return Cell(np.nan, np.nan, np.nan, np.nan, 0)
+    mean = float(array.mean())
+    if n == 1:
+        return Cell(mean, 0.0, np.nan, np.nan, 1)
+    std = float(array.std(ddof=1))
+    half = float(stats.t.ppf(0.975, n - 1) * std / np.sqrt(n))
+    return Cell(mean, std, mean - half, mean + half, n)
 
 
-def untrained_text(marks: UntrainedMarks | None, seeds: int) -> str:
+@dataclass(frozen=True)
+class UntrainedMarks:
+    """The seeds of one Table I cell at which no trained policy beat the untrained one.
+
+    Attributes:
+        seeds: how many of the cell's seeds record ``beats_untrained`` false.
+        untrained_curve_success: the mean over those seeds of the untrained step-0 point's
+            learning-curve success (NaN where ``seeds`` is 0 or none records it).
+    """
+
+    seeds: int
+    untrained_curve_success: float
+
+
+def untrained_marks(summaries: list[dict[str, Any]]) -> UntrainedMarks:
+    """`UntrainedMarks` of one cell's summaries (one per seed): only an explicit false
+    ``beats_untrained`` counts; a missing one is unknown and not counted."""
+    beaten = [s for s in summaries if s.get(BEATS_UNTRAINED) is False]
+    figures = [
+        float(s[UNTRAINED_CURVE_SUCCESS])
+        for s in beaten
+        if s.get(UNTRAINED_CURVE_SUCCESS) is not None
+    ]
+    return UntrainedMarks(len(beaten), float(np.mean(figures)) if figures else float("nan"))
+
+
+def collect_scores(frames: Frames) -> Scores:
+    """{(task, method): [`run_scores` per seed]} of ``frames`` (`load_frames`): the rates and
+    learning-curve measures the aggregates and the claims bootstrap, from Table I's
+    evaluations when ``frames`` are Table I's (the one switch, `TABLE_POLICY`)."""
+    out: dict[tuple[str, str], list[dict[str, float]]] = {}
+    for (task, method, seed, _), summary in summaries(frames.runs):
+        points = frames.curves.get((task, method, seed), NO_POINTS)
+        out.setdefault((task, method), []).append(run_scores(summary, points))
+    return out
+
+
+PER_SEED_SUMMARY: tuple[str, ...] = ("policy_step", BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS)
+PER_SEED_SUMMARY += ("collision_free_episodes", *(key for key, _ in METRICS + PER_SEED_EXTRA))
+"""The summary fields Table I per run copies (empty where a summary does not record one)."""
+
+
+def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
+    """One row per run, in task, table order, seed: `EVALUATION_KEYS` (``policy``: ``best``,
+    ``final`` or ``untrained``), `PER_SEED_SUMMARY` (for the best policy its learning-curve
+    step and whether it beat the untrained step-0 point; the collision-free episodes MinCl is
+    over), `late_curve`, the training wall time (``train_wall_min``, min) and process CPU
+    time per RL step (``train_cpu_ms_per_step``, ms; both from ``done.json``, empty for
+    `demo`), the training machine's ``numerics`` fingerprint (`distgprl.machine`) and the
+    ``config_hash``."""
+    rows = []
+    for key, summary in summaries(frames.runs):
+        row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
+        row |= {name: summary.get(name, "") for name in PER_SEED_SUMMARY}
+        row |= late_curve(frames.curves.get(key[:3], NO_POINTS))
+        wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
+        row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
+        row["train_cpu_ms_per_step"] = "" if cpu is None else round(1e3 * float(cpu), 1)
+        row |= {"numerics": summary["numerics"], "config_hash": summary["config_hash"]}
+        rows.append(row)
+    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["seed"]))
+    return rows
+
+
+def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
+    """`LATE_CURVE` values of one run's curve points (its rows of a `curves_of` frame; empty
+    strings without a trained point among the last `LATE_CURVE_POINTS`)."""
+    late = points.tail(LATE_CURVE_POINTS)
+    success = late["success_rate"][late["step"] != 0].tolist()
+    if not success:
+        return {key: "" for key, _ in LATE_CURVE}
+    return {
+        "late_curve_success": float(np.mean(success)),
+        "late_curve_success_range": float(max(success) - min(success)),
+    }
+
+
+def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rows of Table I of ``frames``' evaluations, one per method with runs, and the tasks.
+    Per task: ``<task>_seeds``, a `Cell` per `METRICS` key (``<task>_<key>``),
+    ``<task>_all_collided_seeds`` (seeds whose every episode collided), ``<task>_untrained``
+    (`UntrainedMarks`) and an `Estimate` per `IQM_METRICS` key (``<task>_<key>_iqm``)."""
+    by_cell: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for (task, method, _, _), summary in summaries(frames.runs):
+        by_cell.setdefault((task, method), []).append(summary)
+    tasks = sorted({task for task, _ in by_cell}, key=task_order)
+    rows = []
+    for method in TABLE_ORDER:
+        if not any((task, method) in by_cell for task in tasks):
+            continue
+        row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
+        for task in tasks:
+            seeds = by_cell.get((task, method), [])
+            row[f"{task}_seeds"] = len(seeds)
+            for key, _ in METRICS:
+                row[f"{task}_{key}"] = aggregate(
+                    [float(s[key]) for s in seeds if s.get(key) is not None]
+                )
+            row[f"{task}_all_collided_seeds"] = sum(
+                s.get("collision_free_episodes") == 0 for s in seeds
+            )
+            row[f"{task}_untrained"] = untrained_marks(seeds)
+            scores = {(task, method): [{k: float(s[k]) for k, _ in IQM_METRICS} for s in seeds]}
+            for key, _ in IQM_METRICS:
+                row[f"{task}_{key}_iqm"] = method_estimate(
+                    scores, [task], method, key, "iqm", BOOTSTRAP_SEED
+                )
+        rows.append(row)
+    return rows, tasks
+
+
+def untrained_text(marks: UntrainedMarks, seeds: int) -> str:
     """`` † (untrained 0.68, 5 of 5 seeds)`` where ``marks`` counts seeds (of the cell's
     ``seeds``) at which no trained policy beat the untrained one; empty otherwise."""
-    if marks is None or marks.seeds == 0:
+    if marks.seeds == 0:
         return ""
-    figure = (
-        "–" if np.isnan(marks.untrained_curve_success) else f"{marks.untrained_curve_success:.2f}"
-    )
-    return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
+    figure = marks.untrained_curve_success
+    figure_text = "–" if np.isnan(figure) else f"{figure:.2f}"
+    return f" {UNTRAINED_MARK} (untrained {figure_text}, {marks.seeds} of {seeds} seeds)"
 
 
-def _metric_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
-    """`cell_text` of ``row``'s `METRICS` of ``task``, the Success cell (the first) followed
-    by the seed count in brackets if ``seed_count`` and its `untrained_text`."""
-    n = row.get(f"{task}_seeds", 0)
-    cells = [_row_cell_text(row, task, key) for key, _ in METRICS]
-    cells[0] += f" [{n}]" if n and seed_count else ""
-    cells[0] += untrained_text(row.get(f"{task}_untrained"), n)
+def _fixed(value: Any, digits: int) -> str:
+    """A per-run cell: ``value`` to ``digits`` decimals, ``–`` where it is empty."""
+    return "–" if value == "" else f"{float(value):.{digits}f}"
+
+
+def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
+    """``row``'s `METRICS` cells of ``task`` as Markdown and LaTeX show them: rates with their
+    interval; MinCl with ``(n=k)`` where only k of the seeds have one and `ALL_COLLIDED`
+    where none has; the Success cell followed by the seed count in brackets if
+    ``seed_count`` and its `untrained_text`."""
+    seeds, collided = row[f"{task}_seeds"], row[f"{task}_all_collided_seeds"]
+    cells = []
+    for key, _ in METRICS:
+        cell: Cell = row[f"{task}_{key}"]
+        text = cell.text(3 if key in CLEARANCE_METRICS else 2, interval=key in INTERVAL_METRICS)
+        if key == COLLISION_FREE_MINCL and cell.n == 0 and seeds and collided == seeds:
+            text = ALL_COLLIDED
+        elif key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
+            text += f" (n={cell.n})"
+        cells.append(text)
+    cells[0] += f" [{seeds}]" if seeds and seed_count else ""
+    cells[0] += untrained_text(row[f"{task}_untrained"], seeds)
     return cells
 
 
-def _has_untrained_marks(rows: list[dict[str, Any]], tasks: list[str]) -> bool:
-    """Whether any cell of ``rows`` carries `UNTRAINED_MARK`."""
-    return any(
-        getattr(row.get(f"{task}_untrained"), "seeds", 0) > 0 for row in rows for task in tasks
-    )
-
-
-def _row_cell_text(row: dict[str, Any], task: str, key: str) -> str:
-    """`cell_text` of ``row``'s cell of ``task`` and ``key``."""
-    cell = row.get(f"{task}_{key}", aggregate([]))
-    seeds, collided = row.get(f"{task}_seeds", 0), row.get(f"{task}_all_collided_seeds", 0)
-    return cell_text(cell, key, seeds, collided)
-
-
-def per_seed_texts(
-    rows: list[dict[str, Any]], preset: str, policy: str = TABLE_POLICY
-) -> tuple[str, str]:
+def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tuple[str, str]:
     """(CSV, Markdown) of `per_seed_rows` of the ``policy`` evaluations."""
-    columns = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
-    fields = ["task", "method", "seed", "policy", "policy_step"]
-    fields += [BEATS_UNTRAINED, UNTRAINED_CURVE_SUCCESS, "collision_free_episodes"]
-    fields += [*(key for key, _ in columns), "train_wall_min"]
-    fields += ["train_cpu_ms_per_step", "numerics", "config_hash"]
-    table_csv = csv_text(rows, fields)
+    fields = [*EVALUATION_KEYS, *PER_SEED_SUMMARY, *(key for key, _ in LATE_CURVE)]
+    fields += ["train_wall_min", "train_cpu_ms_per_step", "numerics", "config_hash"]
     header = ["Task", "Method", "Seed", "Policy", "Collision-free episodes"]
-    header += [*(label for _, label in columns), "Train wall (min)", "Train CPU (ms/step)"]
+    header += [*(label for _, label in PER_SEED_COLUMNS), "Train wall (min)", "Train CPU (ms/step)"]
     table = []
     for row in rows:
+        step, free = row["policy_step"], row["collision_free_episodes"]
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
-        step = row["policy_step"]
         cells.append(row["policy"] + ("" if step == "" else f" (step {step})") + _run_mark(row))
-        cells.append(str(row["collision_free_episodes"]) or "–")
-        for key, _ in columns:
-            value = row[key]
-            digits = 3 if key in CLEARANCE_METRICS else 2
-            if value == "" and key == COLLISION_FREE_MINCL and row["collision_free_episodes"] == 0:
-                cells.append(ALL_COLLIDED)
-            else:
-                cells.append("–" if value == "" else f"{float(value):.{digits}f}")
-        for key in ("train_wall_min", "train_cpu_ms_per_step"):
-            cells.append("–" if row[key] == "" else f"{row[key]:.1f}")
+        cells.append(str(free) or "–")
+        for key, _ in PER_SEED_COLUMNS:
+            all_collided = row[key] == "" and key == COLLISION_FREE_MINCL and free == 0
+            cells.append(
+                ALL_COLLIDED
+                if all_collided
+                else _fixed(row[key], 3 if key in CLEARANCE_METRICS else 2)
+            )
+        cells += [_fixed(row[key], 1) for key in ("train_wall_min", "train_cpu_ms_per_step")]
         table.append(cells)
     title = f"Table I per run ({preset} preset, {POLICY_TITLES[policy]})"
     marked = any(row.get(BEATS_UNTRAINED) is False for row in rows)
     note = f"\n{UNTRAINED_RUN_NOTE}.\n" if marked else ""
-    return table_csv, markdown_table(title, header, table) + note
+    return csv_text(rows, fields), markdown_table(title, header, table) + note
 
 
 def _run_mark(row: dict[str, Any]) -> str:
     """`` † (untrained 0.44)`` for a run whose best policy did not beat the untrained one
     (``beats_untrained`` false), empty otherwise (true, or not recorded)."""
-    if row.get(BEATS_UNTRAINED) is not False:
+    if row[BEATS_UNTRAINED] is not False:
         return ""
-    figure = row.get(UNTRAINED_CURVE_SUCCESS, "")
-    return f" {UNTRAINED_MARK} (untrained {'–' if figure == '' else f'{float(figure):.2f}'})"
+    return f" {UNTRAINED_MARK} (untrained {_fixed(row[UNTRAINED_CURVE_SUCCESS], 2)})"
 
 
 def _number(value: float) -> str:
@@ -407,72 +363,59 @@ def _number(value: float) -> str:
     return "" if np.isnan(value) else f"{value:.6g}"
 
 
-def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
-    """The CSV cells of one row's ``task`` columns (`_csv_text`)."""
-    out = {f"{task}_seeds": row.get(f"{task}_seeds", 0)}
-    for key, _ in METRICS:
-        cell = row.get(f"{task}_{key}", aggregate([]))
-        for part in ("mean", "std", "ci_low", "ci_high"):
-            value = getattr(cell, part)
-            if part.startswith("ci_") and key.endswith("_rate"):
-                value = float(np.clip(value, *RATE_BOUNDS))  # NaN stays NaN
-            out[f"{task}_{key}_{part}"] = _number(value)
-    out[f"{task}_{MINCL_SEEDS}"] = row.get(f"{task}_{COLLISION_FREE_MINCL}", aggregate([])).n
-    out[f"{task}_all_collided_seeds"] = row.get(f"{task}_all_collided_seeds", 0)
-    marks = row.get(f"{task}_untrained") or UntrainedMarks(0, float("nan"))
-    out[f"{task}_{UNTRAINED_SEEDS}"] = marks.seeds
-    out[f"{task}_{UNTRAINED_FIGURE}"] = _number(marks.untrained_curve_success)
-    for key, _ in IQM_METRICS:
-        estimate = row.get(f"{task}_{key}_iqm")
-        parts = (np.nan,) * 3 if estimate is None else _iqm_parts(estimate)
-        for part, value in zip(("iqm", "iqm_low", "iqm_high"), parts, strict=True):
-            out[f"{task}_{key}_{part}"] = _number(value)
-    return out
-
-
-def _csv_text(rows: list[dict[str, Any]], tasks: list[str]) -> str:
-    """Table I's CSV: per row the method, its label and every task's `_csv_cells`."""
-    table = [
-        {"method": row["method"], "label": row["label"]}
-        | {k: v for task in tasks for k, v in _csv_cells(row, task).items()}
-        for row in rows
-    ]
-    fields = ["method", "label"]
-    fields += [k for task in tasks for k in _csv_cells({}, task)]
-    return csv_text(table, fields)
-
-
 def _iqm_parts(estimate: Estimate) -> tuple[float, float, float]:
     """(IQM, low, high) of an estimate; NaN where it has no runs or no interval."""
     if not estimate.seeds:
         return (np.nan, np.nan, np.nan)
-    if not estimate.has_interval:
-        return (estimate.point, np.nan, np.nan)
-    return (estimate.point, estimate.low, estimate.high)
+    low, high = (estimate.low, estimate.high) if estimate.has_interval else (np.nan, np.nan)
+    return (estimate.point, low, high)
 
 
-def _iqm_text(estimate: Estimate | None) -> str:
+def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
+    """One row's CSV cells of ``task``: ``<task>_seeds``; per `METRICS` key its Cell's
+    ``_mean``, ``_std``, ``_ci_low``, ``_ci_high`` (a rate's interval clipped,
+    `Cell.rate_interval`); ``<task>_<COLLISION_FREE_MINCL>_seeds`` (the seeds MinCl is over:
+    those with a collision-free episode); ``<task>_all_collided_seeds``;
+    ``<task>_untrained_best_seeds`` and ``<task>_untrained_curve_success_mean`` (the
+    `UntrainedMarks`; empty mean: none); per `IQM_METRICS` key ``_iqm``, ``_iqm_low``,
+    ``_iqm_high`` (`_iqm_parts`). Numbers to 6 significant digits, NaN empty."""
+    out = {f"{task}_seeds": row[f"{task}_seeds"]}
+    for key, _ in METRICS:
+        cell: Cell = row[f"{task}_{key}"]
+        low, high = cell.rate_interval() if key.endswith("_rate") else (cell.ci_low, cell.ci_high)
+        parts = {"mean": cell.mean, "std": cell.std, "ci_low": low, "ci_high": high}
+        out |= {f"{task}_{key}_{part}": _number(value) for part, value in parts.items()}
+    out[f"{task}_{COLLISION_FREE_MINCL}_seeds"] = row[f"{task}_{COLLISION_FREE_MINCL}"].n
+    out[f"{task}_all_collided_seeds"] = row[f"{task}_all_collided_seeds"]
+    marks = row[f"{task}_untrained"]
+    out[f"{task}_untrained_best_seeds"] = marks.seeds
+    out[f"{task}_untrained_curve_success_mean"] = _number(marks.untrained_curve_success)
+    for key, _ in IQM_METRICS:
+        iqm = zip(("iqm", "iqm_low", "iqm_high"), _iqm_parts(row[f"{task}_{key}_iqm"]), strict=True)
+        out |= {f"{task}_{key}_{part}": _number(value) for part, value in iqm}
+    return out
+
+
+def _iqm_text(estimate: Estimate) -> str:
     """``0.88 [0.80, 0.95]``, the IQM alone for one seed, ``–`` without runs."""
-    if estimate is None or not estimate.seeds:
+    if not estimate.seeds:
         return "–"
-    if not estimate.has_interval:
-        return f"{estimate.point:.2f}"
-    return f"{estimate.point:.2f} [{estimate.low:.2f}, {estimate.high:.2f}]"
+    interval = f" [{estimate.low:.2f}, {estimate.high:.2f}]" if estimate.has_interval else ""
+    return f"{estimate.point:.2f}{interval}"
 
 
 def _markdown(
-    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str
+    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str, marked: bool
 ) -> str:
     header = ["Method"]
     for t in tasks:
-        header += [f"{t.upper()} {name}" for _, name in METRICS]
-        header += [f"{t.upper()} {name}" for _, name in IQM_METRICS]
+        header += [f"{t.upper()} {name}" for _, name in METRICS + IQM_METRICS]
     table = []
     for row in rows:
         cells = [row["label"]]
         for task in tasks:
-            cells += _metric_cells(row, task, seed_count=True)
-            cells += [_iqm_text(row.get(f"{task}_{key}_iqm")) for key, _ in IQM_METRICS]
+            cells += _task_cells(row, task, seed_count=True)
+            cells += [_iqm_text(row[f"{task}_{key}_iqm"]) for key, _ in IQM_METRICS]
         table.append(cells)
     title = (
         f"Table I ({preset} preset, {POLICY_TITLES[policy]}): mean ± std over seeds (seeds "
@@ -481,12 +424,15 @@ def _markdown(
         "seeds; the IQM columns give the interquartile mean over seeds with its 95 % "
         f"stratified-bootstrap interval ({BOOTSTRAP_REPS} replicates)"
     )
-    untrained = UNTRAINED_NOTE if _has_untrained_marks(rows, tasks) else ""
-    notes = "".join(f"\n{text}.\n" for text in (MINCL_NOTE, untrained, note) if text)
+    notes = "".join(
+        f"\n{text}.\n" for text in (MINCL_NOTE, UNTRAINED_NOTE if marked else "", note) if text
+    )
     return markdown_table(title, header, table) + notes
 
 
-def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: str) -> str:
+def _latex(
+    rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: str, marked: bool
+) -> str:
     caption = (
         f"Simulation results ({preset} preset, {POLICY_TITLES[policy]}), mean "
         "$\\pm$ std over seeds; Success and Collision also give the 95\\,\\% t-interval over "
@@ -496,37 +442,31 @@ def _latex(rows: list[dict[str, Any]], tasks: list[str], preset: str, policy: st
     spans = (f"\\multicolumn{{{len(METRICS)}}}{{c}}{{{t.upper()}}}" for t in tasks)
     header = [" & " + " & ".join(spans)]
     header.append("Method & " + " & ".join(name for _ in tasks for _, name in METRICS))
-    table = []
-    for row in rows:
-        cells = [row["label"].replace("_", "\\_")]
-        for task in tasks:
-            cells += [_latex_text(text) for text in _metric_cells(row, task, seed_count=False)]
-        table.append(cells)
+    table = [
+        [row["label"].replace("_", "\\_")]
+        + [text for task in tasks for text in _task_cells(row, task, seed_count=False)]
+        for row in rows
+    ]
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
     columns = "l" + "c" * (len(tasks) * len(METRICS))
-    marked = _has_untrained_marks(rows, tasks)
-    footnote = f"{_latex_text(UNTRAINED_NOTE)}." if marked else ""
+    footnote = f"{UNTRAINED_NOTE}." if marked else ""
     return latex_table(caption, label, columns, header, table, footnote)
 
 
-def _latex_text(text: str) -> str:
-    """``text`` with the table's Unicode signs as LaTeX."""
-    replaced = text.replace("±", "$\\pm$").replace("—", "---").replace("–", "--")
-    return replaced.replace(UNTRAINED_MARK, "$^\\dagger$")
-
-
 def table1_texts(
-    rows: list[dict[str, Any]],
-    tasks: list[str],
-    preset: str,
-    note: str = "",
-    policy: str = TABLE_POLICY,
+    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str
 ) -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table I from `simulation_table`'s rows and tasks of the
     ``policy`` evaluations; ``note`` (the runs left out or substituted, `run_evaluations`)
-    goes under the Markdown table, after `MINCL_NOTE`."""
+    goes under the Markdown table, after `MINCL_NOTE` (and `UNTRAINED_NOTE` where a cell is
+    marked)."""
+    marked = any(row[f"{task}_untrained"].seeds > 0 for row in rows for task in tasks)
+    fields = ["method", "label", *(k for task in tasks for k in _csv_cells(rows[0], task))]
+    table = [
+        row | {k: v for task in tasks for k, v in _csv_cells(row, task).items()} for row in rows
+    ]
     return (
-        _csv_text(rows, tasks),
-        _markdown(rows, tasks, preset, note, policy),
-        _latex(rows, tasks, preset, policy),
+        csv_text(table, fields),
+        _markdown(rows, tasks, preset, note, policy, marked),
+        _latex(rows, tasks, preset, policy, marked),
     )

@@ -1,15 +1,10 @@
-"""Every results table of a preset from its result files only (`write_tables`).
-
-The tables themselves are made by their modules — Table I by `distgprl.report.table1`,
-Table II by `distgprl.report.table2`, the aggregates by `distgprl.report.aggregate`, the
-claims by `distgprl.report.claims` and `distgprl.report.robustness`, the onsets by
-`distgprl.report.onsets`, the paired comparisons by `distgprl.report.paired`, Table I +
-repair by `distgprl.report.repair` — and written here with a metadata sidecar per CSV
+"""Every results table of a preset from its result files only (`write_tables`): each made
+by its module (imported below), written here with a metadata sidecar per CSV
 (`write_table_files`); a table the results no longer make is removed.
 
-**Which policy** (docs/findings/protocol.md, rule 6): Table I (``table1_<preset>``), its
-per-run table, the aggregates and the claims report each run's best learning-curve policy,
-Algorithm 1's output (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
+**Which policy** (protocol v6, rule 6, docs/findings/protocol.md): Table I
+(``table1_<preset>``), its per-run table, the aggregates and the claims report each run's
+best learning-curve policy (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
 policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An
 untrained reference's one evaluation is in both.
 """
@@ -59,21 +54,39 @@ def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
     """Write every table of ``<root>/<preset>`` to ``out_dir`` (module docstring) and return
-    the paths: Table I of the best and the final policy with their per-run tables
-    (`_table_one`), the aggregates and claims of Table I's evaluations (`_claim_tables`,
-    `_study_tables`), the paired comparisons (`_paired_tables`, ``against``: another preset,
-    `_cross_preset`) and the hardware tables (`_hardware_tables`)."""
+    the paths: Table I of the best and the final policy with their per-run tables, the
+    aggregates and claims of Table I's evaluations and the studies beside the preset, the
+    paired comparisons (and with another preset, ``against``: `_cross_preset`) and the
+    hardware tables."""
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
     scores = collect_scores(best)  # the claims follow Table I
-    tables += [*_claim_tables(scores, preset), *_study_tables(root, preset, best, scores)]
-    tables += [*_paired_tables(root, preset, cross, against), *_hardware_tables(root, preset)]
+    tables += [
+        (
+            f"aggregates_{preset}",
+            CSV_MD,
+            aggregate_texts(scores, preset),
+            "mean, IQM and probability of improvement over seeds with 95 % "
+            "stratified-bootstrap intervals (distgprl.report.aggregate)",
+        ),
+        (
+            f"claims_{preset}",
+            CSV_MD,
+            claims_texts(scores, preset),
+            "each claim of the paper, the statistic testing it and the verdict "
+            "(rules: distgprl.report.claims)",
+        ),
+        *_study_tables(root, preset, best, scores),
+        *_paired_tables(root, preset),
+        *([] if cross is None else [cross]),
+        *_hardware_tables(root, preset),
+    ]
     out_dir = Path(out_dir)
+    extra = {"rate_intervals_clipped_to": list(RATE_BOUNDS)}
     written = []
     for stem, suffixes, texts, description in tables:
-        extra = {"rate_intervals_clipped_to": list(RATE_BOUNDS)}
         written += write_table_files(out_dir / stem, suffixes, texts, preset, description, **extra)
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
@@ -92,41 +105,22 @@ def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> li
     if not rows:
         raise UserInputError(f"{Path(root) / preset}: no summary.json files; run a sweep first")
     stem = f"table1_{preset}" if policy == TABLE_POLICY else f"table1_{policy}_{preset}"
-    note = frames.runs.attrs["note"]
     which = "best learning-curve policy" if policy == "best" else f"{policy} policy"
-    about = (
-        f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
-        "over seeds (ci_low, ci_high; empty for one seed)"
-    )
-    per_run = per_seed_texts(per_seed_rows(frames), preset, policy)
+    texts = table1_texts(rows, tasks, preset, frames.runs.attrs["note"], policy)
     return [
-        (stem, CSV_MD_TEX, table1_texts(rows, tasks, preset, note, policy), about),
+        (
+            stem,
+            CSV_MD_TEX,
+            texts,
+            f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
+            "over seeds (ci_low, ci_high; empty for one seed)",
+        ),
         (
             f"{stem}_per_seed",
             CSV_MD,
-            per_run,
+            per_seed_texts(per_seed_rows(frames), preset, policy),
             f"Table I per run ({which}): every seed's metrics, late learning-curve means and "
             "training wall time",
-        ),
-    ]
-
-
-def _claim_tables(scores: Scores, preset: str) -> list[Table]:
-    """The aggregates and the claims table of Table I's evaluations (``scores``)."""
-    return [
-        (
-            f"aggregates_{preset}",
-            CSV_MD,
-            aggregate_texts(scores, preset),
-            "mean, IQM and probability of improvement over seeds with 95 % "
-            "stratified-bootstrap intervals (distgprl.report.aggregate)",
-        ),
-        (
-            f"claims_{preset}",
-            CSV_MD,
-            claims_texts(scores, preset),
-            "each claim of the paper, the statistic testing it and the verdict "
-            "(rules: distgprl.report.claims)",
         ),
     ]
 
@@ -184,11 +178,9 @@ def _cross_preset(root: str | Path, preset: str, against: str | None) -> Table |
     )
 
 
-def _paired_tables(
-    root: str | Path, preset: str, cross: Table | None, against: str | None
-) -> Iterator[Table]:
+def _paired_tables(root: str | Path, preset: str) -> Iterator[Table]:
     """Every run paired TC by TC with each of `REFERENCES` (on the preset's TCs and on each
-    supplementary evaluation's), each run's best policy with its final one, then ``cross``."""
+    supplementary evaluation's), and each run's best policy with its final one."""
     for reference in REFERENCES:
         for episodes in (None, *supplementary_sizes(root, preset)):
             pairs = paired_rows(root, preset, reference, episodes)
@@ -205,8 +197,6 @@ def _paired_tables(
         paired_texts(best, preset, FINAL_POLICY) if best else None,
         "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
     )
-    if cross is not None:
-        yield cross
 
 
 def _hardware_tables(root: str | Path, preset: str) -> list[Table]:
