@@ -97,8 +97,8 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
             for seed, (steps, values) in run_curves(curves[preset], task, method).items():
                 onset = onset_step(steps, values["success_rate"], _threshold(study))
                 early = "" if rule is None else int(onset is not None and onset <= rule.by_step)
-                row = {"study": study.name, "task": task, "reading": reading, "preset": preset}
-                row |= {"method": method, "seed": seed, "early": early}
+                keys = {"study": study.name, "task": task, "reading": reading, "preset": preset}
+                row: dict[str, Any] = keys | {"method": method, "seed": seed, "early": early}
                 row["onset_step"] = "" if onset is None else onset
                 for policy in ("best", "final"):
                     summary = evaluations[(preset, policy)].get((task, method, seed), {})
