@@ -30,6 +30,9 @@ RETURN_TERMS = (("r_sd", "return_sd"), ("r_ga", "return_ga"))
 GRADIENT_ITEMS = (("l_sim", "grad_sim"), ("l_hap", "grad_hap"), ("l_hap_active", "grad_hap_active"))
 """(item, progress column) of the gradient shares, each against ``grad_q``."""
 
+ACTIVE = "hap_active_fraction"
+"""The ``progress.csv`` column of the share of samples outside C_safe."""
+
 IDLE_PROGRESS = 0.05
 """`plateau_cell`: an episode whose r_tc is below this share of the task's progress weight
 (and that neither succeeded nor collided) made no task progress worth the name."""
@@ -189,23 +192,13 @@ def gradient_points(rows: Sequence[Mapping[str, Any]]) -> dict[str, Mapping[str,
     return {point: recorded[index] for point, index in zip(POINTS, picks, strict=True)}
 
 
-def _gradient_share(row: Mapping[str, Any], column: str) -> tuple[str, float | None]:
-    """(status, grad_column / grad_q): status ``ok``, ``missing`` (column absent or empty
-    without a reason) or ``inactive`` (``grad_hap_active`` empty because no sample was outside
-    C_safe)."""
-    value = _number(row.get(column))
-    if value is not None:
-        return "ok", value / float(row["grad_q"])
-    if column == "grad_hap_active" and _number(row.get("hap_active_fraction")) == 0.0:
-        return "inactive", None
-    return "missing", None
-
-
 def gradient_cells(
     task: str, method: str, runs: Sequence[Sequence[Mapping[str, Any]]]
 ) -> list[GradientCell]:
     """The `GradientCell` of every item the method uses (L_sim, L_hap) and point, from the
-    ``progress.csv`` rows of each of its runs (one sequence per seed)."""
+    ``progress.csv`` rows of each of its runs (one sequence per seed). A seed whose
+    ``grad_hap_active`` is empty with ``hap_active_fraction`` = 0 is inactive, any other
+    empty cell missing."""
     spec = METHODS[method]
     picked = [gradient_points(rows) for rows in runs]
     cells = []
@@ -214,22 +207,22 @@ def gradient_cells(
             continue
         for point in POINTS:
             rows = [points[point] for points in picked if point in points]
-            status = [_gradient_share(row, column) for row in rows]
-            fractions = [_number(row.get("hap_active_fraction")) for row in rows]
-            cell = GradientCell(
-                task,
-                method,
-                item,
-                point,
-                steps=tuple(int(float(row["step"])) for row in rows),
-                shares=tuple(share for _, share in status if share is not None),
-                missing=len(picked) - len(rows) + sum(s == "missing" for s, _ in status),
-                inactive=sum(s == "inactive" for s, _ in status),
-                active_fraction=tuple(
-                    f for f in fractions if f is not None and item == "l_hap_active"
-                ),
+            shares, missing, inactive = [], len(picked) - len(rows), 0
+            for row in rows:
+                value = _number(row.get(column))
+                if value is not None:
+                    shares.append(value / float(row["grad_q"]))
+                elif column == "grad_hap_active" and _number(row.get(ACTIVE)) == 0.0:
+                    inactive += 1
+                else:
+                    missing += 1
+            fractions = [_number(row.get(ACTIVE)) for row in rows if item == "l_hap_active"]
+            steps = tuple(int(float(row["step"])) for row in rows)
+            active = tuple(fraction for fraction in fractions if fraction is not None)
+            shared = tuple(shares)
+            cells.append(
+                GradientCell(task, method, item, point, steps, shared, missing, inactive, active)
             )
-            cells.append(cell)
     return cells
 
 
