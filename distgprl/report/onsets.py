@@ -114,15 +114,9 @@ class RuleVerdict:
     reading and task learned early; ``verdict`` is the rule's conclusion, "awaiting", or
     "void" where the rule it needs (`OnsetRule.given`) did not give its ``if_early``."""
 
-    rule: str
-    reading: str
     early: int
     runs: int
     verdict: str
-
-    @property
-    def text(self) -> str:
-        return f"{self.early} of {self.runs} seeds learn early: {self.verdict}"
 
 
 def _early_count(
@@ -154,7 +148,7 @@ def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> RuleVer
             verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
         elif before != given.if_early:
             verdict = f"void: {rule.given} gave {_short(before)}"
-    return RuleVerdict(rule.name, reading.label, early, runs, verdict)
+    return RuleVerdict(early, runs, verdict)
 
 
 def _short(conclusion: str) -> str:
@@ -228,21 +222,17 @@ def onset_texts(
     rule_tasks = {r.task for _, r in study.rules}
     for task in tasks:
         by_step = rule.by_step if rule is not None and task in rule_tasks else None
-        mine = [r for r in rows if r["task"] == task]
-        inside = [r for r in mine if r["seed"] in study.seeds]
-        beyond = [r for r in mine if r["seed"] not in study.seeds]
-        if inside:
-            parts.append(_onset_table(f"**{task.upper()}**", inside, study, threshold, by_step))
-        if beyond:
-            title = (
-                f"**{task.upper()}, seeds beyond the study's {seeds_text(study.seeds)}** (no "
-                "table, figure or verdict across readings reads them; the rules below name "
-                "their seeds)"
-            )
-            parts.append(_onset_table(title, beyond, study, threshold, by_step))
+        beyond = (
+            f"**{task.upper()}, seeds beyond the study's {seeds_text(study.seeds)}** (no "
+            "table, figure or verdict across readings reads them; the rules below name "
+            "their seeds)"
+        )
+        for title, inside in ((f"**{task.upper()}**", True), (beyond, False)):
+            mine = [r for r in rows if r["task"] == task and (r["seed"] in study.seeds) == inside]
+            if mine:
+                parts.append(_onset_table(title, mine, study, threshold, by_step))
     for reading, own in study.rules:
-        verdict = rule_verdict(rows, study, own.name)
-        count = len(own.seeds)
+        result = rule_verdict(rows, study, own.name)
         middle = ""
         if own.at_least - own.at_most > 1:  # a count between the two is possible
             middle = f", otherwise {_short(own.if_between) if own.if_between else 'undecided'}"
@@ -253,10 +243,9 @@ def onset_texts(
             f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
             f"{own.task.upper()} seeds {seeds_text(own.seeds)} a run learns early if its "
             f"curve reaches {own.threshold:g} success after step 0 and by step "
-            f"{step_text(own.by_step)}; {own.at_least} or more of {count} → "
-            f"{_short(own.if_early)}, "
-            f"{own.at_most} or fewer → {_short(own.if_late)}{middle}"
-            f"{needs}): **{verdict.text}**"
+            f"{step_text(own.by_step)}; {own.at_least} or more of {len(own.seeds)} → "
+            f"{_short(own.if_early)}, {own.at_most} or fewer → {_short(own.if_late)}{middle}"
+            f"{needs}): **{result.early} of {result.runs} seeds learn early: {result.verdict}**"
         )
     for reading in study.readings:
         for task in sorted({own.task for own in reading.rules}):
