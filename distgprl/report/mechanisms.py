@@ -230,26 +230,24 @@ def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
     return rows
 
 
+def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
+    """The ``span`` (``one_step`` or ``episode``) reach's min–max (m) per axis of ``axes``."""
+    return " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
+
+
 def _reach_markdown(table: MechanismTable) -> str:
     rows = []
     for (task, method), group in _reach_groups(table.reach):
         by_axis = sorted(group, key=lambda row: "xyz".index(row["axis"]))
-
-        def span(low: str, high: str, axes: list[Mapping[str, Any]] = by_axis) -> str:
-            return " / ".join(f"{row[low]:.3f}–{row[high]:.3f}" for row in axes)
-
-        kind = group[0]["kind"]
-        gate = group[0].get("gate_max")
-        note = kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}"
+        kind, gate = group[0]["kind"], group[0].get("gate_max")
         covers = covers_tc_range(group)
         rows.append(
             [
                 task.upper(),
                 _label(method),
-                note,
+                kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
                 " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
-                span("one_step_min_m", "one_step_max_m"),
-                span("episode_min_m", "episode_max_m"),
+                *(_spans(by_axis, span) for span in ("one_step", "episode")),
                 covers + MARKS.get(covers, ""),
             ]
         )

@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 from distgprl.config import load_config
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.onsets import (
-    THRESHOLD,
     onset_rows,
+    onset_threshold,
     run_label,
     seeds_text,
     step_text,
@@ -135,8 +135,7 @@ def plot_onset_figure(
     rows = onset_rows(root, study, tasks)
     if not rows:  # nothing to draw (`write_onset_figure` writes no file)
         return matplotlib.figure.Figure(), 0
-    rule = study_rule(study)
-    threshold = rule.threshold if rule else THRESHOLD
+    rule, threshold = study_rule(study), onset_threshold(study)
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset

@@ -74,7 +74,7 @@ def run_label(study: Study, method: str, reading: str) -> str:
     return reading
 
 
-def _threshold(study: Study) -> float:
+def onset_threshold(study: Study) -> float:
     """The success that counts as learned: the study's rule's, else `THRESHOLD`."""
     rule = study_rule(study)
     return rule.threshold if rule else THRESHOLD
@@ -95,7 +95,7 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
     for preset, method, reading in onset_panels(study):
         for task in tasks:
             for seed, (steps, values) in run_curves(curves[preset], task, method).items():
-                onset = onset_step(steps, values["success_rate"], _threshold(study))
+                onset = onset_step(steps, values["success_rate"], onset_threshold(study))
                 early = "" if rule is None else int(onset is not None and onset <= rule.by_step)
                 keys = {"study": study.name, "task": task, "reading": reading, "preset": preset}
                 row: dict[str, Any] = keys | {"method": method, "seed": seed, "early": early}
@@ -210,7 +210,7 @@ def onset_texts(
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
-    rule, threshold = study_rule(study), _threshold(study)
+    rule, threshold = study_rule(study), onset_threshold(study)
     parts = [
         f"When each run learns ({study.name} study, {preset} preset): per method, reading and "
         "seed, "
