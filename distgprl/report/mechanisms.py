@@ -332,22 +332,17 @@ OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (insid
 
 def _verdict(label: str, judged: list[tuple[str, str, float | None]]) -> str:
     """One line: how many cells meet the criterion, which do not, and the term's verdict."""
-    yes = [name for name, verdict, _ in judged if verdict == "yes"]
     no = [(name, value) for name, verdict, value in judged if verdict == "no"]
-    other = Counter(verdict for _, verdict, _ in judged if verdict not in ("yes", "no"))
-    decided = len(yes) + len(no)
+    other = Counter(verdict for _, verdict, _ in judged)
+    decided = other.pop("yes", 0) + other.pop("no", 0)
     if not decided:
-        outcome = "undecided (no cell where it acts and is recorded)"
-    elif no:
-        outcome = "does not meet the criterion"
+        line = f"{label}: undecided (no cell where it acts and is recorded)"
     else:
-        outcome = "meets the criterion"
-    line = f"{label}: {outcome}"
-    if decided:
-        line += f" — ≥ {100 * CRITERION:.0f} % in {len(yes)} of {decided} cells"
+        outcome = "does not meet the criterion" if no else "meets the criterion"
+        line = f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of "
+        line += f"{decided} cells"
     if len(no) > LISTED_FAILURES:
-        ranked = sorted(no, key=lambda item: item[1] if item[1] is not None else 0.0)
-        (low, low_value), (high, high_value) = ranked[0], ranked[-1]
+        (low, low_value), *_, (high, high_value) = sorted(no, key=lambda item: item[1] or 0.0)
         line += (
             f"; below in {len(no)} cells, from {low} {_percent(low_value)} "
             f"to {high} {_percent(high_value)}"
