@@ -1,15 +1,13 @@
-"""The cells of the mechanism table (`distgprl.report.mechanisms`): the shaping shares of
-the return and the regulariser shares of the actor gradient, computed from the rows of the
-result files (evaluation CSVs, ``progress.csv``), and the table they make with the reach rows.
-
-Pure functions of the rows they are given; no file is read here. Imports neither torch nor
-pybullet.
+"""The cells of the mechanism table (`distgprl.report.mechanisms`; protocol v6, rule 7 in
+docs/findings/protocol.md): the shaping shares of the return, the regulariser shares of the
+actor gradient and the r_ga plateau, pure functions of result-file rows (evaluation CSVs,
+``progress.csv``) given as mappings; no file is read here, neither torch nor pybullet imported.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,29 +27,15 @@ POINTS = ("first", "middle", "last")
 RETURN_TERMS = (("r_sd", "return_sd"), ("r_ga", "return_ga"))
 """(term, evaluation column) of the shaping shares; ``return_ga`` holds lambda_ga r_ga."""
 
-GRADIENT_ITEMS = (
-    ("l_sim", "grad_sim"),
-    ("l_hap", "grad_hap"),
-    ("l_hap_active", "grad_hap_active"),
-)
+GRADIENT_ITEMS = (("l_sim", "grad_sim"), ("l_hap", "grad_hap"), ("l_hap_active", "grad_hap_active"))
 """(item, progress column) of the gradient shares, each against ``grad_q``."""
 
+ACTIVE = "hap_active_fraction"
+"""The ``progress.csv`` column of the share of samples outside C_safe."""
 
-@dataclass(frozen=True)
-class EpisodeRatios:
-    """The shaping ratios of one evaluation file's episodes that pass within d_min.
-
-    Attributes:
-        episodes: episodes in the file.
-        within: episodes whose ``min_clearance`` < d_min.
-        zero_tc: of those, the episodes whose r_tc sums to 0 (no ratio; left out).
-        ratios: per term (``r_sd``, ``r_ga``), |sum term| / |sum r_tc| of the others.
-    """
-
-    episodes: int
-    within: int
-    zero_tc: int
-    ratios: dict[str, list[float]]
+IDLE_PROGRESS = 0.05
+"""`plateau_cell`: an episode whose r_tc is below this share of the task's progress weight
+(and that neither succeeded nor collided) made no task progress worth the name."""
 
 
 def _number(value: Any) -> float | None:
@@ -61,6 +45,26 @@ def _number(value: Any) -> float | None:
     return float(value)
 
 
+def _mean(values: Sequence[float]) -> float | None:
+    return float(np.mean(values)) if values else None
+
+
+def _judged(mean: float) -> str:
+    return "yes" if mean >= CRITERION else "no"
+
+
+@dataclass(frozen=True)
+class EpisodeRatios:
+    """The shaping ratios of one evaluation file: its ``episodes``, those ``within`` d_min
+    (``min_clearance`` < d_min), of those the ``zero_tc`` ones whose r_tc sums to 0 (no ratio,
+    left out), and per term (``r_sd``, ``r_ga``) the others' |sum term| / |sum r_tc|."""
+
+    episodes: int
+    within: int
+    zero_tc: int
+    ratios: dict[str, list[float]]
+
+
 def episode_ratios(rows: Sequence[Mapping[str, Any]], d_min: float) -> EpisodeRatios | None:
     """`EpisodeRatios` of evaluation ``rows`` with ``d_min`` (m); None where the rows do not
     record the return's parts (written before ``return_tc``/``return_sd``/``return_ga``)."""
@@ -68,30 +72,20 @@ def episode_ratios(rows: Sequence[Mapping[str, Any]], d_min: float) -> EpisodeRa
     if any(_number(row.get(column)) is None for row in rows for column in columns):
         return None
     within = [row for row in rows if float(row["min_clearance"]) < d_min]
-    ratios: dict[str, list[float]] = {term: [] for term, _ in RETURN_TERMS}
-    zero = 0
-    for row in within:
-        task = abs(float(row["return_tc"]))
-        if task == 0.0:
-            zero += 1
-            continue
-        for term, column in RETURN_TERMS:
-            ratios[term].append(abs(float(row[column])) / task)
-    return EpisodeRatios(len(rows), len(within), zero, ratios)
+    paid = [row for row in within if float(row["return_tc"]) != 0.0]
+    ratios = {
+        term: [abs(float(row[column])) / abs(float(row["return_tc"])) for row in paid]
+        for term, column in RETURN_TERMS
+    }
+    return EpisodeRatios(len(rows), len(within), len(within) - len(paid), ratios)
 
 
 @dataclass(frozen=True)
 class ReturnCell:
-    """One shaping term's share of the return for a method, task and policy, over seeds.
-
-    Attributes:
-        task, method, policy, term: what the cell is (term ``r_sd`` or ``r_ga``, the latter
-            lambda_ga r_ga).
-        seeds: runs pooled; ``recorded``: how many of them record the return's parts.
-        episodes, within, zero_tc: episodes, those within d_min, those with r_tc = 0 (summed
-            over the recorded runs).
-        shares: the per-episode ratios used (within d_min, r_tc ≠ 0).
-    """
+    """One shaping term's share of the return (term ``r_sd`` or ``r_ga``, the latter
+    lambda_ga r_ga) for a method, task and policy: ``seeds`` runs pooled, ``recorded`` of them
+    recording the return's parts; ``episodes``, ``within`` d_min and ``zero_tc`` summed over
+    the recorded runs; ``shares`` the per-episode ratios (within d_min, r_tc ≠ 0)."""
 
     task: str
     method: str
@@ -106,7 +100,7 @@ class ReturnCell:
 
     @property
     def mean(self) -> float | None:
-        return float(np.mean(self.shares)) if self.shares else None
+        return _mean(self.shares)
 
     @property
     def median(self) -> float | None:
@@ -118,127 +112,7 @@ class ReturnCell:
         within d_min with a nonzero r_tc: the term never acted)."""
         if self.recorded == 0:
             return NOT_RECORDED
-        mean = self.mean
-        if mean is None:
-            return "n/a"
-        return "yes" if mean >= CRITERION else "no"
-
-
-@dataclass(frozen=True)
-class GradientCell:
-    """One regulariser's share of the actor gradient at one learning-curve point, over seeds.
-
-    Attributes:
-        task, method, item, point: item ``l_sim``, ``l_hap`` (all samples) or
-            ``l_hap_active`` (the samples outside C_safe); point one of `POINTS`.
-        steps: the points' RL steps, one per seed that has the point.
-        shares: per seed recording it, grad_item / grad_q.
-        missing: seeds whose file lacks the column (or, for ``l_hap_active``, has no sample
-            outside C_safe; see ``inactive``).
-        inactive: seeds with ``hap_active_fraction`` = 0 (``l_hap_active`` only: no sample
-            outside C_safe, the term does not act).
-        active_fraction: per seed recording it, ``hap_active_fraction``.
-    """
-
-    task: str
-    method: str
-    item: str
-    point: str
-    steps: tuple[int, ...]
-    shares: tuple[float, ...]
-    missing: int = 0
-    inactive: int = 0
-    active_fraction: tuple[float, ...] = field(default=())
-
-    @property
-    def mean(self) -> float | None:
-        return float(np.mean(self.shares)) if self.shares else None
-
-    @property
-    def verdict(self) -> str:
-        """``yes``/``no`` against `CRITERION` (the mean over the seeds recording it),
-        ``not recorded``, ``inactive`` (L_hap outside C_safe never acted) or ``n/a``
-        (``l_hap`` over all samples: reported, not judged — the criterion is outside
-        C_safe)."""
-        if self.item == "l_hap":
-            return "n/a"
-        mean = self.mean
-        if mean is None:
-            return "inactive" if self.inactive and not self.missing else NOT_RECORDED
-        return "yes" if mean >= CRITERION else "no"
-
-
-def gradient_points(rows: Sequence[Mapping[str, Any]]) -> dict[str, Mapping[str, Any]]:
-    """The first, middle and last `progress.csv` rows (by step) that recorded the actor's
-    gradient norms (``grad_q`` > 0; the step-0 point, before any transition, has none):
-    `POINTS` -> row; empty if no row did. The middle one is row (n - 1) // 2 of n."""
-    recorded = sorted(
-        (row for row in rows if (_number(row.get("grad_q")) or 0.0) > 0.0),
-        key=lambda row: int(float(row["step"])),
-    )
-    if not recorded:
-        return {}
-    picks = (0, (len(recorded) - 1) // 2, len(recorded) - 1)
-    return {point: recorded[index] for point, index in zip(POINTS, picks, strict=True)}
-
-
-def _gradient_share(row: Mapping[str, Any], column: str) -> tuple[str, float | None]:
-    """(status, grad_column / grad_q): status ``ok``, ``missing`` (column absent or empty
-    without a reason) or ``inactive`` (``grad_hap_active`` empty because no sample was outside
-    C_safe)."""
-    value = _number(row.get(column))
-    if value is not None:
-        return "ok", value / float(row["grad_q"])
-    if column == "grad_hap_active" and _number(row.get("hap_active_fraction")) == 0.0:
-        return "inactive", None
-    return "missing", None
-
-
-def gradient_cells(
-    task: str, method: str, runs: Sequence[Sequence[Mapping[str, Any]]]
-) -> list[GradientCell]:
-    """The `GradientCell` of every item the method uses (L_sim, L_hap) and point, from the
-    ``progress.csv`` rows of each of its runs (one sequence per seed)."""
-    spec = METHODS[method]
-    items = [
-        (item, column)
-        for item, column in GRADIENT_ITEMS
-        if (spec.similarity_loss if item == "l_sim" else spec.hap_prior)
-    ]
-    picked = [gradient_points(rows) for rows in runs]
-    cells = []
-    for item, column in items:
-        for point in POINTS:
-            steps, shares, fractions = [], [], []
-            missing = inactive = 0
-            for points in picked:
-                if point not in points:
-                    missing += 1
-                    continue
-                row = points[point]
-                steps.append(int(float(row["step"])))
-                status, share = _gradient_share(row, column)
-                if share is not None:
-                    shares.append(share)
-                missing += status == "missing"
-                inactive += status == "inactive"
-                fraction = _number(row.get("hap_active_fraction"))
-                if item == "l_hap_active" and fraction is not None:
-                    fractions.append(fraction)
-            cells.append(
-                GradientCell(
-                    task,
-                    method,
-                    item,
-                    point,
-                    tuple(steps),
-                    tuple(shares),
-                    missing,
-                    inactive,
-                    tuple(fractions),
-                )
-            )
-    return cells
+        return "n/a" if self.mean is None else _judged(self.mean)
 
 
 def return_cells(
@@ -249,8 +123,7 @@ def return_cells(
 ) -> list[ReturnCell]:
     """The `ReturnCell` of r_sd and lambda_ga r_ga for a method's ``policy`` evaluations,
     ``runs`` = (evaluation rows, d_min in m) per seed."""
-    per_run = [episode_ratios(rows, d_min) for rows, d_min in runs]
-    recorded = [r for r in per_run if r is not None]
+    recorded = [r for r in (episode_ratios(rows, d_min) for rows, d_min in runs) if r is not None]
     return [
         ReturnCell(
             task,
@@ -268,24 +141,98 @@ def return_cells(
     ]
 
 
-IDLE_PROGRESS = 0.05
-"""`plateau_cell`: an episode whose r_tc is below this share of the task's progress weight
-(and that neither succeeded nor collided) made no task progress worth the name."""
+@dataclass(frozen=True)
+class GradientCell:
+    """One regulariser's share of the actor gradient at one learning-curve point (one of
+    `POINTS`), over seeds: item ``l_sim``, ``l_hap`` (all samples) or ``l_hap_active`` (the
+    samples outside C_safe); ``steps`` the point's RL step per seed that has it; ``shares``
+    grad_item / grad_q per seed recording it; ``missing`` the seeds without the point or the
+    column; ``inactive`` the seeds with ``hap_active_fraction`` = 0 (``l_hap_active`` only:
+    no sample outside C_safe, the term does not act); ``active_fraction`` per seed recording
+    it, ``hap_active_fraction`` (``l_hap_active`` only)."""
+
+    task: str
+    method: str
+    item: str
+    point: str
+    steps: tuple[int, ...]
+    shares: tuple[float, ...]
+    missing: int = 0
+    inactive: int = 0
+    active_fraction: tuple[float, ...] = ()
+
+    @property
+    def mean(self) -> float | None:
+        return _mean(self.shares)
+
+    @property
+    def verdict(self) -> str:
+        """``yes``/``no`` against `CRITERION` (the mean over the seeds recording it),
+        ``not recorded``, ``inactive`` (L_hap outside C_safe never acted) or ``n/a``
+        (``l_hap`` over all samples: reported, not judged — the criterion is outside
+        C_safe)."""
+        if self.item == "l_hap":
+            return "n/a"
+        if self.mean is None:
+            return "inactive" if self.inactive and not self.missing else NOT_RECORDED
+        return _judged(self.mean)
+
+
+def gradient_points(rows: Sequence[Mapping[str, Any]]) -> dict[str, Mapping[str, Any]]:
+    """The first, middle and last `progress.csv` rows (by step) that recorded the actor's
+    gradient norms (``grad_q`` > 0; the step-0 point, before any transition, has none):
+    `POINTS` -> row; empty if no row did. The middle one is row (n - 1) // 2 of n."""
+    recorded = sorted(
+        (row for row in rows if (_number(row.get("grad_q")) or 0.0) > 0.0),
+        key=lambda row: int(float(row["step"])),
+    )
+    if not recorded:
+        return {}
+    picks = (0, (len(recorded) - 1) // 2, len(recorded) - 1)
+    return {point: recorded[index] for point, index in zip(POINTS, picks, strict=True)}
+
+
+def gradient_cells(
+    task: str, method: str, runs: Sequence[Sequence[Mapping[str, Any]]]
+) -> list[GradientCell]:
+    """The `GradientCell` of every item the method uses (L_sim, L_hap) and point, from the
+    ``progress.csv`` rows of each of its runs (one sequence per seed). A seed whose
+    ``grad_hap_active`` is empty with ``hap_active_fraction`` = 0 is inactive, any other
+    empty cell missing."""
+    spec = METHODS[method]
+    picked = [gradient_points(rows) for rows in runs]
+    cells = []
+    for item, column in GRADIENT_ITEMS:
+        if not (spec.similarity_loss if item == "l_sim" else spec.hap_prior):
+            continue
+        for point in POINTS:
+            rows = [points[point] for points in picked if point in points]
+            shares, missing, inactive = [], len(picked) - len(rows), 0
+            for row in rows:
+                value = _number(row.get(column))
+                if value is not None:
+                    shares.append(value / float(row["grad_q"]))
+                elif column == "grad_hap_active" and _number(row.get(ACTIVE)) == 0.0:
+                    inactive += 1
+                else:
+                    missing += 1
+            fractions = [_number(row.get(ACTIVE)) for row in rows if item == "l_hap_active"]
+            steps = tuple(int(float(row["step"])) for row in rows)
+            active = tuple(fraction for fraction in fractions if fraction is not None)
+            shared = tuple(shares)
+            cells.append(
+                GradientCell(task, method, item, point, steps, shared, missing, inactive, active)
+            )
+    return cells
 
 
 @dataclass(frozen=True)
 class PlateauCell:
-    """How often a distance-reward method's policy idles on the r_ga plateau: evaluation
-    episodes with no success, no collision and r_tc < `IDLE_PROGRESS` of the task's progress
-    weight, pooled over seeds, and the mean lambda_ga r_ga they collect (the alignment reward
-    paid for moving away from the obstacles instead of doing the task; docs/FINDINGS.md,
-    "... the attractor is r_ga, not r_sd").
-
-    Attributes:
-        task, method, policy: what the cell is.
-        seeds, episodes: runs pooled and their evaluation episodes.
-        idle: the idle episodes; ``idle_ga``: their lambda_ga r_ga values.
-    """
+    """How often a distance-reward method's policy idles on the r_ga plateau: of ``episodes``
+    evaluation episodes of ``seeds`` runs, the ``idle`` ones (no success, no collision, r_tc <
+    `IDLE_PROGRESS` of the task's progress weight) and their lambda_ga r_ga values
+    ``idle_ga`` (the alignment reward paid for moving away from the obstacles instead of doing
+    the task; docs/FINDINGS.md, "... the attractor is r_ga, not r_sd")."""
 
     task: str
     method: str
@@ -301,7 +248,7 @@ class PlateauCell:
 
     @property
     def mean_ga(self) -> float | None:
-        return float(np.mean(self.idle_ga)) if self.idle_ga else None
+        return _mean(self.idle_ga)
 
 
 def plateau_cell(
@@ -315,16 +262,13 @@ def plateau_cell(
     episodes, idle_ga, seeds = 0, [], 0
     for rows, progress_weight in runs:
         recorded = [r for r in rows if _number(r.get("return_tc")) is not None]
-        if not recorded:
-            continue
-        seeds += 1
+        seeds += bool(recorded)
         episodes += len(recorded)
         for row in recorded:
-            tc = _number(row["return_tc"])
-            ga = _number(row.get("return_ga"))
             done = bool(round(float(row["success"]))) or bool(round(float(row["collision"])))
-            if not done and tc is not None and tc < IDLE_PROGRESS * progress_weight:
-                idle_ga.append(ga if ga is not None else 0.0)
+            if not done and float(row["return_tc"]) < IDLE_PROGRESS * progress_weight:
+                ga = _number(row.get("return_ga"))
+                idle_ga.append(0.0 if ga is None else ga)
     if not seeds:
         return None
     return PlateauCell(task, method, policy, seeds, episodes, len(idle_ga), tuple(idle_ga))
@@ -332,19 +276,11 @@ def plateau_cell(
 
 @dataclass(frozen=True)
 class MechanismTable:
-    """The mechanism table's three parts and the runs left out.
-
-    Attributes:
-        preset: the preset's name.
-        reach: one row per trainable method, task and position axis
-            (`distgprl.experiments.mechanisms.reach_rows`: ``task``, ``method``, ``axis``,
-            ``kind``, ``one_step_min_m``, ``one_step_max_m``, ``episode_min_m``,
-            ``episode_max_m``, ``tc_range_m``, ``gate_max``).
-        returns: the shaping shares of the return (`return_cells`).
-        gradients: the regulariser shares of the actor gradient (`gradient_cells`).
-        note: which runs were left out (`distgprl.report.runs.RunSelection.note`).
-        plateau: the idle episodes on the r_ga plateau (`plateau_cell`).
-    """
+    """The mechanism table's parts: ``reach``, one row per trainable method, task and position
+    axis (`distgprl.experiments.mechanisms.reach_rows`: ``task``, ``method``, ``axis``,
+    ``kind``, ``one_step_min_m``, ``one_step_max_m``, ``episode_min_m``, ``episode_max_m``,
+    ``tc_range_m``, ``gate_max``); the `return_cells`, `gradient_cells` and `plateau_cell`
+    cells; ``note`` which runs were left out (`distgprl.report.runs.RunSelection.note`)."""
 
     preset: str
     reach: tuple[Mapping[str, Any], ...]

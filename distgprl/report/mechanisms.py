@@ -1,25 +1,26 @@
-"""The mechanism table (docs/findings/protocol.md, rule 7): whether the paper's mechanisms
-act, for a preset's runs, in three parts — the reach of a raw action against the TC range
-(rows of `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the
-return over the evaluation episodes that pass within d_min, and the regulariser shares of the
-actor gradient at the first, middle and last learning-curve points — each share marked ✓/✗
-against the pre-registered `CRITERION` (≥ 5 %; L_hap outside C_safe), each term with a
-one-line verdict (`verdict_lines`). The cells are `distgprl.report.mechanism_shares`'; this
-module reads the files and writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
+"""The mechanism table (protocol v6, rule 7 in docs/findings/protocol.md) of a preset's runs,
+in three parts — the reach of a raw action against the TC range (rows of
+`distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the return and
+the regulariser shares of the actor gradient (the cells of `distgprl.report.mechanism_shares`),
+each share marked ✓/✗ against the pre-registered `CRITERION` — with a one-line verdict per term
+(`verdict_lines`). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
 (`mechanism_texts`, which states each part's definition under its table).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping, Sequence
+from collections import Counter
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict
+from itertools import groupby
 from pathlib import Path
 from typing import Any
 
 from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
-from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.methods import METHODS, TABLE_ORDER, MethodSpec
 from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
@@ -28,7 +29,6 @@ from distgprl.report.mechanism_shares import (
     POINTS,
     GradientCell,
     MechanismTable,
-    PlateauCell,
     ReturnCell,
     gradient_cells,
     plateau_cell,
@@ -50,8 +50,16 @@ def _records(path: Path) -> list[dict[str, Any]]:
     return [{str(k): v for k, v in row.items()} for row in csv_frame(path, {}).to_dict("records")]
 
 
-def _key(folder: Path) -> tuple[str, str]:
-    return folder.parent.parent.name, folder.parent.name
+def _by_run(
+    folders: Iterable[Path], uses: Callable[[MethodSpec], bool]
+) -> dict[tuple[str, str], list[Path]]:
+    """{(task, method): its run folders, sorted} of the ``folders`` whose method ``uses``,
+    sorted by (task, method)."""
+    groups: dict[tuple[str, str], list[Path]] = {}
+    for folder in sorted(folders):
+        if uses(METHODS[folder.parent.name]):
+            groups.setdefault((folder.parent.parent.name, folder.parent.name), []).append(folder)
+    return dict(sorted(groups.items()))
 
 
 def mechanism_table(
@@ -63,34 +71,23 @@ def mechanism_table(
     `distgprl.experiments.mechanisms.reach_rows`."""
     evaluated = select_runs(root, preset)
     trained = select_runs(root, preset, marker="done.json")
-    returns: list[ReturnCell] = []
-    by_method: dict[tuple[str, str], list[Path]] = {}
-    for folder in sorted(evaluated.current):
-        if METHODS[_key(folder)[1]].distance_rewards:
-            by_method.setdefault(_key(folder), []).append(folder)
-    plateau: list[PlateauCell] = []
-    for (task, method), folders in sorted(by_method.items()):
+    returns, plateau = [], []
+    for (task, method), folders in _by_run(evaluated.current, lambda s: s.distance_rewards).items():
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
-            found = [f for f in folders if (f / name).exists()]
-            rows = {f: _records(f / name) for f in found}
-            runs = [(rows[f], _env(f, "sd_d_min")) for f in found]
-            if runs:
+            rows = {f: _records(f / name) for f in folders if (f / name).exists()}
+            if rows:
+                runs = [(rows[f], _env(f, "sd_d_min")) for f in rows]
                 returns += return_cells(task, method, policy, runs)
-            cell = plateau_cell(
-                task, method, policy, [(rows[f], _env(f, "progress_weight")) for f in found]
-            )
-            if cell is not None:
+            weights = [(rows[f], _env(f, "progress_weight")) for f in rows]
+            if (cell := plateau_cell(task, method, policy, weights)) is not None:
                 plateau.append(cell)
-    gradients: list[GradientCell] = []
-    progress: dict[tuple[str, str], list[Path]] = {}
-    for folder in sorted(trained.current):
-        spec = METHODS[_key(folder)[1]]
-        if spec.trainable and (spec.similarity_loss or spec.hap_prior):
-            progress.setdefault(_key(folder), []).append(folder)
-    for (task, method), folders in sorted(progress.items()):
-        runs_rows = [_records(f / "progress.csv") for f in folders]
-        gradients += gradient_cells(task, method, runs_rows)
+    gradients = []
+    regularised = _by_run(
+        trained.current, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
+    )
+    for (task, method), folders in regularised.items():
+        gradients += gradient_cells(task, method, [_records(f / "progress.csv") for f in folders])
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
@@ -110,11 +107,10 @@ def write_mechanisms(
 ) -> tuple[list[Path], list[str]]:
     """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar, `write_table_files`)
     and ``.md``; returns (the paths written, the one-line verdicts per term)."""
-    csv_text, markdown, verdicts = mechanism_texts(mechanism_table(root, preset, reach))
+    csv, markdown, verdicts = mechanism_texts(mechanism_table(root, preset, reach))
     stem = Path(out_dir) / f"mechanisms_{preset}"
-    texts = (csv_text, markdown)
     written = write_table_files(
-        stem, (".csv", ".md"), texts, preset, DESCRIPTION, criterion=CRITERION
+        stem, (".csv", ".md"), (csv, markdown), preset, DESCRIPTION, criterion=CRITERION
     )
     return written, verdicts
 
@@ -144,22 +140,30 @@ TERM_LABELS = {
     "l_hap": "λ_hap L_hap / Q (all samples)",
     "l_hap_active": "λ_hap L_hap / Q outside C_safe",
 }
+GRADIENT_ITEMS = ("l_sim", "l_hap", "l_hap_active")
+"""The gradient items, in their table's column order."""
+
+REACH_COLUMNS = ("one_step_min_m", "one_step_max_m", "episode_min_m", "episode_max_m", "tc_range_m")
+"""The reach rows' distances (m) in the CSV."""
+
+RETURN_CSV_NAMES = {"term": "item", "policy": "where"}
+RETURN_CSV_NAMES |= {"within": "episodes_within_d_min", "zero_tc": "episodes_zero_tc"}
+"""`ReturnCell` fields under their `CSV_COLUMNS` names (the others keep theirs)."""
 
 
-def _method_order(method: str) -> tuple[int, str]:
-    return (TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER), method)
-
-
-def _order(task: str, method: str) -> tuple[int, tuple[int, str]]:
-    return task_order(task), _method_order(method)
+def _order(task: str, method: str, *then: int | str) -> tuple[int | str, ...]:
+    """Sort key: tasks in the paper's order, methods in Table I's (unknown ones after), then
+    ``then``."""
+    index = TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER)
+    return task_order(task), index, method, *then
 
 
 def _label(method: str) -> str:
     return METHODS[method].label if method in METHODS else method
 
 
-def _number(value: float | None, digits: int = 6) -> str:
-    return "" if value is None else f"{value:.{digits}g}"
+def _number(value: float | None) -> str:
+    return "" if value is None else f"{value:.6g}"
 
 
 def _percent(value: float | None) -> str:
@@ -169,8 +173,7 @@ def _percent(value: float | None) -> str:
 def _steps(steps: Sequence[int]) -> str:
     if not steps:
         return ""
-    low, high = min(steps), max(steps)
-    return str(low) if low == high else f"{low}–{high}"
+    return str(min(steps)) if min(steps) == max(steps) else f"{min(steps)}–{max(steps)}"
 
 
 def covers_tc_range(rows: Sequence[Mapping[str, Any]]) -> str:
@@ -193,72 +196,58 @@ def _reach_groups(
 
 
 def _return_cells(table: MechanismTable) -> list[ReturnCell]:
-    policies = ("final", "best")
-    return sorted(
-        table.returns,
-        key=lambda c: (*_order(c.task, c.method), policies.index(c.policy), c.term),
-    )
+    policy = ("final", "best").index
+    return sorted(table.returns, key=lambda c: _order(c.task, c.method, policy(c.policy), c.term))
 
 
 def _gradient_cells(table: MechanismTable) -> list[GradientCell]:
-    items = list(TERM_LABELS)
+    point, item = POINTS.index, GRADIENT_ITEMS.index
     return sorted(
-        table.gradients,
-        key=lambda c: (*_order(c.task, c.method), POINTS.index(c.point), items.index(c.item)),
+        table.gradients, key=lambda c: _order(c.task, c.method, point(c.point), item(c.item))
     )
 
 
-REACH_COLUMNS = ("one_step_min_m", "one_step_max_m", "episode_min_m", "episode_max_m", "tc_range_m")
-"""The reach rows' distances (m) in the CSV."""
-
-
 def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
-    """The `CSV_COLUMNS` rows: reach, then the return shares, then the gradient shares."""
+    """The `CSV_COLUMNS` rows (keys beyond them left out): reach, then the return shares,
+    then the gradient shares."""
     rows: list[dict[str, Any]] = []
-    for (task, method), group in _reach_groups(table.reach):
-        covers = {"covers_tc_range": covers_tc_range(group)}
+    for _, group in _reach_groups(table.reach):
+        section = {"section": "reach", "covers_tc_range": covers_tc_range(group)}
         for row in group:
-            cells = {"section": "reach", "task": task, "method": method, "item": row["axis"]}
             distances = {key: _number(row[key]) for key in REACH_COLUMNS}
-            rows.append(cells | {"kind": row["kind"]} | distances | covers)
+            rows.append({**row, **distances, **section, "item": row["axis"]})
     for cell in _return_cells(table):
-        where = {"section": "return_share", "task": cell.task, "method": cell.method}
-        counts = {"seeds": cell.seeds, "episodes": cell.episodes}
-        counts |= {"episodes_within_d_min": cell.within, "episodes_zero_tc": cell.zero_tc}
+        named = {RETURN_CSV_NAMES.get(key, key): value for key, value in asdict(cell).items()}
         shares = {"share_mean": _number(cell.mean), "share_median": _number(cell.median)}
-        what = {"item": cell.term, "where": cell.policy, "meets_criterion": cell.verdict}
-        rows.append(where | what | counts | shares)
+        rows.append(named | shares | {"section": "return_share", "meets_criterion": cell.verdict})
     for gradient in _gradient_cells(table):
         fractions = gradient.active_fraction
         active = _number(sum(fractions) / len(fractions)) if fractions else ""
-        where = {"section": "gradient_share", "task": gradient.task, "method": gradient.method}
-        what = {"item": gradient.item, "where": gradient.point, "step": _steps(gradient.steps)}
+        named = asdict(gradient) | {"where": gradient.point, "step": _steps(gradient.steps)}
         shares = {"share_mean": _number(gradient.mean), "active_fraction": active}
-        verdict = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
-        rows.append(where | what | shares | verdict)
+        counts = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
+        rows.append(named | shares | counts | {"section": "gradient_share"})
     return rows
+
+
+def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
+    """The ``span`` (``one_step`` or ``episode``) reach's min–max (m) per axis of ``axes``."""
+    return " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
 
 
 def _reach_markdown(table: MechanismTable) -> str:
     rows = []
     for (task, method), group in _reach_groups(table.reach):
         by_axis = sorted(group, key=lambda row: "xyz".index(row["axis"]))
-
-        def span(low: str, high: str, axes: list[Mapping[str, Any]] = by_axis) -> str:
-            return " / ".join(f"{row[low]:.3f}–{row[high]:.3f}" for row in axes)
-
-        kind = group[0]["kind"]
-        gate = group[0].get("gate_max")
-        note = kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}"
+        kind, gate = group[0]["kind"], group[0].get("gate_max")
         covers = covers_tc_range(group)
         rows.append(
             [
                 task.upper(),
                 _label(method),
-                note,
+                kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
                 " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
-                span("one_step_min_m", "one_step_max_m"),
-                span("episode_min_m", "episode_max_m"),
+                *(_spans(by_axis, span) for span in ("one_step", "episode")),
                 covers + MARKS.get(covers, ""),
             ]
         )
@@ -268,24 +257,21 @@ def _reach_markdown(table: MechanismTable) -> str:
     return markdown_table("### Reach of a raw action in [-1, 1]", header, rows)
 
 
+def _return_text(cell: ReturnCell) -> str:
+    if cell.verdict == NOT_RECORDED:
+        return NOT_RECORDED
+    if cell.mean is None:
+        return "– (no episode within d_min)"
+    return f"{_percent(cell.mean)} (median {_percent(cell.median)})" + MARKS[cell.verdict]
+
+
 def _return_markdown(table: MechanismTable) -> str:
-    grouped: dict[tuple[str, str, str], dict[str, ReturnCell]] = {}
-    for cell in _return_cells(table):
-        grouped.setdefault((cell.task, cell.method, cell.policy), {})[cell.term] = cell
     rows = []
-    for (task, method, policy), terms in grouped.items():
+    for (task, method, policy), group in groupby(
+        _return_cells(table), key=lambda c: (c.task, c.method, c.policy)
+    ):
+        terms = {cell.term: cell for cell in group}
         first = next(iter(terms.values()))
-        cells = []
-        for term in ("r_sd", "r_ga"):
-            cell = terms[term]
-            if cell.verdict == NOT_RECORDED:
-                cells.append(NOT_RECORDED)
-            elif cell.mean is None:
-                cells.append("– (no episode within d_min)")
-            else:
-                cells.append(
-                    f"{_percent(cell.mean)} (median {_percent(cell.median)})" + MARKS[cell.verdict]
-                )
         recorded = first.recorded > 0
         rows.append(
             [
@@ -295,7 +281,8 @@ def _return_markdown(table: MechanismTable) -> str:
                 str(first.seeds),
                 f"{first.within} of {first.episodes}" if recorded else NOT_RECORDED,
                 str(first.zero_tc) if recorded else "",
-                *cells,
+                _return_text(terms["r_sd"]),
+                _return_text(terms["r_ga"]),
             ]
         )
     header = ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
@@ -307,34 +294,32 @@ def _return_markdown(table: MechanismTable) -> str:
 def _gradient_text(cell: GradientCell | None) -> str:
     if cell is None:
         return "—"
-    verdict = cell.verdict
     if cell.mean is None:
-        return verdict
-    return _percent(cell.mean) + MARKS.get(verdict, "")
+        return cell.verdict
+    return _percent(cell.mean) + MARKS.get(cell.verdict, "")
 
 
 def _gradient_markdown(table: MechanismTable) -> str:
-    grouped: dict[tuple[str, str, str], dict[str, GradientCell]] = {}
-    for cell in _gradient_cells(table):
-        grouped.setdefault((cell.task, cell.method, cell.point), {})[cell.item] = cell
     rows = []
-    for (task, method, point), items in grouped.items():
-        first = next(iter(items.values()))
+    for (task, method, point), group in groupby(
+        _gradient_cells(table), key=lambda c: (c.task, c.method, c.point)
+    ):
+        items = {cell.item: cell for cell in group}
+        steps = next(iter(items.values())).steps
         active = items.get("l_hap_active")
         fractions = active.active_fraction if active is not None else ()
         rows.append(
             [
                 task.upper(),
                 _label(method),
-                f"{point} ({_steps(first.steps)})",
-                str(len(first.steps)),
-                *(_gradient_text(items.get(item)) for item in ("l_sim", "l_hap", "l_hap_active")),
+                f"{point} ({_steps(steps)})",
+                str(len(steps)),
+                *(_gradient_text(items.get(item)) for item in GRADIENT_ITEMS),
                 _percent(sum(fractions) / len(fractions)) if fractions else "—",
             ]
         )
     header = ["Task", "Method", "Point (step)", "Seeds"]
-    header += [TERM_LABELS[item] for item in ("l_sim", "l_hap", "l_hap_active")]
-    header += ["Samples outside C_safe"]
+    header += [*(TERM_LABELS[item] for item in GRADIENT_ITEMS), "Samples outside C_safe"]
     return markdown_table("### Regulariser shares of the actor gradient", header, rows)
 
 
@@ -347,25 +332,17 @@ OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (insid
 
 def _verdict(label: str, judged: list[tuple[str, str, float | None]]) -> str:
     """One line: how many cells meet the criterion, which do not, and the term's verdict."""
-    yes = [name for name, verdict, _ in judged if verdict == "yes"]
     no = [(name, value) for name, verdict, value in judged if verdict == "no"]
-    other: dict[str, int] = {}
-    for _, verdict, _ in judged:
-        if verdict not in ("yes", "no"):
-            other[verdict] = other.get(verdict, 0) + 1
-    decided = len(yes) + len(no)
+    other = Counter(verdict for _, verdict, _ in judged)
+    decided = other.pop("yes", 0) + other.pop("no", 0)
     if not decided:
-        outcome = "undecided (no cell where it acts and is recorded)"
-    elif no:
-        outcome = "does not meet the criterion"
+        line = f"{label}: undecided (no cell where it acts and is recorded)"
     else:
-        outcome = "meets the criterion"
-    line = f"{label}: {outcome}"
-    if decided:
-        line += f" — ≥ {100 * CRITERION:.0f} % in {len(yes)} of {decided} cells"
+        outcome = "does not meet the criterion" if no else "meets the criterion"
+        line = f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of "
+        line += f"{decided} cells"
     if len(no) > LISTED_FAILURES:
-        ranked = sorted(no, key=lambda item: item[1] if item[1] is not None else 0.0)
-        (low, low_value), (high, high_value) = ranked[0], ranked[-1]
+        (low, low_value), *_, (high, high_value) = sorted(no, key=lambda item: item[1] or 0.0)
         line += (
             f"; below in {len(no)} cells, from {low} {_percent(low_value)} "
             f"to {high} {_percent(high_value)}"

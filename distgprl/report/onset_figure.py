@@ -1,25 +1,11 @@
-"""The onset figure: when each run of a study first learns, run by run.
-
-The onset table (`distgprl.report.onsets`) drawn: for one study read beside a preset, one
-panel per task, one row per line of the table (`onset_rows`' panels, in their order, top to
-bottom: each method under each reading, and an operator study's NoCov), and in it one marker
-per finished run at its onset — the first learning-curve step after step 0 at which the
-curve's success reaches the threshold (0.5; training steps on the x axis, from 0 to the run
-length). A run that never reaches it is drawn in the shaded "never" band right of the axis
-range. Within a row each seed keeps its own small vertical offset and its colour
-(`distgprl.report.seed_curves.SEED_COLORS`, as in the study's seed-by-seed curves), so runs
-at the same step do not hide each other. Filled markers are the study's own seeds
-(`distgprl.studies.Study.seeds`, which every table and verdict across readings reads), hollow
-ones the further seeds only a pre-registered rule reads (`distgprl.studies.OnsetRule.seeds`).
-On a task a rule reads, a dashed line marks the rule's ``by_step``: a marker on or left of it
-learned early.
-
-The run length of a task is the longest ``run.total_steps`` its rows' presets resolve
-(`distgprl.config.load_config`): a run counts only with the config hash the code resolves
-for it now (`distgprl.report.runs`), which includes that length, so every drawn run was
-trained exactly that long.
-
-Reads result files only; `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
+"""The onset figure: the onset table (`distgprl.report.onsets`) of one study beside a preset
+drawn, one panel per task (x: training steps, 0 to the run length), one row per table line
+(top to bottom) and in it one marker per finished run at its onset step, or in the shaded
+"never" band right of the axis range. A seed keeps its colour
+(`distgprl.report.seed_curves.SEED_COLORS`), shape and small vertical offset in every row;
+markers are filled for the study's seeds (`Study.seeds`), hollow for the further seeds only a
+rule reads (`OnsetRule.seeds`); a rule's task has a dashed line at its ``by_step``. Reads
+result files only; `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
 """
 
 from __future__ import annotations
@@ -30,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 from distgprl.config import load_config
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.onsets import (
-    THRESHOLD,
     onset_rows,
+    onset_threshold,
     run_label,
     seeds_text,
     step_text,
@@ -74,7 +60,9 @@ def seed_offsets(seeds: list[int]) -> dict[int, float]:
 
 def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
     """The x range's end on ``task``, in training steps: the longest ``run.total_steps`` of
-    ``presets`` on it (module docstring), or a later onset among ``onsets``."""
+    ``presets`` on it (`distgprl.config.load_config`; a run counts only with the config hash,
+    which includes its length, that the code resolves for it now), or a later onset among
+    ``onsets``."""
     lengths = [load_config(preset, task).run.total_steps for preset in presets]
     return max([*lengths, *onsets])
 
@@ -147,8 +135,7 @@ def plot_onset_figure(
     rows = onset_rows(root, study, tasks)
     if not rows:  # nothing to draw (`write_onset_figure` writes no file)
         return matplotlib.figure.Figure(), 0
-    rule = study_rule(study)
-    threshold = rule.threshold if rule else THRESHOLD
+    rule, threshold = study_rule(study), onset_threshold(study)
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset

@@ -1,47 +1,26 @@
-"""When each run learns: the learning-curve onset per reading and seed, and a control's verdict.
-
-A mean over seeds averages an early and a late learner into one slope; the studies' question
-("does this reading leave the r_ga plateau, and when?") is per run. For every study
-(`distgprl.studies`) read beside a preset, every method it trains under each of its readings
-(`onset_panels`: the control included; for an operator study also NoCov, which no reading
-changes), this tabulates per task and seed:
-
-- ``onset_step``: the first learning-curve step after step 0 (``progress.csv``; the curve
-  TCs, the deterministic policy of that step) at which success reaches the threshold — the
-  control's pre-registered `distgprl.studies.OnsetRule` where the study has one, else
-  `THRESHOLD` — empty when it never does. Step 0 is the untrained policy, whose curve success
-  is 0.00–0.60 by seed under every reading and says nothing about learning (Table I's DCP
-  seeds 0 and 2 start at 0.40–0.44 and fall onto the plateau at step 1 500);
-- ``early`` (with a rule): whether that step is at or before the rule's ``by_step``;
-- the best and the final policy's success and collision on the evaluation TCs (Table I's
-  ``summary_best.json`` and ``summary.json``).
-
-Each pre-registered rule (`distgprl.studies.OnsetRule`; `rule_verdict`) is applied to its
-reading's runs of the rule's task at the rule's seeds only: with fewer of them finished it is
-"awaiting", otherwise the count of early runs decides it as the rule states, fixed before its
-first run (docs/findings/operator.md: the control's stage 1 at seeds 0–4; stage 2 at seeds
-5–14, which needs the signal reading's replication at seeds 5–9 and is "void" without it).
-The Markdown's main table has the study's seeds (`Study.seeds`), the seeds only a rule reads
-a table of their own; the other readings' counts are listed beside the rules, measured the
-same way, and decide nothing.
-
-Reads result files only; `distgprl tables` writes ``onsets_<study>_<preset>.{csv,md}``.
+"""When each run learns: per study read beside a preset (`distgprl.studies`), every method it
+trains under each reading (`onset_panels`), task and seed, the learning-curve onset — the first
+``progress.csv`` step after step 0 (the untrained policy, whose curve success says nothing
+about learning: docs/findings/operator.md, "Decision rule") at which the curve success reaches
+the study's `distgprl.studies.OnsetRule` threshold, else `THRESHOLD` — whether it is ``early``
+(at or before the rule's ``by_step``), and the best and final policies' evaluation success and
+collision; then each rule's verdict (`rule_verdict`; the rules: `OnsetRule`, and
+docs/findings/operator.md). The Markdown tables the study's seeds (`Study.seeds`) apart from
+the seeds only a rule reads. Reads result files only; `distgprl tables` writes
+``onsets_<study>_<preset>.{csv,md}``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import groupby
 from pathlib import Path
 from typing import Any
-
-import pandas as pd
 
 from distgprl.methods import TABLE_ORDER
 from distgprl.report.aggregate import short_label
 from distgprl.report.frame import curve_frame, run_frame, summaries
 from distgprl.report.markdown import csv_text, markdown_table
-from distgprl.report.paired import FINAL_POLICY
-from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.seed_curves import reading_columns, run_curves
 from distgprl.studies import OnsetRule, Study
 
@@ -95,42 +74,37 @@ def run_label(study: Study, method: str, reading: str) -> str:
     return reading
 
 
+def onset_threshold(study: Study) -> float:
+    """The success that counts as learned: the study's rule's, else `THRESHOLD`."""
+    rule = study_rule(study)
+    return rule.threshold if rule else THRESHOLD
+
+
 def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[str, Any]]:
     """One row per `onset_panels` panel, task and finished seed (CSV_FIELDS), panels in
     their order; the threshold and ``early`` from `study_rule` (``early`` empty without)."""
     rule = study_rule(study)
-    threshold = rule.threshold if rule else THRESHOLD
-    evaluations: dict[tuple[str, str], dict[tuple[str, str, int], dict[str, Any]]] = {}
-    curves: dict[str, pd.DataFrame] = {}  # each preset's curve frame, read once
+    presets = dict.fromkeys(preset for preset, _, _ in onset_panels(study))
+    curves = {preset: curve_frame(root, preset) for preset in presets}
+    evaluations = {
+        (preset, policy): _evaluations(root, preset, policy)
+        for preset in presets
+        for policy in ("best", "final")
+    }
     rows = []
     for preset, method, reading in onset_panels(study):
-        for policy in (TABLE_POLICY, FINAL_POLICY):
-            if (preset, policy) not in evaluations:
-                evaluations[(preset, policy)] = _evaluations(root, preset, policy)
-        if preset not in curves:
-            curves[preset] = curve_frame(root, preset)
         for task in tasks:
             for seed, (steps, values) in run_curves(curves[preset], task, method).items():
-                onset = onset_step(steps, values["success_rate"], threshold)
-                best = evaluations[(preset, TABLE_POLICY)].get((task, method, seed), {})
-                final = evaluations[(preset, FINAL_POLICY)].get((task, method, seed), {})
+                onset = onset_step(steps, values["success_rate"], onset_threshold(study))
                 early = "" if rule is None else int(onset is not None and onset <= rule.by_step)
-                rows.append(
-                    {
-                        "study": study.name,
-                        "task": task,
-                        "reading": reading,
-                        "preset": preset,
-                        "method": method,
-                        "seed": seed,
-                        "onset_step": "" if onset is None else onset,
-                        "early": early,
-                        "best_success": best.get("success_rate", ""),
-                        "best_collision": best.get("collision_rate", ""),
-                        "final_success": final.get("success_rate", ""),
-                        "final_collision": final.get("collision_rate", ""),
-                    }
-                )
+                keys = {"study": study.name, "task": task, "reading": reading, "preset": preset}
+                row: dict[str, Any] = keys | {"method": method, "seed": seed, "early": early}
+                row["onset_step"] = "" if onset is None else onset
+                for policy in ("best", "final"):
+                    summary = evaluations[(preset, policy)].get((task, method, seed), {})
+                    row[f"{policy}_success"] = summary.get("success_rate", "")
+                    row[f"{policy}_collision"] = summary.get("collision_rate", "")
+                rows.append(row)
     return rows
 
 
@@ -140,15 +114,9 @@ class RuleVerdict:
     reading and task learned early; ``verdict`` is the rule's conclusion, "awaiting", or
     "void" where the rule it needs (`OnsetRule.given`) did not give its ``if_early``."""
 
-    rule: str
-    reading: str
     early: int
     runs: int
     verdict: str
-
-    @property
-    def text(self) -> str:
-        return f"{self.early} of {self.runs} seeds learn early: {self.verdict}"
 
 
 def _early_count(
@@ -180,7 +148,7 @@ def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> RuleVer
             verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
         elif before != given.if_early:
             verdict = f"void: {rule.given} gave {_short(before)}"
-    return RuleVerdict(rule.name, reading.label, early, runs, verdict)
+    return RuleVerdict(early, runs, verdict)
 
 
 def _short(conclusion: str) -> str:
@@ -204,6 +172,12 @@ def seeds_text(seeds: tuple[int, ...]) -> str:
     return ", ".join(str(seed) for seed in seeds)
 
 
+def _run_cell(row: dict[str, Any]) -> str:
+    """A run's table cell: "onset step: best (final) success"."""
+    best, final = _rate(row["best_success"]), _rate(row["final_success"])
+    return f"{step_text(row['onset_step'])}: {best} ({final})"
+
+
 def _onset_table(
     title: str, rows: list[dict[str, Any]], study: Study, threshold: float, by_step: int | None
 ) -> str:
@@ -212,26 +186,16 @@ def _onset_table(
     ``threshold`` and, with ``by_step``, how many learned early."""
     seeds = sorted({r["seed"] for r in rows})
     header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
-    if by_step is not None:
-        header.append(f"early (by step {step_text(by_step)})")
-    panels: dict[tuple[str, str], list[dict[str, Any]]] = {}  # (preset, method): its runs
-    for r in rows:
-        panels.setdefault((r["preset"], r["method"]), []).append(r)
+    header += [] if by_step is None else [f"early (by step {step_text(by_step)})"]
     table = []
-    for (panel_preset, method), runs in panels.items():
-        cells = {
-            r["seed"]: f"{step_text(r['onset_step'])}: {_rate(r['best_success'])} "
-            f"({_rate(r['final_success'])})"
-            for r in runs
-        }
-        name = f"{run_label(study, method, runs[0]['reading'])} (`{panel_preset}`)"
-        line = [
-            name,
-            *[cells.get(s, "") for s in seeds],
-            f"{sum(r['onset_step'] != '' for r in runs)}/{len(runs)}",
-        ]
+    for (preset, method), group in groupby(rows, key=lambda r: (r["preset"], r["method"])):
+        runs = {r["seed"]: r for r in group}
+        cells = [_run_cell(runs[seed]) if seed in runs else "" for seed in seeds]
+        reached = sum(r["onset_step"] != "" for r in runs.values())
+        label = run_label(study, method, next(iter(runs.values()))["reading"])
+        line = [f"{label} (`{preset}`)", *cells, f"{reached}/{len(runs)}"]
         if by_step is not None:
-            line.append(f"{sum(r['early'] == 1 for r in runs)}/{len(runs)}")
+            line.append(f"{sum(r['early'] == 1 for r in runs.values())}/{len(runs)}")
         table.append(line)
     return markdown_table(title, header, table)
 
@@ -246,8 +210,7 @@ def onset_texts(
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
-    rule = study_rule(study)
-    threshold = rule.threshold if rule else THRESHOLD
+    rule, threshold = study_rule(study), onset_threshold(study)
     parts = [
         f"When each run learns ({study.name} study, {preset} preset): per method, reading and "
         "seed, "
@@ -259,21 +222,17 @@ def onset_texts(
     rule_tasks = {r.task for _, r in study.rules}
     for task in tasks:
         by_step = rule.by_step if rule is not None and task in rule_tasks else None
-        mine = [r for r in rows if r["task"] == task]
-        inside = [r for r in mine if r["seed"] in study.seeds]
-        beyond = [r for r in mine if r["seed"] not in study.seeds]
-        if inside:
-            parts.append(_onset_table(f"**{task.upper()}**", inside, study, threshold, by_step))
-        if beyond:
-            title = (
-                f"**{task.upper()}, seeds beyond the study's {seeds_text(study.seeds)}** (no "
-                "table, figure or verdict across readings reads them; the rules below name "
-                "their seeds)"
-            )
-            parts.append(_onset_table(title, beyond, study, threshold, by_step))
+        beyond = (
+            f"**{task.upper()}, seeds beyond the study's {seeds_text(study.seeds)}** (no "
+            "table, figure or verdict across readings reads them; the rules below name "
+            "their seeds)"
+        )
+        for title, inside in ((f"**{task.upper()}**", True), (beyond, False)):
+            mine = [r for r in rows if r["task"] == task and (r["seed"] in study.seeds) == inside]
+            if mine:
+                parts.append(_onset_table(title, mine, study, threshold, by_step))
     for reading, own in study.rules:
-        verdict = rule_verdict(rows, study, own.name)
-        count = len(own.seeds)
+        result = rule_verdict(rows, study, own.name)
         middle = ""
         if own.at_least - own.at_most > 1:  # a count between the two is possible
             middle = f", otherwise {_short(own.if_between) if own.if_between else 'undecided'}"
@@ -284,10 +243,9 @@ def onset_texts(
             f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
             f"{own.task.upper()} seeds {seeds_text(own.seeds)} a run learns early if its "
             f"curve reaches {own.threshold:g} success after step 0 and by step "
-            f"{step_text(own.by_step)}; {own.at_least} or more of {count} → "
-            f"{_short(own.if_early)}, "
-            f"{own.at_most} or fewer → {_short(own.if_late)}{middle}"
-            f"{needs}): **{verdict.text}**"
+            f"{step_text(own.by_step)}; {own.at_least} or more of {len(own.seeds)} → "
+            f"{_short(own.if_early)}, {own.at_most} or fewer → {_short(own.if_late)}{middle}"
+            f"{needs}): **{result.early} of {result.runs} seeds learn early: {result.verdict}**"
         )
     for reading in study.readings:
         for task in sorted({own.task for own in reading.rules}):
