@@ -61,13 +61,12 @@ def mcnemar_exact(only_run: int, only_reference: int) -> float:
     return float(stats.binomtest(only_run, discordant, 0.5).pvalue)
 
 
-def _outcomes(episodes: pd.DataFrame) -> dict[str, np.ndarray]:
-    """`OUTCOMES` of one evaluation's episodes (a `csv_frame`), each 0 or 1 per TC."""
-    success = episodes["success"].to_numpy(dtype=int)
-    collision = episodes["collision"].to_numpy(dtype=int)
-    pairs = zip(success, collision, strict=True)
-    safe = np.array([int(is_safe_success({"success": s, "collision": c})) for s, c in pairs])
-    return {"success": success, "collision": collision, "safe_success": safe}
+def _outcomes(episodes: pd.DataFrame) -> pd.DataFrame:
+    """`OUTCOMES` of one evaluation's episodes (a `csv_frame`): a column each, 0 or 1 per TC."""
+    outcomes = episodes[["success", "collision"]].astype(int)
+    pairs = zip(outcomes["success"], outcomes["collision"], strict=True)
+    safe = [is_safe_success({"success": s, "collision": c}) for s, c in pairs]
+    return outcomes.assign(safe_success=np.array(safe, dtype=int))
 
 
 def _check_same_tcs(run: Path, reference: Path, mine: pd.DataFrame, theirs: pd.DataFrame) -> None:
@@ -89,12 +88,9 @@ def _check_same_tcs(run: Path, reference: Path, mine: pd.DataFrame, theirs: pd.D
 def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
     """The N of the supplementary evaluations (``evaluation_n<N>.csv``) under
     ``<root>/<preset>``, ascending."""
-    sizes = set()
-    for path in (Path(root) / preset).glob("*/*/seed*/evaluation_n*.csv"):
-        digits = path.stem.removeprefix("evaluation_n")
-        if digits.isdigit():
-            sizes.add(int(digits))
-    return sorted(sizes)
+    paths = (Path(root) / preset).glob("*/*/seed*/evaluation_n*.csv")
+    digits = (path.stem.removeprefix("evaluation_n") for path in paths)
+    return sorted({int(n) for n in digits if n.isdigit()})
 
 
 def paired_rows(
@@ -206,29 +202,34 @@ def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
         mine = csv_frame(run_file, {})
         _check_same_tcs(run_file, reference_file, mine, theirs)
         task, method, folder = run_file.parts[-4:-1]
-        seed = int(folder.removeprefix("seed"))
-        rows += _pair(task, method, seed, _outcomes(mine), _outcomes(theirs))
-    return _sorted(rows)
+        run = {"task": task, "method": method, "seed": int(folder.removeprefix("seed"))}
+        rows += _pair(run, _outcomes(mine), _outcomes(theirs))
+    outcome_index = [outcome for outcome, _ in OUTCOMES].index
+    return sorted(
+        rows,
+        key=lambda r: (
+            task_order(r["task"]),
+            r["task"],
+            TABLE_ORDER.index(r["method"]),
+            r["seed"],
+            outcome_index(r["outcome"]),
+        ),
+    )
 
 
 def _pair(
-    task: str,
-    method: str,
-    seed: int,
-    outcomes: dict[str, np.ndarray],
-    reference_outcomes: dict[str, np.ndarray],
+    run: dict[str, Any], outcomes: pd.DataFrame, reference_outcomes: pd.DataFrame
 ) -> list[dict[str, Any]]:
-    """One `FIELDS` row per outcome: a run's episodes against the reference's, TC by TC."""
+    """One `FIELDS` row per outcome: a run's episodes (``run`` its task, method and seed)
+    against the reference's, TC by TC."""
     rows = []
     for outcome, _ in OUTCOMES:
-        mine, theirs = outcomes[outcome], reference_outcomes[outcome]
+        mine, theirs = outcomes[outcome].to_numpy(), reference_outcomes[outcome].to_numpy()
         only_run = int(((mine == 1) & (theirs == 0)).sum())
         only_reference = int(((mine == 0) & (theirs == 1)).sum())
         rows.append(
             {
-                "task": task,
-                "method": method,
-                "seed": seed,
+                **run,
                 "outcome": outcome,
                 "tcs": len(mine),
                 "run_rate": int(mine.sum()) / len(mine),
@@ -238,21 +239,6 @@ def _pair(
                 "p_value": mcnemar_exact(only_run, only_reference),
             }
         )
-    return rows
-
-
-def _sorted(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Rows in task, table and seed order, outcomes in `OUTCOMES` order."""
-    outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
-    rows.sort(
-        key=lambda r: (
-            task_order(r["task"]),
-            r["task"],
-            TABLE_ORDER.index(r["method"]),
-            r["seed"],
-            outcome_key[r["outcome"]],
-        )
-    )
     return rows
 
 
@@ -284,13 +270,15 @@ def paired_texts(
     table = []
     for start in range(0, len(rows), len(OUTCOMES)):
         run = rows[start : start + len(OUTCOMES)]
-        cells = [run[0]["task"].upper(), METHODS[run[0]["method"]].label, str(run[0]["seed"])]
-        cells.append(str(run[0]["tcs"]))
+        first = run[0]
+        cells = [first["task"].upper(), METHODS[first["method"]].label]
+        cells += [str(first["seed"]), str(first["tcs"])]
         for row in run:
+            p = row["p_value"]
             cells += [
                 f"{row['run_rate']:.2f} / {row['reference_rate']:.2f}",
                 f"{row['only_run']} / {row['only_reference']}",
-                _p_text(row["p_value"]),
+                "< 0.001" if p < 0.001 else f"{p:.3f}",
             ]
         table.append(cells)
     return csv_text(rows, FIELDS), markdown_table(title, header, table)
@@ -305,7 +293,3 @@ def _reference_text(reference: str) -> str:
     if reference == UNADAPTED:
         return "the unadapted reference"
     return f"{METHODS[reference].label} of the same seed"
-
-
-def _p_text(p: float) -> str:
-    return "< 0.001" if p < 0.001 else f"{p:.3f}"

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from distgprl.data import task_order
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import (
     BOOTSTRAP_SEED,
@@ -80,25 +81,20 @@ def sensitivity_points(
     for reading in study.all_readings:
         scores = scores_of.get(reading.preset, {})
         for task in tasks:
-            if not scores.get((task, method)) or (reading.preset, task) not in gains:
+            if (reading.preset, task) not in gains:
                 continue
             for key, _ in PANELS:
-                estimate = method_estimate(scores, [task], method, key, "mean", seed)
-                if estimate.seeds and min(estimate.seeds) > 0:
-                    points.append(
-                        {
-                            "preset": reading.preset,
-                            "reading": reading.label,
-                            "task": task,
-                            "score": key,
-                            "gain": gains[(reading.preset, task)],
-                            "estimate": estimate,
-                        }
-                    )
+                estimate = _mean(scores, task, method, key, seed)
+                if estimate is not None:
+                    where = {"preset": reading.preset, "reading": reading.label, "task": task}
+                    gain = gains[(reading.preset, task)]
+                    points.append({**where, "score": key, "gain": gain, "estimate": estimate})
     return points
 
 
-def _reference(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
+def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
+    """``method``'s mean ``key`` over its seeds on ``task`` with its interval, or None without
+    runs."""
     if not scores.get((task, method)):
         return None
     estimate = method_estimate(scores, [task], method, key, "mean", seed)
@@ -139,9 +135,7 @@ def plot_sensitivity(
     points: list[dict[str, Any]] = []
     if reach_path.exists():
         gains = reading_gains(read_json(reach_path), method)
-        tasks = [t for t in ("dcp", "dbm") if t in tasks] + [
-            t for t in tasks if t not in ("dcp", "dbm")
-        ]
+        tasks.sort(key=task_order)
         points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
     if not points:
         return None
@@ -162,13 +156,12 @@ def plot_sensitivity(
             ax.set_ylabel(label)
             ax.set_title(f"{task.upper()}: {label}")
             ax.grid(alpha=0.3)
-    handles, labels = [], []
+    legend: dict[str, Any] = {}  # each label once, its first handle
     for ax in axes.flat:
         for handle, text in zip(*ax.get_legend_handles_labels(), strict=True):
-            if text not in labels:
-                handles.append(handle)
-                labels.append(text)
-    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
+            legend.setdefault(text, handle)
+    labels = list(legend)
+    fig.legend(list(legend.values()), labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     control = any(r.control for r in study.readings)
     fig.suptitle(
         f"Operator study: {short_label(method)} per reading of K_tt"
@@ -186,12 +179,11 @@ def _draw_references(ax: Any, reference: Scores, task: str, key: str, seed: int)
     """One panel's reference methods: a dashed line at each one's estimate, its interval
     shaded."""
     for index, ref in enumerate(REFERENCES):
-        estimate = _reference(reference, task, ref, key, seed)
+        estimate = _mean(reference, task, ref, key, seed)
         if estimate is None:
             continue
         color = f"C{index + 1}"
-        name = METHODS[ref].label
-        ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=name)
+        ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=METHODS[ref].label)
         if estimate.has_interval:
             ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
 
