@@ -1,70 +1,11 @@
 """The paper's claims, each tested by one statistic of the runs, per task, with a verdict.
 
-One row per claim the paper makes in its results and discussion: the statistic that tests
-it (`distgprl.report.aggregate`: bootstrap intervals, `BOOTSTRAP_REPS` replicates, 95 %; a
-PoI's interval never narrower than its score bound), its value, interval and verdict on
-**each task alone**, then an overall verdict combined from the tasks' by the rule below.
-The estimate pooling both tasks (one stratum per task) is shown beside the per-task ones,
-never instead of them: pooled, opposite decisive effects (a PoI of 1 on DCP and 0 on DBM)
-average to 0.5 and read as "no effect". Why each rule is as it is: docs/findings/protocol.md,
-"Claims rules that cannot mislead".
-
-Per task, probability-of-improvement claims (Dist-GPRL over one other method, on one score;
-"fewer" or "lower" scores are improvements where the claim says so):
-
-- *reproduced* if the PoI interval lies entirely above 0.5;
-- *refuted* if it lies entirely below 0.5;
-- *inconclusive* otherwise (the interval contains 0.5).
-
-The curve claims use the learning measures of `aggregate.curve_measures`, each against the
-untrained policy's curve success, never the run's own final value:
-
-- "The HAP prior speeds convergence" ("accelerates convergence"): ``steps_to_gain``, the
-  first step from which the curve holds `aggregate.GAIN_MARGIN` above its start for
-  `aggregate.GAIN_POINTS` points (never: censored, the worst). Converging means rising to a
-  level, so a curve that never rises cannot converge fast.
-- "The covariance transform improves stability": ``learned_drop``, the mean drop of curve
-  success per curve period once the run has learned (never learned: +inf, the worst).
-  Stability is keeping what was learned; a flat curve has learned nothing to keep.
-- "The covariance transform improves sample efficiency" ("better performance earlier in
-  training"): ``learning_auc``, the mean gain of curve success over the untrained policy's
-  during training. It rewards learning early and learning much, and gives nothing for
-  staying at the start (a shrunk action that keeps the demonstration's level unchanged).
-
-Per task, ranking claims compare IQM intervals of the seven trained methods of Table I
-(`RANKED`):
-
-- "Dist-GPRL has the best success": *reproduced* if its success-IQM interval lies entirely
-  above every other method's; *refuted* if some method's lies entirely above Dist-GPRL's;
-  else *inconclusive*.
-- "GPRL collides most": the same rule on collision IQM, for GPRL.
-- "ProMP-RRL is conservative (few collisions, low success)": *reproduced* if its success-IQM
-  interval lies entirely below Dist-GPRL's and its collision-IQM interval lies entirely below
-  those of at least half (3) of the six other methods; *refuted* if its success-IQM interval
-  lies entirely above Dist-GPRL's or its collision-IQM interval lies entirely above those of
-  at least half of the others; else *inconclusive*.
-- "Dist-GPRL balances success, collisions and kinematic retention": on the three IQMs
-  (success, higher is better; collision, lower; kinematic retention, the mean velocity cosine
-  to the demonstration, higher), A is *decisively better* than B on an axis if A's interval
-  lies entirely on the better side of B's; A *dominates* B if A is decisively better on at
-  least one axis and decisively worse on none (Pareto dominance where overlapping intervals
-  count as a tie). The non-dominated set is every method no other dominates. *Reproduced* if
-  Dist-GPRL is non-dominated and dominates at least one method (a balance, not a tie with
-  everyone); *refuted* if some method dominates it; else *inconclusive*.
-
-Overall, from the per-task verdicts (`combine`):
-
-- *reproduced* if every task reproduces the claim;
-- *reproduced on T* if some tasks T reproduce it and none refutes it (the others
-  inconclusive);
-- *refuted* if every task refutes it; *refuted on T* if some tasks T refute it and none
-  reproduces it;
-- *the tasks disagree* if one task reproduces it and another refutes it;
-- *inconclusive* if no task decides it.
-
-Every claim is *inconclusive (no runs)* while a method it needs has no run on a task with
-runs (its detail names them), and *inconclusive (fewer than 2 seeds)* while one has a task
-with a single seed (no interval).
+One row per claim the paper makes in its results and discussion: the statistic that tests it
+(`distgprl.report.aggregate`), its value, 95 % interval and verdict on each task alone, the
+estimate pooling both tasks (one stratum per task) beside it, never instead of it, then an
+overall verdict combined from the tasks' (`combine`). The rules ("protocol" below):
+docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them"; why
+each is as it is: "Claims rules that cannot mislead" there.
 
 The claims table's files (``claims_<preset>.csv`` and ``.md``, `claims_texts`): per task
 first, the pooled estimate beside, the overall verdict last.
@@ -113,7 +54,7 @@ class TaskVerdict:
     Attributes:
         task: the task's name, or `ALL_TASKS` for the pooled estimate.
         estimate: the statistic's value and 95 % interval.
-        verdict: `REPRODUCED`, `REFUTED` or an `INCONCLUSIVE` text (module docstring).
+        verdict: `REPRODUCED`, `REFUTED` or an `INCONCLUSIVE` text (protocol).
         detail: what else the rule looked at on this task.
     """
 
@@ -214,7 +155,7 @@ def _decide(reproduced: bool, refuted: bool) -> str:
 
 
 def poi_verdict(estimate: Estimate) -> str:
-    """The PoI rule (module docstring) applied to ``estimate``."""
+    """The PoI rule (protocol) applied to ``estimate``."""
     return _availability([estimate]) or _decide(estimate.low > 0.5, estimate.high < 0.5)
 
 
@@ -228,7 +169,7 @@ def _where(tasks: list[str]) -> str:
 
 
 def combine(per_task: Sequence[TaskVerdict]) -> str:
-    """The overall verdict from the per-task ones (module docstring): every task must
+    """The overall verdict from the per-task ones (protocol): every task must
     reproduce for *reproduced*; one reproducing and another refuting is `TASKS_DISAGREE`."""
     verdicts = [v.verdict for v in per_task]
     if not verdicts or NO_RUNS in verdicts:
@@ -302,7 +243,7 @@ def extreme_verdict(
 
 
 def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
-    """ "ProMP-RRL is conservative" on ``tasks`` by its rule (module docstring)."""
+    """ "ProMP-RRL is conservative" on ``tasks`` by its rule (protocol)."""
     method = "promp-rrl"
     success = _iqms(scores, tasks, "success_rate", seed)
     collision = _iqms(scores, tasks, "collision_rate", seed)
@@ -322,7 +263,7 @@ def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVer
 
 
 def non_dominated(estimates: dict[str, dict[str, Estimate]]) -> dict[str, list[str]]:
-    """{method: the methods dominating it} on `BALANCE_AXES` (module docstring: decisively
+    """{method: the methods dominating it} on `BALANCE_AXES` (protocol: decisively
     better on one axis, decisively worse on none); a method with an empty list is in the
     non-dominated set. ``estimates`` is {score: {method: IQM estimate}}."""
     methods = list(next(iter(estimates.values())))
@@ -341,7 +282,7 @@ def _labels(methods: list[str]) -> str:
 
 def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
     """ "Dist-GPRL balances success, collisions and kinematic retention" on ``tasks`` by the
-    three-axis dominance rule (module docstring). The value is Dist-GPRL's retention IQM;
+    three-axis dominance rule (protocol). The value is Dist-GPRL's retention IQM;
     the detail gives its success and collision IQMs and the non-dominated set."""
     estimates = {key: _iqms(scores, tasks, key, seed) for key, _, _ in BALANCE_AXES}
     own = estimates["mean_kinematic_retention"][PROPOSED]
@@ -387,7 +328,7 @@ def _claim(
 
 
 def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]:
-    """Every claim of the paper tested on ``scores`` (module docstring), in the paper's
+    """Every claim of the paper tested on ``scores`` (protocol), in the paper's
     order: the ablation claims by PoI, then the ranking claims."""
     verdicts = []
     for claim in POI_CLAIMS:
