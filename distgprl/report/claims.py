@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -159,10 +160,6 @@ def poi_verdict(estimate: Estimate) -> str:
     return _availability([estimate]) or _decide(estimate.low > 0.5, estimate.high < 0.5)
 
 
-def _task_name(task: str) -> str:
-    return "pooled" if task == ALL_TASKS else task.upper()
-
-
 def _where(tasks: list[str]) -> str:
     """The `TaskVerdict.task` of a test on ``tasks``: the one task, or `ALL_TASKS` pooled."""
     return tasks[0] if len(tasks) == 1 else ALL_TASKS
@@ -176,8 +173,8 @@ def combine(per_task: Sequence[TaskVerdict]) -> str:
         return NO_RUNS
     if any(v not in DECIDED for v in verdicts):
         return FEW_SEEDS
-    reproducing = [_task_name(v.task) for v in per_task if v.verdict == REPRODUCED]
-    refuting = [_task_name(v.task) for v in per_task if v.verdict == REFUTED]
+    reproducing = [v.task.upper() for v in per_task if v.verdict == REPRODUCED]
+    refuting = [v.task.upper() for v in per_task if v.verdict == REFUTED]
     if reproducing and refuting:
         return TASKS_DISAGREE
     for word, deciding in ((REPRODUCED, reproducing), (REFUTED, refuting)):
@@ -301,19 +298,45 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
     return TaskVerdict(_where(tasks), own, verdict, detail)
 
 
-TaskRule = Callable[[list[str]], TaskVerdict]
-"""A claim's test on a list of tasks (one task, or several pooled)."""
+TaskRule = Callable[..., TaskVerdict]
+"""A claim's test, ``rule(scores, tasks, seed=seed)``, on one task or several pooled."""
+
+RANKING_CLAIMS: tuple[tuple[str, str, TaskRule], ...] = (
+    (
+        "Dist-GPRL has the best success",
+        "Dist-GPRL's success IQM interval vs every other trained method's",
+        partial(extreme_verdict, method=PROPOSED, key="success_rate"),
+    ),
+    (
+        BALANCE,
+        "Dist-GPRL's (success, collision, kinematic retention) IQM intervals vs each "
+        "trained method's: the non-dominated set",
+        balance_verdict,
+    ),
+    (
+        "ProMP-RRL is conservative (few collisions, low success)",
+        "ProMP-RRL's collision and success IQM intervals vs the other trained methods'",
+        conservative_verdict,
+    ),
+    (
+        "GPRL collides most",
+        "GPRL's collision IQM interval vs every other trained method's",
+        partial(extreme_verdict, method="gprl", key="collision_rate"),
+    ),
+)
+"""The ranking claims, in the paper's order: (claim, test in words, rule); each reads the
+runs of every method of `RANKED`."""
 
 
 def _claim(
-    scores: Scores, claim: str, test: str, rule: TaskRule, needed: tuple[str, ...]
+    scores: Scores, seed: int, claim: str, test: str, rule: TaskRule, needed: tuple[str, ...]
 ) -> Verdict:
     """``claim`` tested by ``rule`` on each task with runs, pooled beside, and combined; a
     `NO_RUNS` verdict names in its detail the methods of ``needed`` it waits for (with the
     tasks where only some lack a run)."""
     tasks = tasks_of(scores)
-    per_task = tuple(rule([task]) for task in tasks)
-    pooled = rule(tasks) if len(tasks) > 1 else None
+    per_task = tuple(rule(scores, [task], seed=seed) for task in tasks)
+    pooled = rule(scores, tasks, seed=seed) if len(tasks) > 1 else None
     verdict = Verdict(claim, test, per_task, pooled, combine(per_task), needs=needed)
     if verdict.verdict != NO_RUNS:
         return verdict
@@ -329,40 +352,18 @@ def _claim(
 
 def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]:
     """Every claim of the paper tested on ``scores`` (protocol), in the paper's
-    order: the ablation claims by PoI, then the ranking claims."""
-    verdicts = []
-    for claim in POI_CLAIMS:
-
-        def rule(tasks: list[str], claim: PoiClaim = claim) -> TaskVerdict:
-            return poi_task_verdict(scores, tasks, claim, seed)
-
-        test = f"PoI of Dist-GPRL over {short_label(claim.versus)}, {claim.measure}"
-        verdicts.append(_claim(scores, claim.claim, test, rule, (PROPOSED, claim.versus)))
-    ranking: list[tuple[str, str, TaskRule]] = [
+    order: the ablation claims by PoI (`POI_CLAIMS`), then the ranking claims."""
+    tests: list[tuple[str, str, TaskRule, tuple[str, ...]]] = [
         (
-            "Dist-GPRL has the best success",
-            "Dist-GPRL's success IQM interval vs every other trained method's",
-            lambda tasks: extreme_verdict(scores, tasks, PROPOSED, "success_rate", seed),
-        ),
-        (
-            BALANCE,
-            "Dist-GPRL's (success, collision, kinematic retention) IQM intervals vs each "
-            "trained method's: the non-dominated set",
-            lambda tasks: balance_verdict(scores, tasks, seed),
-        ),
-        (
-            "ProMP-RRL is conservative (few collisions, low success)",
-            "ProMP-RRL's collision and success IQM intervals vs the other trained methods'",
-            lambda tasks: conservative_verdict(scores, tasks, seed),
-        ),
-        (
-            "GPRL collides most",
-            "GPRL's collision IQM interval vs every other trained method's",
-            lambda tasks: extreme_verdict(scores, tasks, "gprl", "collision_rate", seed),
-        ),
+            c.claim,
+            f"PoI of Dist-GPRL over {short_label(c.versus)}, {c.measure}",
+            partial(poi_task_verdict, claim=c),
+            (PROPOSED, c.versus),
+        )
+        for c in POI_CLAIMS
     ]
-    verdicts += [_claim(scores, claim, test, rule, RANKED) for claim, test, rule in ranking]
-    return verdicts
+    tests += [(*ranking, RANKED) for ranking in RANKING_CLAIMS]
+    return [_claim(scores, seed, *test) for test in tests]
 
 
 CSV_FIELDS = tuple("claim test task value ci_low ci_high seeds pairs verdict detail".split())

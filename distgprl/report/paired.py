@@ -113,14 +113,11 @@ def paired_rows(
     current = select_runs(root, preset).current
     pairs = []
     for task, method, folder in _evaluated(current, file_name):
-        if method in (reference, UNADAPTED):
-            continue
-        reference_folder = Path(root) / preset / task / reference
-        reference_file = reference_folder / ("seed0" if reference == UNADAPTED else folder.name)
-        pairs.append((folder / file_name, reference_file / file_name))
-    return _paired_files(
-        [(mine, theirs) for mine, theirs in pairs if theirs.parent in current and theirs.exists()]
-    )
+        seed = "seed0" if reference == UNADAPTED else folder.name
+        if method not in (reference, UNADAPTED):
+            reference_file = Path(root) / preset / task / reference / seed / file_name
+            pairs.append((folder / file_name, reference_file))
+    return _paired_files(pairs, current)
 
 
 def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str, Path]]:
@@ -148,17 +145,13 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
     if preset == base_preset:
         raise UserInputError(f"--against {base_preset}: pair a preset with another preset")
     file_name = evaluation_file_names()[0]
-    current, base_current = (
-        select_runs(root, preset).current,
-        select_runs(root, base_preset).current,
-    )
-    pairs = []
-    for task, method, folder in _evaluated(current, file_name):
-        base_file = Path(root) / base_preset / task / method / folder.name / file_name
-        if method != UNADAPTED and base_file.parent in base_current and base_file.exists():
-            pairs.append((folder / file_name, base_file))
+    pairs = [
+        (folder / file_name, Path(root) / base_preset / task / method / folder.name / file_name)
+        for task, method, folder in _evaluated(select_runs(root, preset).current, file_name)
+        if method != UNADAPTED
+    ]
     try:
-        return _paired_files(pairs)
+        return _paired_files(pairs, select_runs(root, base_preset).current)
     except ValueError as exc:
         raise UserInputError(
             f"{exc}; presets {preset} and {base_preset} do not evaluate on the same TCs"
@@ -175,20 +168,22 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
         ValueError: the two evaluations of a run hold different TCs.
     """
     best_name = evaluation_file_names(None, "best")[0]
-    final_name = evaluation_file_names()[0]
     current = select_runs(root, preset).current
     pairs = [
-        (folder / best_name, folder / final_name)
+        (folder / best_name, folder / evaluation_file_names()[0])
         for _, _, folder in _evaluated(current, best_name)
-        if (folder / final_name).exists()
     ]
-    return _paired_files(pairs)
+    return _paired_files(pairs, current)
 
 
-def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
-    """`FIELDS` rows (`_sorted`) of each (run, reference) pair of evaluation files of runs
-    ``.../<task>/<method>/seed<k>/``, TC by TC (each file's episodes a `csv_frame`); a
-    reference shared by several runs is read once.
+def _paired_files(
+    pairs: list[tuple[Path, Path]], reference_runs: frozenset[Path]
+) -> list[dict[str, Any]]:
+    """`FIELDS` rows of each (run, reference) pair of evaluation files of runs
+    ``.../<task>/<method>/seed<k>/`` whose reference file exists in a run folder of
+    ``reference_runs`` (the runs that count there), TC by TC (each file's episodes a
+    `csv_frame`), in task, table and seed order, outcomes in `OUTCOMES` order; a reference
+    shared by several runs is read once.
 
     Raises:
         ValueError: the two files of a pair hold different TCs.
@@ -196,6 +191,8 @@ def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
     references: dict[Path, pd.DataFrame] = {}
     rows = []
     for run_file, reference_file in pairs:
+        if reference_file.parent not in reference_runs or not reference_file.exists():
+            continue
         if reference_file not in references:
             references[reference_file] = csv_frame(reference_file, {})
         theirs = references[reference_file]
