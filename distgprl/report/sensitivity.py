@@ -75,8 +75,8 @@ def sensitivity_points(
     tasks: list[str],
     seed: int = BOOTSTRAP_SEED,
 ) -> list[dict[str, Any]]:
-    """One entry per reading, task and score with runs: ``preset``, ``reading``, ``task``,
-    ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
+    """One entry per reading, task and score with runs: ``reading`` (the `Reading`),
+    ``task``, ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
     points = []
     for reading in study.all_readings:
         scores = scores_of.get(reading.preset, {})
@@ -86,9 +86,9 @@ def sensitivity_points(
             for key, _ in PANELS:
                 estimate = _mean(scores, task, method, key, seed)
                 if estimate is not None:
-                    where = {"preset": reading.preset, "reading": reading.label, "task": task}
                     gain = gains[(reading.preset, task)]
-                    points.append({**where, "score": key, "gain": gain, "estimate": estimate})
+                    where = {"reading": reading, "task": task, "score": key}
+                    points.append({**where, "gain": gain, "estimate": estimate})
     return points
 
 
@@ -130,13 +130,13 @@ def plot_sensitivity(
     reach file, or no run of the studied method)."""
 
     reach_path = Path(root) / study.name / "reach.json"
+    if not reach_path.exists():
+        return None
     method = study.methods[0]
     tasks = sorted({task for scores in scores_of.values() for task, _ in scores})
-    points: list[dict[str, Any]] = []
-    if reach_path.exists():
-        gains = reading_gains(read_json(reach_path), method)
-        tasks.sort(key=task_order)
-        points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
+    tasks.sort(key=task_order)
+    gains = reading_gains(read_json(reach_path), method)
+    points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
     if not points:
         return None
     tasks = [t for t in tasks if any(p["task"] == t for p in points)]
@@ -149,7 +149,8 @@ def plot_sensitivity(
         for col, (key, label) in enumerate(PANELS):
             ax = axes[row][col]
             _draw_references(ax, reference, task, key, seed)
-            _draw_readings(ax, fig, study, method, points, task, key, markers)
+            panel = [p for p in points if (p["task"], p["score"]) == (task, key)]
+            _draw_readings(ax, fig, method, panel, markers)
             if key != "mean_kinematic_retention":
                 ax.set_ylim(-0.02, 1.02)
             ax.set_xlabel("mean operator gain on a raw action")
@@ -189,40 +190,31 @@ def _draw_references(ax: Any, reference: Scores, task: str, key: str, seed: int)
 
 
 def _draw_readings(
-    ax: Any,
-    fig: Figure,
-    study: Study,
-    method: str,
-    points: list[dict[str, Any]],
-    task: str,
-    key: str,
-    markers: dict[str, str],
+    ax: Any, fig: Figure, method: str, points: list[dict[str, Any]], markers: dict[str, str]
 ) -> None:
-    """One panel's readings: each reading's estimate at its operator gain with its interval,
-    a control drawn hollow beside the reading whose gain it shares."""
+    """One panel's readings (``points`` of `sensitivity_points`, in the study's reading
+    order): each reading's estimate at its operator gain with its interval, a control drawn
+    hollow beside the reading whose gain it shares."""
     from matplotlib.transforms import offset_copy
 
-    for reading in study.all_readings:
-        for point in points:
-            if (point["task"], point["score"], point["preset"]) != (task, key, reading.preset):
-                continue
-            estimate = point["estimate"]
-            yerr = None
-            if estimate.has_interval:
-                yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
-            seeds = min(estimate.seeds)
-            transform = ax.transData
-            if reading.control:  # beside the reading with its gain, same x value
-                transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
-            ax.errorbar(
-                [point["gain"]],
-                [estimate.point],
-                yerr=yerr,
-                fmt=markers.get(reading.preset, "o"),
-                color="0.5" if reading.control else "black",
-                markerfacecolor="white" if reading.control else None,
-                transform=transform,
-                capsize=3,
-                label=f"{short_label(method)}: "
-                f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
-            )
+    for point in points:
+        reading, estimate = point["reading"], point["estimate"]
+        yerr = None
+        if estimate.has_interval:
+            yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
+        seeds = min(estimate.seeds)
+        plural = "s" if seeds != 1 else ""
+        transform = ax.transData
+        if reading.control:  # beside the reading with its gain, same x value
+            transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
+        ax.errorbar(
+            [point["gain"]],
+            [estimate.point],
+            yerr=yerr,
+            fmt=markers.get(reading.preset, "o"),
+            color="0.5" if reading.control else "black",
+            markerfacecolor="white" if reading.control else None,
+            transform=transform,
+            capsize=3,
+            label=f"{short_label(method)}: {reading.label} ({seeds} seed{plural})",
+        )
