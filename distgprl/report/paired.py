@@ -99,9 +99,9 @@ def paired_rows(
     """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
     on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
     run has been evaluated (both among the runs that count, `select_runs`); the reference's
-    own runs and `UNADAPTED` are not rows. In task,
-    table and seed order, outcomes in `OUTCOMES` order. ``episodes``: None pairs the
-    preset's evaluations; N pairs the supplementary evaluations on N TCs.
+    own runs and `UNADAPTED` are not rows. In task, table and seed order, outcomes in
+    `OUTCOMES` order. ``episodes``: None pairs the preset's evaluations; N pairs the
+    supplementary evaluations on N TCs.
 
     Raises:
         ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its

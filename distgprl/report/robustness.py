@@ -74,9 +74,8 @@ def reading_scores(
     reference: Scores, reading_runs: Scores, acts_on: Callable[[str], bool]
 ) -> tuple[Scores, tuple[str, ...]]:
     """(scores, methods not run) of a study reading: ``reference``'s runs of every method
-    ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (module
-    docstring). The methods not run are those acted on with reference runs and none under
-    the reading."""
+    ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (protocol). The
+    methods not run are those acted on with reference runs and none under the reading."""
     scores: dict[tuple[str, str], Sequence[Mapping[str, float]]] = {
         key: runs for key, runs in reference.items() if not acts_on(key[1])
     }
