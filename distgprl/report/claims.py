@@ -5,10 +5,8 @@ One row per claim the paper makes in its results and discussion: the statistic t
 estimate pooling both tasks (one stratum per task) beside it, never instead of it, then an
 overall verdict combined from the tasks' (`combine`). The rules ("protocol" below):
 docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them"; why
-each is as it is: "Claims rules that cannot mislead" there.
-
-The claims table's files (``claims_<preset>.csv`` and ``.md``, `claims_texts`): per task
-first, the pooled estimate beside, the overall verdict last.
+each is as it is: "Claims rules that cannot mislead" there. Written as ``claims_<preset>.csv``
+(`CSV_FIELDS`) and ``.md`` by `claims_texts`.
 """
 
 from __future__ import annotations

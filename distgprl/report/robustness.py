@@ -4,12 +4,8 @@ For the studies (`distgprl.studies`) read beside a preset's Table I, every claim
 `distgprl.report.claims` is tested once per reading (`study_verdicts`), with the same rules and
 bootstrap seed, on that reading's runs (`reading_scores`), and judged across the readings
 (`across_readings`). The rules ("protocol" below): docs/findings/protocol.md, "The claims per
-reading".
-
-Written as ``claims_robustness_<preset>.csv`` (one row per claim and reading, then with
-several studies one ``across <study>`` row per study — Table I's reading and that study's —
-and the claim's ``across`` row over every reading) and ``.md`` (a column per reading) by
-`robustness_texts`.
+reading". Written as ``claims_robustness_<preset>.csv`` (`CSV_FIELDS`) and ``.md`` (a
+column per reading) by `robustness_texts`.
 """
 
 from __future__ import annotations
