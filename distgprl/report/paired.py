@@ -61,13 +61,12 @@ def mcnemar_exact(only_run: int, only_reference: int) -> float:
     return float(stats.binomtest(only_run, discordant, 0.5).pvalue)
 
 
-def _outcomes(episodes: pd.DataFrame) -> dict[str, np.ndarray]:
-    """`OUTCOMES` of one evaluation's episodes (a `csv_frame`), each 0 or 1 per TC."""
-    success = episodes["success"].to_numpy(dtype=int)
-    collision = episodes["collision"].to_numpy(dtype=int)
-    pairs = zip(success, collision, strict=True)
-    safe = np.array([int(is_safe_success({"success": s, "collision": c})) for s, c in pairs])
-    return {"success": success, "collision": collision, "safe_success": safe}
+def _outcomes(episodes: pd.DataFrame) -> pd.DataFrame:
+    """`OUTCOMES` of one evaluation's episodes (a `csv_frame`): a column each, 0 or 1 per TC."""
+    outcomes = episodes[["success", "collision"]].astype(int)
+    pairs = zip(outcomes["success"], outcomes["collision"], strict=True)
+    safe = [is_safe_success({"success": s, "collision": c}) for s, c in pairs]
+    return outcomes.assign(safe_success=np.array(safe, dtype=int))
 
 
 def _check_same_tcs(run: Path, reference: Path, mine: pd.DataFrame, theirs: pd.DataFrame) -> None:
@@ -89,12 +88,9 @@ def _check_same_tcs(run: Path, reference: Path, mine: pd.DataFrame, theirs: pd.D
 def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
     """The N of the supplementary evaluations (``evaluation_n<N>.csv``) under
     ``<root>/<preset>``, ascending."""
-    sizes = set()
-    for path in (Path(root) / preset).glob("*/*/seed*/evaluation_n*.csv"):
-        digits = path.stem.removeprefix("evaluation_n")
-        if digits.isdigit():
-            sizes.add(int(digits))
-    return sorted(sizes)
+    paths = (Path(root) / preset).glob("*/*/seed*/evaluation_n*.csv")
+    digits = (path.stem.removeprefix("evaluation_n") for path in paths)
+    return sorted({int(n) for n in digits if n.isdigit()})
 
 
 def paired_rows(
@@ -103,9 +99,9 @@ def paired_rows(
     """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
     on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
     run has been evaluated (both among the runs that count, `select_runs`); the reference's
-    own runs and `UNADAPTED` are not rows. In task,
-    table and seed order, outcomes in `OUTCOMES` order. ``episodes``: None pairs the
-    preset's evaluations; N pairs the supplementary evaluations on N TCs.
+    own runs and `UNADAPTED` are not rows. In task, table and seed order, outcomes in
+    `OUTCOMES` order. ``episodes``: None pairs the preset's evaluations; N pairs the
+    supplementary evaluations on N TCs.
 
     Raises:
         ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its
@@ -117,14 +113,11 @@ def paired_rows(
     current = select_runs(root, preset).current
     pairs = []
     for task, method, folder in _evaluated(current, file_name):
-        if method in (reference, UNADAPTED):
-            continue
-        reference_folder = Path(root) / preset / task / reference
-        reference_file = reference_folder / ("seed0" if reference == UNADAPTED else folder.name)
-        pairs.append((folder / file_name, reference_file / file_name))
-    return _paired_files(
-        [(mine, theirs) for mine, theirs in pairs if theirs.parent in current and theirs.exists()]
-    )
+        seed = "seed0" if reference == UNADAPTED else folder.name
+        if method not in (reference, UNADAPTED):
+            reference_file = Path(root) / preset / task / reference / seed / file_name
+            pairs.append((folder / file_name, reference_file))
+    return _paired_files(pairs, current)
 
 
 def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str, Path]]:
@@ -152,17 +145,13 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
     if preset == base_preset:
         raise UserInputError(f"--against {base_preset}: pair a preset with another preset")
     file_name = evaluation_file_names()[0]
-    current, base_current = (
-        select_runs(root, preset).current,
-        select_runs(root, base_preset).current,
-    )
-    pairs = []
-    for task, method, folder in _evaluated(current, file_name):
-        base_file = Path(root) / base_preset / task / method / folder.name / file_name
-        if method != UNADAPTED and base_file.parent in base_current and base_file.exists():
-            pairs.append((folder / file_name, base_file))
+    pairs = [
+        (folder / file_name, Path(root) / base_preset / task / method / folder.name / file_name)
+        for task, method, folder in _evaluated(select_runs(root, preset).current, file_name)
+        if method != UNADAPTED
+    ]
     try:
-        return _paired_files(pairs)
+        return _paired_files(pairs, select_runs(root, base_preset).current)
     except ValueError as exc:
         raise UserInputError(
             f"{exc}; presets {preset} and {base_preset} do not evaluate on the same TCs"
@@ -179,20 +168,22 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
         ValueError: the two evaluations of a run hold different TCs.
     """
     best_name = evaluation_file_names(None, "best")[0]
-    final_name = evaluation_file_names()[0]
     current = select_runs(root, preset).current
     pairs = [
-        (folder / best_name, folder / final_name)
+        (folder / best_name, folder / evaluation_file_names()[0])
         for _, _, folder in _evaluated(current, best_name)
-        if (folder / final_name).exists()
     ]
-    return _paired_files(pairs)
+    return _paired_files(pairs, current)
 
 
-def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
-    """`FIELDS` rows (`_sorted`) of each (run, reference) pair of evaluation files of runs
-    ``.../<task>/<method>/seed<k>/``, TC by TC (each file's episodes a `csv_frame`); a
-    reference shared by several runs is read once.
+def _paired_files(
+    pairs: list[tuple[Path, Path]], reference_runs: frozenset[Path]
+) -> list[dict[str, Any]]:
+    """`FIELDS` rows of each (run, reference) pair of evaluation files of runs
+    ``.../<task>/<method>/seed<k>/`` whose reference file exists in a run folder of
+    ``reference_runs`` (the runs that count there), TC by TC (each file's episodes a
+    `csv_frame`), in task, table and seed order, outcomes in `OUTCOMES` order; a reference
+    shared by several runs is read once.
 
     Raises:
         ValueError: the two files of a pair hold different TCs.
@@ -200,35 +191,42 @@ def _paired_files(pairs: list[tuple[Path, Path]]) -> list[dict[str, Any]]:
     references: dict[Path, pd.DataFrame] = {}
     rows = []
     for run_file, reference_file in pairs:
+        if reference_file.parent not in reference_runs or not reference_file.exists():
+            continue
         if reference_file not in references:
             references[reference_file] = csv_frame(reference_file, {})
         theirs = references[reference_file]
         mine = csv_frame(run_file, {})
         _check_same_tcs(run_file, reference_file, mine, theirs)
         task, method, folder = run_file.parts[-4:-1]
-        seed = int(folder.removeprefix("seed"))
-        rows += _pair(task, method, seed, _outcomes(mine), _outcomes(theirs))
-    return _sorted(rows)
+        run = {"task": task, "method": method, "seed": int(folder.removeprefix("seed"))}
+        rows += _pair(run, _outcomes(mine), _outcomes(theirs))
+    outcome_index = [outcome for outcome, _ in OUTCOMES].index
+    return sorted(
+        rows,
+        key=lambda r: (
+            task_order(r["task"]),
+            r["task"],
+            TABLE_ORDER.index(r["method"]),
+            r["seed"],
+            outcome_index(r["outcome"]),
+        ),
+    )
 
 
 def _pair(
-    task: str,
-    method: str,
-    seed: int,
-    outcomes: dict[str, np.ndarray],
-    reference_outcomes: dict[str, np.ndarray],
+    run: dict[str, Any], outcomes: pd.DataFrame, reference_outcomes: pd.DataFrame
 ) -> list[dict[str, Any]]:
-    """One `FIELDS` row per outcome: a run's episodes against the reference's, TC by TC."""
+    """One `FIELDS` row per outcome: a run's episodes (``run`` its task, method and seed)
+    against the reference's, TC by TC."""
     rows = []
     for outcome, _ in OUTCOMES:
-        mine, theirs = outcomes[outcome], reference_outcomes[outcome]
+        mine, theirs = outcomes[outcome].to_numpy(), reference_outcomes[outcome].to_numpy()
         only_run = int(((mine == 1) & (theirs == 0)).sum())
         only_reference = int(((mine == 0) & (theirs == 1)).sum())
         rows.append(
             {
-                "task": task,
-                "method": method,
-                "seed": seed,
+                **run,
                 "outcome": outcome,
                 "tcs": len(mine),
                 "run_rate": int(mine.sum()) / len(mine),
@@ -238,21 +236,6 @@ def _pair(
                 "p_value": mcnemar_exact(only_run, only_reference),
             }
         )
-    return rows
-
-
-def _sorted(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Rows in task, table and seed order, outcomes in `OUTCOMES` order."""
-    outcome_key = {outcome: i for i, (outcome, _) in enumerate(OUTCOMES)}
-    rows.sort(
-        key=lambda r: (
-            task_order(r["task"]),
-            r["task"],
-            TABLE_ORDER.index(r["method"]),
-            r["seed"],
-            outcome_key[r["outcome"]],
-        )
-    )
     return rows
 
 
@@ -284,13 +267,15 @@ def paired_texts(
     table = []
     for start in range(0, len(rows), len(OUTCOMES)):
         run = rows[start : start + len(OUTCOMES)]
-        cells = [run[0]["task"].upper(), METHODS[run[0]["method"]].label, str(run[0]["seed"])]
-        cells.append(str(run[0]["tcs"]))
+        first = run[0]
+        cells = [first["task"].upper(), METHODS[first["method"]].label]
+        cells += [str(first["seed"]), str(first["tcs"])]
         for row in run:
+            p = row["p_value"]
             cells += [
                 f"{row['run_rate']:.2f} / {row['reference_rate']:.2f}",
                 f"{row['only_run']} / {row['only_reference']}",
-                _p_text(row["p_value"]),
+                "< 0.001" if p < 0.001 else f"{p:.3f}",
             ]
         table.append(cells)
     return csv_text(rows, FIELDS), markdown_table(title, header, table)
@@ -305,7 +290,3 @@ def _reference_text(reference: str) -> str:
     if reference == UNADAPTED:
         return "the unadapted reference"
     return f"{METHODS[reference].label} of the same seed"
-
-
-def _p_text(p: float) -> str:
-    return "< 0.001" if p < 0.001 else f"{p:.3f}"

@@ -1,50 +1,11 @@
 """Claims per reading: each claim's verdict under Table I's readings and every study reading.
 
-For the studies (`distgprl.studies`) read beside a preset's Table I — the covariance operator's
-readings, the unit of r_tc — every claim of `distgprl.report.claims` is tested once per
-reading, with the same rules and the same bootstrap seed, on that reading's runs:
-
-- the reference reading (Table I's) uses the reference preset's runs as they are; read beside
-  several studies it is named by each studied constant's Table I value (`reference_reading`);
-- a study reading replaces every method the reading acts on (`Study.acted_on`: for the
-  operator study each method with the covariance transform, for the reward unit every trained
-  method) by its runs under the reading's preset, and keeps the reference preset's runs of
-  every other method, which the reading does not change (their environment and scores are the
-  same under it);
-- a method a reading acts on with no run under it is *not* borrowed from Table I (its numbers
-  would be those of another reading): every claim whose test reads it is `NOT_RUN` under that
-  reading, naming the methods to run — or `OUTSIDE` where the study does not train that
-  method at all (`Study.methods`: the operator study trains Dist-GPRL only), so no run will
-  ever come; the reading does not test that claim;
-- a study's control (`distgprl.studies.Reading.control`, e.g. the uncoupled-signal operator)
-  is not a reading of the paper: no verdict reads it (`Study.claim_readings`).
-
-Across the readings (`across_readings`), with R the readings:
-
-- *reproduced under every reading* only if every reading's verdict is *reproduced* (likewise
-  *refuted under every reading*, and "<v> under every reading" for any other common verdict,
-  e.g. "reproduced on DCP");
-- *reading-dependent* when two readings reach different decided verdicts, naming the readings
-  of each verdict; a claim reproduced under one reading and inconclusive under another is
-  reading-dependent;
-- *incomplete* while a reading has no verdict yet (no runs, fewer than two seeds, not run),
-  with the agreeing verdict so far and the readings awaited.
-
-A decided verdict across readings whose runs differ in number — while a study trains, Table
-I's reading can have three seeds of Dist-GPRL and a study reading two — ends "at unequal
-seeds": a reading with fewer seeds has wider intervals and can be inconclusive where another
-decides, so such a *reading-dependent* may be the seed count's, not the reading's. Each
-reading's seeds of Dist-GPRL per task (`ReadingVerdicts.seeds`; every study trains it) are
-listed under the table.
-
-Readings that do not test a claim (`OUTSIDE`) take no part in that rule and are named: a claim
-reproduced under Table I's reading that no study reading tests reads "reproduced under every
-reading that tests it (1 of 5; untested: ...)", never "under every reading".
-
-Written as ``claims_robustness_<preset>.csv`` (one row per claim and reading, then with
-several studies one ``across <study>`` row per study — Table I's reading and that study's —
-and the claim's ``across`` row over every reading) and ``.md`` (a column per reading) by
-`robustness_texts`.
+For the studies (`distgprl.studies`) read beside a preset's Table I, every claim of
+`distgprl.report.claims` is tested once per reading (`study_verdicts`), with the same rules and
+bootstrap seed, on that reading's runs (`reading_scores`), and judged across the readings
+(`across_readings`). The rules ("protocol" below): docs/findings/protocol.md, "The claims per
+reading". Written as ``claims_robustness_<preset>.csv`` (`CSV_FIELDS`) and ``.md`` (a
+column per reading) by `robustness_texts`.
 """
 
 from __future__ import annotations
@@ -109,9 +70,8 @@ def reading_scores(
     reference: Scores, reading_runs: Scores, acts_on: Callable[[str], bool]
 ) -> tuple[Scores, tuple[str, ...]]:
     """(scores, methods not run) of a study reading: ``reference``'s runs of every method
-    ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (module
-    docstring). The methods not run are those acted on with reference runs and none under
-    the reading."""
+    ``acts_on`` leaves alone, ``reading_runs`` for the methods it acts on (protocol). The
+    methods not run are those acted on with reference runs and none under the reading."""
     scores: dict[tuple[str, str], Sequence[Mapping[str, float]]] = {
         key: runs for key, runs in reference.items() if not acts_on(key[1])
     }
@@ -148,51 +108,43 @@ def study_verdicts(
     if not studies:
         raise ValueError("no study to read")
     tasks = tasks_of(reference)
+    verdicts = tuple(evaluate_claims(reference, seed))
     out = [
-        ReadingVerdicts(
-            reference_reading(studies),
-            tuple(evaluate_claims(reference, seed)),
-            (),
-            seeds=_seeds(reference, tasks),
-        )
+        ReadingVerdicts(reference_reading(studies), verdicts, (), seeds=_seeds(reference, tasks))
     ]
     for study in studies:
         for reading in study.claim_readings:  # a control judges no claim
             scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
-            verdicts = []
-            for verdict in evaluate_claims(scores, seed):
-                lacking = [m for m in verdict.needs if m in not_run]
-                if lacking:
-                    names = ", ".join(map(short_label, lacking))
-                    if all(m in study.methods for m in lacking):
-                        detail = f"{names} under {reading.preset}: the reading changes it; run it"
-                        status = NOT_RUN
-                    else:
-                        trained = ", ".join(map(short_label, study.methods))
-                        outside = ", ".join(
-                            short_label(m) for m in lacking if m not in study.methods
-                        )
-                        detail = (
-                            f"{names} under {reading.preset}: the reading changes it, and the "
-                            f"{study.name} study trains {trained} only (not {outside})"
-                        )
-                        status = OUTSIDE
-                    verdict = Verdict(
-                        verdict.claim, verdict.test, (), None, status, detail, verdict.needs
-                    )
-                verdicts.append(verdict)
-            out.append(
-                ReadingVerdicts(
-                    reading, tuple(verdicts), not_run, study.name, _seeds(scores, tasks)
-                )
-            )
+            claims = evaluate_claims(scores, seed)
+            verdicts = tuple(_unless_not_run(v, study, reading, not_run) for v in claims)
+            seeds = _seeds(scores, tasks)
+            out.append(ReadingVerdicts(reading, verdicts, not_run, study.name, seeds))
     return out
+
+
+def _unless_not_run(
+    verdict: Verdict, study: Study, reading: Reading, not_run: tuple[str, ...]
+) -> Verdict:
+    """``verdict``, or, where its test reads a method of ``not_run``, `NOT_RUN` (the study
+    trains that method) or `OUTSIDE` (it does not) with the methods named."""
+    lacking = [m for m in verdict.needs if m in not_run]
+    if not lacking:
+        return verdict
+    names = ", ".join(map(short_label, lacking))
+    outside = ", ".join(short_label(m) for m in lacking if m not in study.methods)
+    detail = f"{names} under {reading.preset}: the reading changes it"
+    if not outside:
+        detail += "; run it"
+        return Verdict(verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs)
+    trained = ", ".join(map(short_label, study.methods))
+    detail += f", and the {study.name} study trains {trained} only (not {outside})"
+    return Verdict(verdict.claim, verdict.test, (), None, OUTSIDE, detail, verdict.needs)
 
 
 def across_readings(
     verdicts: Sequence[tuple[str, str]], seeds: Mapping[str, Hashable] | None = None
 ) -> str:
-    """The verdict across readings from (reading label, verdict) pairs (module docstring);
+    """The verdict across readings from (reading label, verdict) pairs (protocol);
     ``seeds`` (reading label → its run counts, e.g. `ReadingVerdicts.seeds`) marks a decided verdict
     across readings whose counts differ `UNEQUAL_SEEDS`."""
     untested = [label for label, v in verdicts if v == OUTSIDE]
@@ -221,32 +173,28 @@ def across_readings(
 
 def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of the claims per reading (`CSV_FIELDS`; Markdown: a column per
-    reading, the verdict across them last)."""
-    claims = [v.claim for v in results[0].verdicts]
+    reading, then with several studies one per study, the verdict across them all last)."""
     studies = list(dict.fromkeys(r.study for r in results if r.study))
     per_study = len(studies) > 1  # then each study's own across column, before the overall one
+    groups = [(f"across {name}", [r for r in results if r.study in ("", name)]) for name in studies]
+    groups = groups if per_study else []
+    groups.append(("across", list(results)))
+    seeds = {r.reading.label: r.seeds for r in results}
     csv_rows: list[dict[str, str]] = []
     rows = []
-    seeds = {r.reading.label: r.seeds for r in results}
-    for index, claim in enumerate(claims):
-        pairs = [(r.reading.label, r.verdicts[index].verdict) for r in results]
-        for result in results:
-            verdict = result.verdicts[index]
-            fields = (result.reading.label, result.reading.preset, verdict.verdict, verdict.detail)
-            csv_rows.append(dict(zip(CSV_FIELDS, (claim, *fields), strict=True)))
-        study_columns = []
-        for name in studies if per_study else []:
-            own = [
-                (r.reading.label, r.verdicts[index].verdict)
-                for r in results
-                if r.study in ("", name)
-            ]
-            study_columns.append(across_readings(own, seeds))
-            fields = (f"across {name}", "", study_columns[-1], "")
-            csv_rows.append(dict(zip(CSV_FIELDS, (claim, *fields), strict=True)))
-        across = across_readings(pairs, seeds)
-        csv_rows.append(dict(zip(CSV_FIELDS, (claim, "across", "", across, ""), strict=True)))
-        rows.append([claim, *(f"{v}" for _, v in pairs), *study_columns, f"**{across}**"])
+    for index, claim in enumerate(v.claim for v in results[0].verdicts):
+        for r in results:
+            verdict = r.verdicts[index]
+            cells = (claim, r.reading.label, r.reading.preset, verdict.verdict, verdict.detail)
+            csv_rows.append(dict(zip(CSV_FIELDS, cells, strict=True)))
+        across = [
+            across_readings([(r.reading.label, r.verdicts[index].verdict) for r in group], seeds)
+            for _, group in groups
+        ]
+        for (label, _), text in zip(groups, across, strict=True):
+            csv_rows.append(dict(zip(CSV_FIELDS, (claim, label, "", text, ""), strict=True)))
+        own = [r.verdicts[index].verdict for r in results]
+        rows.append([claim, *own, *across[:-1], f"**{across[-1]}**"])
     header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
     header += [f"Across Table I and the {name} study" for name in studies if per_study]
     header.append("Across readings")

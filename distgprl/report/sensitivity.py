@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from distgprl.data import task_order
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import (
     BOOTSTRAP_SEED,
@@ -74,31 +75,26 @@ def sensitivity_points(
     tasks: list[str],
     seed: int = BOOTSTRAP_SEED,
 ) -> list[dict[str, Any]]:
-    """One entry per reading, task and score with runs: ``preset``, ``reading``, ``task``,
-    ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
+    """One entry per reading, task and score with runs: ``reading`` (the `Reading`),
+    ``task``, ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
     points = []
     for reading in study.all_readings:
         scores = scores_of.get(reading.preset, {})
         for task in tasks:
-            if not scores.get((task, method)) or (reading.preset, task) not in gains:
+            if (reading.preset, task) not in gains:
                 continue
             for key, _ in PANELS:
-                estimate = method_estimate(scores, [task], method, key, "mean", seed)
-                if estimate.seeds and min(estimate.seeds) > 0:
-                    points.append(
-                        {
-                            "preset": reading.preset,
-                            "reading": reading.label,
-                            "task": task,
-                            "score": key,
-                            "gain": gains[(reading.preset, task)],
-                            "estimate": estimate,
-                        }
-                    )
+                estimate = _mean(scores, task, method, key, seed)
+                if estimate is not None:
+                    gain = gains[(reading.preset, task)]
+                    where = {"reading": reading, "task": task, "score": key}
+                    points.append({**where, "gain": gain, "estimate": estimate})
     return points
 
 
-def _reference(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
+def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
+    """``method``'s mean ``key`` over its seeds on ``task`` with its interval, or None without
+    runs."""
     if not scores.get((task, method)):
         return None
     estimate = method_estimate(scores, [task], method, key, "mean", seed)
@@ -134,15 +130,13 @@ def plot_sensitivity(
     reach file, or no run of the studied method)."""
 
     reach_path = Path(root) / study.name / "reach.json"
+    if not reach_path.exists():
+        return None
     method = study.methods[0]
     tasks = sorted({task for scores in scores_of.values() for task, _ in scores})
-    points: list[dict[str, Any]] = []
-    if reach_path.exists():
-        gains = reading_gains(read_json(reach_path), method)
-        tasks = [t for t in ("dcp", "dbm") if t in tasks] + [
-            t for t in tasks if t not in ("dcp", "dbm")
-        ]
-        points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
+    tasks.sort(key=task_order)
+    gains = reading_gains(read_json(reach_path), method)
+    points = sensitivity_points(study, method, scores_of, gains, tasks, seed)
     if not points:
         return None
     tasks = [t for t in tasks if any(p["task"] == t for p in points)]
@@ -155,20 +149,20 @@ def plot_sensitivity(
         for col, (key, label) in enumerate(PANELS):
             ax = axes[row][col]
             _draw_references(ax, reference, task, key, seed)
-            _draw_readings(ax, fig, study, method, points, task, key, markers)
+            panel = [p for p in points if (p["task"], p["score"]) == (task, key)]
+            _draw_readings(ax, fig, method, panel, markers)
             if key != "mean_kinematic_retention":
                 ax.set_ylim(-0.02, 1.02)
             ax.set_xlabel("mean operator gain on a raw action")
             ax.set_ylabel(label)
             ax.set_title(f"{task.upper()}: {label}")
             ax.grid(alpha=0.3)
-    handles, labels = [], []
+    legend: dict[str, Any] = {}  # each label once, its first handle
     for ax in axes.flat:
         for handle, text in zip(*ax.get_legend_handles_labels(), strict=True):
-            if text not in labels:
-                handles.append(handle)
-                labels.append(text)
-    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
+            legend.setdefault(text, handle)
+    labels = list(legend)
+    fig.legend(list(legend.values()), labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     control = any(r.control for r in study.readings)
     fig.suptitle(
         f"Operator study: {short_label(method)} per reading of K_tt"
@@ -186,51 +180,41 @@ def _draw_references(ax: Any, reference: Scores, task: str, key: str, seed: int)
     """One panel's reference methods: a dashed line at each one's estimate, its interval
     shaded."""
     for index, ref in enumerate(REFERENCES):
-        estimate = _reference(reference, task, ref, key, seed)
+        estimate = _mean(reference, task, ref, key, seed)
         if estimate is None:
             continue
         color = f"C{index + 1}"
-        name = METHODS[ref].label
-        ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=name)
+        ax.axhline(estimate.point, color=color, lw=1.2, ls="--", label=METHODS[ref].label)
         if estimate.has_interval:
             ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
 
 
 def _draw_readings(
-    ax: Any,
-    fig: Figure,
-    study: Study,
-    method: str,
-    points: list[dict[str, Any]],
-    task: str,
-    key: str,
-    markers: dict[str, str],
+    ax: Any, fig: Figure, method: str, points: list[dict[str, Any]], markers: dict[str, str]
 ) -> None:
-    """One panel's readings: each reading's estimate at its operator gain with its interval,
-    a control drawn hollow beside the reading whose gain it shares."""
+    """One panel's readings (``points`` of `sensitivity_points`, in the study's reading
+    order): each reading's estimate at its operator gain with its interval, a control drawn
+    hollow beside the reading whose gain it shares."""
     from matplotlib.transforms import offset_copy
 
-    for reading in study.all_readings:
-        for point in points:
-            if (point["task"], point["score"], point["preset"]) != (task, key, reading.preset):
-                continue
-            estimate = point["estimate"]
-            yerr = None
-            if estimate.has_interval:
-                yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
-            seeds = min(estimate.seeds)
-            transform = ax.transData
-            if reading.control:  # beside the reading with its gain, same x value
-                transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
-            ax.errorbar(
-                [point["gain"]],
-                [estimate.point],
-                yerr=yerr,
-                fmt=markers.get(reading.preset, "o"),
-                color="0.5" if reading.control else "black",
-                markerfacecolor="white" if reading.control else None,
-                transform=transform,
-                capsize=3,
-                label=f"{short_label(method)}: "
-                f"{reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
-            )
+    for point in points:
+        reading, estimate = point["reading"], point["estimate"]
+        yerr = None
+        if estimate.has_interval:
+            yerr = [[estimate.point - estimate.low], [estimate.high - estimate.point]]
+        seeds = min(estimate.seeds)
+        plural = "s" if seeds != 1 else ""
+        transform = ax.transData
+        if reading.control:  # beside the reading with its gain, same x value
+            transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
+        ax.errorbar(
+            [point["gain"]],
+            [estimate.point],
+            yerr=yerr,
+            fmt=markers.get(reading.preset, "o"),
+            color="0.5" if reading.control else "black",
+            markerfacecolor="white" if reading.control else None,
+            transform=transform,
+            capsize=3,
+            label=f"{short_label(method)}: {reading.label} ({seeds} seed{plural})",
+        )
