@@ -232,7 +232,7 @@ class PlateauCell:
     evaluation episodes of ``seeds`` runs, the ``idle`` ones (no success, no collision, r_tc <
     `IDLE_PROGRESS` of the task's progress weight) and their lambda_ga r_ga values
     ``idle_ga`` (the alignment reward paid for moving away from the obstacles instead of doing
-    the task; docs/FINDINGS.md, "... the attractor is r_ga, not r_sd")."""
+    the task; docs/FINDINGS.md, "The first v7 runs: the attractor is r_ga, not r_sd")."""
 
     task: str
     method: str
