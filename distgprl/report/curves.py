@@ -1,24 +1,13 @@
 """Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
 
-Each panel shows the mean over seeds of success rate, collision rate and episode return
-against training steps, with a 95 % bootstrap band: at every step, the 2.5th and 97.5th
-percentiles of the mean over `BOOTSTRAP_REPS` resamples of the seeds with replacement (whole
-curves are resampled, seeds are the units; Agarwal et al. 2021, as `distgprl.report.aggregate`
-does for Table I's intervals). Rate bands lie in [0, 1] by construction (means of rates);
-a single seed has no band. Seeds are aligned on their common steps. Each band draws from its
-own generator (`estimate_rng` of the figure seed, task, method and metric), so the figures
-are reproducible byte for byte and adding a method leaves the other bands unchanged.
-
-Beside a preset's studies, one more figure per study (`plot_reading_curves`): the studied
-method's success curve of every seed under each reading, so that *when* a seed learns is
-visible where the mean over seeds averages an early and a late learner into a slope; and
-the study's onset figure (`distgprl.report.onset_figure`), the step at which each run first
-learns, run by run.
-
-For print: every panel has its y-axis label, one legend for the whole figure sits below the
-panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
-method keeps its colour in every figure, and each figure is written as a vector PDF and a
-150 dpi PNG.
+Each panel: the mean over seeds (aligned on their common steps) of success rate, collision rate
+and episode return against training steps, with a 95 % bootstrap band (whole curves resampled,
+seeds the units; a single seed has none). Each band draws from its own generator
+(`estimate_rng` of the figure seed, task, method and metric): the figures are byte-reproducible
+and adding a method leaves the other bands unchanged. Per study beside a preset: its curves
+seed by seed (`plot_reading_curves`), its onset figure and, for an operator study, its
+sensitivity figure. Every panel has its y-axis label, one legend sits below the panels, the
+proposed method (`HIGHLIGHT`) is bold and on top, and a method keeps its colour everywhere.
 """
 
 from __future__ import annotations
@@ -115,12 +104,7 @@ def mean_and_band(
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
-
-    def mean_curve(sample: np.ndarray, axis: int) -> np.ndarray:
-        means: np.ndarray = sample.mean(axis=axis)
-        return means
-
-    return mean, bootstrap_interval([values], mean_curve, rng, reps)
+    return mean, bootstrap_interval([values], np.mean, rng, reps)
 
 
 def method_color(method: str) -> str:
@@ -161,19 +145,17 @@ def plot_figure(
             drawn += 1
             bold = method == HIGHLIGHT
             color = method_color(method)
+            seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
             for col, (key, _) in enumerate(PANELS):
-                ax = axes[row, col]
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
                 mean, band = mean_and_band(values[key], rng)
-                seeds_of.setdefault(method, {})[task] = values[key].shape[0]
-                (line,) = ax.plot(
+                (line,) = axes[row, col].plot(
                     steps, mean, color=color, lw=2.4 if bold else 1.3, zorder=4 if bold else 2
                 )
                 handles.setdefault(method, line)
                 if band is not None:
-                    low, high = band
-                    ax.fill_between(
-                        steps, low, high, color=color, alpha=0.18 if bold else 0.12, lw=0,
+                    axes[row, col].fill_between(
+                        steps, *band, color=color, alpha=0.18 if bold else 0.12, lw=0,
                         zorder=3 if bold else 1,
                     )  # fmt: skip
         for col, (key, label) in enumerate(PANELS):

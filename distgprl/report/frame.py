@@ -1,13 +1,11 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
-and figure: `run_frame` (one row per run's evaluation of one policy), `episode_frame` (per
-run × evaluation episode) and `curve_frame` (per trained run × learning-curve point), each
-keyed by `RUN_KEYS` (and the ``policy``); `load_frames` gives one evaluation's run frame and
-curves, loaded once for every table of it.
+and figure: `run_frame` (per run's evaluation of one policy), `episode_frame` (per run ×
+evaluation episode) and `curve_frame` (per trained run × learning-curve point), keyed by
+`RUN_KEYS` (and the ``policy``); `load_frames` loads one evaluation's frames once.
 
-Values are the result files' own: a summary field keeps its JSON type (``object`` columns),
-a CSV cell is parsed by Python's ``int`` or ``float`` (`number`), a value a file does not
-hold is missing (None in the run frame, NaN in the others). Which runs count is
-`distgprl.report.runs`'; each frame's ``attrs["note"]`` says which did not.
+Values are the result files' own: a summary field keeps its JSON type (``object`` columns), a
+CSV cell is a `number`, a value a file lacks is missing (None in the run frame, NaN in the
+others). Which runs count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
@@ -48,10 +46,9 @@ RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_
 
 def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
     """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
-    or, for a summary written before they were recorded, computed from
-    its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`, the very function
-    `summarise` records them with); unchanged if it has neither (no rows, or rows without
-    the ``collision`` and ``min_clearance`` columns)."""
+    else computed from its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`,
+    as `summarise` records them); unchanged without rows holding ``collision`` and
+    ``min_clearance``."""
     if COLLISION_FREE_MINCL in summary or not episodes.exists():
         return summary
     rows = read_csv(episodes)[1]
