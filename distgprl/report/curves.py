@@ -70,9 +70,8 @@ FIGURES = {
 def load_curves(
     root: str | Path, preset: str, task: str, method: str
 ) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-    """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
-    configuration (`seed_curves`), on their common steps. Runs still in progress are left
-    out."""
+    """`common_curves` of the finished seeds of a run of the current configuration
+    (`seed_curves`)."""
     return common_curves(seed_curves(root, preset, task, method))
 
 
@@ -98,9 +97,9 @@ def common_curves(
 def mean_and_band(
     values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-    """(mean, (low, high)) over seeds (axis 0) of a (seeds, k) array: the mean curve and its
-    `CONFIDENCE` percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the
-    seeds, whole curves, each resample's mean curve). The band is None for a single seed."""
+    """(mean (k,), (low, high) (k,) each) over seeds of a (seeds, k) array: the mean curve
+    and its percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the seeds,
+    whole curves); the band is None for a single seed."""
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
@@ -189,10 +188,8 @@ def plot_figure(
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
     """A study's learning curves seed by seed: one row per task, one panel per
     `reading_columns` entry, each with the success rate on the curve TCs of every finished
-    seed (a thin line, its colour the seed's in every panel) and their mean on the common
-    steps (black, bold). Where a mean over seeds hides it, this shows *when* each seed
-    learns — a plateau left early, late or never — which the sensitivity figure's end points
-    cannot. Returns (figure, number of panels with a curve)."""
+    seed (its colour the seed's in every panel) and their mean on the common steps (black,
+    bold), so that *when* each seed learns is visible. Returns (figure, panels drawn)."""
 
     columns = reading_columns(study)
     fig, axes = subplots(
@@ -243,10 +240,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the `FIGURES` and, per study beside ``preset``, its seed-by-seed curves, its
-    sensitivity figure (an operator study) and its onset figure, and Table II's noise curve,
-    each as PNG and PDF; a figure with nothing to draw is removed instead
-    (`write_or_remove_figure`).
+    """Write the `FIGURES`, per study beside ``preset`` its seed-by-seed curves, sensitivity
+    figure (an operator study) and onset figure, and Table II's noise curve, each as PNG and
+    PDF, or remove a figure with nothing to draw (`write_or_remove_figure`).
 
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
