@@ -19,7 +19,13 @@ from typing import Any
 import pandas as pd
 
 from distgprl.methods import METHODS
-from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, select_runs
+from distgprl.report.runs import (
+    TABLE_POLICY,
+    RunEvaluation,
+    run_evaluations,
+    run_keys,
+    select_runs,
+)
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
 RUN_KEYS = ("task", "method", "seed")
@@ -67,10 +73,7 @@ def _run_record(evaluation: RunEvaluation) -> dict[str, Any]:
     done = read_json(done_path) if done_path.exists() else {}
     machine = (done.get("meta") or {}).get("machine") or {}
     record: dict[str, Any] = {
-        "task": evaluation.task,
-        "method": evaluation.method,
-        "seed": evaluation.seed,
-        "policy": evaluation.policy,
+        **evaluation.keys,
         "folder": evaluation.folder,
         "config_hash": document["meta"].get("config_hash", ""),
         "numerics": machine.get("numerics", ""),
@@ -148,13 +151,7 @@ def episode_frame(
     `EVALUATION_KEYS`, then the file's columns as numbers (`number`). ``attrs["note"]``: the
     runs left out or substituted."""
     selection = run_evaluations(root, preset, policy, seeds)
-    parts = [
-        csv_frame(
-            e.episodes, {"task": e.task, "method": e.method, "seed": e.seed, "policy": e.policy}
-        )
-        for e in selection.evaluations
-        if e.episodes.exists()
-    ]
+    parts = [csv_frame(e.episodes, e.keys) for e in selection.evaluations if e.episodes.exists()]
     frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=EVALUATION_KEYS)
     frame.attrs["note"] = selection.note()
     return frame
@@ -164,16 +161,12 @@ def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
     """One row per run folder of ``folders`` (in their order) × point of its learning curve
     (``progress.csv``; a run without one, or with an empty one, has no rows): `RUN_KEYS`,
     then the file's columns as numbers (`number`; ``step`` an int)."""
-    parts = []
-    for folder in folders:
-        path = Path(folder) / "progress.csv"
-        if path.exists():
-            keys = {
-                "task": path.parent.parent.parent.name,
-                "method": path.parent.parent.name,
-                "seed": int(path.parent.name.removeprefix("seed")),
-            }
-            parts.append(csv_frame(path, keys))
+    paths = [Path(folder) / "progress.csv" for folder in folders]
+    parts = [
+        csv_frame(path, dict(zip(RUN_KEYS, run_keys(path.parent), strict=True)))
+        for path in paths
+        if path.exists()
+    ]
     parts = [part for part in parts if len(part)]
     return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
 

@@ -63,6 +63,11 @@ class RunSelection:
         return ". ".join(parts)
 
 
+def run_keys(folder: Path) -> tuple[str, str, int]:
+    """(task, method, seed) of a run folder ``<root>/<preset>/<task>/<method>/seed<k>``."""
+    return folder.parent.parent.name, folder.parent.name, int(folder.name.removeprefix("seed"))
+
+
 def _config_hash(path: Path) -> Any:
     """The config hash a result file records (None if it records none)."""
     return read_json(path)["meta"].get("config_hash")
@@ -103,10 +108,10 @@ def select_runs(
     checked = known_preset(preset)
     current, excluded = set(), []
     for folder in sorted((Path(root) / preset).glob("*/*/seed*")):
-        task, method = folder.parent.parent.name, folder.parent.name
-        if not folder.is_dir() or method not in METHODS:
+        if not folder.is_dir() or folder.parent.name not in METHODS:
             continue
-        seed, trainable = int(folder.name.removeprefix("seed")), METHODS[method].trainable
+        task, method, seed = run_keys(folder)
+        trainable = METHODS[method].trainable
         if seeds is not None and trainable and seed not in seeds:
             continue
         hash_now = current_hash(task, method, seed, preset) if checked else None
@@ -119,7 +124,7 @@ def select_runs(
             continue
         if checked and _config_hash(path) != hash_now:
             stale = "configuration changed since; `distgprl status`: stale"
-            excluded.append(f"{task}/{method}/{folder.name} ({stale})")
+            excluded.append(f"{'/'.join(folder.parts[-3:])} ({stale})")
             continue
         current.add(folder)
     return RunSelection(frozenset(current), tuple(excluded), checked)
@@ -142,16 +147,10 @@ class RunEvaluation:
     episodes: Path
 
     @property
-    def task(self) -> str:
-        return self.folder.parent.parent.name
-
-    @property
-    def method(self) -> str:
-        return self.folder.parent.name
-
-    @property
-    def seed(self) -> int:
-        return int(self.folder.name.removeprefix("seed"))
+    def keys(self) -> dict[str, Any]:
+        """The evaluation's ``task``, ``method``, ``seed`` (`run_keys`) and ``policy``."""
+        task, method, seed = run_keys(self.folder)
+        return {"task": task, "method": method, "seed": seed, "policy": self.policy}
 
 
 @dataclass(frozen=True)
@@ -209,5 +208,5 @@ def run_evaluations(
             evaluations.append(best)
         else:
             evaluations.append(final)
-            substituted.append(f"{final.task}/{final.method}/{folder.name}")
+            substituted.append("/".join(folder.parts[-3:]))
     return EvaluationSelection(tuple(evaluations), tuple(substituted), runs)
