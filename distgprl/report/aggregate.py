@@ -80,7 +80,7 @@ class Estimate:
     Attributes:
         point: the statistic on the data (nan with no runs).
         low, high: the `CONFIDENCE` interval (nan if a stratum has < 2 runs): the bootstrap
-            percentile interval, for a PoI widened to its score bound (module docstring).
+            percentile interval, for a PoI widened to its score bound (`newcombe_interval`).
         seeds: runs per stratum (for a PoI, the smaller of the two methods' per stratum).
         pairs: for a PoI, the run pairs (n_X n_Y) per stratum; empty otherwise.
     """
@@ -151,11 +151,9 @@ def bootstrap_interval(
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
     (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
-    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample with
-    replacement on its own (per sample = per stratum, rliable's stratified bootstrap) along
-    its first axis. The endpoints are `numpy.percentile`'s of scipy's bootstrap
-    distribution: scipy's own (`scipy.stats.quantile`) interpolates between the same two
-    replicates by another formula, a last bit apart."""
+    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample (stratum) with
+    replacement on its own along its first axis; endpoints by `numpy.percentile` of scipy's
+    bootstrap distribution."""
     result = stats.bootstrap(
         tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
         method="percentile", confidence_level=CONFIDENCE, rng=rng,
@@ -212,11 +210,10 @@ def probability_of_improvement(
     higher_is_better: bool = True,
     reps: int = BOOTSTRAP_REPS,
 ) -> Estimate:
-    """The PoI of X over Y (module docstring), averaged over the strata where both have
-    runs, with its independent stratified-bootstrap interval (rliable
-    ``get_interval_estimates`` on ``[scores_x, scores_y]``) widened to the mean of the
-    strata's `newcombe_interval` bounds (module docstring: never narrower than the data
-    allow)."""
+    """The PoI of X over Y (P(X > Y) + P(X = Y) / 2 over run pairs, `improvement`) averaged
+    over the strata where both have runs, with its independent stratified-bootstrap interval
+    widened to the mean of the strata's `newcombe_interval` bounds (docs/findings/protocol.md,
+    "The aggregates' statistics")."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))

@@ -33,7 +33,6 @@ from distgprl.report.seed_curves import (
     SEED_COLORS,
     reading_columns,
     run_curves,
-    seed_curves,
 )
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
@@ -65,14 +64,6 @@ FIGURES = {
     "covariance_effect": ("dist-gprl", "dist-gprl-nocov"),
     "all_methods": tuple(m for m in TABLE_ORDER if METHODS[m].trainable),
 }
-
-
-def load_curves(
-    root: str | Path, preset: str, task: str, method: str
-) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-    """`common_curves` of the finished seeds of a run of the current configuration
-    (`seed_curves`)."""
-    return common_curves(seed_curves(root, preset, task, method))
 
 
 def common_curves(
