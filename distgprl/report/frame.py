@@ -36,10 +36,8 @@ EVALUATION_KEYS = (*RUN_KEYS, "policy")
 ``final`` or ``untrained``)."""
 
 COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""The summary field of MinCl as pre-registered (docs/findings/protocol.md, rule 5): the 5th
-percentile of the episode-wise minimum clearance (robot links and tool vs obstacles, m) over
-the episodes without a collision (`distgprl.schema.collision_free_min_clearance_p5`); None
-where every episode collided. ``collision_free_episodes`` beside it counts those episodes."""
+"""The summary field of MinCl (m), protocol v6, rule 5 (docs/findings/protocol.md); None where
+every episode collided. ``collision_free_episodes`` beside it counts the episodes it is over."""
 
 TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")
 """The training record's (``done.json``) fields in `run_frame`: wall time (s) and process CPU
