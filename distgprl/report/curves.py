@@ -53,16 +53,14 @@ Y_LABELS = {
 RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
-#: Figure titles (the paper's captions, shortened).
-TITLES = {
-    "hap_effect": "Effect of the HAP subspace prior",
-    "covariance_effect": "Effect of the covariance-based action transform",
-    "all_methods": "All methods",
-}
+#: The method-comparison figures: {file name: (title, the paper's caption shortened; methods)}.
 FIGURES = {
-    "hap_effect": ("dist-gprl", "gprl-d"),
-    "covariance_effect": ("dist-gprl", "dist-gprl-nocov"),
-    "all_methods": tuple(m for m in TABLE_ORDER if METHODS[m].trainable),
+    "hap_effect": ("Effect of the HAP subspace prior", ("dist-gprl", "gprl-d")),
+    "covariance_effect": (
+        "Effect of the covariance-based action transform",
+        ("dist-gprl", "dist-gprl-nocov"),
+    ),
+    "all_methods": ("All methods", tuple(m for m in TABLE_ORDER if METHODS[m].trainable)),
 }
 
 
@@ -249,11 +247,9 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         )
     written = []
 
-    for name, methods in FIGURES.items():
-        title = f"{TITLES[name]} ({preset} preset)"
-        written += write_or_remove_figure(
-            plot_figure(root, preset, tasks, methods, title), out / f"{name}_{preset}"
-        )
+    for name, (title, methods) in FIGURES.items():
+        figure = plot_figure(root, preset, tasks, methods, f"{title} ({preset} preset)")
+        written += write_or_remove_figure(figure, out / f"{name}_{preset}")
     for study in studies_of(preset):  # the readings' curves, seed by seed
         stem = out / f"curves_{study.name}_{preset}"
         written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)
