@@ -124,16 +124,12 @@ def estimate_rng(seed: int, *names: str) -> np.random.Generator:
 
 def mean_of_strata(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_mean``: the mean over strata of each stratum's mean run."""
-    means: np.ndarray = np.mean([s.mean(axis=1) for s in samples], axis=0)
-    return means
+    return np.asarray(np.mean([s.mean(axis=1) for s in samples], axis=0))
 
 
 def iqm(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_iqm``: the 25 % trimmed mean of all runs of all strata."""
-    trimmed: np.ndarray = stats.trim_mean(
-        np.concatenate(samples, axis=1), proportiontocut=0.25, axis=1
-    )
-    return trimmed
+    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=1), 0.25, axis=1))
 
 
 def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -232,8 +228,7 @@ def probability_of_improvement(
     def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
         # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
         per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
-        mean: np.ndarray = np.mean(per_pair, axis=0)
-        return mean
+        return np.asarray(np.mean(per_pair, axis=0))
 
     samples = [a for pair in pairs for a in pair]
     low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
