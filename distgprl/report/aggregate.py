@@ -1,53 +1,12 @@
 """Robust aggregates over seeds with stratified-bootstrap intervals (Agarwal et al. 2021).
 
-Per task and method, over seeds: the mean and the interquartile mean (IQM, the 25 %
-trimmed mean) of the success and collision rates, each with a 95 % percentile interval of
-the stratified bootstrap; per ablation pair (`PROPOSED` against each of `PARTNERS`) the
-probability of improvement (PoI) with its interval, on success (higher is better) and on
-collision (lower is better). Rows of task ``all`` pool both tasks, one stratum per task.
-
-This is `rliable` 1.2.0's ``get_interval_estimates`` (``method="percentile"``) computed with
-`scipy.stats.bootstrap` and `scipy.stats.mannwhitneyu` (rliable itself cannot be imported
-in this environment: it requires ``arch<8``, and arch 7.2.0 fails at import under pandas 3).
-What it computes, following rliable's ``StratifiedBootstrap``,
-``StratifiedIndependentBootstrap`` and ``metrics``:
-
-- a bootstrap replicate resamples, with replacement, the runs (seeds) of every stratum
-  (task) on its own, the same number as the stratum has (scipy's bootstrap of one sample
-  per stratum, `bootstrap_interval`);
-- the mean is the mean over strata of the per-stratum means (``aggregate_mean``), the IQM
-  is the 25 % trimmed mean of all the runs' scores pooled (``aggregate_iqm``);
-- the PoI of X over Y is, per stratum, P(X > Y) + P(X = Y) / 2 over every pair of a run of
-  X and a run of Y (the Mann-Whitney U statistic over n_X n_Y, ``probability_of_improvement``)
-  averaged over strata; its bootstrap resamples X and Y independently, each stratified;
-  "lower is better" scores are negated first;
-- the interval is the 2.5th and 97.5th percentile of `BOOTSTRAP_REPS` replicates
-  (`numpy.percentile` of scipy's bootstrap distribution).
-
-A PoI's interval is never narrower than the data allow. When every run pair agrees (PoI 0
-or 1 on a task), every bootstrap replicate agrees too and the percentile interval has zero
-width, although five runs per method cannot show a certain effect. So the PoI interval is
-the hull of the percentile interval and a score interval that depends only on the PoI and
-the runs per method: Newcombe's (2006, *Stat. Med.* 25, 559, method 5) Wilson-type interval
-for the Mann-Whitney effect size, the set of θ with (θ̂ − θ)² ≤ z² V(θ), V the Hanley-McNeil
-variance with exponential approximations (`newcombe_interval`). For 5 against 5 runs that all
-agree it is [0.65, 1], as decisive as the exact Mann-Whitney test (p = 0.008) and no more.
-Pooled over tasks, the PoI's interval is the hull of the percentile interval and the mean of
-the per-task score bounds: two tasks with opposite decisive effects (1 and 0) pool to 0.5
-with an interval as wide as the tasks' own, not to [0.5, 0.5].
-
-Unlike rliable's matrices, strata may hold different numbers of runs (runs still
-accumulating). A stratum of fewer than two runs has no interval (`Estimate.text` says so).
-Randomness is passed in: each estimate draws from its own generator, seeded by the table's
-seed and the estimate's name (`estimate_rng`), so adding a method or a run of another
-method leaves every other interval unchanged.
-
-Learning-curve measures per run (`curve_measures`, from ``progress.csv``) are scored here too
-(`run_scores`). They are measured against the start of learning, the untrained policy's
-curve success (step 0, same fixed curve TCs), never against the run's own final value, so
-that a curve that does not learn neither converges fast nor counts as stable (definitions
-and the reason for each in `curve_measures`; the measures they replaced, and why:
-docs/findings/protocol.md, "Claims rules that cannot mislead").
+Per task and method, over seeds: the mean and the interquartile mean (IQM) of the success and
+collision rates, each with a 95 % percentile interval of the stratified bootstrap (one stratum
+per task; rows of task ``all`` pool the tasks); per ablation pair (`PROPOSED` against each of
+`PARTNERS`) the probability of improvement (PoI) with its interval, its score bound Newcombe's.
+What each statistic computes, and why (rliable 1.2.0's, by scipy.stats): "The aggregates'
+statistics" in docs/findings/protocol.md. Learning-curve measures per run (`curve_measures`)
+are scored here too (`run_scores`).
 """
 
 from __future__ import annotations
@@ -100,10 +59,8 @@ HIGHER_IS_BETTER: dict[str, bool] = {
 
 GAIN_MARGIN = 0.2
 """`curve_measures`: the rise in curve success above the untrained policy's that counts as
-learning. Two standard errors of the difference of two curve points at p = 1/2 on the paper's
-50 curve TCs: 2 √(2 · 0.25 / 50) = 0.2. A curve that only wanders by binomial noise crosses
-it at one point with probability ≈ 0.02, and at two consecutive points (`GAIN_POINTS`)
-almost never."""
+learning: two standard errors of the difference of two curve points at p = 1/2 on the paper's
+50 curve TCs (docs/findings/protocol.md, "The aggregates' statistics")."""
 
 GAIN_POINTS = 2
 """`curve_measures`: consecutive curve points that must all lie `GAIN_MARGIN` above the
@@ -123,7 +80,7 @@ class Estimate:
     Attributes:
         point: the statistic on the data (nan with no runs).
         low, high: the `CONFIDENCE` interval (nan if a stratum has < 2 runs): the bootstrap
-            percentile interval, for a PoI widened to its score bound (module docstring).
+            percentile interval, for a PoI widened to its score bound (`newcombe_interval`).
         seeds: runs per stratum (for a PoI, the smaller of the two methods' per stratum).
         pairs: for a PoI, the run pairs (n_X n_Y) per stratum; empty otherwise.
     """
@@ -167,16 +124,12 @@ def estimate_rng(seed: int, *names: str) -> np.random.Generator:
 
 def mean_of_strata(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_mean``: the mean over strata of each stratum's mean run."""
-    means: np.ndarray = np.mean([s.mean(axis=1) for s in samples], axis=0)
-    return means
+    return np.asarray(np.mean([s.mean(axis=1) for s in samples], axis=0))
 
 
 def iqm(samples: list[np.ndarray]) -> np.ndarray:
     """rliable's ``aggregate_iqm``: the 25 % trimmed mean of all runs of all strata."""
-    trimmed: np.ndarray = stats.trim_mean(
-        np.concatenate(samples, axis=1), proportiontocut=0.25, axis=1
-    )
-    return trimmed
+    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=1), 0.25, axis=1))
 
 
 def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -194,11 +147,9 @@ def bootstrap_interval(
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
     (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
-    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample with
-    replacement on its own (per sample = per stratum, rliable's stratified bootstrap) along
-    its first axis. The endpoints are `numpy.percentile`'s of scipy's bootstrap
-    distribution: scipy's own (`scipy.stats.quantile`) interpolates between the same two
-    replicates by another formula, a last bit apart."""
+    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample (stratum) with
+    replacement on its own along its first axis; endpoints by `numpy.percentile` of scipy's
+    bootstrap distribution."""
     result = stats.bootstrap(
         tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
         method="percentile", confidence_level=CONFIDENCE, rng=rng,
@@ -229,24 +180,17 @@ def interval_estimate(
     return Estimate(point, float(low), float(high), seeds)
 
 
-def _hanley_mcneil_variance(theta: float, n_x: int, n_y: int) -> float:
-    """Newcombe's (2006) method-5 variance of a Mann-Whitney effect size ``theta`` for
-    samples of ``n_x`` and ``n_y``: Hanley-McNeil's with Q1 = θ/(2-θ), Q2 = 2θ²/(1+θ) and both
-    sample sizes replaced by their mean N, V = θ(1-θ)[1 + (N-1)(1-θ)/(2-θ) + (N-1)θ/(1+θ)]
-    / (n_x n_y)."""
-    n = (n_x + n_y) / 2.0
-    shape = 1.0 + (n - 1.0) * (1.0 - theta) / (2.0 - theta) + (n - 1.0) * theta / (1.0 + theta)
-    return theta * (1.0 - theta) * shape / (n_x * n_y)
-
-
 def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
     """The `CONFIDENCE` score interval of a PoI ``theta`` (in [0, 1]) of ``n_x`` runs
-    against ``n_y``: every θ with (theta - θ)² <= z² V(θ) (`_hanley_mcneil_variance`), the
-    Wilson construction, so it is not degenerate at 0 or 1 (5 vs 5 runs at 1: [0.65, 1])."""
+    against ``n_y``: every θ with (theta - θ)² <= z² V(θ), V Newcombe's (2006) method-5
+    Hanley-McNeil variance (docs/findings/protocol.md, "The aggregates' statistics"), so it is
+    not degenerate at 0 or 1 (5 vs 5 runs at 1: [0.65, 1])."""
     z = stats.norm.ppf(0.5 + CONFIDENCE / 2.0)
+    n = (n_x + n_y) / 2.0
 
-    def outside(candidate: float) -> float:  # > 0 where candidate lies outside the interval
-        return (theta - candidate) ** 2 - z**2 * _hanley_mcneil_variance(candidate, n_x, n_y)
+    def outside(t: float) -> float:  # > 0 where t lies outside the interval
+        shape = 1.0 + (n - 1.0) * (1.0 - t) / (2.0 - t) + (n - 1.0) * t / (1.0 + t)
+        return (theta - t) ** 2 - z**2 * (t * (1.0 - t) * shape / (n_x * n_y))
 
     # At theta = 0 or 1 the variance vanishes there, so search from just inside the range.
     inner = min(max(theta, 1e-12), 1.0 - 1e-12)
@@ -262,11 +206,10 @@ def probability_of_improvement(
     higher_is_better: bool = True,
     reps: int = BOOTSTRAP_REPS,
 ) -> Estimate:
-    """The PoI of X over Y (module docstring), averaged over the strata where both have
-    runs, with its independent stratified-bootstrap interval (rliable
-    ``get_interval_estimates`` on ``[scores_x, scores_y]``) widened to the mean of the
-    strata's `newcombe_interval` bounds (module docstring: never narrower than the data
-    allow)."""
+    """The PoI of X over Y (P(X > Y) + P(X = Y) / 2 over run pairs, `improvement`) averaged
+    over the strata where both have runs, with its independent stratified-bootstrap interval
+    widened to the mean of the strata's `newcombe_interval` bounds (docs/findings/protocol.md,
+    "The aggregates' statistics")."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))
@@ -285,8 +228,7 @@ def probability_of_improvement(
     def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
         # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
         per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
-        mean: np.ndarray = np.mean(per_pair, axis=0)
-        return mean
+        return np.asarray(np.mean(per_pair, axis=0))
 
     samples = [a for pair in pairs for a in pair]
     low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
@@ -300,26 +242,18 @@ def probability_of_improvement(
 
 def curve_measures(points: pd.DataFrame) -> dict[str, float]:
     """Learning-curve measures of one run's curve points (its rows of a
-    `distgprl.report.frame.curves_of` frame: ``step``, ``success_rate``, the curve success on
-    the fixed curve TCs), each against the run's start ``s0``, the untrained policy's curve
-    success at step 0; empty without a step-0 point or with fewer than two trained points.
+    `distgprl.report.frame.curves_of` frame: ``step``, ``success_rate`` on the fixed curve
+    TCs), each against the run's start s0, the untrained policy's curve success at step 0
+    (definitions and reasons: docs/findings/protocol.md, "The aggregates' statistics"):
 
-    - ``learning_auc`` (sample efficiency, "better performance earlier in training"): the
-      area under (curve success - s0) over steps, all points, divided by the steps covered:
-      the mean gain over the untrained policy during training, in [-1, 1]. A flat curve
-      scores 0 and a curve that falls below its start scores below 0, so staying where the
-      untrained policy is earns nothing, and learning early earns more than learning late.
-      Higher is better.
-    - ``steps_to_gain`` (convergence speed, "accelerates convergence"): the first trained
-      step from which `GAIN_POINTS` consecutive points all reach s0 + `GAIN_MARGIN`; a run
-      that never does is censored one curve period past its last step (it ranks behind every
-      run that learned and ties with the others that did not). A flat curve never converges.
-      Lower is better.
-    - ``learned_drop`` (stability, "improves stability"): from that step on, the mean drop
-      of curve success per curve period, mean(max(0, s_k - s_k+1)): how much of what was
-      learned is lost again. Rising steadily scores 0; oscillating or collapsing scores high;
-      a run that never learned scores +inf, the worst, because a flat curve is not stable
-      learning. Lower is better.
+    - ``learning_auc``: the mean gain over s0 during training (trapezoid area / steps), in
+      [-1, 1]; higher is better.
+    - ``steps_to_gain``: the first trained step from which `GAIN_POINTS` consecutive points
+      reach s0 + `GAIN_MARGIN`, censored one curve period past the last step; lower is better.
+    - ``learned_drop``: from that step on, the mean drop of curve success per curve period,
+      +inf for a run that never learned; lower is better.
+
+    Empty without a step-0 point or with fewer than two trained points.
     """
     if points.empty:
         return {}
@@ -441,42 +375,34 @@ def short_label(method: str) -> str:
     return METHODS[method].label.removesuffix(" (ours)")
 
 
-def _task_label(task: str) -> str:
-    return "Both (stratified)" if task == ALL_TASKS else task.upper()
-
-
 def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
-    """(CSV, Markdown) of the aggregates table (`aggregate_rows`)."""
+    """(CSV, Markdown) of the aggregates table (`aggregate_rows`): a table of the means and
+    IQMs per task group and method, and one of the PoIs per task group and partner."""
     rows = aggregate_rows(scores, seed)
-    cells = {(r["task"], r["method"], r["versus"], r["metric"], r["statistic"]): r for r in rows}
+    frame = pd.DataFrame(rows, columns=[*CSV_FIELDS, "estimate"])
+    frame["text"] = frame["estimate"].map(Estimate.text)
+    frame["label"] = frame["task"].map(
+        lambda t: "Both (stratified)" if t == ALL_TASKS else t.upper()
+    )
+    frame["seeds"] = frame["seeds"].str.replace(";", "+")
+    is_poi = frame["statistic"] == "poi"
+    table = [
+        [group["label"].iloc[0], METHODS[str(method)].label, group["seeds"].iloc[0], *group["text"]]
+        for (_, method), group in frame[~is_poi].groupby(["task", "method"], sort=False)
+    ]
+    poi_table = [
+        [group["label"].iloc[0], METHODS[str(partner)].label, group["seeds"].iloc[0]]
+        + [group.set_index("metric")["text"].get(key, "–") for key, _ in RATES]
+        for (_, partner), group in frame[is_poi].groupby(["task", "versus"], sort=False)
+    ]
     caption = (
         f"Aggregates over seeds ({preset} preset): mean and IQM with 95 % stratified-bootstrap "
         f"intervals ({BOOTSTRAP_REPS} replicates, percentile; one stratum per task)"
     )
     header = ["Task", "Method", "Seeds"]
     header += [f"{label} {s}" for _, label in RATES for s in ("mean", "IQM")]
-    table = []
-    for name, _ in task_groups(scores):
-        for method in TABLE_ORDER:
-            first = cells.get((name, method, "", RATES[0][0], "mean"))
-            if first is None:
-                continue
-            line = [_task_label(name), METHODS[method].label, first["seeds"].replace(";", "+")]
-            for key, _ in RATES:
-                for statistic in ("mean", "iqm"):
-                    line.append(cells[(name, method, "", key, statistic)]["estimate"].text())
-            table.append(line)
     markdown = markdown_table(caption, header, table)
     poi_header = ["Task", "Dist-GPRL vs", "Seeds", "PoI success", "PoI fewer collisions"]
-    poi_table = []
-    for name, _ in task_groups(scores):
-        for partner in PARTNERS:
-            found = [cells.get((name, PROPOSED, partner, key, "poi")) for key, _ in RATES]
-            if all(cell is None for cell in found):
-                continue
-            seeds = next(c for c in found if c is not None)["seeds"].replace(";", "+")
-            texts = ["–" if c is None else c["estimate"].text() for c in found]
-            poi_table.append([_task_label(name), METHODS[partner].label, seeds, *texts])
     poi_caption = (
         "Probability of improvement of Dist-GPRL over each ablation and baseline "
         "(P(X > Y) + P(X = Y)/2 over seed pairs, averaged over tasks; 95 % independent "

@@ -1,24 +1,13 @@
 """Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
 
-Each panel shows the mean over seeds of success rate, collision rate and episode return
-against training steps, with a 95 % bootstrap band: at every step, the 2.5th and 97.5th
-percentiles of the mean over `BOOTSTRAP_REPS` resamples of the seeds with replacement (whole
-curves are resampled, seeds are the units; Agarwal et al. 2021, as `distgprl.report.aggregate`
-does for Table I's intervals). Rate bands lie in [0, 1] by construction (means of rates);
-a single seed has no band. Seeds are aligned on their common steps. Each band draws from its
-own generator (`estimate_rng` of the figure seed, task, method and metric), so the figures
-are reproducible byte for byte and adding a method leaves the other bands unchanged.
-
-Beside a preset's studies, one more figure per study (`plot_reading_curves`): the studied
-method's success curve of every seed under each reading, so that *when* a seed learns is
-visible where the mean over seeds averages an early and a late learner into a slope; and
-the study's onset figure (`distgprl.report.onset_figure`), the step at which each run first
-learns, run by run.
-
-For print: every panel has its y-axis label, one legend for the whole figure sits below the
-panels (never over a curve), the proposed method (`HIGHLIGHT`) is drawn bold and on top, a
-method keeps its colour in every figure, and each figure is written as a vector PDF and a
-150 dpi PNG.
+Each panel: the mean over seeds (aligned on their common steps) of success rate, collision rate
+and episode return against training steps, with a 95 % bootstrap band (whole curves resampled,
+seeds the units; a single seed has none). Each band draws from its own generator
+(`estimate_rng` of the figure seed, task, method and metric): the figures are byte-reproducible
+and adding a method leaves the other bands unchanged. Per study beside a preset: its curves
+seed by seed (`plot_reading_curves`), its onset figure and, for an operator study, its
+sensitivity figure. Every panel has its y-axis label, one legend sits below the panels, the
+proposed method (`HIGHLIGHT`) is bold and on top, and a method keeps its colour everywhere.
 """
 
 from __future__ import annotations
@@ -44,7 +33,6 @@ from distgprl.report.seed_curves import (
     SEED_COLORS,
     reading_columns,
     run_curves,
-    seed_curves,
 )
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
@@ -65,26 +53,15 @@ Y_LABELS = {
 RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
-#: Figure titles (the paper's captions, shortened).
-TITLES = {
-    "hap_effect": "Effect of the HAP subspace prior",
-    "covariance_effect": "Effect of the covariance-based action transform",
-    "all_methods": "All methods",
-}
+#: The method-comparison figures: {file name: (title, the paper's caption shortened; methods)}.
 FIGURES = {
-    "hap_effect": ("dist-gprl", "gprl-d"),
-    "covariance_effect": ("dist-gprl", "dist-gprl-nocov"),
-    "all_methods": tuple(m for m in TABLE_ORDER if METHODS[m].trainable),
+    "hap_effect": ("Effect of the HAP subspace prior", ("dist-gprl", "gprl-d")),
+    "covariance_effect": (
+        "Effect of the covariance-based action transform",
+        ("dist-gprl", "dist-gprl-nocov"),
+    ),
+    "all_methods": ("All methods", tuple(m for m in TABLE_ORDER if METHODS[m].trainable)),
 }
-
-
-def load_curves(
-    root: str | Path, preset: str, task: str, method: str
-) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-    """(steps (k,), {metric: (seeds, k)}) over the finished seeds of a run of the current
-    configuration (`seed_curves`), on their common steps. Runs still in progress are left
-    out."""
-    return common_curves(seed_curves(root, preset, task, method))
 
 
 def common_curves(
@@ -109,18 +86,13 @@ def common_curves(
 def mean_and_band(
     values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-    """(mean, (low, high)) over seeds (axis 0) of a (seeds, k) array: the mean curve and its
-    `CONFIDENCE` percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the
-    seeds, whole curves, each resample's mean curve). The band is None for a single seed."""
+    """(mean (k,), (low, high) (k,) each) over seeds of a (seeds, k) array: the mean curve
+    and its percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the seeds,
+    whole curves); the band is None for a single seed."""
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
-
-    def mean_curve(sample: np.ndarray, axis: int) -> np.ndarray:
-        means: np.ndarray = sample.mean(axis=axis)
-        return means
-
-    return mean, bootstrap_interval([values], mean_curve, rng, reps)
+    return mean, bootstrap_interval([values], np.mean, rng, reps)
 
 
 def method_color(method: str) -> str:
@@ -161,19 +133,17 @@ def plot_figure(
             drawn += 1
             bold = method == HIGHLIGHT
             color = method_color(method)
+            seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
             for col, (key, _) in enumerate(PANELS):
-                ax = axes[row, col]
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
                 mean, band = mean_and_band(values[key], rng)
-                seeds_of.setdefault(method, {})[task] = values[key].shape[0]
-                (line,) = ax.plot(
+                (line,) = axes[row, col].plot(
                     steps, mean, color=color, lw=2.4 if bold else 1.3, zorder=4 if bold else 2
                 )
                 handles.setdefault(method, line)
                 if band is not None:
-                    low, high = band
-                    ax.fill_between(
-                        steps, low, high, color=color, alpha=0.18 if bold else 0.12, lw=0,
+                    axes[row, col].fill_between(
+                        steps, *band, color=color, alpha=0.18 if bold else 0.12, lw=0,
                         zorder=3 if bold else 1,
                     )  # fmt: skip
         for col, (key, label) in enumerate(PANELS):
@@ -207,10 +177,8 @@ def plot_figure(
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
     """A study's learning curves seed by seed: one row per task, one panel per
     `reading_columns` entry, each with the success rate on the curve TCs of every finished
-    seed (a thin line, its colour the seed's in every panel) and their mean on the common
-    steps (black, bold). Where a mean over seeds hides it, this shows *when* each seed
-    learns — a plateau left early, late or never — which the sensitivity figure's end points
-    cannot. Returns (figure, number of panels with a curve)."""
+    seed (its colour the seed's in every panel) and their mean on the common steps (black,
+    bold), so that *when* each seed learns is visible. Returns (figure, panels drawn)."""
 
     columns = reading_columns(study)
     fig, axes = subplots(
@@ -261,10 +229,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the `FIGURES` and, per study beside ``preset``, its seed-by-seed curves, its
-    sensitivity figure (an operator study) and its onset figure, and Table II's noise curve,
-    each as PNG and PDF; a figure with nothing to draw is removed instead
-    (`write_or_remove_figure`).
+    """Write the `FIGURES`, per study beside ``preset`` its seed-by-seed curves, sensitivity
+    figure (an operator study) and onset figure, and Table II's noise curve, each as PNG and
+    PDF, or remove a figure with nothing to draw (`write_or_remove_figure`).
 
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
@@ -280,11 +247,9 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
         )
     written = []
 
-    for name, methods in FIGURES.items():
-        title = f"{TITLES[name]} ({preset} preset)"
-        written += write_or_remove_figure(
-            plot_figure(root, preset, tasks, methods, title), out / f"{name}_{preset}"
-        )
+    for name, (title, methods) in FIGURES.items():
+        figure = plot_figure(root, preset, tasks, methods, f"{title} ({preset} preset)")
+        written += write_or_remove_figure(figure, out / f"{name}_{preset}")
     for study in studies_of(preset):  # the readings' curves, seed by seed
         stem = out / f"curves_{study.name}_{preset}"
         written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)

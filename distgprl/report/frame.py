@@ -1,13 +1,11 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
-and figure: `run_frame` (one row per run's evaluation of one policy), `episode_frame` (per
-run × evaluation episode) and `curve_frame` (per trained run × learning-curve point), each
-keyed by `RUN_KEYS` (and the ``policy``); `load_frames` gives one evaluation's run frame and
-curves, loaded once for every table of it.
+and figure: `run_frame` (per run's evaluation of one policy), `episode_frame` (per run ×
+evaluation episode) and `curve_frame` (per trained run × learning-curve point), keyed by
+`RUN_KEYS` (and the ``policy``); `load_frames` loads one evaluation's frames once.
 
-Values are the result files' own: a summary field keeps its JSON type (``object`` columns),
-a CSV cell is parsed by Python's ``int`` or ``float`` (`number`), a value a file does not
-hold is missing (None in the run frame, NaN in the others). Which runs count is
-`distgprl.report.runs`'; each frame's ``attrs["note"]`` says which did not.
+Values are the result files' own: a summary field keeps its JSON type (``object`` columns), a
+CSV cell is a `number`, a value a file lacks is missing (None in the run frame, NaN in the
+others). Which runs count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
@@ -21,7 +19,13 @@ from typing import Any
 import pandas as pd
 
 from distgprl.methods import METHODS
-from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, select_runs
+from distgprl.report.runs import (
+    TABLE_POLICY,
+    RunEvaluation,
+    run_evaluations,
+    run_keys,
+    select_runs,
+)
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
 RUN_KEYS = ("task", "method", "seed")
@@ -32,10 +36,8 @@ EVALUATION_KEYS = (*RUN_KEYS, "policy")
 ``final`` or ``untrained``)."""
 
 COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""The summary field of MinCl as pre-registered (docs/findings/protocol.md, rule 5): the 5th
-percentile of the episode-wise minimum clearance (robot links and tool vs obstacles, m) over
-the episodes without a collision (`distgprl.schema.collision_free_min_clearance_p5`); None
-where every episode collided. ``collision_free_episodes`` beside it counts those episodes."""
+"""The summary field of MinCl (m), protocol v6, rule 5 (docs/findings/protocol.md); None where
+every episode collided. ``collision_free_episodes`` beside it counts the episodes it is over."""
 
 TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")
 """The training record's (``done.json``) fields in `run_frame`: wall time (s) and process CPU
@@ -48,10 +50,9 @@ RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_
 
 def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
     """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
-    or, for a summary written before they were recorded, computed from
-    its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`, the very function
-    `summarise` records them with); unchanged if it has neither (no rows, or rows without
-    the ``collision`` and ``min_clearance`` columns)."""
+    else computed from its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`,
+    as `summarise` records them); unchanged without rows holding ``collision`` and
+    ``min_clearance``."""
     if COLLISION_FREE_MINCL in summary or not episodes.exists():
         return summary
     rows = read_csv(episodes)[1]
@@ -70,10 +71,7 @@ def _run_record(evaluation: RunEvaluation) -> dict[str, Any]:
     done = read_json(done_path) if done_path.exists() else {}
     machine = (done.get("meta") or {}).get("machine") or {}
     record: dict[str, Any] = {
-        "task": evaluation.task,
-        "method": evaluation.method,
-        "seed": evaluation.seed,
-        "policy": evaluation.policy,
+        **evaluation.keys,
         "folder": evaluation.folder,
         "config_hash": document["meta"].get("config_hash", ""),
         "numerics": machine.get("numerics", ""),
@@ -151,13 +149,7 @@ def episode_frame(
     `EVALUATION_KEYS`, then the file's columns as numbers (`number`). ``attrs["note"]``: the
     runs left out or substituted."""
     selection = run_evaluations(root, preset, policy, seeds)
-    parts = [
-        csv_frame(
-            e.episodes, {"task": e.task, "method": e.method, "seed": e.seed, "policy": e.policy}
-        )
-        for e in selection.evaluations
-        if e.episodes.exists()
-    ]
+    parts = [csv_frame(e.episodes, e.keys) for e in selection.evaluations if e.episodes.exists()]
     frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=EVALUATION_KEYS)
     frame.attrs["note"] = selection.note()
     return frame
@@ -167,16 +159,12 @@ def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
     """One row per run folder of ``folders`` (in their order) × point of its learning curve
     (``progress.csv``; a run without one, or with an empty one, has no rows): `RUN_KEYS`,
     then the file's columns as numbers (`number`; ``step`` an int)."""
-    parts = []
-    for folder in folders:
-        path = Path(folder) / "progress.csv"
-        if path.exists():
-            keys = {
-                "task": path.parent.parent.parent.name,
-                "method": path.parent.parent.name,
-                "seed": int(path.parent.name.removeprefix("seed")),
-            }
-            parts.append(csv_frame(path, keys))
+    paths = [Path(folder) / "progress.csv" for folder in folders]
+    parts = [
+        csv_frame(path, dict(zip(RUN_KEYS, run_keys(path.parent), strict=True)))
+        for path in paths
+        if path.exists()
+    ]
     parts = [part for part in parts if len(part)]
     return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=RUN_KEYS)
 

@@ -1,12 +1,11 @@
 """Where does each policy break? Twin success and collision against the perception error.
 
-One figure per preset (``table2_noise_<preset>.png`` / ``.pdf``, issue 50 item 5): for every
-method with twin trials at two or more sensor-noise levels (plan repair on, the setting every
-noise level runs with, `distgprl.experiments.table2_trials`), its success and collision rates at
-each level, with their exact 95 % binomial intervals, against the median over that level's
-trials of each trial's largest marker position error (mm; `report.table2.hardware_rows`). The
-noise levels are labelled at their points. A level whose trials recorded no perception error
-is left out (the real robot has no ground truth).
+One figure per preset (``table2_noise_<preset>.png`` / ``.pdf``): for every method with twin
+trials at two or more sensor-noise levels (plan repair on, `distgprl.experiments.table2_trials`),
+its success and collision rates at each level with their exact 95 % binomial intervals, against
+the median over that level's trials of each trial's largest marker position error (mm;
+`report.table2.hardware_rows`), each point labelled with its noise level. A level whose trials
+recorded no perception error is left out (the real robot has no ground truth).
 """
 
 from __future__ import annotations
@@ -50,32 +49,22 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
         return []
     fig, axes = subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
     for index, (method, points) in enumerate(series.items()):
-        color = "black" if method == "dist-gprl" else f"C{index % 10}"
+        bold = method == "dist-gprl"
         x = np.array([p["perception_error_mm_median"] for p in points])
         for ax, key in zip(axes[0], ("success_rate", "collision_rate"), strict=True):
-            y = np.array([p[key] for p in points])
-            low = y - np.array([p[f"{key}_ci_low"] for p in points])
-            high = np.array([p[f"{key}_ci_high"] for p in points]) - y
-            ax.errorbar(
-                x,
-                y,
-                yerr=[low, high],
-                marker="o",
-                color=color,
-                capsize=2,
-                lw=1.5 if method == "dist-gprl" else 1.0,
-                label=METHODS[method].label,
+            y, low, high = (
+                np.array([p[k] for p in points]) for k in (key, f"{key}_ci_low", f"{key}_ci_high")
             )
-            if index == 0:
+            ax.errorbar(
+                x, y, yerr=[y - low, high - y], marker="o", capsize=2, lw=1.5 if bold else 1.0,
+                color="black" if bold else f"C{index % 10}", label=METHODS[method].label,
+            )  # fmt: skip
+            if index == 0:  # the noise levels, labelled once
                 for point, xi, yi in zip(points, x, y, strict=True):
                     ax.annotate(
-                        f"{point['sensor_noise']}",
-                        (xi, yi),
-                        xytext=(4, 4),
-                        textcoords="offset points",
-                        fontsize=7,
-                        alpha=0.6,
-                    )
+                        f"{point['sensor_noise']}", (xi, yi), xytext=(4, 4),
+                        textcoords="offset points", fontsize=7, alpha=0.6,
+                    )  # fmt: skip
     for ax, label in zip(axes[0], ("twin success rate", "twin collision rate"), strict=True):
         ax.set_xlabel("median perception error (mm)")
         ax.set_ylabel(label)

@@ -1,26 +1,17 @@
 """Which run folders the tables, paired analyses and curves may use.
 
 A run counts when it has the result file a report reads — ``summary.json`` (evaluated) for the
-tables and paired analyses, ``done.json`` (trained) for the learning curves — and the config
-hash recorded there is the one the code resolves for it now: a run of an older configuration
-(say, before a fix to a part of the method, which changes the hash of the methods using it)
-is left out, and listed, instead of being averaged with the current ones. `distgprl status`
-calls such runs "stale". A damaged run (the `distgprl.runstate` verdict
-``damaged``: a result file of an unknown schema version or not a result at all, or the
-evaluation of a finished run gone) is an error naming the file and the reason
-(:class:`~distgprl.runstate.DamagedRunError`, exit 2 at the CLI), in the tables
-and the curves alike, never a run quietly left out.
+tables, ``done.json`` (trained) for the learning curves — and the config hash recorded there is
+the one the code resolves for it now; a run of an older configuration is left out and listed
+(`distgprl status`: "stale"), never averaged with the current ones. A damaged run (the
+`distgprl.runstate` verdict ``damaged``) is an error naming the file and the reason
+(:class:`~distgprl.runstate.DamagedRunError`, exit 2 at the CLI), never quietly left out. So a
+report is a function of the result files and of the configuration the code resolves for them.
 
-So a report is a function of the result files and, for this checkout's presets, of the
-configuration the code resolves for them (presets and method revisions): a change to a
-preset or to a part of the method changes which runs count, not their figures.
-
-**Which evaluation** (`run_evaluations`): a trained run has two, its final policy's
+**Which evaluation** (`run_evaluations`): a trained run has its final policy's
 (``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
 (``evaluation_best.csv`` / ``summary_best.json``); an untrained reference (`demo`,
-`promp-nominal`) has one, used for both. Table I, its per-run table, the aggregates and the
-claims report :data:`TABLE_POLICY`, the best policy: Algorithm 1's output
-(docs/findings/protocol.md, rule 6); the final policy's Table I is written beside it.
+`promp-nominal`) has one, used for both. The tables report :data:`TABLE_POLICY`.
 """
 
 from __future__ import annotations
@@ -29,6 +20,7 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS
@@ -36,11 +28,10 @@ from distgprl.runstate import run_state
 from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
 TABLE_POLICY = "best"
-"""The policy whose evaluation Table I (``table1_<preset>``) reports, and with it the per-run
-table, the aggregates and the claims (`distgprl.report.table1.collect_scores`): the best
-learning-curve policy, Algorithm 1's output ("query GP updated by best policy";
-docs/findings/protocol.md, rule 6). The one switch between the two evaluations: the final policy's
-Table I (``table1_final_<preset>``) is written beside it."""
+"""The policy whose evaluation Table I (``table1_<preset>``), the per-run table, the aggregates
+and the claims report: the best learning-curve policy, Algorithm 1's output (protocol v6,
+rule 6, docs/findings/protocol.md); the final policy's Table I (``table1_final_<preset>``) is
+written beside it."""
 
 UNTRAINED = "untrained"
 """`RunEvaluation.policy` of an untrained reference: its only evaluation, in both tables."""
@@ -70,6 +61,16 @@ class RunSelection:
         if not self.checked:
             parts.append("Config hashes not checked: the preset is not in experiments/")
         return ". ".join(parts)
+
+
+def run_keys(folder: Path) -> tuple[str, str, int]:
+    """(task, method, seed) of a run folder ``<root>/<preset>/<task>/<method>/seed<k>``."""
+    return folder.parent.parent.name, folder.parent.name, int(folder.name.removeprefix("seed"))
+
+
+def _config_hash(path: Path) -> Any:
+    """The config hash a result file records (None if it records none)."""
+    return read_json(path)["meta"].get("config_hash")
 
 
 @cache
@@ -104,29 +105,16 @@ def select_runs(
     current configuration (module docstring); with ``seeds``, a trained method's runs of
     those seeds only (a study compares its readings at its own seeds,
     `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays)."""
-    base = Path(root) / preset
-    folders = sorted(
-        p
-        for p in base.glob("*/*/seed*")
-        if p.is_dir()
-        and (
-            seeds is None
-            or p.parent.name not in METHODS
-            or not METHODS[p.parent.name].trainable
-            or int(p.name.removeprefix("seed")) in seeds
-        )
-    )
     checked = known_preset(preset)
     current, excluded = set(), []
-    for folder in folders:
-        task, method = folder.parent.parent.name, folder.parent.name
-        if method not in METHODS:
+    for folder in sorted((Path(root) / preset).glob("*/*/seed*")):
+        if not folder.is_dir() or folder.parent.name not in METHODS:
             continue
-        name = f"{task}/{method}/{folder.name}"
+        task, method, seed = run_keys(folder)
         trainable = METHODS[method].trainable
-        hash_now = None
-        if checked:
-            hash_now = current_hash(task, method, int(folder.name.removeprefix("seed")), preset)
+        if seeds is not None and trainable and seed not in seeds:
+            continue
+        hash_now = current_hash(task, method, seed, preset) if checked else None
         # A damaged run stops the report, never a run silently left out (exit 2).
         state = run_state(folder, trainable, hash_now)
         if state.verdict == "damaged":
@@ -134,11 +122,10 @@ def select_runs(
         path = folder / (marker if trainable else "summary.json")
         if not path.exists():
             continue
-        recorded = read_json(path)["meta"].get("config_hash")
-        if checked:
-            if recorded != hash_now:
-                excluded.append(f"{name} (configuration changed since; `distgprl status`: stale)")
-                continue
+        if checked and _config_hash(path) != hash_now:
+            stale = "configuration changed since; `distgprl status`: stale"
+            excluded.append(f"{'/'.join(folder.parts[-3:])} ({stale})")
+            continue
         current.add(folder)
     return RunSelection(frozenset(current), tuple(excluded), checked)
 
@@ -160,16 +147,10 @@ class RunEvaluation:
     episodes: Path
 
     @property
-    def task(self) -> str:
-        return self.folder.parent.parent.name
-
-    @property
-    def method(self) -> str:
-        return self.folder.parent.name
-
-    @property
-    def seed(self) -> int:
-        return int(self.folder.name.removeprefix("seed"))
+    def keys(self) -> dict[str, Any]:
+        """The evaluation's ``task``, ``method``, ``seed`` (`run_keys`) and ``policy``."""
+        task, method, seed = run_keys(self.folder)
+        return {"task": task, "method": method, "seed": seed, "policy": self.policy}
 
 
 @dataclass(frozen=True)
@@ -218,23 +199,14 @@ def run_evaluations(
     evaluations, substituted = [], []
     for folder in sorted(runs.current):
         final = RunEvaluation(folder, "final", folder / final_summary, folder / final_csv)
+        best = RunEvaluation(folder, "best", folder / best_summary, folder / best_csv)
         if not METHODS[folder.parent.name].trainable:
             evaluations.append(RunEvaluation(folder, UNTRAINED, final.summary, final.episodes))
         elif policy == "final":
             evaluations.append(final)
-        elif _same_configuration(folder / best_summary, final.summary):
-            evaluations.append(
-                RunEvaluation(folder, "best", folder / best_summary, folder / best_csv)
-            )
+        elif best.summary.exists() and _config_hash(best.summary) == _config_hash(final.summary):
+            evaluations.append(best)
         else:
             evaluations.append(final)
-            substituted.append(f"{final.task}/{final.method}/{folder.name}")
+            substituted.append("/".join(folder.parts[-3:]))
     return EvaluationSelection(tuple(evaluations), tuple(substituted), runs)
-
-
-def _same_configuration(best: Path, final: Path) -> bool:
-    """Whether the best-policy summary exists and records the final summary's config hash."""
-    if not best.exists():
-        return False
-    recorded = read_json(best)["meta"].get("config_hash")
-    return bool(recorded == read_json(final)["meta"].get("config_hash"))

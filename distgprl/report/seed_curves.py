@@ -1,9 +1,6 @@
 """Learning curves seed by seed, as the result files hold them (``progress.csv``), and the
-panels in which a study reads them.
-
-The one source of both for the curve figures (`distgprl.report.curves`), the onset tables
-(`distgprl.report.onsets`) and the onset figure (`distgprl.report.onset_figure`): the
-figures draw the onsets, and the onsets read the curves, without an import circle.
+panels in which a study reads them: one source for the curve figures, the onset tables and the
+onset figure (the figures draw the onsets, the onsets read the curves, without a circle).
 """
 
 from __future__ import annotations
@@ -40,8 +37,7 @@ def seed_curves(
 ) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
     """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
     a run of the current configuration (`distgprl.report.frame.curve_frame`), each on its own
-    steps. Runs still in progress are left out, and so are seeds with an empty learning
-    curve."""
+    steps; seeds with an empty learning curve left out."""
     return run_curves(curve_frame(root, preset, seeds), task, method)
 
 
@@ -49,15 +45,10 @@ def run_curves(
     frame: pd.DataFrame, task: str, method: str
 ) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
     """`seed_curves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
-    runs = {
-        seed: points for (t, m, seed), points in by_run(frame).items() if (t, m) == (task, method)
-    }
     return {
-        seed: (
-            runs[seed]["step"].to_numpy(),
-            {key: runs[seed][key].to_numpy(dtype=float) for key, _ in PANELS},
-        )
-        for seed in sorted(runs)
+        seed: (points["step"].to_numpy(), {k: points[k].to_numpy(dtype=float) for k, _ in PANELS})
+        for (t, m, seed), points in sorted(by_run(frame).items(), key=lambda item: item[0])
+        if (t, m) == (task, method)
     }
 
 
