@@ -384,9 +384,10 @@ def _estimate(row: dict[str, str]) -> str:
 
 def deciding_number(row: dict[str, str]) -> str:
     """A task row of ``claims_<preset>.csv`` as the statistic that decides its verdict, in
-    words: a PoI with its interval; for a ranking claim the method's IQM against the highest
-    other's; for the balance claim who dominates Dist-GPRL, else whom it dominates; for the
-    conservative claim ProMP-RRL's success against Dist-GPRL's and where its collisions rank.
+    words, short enough for one line per claim: a PoI with its interval; for a ranking claim
+    the method's IQM interval against the highest other's; for the balance claim who
+    dominates Dist-GPRL, else how many it dominates; for the conservative claim how many
+    others ProMP-RRL's collisions exceed and its success against Dist-GPRL's (IQMs).
     A detail in no known form is shown as it is."""
     if not row.get("value"):
         return ""
@@ -398,11 +399,13 @@ def deciding_number(row: dict[str, str]) -> str:
     if match := _DOMINANCE.search(detail):
         if match["dominated"] != "none":
             return f"dominated by {match['dominated']}"
-        return f"dominates {match['dominates']}, dominated by none"
+        beaten = [name for name in match["dominates"].split(", ") if name != "none"]
+        return f"dominated by none, dominates {len(beaten)}"
     if match := _CONSERVATIVE.search(detail):
+        own, proposed = (match[key].split(" [")[0] for key in ("own", "proposed"))
         return (
-            f"success {match['own']} vs Dist-GPRL {match['proposed']}; collisions below "
-            f"{match['below']}, above {match['above']} of {match['others']} others"
+            f"collisions above {match['above']} of {match['others']} others; "
+            f"success {own} vs Dist-GPRL {proposed}"
         )
     return detail
 
