@@ -208,11 +208,11 @@ def status(
     ] = None,
 ) -> None:
     """Where every run of a sweep stands (done, running, partial, ...), from its run folder,
-    and the training time left.
+    the training time left and what the done runs' training took (hours, CPU-hours).
 
     Without --methods, --tasks and --seeds: the runs the sweeps into --root asked for (all
     of the preset's if none was recorded)."""
-    from distgprl.experiments.pace import training_left
+    from distgprl.experiments.pace import training_done, training_left
     from distgprl.experiments.status import count_states, sweep_status
     from distgprl.experiments.sweep import default_workers, plan_jobs
     from distgprl.experiments.sweep_record import recorded_requests, requested_jobs
@@ -239,6 +239,7 @@ def status(
     if study is not None:
         reference = sweep_status(plan_jobs(study.reference.preset, list(study.methods), root=root))
     typer.echo(training_left(statuses, reference=reference).describe(workers or default_workers()))
+    typer.echo(training_done(statuses).describe())
     finished = [
         (entry.job.task, entry.job.method, entry.job.seed)
         for entry in statuses

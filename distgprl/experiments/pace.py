@@ -204,6 +204,40 @@ class TrainingLeft:
         return text + "; paces: " + ", ".join(counts)
 
 
+@dataclass(frozen=True)
+class TrainingDone:
+    """The sweep's finished training: ``runs`` done trainable runs, their training wall time
+    (``seconds``, summed over runs: what one worker spent) and process CPU time
+    (``cpu_seconds``, over the ``cpu_runs`` of them whose ``done.json`` records it), both as
+    each run's ``done.json`` gives them (curve evaluations included, evaluations after
+    training not)."""
+
+    runs: int
+    seconds: float
+    cpu_seconds: float
+    cpu_runs: int
+
+    def describe(self) -> str:
+        """e.g. ``"training done: 48 runs, 21.3 h of one worker; 20.8 CPU-hours"`` (``the k
+        runs that recorded it`` after the CPU-hours where not every run did)."""
+        if not self.runs:
+            return "training done: none"
+        text = f"training done: {self.runs} runs, {self.seconds / 3600.0:.1f} h of one worker"
+        if self.cpu_runs:
+            text += f"; {self.cpu_seconds / 3600.0:.1f} CPU-hours"
+            text += "" if self.cpu_runs == self.runs else f" (the {self.cpu_runs} that recorded it)"
+        return text
+
+
+def training_done(statuses: Iterable[RunStatus]) -> TrainingDone:
+    """`TrainingDone` of the done trainable runs among ``statuses`` (each run's pace times its
+    total steps: the ``done.json`` figures `distgprl.experiments.status.run_status` read)."""
+    done = [s for s in statuses if s.state == "done" and s.total_steps and s.seconds_per_step]
+    cpu = [s.cpu_seconds_per_step * s.total_steps for s in done if s.cpu_seconds_per_step]
+    seconds = sum(s.seconds_per_step * s.total_steps for s in done if s.seconds_per_step)
+    return TrainingDone(len(done), seconds, sum(cpu), len(cpu))
+
+
 def steps_left(status: RunStatus) -> int:
     """RL steps a run has still to train: all of them unless it is running (its curve's
     step) or a resume continues from its checkpoint (`RunStatus.start_step`)."""

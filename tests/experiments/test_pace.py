@@ -14,6 +14,7 @@ from distgprl.experiments.pace import (
     DEFAULT_SECONDS_PER_STEP,
     Paces,
     makespan,
+    training_done,
     training_left,
 )
 from distgprl.experiments.run_control import ResumePoint
@@ -95,6 +96,28 @@ def test_training_left_adds_cpu_hours_from_the_finished_runs_cpu_pace(tmp_path):
     old = [RunStatus(j, "done", 1000, 1000, seconds_per_step=0.5) for j in jobs[:3]]
     missing = RunStatus(jobs[3], "missing", 0, 1000)
     assert training_left([*old, missing], committed=()).cpu_seconds is None
+
+
+def test_training_done_sums_each_finished_runs_recorded_wall_and_cpu_time(tmp_path):
+    """The finished training is each done run's recorded pace times its steps, summed: wall
+    time over every done run, CPU time over those that recorded it (said when not all did);
+    runs not done and references without steps add nothing."""
+    jobs = _jobs(tmp_path)
+    statuses = [
+        RunStatus(jobs[0], "done", 1000, 1000, seconds_per_step=3.6, cpu_seconds_per_step=1.8),
+        RunStatus(jobs[1], "done", 2000, 2000, seconds_per_step=1.8, cpu_seconds_per_step=0.9),
+        RunStatus(jobs[2], "running", 500, 1000, seconds_per_step=9.0),
+        RunStatus(jobs[3], "done", 0, 0),
+    ]
+    done = training_done(statuses)
+    assert (done.runs, done.cpu_runs) == (2, 2)
+    assert (done.seconds, done.cpu_seconds) == (pytest.approx(7200.0), pytest.approx(3600.0))
+    assert done.describe() == "training done: 2 runs, 2.0 h of one worker; 1.0 CPU-hours"
+    statuses[1] = RunStatus(jobs[1], "done", 2000, 2000, seconds_per_step=1.8)
+    assert training_done(statuses).describe() == (
+        "training done: 2 runs, 2.0 h of one worker; 0.5 CPU-hours (the 1 that recorded it)"
+    )
+    assert training_done(statuses[2:]).describe() == "training done: none"
 
 
 def test_training_left_prefers_the_pace_of_runs_made_on_a_machine_like_this(tmp_path):

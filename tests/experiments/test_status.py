@@ -177,17 +177,18 @@ def test_status_command_prints_every_run_and_the_counts(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     lines = result.output.strip().splitlines()
     assert any(line.startswith("dcp/gprl-d/seed1") and "missing" in line for line in lines)
-    assert lines[-3] == "0/6 done, 6 missing"
+    assert lines[-4] == "0/6 done, 6 missing"
     assert (
-        lines[-2]
+        lines[-3]
         == f"no run of the ci preset in {tmp_path} (a sweep into another folder: its --root)"
     )
     # 4 trainable runs (demo trains nothing) of 240 steps, none measured: the default pace
     hours = 4 * 240 * pace.DEFAULT_SECONDS_PER_STEP / 3600
-    assert lines[-1].startswith(f"training left: 4 runs, {hours:.1f} h of one worker")
-    assert lines[-1].endswith(
+    assert lines[-2].startswith(f"training left: 4 runs, {hours:.1f} h of one worker")
+    assert lines[-2].endswith(
         f"paces: 4 at the default pace ({pace.DEFAULT_SECONDS_PER_STEP} s/step)"
     )
+    assert lines[-1] == "training done: none"
     bad = CliRunner().invoke(app, ["status", "--seeds", "x", "--root", str(tmp_path)])
     assert bad.exit_code == 2
 
