@@ -21,7 +21,6 @@ from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER, MethodSpec
-from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
@@ -37,7 +36,7 @@ from distgprl.report.mechanism_shares import (
     return_cells,
 )
 from distgprl.report.runs import select_runs
-from distgprl.schema import evaluation_file_names
+from distgprl.schema import evaluation_file_names, read_csv
 
 
 def _env(folder: Path, field: str) -> float:
@@ -45,11 +44,6 @@ def _env(folder: Path, field: str) -> float:
     document = json.loads((folder / "config.json").read_text())
     env = document.get("run", {}).get("config", {}).get("env", {})
     return float(env.get(field, getattr(EnvConfig, field)))
-
-
-def _records(path: Path) -> list[dict[str, Any]]:
-    """The rows of a result CSV, every cell a number (`csv_frame`; NaN where empty)."""
-    return [{str(k): v for k, v in row.items()} for row in csv_frame(path, {}).to_dict("records")]
 
 
 def _by_run(
@@ -75,7 +69,7 @@ def mechanism_table(
     for (task, method), folders in _by_run(evaluated.current, lambda s: s.distance_rewards).items():
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
-            rows = {f: _records(f / name) for f in folders if (f / name).exists()}
+            rows = {f: read_csv(f / name)[1] for f in folders if (f / name).exists()}
             if rows:
                 runs = [(rows[f], _env(f, "sd_d_min")) for f in rows]
                 returns += return_cells(task, method, policy, runs)
@@ -87,7 +81,8 @@ def mechanism_table(
         trained.current, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
     )
     for (task, method), folders in regularised.items():
-        gradients += gradient_cells(task, method, [_records(f / "progress.csv") for f in folders])
+        progress = [read_csv(f / "progress.csv")[1] for f in folders]
+        gradients += gradient_cells(task, method, progress)
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
