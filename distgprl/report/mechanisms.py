@@ -3,7 +3,7 @@ in three parts — the reach of a raw action against the TC range (rows of
 `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the return and
 the regulariser shares of the actor gradient (the cells of `distgprl.report.mechanism_shares`),
 each share marked ✓/✗ against the pre-registered `CRITERION` — with a one-line verdict per term
-(`_verdict_lines`). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
+(`mechanism_texts` returns them). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
 (`mechanism_texts`, which states each part's definition under its table).
 """
 
