@@ -124,21 +124,12 @@ def return_cells(
     """The `ReturnCell` of r_sd and lambda_ga r_ga for a method's ``policy`` evaluations,
     ``runs`` = (evaluation rows, d_min in m) per seed."""
     recorded = [r for r in (episode_ratios(rows, d_min) for rows, d_min in runs) if r is not None]
-    return [
-        ReturnCell(
-            task,
-            method,
-            policy,
-            term,
-            len(runs),
-            len(recorded),
-            sum(r.episodes for r in recorded),
-            sum(r.within for r in recorded),
-            sum(r.zero_tc for r in recorded),
-            tuple(share for r in recorded for share in r.ratios[term]),
-        )
-        for term, _ in RETURN_TERMS
-    ]
+    episodes, within, zero_tc = (
+        sum(getattr(r, name) for r in recorded) for name in ("episodes", "within", "zero_tc")
+    )
+    counts = (len(runs), len(recorded), episodes, within, zero_tc)
+    shares = {term: tuple(s for r in recorded for s in r.ratios[term]) for term, _ in RETURN_TERMS}
+    return [ReturnCell(task, method, policy, term, *counts, shares[term]) for term in shares]
 
 
 @dataclass(frozen=True)
@@ -277,10 +268,9 @@ def plateau_cell(
 @dataclass(frozen=True)
 class MechanismTable:
     """The mechanism table's parts: ``reach``, one row per trainable method, task and position
-    axis (`distgprl.experiments.mechanisms.reach_rows`: ``task``, ``method``, ``axis``,
-    ``kind``, ``one_step_min_m``, ``one_step_max_m``, ``episode_min_m``, ``episode_max_m``,
-    ``tc_range_m``, ``gate_max``); the `return_cells`, `gradient_cells` and `plateau_cell`
-    cells; ``note`` which runs were left out (`distgprl.report.runs.RunSelection.note`)."""
+    axis (`distgprl.experiments.mechanisms.reach_rows` names its fields); the `return_cells`,
+    `gradient_cells` and `plateau_cell` cells; ``note`` which runs were left out
+    (`distgprl.report.runs.RunSelection.note`)."""
 
     preset: str
     reach: tuple[Mapping[str, Any], ...]

@@ -3,7 +3,7 @@ in three parts — the reach of a raw action against the TC range (rows of
 `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the return and
 the regulariser shares of the actor gradient (the cells of `distgprl.report.mechanism_shares`),
 each share marked ✓/✗ against the pre-registered `CRITERION` — with a one-line verdict per term
-(`verdict_lines`). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
+(`mechanism_texts` returns them). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
 (`mechanism_texts`, which states each part's definition under its table).
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import asdict
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import asdict, replace
 from itertools import groupby
 from pathlib import Path
 from typing import Any
@@ -21,21 +21,22 @@ from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER, MethodSpec
-from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
 from distgprl.report.mechanism_shares import (
     CRITERION,
+    GRADIENT_ITEMS,
     NOT_RECORDED,
     POINTS,
     GradientCell,
     MechanismTable,
+    PlateauCell,
     ReturnCell,
     gradient_cells,
     plateau_cell,
     return_cells,
 )
 from distgprl.report.runs import select_runs
-from distgprl.schema import evaluation_file_names
+from distgprl.schema import evaluation_file_names, read_csv
 
 
 def _env(folder: Path, field: str) -> float:
@@ -45,21 +46,14 @@ def _env(folder: Path, field: str) -> float:
     return float(env.get(field, getattr(EnvConfig, field)))
 
 
-def _records(path: Path) -> list[dict[str, Any]]:
-    """The rows of a result CSV, every cell a number (`csv_frame`; NaN where empty)."""
-    return [{str(k): v for k, v in row.items()} for row in csv_frame(path, {}).to_dict("records")]
-
-
 def _by_run(
     folders: Iterable[Path], uses: Callable[[MethodSpec], bool]
 ) -> dict[tuple[str, str], list[Path]]:
     """{(task, method): its run folders, sorted} of the ``folders`` whose method ``uses``,
     sorted by (task, method)."""
-    groups: dict[tuple[str, str], list[Path]] = {}
-    for folder in sorted(folders):
-        if uses(METHODS[folder.parent.name]):
-            groups.setdefault((folder.parent.parent.name, folder.parent.name), []).append(folder)
-    return dict(sorted(groups.items()))
+    runs = sorted((f.parent.parent.name, f.parent.name, f) for f in folders)
+    used = [run for run in runs if uses(METHODS[run[1]])]
+    return {key: [run[2] for run in group] for key, group in groupby(used, lambda run: run[:2])}
 
 
 def mechanism_table(
@@ -75,7 +69,7 @@ def mechanism_table(
     for (task, method), folders in _by_run(evaluated.current, lambda s: s.distance_rewards).items():
         for policy in ("final", "best"):
             name = evaluation_file_names(None, policy)[0]
-            rows = {f: _records(f / name) for f in folders if (f / name).exists()}
+            rows = {f: read_csv(f / name)[1] for f in folders if (f / name).exists()}
             if rows:
                 runs = [(rows[f], _env(f, "sd_d_min")) for f in rows]
                 returns += return_cells(task, method, policy, runs)
@@ -87,7 +81,8 @@ def mechanism_table(
         trained.current, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
     )
     for (task, method), folders in regularised.items():
-        gradients += gradient_cells(task, method, [_records(f / "progress.csv") for f in folders])
+        progress = [read_csv(f / "progress.csv")[1] for f in folders]
+        gradients += gradient_cells(task, method, progress)
     if not (reach or returns or gradients):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
@@ -140,7 +135,7 @@ TERM_LABELS = {
     "l_hap": "λ_hap L_hap / Q (all samples)",
     "l_hap_active": "λ_hap L_hap / Q outside C_safe",
 }
-GRADIENT_ITEMS = ("l_sim", "l_hap", "l_hap_active")
+ITEMS = tuple(item for item, _ in GRADIENT_ITEMS)
 """The gradient items, in their table's column order."""
 
 REACH_COLUMNS = ("one_step_min_m", "one_step_max_m", "episode_min_m", "episode_max_m", "tc_range_m")
@@ -151,11 +146,23 @@ RETURN_CSV_NAMES |= {"within": "episodes_within_d_min", "zero_tc": "episodes_zer
 """`ReturnCell` fields under their `CSV_COLUMNS` names (the others keep theirs)."""
 
 
-def _order(task: str, method: str, *then: int | str) -> tuple[int | str, ...]:
-    """Sort key: tasks in the paper's order, methods in Table I's (unknown ones after), then
-    ``then``."""
+def _order(cell: ReturnCell | GradientCell | PlateauCell | tuple[str, str]) -> tuple[int, int, str]:
+    """Sort key of a cell or a (task, method): tasks in the paper's order, methods in Table
+    I's (unknown ones after)."""
+    task, method = cell if isinstance(cell, tuple) else (cell.task, cell.method)
     index = TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER)
-    return task_order(task), index, method, *then
+    return task_order(task), index, method
+
+
+def _in_order(table: MechanismTable) -> MechanismTable:
+    """``table`` with its cells in the tables' order: by `_order`, then the return shares by
+    policy (final, best) and term, the gradient shares by point and item, the plateau by
+    policy."""
+    policy, point, item = ("final", "best").index, POINTS.index, ITEMS.index
+    returns = sorted(table.returns, key=lambda c: (*_order(c), policy(c.policy), c.term))
+    gradients = sorted(table.gradients, key=lambda c: (*_order(c), point(c.point), item(c.item)))
+    plateau = sorted(table.plateau, key=lambda c: (_order(c), c.policy))
+    return replace(table, returns=(*returns,), gradients=(*gradients,), plateau=(*plateau,))
 
 
 def _label(method: str) -> str:
@@ -176,6 +183,10 @@ def _steps(steps: Sequence[int]) -> str:
     return str(min(steps)) if min(steps) == max(steps) else f"{min(steps)}–{max(steps)}"
 
 
+def _mean(values: Sequence[float]) -> float | None:
+    return sum(values) / len(values) if values else None
+
+
 def covers_tc_range(rows: Sequence[Mapping[str, Any]]) -> str:
     """``yes`` where a method and task's smallest one-episode reach is at least the TC range
     on x and on y, ``no`` otherwise, ``n/a`` for reach in ProMP weight units."""
@@ -186,45 +197,36 @@ def covers_tc_range(rows: Sequence[Mapping[str, Any]]) -> str:
     return "yes" if ok and planar else "no"
 
 
-def _reach_groups(
-    reach: Iterable[Mapping[str, Any]],
-) -> list[tuple[tuple[str, str], list[Mapping[str, Any]]]]:
+ReachGroup = tuple[str, str, list[Mapping[str, Any]], str]
+"""(task, method, its reach rows, `covers_tc_range` of them)."""
+
+
+def _reach_groups(reach: Iterable[Mapping[str, Any]]) -> list[ReachGroup]:
+    """The reach rows per method and task, in `_order`."""
     groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for row in reach:
         groups.setdefault((row["task"], row["method"]), []).append(row)
-    return sorted(groups.items(), key=lambda item: _order(*item[0]))
+    ordered = sorted(groups.items(), key=lambda item: _order(item[0]))
+    return [(task, method, rows, covers_tc_range(rows)) for (task, method), rows in ordered]
 
 
-def _return_cells(table: MechanismTable) -> list[ReturnCell]:
-    policy = ("final", "best").index
-    return sorted(table.returns, key=lambda c: _order(c.task, c.method, policy(c.policy), c.term))
-
-
-def _gradient_cells(table: MechanismTable) -> list[GradientCell]:
-    point, item = POINTS.index, GRADIENT_ITEMS.index
-    return sorted(
-        table.gradients, key=lambda c: _order(c.task, c.method, point(c.point), item(c.item))
-    )
-
-
-def _csv_rows(table: MechanismTable) -> list[dict[str, Any]]:
+def _csv_rows(reach: list[ReachGroup], table: MechanismTable) -> list[dict[str, Any]]:
     """The `CSV_COLUMNS` rows (keys beyond them left out): reach, then the return shares,
     then the gradient shares."""
-    rows: list[dict[str, Any]] = []
-    for _, group in _reach_groups(table.reach):
-        section = {"section": "reach", "covers_tc_range": covers_tc_range(group)}
-        for row in group:
-            distances = {key: _number(row[key]) for key in REACH_COLUMNS}
-            rows.append({**row, **distances, **section, "item": row["axis"]})
-    for cell in _return_cells(table):
+    rows: list[dict[str, Any]] = [
+        {**row, **{key: _number(row[key]) for key in REACH_COLUMNS}, "item": row["axis"]}
+        | {"section": "reach", "covers_tc_range": covers}
+        for *_, group, covers in reach
+        for row in group
+    ]
+    for cell in table.returns:
         named = {RETURN_CSV_NAMES.get(key, key): value for key, value in asdict(cell).items()}
         shares = {"share_mean": _number(cell.mean), "share_median": _number(cell.median)}
         rows.append(named | shares | {"section": "return_share", "meets_criterion": cell.verdict})
-    for gradient in _gradient_cells(table):
-        fractions = gradient.active_fraction
-        active = _number(sum(fractions) / len(fractions)) if fractions else ""
+    for gradient in table.gradients:
         named = asdict(gradient) | {"where": gradient.point, "step": _steps(gradient.steps)}
-        shares = {"share_mean": _number(gradient.mean), "active_fraction": active}
+        shares = {"share_mean": _number(gradient.mean)}
+        shares["active_fraction"] = _number(_mean(gradient.active_fraction))
         counts = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
         rows.append(named | shares | counts | {"section": "gradient_share"})
     return rows
@@ -235,26 +237,18 @@ def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
     return " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
 
 
-def _reach_markdown(table: MechanismTable) -> str:
-    rows = []
-    for (task, method), group in _reach_groups(table.reach):
+def _reach_rows(reach: list[ReachGroup], _: MechanismTable) -> Iterator[list[str]]:
+    for task, method, group, covers in reach:
         by_axis = sorted(group, key=lambda row: "xyz".index(row["axis"]))
         kind, gate = group[0]["kind"], group[0].get("gate_max")
-        covers = covers_tc_range(group)
-        rows.append(
-            [
-                task.upper(),
-                _label(method),
-                kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
-                " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
-                *(_spans(by_axis, span) for span in ("one_step", "episode")),
-                covers + MARKS.get(covers, ""),
-            ]
-        )
-    header = ["Task", "Method", "Adapts", "TC range x / y / z (m)"]
-    header += ["One step min–max x / y / z (m)", "One episode min–max x / y / z (m)"]
-    header += ["Covers TC range (x, y)"]
-    return markdown_table("### Reach of a raw action in [-1, 1]", header, rows)
+        yield [
+            task.upper(),
+            _label(method),
+            kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
+            " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
+            *(_spans(by_axis, span) for span in ("one_step", "episode")),
+            covers + MARKS.get(covers, ""),
+        ]
 
 
 def _return_text(cell: ReturnCell) -> str:
@@ -265,30 +259,23 @@ def _return_text(cell: ReturnCell) -> str:
     return f"{_percent(cell.mean)} (median {_percent(cell.median)})" + MARKS[cell.verdict]
 
 
-def _return_markdown(table: MechanismTable) -> str:
-    rows = []
+def _return_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
     for (task, method, policy), group in groupby(
-        _return_cells(table), key=lambda c: (c.task, c.method, c.policy)
+        table.returns, key=lambda c: (c.task, c.method, c.policy)
     ):
         terms = {cell.term: cell for cell in group}
         first = next(iter(terms.values()))
         recorded = first.recorded > 0
-        rows.append(
-            [
-                task.upper(),
-                _label(method),
-                policy,
-                str(first.seeds),
-                f"{first.within} of {first.episodes}" if recorded else NOT_RECORDED,
-                str(first.zero_tc) if recorded else "",
-                _return_text(terms["r_sd"]),
-                _return_text(terms["r_ga"]),
-            ]
-        )
-    header = ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
-    header += ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
-    header += ["\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)"]
-    return markdown_table("### Shaping shares of the return", header, rows)
+        yield [
+            task.upper(),
+            _label(method),
+            policy,
+            str(first.seeds),
+            f"{first.within} of {first.episodes}" if recorded else NOT_RECORDED,
+            str(first.zero_tc) if recorded else "",
+            _return_text(terms["r_sd"]),
+            _return_text(terms["r_ga"]),
+        ]
 
 
 def _gradient_text(cell: GradientCell | None) -> str:
@@ -299,28 +286,34 @@ def _gradient_text(cell: GradientCell | None) -> str:
     return _percent(cell.mean) + MARKS.get(cell.verdict, "")
 
 
-def _gradient_markdown(table: MechanismTable) -> str:
-    rows = []
+def _gradient_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
     for (task, method, point), group in groupby(
-        _gradient_cells(table), key=lambda c: (c.task, c.method, c.point)
+        table.gradients, key=lambda c: (c.task, c.method, c.point)
     ):
         items = {cell.item: cell for cell in group}
         steps = next(iter(items.values())).steps
         active = items.get("l_hap_active")
-        fractions = active.active_fraction if active is not None else ()
-        rows.append(
-            [
-                task.upper(),
-                _label(method),
-                f"{point} ({_steps(steps)})",
-                str(len(steps)),
-                *(_gradient_text(items.get(item)) for item in GRADIENT_ITEMS),
-                _percent(sum(fractions) / len(fractions)) if fractions else "—",
-            ]
-        )
-    header = ["Task", "Method", "Point (step)", "Seeds"]
-    header += [*(TERM_LABELS[item] for item in GRADIENT_ITEMS), "Samples outside C_safe"]
-    return markdown_table("### Regulariser shares of the actor gradient", header, rows)
+        fraction = _mean(active.active_fraction) if active is not None else None
+        yield [
+            task.upper(),
+            _label(method),
+            f"{point} ({_steps(steps)})",
+            str(len(steps)),
+            *(_gradient_text(items.get(item)) for item in ITEMS),
+            "—" if fraction is None else _percent(fraction),
+        ]
+
+
+def _plateau_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
+    for cell in table.plateau:
+        yield [
+            cell.task.upper(),
+            _label(cell.method),
+            cell.policy,
+            str(cell.seeds),
+            f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
+            "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
+        ]
 
 
 LISTED_FAILURES = 4
@@ -357,96 +350,99 @@ def _verdict(label: str, judged: list[tuple[str, str, float | None]]) -> str:
     return line + "."
 
 
-def verdict_lines(table: MechanismTable) -> list[str]:
+def _verdict_lines(reach: list[ReachGroup], table: MechanismTable) -> list[str]:
     """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim and lambda_hap
-    L_hap (outside C_safe)."""
+    L_hap (outside C_safe), of the ordered (`_in_order`) ``table``."""
     lines = []
-    groups = _reach_groups(table.reach)
-    if groups:
-        covered = [(key, covers_tc_range(group)) for key, group in groups]
-        pairs = [(key, c) for key, c in covered if c != "n/a"]
-        missing = [f"{task}/{method}" for (task, method), c in pairs if c == "no"]
+    if reach:
+        pairs = [(task, method, covers) for task, method, _, covers in reach if covers != "n/a"]
+        missing = [f"{task}/{method}" for task, method, covers in pairs if covers == "no"]
         line = (
             f"Reach: the one-episode reach covers the TC range on x and y for "
-            f"{sum(c == 'yes' for _, c in pairs)} of {len(pairs)} method–task pairs"
+            f"{sum(covers == 'yes' for *_, covers in pairs)} of {len(pairs)} method–task pairs"
         )
         lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
     for term in ("r_sd", "r_ga"):
-        cells = [c for c in _return_cells(table) if c.term == term]
-        if cells:
+        if cells := [c for c in table.returns if c.term == term]:
             judged = [(f"{c.task}/{c.method} ({c.policy})", c.verdict, c.mean) for c in cells]
             lines.append(_verdict(f"{TERM_LABELS[term]} (episodes within d_min)", judged))
     for item in ("l_sim", "l_hap_active"):
-        gradients = [c for c in _gradient_cells(table) if c.item == item]
-        if gradients:
+        if gradients := [c for c in table.gradients if c.item == item]:
             judged = [(f"{c.task}/{c.method} {c.point}", c.verdict, c.mean) for c in gradients]
             lines.append(_verdict(TERM_LABELS[item], judged))
     return lines
 
 
-def _plateau_markdown(table: MechanismTable) -> str:
-    """The idle episodes on the r_ga plateau per distance-reward method (no verdict: a
-    description of where the alignment reward is paid for not doing the task)."""
-    if not table.plateau:
-        return ""
-    rows = [
-        [
-            cell.task.upper(),
-            _label(cell.method),
-            cell.policy,
-            str(cell.seeds),
-            f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
-            "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
-        ]
-        for cell in sorted(table.plateau, key=lambda c: (_order(c.task, c.method), c.policy))
-    ]
-    header = ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
-    return markdown_table("### The r_ga plateau", header, rows) + (
-        "\nIdle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
-        "task's progress weight — the policy did not do the task; the alignment reward it "
-        "still collects is paid for moving the via-points along ∇d "
-        '(docs/FINDINGS.md "The first v7 runs").\n\n'
-    )
+INTRO = (
+    'Whether the paper\'s mechanisms act (docs/FINDINGS.md "Protocol v6", rule 7). '
+    f"Criterion, pre-registered: each shaping term ≥ {100 * CRITERION:.0f} % of |r_tc| over "
+    "the evaluation episodes that pass within d_min, each regulariser's actor gradient ≥ "
+    f"{100 * CRITERION:.0f} % of the Q term's at the start, middle and end of a paper-size "
+    "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell."
+)
+"""The Markdown's paragraph under its heading."""
 
-
-def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
-    """(CSV text, Markdown text, verdict lines) of the table."""
-    verdicts = verdict_lines(table)
-    parts = [
-        f"## Mechanism table ({table.preset})",
-        "",
-        'Whether the paper\'s mechanisms act (docs/FINDINGS.md "Protocol v6", rule 7). '
-        f"Criterion, pre-registered: each shaping term ≥ {100 * CRITERION:.0f} % of |r_tc| over "
-        "the evaluation episodes that pass within d_min, each regulariser's actor gradient ≥ "
-        f"{100 * CRITERION:.0f} % of the Q term's at the start, middle and end of a paper-size "
-        "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell.",
-        "",
-        _reach_markdown(table),
+SECTIONS = (
+    (
+        "### Reach of a raw action in [-1, 1]",
+        ["Task", "Method", "Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
+        + ["One episode min–max x / y / z (m)", "Covers TC range (x, y)"],
+        _reach_rows,
         "Reach: one step = action scale × the smallest and largest row sum Σ_j |S_W,ij| over "
         "the adapted via-points (1 without S); one episode = summed over the steps that adapt "
         "a via-point (1 windowed, 2 at a window overlap, 3 global). ProMP-RRL: its residual, "
         "slew-limited per 0.1 s RL step, over an episode its range (the commanded offset is "
         "the residual × the variance gate). Frozen via-points (GPRL's TC via-point) left out.",
-        "",
-        _return_markdown(table),
+    ),
+    (
+        "### Shaping shares of the return",
+        ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
+        + ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
+        + ["\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)"],
+        _return_rows,
         "Per episode |Σ r_sd| / |Σ r_tc| and |Σ λ_ga r_ga| / |Σ r_tc| (the evaluation rows' "
         "return_sd, return_ga, return_tc), over the episodes whose minimum clearance is below "
         "the run's d_min, pooled over seeds; episodes with Σ r_tc = 0 have no ratio and are "
         f'left out (counted). "{NOT_RECORDED}": evaluation files written before those '
         "columns.",
-        "",
-        _gradient_markdown(table),
+    ),
+    (
+        "### Regulariser shares of the actor gradient",
+        ["Task", "Method", "Point (step)", "Seeds", *(TERM_LABELS[item] for item in ITEMS)]
+        + ["Samples outside C_safe"],
+        _gradient_rows,
         "grad_sim / grad_q, grad_hap / grad_q and grad_hap_active / grad_q of progress.csv "
         "(mean per-sample gradient norms on the actor's output, "
         "`RegularisedSAC.actor_loss_gradient_norms`), at the first, middle and last "
         "learning-curve points with a gradient, mean over seeds; only the outside-C_safe "
         "share is judged.",
-        "",
-        _plateau_markdown(table),
-        "### Verdicts",
-        "",
-        *(f"- {line}" for line in verdicts),
-    ]
+    ),
+    (
+        "### The r_ga plateau",
+        ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"],
+        _plateau_rows,
+        "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
+        "task's progress weight — the policy did not do the task; the alignment reward it "
+        "still collects is paid for moving the via-points along ∇d "
+        '(docs/FINDINGS.md "The first v7 runs").',
+    ),
+)
+"""The Markdown's tables in order: (title, header, its rows of (reach groups, the ordered
+table), the definition written under it); the plateau's (a description, no verdict) only
+where the table has plateau cells."""
+
+
+def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
+    """(CSV text, Markdown text, verdict lines) of the table."""
+    table = _in_order(table)
+    reach = _reach_groups(table.reach)
+    verdicts = _verdict_lines(reach, table)
+    markdown = f"## Mechanism table ({table.preset})\n\n{INTRO}\n\n"
+    for title, header, rows, definition in SECTIONS[: 4 if table.plateau else 3]:
+        table_text = markdown_table(title, header, rows(reach, table))
+        markdown += f"{table_text}\n{definition}\n\n"
+    lines = ["", "### Verdicts", "", *(f"- {line}" for line in verdicts)]
     if table.note:
-        parts += ["", table.note + "."]
-    return csv_text(_csv_rows(table), CSV_COLUMNS), "\n".join(parts) + "\n", verdicts
+        lines += ["", table.note + "."]
+    csv = csv_text(_csv_rows(reach, table), CSV_COLUMNS)
+    return csv, markdown + "\n".join(lines) + "\n", verdicts

@@ -22,6 +22,7 @@ evaluation's, is left out of the row and listed under the table.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import groupby
 from pathlib import Path
 from typing import Any
 
@@ -115,10 +116,6 @@ def _mean(values: list[float]) -> float:
     return sum(values) / len(values)
 
 
-def _rate(outcomes: list[tuple[bool, bool, bool]], index: int) -> float:
-    return sum(outcome[index] for outcome in outcomes) / len(outcomes)
-
-
 def _row(group: list[RunOutcomes]) -> dict[str, Any]:
     """The `FIELDS` row of one task and method's runs (module docstring), by seed."""
     group = sorted(group, key=lambda r: r.seed)
@@ -127,17 +124,15 @@ def _row(group: list[RunOutcomes]) -> dict[str, Any]:
     row["n_seeds"], row["episodes"] = len(group), sum(len(r.outcomes["plain"]) for r in group)
     for mode in ("plain", *MODES):
         for index, name in enumerate(OUTCOMES[: 2 if mode == "plain" else 3]):
-            row[f"{mode}_{name}"] = _mean([_rate(r.outcomes[mode], index) for r in group])
+            rates = [sum(o[index] for o in r.outcomes[mode]) / len(r.outcomes[mode]) for r in group]
+            row[f"{mode}_{name}"] = _mean(rates)
     summaries = [r.repair_summary for r in group]
-    retimed = sum(s["windows_retimed"] for s in summaries)
     windows = sum(
-        s["windows_none"] + s["windows_retimed"] + s["windows_refused"] for s in summaries
+        s[f"windows_{kind}"] for s in summaries for kind in ("none", "retimed", "refused")
     )
-    row["repair_retimed_windows"] = retimed / max(windows, 1)
+    row["repair_retimed_windows"] = sum(s["windows_retimed"] for s in summaries) / max(windows, 1)
     row["repair_time_added_s"] = _mean([s["mean_time_added_s"] for s in summaries])
-    pairs = [
-        pair for r in group for pair in zip(r.outcomes["plain"], r.outcomes["repair"], strict=True)
-    ]
+    pairs = [p for r in group for p in zip(r.outcomes["plain"], r.outcomes["repair"], strict=True)]
     row["gained"] = sum(not p[0] and q[0] for p, q in pairs)
     row["lost"] = sum(p[0] and not q[0] for p, q in pairs)
     row["averted"] = sum(p[1] and not q[1] for p, q in pairs)
@@ -148,12 +143,9 @@ def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], l
     """One row of :data:`FIELDS` per task and method (module docstring) of the runs
     `collect` finds, in table order, and what it left out."""
     runs, excluded = collect(root, preset)
-    groups: dict[tuple[str, str], list[RunOutcomes]] = {}
-    for run in runs:
-        groups.setdefault((run.task, run.method), []).append(run)
-    rows = [_row(group) for group in groups.values()]
-    rows.sort(key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"])))
-    return rows, excluded
+    runs.sort(key=lambda r: (task_order(r.task), TABLE_ORDER.index(r.method), r.task))
+    groups = groupby(runs, key=lambda r: (r.task, r.method))
+    return [_row(list(group)) for _, group in groups], excluded
 
 
 def repair_texts(
