@@ -11,6 +11,7 @@ are scored here too (`run_scores`).
 
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 from collections.abc import Callable, Mapping, Sequence
@@ -315,19 +316,40 @@ def task_groups(scores: Scores) -> list[tuple[str, list[str]]]:
 
 def poi(scores: Scores, tasks: Sequence[str], x: str, y: str, key: str, seed: int) -> Estimate:
     """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks`` (its own generator)."""
-    rng = estimate_rng(seed, "poi", "+".join(tasks), x, y, key)
-    return probability_of_improvement(
-        strata(scores, tasks, x, key), strata(scores, tasks, y, key), rng, HIGHER_IS_BETTER[key]
-    )
+    x_strata, y_strata = (_bytes(strata(scores, tasks, m, key)) for m in (x, y))
+    return _poi(x_strata, y_strata, HIGHER_IS_BETTER[key], seed, "+".join(tasks), x, y, key)
 
 
 def method_estimate(
     scores: Scores, tasks: Sequence[str], method: str, key: str, statistic: str, seed: int
 ) -> Estimate:
     """``statistic`` (``mean`` or ``iqm``) of ``method``'s ``key`` over ``tasks``."""
-    rng = estimate_rng(seed, statistic, "+".join(tasks), method, key)
+    values = _bytes(strata(scores, tasks, method, key))
+    return _method_estimate(values, statistic, seed, "+".join(tasks), method, key)
+
+
+def _bytes(arrays: list[np.ndarray]) -> tuple[bytes, ...]:
+    """Each stratum's float64 scores as bytes: the key of the estimate caches below, equal
+    exactly when the scores are (bit for bit, so -0.0 and each NaN stay apart)."""
+    return tuple(np.asarray(a, dtype=float).tobytes() for a in arrays)
+
+
+# An estimate is a function of its strata, seed and names (its generator's seed): cached, the
+# claims and aggregates that read one estimate several times bootstrap it once.
+@functools.cache
+def _poi(
+    x: tuple[bytes, ...], y: tuple[bytes, ...], higher_is_better: bool, seed: int, *names: str
+) -> Estimate:
+    rng = estimate_rng(seed, "poi", *names)
+    x_strata, y_strata = ([np.frombuffer(v) for v in side] for side in (x, y))
+    return probability_of_improvement(x_strata, y_strata, rng, higher_is_better)
+
+
+@functools.cache
+def _method_estimate(values: tuple[bytes, ...], statistic: str, seed: int, *names: str) -> Estimate:
+    rng = estimate_rng(seed, statistic, *names)
     function = {"mean": mean_of_strata, "iqm": iqm}[statistic]
-    return interval_estimate(strata(scores, tasks, method, key), function, rng)
+    return interval_estimate([np.frombuffer(v) for v in values], function, rng)
 
 
 CSV_FIELDS: tuple[str, ...] = ("task", "method", "versus", "metric", "statistic", "value")
