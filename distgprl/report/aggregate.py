@@ -352,12 +352,24 @@ def _method_estimate(values: tuple[bytes, ...], statistic: str, seed: int, *name
     return interval_estimate([np.frombuffer(v) for v in values], function, rng)
 
 
-CSV_FIELDS: tuple[str, ...] = ("task", "method", "versus", "metric", "statistic", "value")
-CSV_FIELDS += ("ci_low", "ci_high", "seeds")
+def estimate_cells(estimate: Estimate) -> dict[str, object]:
+    """An estimate's CSV cells: ``value`` (empty without runs), ``ci_low`` and ``ci_high``
+    (empty below two runs in a stratum), ``seeds`` (runs per task stratum) and ``pairs`` (a
+    PoI's run pairs per stratum), each ``;``-separated."""
+    interval = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
+    return {
+        "value": estimate.point if estimate.seeds else "",
+        "ci_low": interval[0],
+        "ci_high": interval[1],
+        "seeds": ";".join(map(str, estimate.seeds)),
+        "pairs": ";".join(map(str, estimate.pairs)),
+    }
+
+
+CSV_FIELDS = tuple("task method versus metric statistic value ci_low ci_high seeds".split())
 """Columns of ``aggregates_<preset>.csv``, one row per estimate: ``statistic`` is ``mean``,
 ``iqm`` or ``poi`` (of ``method`` over ``versus``, on ``metric``: collision's PoI is that of
-fewer collisions); ``seeds`` the runs per task stratum, ``;``-separated; the interval is
-empty below two runs in a stratum."""
+fewer collisions); the estimate's cells as `estimate_cells` writes them."""
 
 
 def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
@@ -385,11 +397,9 @@ def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
 def _row(
     task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
 ) -> dict[str, Any]:
-    """One `aggregate_rows` row (the interval empty without one)."""
-    low, high = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
-    seeds = ";".join(str(n) for n in estimate.seeds)
-    values = (task, method, versus, key, statistic, estimate.point, low, high, seeds)
-    return dict(zip(CSV_FIELDS, values, strict=True)) | {"estimate": estimate}
+    """One `aggregate_rows` row."""
+    names = dict(task=task, method=method, versus=versus, metric=key, statistic=statistic)
+    return names | estimate_cells(estimate) | {"estimate": estimate}
 
 
 def short_label(method: str) -> str:

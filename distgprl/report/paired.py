@@ -190,7 +190,7 @@ def _paired_files(
     """
     references: dict[Path, pd.DataFrame] = {}
     rows = []
-    for run_file, reference_file in pairs:
+    for run_file, reference_file in sorted(pairs, key=lambda pair: _run_order(pair[0])):
         if reference_file.parent not in reference_runs or not reference_file.exists():
             continue
         if reference_file not in references:
@@ -201,17 +201,14 @@ def _paired_files(
         task, method, folder = run_file.parts[-4:-1]
         run = {"task": task, "method": method, "seed": int(folder.removeprefix("seed"))}
         rows += _pair(run, _outcomes(mine), _outcomes(theirs))
-    outcome_index = [outcome for outcome, _ in OUTCOMES].index
-    return sorted(
-        rows,
-        key=lambda r: (
-            task_order(r["task"]),
-            r["task"],
-            TABLE_ORDER.index(r["method"]),
-            r["seed"],
-            outcome_index(r["outcome"]),
-        ),
-    )
+    return rows
+
+
+def _run_order(run_file: Path) -> tuple[int, str, int, int]:
+    """The sort key of a run's file ``.../<task>/<method>/seed<k>/<file>``: task, table and
+    seed order."""
+    task, method, folder = run_file.parts[-4:-1]
+    return task_order(task), task, TABLE_ORDER.index(method), int(folder.removeprefix("seed"))
 
 
 def _pair(
@@ -219,24 +216,21 @@ def _pair(
 ) -> list[dict[str, Any]]:
     """One `FIELDS` row per outcome: a run's episodes (``run`` its task, method and seed)
     against the reference's, TC by TC."""
-    rows = []
-    for outcome, _ in OUTCOMES:
-        mine, theirs = outcomes[outcome].to_numpy(), reference_outcomes[outcome].to_numpy()
-        only_run = int(((mine == 1) & (theirs == 0)).sum())
-        only_reference = int(((mine == 0) & (theirs == 1)).sum())
-        rows.append(
-            {
-                **run,
-                "outcome": outcome,
-                "tcs": len(mine),
-                "run_rate": int(mine.sum()) / len(mine),
-                "reference_rate": int(theirs.sum()) / len(theirs),
-                "only_run": only_run,
-                "only_reference": only_reference,
-                "p_value": mcnemar_exact(only_run, only_reference),
-            }
-        )
-    return rows
+    only_run = ((outcomes == 1) & (reference_outcomes == 0)).sum()
+    only_reference = ((outcomes == 0) & (reference_outcomes == 1)).sum()
+    return [
+        {
+            **run,
+            "outcome": outcome,
+            "tcs": len(outcomes),
+            "run_rate": int(outcomes[outcome].sum()) / len(outcomes),
+            "reference_rate": int(reference_outcomes[outcome].sum()) / len(outcomes),
+            "only_run": int(only_run[outcome]),
+            "only_reference": int(only_reference[outcome]),
+            "p_value": mcnemar_exact(int(only_run[outcome]), int(only_reference[outcome])),
+        }
+        for outcome, _ in OUTCOMES
+    ]
 
 
 def paired_texts(

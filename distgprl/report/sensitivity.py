@@ -77,19 +77,15 @@ def sensitivity_points(
 ) -> list[dict[str, Any]]:
     """One entry per reading, task and score with runs: ``reading`` (the `Reading`),
     ``task``, ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
-    points = []
-    for reading in study.all_readings:
-        scores = scores_of.get(reading.preset, {})
-        for task in tasks:
-            if (reading.preset, task) not in gains:
-                continue
-            for key, _ in PANELS:
-                estimate = _mean(scores, task, method, key, seed)
-                if estimate is not None:
-                    gain = gains[(reading.preset, task)]
-                    where = {"reading": reading, "task": task, "score": key}
-                    points.append({**where, "gain": gain, "estimate": estimate})
-    return points
+    return [
+        {"reading": reading, "task": task, "score": key, "gain": gain, "estimate": estimate}
+        for reading in study.all_readings
+        for task in tasks
+        if (gain := gains.get((reading.preset, task))) is not None
+        for key, _ in PANELS
+        if (estimate := _mean(scores_of.get(reading.preset, {}), task, method, key, seed))
+        is not None
+    ]
 
 
 def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
@@ -98,7 +94,7 @@ def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estima
     if not scores.get((task, method)):
         return None
     estimate = method_estimate(scores, [task], method, key, "mean", seed)
-    return estimate if estimate.seeds and min(estimate.seeds) > 0 else None
+    return estimate if estimate.seeds else None
 
 
 def write_sensitivity(
