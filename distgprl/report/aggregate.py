@@ -280,11 +280,10 @@ def curve_measures(points: pd.DataFrame) -> dict[str, float]:
 
 def run_scores(summary: Mapping[str, float], points: pd.DataFrame) -> dict[str, float]:
     """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
-    retention (``summary``) and the `curve_measures` of its curve ``points`` (none for an
-    untrained reference)."""
-    scores = {key: float(summary[key]) for key, _ in RATES if key in summary}
-    if "mean_kinematic_retention" in summary:  # velocity cosine to the demonstration
-        scores["mean_kinematic_retention"] = float(summary["mean_kinematic_retention"])
+    retention (velocity cosine to the demonstration; ``summary``) and the `curve_measures` of
+    its curve ``points`` (none for an untrained reference)."""
+    keys = (*(key for key, _ in RATES), "mean_kinematic_retention")
+    scores = {key: float(summary[key]) for key in keys if key in summary}
     scores.update(curve_measures(points))
     return scores
 

@@ -215,21 +215,22 @@ def _pair(
     run: dict[str, Any], outcomes: pd.DataFrame, reference_outcomes: pd.DataFrame
 ) -> list[dict[str, Any]]:
     """One `FIELDS` row per outcome: a run's episodes (``run`` its task, method and seed)
-    against the reference's, TC by TC."""
-    only_run = ((outcomes == 1) & (reference_outcomes == 0)).sum()
-    only_reference = ((outcomes == 0) & (reference_outcomes == 1)).sum()
+    against the reference's, TC by TC (both `_outcomes` frames)."""
+    mine, theirs = outcomes.to_numpy(), reference_outcomes.to_numpy()  # (TCs, outcomes)
+    only_run = ((mine == 1) & (theirs == 0)).sum(axis=0)
+    only_reference = ((mine == 0) & (theirs == 1)).sum(axis=0)
     return [
         {
             **run,
             "outcome": outcome,
-            "tcs": len(outcomes),
-            "run_rate": int(outcomes[outcome].sum()) / len(outcomes),
-            "reference_rate": int(reference_outcomes[outcome].sum()) / len(outcomes),
-            "only_run": int(only_run[outcome]),
-            "only_reference": int(only_reference[outcome]),
-            "p_value": mcnemar_exact(int(only_run[outcome]), int(only_reference[outcome])),
+            "tcs": len(mine),
+            "run_rate": int(mine[:, k].sum()) / len(mine),
+            "reference_rate": int(theirs[:, k].sum()) / len(theirs),
+            "only_run": int(only_run[k]),
+            "only_reference": int(only_reference[k]),
+            "p_value": mcnemar_exact(int(only_run[k]), int(only_reference[k])),
         }
-        for outcome, _ in OUTCOMES
+        for k, (outcome, _) in enumerate(OUTCOMES)
     ]
 
 

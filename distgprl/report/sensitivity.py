@@ -1,21 +1,16 @@
-"""The sensitivity figure of a study: the studied method's scores per reading (issue 50 item 4).
+"""The sensitivity figure of a study: the studied method's scores per reading.
 
-One row of panels per task, one panel per score — success, collision and kinematic retention
-(the mean velocity cosine to the demonstration) on the 100 evaluation TCs, Table I's policy
-(`distgprl.report.runs.TABLE_POLICY`) — with one point per reading of the study at x = the
-reading's mean operator gain on a raw action (``mean_gain`` of
-`distgprl.experiments.operator_study`, averaged over the position axes the task's TCs vary:
-1 for an operator that passes a raw action through, below 1 where it shrinks it), the mean
-over seeds with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one
-stratum: the task). The references are horizontal lines with their intervals as bands:
-Dist-GPRL-NoCov (no operator) and the demonstration (no adaptation), from the reference
-preset's runs. A study's control (`distgprl.studies.Reading.control`) is drawn hollow and
-grey, shifted `CONTROL_SHIFT_POINTS` to the right on the page (its x value is unchanged): the
-uncoupled-signal control has the signal reading's gain (its row gains are the signal
-operator's), so the two points at one gain differ by the coupling alone.
-
-Reads ``<root>/<study>/reach.json`` (written by the study's sweep) and the runs' result files
-only; without the reach file or any run of the studied method there is nothing to draw.
+A row of panels per task, a panel per score (`PANELS`; kinematic retention: the mean velocity
+cosine to the demonstration) on the 100 evaluation TCs, Table I's policy
+(`distgprl.report.runs.TABLE_POLICY`). Each reading is a point at x = its mean operator gain on
+a raw action (``mean_gain`` of `distgprl.experiments.operator_study` over the position axes the
+task's TCs vary: 1 passes a raw action through, below 1 shrinks it), y = the mean over seeds
+with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one stratum: the
+task). `REFERENCES` are dashed lines, their intervals bands, from the reference preset's runs.
+A control (`distgprl.studies.Reading.control`) is hollow and grey, drawn `CONTROL_SHIFT_POINTS`
+right of its x: the uncoupled-signal control has the signal reading's gain, so the two points
+at one gain differ by the coupling alone. Reads ``<root>/<study>/reach.json`` (written by the
+study's sweep) and the runs' result files only.
 """
 
 from __future__ import annotations
@@ -54,7 +49,7 @@ CONTROL_SHIFT_POINTS = 9.0
 hide a reading's point at the same gain."""
 
 REFERENCES = ("dist-gprl-nocov", "demo")
-"""Methods drawn as horizontal reference bands, from the reference preset's runs."""
+"""Methods drawn as horizontal reference bands: no operator, no adaptation."""
 
 
 def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], float]:
