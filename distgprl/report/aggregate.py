@@ -70,8 +70,9 @@ start for the run to count as having learned (one point could be noise)."""
 Strata = Sequence[np.ndarray]
 """One 1-D array of per-run scores per stratum (task)."""
 
-Statistic = Callable[[list[np.ndarray]], np.ndarray]
-"""A statistic of resampled strata: arrays (reps, n_k) -> values (reps,)."""
+Statistic = Callable[..., np.ndarray]
+"""A statistic of strata, ``statistic(*strata, axis=-1)``: arrays (reps, n_k) -> values
+(reps,), the runs along ``axis`` (`scipy.stats.bootstrap`'s vectorized form)."""
 
 
 @dataclass(frozen=True)
@@ -123,14 +124,14 @@ def estimate_rng(seed: int, *names: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([seed, key]))
 
 
-def mean_of_strata(samples: list[np.ndarray]) -> np.ndarray:
+def mean_of_strata(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     """rliable's ``aggregate_mean``: the mean over strata of each stratum's mean run."""
-    return np.asarray(np.mean([s.mean(axis=1) for s in samples], axis=0))
+    return np.asarray(np.mean([s.mean(axis=axis) for s in samples], axis=0))
 
 
-def iqm(samples: list[np.ndarray]) -> np.ndarray:
+def iqm(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     """rliable's ``aggregate_iqm``: the 25 % trimmed mean of all runs of all strata."""
-    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=1), 0.25, axis=1))
+    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=axis), 0.25, axis=axis))
 
 
 def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -170,14 +171,10 @@ def interval_estimate(
     seeds = tuple(len(a) for a in arrays)
     if not arrays:
         return Estimate(math.nan, math.nan, math.nan, ())
-    point = float(statistic([a[None, :] for a in arrays])[0])
+    point = float(statistic(*(a[None, :] for a in arrays), axis=-1)[0])
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds)
-
-    def of_resamples(*samples: np.ndarray, axis: int) -> np.ndarray:
-        return statistic(list(samples))  # samples: (reps, n_k) each, resampled along axis -1
-
-    low, high = bootstrap_interval(arrays, of_resamples, rng, reps)
+    low, high = bootstrap_interval(arrays, statistic, rng, reps)
     return Estimate(point, float(low), float(high), seeds)
 
 
@@ -200,6 +197,13 @@ def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
     return float(low), float(high)
 
 
+def mean_improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """The mean over strata of `improvement`, a `Statistic` of X and Y of each stratum in
+    turn ((reps, n) each, the runs along the last axis)."""
+    pairs = zip(samples[::2], samples[1::2], strict=True)
+    return np.asarray(np.mean([improvement(x, y) for x, y in pairs], axis=0))
+
+
 def probability_of_improvement(
     x_strata: Strata,
     y_strata: Strata,
@@ -209,8 +213,8 @@ def probability_of_improvement(
 ) -> Estimate:
     """The PoI of X over Y (P(X > Y) + P(X = Y) / 2 over run pairs, `improvement`) averaged
     over the strata where both have runs, with its independent stratified-bootstrap interval
-    widened to the mean of the strata's `newcombe_interval` bounds (docs/findings/protocol.md,
-    "The aggregates' statistics")."""
+    (`interval_estimate` of `mean_improvement`) widened to the mean of the strata's
+    `newcombe_interval` bounds (docs/findings/protocol.md, "The aggregates' statistics")."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))
@@ -221,24 +225,15 @@ def probability_of_improvement(
         return Estimate(math.nan, math.nan, math.nan, ())
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    per_stratum = [float(improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
-    point = float(np.mean(per_stratum))
-    if min(seeds) < 2:
-        return Estimate(point, math.nan, math.nan, seeds, sizes)
-
-    def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
-        # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
-        per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
-        return np.asarray(np.mean(per_pair, axis=0))
-
-    samples = [a for pair in pairs for a in pair]
-    low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
+    mean = interval_estimate([a for pair in pairs for a in pair], mean_improvement, rng, reps)
+    if not mean.has_interval:
+        return Estimate(mean.point, math.nan, math.nan, seeds, sizes)
     bounds = [
-        newcombe_interval(p, len(x), len(y)) for p, (x, y) in zip(per_stratum, pairs, strict=True)
+        newcombe_interval(float(improvement(x[None, :], y[None, :])[0]), len(x), len(y))
+        for x, y in pairs
     ]
-    score_low = float(np.mean([b[0] for b in bounds]))
-    score_high = float(np.mean([b[1] for b in bounds]))
-    return Estimate(point, min(low, score_low), max(high, score_high), seeds, sizes)
+    score_low, score_high = (float(bound) for bound in np.mean(bounds, axis=0))
+    return Estimate(mean.point, min(mean.low, score_low), max(mean.high, score_high), seeds, sizes)
 
 
 def curve_measures(points: pd.DataFrame) -> dict[str, float]:

@@ -31,9 +31,9 @@ def test_point_statistics_are_rlibles():
     """The mean is the mean of per-stratum means; the IQM the 25 % trimmed mean of all runs
     pooled (scipy's ``trim_mean``, rliable's ``aggregate_iqm``)."""
     a, b = np.array([0.1, 0.2, 0.9, 1.0]), np.array([0.5, 0.5])
-    assert mean_of_strata([a[None], b[None]])[0] == pytest.approx((0.55 + 0.5) / 2)
+    assert mean_of_strata(a[None], b[None])[0] == pytest.approx((0.55 + 0.5) / 2)
     pooled = np.concatenate([a, b])
-    assert iqm([a[None], b[None]])[0] == pytest.approx(stats.trim_mean(pooled, 0.25))
+    assert iqm(a[None], b[None])[0] == pytest.approx(stats.trim_mean(pooled, 0.25))
 
 
 def test_poi_point_is_the_mann_whitney_u_over_pairs():
