@@ -144,18 +144,26 @@ def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def bootstrap_interval(
-    samples: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], rng: np.random.Generator,
+    samples: Sequence[np.ndarray],
+    statistic: Statistic,
+    rng: np.random.Generator,
     reps: int = BOOTSTRAP_REPS,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+) -> tuple[np.ndarray, np.ndarray]:
     """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
     (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
     `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample (stratum) with
     replacement on its own along its first axis; endpoints by `numpy.percentile` of scipy's
     bootstrap distribution."""
     result = stats.bootstrap(
-        tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
-        method="percentile", confidence_level=CONFIDENCE, rng=rng,
-    )  # fmt: skip
+        tuple(samples),
+        statistic,
+        n_resamples=reps,
+        vectorized=True,
+        axis=0,
+        method="percentile",
+        confidence_level=CONFIDENCE,
+        rng=rng,
+    )
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
     low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
     return low, high

@@ -8,7 +8,9 @@ run's best policy against its final one (`best_vs_final_rows`), a preset against
 varies (`cross_preset_rows`) and supplementary evaluations on N TCs (`supplementary_sizes`).
 Per run and outcome (`OUTCOMES`) the discordant TCs and the exact two-sided McNemar p-value
 (`mcnemar_exact`); seeds share the TCs and are tested one by one, never pooled; p-values are
-per comparison, not corrected for the number of comparisons.
+per comparison, not corrected for the number of comparisons. The ``*_rows`` functions pair runs
+that count (`select_runs`) on both sides and return `FIELDS` rows in task, table and seed order,
+outcomes in `OUTCOMES` order.
 """
 
 from __future__ import annotations
@@ -96,12 +98,10 @@ def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
 def paired_rows(
     root: str | Path, preset: str, reference: str = UNADAPTED, episodes: int | None = None
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
-    on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
-    run has been evaluated (both among the runs that count, `select_runs`); the reference's
-    own runs and `UNADAPTED` are not rows. In task, table and seed order, outcomes in
-    `OUTCOMES` order. ``episodes``: None pairs the preset's evaluations; N pairs the
-    supplementary evaluations on N TCs.
+    """Every run under ``<root>/<preset>`` paired with ``reference``'s evaluated run on the
+    same task (`UNADAPTED`: its seed 0; any other method: the same seed); the reference's own
+    runs and `UNADAPTED` are not rows. ``episodes``: None pairs the preset's evaluations; N
+    the supplementary evaluations on N TCs.
 
     Raises:
         ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its
@@ -122,8 +122,7 @@ def paired_rows(
 
 def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str, Path]]:
     """(task, method, folder) of every run folder ``.../<task>/<method>/seed<k>`` of a method
-    among ``current`` (the runs that count, `select_runs`) that holds
-    ``file_name``, in folder order."""
+    among ``current`` that holds ``file_name``, in folder order."""
     return [
         (folder.parent.parent.name, folder.parent.name, folder)
         for folder in sorted(current)
@@ -132,11 +131,10 @@ def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str,
 
 
 def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing every run of ``preset`` (the "run" columns) with the run of the
-    same task, method and seed in ``base_preset`` (the "reference" columns), both among the
-    runs that count (`select_runs`), on the preset's evaluation TCs: an exploration preset
-    against the configuration it varies (``correlated`` against ``paper``). Runs without a
-    counterpart and the `demo` reference are not rows.
+    """Every run of ``preset`` (the "run" columns) paired with the run of the same task,
+    method and seed in ``base_preset`` (the "reference" columns) on the preset's evaluation
+    TCs: an exploration preset against the configuration it varies (``correlated`` against
+    ``paper``). Runs without a counterpart and the `demo` reference are not rows.
 
     Raises:
         UserInputError: the two presets are the same; a pair's evaluation TCs differ (the
@@ -159,10 +157,9 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
 
 
 def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing, per run that has one, the evaluation of its best
-    learning-curve policy (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the
-    "run" columns) with its own final policy's on the same TCs (``evaluation.csv``; the
-    "reference" columns), among the runs that count (`select_runs`).
+    """Per run that has one, the evaluation of its best learning-curve policy
+    (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the "run" columns) paired
+    with its own final policy's on the same TCs (``evaluation.csv``; the "reference" columns).
 
     Raises:
         ValueError: the two evaluations of a run hold different TCs.
@@ -179,11 +176,10 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
 def _paired_files(
     pairs: list[tuple[Path, Path]], reference_runs: frozenset[Path]
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows of each (run, reference) pair of evaluation files of runs
+    """The rows of each (run, reference) pair of evaluation files of runs
     ``.../<task>/<method>/seed<k>/`` whose reference file exists in a run folder of
-    ``reference_runs`` (the runs that count there), TC by TC (each file's episodes a
-    `csv_frame`), in task, table and seed order, outcomes in `OUTCOMES` order; a reference
-    shared by several runs is read once.
+    ``reference_runs``, TC by TC (each file's episodes a `csv_frame`); a reference shared by
+    several runs is read once.
 
     Raises:
         ValueError: the two files of a pair hold different TCs.
