@@ -11,6 +11,7 @@ are scored here too (`run_scores`).
 
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 from collections.abc import Callable, Mapping, Sequence
@@ -69,8 +70,9 @@ start for the run to count as having learned (one point could be noise)."""
 Strata = Sequence[np.ndarray]
 """One 1-D array of per-run scores per stratum (task)."""
 
-Statistic = Callable[[list[np.ndarray]], np.ndarray]
-"""A statistic of resampled strata: arrays (reps, n_k) -> values (reps,)."""
+Statistic = Callable[..., np.ndarray]
+"""A statistic of strata, ``statistic(*strata, axis=-1)``: arrays (reps, n_k) -> values
+(reps,), the runs along ``axis`` (`scipy.stats.bootstrap`'s vectorized form)."""
 
 
 @dataclass(frozen=True)
@@ -122,14 +124,14 @@ def estimate_rng(seed: int, *names: str) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([seed, key]))
 
 
-def mean_of_strata(samples: list[np.ndarray]) -> np.ndarray:
+def mean_of_strata(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     """rliable's ``aggregate_mean``: the mean over strata of each stratum's mean run."""
-    return np.asarray(np.mean([s.mean(axis=1) for s in samples], axis=0))
+    return np.asarray(np.mean([s.mean(axis=axis) for s in samples], axis=0))
 
 
-def iqm(samples: list[np.ndarray]) -> np.ndarray:
+def iqm(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     """rliable's ``aggregate_iqm``: the 25 % trimmed mean of all runs of all strata."""
-    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=1), 0.25, axis=1))
+    return np.asarray(stats.trim_mean(np.concatenate(samples, axis=axis), 0.25, axis=axis))
 
 
 def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -142,18 +144,26 @@ def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def bootstrap_interval(
-    samples: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], rng: np.random.Generator,
+    samples: Sequence[np.ndarray],
+    statistic: Statistic,
+    rng: np.random.Generator,
     reps: int = BOOTSTRAP_REPS,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+) -> tuple[np.ndarray, np.ndarray]:
     """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
     (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
     `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample (stratum) with
     replacement on its own along its first axis; endpoints by `numpy.percentile` of scipy's
     bootstrap distribution."""
     result = stats.bootstrap(
-        tuple(samples), statistic, n_resamples=reps, vectorized=True, axis=0,
-        method="percentile", confidence_level=CONFIDENCE, rng=rng,
-    )  # fmt: skip
+        tuple(samples),
+        statistic,
+        n_resamples=reps,
+        vectorized=True,
+        axis=0,
+        method="percentile",
+        confidence_level=CONFIDENCE,
+        rng=rng,
+    )
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
     low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
     return low, high
@@ -169,14 +179,10 @@ def interval_estimate(
     seeds = tuple(len(a) for a in arrays)
     if not arrays:
         return Estimate(math.nan, math.nan, math.nan, ())
-    point = float(statistic([a[None, :] for a in arrays])[0])
+    point = float(statistic(*(a[None, :] for a in arrays), axis=-1)[0])
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds)
-
-    def of_resamples(*samples: np.ndarray, axis: int) -> np.ndarray:
-        return statistic(list(samples))  # samples: (reps, n_k) each, resampled along axis -1
-
-    low, high = bootstrap_interval(arrays, of_resamples, rng, reps)
+    low, high = bootstrap_interval(arrays, statistic, rng, reps)
     return Estimate(point, float(low), float(high), seeds)
 
 
@@ -199,6 +205,13 @@ def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
     return float(low), float(high)
 
 
+def mean_improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """The mean over strata of `improvement`, a `Statistic` of X and Y of each stratum in
+    turn ((reps, n) each, the runs along the last axis)."""
+    pairs = zip(samples[::2], samples[1::2], strict=True)
+    return np.asarray(np.mean([improvement(x, y) for x, y in pairs], axis=0))
+
+
 def probability_of_improvement(
     x_strata: Strata,
     y_strata: Strata,
@@ -208,8 +221,8 @@ def probability_of_improvement(
 ) -> Estimate:
     """The PoI of X over Y (P(X > Y) + P(X = Y) / 2 over run pairs, `improvement`) averaged
     over the strata where both have runs, with its independent stratified-bootstrap interval
-    widened to the mean of the strata's `newcombe_interval` bounds (docs/findings/protocol.md,
-    "The aggregates' statistics")."""
+    (`interval_estimate` of `mean_improvement`) widened to the mean of the strata's
+    `newcombe_interval` bounds (docs/findings/protocol.md, "The aggregates' statistics")."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))
@@ -220,24 +233,15 @@ def probability_of_improvement(
         return Estimate(math.nan, math.nan, math.nan, ())
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    per_stratum = [float(improvement(x[None, :], y[None, :])[0]) for x, y in pairs]
-    point = float(np.mean(per_stratum))
-    if min(seeds) < 2:
-        return Estimate(point, math.nan, math.nan, seeds, sizes)
-
-    def mean_improvement(*samples: np.ndarray, axis: int) -> np.ndarray:
-        # samples: x and y of each stratum in turn, (reps, n) each, resampled along axis -1
-        per_pair = [improvement(x, y) for x, y in zip(samples[::2], samples[1::2], strict=True)]
-        return np.asarray(np.mean(per_pair, axis=0))
-
-    samples = [a for pair in pairs for a in pair]
-    low, high = (float(v) for v in bootstrap_interval(samples, mean_improvement, rng, reps))
+    mean = interval_estimate([a for pair in pairs for a in pair], mean_improvement, rng, reps)
+    if not mean.has_interval:
+        return Estimate(mean.point, math.nan, math.nan, seeds, sizes)
     bounds = [
-        newcombe_interval(p, len(x), len(y)) for p, (x, y) in zip(per_stratum, pairs, strict=True)
+        newcombe_interval(float(improvement(x[None, :], y[None, :])[0]), len(x), len(y))
+        for x, y in pairs
     ]
-    score_low = float(np.mean([b[0] for b in bounds]))
-    score_high = float(np.mean([b[1] for b in bounds]))
-    return Estimate(point, min(low, score_low), max(high, score_high), seeds, sizes)
+    score_low, score_high = (float(bound) for bound in np.mean(bounds, axis=0))
+    return Estimate(mean.point, min(mean.low, score_low), max(mean.high, score_high), seeds, sizes)
 
 
 def curve_measures(points: pd.DataFrame) -> dict[str, float]:
@@ -279,11 +283,10 @@ def curve_measures(points: pd.DataFrame) -> dict[str, float]:
 
 def run_scores(summary: Mapping[str, float], points: pd.DataFrame) -> dict[str, float]:
     """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
-    retention (``summary``) and the `curve_measures` of its curve ``points`` (none for an
-    untrained reference)."""
-    scores = {key: float(summary[key]) for key, _ in RATES if key in summary}
-    if "mean_kinematic_retention" in summary:  # velocity cosine to the demonstration
-        scores["mean_kinematic_retention"] = float(summary["mean_kinematic_retention"])
+    retention (velocity cosine to the demonstration; ``summary``) and the `curve_measures` of
+    its curve ``points`` (none for an untrained reference)."""
+    keys = (*(key for key, _ in RATES), "mean_kinematic_retention")
+    scores = {key: float(summary[key]) for key in keys if key in summary}
     scores.update(curve_measures(points))
     return scores
 
@@ -315,27 +318,60 @@ def task_groups(scores: Scores) -> list[tuple[str, list[str]]]:
 
 def poi(scores: Scores, tasks: Sequence[str], x: str, y: str, key: str, seed: int) -> Estimate:
     """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks`` (its own generator)."""
-    rng = estimate_rng(seed, "poi", "+".join(tasks), x, y, key)
-    return probability_of_improvement(
-        strata(scores, tasks, x, key), strata(scores, tasks, y, key), rng, HIGHER_IS_BETTER[key]
-    )
+    x_strata, y_strata = (_bytes(strata(scores, tasks, m, key)) for m in (x, y))
+    return _poi(x_strata, y_strata, HIGHER_IS_BETTER[key], seed, "+".join(tasks), x, y, key)
 
 
 def method_estimate(
     scores: Scores, tasks: Sequence[str], method: str, key: str, statistic: str, seed: int
 ) -> Estimate:
     """``statistic`` (``mean`` or ``iqm``) of ``method``'s ``key`` over ``tasks``."""
-    rng = estimate_rng(seed, statistic, "+".join(tasks), method, key)
+    values = _bytes(strata(scores, tasks, method, key))
+    return _method_estimate(values, statistic, seed, "+".join(tasks), method, key)
+
+
+def _bytes(arrays: list[np.ndarray]) -> tuple[bytes, ...]:
+    """Each stratum's float64 scores as bytes: the key of the estimate caches below, equal
+    exactly when the scores are (bit for bit, so -0.0 and each NaN stay apart)."""
+    return tuple(np.asarray(a, dtype=float).tobytes() for a in arrays)
+
+
+# An estimate is a function of its strata, seed and names (its generator's seed): cached, the
+# claims and aggregates that read one estimate several times bootstrap it once.
+@functools.cache
+def _poi(
+    x: tuple[bytes, ...], y: tuple[bytes, ...], higher_is_better: bool, seed: int, *names: str
+) -> Estimate:
+    rng = estimate_rng(seed, "poi", *names)
+    x_strata, y_strata = ([np.frombuffer(v) for v in side] for side in (x, y))
+    return probability_of_improvement(x_strata, y_strata, rng, higher_is_better)
+
+
+@functools.cache
+def _method_estimate(values: tuple[bytes, ...], statistic: str, seed: int, *names: str) -> Estimate:
+    rng = estimate_rng(seed, statistic, *names)
     function = {"mean": mean_of_strata, "iqm": iqm}[statistic]
-    return interval_estimate(strata(scores, tasks, method, key), function, rng)
+    return interval_estimate([np.frombuffer(v) for v in values], function, rng)
 
 
-CSV_FIELDS: tuple[str, ...] = ("task", "method", "versus", "metric", "statistic", "value")
-CSV_FIELDS += ("ci_low", "ci_high", "seeds")
+def estimate_cells(estimate: Estimate) -> dict[str, object]:
+    """An estimate's CSV cells: ``value`` (empty without runs), ``ci_low`` and ``ci_high``
+    (empty below two runs in a stratum), ``seeds`` (runs per task stratum) and ``pairs`` (a
+    PoI's run pairs per stratum), each ``;``-separated."""
+    interval = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
+    return {
+        "value": estimate.point if estimate.seeds else "",
+        "ci_low": interval[0],
+        "ci_high": interval[1],
+        "seeds": ";".join(map(str, estimate.seeds)),
+        "pairs": ";".join(map(str, estimate.pairs)),
+    }
+
+
+CSV_FIELDS = tuple("task method versus metric statistic value ci_low ci_high seeds".split())
 """Columns of ``aggregates_<preset>.csv``, one row per estimate: ``statistic`` is ``mean``,
 ``iqm`` or ``poi`` (of ``method`` over ``versus``, on ``metric``: collision's PoI is that of
-fewer collisions); ``seeds`` the runs per task stratum, ``;``-separated; the interval is
-empty below two runs in a stratum."""
+fewer collisions); the estimate's cells as `estimate_cells` writes them."""
 
 
 def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
@@ -363,11 +399,9 @@ def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
 def _row(
     task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
 ) -> dict[str, Any]:
-    """One `aggregate_rows` row (the interval empty without one)."""
-    low, high = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
-    seeds = ";".join(str(n) for n in estimate.seeds)
-    values = (task, method, versus, key, statistic, estimate.point, low, high, seeds)
-    return dict(zip(CSV_FIELDS, values, strict=True)) | {"estimate": estimate}
+    """One `aggregate_rows` row."""
+    names = dict(task=task, method=method, versus=versus, metric=key, statistic=statistic)
+    return names | estimate_cells(estimate) | {"estimate": estimate}
 
 
 def short_label(method: str) -> str:

@@ -11,6 +11,7 @@ each is as it is: "Claims rules that cannot mislead" there. Written as ``claims_
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
@@ -25,6 +26,7 @@ from distgprl.report.aggregate import (
     PROPOSED,
     Estimate,
     Scores,
+    estimate_cells,
     method_estimate,
     poi,
     short_label,
@@ -153,11 +155,6 @@ def _decide(reproduced: bool, refuted: bool) -> str:
     return REPRODUCED if reproduced else REFUTED if refuted else INCONCLUSIVE
 
 
-def poi_verdict(estimate: Estimate) -> str:
-    """The PoI rule (protocol) applied to ``estimate``."""
-    return _availability([estimate]) or _decide(estimate.low > 0.5, estimate.high < 0.5)
-
-
 def _where(tasks: list[str]) -> str:
     """The `TaskVerdict.task` of a test on ``tasks``: the one task, or `ALL_TASKS` pooled."""
     return tasks[0] if len(tasks) == 1 else ALL_TASKS
@@ -219,7 +216,8 @@ def poi_task_verdict(scores: Scores, tasks: list[str], claim: PoiClaim, seed: in
             f"runs that learned: Dist-GPRL {_learned(scores, tasks[0], PROPOSED)}, "
             f"{short_label(claim.versus)} {_learned(scores, tasks[0], claim.versus)}"
         )
-    return TaskVerdict(_where(tasks), estimate, poi_verdict(estimate), ", ".join(parts))
+    verdict = _availability([estimate]) or _decide(estimate.low > 0.5, estimate.high < 0.5)
+    return TaskVerdict(_where(tasks), estimate, verdict, ", ".join(parts))
 
 
 def extreme_verdict(
@@ -367,28 +365,10 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]
 CSV_FIELDS = tuple("claim test task value ci_low ci_high seeds pairs verdict detail".split())
 """Columns of ``claims_<preset>.csv``: one row per claim and task, then the claim's
 `ALL_TASKS` row, whose value and interval are the pooled estimate and whose verdict is the
-overall one (`combine` of the task rows; the pooled estimate does not decide it). ``seeds``
-are the runs per task stratum, ``;``-separated; ``pairs`` a PoI's run pairs per stratum;
-value and interval empty without runs, the interval empty below two seeds. The ProMP-RRL
+overall one (`combine` of the task rows; the pooled estimate does not decide it); value,
+interval, seeds and pairs as `aggregate.estimate_cells` writes them. The ProMP-RRL
 row's value is its collision IQM, its success IQM is in ``detail``; the balance row's value
 is Dist-GPRL's kinematic-retention IQM, its success and collision IQMs are in ``detail``."""
-
-
-def _csv_row(claim: Verdict, row: TaskVerdict) -> dict[str, object]:
-    """One `CSV_FIELDS` row of ``claim``: ``row`` a task's verdict, or the overall one."""
-    e = row.estimate
-    return {
-        "claim": claim.claim,
-        "test": claim.test,
-        "task": row.task,
-        "value": e.point if e.seeds else "",
-        "ci_low": e.low if e.has_interval else "",
-        "ci_high": e.high if e.has_interval else "",
-        "seeds": ";".join(str(n) for n in e.seeds),
-        "pairs": ";".join(str(n) for n in e.pairs),
-        "verdict": row.verdict,
-        "detail": row.detail,
-    }
 
 
 def _estimate_text(estimate: Estimate) -> str:
@@ -397,16 +377,39 @@ def _estimate_text(estimate: Estimate) -> str:
     return estimate.text(3 if estimate.pairs else 2)
 
 
+def _csv_rows(claim: Verdict) -> list[dict[str, object]]:
+    """The `CSV_FIELDS` rows of ``claim``: one per task, then the overall one."""
+    pooled = claim.pooled.estimate if claim.pooled else Estimate(math.nan, 0, 0, ())
+    overall = TaskVerdict(ALL_TASKS, pooled, claim.verdict, claim.detail)
+    return [
+        {
+            "claim": claim.claim,
+            "test": claim.test,
+            "task": row.task,
+            **estimate_cells(row.estimate),
+            "verdict": row.verdict,
+            "detail": row.detail,
+        }
+        for row in (*claim.per_task, overall)
+    ]
+
+
+def _markdown_row(claim: Verdict) -> list[str]:
+    """``claim``'s Markdown row: each task's estimate and verdict, the pooled estimate with
+    several tasks, the overall verdict and the details."""
+    cells = [claim.claim, claim.test]
+    cells += [f"{_estimate_text(t.estimate)}: **{t.verdict}**" for t in claim.per_task]
+    cells += [_estimate_text(claim.pooled.estimate)] if claim.pooled is not None else []
+    also = [f"{t.task.upper()}: {t.detail}" for t in claim.per_task if t.detail]
+    also += [claim.detail] if claim.detail else []
+    return [*cells, f"**{claim.verdict}**", "; ".join(also) or "–"]
+
+
 def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
     """(CSV, Markdown) of the claims table (`evaluate_claims`): per task first, pooled
     beside, the overall verdict last."""
     verdicts = evaluate_claims(scores, seed)
     tasks = tasks_of(scores)
-    csv_rows = []
-    for v in verdicts:
-        pooled = v.pooled.estimate if v.pooled else Estimate(float("nan"), 0, 0, ())
-        overall = TaskVerdict(ALL_TASKS, pooled, v.verdict, v.detail)
-        csv_rows += [_csv_row(v, row) for row in (*v.per_task, overall)]
     caption = (
         f"Claims of the paper ({preset} preset): the verdict on each task, then the overall "
         f"verdict combined from the tasks' (reproduced only if no task refutes; 'the tasks "
@@ -416,16 +419,6 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
     )
     header = ["Claim", "Test", *(f"{t.upper()} [95 % CI]" for t in tasks)]
     header += ["Pooled (beside)"] if len(tasks) > 1 else []
-    header += ["Verdict", "Also"]
-    rows = []
-    for v in verdicts:
-        line = [
-            v.claim,
-            v.test,
-            *(f"{_estimate_text(t.estimate)}: **{t.verdict}**" for t in v.per_task),
-        ]
-        line += [_estimate_text(v.pooled.estimate)] if v.pooled is not None else []
-        also = [f"{t.task.upper()}: {t.detail}" for t in v.per_task if t.detail]
-        also += [v.detail] if v.detail else []
-        rows.append([*line, f"**{v.verdict}**", "; ".join(also) or "–"])
-    return csv_text(csv_rows, CSV_FIELDS), markdown_table(caption, header, rows)
+    rows = [row for v in verdicts for row in _csv_rows(v)]
+    markdown = markdown_table(caption, [*header, "Verdict", "Also"], map(_markdown_row, verdicts))
+    return csv_text(rows, CSV_FIELDS), markdown

@@ -8,7 +8,9 @@ run's best policy against its final one (`best_vs_final_rows`), a preset against
 varies (`cross_preset_rows`) and supplementary evaluations on N TCs (`supplementary_sizes`).
 Per run and outcome (`OUTCOMES`) the discordant TCs and the exact two-sided McNemar p-value
 (`mcnemar_exact`); seeds share the TCs and are tested one by one, never pooled; p-values are
-per comparison, not corrected for the number of comparisons.
+per comparison, not corrected for the number of comparisons. The ``*_rows`` functions pair runs
+that count (`select_runs`) on both sides and return `FIELDS` rows in task, table and seed order,
+outcomes in `OUTCOMES` order.
 """
 
 from __future__ import annotations
@@ -96,12 +98,10 @@ def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
 def paired_rows(
     root: str | Path, preset: str, reference: str = UNADAPTED, episodes: int | None = None
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing every run under ``<root>/<preset>`` with ``reference``'s run
-    on the same task (`UNADAPTED`: its seed 0; any other method: the same seed), where that
-    run has been evaluated (both among the runs that count, `select_runs`); the reference's
-    own runs and `UNADAPTED` are not rows. In task, table and seed order, outcomes in
-    `OUTCOMES` order. ``episodes``: None pairs the preset's evaluations; N pairs the
-    supplementary evaluations on N TCs.
+    """Every run under ``<root>/<preset>`` paired with ``reference``'s evaluated run on the
+    same task (`UNADAPTED`: its seed 0; any other method: the same seed); the reference's own
+    runs and `UNADAPTED` are not rows. ``episodes``: None pairs the preset's evaluations; N
+    the supplementary evaluations on N TCs.
 
     Raises:
         ValueError: ``reference`` is not a method; a run's evaluation TCs differ from its
@@ -122,8 +122,7 @@ def paired_rows(
 
 def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str, Path]]:
     """(task, method, folder) of every run folder ``.../<task>/<method>/seed<k>`` of a method
-    among ``current`` (the runs that count, `select_runs`) that holds
-    ``file_name``, in folder order."""
+    among ``current`` that holds ``file_name``, in folder order."""
     return [
         (folder.parent.parent.name, folder.parent.name, folder)
         for folder in sorted(current)
@@ -132,11 +131,10 @@ def _evaluated(current: frozenset[Path], file_name: str) -> list[tuple[str, str,
 
 
 def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing every run of ``preset`` (the "run" columns) with the run of the
-    same task, method and seed in ``base_preset`` (the "reference" columns), both among the
-    runs that count (`select_runs`), on the preset's evaluation TCs: an exploration preset
-    against the configuration it varies (``correlated`` against ``paper``). Runs without a
-    counterpart and the `demo` reference are not rows.
+    """Every run of ``preset`` (the "run" columns) paired with the run of the same task,
+    method and seed in ``base_preset`` (the "reference" columns) on the preset's evaluation
+    TCs: an exploration preset against the configuration it varies (``correlated`` against
+    ``paper``). Runs without a counterpart and the `demo` reference are not rows.
 
     Raises:
         UserInputError: the two presets are the same; a pair's evaluation TCs differ (the
@@ -159,10 +157,9 @@ def cross_preset_rows(root: str | Path, preset: str, base_preset: str) -> list[d
 
 
 def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
-    """`FIELDS` rows pairing, per run that has one, the evaluation of its best
-    learning-curve policy (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the
-    "run" columns) with its own final policy's on the same TCs (``evaluation.csv``; the
-    "reference" columns), among the runs that count (`select_runs`).
+    """Per run that has one, the evaluation of its best learning-curve policy
+    (``evaluation_best.csv``, ``distgprl evaluate --policy best``; the "run" columns) paired
+    with its own final policy's on the same TCs (``evaluation.csv``; the "reference" columns).
 
     Raises:
         ValueError: the two evaluations of a run hold different TCs.
@@ -179,18 +176,17 @@ def best_vs_final_rows(root: str | Path, preset: str) -> list[dict[str, Any]]:
 def _paired_files(
     pairs: list[tuple[Path, Path]], reference_runs: frozenset[Path]
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows of each (run, reference) pair of evaluation files of runs
+    """The rows of each (run, reference) pair of evaluation files of runs
     ``.../<task>/<method>/seed<k>/`` whose reference file exists in a run folder of
-    ``reference_runs`` (the runs that count there), TC by TC (each file's episodes a
-    `csv_frame`), in task, table and seed order, outcomes in `OUTCOMES` order; a reference
-    shared by several runs is read once.
+    ``reference_runs``, TC by TC (each file's episodes a `csv_frame`); a reference shared by
+    several runs is read once.
 
     Raises:
         ValueError: the two files of a pair hold different TCs.
     """
     references: dict[Path, pd.DataFrame] = {}
     rows = []
-    for run_file, reference_file in pairs:
+    for run_file, reference_file in sorted(pairs, key=lambda pair: _run_order(pair[0])):
         if reference_file.parent not in reference_runs or not reference_file.exists():
             continue
         if reference_file not in references:
@@ -201,42 +197,37 @@ def _paired_files(
         task, method, folder = run_file.parts[-4:-1]
         run = {"task": task, "method": method, "seed": int(folder.removeprefix("seed"))}
         rows += _pair(run, _outcomes(mine), _outcomes(theirs))
-    outcome_index = [outcome for outcome, _ in OUTCOMES].index
-    return sorted(
-        rows,
-        key=lambda r: (
-            task_order(r["task"]),
-            r["task"],
-            TABLE_ORDER.index(r["method"]),
-            r["seed"],
-            outcome_index(r["outcome"]),
-        ),
-    )
+    return rows
+
+
+def _run_order(run_file: Path) -> tuple[int, str, int, int]:
+    """The sort key of a run's file ``.../<task>/<method>/seed<k>/<file>``: task, table and
+    seed order."""
+    task, method, folder = run_file.parts[-4:-1]
+    return task_order(task), task, TABLE_ORDER.index(method), int(folder.removeprefix("seed"))
 
 
 def _pair(
     run: dict[str, Any], outcomes: pd.DataFrame, reference_outcomes: pd.DataFrame
 ) -> list[dict[str, Any]]:
     """One `FIELDS` row per outcome: a run's episodes (``run`` its task, method and seed)
-    against the reference's, TC by TC."""
-    rows = []
-    for outcome, _ in OUTCOMES:
-        mine, theirs = outcomes[outcome].to_numpy(), reference_outcomes[outcome].to_numpy()
-        only_run = int(((mine == 1) & (theirs == 0)).sum())
-        only_reference = int(((mine == 0) & (theirs == 1)).sum())
-        rows.append(
-            {
-                **run,
-                "outcome": outcome,
-                "tcs": len(mine),
-                "run_rate": int(mine.sum()) / len(mine),
-                "reference_rate": int(theirs.sum()) / len(theirs),
-                "only_run": only_run,
-                "only_reference": only_reference,
-                "p_value": mcnemar_exact(only_run, only_reference),
-            }
-        )
-    return rows
+    against the reference's, TC by TC (both `_outcomes` frames)."""
+    mine, theirs = outcomes.to_numpy(), reference_outcomes.to_numpy()  # (TCs, outcomes)
+    only_run = ((mine == 1) & (theirs == 0)).sum(axis=0)
+    only_reference = ((mine == 0) & (theirs == 1)).sum(axis=0)
+    return [
+        {
+            **run,
+            "outcome": outcome,
+            "tcs": len(mine),
+            "run_rate": int(mine[:, k].sum()) / len(mine),
+            "reference_rate": int(theirs[:, k].sum()) / len(theirs),
+            "only_run": int(only_run[k]),
+            "only_reference": int(only_reference[k]),
+            "p_value": mcnemar_exact(int(only_run[k]), int(only_reference[k])),
+        }
+        for k, (outcome, _) in enumerate(OUTCOMES)
+    ]
 
 
 def paired_texts(

@@ -11,7 +11,7 @@ column per reading) by `robustness_texts`.
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, short_label, tasks_of
 from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
@@ -130,15 +130,17 @@ def _unless_not_run(
     lacking = [m for m in verdict.needs if m in not_run]
     if not lacking:
         return verdict
-    names = ", ".join(map(short_label, lacking))
     outside = ", ".join(short_label(m) for m in lacking if m not in study.methods)
-    detail = f"{names} under {reading.preset}: the reading changes it"
-    if not outside:
+    detail = (
+        f"{', '.join(map(short_label, lacking))} under {reading.preset}: the reading changes it"
+    )
+    if outside:
+        trained = ", ".join(map(short_label, study.methods))
+        detail += f", and the {study.name} study trains {trained} only (not {outside})"
+    else:
         detail += "; run it"
-        return Verdict(verdict.claim, verdict.test, (), None, NOT_RUN, detail, verdict.needs)
-    trained = ", ".join(map(short_label, study.methods))
-    detail += f", and the {study.name} study trains {trained} only (not {outside})"
-    return Verdict(verdict.claim, verdict.test, (), None, OUTSIDE, detail, verdict.needs)
+    word = OUTSIDE if outside else NOT_RUN
+    return replace(verdict, per_task=(), pooled=None, verdict=word, detail=detail)
 
 
 def across_readings(
@@ -176,25 +178,30 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
     reading, then with several studies one per study, the verdict across them all last)."""
     studies = list(dict.fromkeys(r.study for r in results if r.study))
     per_study = len(studies) > 1  # then each study's own across column, before the overall one
-    groups = [(f"across {name}", [r for r in results if r.study in ("", name)]) for name in studies]
-    groups = groups if per_study else []
+    groups = [
+        (f"across {name}", [r for r in results if r.study in ("", name)])
+        for name in studies
+        if per_study
+    ]
     groups.append(("across", list(results)))
     seeds = {r.reading.label: r.seeds for r in results}
     csv_rows: list[dict[str, str]] = []
     rows = []
     for index, claim in enumerate(v.claim for v in results[0].verdicts):
-        for r in results:
-            verdict = r.verdicts[index]
-            cells = (claim, r.reading.label, r.reading.preset, verdict.verdict, verdict.detail)
-            csv_rows.append(dict(zip(CSV_FIELDS, cells, strict=True)))
+        own = [(r.reading, r.verdicts[index]) for r in results]
+        csv_rows += [
+            dict(claim=claim, reading=r.label, preset=r.preset, verdict=v.verdict, detail=v.detail)
+            for r, v in own
+        ]
         across = [
             across_readings([(r.reading.label, r.verdicts[index].verdict) for r in group], seeds)
             for _, group in groups
         ]
-        for (label, _), text in zip(groups, across, strict=True):
-            csv_rows.append(dict(zip(CSV_FIELDS, (claim, label, "", text, ""), strict=True)))
-        own = [r.verdicts[index].verdict for r in results]
-        rows.append([claim, *own, *across[:-1], f"**{across[-1]}**"])
+        csv_rows += [
+            dict(claim=claim, reading=label, verdict=text)
+            for (label, _), text in zip(groups, across, strict=True)
+        ]
+        rows.append([claim, *(v.verdict for _, v in own), *across[:-1], f"**{across[-1]}**"])
     header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
     header += [f"Across Table I and the {name} study" for name in studies if per_study]
     header.append("Across readings")

@@ -1,21 +1,16 @@
-"""The sensitivity figure of a study: the studied method's scores per reading (issue 50 item 4).
+"""The sensitivity figure of a study: the studied method's scores per reading.
 
-One row of panels per task, one panel per score — success, collision and kinematic retention
-(the mean velocity cosine to the demonstration) on the 100 evaluation TCs, Table I's policy
-(`distgprl.report.runs.TABLE_POLICY`) — with one point per reading of the study at x = the
-reading's mean operator gain on a raw action (``mean_gain`` of
-`distgprl.experiments.operator_study`, averaged over the position axes the task's TCs vary:
-1 for an operator that passes a raw action through, below 1 where it shrinks it), the mean
-over seeds with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one
-stratum: the task). The references are horizontal lines with their intervals as bands:
-Dist-GPRL-NoCov (no operator) and the demonstration (no adaptation), from the reference
-preset's runs. A study's control (`distgprl.studies.Reading.control`) is drawn hollow and
-grey, shifted `CONTROL_SHIFT_POINTS` to the right on the page (its x value is unchanged): the
-uncoupled-signal control has the signal reading's gain (its row gains are the signal
-operator's), so the two points at one gain differ by the coupling alone.
-
-Reads ``<root>/<study>/reach.json`` (written by the study's sweep) and the runs' result files
-only; without the reach file or any run of the studied method there is nothing to draw.
+A row of panels per task, a panel per score (`PANELS`; kinematic retention: the mean velocity
+cosine to the demonstration) on the 100 evaluation TCs, Table I's policy
+(`distgprl.report.runs.TABLE_POLICY`). Each reading is a point at x = its mean operator gain on
+a raw action (``mean_gain`` of `distgprl.experiments.operator_study` over the position axes the
+task's TCs vary: 1 passes a raw action through, below 1 shrinks it), y = the mean over seeds
+with its 95 % stratified-bootstrap interval (`distgprl.report.aggregate`, one stratum: the
+task). `REFERENCES` are dashed lines, their intervals bands, from the reference preset's runs.
+A control (`distgprl.studies.Reading.control`) is hollow and grey, drawn `CONTROL_SHIFT_POINTS`
+right of its x: the uncoupled-signal control has the signal reading's gain, so the two points
+at one gain differ by the coupling alone. Reads ``<root>/<study>/reach.json`` (written by the
+study's sweep) and the runs' result files only.
 """
 
 from __future__ import annotations
@@ -54,7 +49,7 @@ CONTROL_SHIFT_POINTS = 9.0
 hide a reading's point at the same gain."""
 
 REFERENCES = ("dist-gprl-nocov", "demo")
-"""Methods drawn as horizontal reference bands, from the reference preset's runs."""
+"""Methods drawn as horizontal reference bands: no operator, no adaptation."""
 
 
 def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], float]:
@@ -77,19 +72,15 @@ def sensitivity_points(
 ) -> list[dict[str, Any]]:
     """One entry per reading, task and score with runs: ``reading`` (the `Reading`),
     ``task``, ``score``, ``gain`` and the `Estimate` (mean over seeds, 95 % interval)."""
-    points = []
-    for reading in study.all_readings:
-        scores = scores_of.get(reading.preset, {})
-        for task in tasks:
-            if (reading.preset, task) not in gains:
-                continue
-            for key, _ in PANELS:
-                estimate = _mean(scores, task, method, key, seed)
-                if estimate is not None:
-                    gain = gains[(reading.preset, task)]
-                    where = {"reading": reading, "task": task, "score": key}
-                    points.append({**where, "gain": gain, "estimate": estimate})
-    return points
+    return [
+        {"reading": reading, "task": task, "score": key, "gain": gain, "estimate": estimate}
+        for reading in study.all_readings
+        for task in tasks
+        if (gain := gains.get((reading.preset, task))) is not None
+        for key, _ in PANELS
+        if (estimate := _mean(scores_of.get(reading.preset, {}), task, method, key, seed))
+        is not None
+    ]
 
 
 def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
@@ -98,7 +89,7 @@ def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estima
     if not scores.get((task, method)):
         return None
     estimate = method_estimate(scores, [task], method, key, "mean", seed)
-    return estimate if estimate.seeds and min(estimate.seeds) > 0 else None
+    return estimate if estimate.seeds else None
 
 
 def write_sensitivity(

@@ -10,6 +10,7 @@ import pytest
 from numpy.polynomial import Polynomial
 from scipy import stats
 
+from distgprl.report import aggregate
 from distgprl.report.aggregate import (
     aggregate_rows,
     aggregate_texts,
@@ -19,7 +20,9 @@ from distgprl.report.aggregate import (
     interval_estimate,
     iqm,
     mean_of_strata,
+    method_estimate,
     newcombe_interval,
+    poi,
     probability_of_improvement,
 )
 
@@ -31,9 +34,9 @@ def test_point_statistics_are_rlibles():
     """The mean is the mean of per-stratum means; the IQM the 25 % trimmed mean of all runs
     pooled (scipy's ``trim_mean``, rliable's ``aggregate_iqm``)."""
     a, b = np.array([0.1, 0.2, 0.9, 1.0]), np.array([0.5, 0.5])
-    assert mean_of_strata([a[None], b[None]])[0] == pytest.approx((0.55 + 0.5) / 2)
+    assert mean_of_strata(a[None], b[None])[0] == pytest.approx((0.55 + 0.5) / 2)
     pooled = np.concatenate([a, b])
-    assert iqm([a[None], b[None]])[0] == pytest.approx(stats.trim_mean(pooled, 0.25))
+    assert iqm(a[None], b[None])[0] == pytest.approx(stats.trim_mean(pooled, 0.25))
 
 
 def test_poi_point_is_the_mann_whitney_u_over_pairs():
@@ -128,6 +131,36 @@ def test_bootstrap_is_reproducible_for_a_seed_and_varies_with_it():
     assert estimate(0) != estimate(1)
     first = estimate(0)
     assert first.low <= first.point <= first.high
+
+
+def test_an_estimate_of_scores_is_its_own_generators_and_bootstrapped_once(monkeypatch):
+    """`method_estimate` and `poi` give what `interval_estimate` and
+    `probability_of_improvement` give with the estimate's own generator; asked again for the
+    same scores (in another mapping) they bootstrap nothing, and changed scores anew."""
+    runs = {"dist-gprl": CLEAR, "gprl": WEAK}
+    scores = {("dcp", m): [{"success_rate": s} for s in values] for m, values in runs.items()}
+    seed = 12345  # no other test asks for this seed: nothing of it is cached yet
+    iqm_rng = estimate_rng(seed, "iqm", "dcp", "dist-gprl", "success_rate")
+    direct = interval_estimate([CLEAR], iqm, iqm_rng)
+    poi_rng = estimate_rng(seed, "poi", "dcp", "dist-gprl", "gprl", "success_rate")
+    direct_poi = probability_of_improvement([CLEAR], [WEAK], poi_rng)
+    assert method_estimate(scores, ["dcp"], "dist-gprl", "success_rate", "iqm", seed) == direct
+    assert poi(scores, ["dcp"], "dist-gprl", "gprl", "success_rate", seed) == direct_poi
+    calls = []
+    original = aggregate.bootstrap_interval
+
+    def counting(*args, **kwargs):
+        calls.append(args)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(aggregate, "bootstrap_interval", counting)
+    again = {key: [dict(run) for run in values] for key, values in scores.items()}
+    assert method_estimate(again, ["dcp"], "dist-gprl", "success_rate", "iqm", seed) == direct
+    assert poi(again, ["dcp"], "dist-gprl", "gprl", "success_rate", seed) == direct_poi
+    assert calls == []
+    again[("dcp", "gprl")] = [{"success_rate": s + 0.01} for s in WEAK]
+    poi(again, ["dcp"], "dist-gprl", "gprl", "success_rate", seed)
+    assert len(calls) == 1
 
 
 def test_strata_are_resampled_separately():
