@@ -1,7 +1,5 @@
-"""Learning curves seed by seed, as the result files hold them (``progress.csv``), and the
-panels in which a study reads them: one source for the curve figures, the onset tables and the
-onset figure (the figures draw the onsets, the onsets read the curves, without a circle).
-"""
+"""Learning curves seed by seed (``progress.csv``) and the panels in which a study reads them:
+one source for the curve figures, the onset tables and the onset figure."""
 
 from __future__ import annotations
 
@@ -13,7 +11,7 @@ import pandas as pd
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import PROPOSED, short_label
-from distgprl.report.frame import by_run, curve_frame
+from distgprl.report.frame import curve_frame
 from distgprl.studies import Study
 
 PANELS = (
@@ -24,8 +22,10 @@ PANELS = (
 """The learning-curve metrics read (``progress.csv`` columns) and drawn, with their labels."""
 
 SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
-"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling), the same in
-every panel and figure."""
+"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling)."""
+
+SeedCurves = dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]
+"""{seed: (steps (k,), {`PANELS` metric: (k,)})}, each seed on its own steps."""
 
 
 def seed_curves(
@@ -34,21 +34,20 @@ def seed_curves(
     task: str,
     method: str,
     seeds: Collection[int] | None = None,
-) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
-    a run of the current configuration (`distgprl.report.frame.curve_frame`), each on its own
-    steps; seeds with an empty learning curve left out."""
+) -> SeedCurves:
+    """`run_curves` of the finished runs of the current configuration (`curve_frame`)."""
     return run_curves(curve_frame(root, preset, seeds), task, method)
 
 
-def run_curves(
-    frame: pd.DataFrame, task: str, method: str
-) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """`seed_curves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
+def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
+    """`SeedCurves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
+    mine = frame[(frame["task"] == task) & (frame["method"] == method)]
     return {
-        seed: (points["step"].to_numpy(), {k: points[k].to_numpy(dtype=float) for k, _ in PANELS})
-        for (t, m, seed), points in sorted(by_run(frame).items(), key=lambda item: item[0])
-        if (t, m) == (task, method)
+        int(str(seed)): (
+            points["step"].to_numpy(),
+            {k: points[k].to_numpy(dtype=float) for k, _ in PANELS},
+        )
+        for seed, points in mine.groupby("seed")
     }
 
 
@@ -58,8 +57,7 @@ def reading_columns(study: Study) -> list[tuple[str, str, str]]:
     reading, the reference's first, and for an operator study Dist-GPRL-NoCov from the
     reference preset (no operator, so no reading changes it)."""
     method = PROPOSED if PROPOSED in study.methods else study.methods[0]
-    label = short_label(method)
-    columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
+    columns = [(r.preset, method, f"{short_label(method)}: {r.label}") for r in study.all_readings]
     if study.reads_the_operator:
         nocov = "dist-gprl-nocov"
         columns.append((study.reference.preset, nocov, f"{METHODS[nocov].label} (no operator)"))
