@@ -183,8 +183,6 @@ def curve_frame(
 
 def by_run(frame: pd.DataFrame) -> RunCurves:
     """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
-    if frame.empty:
-        return {}
     return {
         (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
         for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)
