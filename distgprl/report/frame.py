@@ -1,11 +1,9 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
 and figure: `run_frame` (per run's evaluation of one policy), `episode_frame` (per run ×
 evaluation episode) and `curve_frame` (per trained run × learning-curve point), keyed by
-`RUN_KEYS` (and the ``policy``); `load_frames` loads one evaluation's frames once.
-
-Values are the result files' own: a summary field keeps its JSON type (``object`` columns), a
-CSV cell is a `number`, a value a file lacks is missing (None in the run frame, NaN in the
-others). Which runs count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
+`RUN_KEYS` (and the ``policy``). Values are the result files' own (a summary field its JSON
+type, a CSV cell a `number`; missing: None in the run frame, NaN in the others). Which runs
+count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
@@ -103,7 +101,7 @@ def run_frame(
 
 
 RunCurves = dict[tuple[str, str, int], pd.DataFrame]
-"""{(task, method, seed): the run's learning-curve points}, `by_run` of a `curves_of` frame."""
+"""{(task, method, seed): the run's learning-curve points} (`by_run`)."""
 
 EvaluationKey = tuple[str, str, int, str]
 """(task, method, seed, policy): `EVALUATION_KEYS` of one row."""

@@ -3,15 +3,11 @@ one source for the curve figures, the onset tables and the onset figure."""
 
 from __future__ import annotations
 
-from collections.abc import Collection
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import PROPOSED, short_label
-from distgprl.report.frame import curve_frame
 from distgprl.studies import Study
 
 PANELS = (
@@ -28,19 +24,9 @@ SeedCurves = dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]
 """{seed: (steps (k,), {`PANELS` metric: (k,)})}, each seed on its own steps."""
 
 
-def seed_curves(
-    root: str | Path,
-    preset: str,
-    task: str,
-    method: str,
-    seeds: Collection[int] | None = None,
-) -> SeedCurves:
-    """`run_curves` of the finished runs of the current configuration (`curve_frame`)."""
-    return run_curves(curve_frame(root, preset, seeds), task, method)
-
-
 def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
-    """`SeedCurves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
+    """`SeedCurves` of ``task`` and ``method`` from a `distgprl.report.frame.curve_frame`
+    (finished runs of the current configuration), seeds ascending."""
     mine = frame[(frame["task"] == task) & (frame["method"] == method)]
     return {
         int(str(seed)): (
