@@ -39,14 +39,6 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-#: y-axis label per panel (learning-curve evaluations: the fixed curve TCs, deterministic).
-Y_LABELS = {
-    "success_rate": "success rate (curve TCs)",
-    "collision_rate": "collision rate (curve TCs)",
-    "mean_return": "mean episode return",
-}
-#: Panels whose values are rates (their axes span [0, 1]).
-RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
 #: The method-comparison figures: {file name: (title, the paper's caption shortened; methods)}.
@@ -71,7 +63,7 @@ def common_curves(seeds: SeedCurves) -> tuple[np.ndarray, dict[str, np.ndarray]]
         return None
     return common, {
         key: np.array([values[key][np.searchsorted(steps, common)] for steps, values in series])
-        for key, _ in PANELS
+        for key, *_ in PANELS
     }
 
 
@@ -142,7 +134,7 @@ def plot_figure(
             steps, values = data
             bold, color = method == HIGHLIGHT, method_color(method)
             seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
-            for ax, (key, _) in zip(axes[row], PANELS, strict=True):
+            for ax, (key, *_) in zip(axes[row], PANELS, strict=True):
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
                 mean, band = mean_and_band(values[key], rng)
                 (line,) = ax.plot(
@@ -154,8 +146,8 @@ def plot_figure(
                         steps, *band, color=color, alpha=0.18 if bold else 0.12, lw=0,
                         zorder=3 if bold else 1,
                     )  # fmt: skip
-        for ax, (key, label) in zip(axes[row], PANELS, strict=True):
-            _style(ax, f"{task.upper()}: {label}", Y_LABELS[key], key in RATES)
+        for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
+            _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
     order = [m for m in methods if m in handles]
     columns = min(len(order), 4)
@@ -210,7 +202,7 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
                 ax.text(0.5, 0.5, "no finished runs", ha="center", va="center", fontsize=8,
                         transform=ax.transAxes, color="0.4")  # fmt: skip
             count = _seeds(len(seeds)) if seeds else "no runs"
-            ylabel = Y_LABELS["success_rate"] if col == 0 else None
+            ylabel = PANELS[0][2] if col == 0 else None  # the success rate's
             _style(ax, f"{task.upper()}: {title}\n({preset}, {count})", ylabel, True, fontsize=8)
     fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")
     lines = [seed_lines[seed] for seed in sorted(seed_lines)] + mean_lines[:1]

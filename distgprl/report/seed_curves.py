@@ -11,11 +11,13 @@ from distgprl.report.aggregate import PROPOSED, short_label
 from distgprl.studies import Study
 
 PANELS = (
-    ("success_rate", "success rate"),
-    ("collision_rate", "collision rate"),
-    ("mean_return", "episode return"),
+    ("success_rate", "success rate", "success rate (curve TCs)", True),
+    ("collision_rate", "collision rate", "collision rate (curve TCs)", True),
+    ("mean_return", "episode return", "mean episode return", False),
 )
-"""The learning-curve metrics read (``progress.csv`` columns) and drawn, with their labels."""
+"""The learning-curve metrics read and drawn: (``progress.csv`` column, panel title, y-axis
+label, whether it is a rate, its axis [0, 1]); evaluations on the fixed curve TCs, the
+deterministic policy."""
 
 SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
 """A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling)."""
@@ -31,7 +33,7 @@ def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
     return {
         int(str(seed)): (
             points["step"].to_numpy(),
-            {k: points[k].to_numpy(dtype=float) for k, _ in PANELS},
+            {k: points[k].to_numpy(dtype=float) for k, *_ in PANELS},
         )
         for seed, points in mine.groupby("seed")
     }
