@@ -17,13 +17,7 @@ from typing import Any
 import pandas as pd
 
 from distgprl.methods import METHODS
-from distgprl.report.runs import (
-    TABLE_POLICY,
-    RunEvaluation,
-    run_evaluations,
-    run_keys,
-    select_runs,
-)
+from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, run_keys, select_runs
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
 RUN_KEYS = ("task", "method", "seed")
