@@ -1,19 +1,19 @@
 """Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
 
-Each panel: the mean over seeds (aligned on their common steps) of success rate, collision rate
-and episode return against training steps, with a 95 % bootstrap band (whole curves resampled,
-seeds the units; a single seed has none). Each band draws from its own generator
-(`estimate_rng` of the figure seed, task, method and metric): the figures are byte-reproducible
-and adding a method leaves the other bands unchanged. Per study beside a preset: its curves
-seed by seed (`plot_reading_curves`), its onset figure and, for an operator study, its
-sensitivity figure. Every panel has its y-axis label, one legend sits below the panels, the
-proposed method (`HIGHLIGHT`) is bold and on top, and a method keeps its colour everywhere.
+Each panel: the mean over seeds (on their common steps) of a `PANELS` metric against training
+steps, with a 95 % bootstrap band (seeds the units, whole curves resampled; none for one seed)
+from its own generator (`estimate_rng` of the figure seed, task, method and metric), so the
+figures are byte-reproducible and adding a method leaves the other bands unchanged. Per study
+beside a preset: its curves seed by seed, its onset figure and, for an operator study, its
+sensitivity figure. The proposed method (`HIGHLIGHT`) is bold and on top, and a method keeps
+its colour everywhere.
 """
 
 from __future__ import annotations
 
+from functools import reduce
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,29 +28,17 @@ from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
 from distgprl.report.onset_figure import write_onset_figure
-from distgprl.report.seed_curves import (
-    PANELS,
-    SEED_COLORS,
-    reading_columns,
-    run_curves,
-)
+from distgprl.report.seed_curves import PANELS, SEED_COLORS, SeedCurves, reading_columns, run_curves
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
 from distgprl.report.table2 import hardware_rows, select_trial_files
 from distgprl.studies import Study, studies_of
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-#: y-axis label per panel (learning-curve evaluations: the fixed curve TCs, deterministic).
-Y_LABELS = {
-    "success_rate": "success rate (curve TCs)",
-    "collision_rate": "collision rate (curve TCs)",
-    "mean_return": "mean episode return",
-}
-#: Panels whose values are rates (their axes span [0, 1]).
-RATES = frozenset({"success_rate", "collision_rate"})
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
 #: The method-comparison figures: {file name: (title, the paper's caption shortened; methods)}.
@@ -64,23 +52,19 @@ FIGURES = {
 }
 
 
-def common_curves(
-    seeds: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]],
-) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-    """`seed_curves`' curves on the steps every seed has: (steps (k,), {metric: (seeds,
-    k)}), or None without a seed or a common step."""
+def common_curves(seeds: SeedCurves) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+    """``seeds``' curves on the steps every seed has: (steps (k,), {metric: (seeds, k)}), or
+    None without a seed or a common step."""
     series = list(seeds.values())
     if not series:
         return None
-    common = sorted(set.intersection(*[set(steps.tolist()) for steps, _ in series]))
-    if not common:
+    common = reduce(np.intersect1d, [steps for steps, _ in series], series[0][0])
+    if not len(common):
         return None
-    out: dict[str, np.ndarray] = {}
-    for key, _ in PANELS:
-        out[key] = np.array(
-            [values[key][np.searchsorted(steps, common)] for steps, values in series]
-        )
-    return np.array(common), out
+    return common, {
+        key: np.array([values[key][np.searchsorted(steps, common)] for steps, values in series])
+        for key, *_ in PANELS
+    }
 
 
 def mean_and_band(
@@ -103,13 +87,33 @@ def method_color(method: str) -> str:
     return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
 
 
+def _seeds(count: int) -> str:
+    """``1 seed``, ``3 seeds``."""
+    return f"{count} seed{'s' if count != 1 else ''}"
+
+
 def _seed_note(seeds: dict[str, int]) -> str:
     """``3 seeds``, or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
-    counts = set(seeds.values())
-    if len(counts) == 1:
-        (count,) = counts
-        return f"{count} seed{'s' if count != 1 else ''}"
+    if len(set(seeds.values())) == 1:
+        return _seeds(next(iter(seeds.values())))
     return ", ".join(f"{task.upper()} {n}" for task, n in seeds.items()) + " seeds"
+
+
+def _style(
+    ax: Axes, title: str, ylabel: str | None, rate: bool, fontsize: int | None = None
+) -> None:
+    """Title, the training-steps x label, ``ylabel`` (if any), [0, 1] limits for a ``rate``
+    and the grid of a curve panel; ``fontsize`` for its texts (ticks 1 smaller), if given."""
+    font: dict[str, Any] = {} if fontsize is None else {"fontsize": fontsize}
+    ax.set_title(title, **font)
+    ax.set_xlabel("training steps", **font)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel, **font)
+    if rate:
+        ax.set_ylim(-0.03, 1.03)
+    if fontsize is not None:
+        ax.tick_params(labelsize=fontsize - 1)
+    ax.grid(alpha=0.3, lw=0.5)
 
 
 def plot_figure(
@@ -118,10 +122,8 @@ def plot_figure(
     """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
     entry, one legend below the panels. Returns (figure, number of (task, method) curves
     drawn)."""
-
     fig, axes = subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     frame = curve_frame(root, preset)
-    drawn = 0
     handles: dict[str, Line2D] = {}
     seeds_of: dict[str, dict[str, int]] = {}
     for row, task in enumerate(tasks):
@@ -130,37 +132,28 @@ def plot_figure(
             if data is None:
                 continue
             steps, values = data
-            drawn += 1
-            bold = method == HIGHLIGHT
-            color = method_color(method)
+            bold, color = method == HIGHLIGHT, method_color(method)
             seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
-            for col, (key, _) in enumerate(PANELS):
+            for ax, (key, *_) in zip(axes[row], PANELS, strict=True):
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
                 mean, band = mean_and_band(values[key], rng)
-                (line,) = axes[row, col].plot(
+                (line,) = ax.plot(
                     steps, mean, color=color, lw=2.4 if bold else 1.3, zorder=4 if bold else 2
                 )
                 handles.setdefault(method, line)
                 if band is not None:
-                    axes[row, col].fill_between(
+                    ax.fill_between(
                         steps, *band, color=color, alpha=0.18 if bold else 0.12, lw=0,
                         zorder=3 if bold else 1,
                     )  # fmt: skip
-        for col, (key, label) in enumerate(PANELS):
-            ax = axes[row, col]
-            ax.set_title(f"{task.upper()}: {label}")
-            ax.set_xlabel("training steps")
-            ax.set_ylabel(Y_LABELS[key])
-            if key in RATES:
-                ax.set_ylim(-0.03, 1.03)
-            ax.grid(alpha=0.3, lw=0.5)
+        for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
+            _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
-    legend_rows = 0
-    if handles:
-        order = [m for m in methods if m in handles]
+    order = [m for m in methods if m in handles]
+    columns = min(len(order), 4)
+    legend_rows = -(-len(order) // columns) if order else 0
+    if order:
         labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
-        columns = min(len(order), 4)
-        legend_rows = -(-len(order) // columns)
         legend = fig.legend(
             [handles[m] for m in order], labels, loc="lower center", ncol=columns,
             fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
@@ -171,7 +164,7 @@ def plot_figure(
     height = fig.get_figheight()
     bottom = (0.08 + 0.18 * legend_rows) / height if legend_rows else 0.0
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / height))
-    return fig, drawn
+    return fig, sum(len(counts) for counts in seeds_of.values())
 
 
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
@@ -179,14 +172,14 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
     `reading_columns` entry, each with the success rate on the curve TCs of every finished
     seed (its colour the seed's in every panel) and their mean on the common steps (black,
     bold), so that *when* each seed learns is visible. Returns (figure, panels drawn)."""
-
     columns = reading_columns(study)
     fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
         squeeze=False, sharey=True,
     )  # fmt: skip
     drawn = 0
-    handles: dict[str, Line2D] = {}
+    seed_lines: dict[int, Line2D] = {}
+    mean_lines: list[Line2D] = []
     frames = {p: curve_frame(root, p, study.seeds) for p in dict.fromkeys(p for p, _, _ in columns)}
     for row, task in enumerate(tasks):
         for col, (preset, method, title) in enumerate(columns):
@@ -197,34 +190,29 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
                     steps, values["success_rate"], lw=0.9, alpha=0.85,
                     color=SEED_COLORS[seed % len(SEED_COLORS)],
                 )  # fmt: skip
-                handles.setdefault(f"seed {seed}", line)
+                seed_lines.setdefault(seed, line)
             common = common_curves(seeds)
             if common is not None and len(seeds) > 1:
                 steps, values = common
-                (line,) = ax.plot(steps, values["success_rate"].mean(axis=0), color="black", lw=2.2)
-                handles.setdefault("mean over seeds", line)
+                mean_lines += ax.plot(
+                    steps, values["success_rate"].mean(axis=0), color="black", lw=2.2
+                )
             drawn += bool(seeds)
             if not seeds:
                 ax.text(0.5, 0.5, "no finished runs", ha="center", va="center", fontsize=8,
                         transform=ax.transAxes, color="0.4")  # fmt: skip
-            count = f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''}" if seeds else "no runs"
-            ax.set_title(f"{task.upper()}: {title}\n({preset}, {count})", fontsize=8)
-            ax.set_xlabel("training steps", fontsize=8)
-            if col == 0:
-                ax.set_ylabel(Y_LABELS["success_rate"], fontsize=8)
-            ax.set_ylim(-0.03, 1.03)
-            ax.tick_params(labelsize=7)
-            ax.grid(alpha=0.3, lw=0.5)
+            count = _seeds(len(seeds)) if seeds else "no runs"
+            ylabel = PANELS[0][2] if col == 0 else None  # the success rate's
+            _style(ax, f"{task.upper()}: {title}\n({preset}, {count})", ylabel, True, fontsize=8)
     fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")
-    order = sorted((k for k in handles if k.startswith("seed")), key=lambda k: int(k[5:]))
-    order += [k for k in handles if not k.startswith("seed")]
-    if order:
-        fig.legend(
-            [handles[k] for k in order], order, loc="lower center", ncol=len(order),
-            fontsize=8, frameon=False,
-        )  # fmt: skip
+    lines = [seed_lines[seed] for seed in sorted(seed_lines)] + mean_lines[:1]
+    labels = [f"seed {seed}" for seed in sorted(seed_lines)] + ["mean over seeds"] * bool(
+        mean_lines
+    )
+    if lines:
+        fig.legend(lines, labels, loc="lower center", ncol=len(lines), fontsize=8, frameon=False)
     height = fig.get_figheight()
-    fig.tight_layout(rect=(0.0, 0.3 / height if order else 0.0, 1.0, 1.0 - 0.1 / height))
+    fig.tight_layout(rect=(0.0, 0.3 / height if lines else 0.0, 1.0, 1.0 - 0.1 / height))
     return fig, drawn
 
 

@@ -1,11 +1,9 @@
 """The committed runs of a preset as tidy pandas frames, the one input of every table, claim
 and figure: `run_frame` (per run's evaluation of one policy), `episode_frame` (per run ×
 evaluation episode) and `curve_frame` (per trained run × learning-curve point), keyed by
-`RUN_KEYS` (and the ``policy``); `load_frames` loads one evaluation's frames once.
-
-Values are the result files' own: a summary field keeps its JSON type (``object`` columns), a
-CSV cell is a `number`, a value a file lacks is missing (None in the run frame, NaN in the
-others). Which runs count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
+`RUN_KEYS` (and the ``policy``). Values are the result files' own (a summary field its JSON
+type, a CSV cell a `number`; missing: None in the run frame, NaN in the others). Which runs
+count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
@@ -19,13 +17,7 @@ from typing import Any
 import pandas as pd
 
 from distgprl.methods import METHODS
-from distgprl.report.runs import (
-    TABLE_POLICY,
-    RunEvaluation,
-    run_evaluations,
-    run_keys,
-    select_runs,
-)
+from distgprl.report.runs import TABLE_POLICY, RunEvaluation, run_evaluations, run_keys, select_runs
 from distgprl.schema import collision_free_min_clearance_p5, read_csv, read_json
 
 RUN_KEYS = ("task", "method", "seed")
@@ -103,7 +95,7 @@ def run_frame(
 
 
 RunCurves = dict[tuple[str, str, int], pd.DataFrame]
-"""{(task, method, seed): the run's learning-curve points}, `by_run` of a `curves_of` frame."""
+"""{(task, method, seed): the run's learning-curve points} (`by_run`)."""
 
 EvaluationKey = tuple[str, str, int, str]
 """(task, method, seed, policy): `EVALUATION_KEYS` of one row."""
@@ -183,8 +175,6 @@ def curve_frame(
 
 def by_run(frame: pd.DataFrame) -> RunCurves:
     """{(task, method, seed): the run's rows} of a `curves_of` or `episode_frame` frame."""
-    if frame.empty:
-        return {}
     return {
         (str(keys[0]), str(keys[1]), int(str(keys[2]))): rows
         for keys, rows in frame.groupby(list(RUN_KEYS), sort=False)

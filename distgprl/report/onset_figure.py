@@ -101,12 +101,10 @@ def _draw_task(
     panels: list[tuple[str, str, str]],
     study: Study,
     length: int,
-) -> int:
+) -> None:
     """One task's markers on ``ax``: a run of ``rows`` (the task's) in its panel's row of
-    ``panels``, at its onset step or `NEVER_X` times ``length``; a row without a run says so.
-    Returns the number of markers drawn."""
+    ``panels``, at its onset step or `NEVER_X` times ``length``; a row without a run says so."""
     offsets = seed_offsets([int(r["seed"]) for r in rows])
-    drawn = 0
     for index, (preset, method, _) in enumerate(panels):
         runs = [r for r in rows if (r["preset"], r["method"]) == (preset, method)]
         if not runs:
@@ -117,10 +115,8 @@ def _draw_task(
             x = NEVER_X * length if onset == "" else int(onset)
             ax.plot([x], [index + offsets[seed]], zorder=3, **seed_marker(seed, study),
                     gid=marker_gid(preset, method, run["task"], seed))  # fmt: skip
-            drawn += 1
     for boundary in range(len(panels) - 1):
         ax.axhline(boundary + 0.5, color="0.8", lw=0.6, zorder=1)
-    return drawn
 
 
 def plot_onset_figure(
@@ -144,12 +140,11 @@ def plot_onset_figure(
         squeeze=False, sharey=True,
     )  # fmt: skip
     rule_tasks = {own.task for _, own in study.rules}
-    drawn = 0
     for ax, task in zip(axes[0], tasks, strict=True):
         mine = [r for r in rows if r["task"] == task]
         onsets = [int(r["onset_step"]) for r in mine if r["onset_step"] != ""]
         length = run_length(sorted({p for p, _, _ in panels}), task, onsets)
-        drawn += _draw_task(ax, mine, panels, study, length)
+        _draw_task(ax, mine, panels, study, length)
         if rule is not None and task in rule_tasks:
             ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
             ax.text(rule.by_step, 1.005, f" early: ≤ {step_text(rule.by_step)}", fontsize=7,
@@ -174,7 +169,7 @@ def plot_onset_figure(
     height = fig.get_figheight()
     bottom = (0.25 + 0.2 * -(-len(handles) // columns)) / height
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.05 / height))
-    return fig, drawn
+    return fig, len(rows)
 
 
 def write_onset_figure(

@@ -1,13 +1,9 @@
-"""When each run learns: per study read beside a preset (`distgprl.studies`), every method it
-trains under each reading (`onset_panels`), task and seed, the learning-curve onset — the first
-``progress.csv`` step after step 0 (the untrained policy, whose curve success says nothing
-about learning: docs/findings/operator.md, "Decision rule") at which the curve success reaches
-the study's `distgprl.studies.OnsetRule` threshold, else `THRESHOLD` — whether it is ``early``
-(at or before the rule's ``by_step``), and the best and final policies' evaluation success and
-collision; then each rule's verdict (`rule_verdict`; the rules: `OnsetRule`, and
-docs/findings/operator.md). The Markdown tables the study's seeds (`Study.seeds`) apart from
-the seeds only a rule reads. Reads result files only; `distgprl tables` writes
-``onsets_<study>_<preset>.{csv,md}``.
+"""When each run learns: per study read beside a preset (`distgprl.studies`), every panel of
+`onset_panels` (method × reading), task and seed, the learning-curve onset (`onset_step`; why
+step 0 does not count: docs/findings/operator.md, "Decision rule"), whether it is ``early``
+(at or before the `distgprl.studies.OnsetRule`'s ``by_step``) and the best and final policies'
+evaluation success and collision; then each rule's verdict (`rule_verdict`). `distgprl tables`
+writes ``onsets_<study>_<preset>.{csv,md}``.
 """
 
 from __future__ import annotations
@@ -34,25 +30,16 @@ CSV_FIELDS = list(
 
 
 def onset_step(steps: Any, success: Any, threshold: float) -> int | None:
-    """The first of ``steps`` (k,) after step 0 whose ``success`` (k,) is at least
-    ``threshold``; None if none is (step 0 is the untrained policy: module docstring)."""
-    for step, value in zip(steps, success, strict=True):
-        if int(step) > 0 and float(value) >= threshold:
-            return int(step)
-    return None
+    """The first of ``steps`` (k,) after step 0 (the untrained policy) whose ``success`` (k,)
+    is at least ``threshold``; None if none is."""
+    pairs = zip(steps, success, strict=True)
+    return next((int(s) for s, v in pairs if int(s) > 0 and float(v) >= threshold), None)
 
 
 def study_rule(study: Study) -> OnsetRule | None:
     """The study's first decision rule (its threshold and ``by_step`` are every rule's:
     `Study` checks), or None."""
     return next((rule for _, rule in study.rules), None)
-
-
-def _evaluations(
-    root: str | Path, preset: str, policy: str
-) -> dict[tuple[str, str, int], dict[str, Any]]:
-    """{(task, method, seed): summary} of the ``policy`` evaluations (`run_frame`)."""
-    return {key[:3]: summary for key, summary in summaries(run_frame(root, preset, policy))}
 
 
 def onset_panels(study: Study) -> list[tuple[str, str, str]]:
@@ -83,11 +70,13 @@ def onset_threshold(study: Study) -> float:
 def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[str, Any]]:
     """One row per `onset_panels` panel, task and finished seed (CSV_FIELDS), panels in
     their order; the threshold and ``early`` from `study_rule` (``early`` empty without)."""
-    rule = study_rule(study)
+    rule, threshold = study_rule(study), onset_threshold(study)
     presets = dict.fromkeys(preset for preset, _, _ in onset_panels(study))
     curves = {preset: curve_frame(root, preset) for preset in presets}
-    evaluations = {
-        (preset, policy): _evaluations(root, preset, policy)
+    results = {
+        (preset, policy): {
+            key[:3]: summary for key, summary in summaries(run_frame(root, preset, policy))
+        }
         for preset in presets
         for policy in ("best", "final")
     }
@@ -95,13 +84,13 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
     for preset, method, reading in onset_panels(study):
         for task in tasks:
             for seed, (steps, values) in run_curves(curves[preset], task, method).items():
-                onset = onset_step(steps, values["success_rate"], onset_threshold(study))
+                onset = onset_step(steps, values["success_rate"], threshold)
                 early = "" if rule is None else int(onset is not None and onset <= rule.by_step)
                 keys = {"study": study.name, "task": task, "reading": reading, "preset": preset}
                 row: dict[str, Any] = keys | {"method": method, "seed": seed, "early": early}
                 row["onset_step"] = "" if onset is None else onset
                 for policy in ("best", "final"):
-                    summary = evaluations[(preset, policy)].get((task, method, seed), {})
+                    summary = results[(preset, policy)].get((task, method, seed), {})
                     row[f"{policy}_success"] = summary.get("success_rate", "")
                     row[f"{policy}_collision"] = summary.get("collision_rate", "")
                 rows.append(row)
@@ -160,6 +149,12 @@ def _rate(value: Any) -> str:
     return "–" if value in ("", None) else f"{float(value):.2f}"
 
 
+def _run_cell(row: dict[str, Any]) -> str:
+    """A run's table cell: "onset step: best (final) success"."""
+    best, final = _rate(row["best_success"]), _rate(row["final_success"])
+    return f"{step_text(row['onset_step'])}: {best} ({final})"
+
+
 def step_text(value: Any) -> str:
     """A training step as the onset tables and figure write it (``4 500``; "—" for none)."""
     return "—" if value in ("", None) else f"{int(value):,}".replace(",", " ")
@@ -170,12 +165,6 @@ def seeds_text(seeds: tuple[int, ...]) -> str:
     if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
         return f"{seeds[0]}–{seeds[-1]}"
     return ", ".join(str(seed) for seed in seeds)
-
-
-def _run_cell(row: dict[str, Any]) -> str:
-    """A run's table cell: "onset step: best (final) success"."""
-    best, final = _rate(row["best_success"]), _rate(row["final_success"])
-    return f"{step_text(row['onset_step'])}: {best} ({final})"
 
 
 def _onset_table(

@@ -3,10 +3,9 @@
 A run counts when it has the result file a report reads — ``summary.json`` (evaluated) for the
 tables, ``done.json`` (trained) for the learning curves — and the config hash recorded there is
 the one the code resolves for it now; a run of an older configuration is left out and listed
-(`distgprl status`: "stale"), never averaged with the current ones. A damaged run (the
-`distgprl.runstate` verdict ``damaged``) is an error naming the file and the reason
-(:class:`~distgprl.runstate.DamagedRunError`, exit 2 at the CLI), never quietly left out. So a
-report is a function of the result files and of the configuration the code resolves for them.
+(`distgprl status`: "stale"). A damaged run (`distgprl.runstate` verdict ``damaged``) is an
+error naming the file and the reason (:class:`~distgprl.runstate.DamagedRunError`, exit 2 at
+the CLI), never quietly left out.
 
 **Which evaluation** (`run_evaluations`): a trained run has its final policy's
 (``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
@@ -170,13 +169,13 @@ class EvaluationSelection:
 
     def note(self) -> str:
         """`RunSelection.note` and the substituted runs (empty if neither)."""
-        parts = [self.runs.note()] if self.runs.note() else []
+        parts = [self.runs.note()]
         if self.substituted:
             parts.append(
                 f"Final policy in place of the best ({len(self.substituted)}; no best-policy "
                 "evaluation, `distgprl evaluate --policy best`): " + "; ".join(self.substituted)
             )
-        return ". ".join(parts)
+        return ". ".join(part for part in parts if part)
 
 
 def run_evaluations(

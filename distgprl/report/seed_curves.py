@@ -1,54 +1,41 @@
-"""Learning curves seed by seed, as the result files hold them (``progress.csv``), and the
-panels in which a study reads them: one source for the curve figures, the onset tables and the
-onset figure (the figures draw the onsets, the onsets read the curves, without a circle).
-"""
+"""Learning curves seed by seed (``progress.csv``) and the panels in which a study reads them:
+one source for the curve figures, the onset tables and the onset figure."""
 
 from __future__ import annotations
-
-from collections.abc import Collection
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import PROPOSED, short_label
-from distgprl.report.frame import by_run, curve_frame
 from distgprl.studies import Study
 
 PANELS = (
-    ("success_rate", "success rate"),
-    ("collision_rate", "collision rate"),
-    ("mean_return", "episode return"),
+    ("success_rate", "success rate", "success rate (curve TCs)", True),
+    ("collision_rate", "collision rate", "collision rate (curve TCs)", True),
+    ("mean_return", "episode return", "mean episode return", False),
 )
-"""The learning-curve metrics read (``progress.csv`` columns) and drawn, with their labels."""
+"""The learning-curve metrics read and drawn: (``progress.csv`` column, panel title, y-axis
+label, whether it is a rate, its axis [0, 1]); evaluations on the fixed curve TCs, the
+deterministic policy."""
 
 SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
-"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling), the same in
-every panel and figure."""
+"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling)."""
+
+SeedCurves = dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]
+"""{seed: (steps (k,), {`PANELS` metric: (k,)})}, each seed on its own steps."""
 
 
-def seed_curves(
-    root: str | Path,
-    preset: str,
-    task: str,
-    method: str,
-    seeds: Collection[int] | None = None,
-) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """{seed: (steps (k,), {metric: (k,)})} of every finished seed (of ``seeds``, if given) of
-    a run of the current configuration (`distgprl.report.frame.curve_frame`), each on its own
-    steps; seeds with an empty learning curve left out."""
-    return run_curves(curve_frame(root, preset, seeds), task, method)
-
-
-def run_curves(
-    frame: pd.DataFrame, task: str, method: str
-) -> dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]:
-    """`seed_curves` of ``task`` and ``method`` from a `curve_frame`, seeds ascending."""
+def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
+    """`SeedCurves` of ``task`` and ``method`` from a `distgprl.report.frame.curve_frame`
+    (finished runs of the current configuration), seeds ascending."""
+    mine = frame[(frame["task"] == task) & (frame["method"] == method)]
     return {
-        seed: (points["step"].to_numpy(), {k: points[k].to_numpy(dtype=float) for k, _ in PANELS})
-        for (t, m, seed), points in sorted(by_run(frame).items(), key=lambda item: item[0])
-        if (t, m) == (task, method)
+        int(str(seed)): (
+            points["step"].to_numpy(),
+            {k: points[k].to_numpy(dtype=float) for k, *_ in PANELS},
+        )
+        for seed, points in mine.groupby("seed")
     }
 
 
@@ -58,8 +45,7 @@ def reading_columns(study: Study) -> list[tuple[str, str, str]]:
     reading, the reference's first, and for an operator study Dist-GPRL-NoCov from the
     reference preset (no operator, so no reading changes it)."""
     method = PROPOSED if PROPOSED in study.methods else study.methods[0]
-    label = short_label(method)
-    columns = [(r.preset, method, f"{label}: {r.label}") for r in study.all_readings]
+    columns = [(r.preset, method, f"{short_label(method)}: {r.label}") for r in study.all_readings]
     if study.reads_the_operator:
         nocov = "dist-gprl-nocov"
         columns.append((study.reference.preset, nocov, f"{METHODS[nocov].label} (no operator)"))

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from distgprl.report.curves import common_curves, mean_and_band, plot_figure
-from distgprl.report.seed_curves import seed_curves
+from distgprl.report.frame import curve_frame
+from distgprl.report.seed_curves import run_curves
 from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
 
 EPISODE = ("episode", "object_offset_x", "object_offset_y", "obstacle_offset_x")
@@ -53,12 +54,12 @@ def test_curves_are_the_finished_seeds_on_their_common_steps(tmp_path):
     _run(tmp_path, "dist-gprl", 0, [0, 100, 200, 300], [0.0, 0.2, 0.4, 0.6])
     _run(tmp_path, "dist-gprl", 1, [0, 100, 300], [0.1, 0.5, 0.9])  # no curve point at 200
     _run(tmp_path, "dist-gprl", 2, [0, 100], [1.0, 1.0], finished=False)  # still training
-    steps, values = common_curves(seed_curves(tmp_path, "p", "dcp", "dist-gprl"))
+    steps, values = common_curves(run_curves(curve_frame(tmp_path, "p"), "dcp", "dist-gprl"))
     np.testing.assert_array_equal(steps, [0, 100, 300])
     np.testing.assert_allclose(values["success_rate"], [[0.0, 0.2, 0.6], [0.1, 0.5, 0.9]])
     np.testing.assert_allclose(values["success_rate"].mean(axis=0), [0.05, 0.35, 0.75])
     np.testing.assert_allclose(values["collision_rate"][1], [0.9, 0.5, 0.1])
-    assert common_curves(seed_curves(tmp_path, "p", "dcp", "gprl-d")) is None
+    assert common_curves(run_curves(curve_frame(tmp_path, "p"), "dcp", "gprl-d")) is None
 
 
 @pytest.fixture
@@ -252,11 +253,11 @@ def test_figures_are_a_vector_pdf_and_a_150_dpi_png(tmp_path):
 # --- a study's learning curves, seed by seed (`plot_reading_curves`) ---
 
 
-def test_seed_curves_keep_each_seed_on_its_own_steps(tmp_path):
+def test_run_curves_keep_each_seed_on_its_own_steps(tmp_path):
     _run(tmp_path, "dist-gprl", 0, [0, 100, 200], [0.0, 0.2, 0.4])
     _run(tmp_path, "dist-gprl", 3, [0, 100], [0.1, 0.5])
     _run(tmp_path, "dist-gprl", 1, [0, 100], [1.0, 1.0], finished=False)  # still training
-    curves = seed_curves(tmp_path, "p", "dcp", "dist-gprl")
+    curves = run_curves(curve_frame(tmp_path, "p"), "dcp", "dist-gprl")
     assert list(curves) == [0, 3]
     np.testing.assert_array_equal(curves[3][0], [0, 100])
     np.testing.assert_allclose(curves[0][1]["success_rate"], [0.0, 0.2, 0.4])

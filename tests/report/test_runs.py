@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from distgprl.identity import resolve_run
 from distgprl.report.curves import common_curves
-from distgprl.report.frame import load_frames
+from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.runs import select_runs
-from distgprl.report.seed_curves import seed_curves
+from distgprl.report.seed_curves import run_curves
 from distgprl.report.table1 import simulation_table
 from distgprl.report.tables import write_tables
 from distgprl.schema import PROGRESS_FIELDS, write_csv, write_json
@@ -51,7 +51,7 @@ def test_a_run_of_an_older_configuration_is_left_out_and_listed(tmp_path):
     rows, _ = simulation_table(load_frames(tmp_path, "ci"))
     (row,) = rows
     assert row["dcp_seeds"] == 1 and row["dcp_success_rate"].mean == 0.2
-    steps, values = common_curves(seed_curves(tmp_path, "ci", "dcp", "gprl"))
+    steps, values = common_curves(run_curves(curve_frame(tmp_path, "ci"), "dcp", "gprl"))
     assert values["success_rate"].tolist() == [[0.2]]
     write_tables(tmp_path, "ci", tmp_path / "out")
     assert "Not tabulated (1): dcp/gprl/seed1" in (tmp_path / "out" / "table1_ci.md").read_text()
@@ -86,7 +86,7 @@ def test_a_result_file_of_an_unknown_schema_stops_the_reports_of_a_checked_prese
     with pytest.raises(SchemaVersionError, match="schema_version 999"):
         write_tables(tmp_path, "ci", tmp_path / "out")
     with pytest.raises(SchemaVersionError, match="schema_version 999"):
-        common_curves(seed_curves(tmp_path, "ci", "dcp", "gprl"))
+        common_curves(run_curves(curve_frame(tmp_path, "ci"), "dcp", "gprl"))
 
 
 def test_tables_of_a_tree_moved_to_another_root_are_byte_identical(tmp_path):
