@@ -1,10 +1,11 @@
 """The texts every report table is written as — Markdown pipe tables, LaTeX tables and CSV
-(by pandas) — and the files they are written to."""
+(by pandas) — their cells' number formats, and the files they are written to."""
 
 from __future__ import annotations
 
 import csv
 import json
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,22 @@ def markdown_table(title: str | None, header: Sequence[str], rows: Iterable[Sequ
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cells) + " |" for cells in rows]
     return "\n".join(lines) + "\n"
+
+
+def number_text(value: Any, digits: int) -> str:
+    """A number's cell: ``value`` to ``digits`` decimals, ``–`` where it is missing (None, an
+    empty cell) or not finite."""
+    if value is None or value == "" or not math.isfinite(float(value)):
+        return "–"
+    return f"{float(value):.{digits}f}"
+
+
+def interval_text(point: float, low: float, high: float, digits: int = 2) -> str:
+    """``0.67 [0.09, 0.99]``: `number_text` of ``point`` and its interval ``[low, high]``,
+    the point alone where ``low`` is NaN (no interval)."""
+    if math.isnan(low):
+        return number_text(point, digits)
+    return f"{number_text(point, digits)} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
 LATEX_SIGNS = {"±": "$\\pm$", "—": "---", "–": "--", "†": "$^\\dagger$"}
