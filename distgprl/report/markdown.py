@@ -72,14 +72,22 @@ def latex_table(
     return "\n".join([*lines, "\\end{table}", ""])
 
 
-def csv_text(rows: Iterable[Mapping[str, Any]], columns: Sequence[str]) -> str:
+def csv_text(
+    rows: Iterable[Mapping[str, Any]], columns: Sequence[str], significant: int | None = None
+) -> str:
     """``rows`` as CSV under the header ``columns`` (`pandas.DataFrame.to_csv`, ``\\n`` line
     ends, fields quoted where needed): each value as `str` writes it (a float its shortest
-    repr, NaN ``nan``), a cell a row lacks or holds None empty, keys beyond ``columns`` left
-    out."""
+    repr, NaN ``nan``) or, with ``significant``, a column of numbers to that many significant
+    digits and NaN empty; a cell a row lacks or holds None empty, keys beyond ``columns``
+    left out."""
     cells = [{c: "" if row.get(c) is None else row[c] for c in columns} for row in rows]
     frame = pd.DataFrame(cells, columns=list(columns), dtype=object)
-    return frame.to_csv(index=False, lineterminator="\n", na_rep="nan")
+    if significant is None:
+        return frame.to_csv(index=False, lineterminator="\n", na_rep="nan")
+    numbers = frame.infer_objects()
+    return numbers.to_csv(
+        index=False, lineterminator="\n", na_rep="", float_format=f"%.{significant}g"
+    )
 
 
 def table_meta_text(text: str, preset: str, description: str, **extra: Any) -> str:
