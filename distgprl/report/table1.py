@@ -301,11 +301,11 @@ def untrained_text(marks: UntrainedMarks, seeds: int) -> str:
     return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
 
 
-def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
+def _task_cells(row: dict[str, Any], task: str, markdown: bool) -> list[str]:
     """``row``'s `METRICS` cells of ``task`` as Markdown and LaTeX show them: rates with their
     interval; MinCl with ``(n=k)`` where only k of the seeds have one and `ALL_COLLIDED`
-    where none has; the Success cell followed by the seed count in brackets if
-    ``seed_count`` and its `untrained_text`."""
+    where none has; the Success cell followed by its `untrained_text`. In ``markdown`` also
+    the seed count in brackets after Success, and the `IQM_METRICS` cells."""
     seeds, collided = row[f"{task}_seeds"], row[f"{task}_all_collided_seeds"]
     cells = []
     for key, _ in METRICS:
@@ -316,9 +316,10 @@ def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
         elif key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
             text += f" (n={cell.n})"
         cells.append(text)
-    cells[0] += f" [{seeds}]" if seeds and seed_count else ""
+    cells[0] += f" [{seeds}]" if seeds and markdown else ""
     cells[0] += untrained_text(row[f"{task}_untrained"], seeds)
-    return cells
+    estimates = [row[f"{task}_{key}_iqm"] for key, _ in IQM_METRICS] if markdown else []
+    return cells + [interval_text(e.point, e.low, e.high) for e in estimates]
 
 
 def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tuple[str, str]:
@@ -384,14 +385,10 @@ def _markdown(
     header = ["Method"]
     for t in tasks:
         header += [f"{t.upper()} {name}" for _, name in METRICS + IQM_METRICS]
-    table = []
-    for row in rows:
-        cells = [row["label"]]
-        for task in tasks:
-            cells += _task_cells(row, task, seed_count=True)
-            estimates = [row[f"{task}_{key}_iqm"] for key, _ in IQM_METRICS]
-            cells += [interval_text(e.point, e.low, e.high) for e in estimates]
-        table.append(cells)
+    table = [
+        [row["label"], *(text for task in tasks for text in _task_cells(row, task, True))]
+        for row in rows
+    ]
     title = (
         f"Table I ({preset} preset, {POLICY_TITLES[policy]}): mean ± std over seeds (seeds "
         "per cell in brackets after Success); Success and Collision also give the 95 % "
@@ -419,7 +416,7 @@ def _latex(
     header.append("Method & " + " & ".join(name for _ in tasks for _, name in METRICS))
     table = [
         [row["label"].replace("_", "\\_")]
-        + [text for task in tasks for text in _task_cells(row, task, seed_count=False)]
+        + [text for task in tasks for text in _task_cells(row, task, False)]
         for row in rows
     ]
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
