@@ -1,11 +1,9 @@
 """Table II (hardware) from the trial files of a preset's policies (`select_trial_files`;
 the files left out are listed under the table), one CSV row per protocol setting
 (`hardware_rows`), one Markdown and LaTeX row per method, backend and twin noise level
-(`hardware_texts`): the paper's protocol first (every trial executes the policy's
-trajectory, only the UR5e's own limits apply, a protective stop at them is a failed trial,
-`distgprl.trial_protocol`), then the safety layer's settings as column groups. Rates over
-all trials with the exact (Clopper-Pearson) 95 % binomial interval; MinCl over the trials
-that moved the robot (`moved_robot`).
+(`hardware_texts`): the paper's protocol first (`distgprl.trial_protocol`), then the safety
+layer's settings as column groups (`HARDWARE_CAPTION`). Rates over all trials with the exact
+(Clopper-Pearson) 95 % binomial interval; MinCl over the trials that moved the robot.
 """
 
 from __future__ import annotations

@@ -1,12 +1,9 @@
 """Every results table of a preset from its result files only (`write_tables`): each made
 by its module (imported below), written here with a metadata sidecar per CSV
-(`write_table_files`); a table the results no longer make is removed.
-
-**Which policy** (protocol v6, rule 6, docs/findings/protocol.md): Table I
-(``table1_<preset>``), its per-run table, the aggregates and the claims report each run's
-best learning-curve policy (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
-policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An
-untrained reference's one evaluation is in both.
+(`write_table_files`); a table the results no longer make is removed. Table I, its per-run
+table, the aggregates and the claims report `TABLE_POLICY`'s evaluations (protocol v6, rule
+6, docs/findings/protocol.md); the final policy's Table I and per-run table are written
+beside them (``table1_final_<preset>``).
 """
 
 from __future__ import annotations
