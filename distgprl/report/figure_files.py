@@ -30,20 +30,6 @@ PNG_DPI = 150
 SUFFIXES = ("png", "pdf")
 
 
-def write_figure(fig: Figure, stem: str | Path) -> list[Path]:
-    """Write ``fig`` to ``<stem>.png`` and ``<stem>.pdf`` atomically, with fixed metadata so
-    that regenerating it from the same results gives the same bytes."""
-    written = []
-    for suffix in SUFFIXES:
-        buffer = io.BytesIO()
-        metadata = (
-            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
-        )
-        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
-        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
-    return written
-
-
 def remove_figure(stem: str | Path) -> None:
     """Remove ``<stem>.png`` and ``<stem>.pdf`` if they exist (an earlier figure that the
     results no longer make)."""
@@ -52,13 +38,21 @@ def remove_figure(stem: str | Path) -> None:
 
 
 def write_or_remove_figure(figure: tuple[Figure, int], stem: str | Path) -> list[Path]:
-    """Write a plot function's ``(figure, number of things drawn)`` to ``<stem>.{png,pdf}``
-    (`write_figure`), or, with nothing drawn, remove an earlier figure there (it would no
-    longer match the results); close the figure either way. Returns the paths written."""
+    """Write a plot function's ``(figure, number of things drawn)`` to ``<stem>.png`` and
+    ``<stem>.pdf`` atomically, with fixed metadata so that the same results give the same
+    bytes, or, with nothing drawn, remove an earlier figure there (it would no longer match
+    the results); close the figure either way. Returns the paths written."""
     import matplotlib.pyplot as plt
 
     fig, drawn = figure
-    written = write_figure(fig, stem) if drawn else []
+    written = []
+    for suffix in SUFFIXES if drawn else ():
+        buffer = io.BytesIO()
+        metadata = (
+            {"Software": None} if suffix == "png" else {"CreationDate": None, "Producer": None}
+        )
+        fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
+        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
     if not drawn:
         remove_figure(stem)
     plt.close(fig)

@@ -1,10 +1,11 @@
 """The texts every report table is written as — Markdown pipe tables, LaTeX tables and CSV
-(by pandas) — and the files they are written to."""
+(by pandas) — their cells' number formats, and the files they are written to."""
 
 from __future__ import annotations
 
 import csv
 import json
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,22 @@ def markdown_table(title: str | None, header: Sequence[str], rows: Iterable[Sequ
     lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cells) + " |" for cells in rows]
     return "\n".join(lines) + "\n"
+
+
+def number_text(value: Any, digits: int) -> str:
+    """A number's cell: ``value`` to ``digits`` decimals, ``–`` where it is missing (None, an
+    empty cell) or not finite."""
+    if value is None or value == "" or not math.isfinite(float(value)):
+        return "–"
+    return f"{float(value):.{digits}f}"
+
+
+def interval_text(point: float, low: float, high: float, digits: int = 2) -> str:
+    """``0.67 [0.09, 0.99]``: `number_text` of ``point`` and its interval ``[low, high]``,
+    the point alone where ``low`` is NaN (no interval)."""
+    if math.isnan(low):
+        return number_text(point, digits)
+    return f"{number_text(point, digits)} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
 LATEX_SIGNS = {"±": "$\\pm$", "—": "---", "–": "--", "†": "$^\\dagger$"}
@@ -55,14 +72,22 @@ def latex_table(
     return "\n".join([*lines, "\\end{table}", ""])
 
 
-def csv_text(rows: Iterable[Mapping[str, Any]], columns: Sequence[str]) -> str:
+def csv_text(
+    rows: Iterable[Mapping[str, Any]], columns: Sequence[str], significant: int | None = None
+) -> str:
     """``rows`` as CSV under the header ``columns`` (`pandas.DataFrame.to_csv`, ``\\n`` line
     ends, fields quoted where needed): each value as `str` writes it (a float its shortest
-    repr, NaN ``nan``), a cell a row lacks or holds None empty, keys beyond ``columns`` left
-    out."""
+    repr, NaN ``nan``) or, with ``significant``, a column of numbers to that many significant
+    digits and NaN empty; a cell a row lacks or holds None empty, keys beyond ``columns``
+    left out."""
     cells = [{c: "" if row.get(c) is None else row[c] for c in columns} for row in rows]
     frame = pd.DataFrame(cells, columns=list(columns), dtype=object)
-    return frame.to_csv(index=False, lineterminator="\n", na_rep="nan")
+    if significant is None:
+        return frame.to_csv(index=False, lineterminator="\n", na_rep="nan")
+    numbers = frame.infer_objects()
+    return numbers.to_csv(
+        index=False, lineterminator="\n", na_rep="", float_format=f"%.{significant}g"
+    )
 
 
 def table_meta_text(text: str, preset: str, description: str, **extra: Any) -> str:

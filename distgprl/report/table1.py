@@ -30,7 +30,13 @@ from distgprl.report.aggregate import (
     run_scores,
 )
 from distgprl.report.frame import COLLISION_FREE_MINCL, EVALUATION_KEYS, Frames, summaries
-from distgprl.report.markdown import csv_text, latex_table, markdown_table
+from distgprl.report.markdown import (
+    csv_text,
+    interval_text,
+    latex_table,
+    markdown_table,
+    number_text,
+)
 from distgprl.report.runs import TABLE_POLICY
 
 NO_POINTS = pd.DataFrame({"step": [], "success_rate": []})
@@ -152,10 +158,8 @@ class Cell:
     def text(self, digits: int = 2, interval: bool = False) -> str:
         """``mean ± std`` (``mean`` for one seed, ``–`` for none); with ``interval`` and at
         least two seeds followed by the `rate_interval` ``[low, high]``."""
-        if self.n == 0:
-            return "–"
-        if self.n == 1:
-            return f"{self.mean:.{digits}f}"
+        if self.n < 2:
+            return number_text(self.mean, digits)
         text = f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
         if interval:
             low, high = self.rate_interval()
@@ -293,21 +297,15 @@ def untrained_text(marks: UntrainedMarks, seeds: int) -> str:
     ``seeds``) at which no trained policy beat the untrained one; empty otherwise."""
     if marks.seeds == 0:
         return ""
-    figure = marks.untrained_curve_success
-    figure_text = "–" if np.isnan(figure) else f"{figure:.2f}"
-    return f" {UNTRAINED_MARK} (untrained {figure_text}, {marks.seeds} of {seeds} seeds)"
+    figure = number_text(marks.untrained_curve_success, 2)
+    return f" {UNTRAINED_MARK} (untrained {figure}, {marks.seeds} of {seeds} seeds)"
 
 
-def _fixed(value: Any, digits: int) -> str:
-    """A per-run cell: ``value`` to ``digits`` decimals, ``–`` where it is empty."""
-    return "–" if value == "" else f"{float(value):.{digits}f}"
-
-
-def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
+def _task_cells(row: dict[str, Any], task: str, markdown: bool) -> list[str]:
     """``row``'s `METRICS` cells of ``task`` as Markdown and LaTeX show them: rates with their
     interval; MinCl with ``(n=k)`` where only k of the seeds have one and `ALL_COLLIDED`
-    where none has; the Success cell followed by the seed count in brackets if
-    ``seed_count`` and its `untrained_text`."""
+    where none has; the Success cell followed by its `untrained_text`. In ``markdown`` also
+    the seed count in brackets after Success, and the `IQM_METRICS` cells."""
     seeds, collided = row[f"{task}_seeds"], row[f"{task}_all_collided_seeds"]
     cells = []
     for key, _ in METRICS:
@@ -318,9 +316,10 @@ def _task_cells(row: dict[str, Any], task: str, seed_count: bool) -> list[str]:
         elif key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
             text += f" (n={cell.n})"
         cells.append(text)
-    cells[0] += f" [{seeds}]" if seeds and seed_count else ""
+    cells[0] += f" [{seeds}]" if seeds and markdown else ""
     cells[0] += untrained_text(row[f"{task}_untrained"], seeds)
-    return cells
+    estimates = [row[f"{task}_{key}_iqm"] for key, _ in IQM_METRICS] if markdown else []
+    return cells + [interval_text(e.point, e.low, e.high) for e in estimates]
 
 
 def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tuple[str, str]:
@@ -333,42 +332,25 @@ def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tupl
     for row in rows:
         step, free = row["policy_step"], row["collision_free_episodes"]
         cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"])]
-        cells.append(row["policy"] + ("" if step == "" else f" (step {step})") + _run_mark(row))
+        cells.append(row["policy"] + ("" if step == "" else f" (step {step})"))
+        if row[BEATS_UNTRAINED] is False:  # the best policy did not beat the untrained one
+            cells[-1] += (
+                f" {UNTRAINED_MARK} (untrained {number_text(row[UNTRAINED_CURVE_SUCCESS], 2)})"
+            )
         cells.append(str(free) or "–")
         for key, _ in PER_SEED_COLUMNS:
             all_collided = row[key] == "" and key == COLLISION_FREE_MINCL and free == 0
             cells.append(
                 ALL_COLLIDED
                 if all_collided
-                else _fixed(row[key], 3 if key in CLEARANCE_METRICS else 2)
+                else number_text(row[key], 3 if key in CLEARANCE_METRICS else 2)
             )
-        cells += [_fixed(row[key], 1) for key in ("train_wall_min", "train_cpu_ms_per_step")]
+        cells += [number_text(row[key], 1) for key in ("train_wall_min", "train_cpu_ms_per_step")]
         table.append(cells)
     title = f"Table I per run ({preset} preset, {POLICY_TITLES[policy]})"
     marked = any(row.get(BEATS_UNTRAINED) is False for row in rows)
     note = f"\n{UNTRAINED_RUN_NOTE}.\n" if marked else ""
     return csv_text(rows, fields), markdown_table(title, header, table) + note
-
-
-def _run_mark(row: dict[str, Any]) -> str:
-    """`` † (untrained 0.44)`` for a run whose best policy did not beat the untrained one
-    (``beats_untrained`` false), empty otherwise (true, or not recorded)."""
-    if row[BEATS_UNTRAINED] is not False:
-        return ""
-    return f" {UNTRAINED_MARK} (untrained {_fixed(row[UNTRAINED_CURVE_SUCCESS], 2)})"
-
-
-def _number(value: float) -> str:
-    """A CSV number to 6 significant digits, empty for NaN."""
-    return "" if np.isnan(value) else f"{value:.6g}"
-
-
-def _iqm_parts(estimate: Estimate) -> tuple[float, float, float]:
-    """(IQM, low, high) of an estimate; NaN where it has no runs or no interval."""
-    if not estimate.seeds:
-        return (np.nan, np.nan, np.nan)
-    low, high = (estimate.low, estimate.high) if estimate.has_interval else (np.nan, np.nan)
-    return (estimate.point, low, high)
 
 
 def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
@@ -377,31 +359,24 @@ def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
     `Cell.rate_interval`); ``<task>_<COLLISION_FREE_MINCL>_seeds`` (the seeds MinCl is over:
     those with a collision-free episode); ``<task>_all_collided_seeds``;
     ``<task>_untrained_best_seeds`` and ``<task>_untrained_curve_success_mean`` (the
-    `UntrainedMarks`; empty mean: none); per `IQM_METRICS` key ``_iqm``, ``_iqm_low``,
-    ``_iqm_high`` (`_iqm_parts`). Numbers to 6 significant digits, NaN empty."""
+    `UntrainedMarks`; NaN: none); per `IQM_METRICS` key the `Estimate`'s ``_iqm``,
+    ``_iqm_low``, ``_iqm_high`` (NaN without runs or interval)."""
     out = {f"{task}_seeds": row[f"{task}_seeds"]}
     for key, _ in METRICS:
         cell: Cell = row[f"{task}_{key}"]
         low, high = cell.rate_interval() if key.endswith("_rate") else (cell.ci_low, cell.ci_high)
         parts = {"mean": cell.mean, "std": cell.std, "ci_low": low, "ci_high": high}
-        out |= {f"{task}_{key}_{part}": _number(value) for part, value in parts.items()}
+        out |= {f"{task}_{key}_{part}": value for part, value in parts.items()}
+    marks: UntrainedMarks = row[f"{task}_untrained"]
     out[f"{task}_{COLLISION_FREE_MINCL}_seeds"] = row[f"{task}_{COLLISION_FREE_MINCL}"].n
     out[f"{task}_all_collided_seeds"] = row[f"{task}_all_collided_seeds"]
-    marks = row[f"{task}_untrained"]
     out[f"{task}_untrained_best_seeds"] = marks.seeds
-    out[f"{task}_untrained_curve_success_mean"] = _number(marks.untrained_curve_success)
+    out[f"{task}_untrained_curve_success_mean"] = marks.untrained_curve_success
     for key, _ in IQM_METRICS:
-        iqm = zip(("iqm", "iqm_low", "iqm_high"), _iqm_parts(row[f"{task}_{key}_iqm"]), strict=True)
-        out |= {f"{task}_{key}_{part}": _number(value) for part, value in iqm}
+        iqm: Estimate = row[f"{task}_{key}_iqm"]
+        parts = {"iqm": iqm.point, "iqm_low": iqm.low, "iqm_high": iqm.high}
+        out |= {f"{task}_{key}_{part}": value for part, value in parts.items()}
     return out
-
-
-def _iqm_text(estimate: Estimate) -> str:
-    """``0.88 [0.80, 0.95]``, the IQM alone for one seed, ``–`` without runs."""
-    if not estimate.seeds:
-        return "–"
-    interval = f" [{estimate.low:.2f}, {estimate.high:.2f}]" if estimate.has_interval else ""
-    return f"{estimate.point:.2f}{interval}"
 
 
 def _markdown(
@@ -410,13 +385,10 @@ def _markdown(
     header = ["Method"]
     for t in tasks:
         header += [f"{t.upper()} {name}" for _, name in METRICS + IQM_METRICS]
-    table = []
-    for row in rows:
-        cells = [row["label"]]
-        for task in tasks:
-            cells += _task_cells(row, task, seed_count=True)
-            cells += [_iqm_text(row[f"{task}_{key}_iqm"]) for key, _ in IQM_METRICS]
-        table.append(cells)
+    table = [
+        [row["label"], *(text for task in tasks for text in _task_cells(row, task, True))]
+        for row in rows
+    ]
     title = (
         f"Table I ({preset} preset, {POLICY_TITLES[policy]}): mean ± std over seeds (seeds "
         "per cell in brackets after Success); Success and Collision also give the 95 % "
@@ -444,7 +416,7 @@ def _latex(
     header.append("Method & " + " & ".join(name for _ in tasks for _, name in METRICS))
     table = [
         [row["label"].replace("_", "\\_")]
-        + [text for task in tasks for text in _task_cells(row, task, seed_count=False)]
+        + [text for task in tasks for text in _task_cells(row, task, False)]
         for row in rows
     ]
     label = "tab:sim_results" if policy == TABLE_POLICY else f"tab:sim_results_{policy}"
@@ -466,7 +438,7 @@ def table1_texts(
         row | {k: v for task in tasks for k, v in _csv_cells(row, task).items()} for row in rows
     ]
     return (
-        csv_text(table, fields),
+        csv_text(table, fields, significant=6),
         _markdown(rows, tasks, preset, note, policy, marked),
         _latex(rows, tasks, preset, policy, marked),
     )

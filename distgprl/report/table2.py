@@ -1,11 +1,9 @@
 """Table II (hardware) from the trial files of a preset's policies (`select_trial_files`;
 the files left out are listed under the table), one CSV row per protocol setting
 (`hardware_rows`), one Markdown and LaTeX row per method, backend and twin noise level
-(`hardware_texts`): the paper's protocol first (every trial executes the policy's
-trajectory, only the UR5e's own limits apply, a protective stop at them is a failed trial,
-`distgprl.trial_protocol`), then the safety layer's settings as column groups. Rates over
-all trials with the exact (Clopper-Pearson) 95 % binomial interval; MinCl over the trials
-that moved the robot (`moved_robot`).
+(`hardware_texts`): the paper's protocol first (`distgprl.trial_protocol`), then the safety
+layer's settings as column groups (`HARDWARE_CAPTION`). Rates over all trials with the exact
+(Clopper-Pearson) 95 % binomial interval; MinCl over the trials that moved the robot.
 """
 
 from __future__ import annotations
@@ -19,7 +17,13 @@ import numpy as np
 from scipy import stats
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.markdown import csv_text, latex_table, markdown_table
+from distgprl.report.markdown import (
+    csv_text,
+    interval_text,
+    latex_table,
+    markdown_table,
+    number_text,
+)
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
 from distgprl.schema import moved_robot, read_csv, trial_file_exclusion
@@ -65,11 +69,8 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
             meta, rows = read_csv(path)
             if meta.get("preset") != preset:
                 continue
-            checked_hash = None
-            if checked and METHODS[method].trainable:
-                checked_hash = current_hash(
-                    HARDWARE_TASK, method, int(meta.get("seed", -1)), preset
-                )
+            seed, trainable = int(meta.get("seed", -1)), checked and METHODS[method].trainable
+            checked_hash = current_hash(HARDWARE_TASK, method, seed, preset) if trainable else None
             reason = trial_file_exclusion(meta, checked_hash)
             if reason:
                 excluded.append(f"{method}/{path.name} ({reason})")
@@ -97,18 +98,16 @@ def _without_twin_repeats(
     its complete re-run hold the same first trials: counting both would count those trials
     twice) — and an exclusion line for each repeat. Trials on the real robot are new
     executions: all kept."""
-    keepers: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+    keepers: dict[tuple[Any, ...] | None, tuple[Any, ...]] = {}
     for entry in files:
         setting = _twin_setting(entry[0], entry[1])
         if setting is not None:
             held = keepers.get(setting, entry)
             keepers[setting] = max(held, entry, key=lambda e: (len(e[2]), e[3]))
     kept, repeats = [], []
-    for entry in files:
-        method, meta, rows, name = entry
-        setting = _twin_setting(method, meta)
-        keeper = entry if setting is None else keepers[setting]
-        if keeper is entry:
+    for method, meta, rows, name in files:
+        keeper = keepers.get(_twin_setting(method, meta))  # None off the twin
+        if keeper is None or keeper[3] == name:
             kept.append((method, meta, rows))
         else:
             repeats.append(
@@ -207,60 +206,21 @@ INTERVAL_FIELDS = [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("lo
 """The CSV columns of the rates' exact 95 % intervals."""
 
 
-def rate_text(row: dict[str, Any], key: str) -> str:
-    """``0.67 [0.09, 0.99]``: a Table II rate with its exact 95 % binomial interval."""
-    return f"{row[key]:.2f} [{row[f'{key}_ci_low']:.2f}, {row[f'{key}_ci_high']:.2f}]"
-
-
 def setting_label(row: dict[str, Any]) -> str:
     """A `hardware_rows` row's protocol setting: ``paper`` (the paper's protocol), else the
     safety layer's repair setting (`repair_label`)."""
     return "paper" if row.get("protocol") == PAPER else str(row["repair"])
 
 
-def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | None:
-    """(CSV, Markdown) of the robustness table: the twin's success and collision rates (exact
-    95 % intervals) and median perception error per method and protocol setting
-    (`setting_label`) against the sensor-noise level (`distgprl.hardware.twin.SENSOR_NOISE`);
-    None unless some twin policy ran at more than one level."""
-    twin = [r for r in rows if r["backend"] == "twin"]
-    levels = sorted({r["sensor_noise"] for r in twin}, key=int)
-    if len(levels) < 2:
-        return None
-    fields = "method protocol repair sensor_noise perception_error_mm_median trials".split()
-    by_setting: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
-    for r in twin:
-        by_setting.setdefault((r["method"], setting_label(r)), {})[r["sensor_noise"]] = r
-    header = ["Method", "Protocol / repair"]
-    header += [
-        f"Noise {level} {name}"
-        for level in levels
-        for name in ("error (mm)", "Success", "Collision")
-    ]
-    table = []
-    for (method, repair), per_level in by_setting.items():
-        cells = [METHODS[method].label, repair]
-        for found in (per_level.get(level) for level in levels):
-            if found is None:
-                cells += ["–", "–", "–"]
-                continue
-            error = found["perception_error_mm_median"]
-            cells.append("–" if not np.isfinite(error) else f"{error:.0f}")
-            cells += [rate_text(found, k) for k in INTERVAL_METRICS]
-        table.append(cells)
-    caption = (
-        f"Digital twin robustness ({preset} preset policies, DBM): success and collision against "
-        "the sensor-noise level (0 none, 1 mild, 2 strong: image noise, blur, exposure, marker "
-        "corner noise, base-marker calibration error; 3 and 4: level 2 with a 2x and 4x worse "
-        "calibration), the median over trials of each trial's largest marker position error "
-        "(mm), exact 95 % binomial intervals"
-    )
-    table_csv = csv_text(twin, [*fields, *INTERVAL_METRICS, *INTERVAL_FIELDS])
-    return table_csv, markdown_table(caption, header, table)
-
-
 Columns = tuple[tuple[str, str], ...]
 """(key, label) of a group's columns."""
+
+NOISE_COLUMNS: Columns = (
+    ("perception_error_mm_median", "error (mm)"),
+    ("success_rate", "Success"),
+    ("collision_rate", "Collision"),
+)
+"""The robustness table's columns per sensor-noise level."""
 
 PAPER_COLUMNS: Columns = (
     ("trials", "Trials"),
@@ -305,16 +265,50 @@ HARDWARE_CAPTION = (
 
 
 def _cell(row: dict[str, Any] | None, key: str) -> str:
-    """One Table II cell of a protocol setting's row (``–`` where the setting did not run);
-    MinCl with ``(n=k)`` if only k of the trials moved the robot."""
+    """One cell of a `hardware_rows` row (``–`` where the setting did not run): a rate with
+    its exact 95 % interval, the perception error to the millimetre, MinCl with ``(n=k)`` if
+    only k of the trials moved the robot, a count as it is."""
     if row is None:
         return "–"
     if key in INTERVAL_METRICS:
-        return rate_text(row, key)
+        return interval_text(row[key], row[f"{key}_ci_low"], row[f"{key}_ci_high"])
+    if key == "perception_error_mm_median":
+        return number_text(row[key], 0)
     if key != "min_clearance_p5":
         return str(row[key])
-    text = "–" if np.isnan(row[key]) else f"{row[key]:.3f}"
-    return text + (f" (n={row['executed']})" if row["executed"] != row["trials"] else "")
+    moved = f" (n={row['executed']})" if row["executed"] != row["trials"] else ""
+    return number_text(row[key], 3) + moved
+
+
+def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | None:
+    """(CSV, Markdown) of the robustness table: the twin's success and collision rates (exact
+    95 % intervals) and median perception error per method and protocol setting
+    (`setting_label`) against the sensor-noise level (`distgprl.hardware.twin.SENSOR_NOISE`);
+    None unless some twin policy ran at more than one level."""
+    twin = [r for r in rows if r["backend"] == "twin"]
+    levels = sorted({r["sensor_noise"] for r in twin}, key=int)
+    if len(levels) < 2:
+        return None
+    fields = "method protocol repair sensor_noise perception_error_mm_median trials".split()
+    header = ["Method", "Protocol / repair"]
+    header += [f"Noise {level} {name}" for level in levels for _, name in NOISE_COLUMNS]
+    by_setting: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
+    for r in twin:
+        by_setting.setdefault((r["method"], setting_label(r)), {})[r["sensor_noise"]] = r
+    table = [
+        [METHODS[method].label, setting]
+        + [_cell(found.get(level), key) for level in levels for key, _ in NOISE_COLUMNS]
+        for (method, setting), found in by_setting.items()
+    ]
+    table_csv = csv_text(twin, [*fields, *INTERVAL_METRICS, *INTERVAL_FIELDS])
+    caption = (
+        f"Digital twin robustness ({preset} preset policies, DBM): success and collision against "
+        "the sensor-noise level (0 none, 1 mild, 2 strong: image noise, blur, exposure, marker "
+        "corner noise, base-marker calibration error; 3 and 4: level 2 with a 2x and 4x worse "
+        "calibration), the median over trials of each trial's largest marker position error "
+        "(mm), exact 95 % binomial intervals"
+    )
+    return table_csv, markdown_table(caption, header, table)
 
 
 def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> tuple[str, str, str]:
@@ -334,13 +328,14 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     groups += [(s, HARDWARE_COLUMNS) for s in list(GROUP_TITLES)[1:] if s in present]
     wide: dict[tuple[str, str, str], dict[str, dict[str, Any]]] = {}
     for row in rows:
-        key = (row["method"], row["backend"], row["sensor_noise"])
-        wide.setdefault(key, {})[setting_label(row)] = row
-    body = []
-    for method, backend, noise in sorted(wide, key=lambda k: (TABLE_ORDER.index(k[0]), *k[1:])):
-        settings = wide[(method, backend, noise)]
-        cells = [_cell(settings.get(g), key) for g, columns in groups for key, _ in columns]
-        body.append([METHODS[method].label, backend, noise, *cells])
+        wide.setdefault((row["method"], row["backend"], row["sensor_noise"]), {})[
+            setting_label(row)
+        ] = row
+    body = [
+        [METHODS[key[0]].label, *key[1:]]
+        + [_cell(wide[key].get(g), k) for g, columns in groups for k, _ in columns]
+        for key in sorted(wide, key=lambda k: (TABLE_ORDER.index(k[0]), *k[1:]))
+    ]
     header = ["Method", "Backend", "Noise"]
     header += [f"{GROUP_TITLES[g]}: {label}" for g, columns in groups for _, label in columns]
     caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"

@@ -1,12 +1,9 @@
 """Every results table of a preset from its result files only (`write_tables`): each made
 by its module (imported below), written here with a metadata sidecar per CSV
-(`write_table_files`); a table the results no longer make is removed.
-
-**Which policy** (protocol v6, rule 6, docs/findings/protocol.md): Table I
-(``table1_<preset>``), its per-run table, the aggregates and the claims report each run's
-best learning-curve policy (`distgprl.report.runs.TABLE_POLICY`, the one switch); the final
-policy's Table I and per-run table are written beside it (``table1_final_<preset>``). An
-untrained reference's one evaluation is in both.
+(`write_table_files`); a table the results no longer make is removed. Table I, its per-run
+table, the aggregates and the claims report `TABLE_POLICY`'s evaluations (protocol v6, rule
+6, docs/findings/protocol.md); the final policy's Table I and per-run table are written
+beside them (``table1_final_<preset>``).
 """
 
 from __future__ import annotations
@@ -43,11 +40,12 @@ from distgprl.report.table1 import (
 from distgprl.report.table2 import hardware_rows, hardware_texts, noise_texts, select_trial_files
 from distgprl.studies import studies_of
 
-Table = tuple[str, tuple[str, ...], tuple[str, ...] | None, str]
-"""One table to write: (file stem, suffixes, texts — one per suffix, None to remove the
-files —, description for the CSV's sidecar)."""
+Table = tuple[str, tuple[str, ...] | None, str]
+"""One table to write: (file stem, texts — CSV, Markdown and for Tables I and II LaTeX; None
+to remove the files —, description for the CSV's sidecar)."""
 
-CSV_MD, CSV_MD_TEX = (".csv", ".md"), (".csv", ".md", ".tex")
+SUFFIXES = (".csv", ".md", ".tex")
+"""The file suffix of each of a table's texts, in order."""
 
 
 def write_tables(
@@ -56,37 +54,34 @@ def write_tables(
     """Write every table of ``<root>/<preset>`` to ``out_dir`` (module docstring) and return
     the paths: Table I of the best and the final policy with their per-run tables, the
     aggregates and claims of Table I's evaluations and the studies beside the preset, the
-    paired comparisons (and with another preset, ``against``: `_cross_preset`) and the
-    hardware tables."""
+    paired comparisons (and with another preset, ``against``, each run with its counterpart)
+    and the hardware tables."""
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
-    cross = _cross_preset(root, preset, against)  # next: a refused pairing writes nothing
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
     scores = collect_scores(best)  # the claims follow Table I
     tables += [
         (
             f"aggregates_{preset}",
-            CSV_MD,
             aggregate_texts(scores, preset),
             "mean, IQM and probability of improvement over seeds with 95 % "
             "stratified-bootstrap intervals (distgprl.report.aggregate)",
         ),
         (
             f"claims_{preset}",
-            CSV_MD,
             claims_texts(scores, preset),
             "each claim of the paper, the statistic testing it and the verdict "
             "(rules: distgprl.report.claims)",
         ),
         *_study_tables(root, preset, best, scores),
-        *_paired_tables(root, preset),
-        *([] if cross is None else [cross]),
+        *_paired_tables(root, preset, against),
         *_hardware_tables(root, preset),
     ]
     out_dir = Path(out_dir)
     extra = {"rate_intervals_clipped_to": list(RATE_BOUNDS)}
     written = []
-    for stem, suffixes, texts, description in tables:
+    for stem, texts, description in tables:
+        suffixes = SUFFIXES if texts is None else SUFFIXES[: len(texts)]
         written += write_table_files(out_dir / stem, suffixes, texts, preset, description, **extra)
     for stale in out_dir.glob(f"paired_vs_*_{preset}_n*.*"):  # sizes no longer present
         if stale not in written:
@@ -110,14 +105,12 @@ def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> li
     return [
         (
             stem,
-            CSV_MD_TEX,
             texts,
             f"Table I ({which}): per task, each metric's mean, sample std and 95 % t-interval "
             "over seeds (ci_low, ci_high; empty for one seed)",
         ),
         (
             f"{stem}_per_seed",
-            CSV_MD,
             per_seed_texts(per_seed_rows(frames), preset, policy),
             f"Table I per run ({which}): every seed's metrics, late learning-curve means and "
             "training wall time",
@@ -145,57 +138,50 @@ def _study_tables(root: str | Path, preset: str, frames: Frames, scores: Scores)
     about = (
         f"each claim's verdict under every reading of {names} (rules: distgprl.report.robustness)"
     )
-    yield (f"claims_robustness_{preset}", CSV_MD, robustness_texts(results, preset), about)
+    yield (f"claims_robustness_{preset}", robustness_texts(results, preset), about)
     for study in studies:
         yield (
             f"onsets_{study.name}_{preset}",
-            CSV_MD,
             onset_texts(root, study, tasks_of(scores), preset),
             f"the {study.name} study's learning-curve onsets per reading and seed "
             "(rules: distgprl.report.onsets)",
         )
 
 
-def _cross_preset(root: str | Path, preset: str, against: str | None) -> Table | None:
-    """Every run paired with the same run of the preset ``against`` (None without one).
+def _paired_tables(root: str | Path, preset: str, against: str | None) -> Iterator[Table]:
+    """Every run paired TC by TC with each of `REFERENCES` (on the preset's TCs and on each
+    supplementary evaluation's), each run's best policy with its final one, and with a
+    preset ``against`` every run with the same run of it.
 
     Raises:
         UserInputError: no run of ``preset`` has a finished counterpart under ``against``.
     """
-    if against is None:
-        return None
-    cross = cross_preset_rows(root, preset, against)
-    if not cross:
-        raise UserInputError(
-            f"--against {against}: no run of {Path(root) / preset} has a finished "
-            f"counterpart (same task, method and seed) under {Path(root) / against}"
-        )
-    return (
-        f"paired_{preset}_vs_{against}",
-        CSV_MD,
-        paired_texts(cross, preset, base_preset=against),
-        f"each run paired TC by TC with the same run of the {against} preset (McNemar)",
-    )
-
-
-def _paired_tables(root: str | Path, preset: str) -> Iterator[Table]:
-    """Every run paired TC by TC with each of `REFERENCES` (on the preset's TCs and on each
-    supplementary evaluation's), and each run's best policy with its final one."""
     for reference in REFERENCES:
         for episodes in (None, *supplementary_sizes(root, preset)):
             pairs = paired_rows(root, preset, reference, episodes)
             yield (
                 f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}",
-                CSV_MD,
                 paired_texts(pairs, preset, reference, episodes) if pairs else None,
                 f"each run paired TC by TC with the {reference} reference (McNemar)",
             )
     best = best_vs_final_rows(root, preset)
     yield (
         f"paired_best_vs_final_{preset}",
-        CSV_MD,
         paired_texts(best, preset, FINAL_POLICY) if best else None,
         "each run's best learning-curve policy paired TC by TC with its final one (McNemar)",
+    )
+    if against is None:
+        return
+    cross = cross_preset_rows(root, preset, against)
+    if not cross:
+        raise UserInputError(
+            f"--against {against}: no run of {Path(root) / preset} has a finished "
+            f"counterpart (same task, method and seed) under {Path(root) / against}"
+        )
+    yield (
+        f"paired_{preset}_vs_{against}",
+        paired_texts(cross, preset, base_preset=against),
+        f"each run paired TC by TC with the same run of the {against} preset (McNemar)",
     )
 
 
@@ -207,19 +193,16 @@ def _hardware_tables(root: str | Path, preset: str) -> list[Table]:
     return [
         (
             f"table2_{preset}",
-            CSV_MD_TEX,
             hardware_texts(hardware, preset, trial_files.note()) if hardware else None,
             "Table II: hardware trials per method; rates with the exact 95 % binomial interval",
         ),
         (
             f"table2_noise_{preset}",
-            CSV_MD,
             noise_texts(hardware, preset),
             "digital twin success and collision against the sensor-noise level",
         ),
         (
             f"table1_repair_{preset}",
-            CSV_MD,
             repair_texts(repair_rows, preset, repair_excluded),
             "Table I + repair: the hardware safety layer in the loop in simulation "
             "(distgprl.report.repair)",
