@@ -129,4 +129,26 @@ def render(
         finally:
             env.close()
             demo_env.close()
-    typer.echo(f"wrote {out}: " + ", ".join(f"{k}={v}" for k, v in summary.items() if k != "path"))
+    typer.echo(
+        rendered_line(out, summary, "GP skill" if method == "demo" else f"{method} seed {seed}")
+    )
+
+
+def _outcome_text(summary: dict, prefix: str = "") -> str:
+    """``success, min clearance 16.5 mm`` (or ``collision`` / ``not completed``) of one episode of a
+    render summary (keys ``<prefix>success``, ``collision``, ``min_clearance`` in m)."""
+    if summary[f"{prefix}collision"]:
+        outcome = "collision"
+    else:
+        outcome = "success" if summary[f"{prefix}success"] else "not completed"
+    return f"{outcome}, min clearance {1e3 * summary[f'{prefix}min_clearance']:.1f} mm"
+
+
+def rendered_line(out: Path, summary: dict, label: str) -> str:
+    """What `render` wrote, in one line: the TC, the episode's outcome and minimum clearance
+    and, for a trained run, the unadapted demonstration's beside it; the frame count."""
+    tc = "nominal TC" if summary["tc_index"] is None else f"evaluation TC {summary['tc_index']}"
+    text = f"wrote {out} ({summary['frames']} frame(s)): {tc}; {label}: {_outcome_text(summary)}"
+    if "demo_success" in summary:
+        text += f"; demonstration: {_outcome_text(summary, 'demo_')}"
+    return text

@@ -105,7 +105,9 @@ def test_render_of_a_trained_run_writes_the_side_by_side_gif(trained_root, tmp_p
         ],
     )  # fmt: skip
     assert result.exit_code == 0, result.output
-    assert "demo_success=" in result.output
+    line = result.output.strip().splitlines()[-1]
+    assert line.startswith(f"wrote {out} (") and ": evaluation TC 2; dist-gprl seed 0: " in line
+    assert "; demonstration: " in line and line.count(" mm") == 2
     frames = iio.imread(out)
     assert frames.ndim == 4 and frames.shape[0] > 3 and frames.shape[2] == 2 * 480
     left, right = frames[:, 60:, :480], frames[:, 60:, 480:]
