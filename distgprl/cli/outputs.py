@@ -81,7 +81,13 @@ def curves(
 @user_errors
 def render(
     task: TaskOption,
-    out: Annotated[Path, typer.Option(help="Output image: .png (one frame) or .gif.")],
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Output image: .png (one frame) or .gif (default: TASK_METHOD_seedS.png in the "
+            "current folder, TASK_demo.png for the skill alone)."
+        ),
+    ] = None,
     tc: Annotated[int | None, typer.Option(help="Evaluation TC index (default: nominal).")] = None,
     method: Annotated[
         str,
@@ -108,6 +114,7 @@ def render(
     from distgprl.data import check_task_name
 
     check_task_name(task)
+    out = out if out is not None else default_render_path(task, method, seed)
     if method == "demo":
         from distgprl.envs.render import render_demo_episode
 
@@ -132,6 +139,12 @@ def render(
     typer.echo(
         rendered_line(out, summary, "GP skill" if method == "demo" else f"{method} seed {seed}")
     )
+
+
+def default_render_path(task: str, method: str, seed: int) -> Path:
+    """Where `render` writes without ``--out``: ``dcp_dist-gprl_seed0.png`` (``dcp_demo.png``
+    for the skill alone), in the current folder."""
+    return Path(f"{task}_demo.png" if method == "demo" else f"{task}_{method}_seed{seed}.png")
 
 
 def _outcome_text(summary: dict, prefix: str = "") -> str:

@@ -124,3 +124,21 @@ def test_render_of_a_run_that_was_not_trained_is_a_clear_error(tmp_path):
     )  # fmt: skip
     assert result.exit_code != 0
     assert "Traceback" not in result.output
+
+
+def test_render_without_out_writes_the_run_named_png_in_the_current_folder(
+    trained_root, tmp_path, monkeypatch
+):
+    """`render --task T --method M --seed S` alone (the README's command) writes one frame to
+    ``T_M_seedS.png`` in the current folder and names it."""
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(
+        app,
+        [
+            "render", "--task", "dcp", "--method", "dist-gprl", "--seed", "0",
+            "--preset", "ci", "--root", str(trained_root),
+        ],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert result.output.strip().splitlines()[-1].startswith("wrote dcp_dist-gprl_seed0.png (1 ")
+    assert iio.imread(tmp_path / "dcp_dist-gprl_seed0.png").ndim == 3
