@@ -73,6 +73,7 @@ RESULT_TABLES: tuple[tuple[str, str], ...] = (
     ("table1_final_paper.md", "Table I of the final policy"),
     ("table1_paper_per_seed.md", "Table I per run"),
     ("table1_final_paper_per_seed.md", "Table I of the final policy, per run"),
+    ("one_demo_study_paper.md", "Beside Table I: ProMP-RRL on one demonstration (a study)"),
     ("aggregates_paper.md", "Aggregates over seeds (IQM)"),
     ("table1_repair_paper.md", "Table I + repair: the safety layer in the loop"),
     ("table2_paper.md", "Table II: hardware trials (digital twin)"),

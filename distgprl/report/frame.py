@@ -78,14 +78,15 @@ def run_frame(
     preset: str,
     policy: str = TABLE_POLICY,
     seeds: Collection[int] | None = None,
+    methods: Collection[str] | None = None,
 ) -> pd.DataFrame:
     """One row per run under ``<root>/<preset>`` that counts (`run_evaluations` of
-    ``policy``, ``seeds`` as there) in folder order: `RUN_COLUMNS` — `EVALUATION_KEYS`,
-    ``folder`` (Path), ``config_hash``, ``numerics`` (the training machine's fingerprint, ""
-    before it was recorded), `TRAINING_FIELDS` — and every field of the evaluation's
-    summary (``object`` columns, None where a summary lacks a field). ``attrs["note"]``: the
+    ``policy``, ``seeds`` and ``methods`` as there) in folder order: `RUN_COLUMNS` —
+    `EVALUATION_KEYS`, ``folder`` (Path), ``config_hash``, ``numerics`` (the training
+    machine's fingerprint, "" before it was recorded), `TRAINING_FIELDS` — and every field of
+    the evaluation's summary (``object`` columns, None where a summary lacks a field). ``attrs["note"]``: the
     runs left out or substituted."""
-    selection = run_evaluations(root, preset, policy, seeds)
+    selection = run_evaluations(root, preset, policy, seeds, methods)
     records = [_run_record(evaluation) for evaluation in selection.evaluations]
     columns = list(dict.fromkeys([*RUN_COLUMNS, *(key for record in records for key in record)]))
     filled = [{column: record.get(column) for column in columns} for record in records]
@@ -202,8 +203,9 @@ def load_frames(
     preset: str,
     policy: str = TABLE_POLICY,
     seeds: Collection[int] | None = None,
+    methods: Collection[str] | None = None,
 ) -> Frames:
-    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (``seeds`` as in
-    `run_frame`)."""
-    runs = run_frame(root, preset, policy, seeds)
+    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (``seeds`` and
+    ``methods`` as in `run_frame`)."""
+    runs = run_frame(root, preset, policy, seeds, methods)
     return Frames(runs, by_run(curves_of(runs["folder"])))

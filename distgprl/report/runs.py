@@ -11,6 +11,10 @@ the CLI), never quietly left out.
 (``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
 (``evaluation_best.csv`` / ``summary_best.json``); an untrained reference (`demo`,
 `promp-nominal`) has one, used for both. The tables report :data:`TABLE_POLICY`.
+
+**Which methods**: every method's runs under the preset, except the study methods reported
+beside Table I (`distgprl.methods.STUDY_METHODS`: their runs share the preset's folder), which a
+report reads only by asking for them (``methods``).
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from distgprl.errors import UserInputError
-from distgprl.methods import METHODS
+from distgprl.methods import METHODS, STUDY_METHODS
 from distgprl.runstate import run_state
 from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
@@ -98,16 +102,19 @@ def select_runs(
     preset: str,
     marker: str = "summary.json",
     seeds: Collection[int] | None = None,
+    methods: Collection[str] | None = None,
 ) -> RunSelection:
     """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
     ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
     current configuration (module docstring); with ``seeds``, a trained method's runs of
     those seeds only (a study compares its readings at its own seeds,
-    `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays)."""
+    `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays); with
+    ``methods``, those methods' runs only (default: every method but `STUDY_METHODS`)."""
     checked = known_preset(preset)
     current, excluded = set(), []
+    wanted = set(METHODS) - set(STUDY_METHODS) if methods is None else set(methods)
     for folder in sorted((Path(root) / preset).glob("*/*/seed*")):
-        if not folder.is_dir() or folder.parent.name not in METHODS:
+        if not folder.is_dir() or folder.parent.name not in wanted & set(METHODS):
             continue
         task, method, seed = run_keys(folder)
         trainable = METHODS[method].trainable
@@ -183,6 +190,7 @@ def run_evaluations(
     preset: str,
     policy: str = TABLE_POLICY,
     seeds: Collection[int] | None = None,
+    methods: Collection[str] | None = None,
 ) -> EvaluationSelection:
     """The evaluation of ``policy`` (``"best"`` or ``"final"``) of each run that counts
     (`select_runs`: evaluated, current configuration). An untrained reference has only one
@@ -192,7 +200,7 @@ def run_evaluations(
     ``seeds``: as `select_runs`."""
     if policy not in POLICY_CHOICES:
         raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
-    runs = select_runs(root, preset, seeds=seeds)
+    runs = select_runs(root, preset, seeds=seeds, methods=methods)
     final_csv, final_summary = evaluation_file_names(None, "final")
     best_csv, best_summary = evaluation_file_names(None, "best")
     evaluations, substituted = [], []

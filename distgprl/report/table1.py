@@ -258,8 +258,11 @@ def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
     }
 
 
-def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
-    """Rows of Table I of ``frames``' evaluations, one per method with runs, and the tasks.
+def simulation_table(
+    frames: Frames, order: tuple[str, ...] = TABLE_ORDER
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rows of Table I of ``frames``' evaluations, one per method of ``order`` with runs (in
+    that order), and the tasks.
     Per task: ``<task>_seeds``, a `Cell` per `METRICS` key (``<task>_<key>``),
     ``<task>_all_collided_seeds`` (seeds whose every episode collided), ``<task>_untrained``
     (`UntrainedMarks`) and an `Estimate` per `IQM_METRICS` key (``<task>_<key>_iqm``)."""
@@ -268,7 +271,7 @@ def simulation_table(frames: Frames) -> tuple[list[dict[str, Any]], list[str]]:
         by_cell.setdefault((task, method), []).append(summary)
     tasks = sorted({task for task, _ in by_cell}, key=task_order)
     rows = []
-    for method in TABLE_ORDER:
+    for method in order:
         if not any((task, method) in by_cell for task in tasks):
             continue
         row: dict[str, Any] = {"method": method, "label": METHODS[method].label}
@@ -380,7 +383,11 @@ def _csv_cells(row: dict[str, Any], task: str) -> dict[str, Any]:
 
 
 def _markdown(
-    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str, marked: bool
+    rows: list[dict[str, Any]],
+    tasks: list[str],
+    note: str,
+    marked: bool,
+    heading: str,
 ) -> str:
     header = ["Method"]
     for t in tasks:
@@ -390,7 +397,7 @@ def _markdown(
         for row in rows
     ]
     title = (
-        f"Table I ({preset} preset, {POLICY_TITLES[policy]}): mean ± std over seeds (seeds "
+        f"{heading}: mean ± std over seeds (seeds "
         "per cell in brackets after Success); Success and Collision also give the 95 % "
         "t-interval over seeds, [low, high] clipped to [0, 1], where there are two or more "
         "seeds; the IQM columns give the interquartile mean over seeds with its 95 % "
@@ -426,12 +433,19 @@ def _latex(
 
 
 def table1_texts(
-    rows: list[dict[str, Any]], tasks: list[str], preset: str, note: str, policy: str
+    rows: list[dict[str, Any]],
+    tasks: list[str],
+    preset: str,
+    note: str,
+    policy: str,
+    heading: str | None = None,
 ) -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table I from `simulation_table`'s rows and tasks of the
     ``policy`` evaluations; ``note`` (the runs left out or substituted, `run_evaluations`)
     goes under the Markdown table, after `MINCL_NOTE` (and `UNTRAINED_NOTE` where a cell is
-    marked)."""
+    marked). ``heading`` opens the Markdown's title (default: ``Table I (<preset> preset,
+    <policy>)``)."""
+    heading = heading or f"Table I ({preset} preset, {POLICY_TITLES[policy]})"
     marked = any(row[f"{task}_untrained"].seeds > 0 for row in rows for task in tasks)
     fields = ["method", "label", *(k for task in tasks for k in _csv_cells(rows[0], task))]
     table = [
@@ -439,6 +453,6 @@ def table1_texts(
     ]
     return (
         csv_text(table, fields, significant=6),
-        _markdown(rows, tasks, preset, note, policy, marked),
+        _markdown(rows, tasks, note, marked, heading),
         _latex(rows, tasks, preset, policy, marked),
     )

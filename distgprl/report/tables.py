@@ -3,7 +3,9 @@ by its module (imported below), written here with a metadata sidecar per CSV
 (`write_table_files`); a table the results no longer make is removed. Table I, its per-run
 table, the aggregates and the claims report `TABLE_POLICY`'s evaluations (protocol v6, rule
 6, docs/findings/protocol.md); the final policy's Table I and per-run table are written
-beside them (``table1_final_<preset>``).
+beside them (``table1_final_<preset>``), and where the preset's folder holds runs of the
+study methods (`distgprl.methods.STUDY_METHODS`) their table beside Table I
+(``one_demo_study_<preset>``).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from distgprl.errors import UserInputError
+from distgprl.methods import STUDY_METHODS
 from distgprl.report.aggregate import Scores, aggregate_texts, tasks_of
 from distgprl.report.claims import claims_texts
 from distgprl.report.frame import Frames, load_frames
@@ -30,6 +33,7 @@ from distgprl.report.repair import repair_table, repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.report.table1 import (
+    POLICY_TITLES,
     RATE_BOUNDS,
     collect_scores,
     per_seed_rows,
@@ -43,6 +47,10 @@ from distgprl.studies import studies_of
 Table = tuple[str, tuple[str, ...] | None, str]
 """One table to write: (file stem, texts — CSV, Markdown and for Tables I and II LaTeX; None
 to remove the files —, description for the CSV's sidecar)."""
+
+ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nominal-1demo")
+"""The rows of the one-demonstration study beside Table I (protocol v8, rule 3): Table I's
+ProMP-RRL and ProMP nominal (20 demonstrations) above their one-demonstration versions."""
 
 SUFFIXES = (".csv", ".md", ".tex")
 """The file suffix of each of a table's texts, in order."""
@@ -59,6 +67,7 @@ def write_tables(
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
+    tables.append(_one_demo_study(root, preset))
     scores = collect_scores(best)  # the claims follow Table I
     tables += [
         (
@@ -116,6 +125,24 @@ def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> li
             "training wall time",
         ),
     ]
+
+
+def _one_demo_study(root: str | Path, preset: str) -> Table:
+    """The one-demonstration study beside Table I: Table I's columns for `ONE_DEMO_STUDY`'s
+    runs (`TABLE_POLICY`), CSV and Markdown; None (no file) without a study method's run."""
+    frames = load_frames(root, preset, TABLE_POLICY, methods=ONE_DEMO_STUDY)
+    rows, tasks = simulation_table(frames, ONE_DEMO_STUDY)
+    heading = (
+        f"The one-demonstration ProMP-RRL study beside Table I ({preset} preset, "
+        f"{POLICY_TITLES[TABLE_POLICY]}): ProMP-RRL and ProMP nominal are Table I's, over 20 "
+        "demonstrations (protocol v8, rule 3); the (1 demo) rows fit the ProMP's nominal to the "
+        "one demonstration every GP method gets. Not part of Table I or the claims"
+    )
+    note = frames.runs.attrs["note"]
+    studied = any(row["method"] in STUDY_METHODS for row in rows)
+    texts = table1_texts(rows, tasks, preset, note, TABLE_POLICY, heading)[:2] if studied else None
+    about = "the one-demonstration ProMP-RRL study beside Table I, Table I's columns"
+    return (f"one_demo_study_{preset}", texts, about)
 
 
 def _study_tables(root: str | Path, preset: str, frames: Frames, scores: Scores) -> Iterator[Table]:

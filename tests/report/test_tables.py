@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -592,3 +593,45 @@ def test_table2_counts_one_twin_file_per_policy_seed_and_setting(tmp_path):
     )
     rows = {(r["backend"], r["sensor_noise"]): r["trials"] for r in hardware_table(tmp_path, "p")}
     assert rows == {("twin", "0"): 6, ("twin", "1"): 3, ("ur", "–"): 4}
+
+
+def _write_runs(root, runs):
+    """Summaries of (method, seed, success) DCP runs of the unchecked preset ``p``."""
+    for method, seed, success in runs:
+        folder = root / "p" / "dcp" / method / f"seed{seed}"
+        write_json(folder / "summary.json", summary(success, 0.1, 0.01))
+
+
+def test_the_one_demo_study_is_its_own_table_and_leaves_table_1_and_the_claims_unchanged(
+    tmp_path,
+):
+    """Runs of the study methods (`STUDY_METHODS`) in the preset's folder make
+    ``one_demo_study_<preset>`` — Table I's ProMP-RRL and nominal above their one-demonstration
+    versions — and change no byte of any other table; without them the study table is gone."""
+    table_one = [("dist-gprl", 0, 0.9), ("promp-rrl", 0, 0.6), ("promp-rrl", 1, 0.7)]
+    table_one += [("promp-nominal", 0, 0.7), ("demo", 0, 0.5)]
+    study = [("promp-rrl-1demo", 0, 0.2), ("promp-rrl-1demo", 1, 0.4)]
+    study += [("promp-nominal-1demo", 0, 0.65)]
+    _write_runs(tmp_path / "without", table_one)
+    _write_runs(tmp_path / "with", table_one + study)
+    without = write_tables(tmp_path / "without", "p", tmp_path / "out_without")
+    with_study = write_tables(tmp_path / "with", "p", tmp_path / "out_with")
+    written = {path.name: path.read_bytes() for path in without}
+    added = {path.name: path.read_bytes() for path in with_study if path.name not in written}
+    assert {path.name: path.read_bytes() for path in with_study if path.name in written} == written
+    assert set(added) == {"one_demo_study_p.csv", "one_demo_study_p.csv.meta.json"} | {
+        "one_demo_study_p.md"
+    }
+    frame = pd.read_csv(tmp_path / "out_with" / "one_demo_study_p.csv")
+    assert frame["method"].tolist() == [
+        "promp-rrl",
+        "promp-rrl-1demo",
+        "promp-nominal",
+        "promp-nominal-1demo",
+    ]
+    assert frame["dcp_success_rate_mean"].tolist() == pytest.approx([0.65, 0.3, 0.7, 0.65])
+    assert "ProMP-RRL (1 demo)" in (tmp_path / "out_with" / "one_demo_study_p.md").read_text()
+    for name in ("promp-rrl-1demo", "promp-nominal-1demo"):  # the study's runs removed:
+        shutil.rmtree(tmp_path / "with" / "p" / "dcp" / name)  # its table goes with them
+    write_tables(tmp_path / "with", "p", tmp_path / "out_with")
+    assert not (tmp_path / "out_with" / "one_demo_study_p.md").exists()
