@@ -84,8 +84,8 @@ def run_frame(
     ``policy``, ``seeds`` and ``methods`` as there) in folder order: `RUN_COLUMNS` —
     `EVALUATION_KEYS`, ``folder`` (Path), ``config_hash``, ``numerics`` (the training
     machine's fingerprint, "" before it was recorded), `TRAINING_FIELDS` — and every field of
-    the evaluation's summary (``object`` columns, None where a summary lacks a field). ``attrs["note"]``: the
-    runs left out or substituted."""
+    the evaluation's summary (``object`` columns, None where a summary lacks a field).
+    ``attrs["note"]``: the runs left out or substituted."""
     selection = run_evaluations(root, preset, policy, seeds, methods)
     records = [_run_record(evaluation) for evaluation in selection.evaluations]
     columns = list(dict.fromkeys([*RUN_COLUMNS, *(key for record in records for key in record)]))

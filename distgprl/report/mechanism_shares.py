@@ -218,12 +218,28 @@ def gradient_cells(
 
 
 @dataclass(frozen=True)
+class TaskReturns:
+    """What one run's reward scale pays for the task (protocol v8, rule 1): its
+    ``progress_weight``, the r_tc of a success (``success_return``) and the demonstration's mean
+    r_tc on the evaluation TCs under that scale (``demo_return``)."""
+
+    progress_weight: float
+    success_return: float
+    demo_return: float
+
+
+@dataclass(frozen=True)
 class PlateauCell:
     """How often a distance-reward method's policy idles on the r_ga plateau: of ``episodes``
     evaluation episodes of ``seeds`` runs, the ``idle`` ones (no success, no collision, r_tc <
     `IDLE_PROGRESS` of the task's progress weight) and their lambda_ga r_ga values
     ``idle_ga`` (the alignment reward paid for moving away from the obstacles instead of doing
-    the task; docs/FINDINGS.md, "The first v7 runs: the attractor is r_ga, not r_sd")."""
+    the task; docs/FINDINGS.md, "The first v7 runs: the attractor is r_ga, not r_sd").
+
+    Rule 1's two ratios (protocol v8) measured on these episodes: ``ga_of_success``, each
+    episode's lambda_ga Σ r_ga over its run's success r_tc (bound (a), 5 %), and
+    ``idle_of_demo``, each idle episode's return (r_tc + r_sd + lambda_ga r_ga) over its run's
+    demonstration r_tc (bound (b), 10 %)."""
 
     task: str
     method: str
@@ -232,6 +248,8 @@ class PlateauCell:
     episodes: int
     idle: int
     idle_ga: tuple[float, ...]
+    ga_of_success: tuple[float, ...] = ()
+    idle_of_demo: tuple[float, ...] = ()
 
     @property
     def share(self) -> float | None:
@@ -242,27 +260,45 @@ class PlateauCell:
         return _mean(self.idle_ga)
 
 
+def _episode_return(row: Mapping[str, Any]) -> float:
+    """An evaluation row's return: r_tc + r_sd + lambda_ga r_ga (an absent part counts 0)."""
+    parts = (_number(row.get(column)) for column in ("return_tc", "return_sd", "return_ga"))
+    return sum(part or 0.0 for part in parts)
+
+
 def plateau_cell(
     task: str,
     method: str,
     policy: str,
-    runs: Sequence[tuple[Sequence[Mapping[str, Any]], float]],
+    runs: Sequence[tuple[Sequence[Mapping[str, Any]], TaskReturns]],
 ) -> PlateauCell | None:
-    """The `PlateauCell` of ``runs``: (evaluation rows, the run's progress weight) per seed;
+    """The `PlateauCell` of ``runs``: (evaluation rows, the run's `TaskReturns`) per seed;
     None if no run records the return's parts."""
-    episodes, idle_ga, seeds = 0, [], 0
-    for rows, progress_weight in runs:
+    episodes, idle_ga, seeds, ga_of_success, idle_of_demo = 0, [], 0, [], []
+    for rows, returns in runs:
         recorded = [r for r in rows if _number(r.get("return_tc")) is not None]
         seeds += bool(recorded)
         episodes += len(recorded)
         for row in recorded:
+            ga = _number(row.get("return_ga"))
+            ga_of_success.append((ga or 0.0) / returns.success_return)
             done = bool(round(float(row["success"]))) or bool(round(float(row["collision"])))
-            if not done and float(row["return_tc"]) < IDLE_PROGRESS * progress_weight:
-                ga = _number(row.get("return_ga"))
+            if not done and float(row["return_tc"]) < IDLE_PROGRESS * returns.progress_weight:
                 idle_ga.append(0.0 if ga is None else ga)
+                idle_of_demo.append(_episode_return(row) / returns.demo_return)
     if not seeds:
         return None
-    return PlateauCell(task, method, policy, seeds, episodes, len(idle_ga), tuple(idle_ga))
+    return PlateauCell(
+        task,
+        method,
+        policy,
+        seeds,
+        episodes,
+        len(idle_ga),
+        tuple(idle_ga),
+        tuple(ga_of_success),
+        tuple(idle_of_demo),
+    )
 
 
 @dataclass(frozen=True)

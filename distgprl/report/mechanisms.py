@@ -31,11 +31,19 @@ from distgprl.report.mechanism_shares import (
     MechanismTable,
     PlateauCell,
     ReturnCell,
+    TaskReturns,
     gradient_cells,
     plateau_cell,
     return_cells,
 )
 from distgprl.report.runs import select_runs
+from distgprl.reward_scale import (
+    MAX_GA_SHARE_OF_SUCCESS,
+    MAX_IDLE_SHARE_OF_DEMO,
+    demo_outcome,
+    demo_task_return,
+    success_task_return,
+)
 from distgprl.schema import evaluation_file_names, read_csv
 
 
@@ -44,6 +52,19 @@ def _env(folder: Path, field: str) -> float:
     document = json.loads((folder / "config.json").read_text())
     env = document.get("run", {}).get("config", {}).get("env", {})
     return float(env.get(field, getattr(EnvConfig, field)))
+
+
+def _task_returns(folder: Path, task: str) -> TaskReturns:
+    """The run's `TaskReturns` from its recorded reward scale (protocol v8, rule 1's terms:
+    `distgprl.reward_scale`) and the task's committed demonstration outcome."""
+    env = replace(
+        EnvConfig(),
+        progress_weight=_env(folder, "progress_weight"),
+        success_bonus=_env(folder, "success_bonus"),
+        collision_penalty=_env(folder, "collision_penalty"),
+    )
+    demo = demo_task_return(env, demo_outcome(task))
+    return TaskReturns(env.progress_weight, success_task_return(env), demo)
 
 
 def _by_run(
@@ -73,8 +94,8 @@ def mechanism_table(
             if rows:
                 runs = [(rows[f], _env(f, "sd_d_min")) for f in rows]
                 returns += return_cells(task, method, policy, runs)
-            weights = [(rows[f], _env(f, "progress_weight")) for f in rows]
-            if (cell := plateau_cell(task, method, policy, weights)) is not None:
+            scales = [(rows[f], _task_returns(f, task)) for f in rows]
+            if (cell := plateau_cell(task, method, policy, scales)) is not None:
                 plateau.append(cell)
     gradients = []
     regularised = _by_run(
@@ -113,7 +134,7 @@ def write_mechanisms(
 CSV_COLUMNS = tuple(
     "section task method item where step kind one_step_min_m one_step_max_m episode_min_m "
     "episode_max_m tc_range_m covers_tc_range seeds episodes episodes_within_d_min "
-    "episodes_zero_tc share_mean share_median active_fraction meets_criterion".split()
+    "episodes_zero_tc share_mean share_median share_max active_fraction meets_criterion".split()
 )
 """Columns of ``mechanisms_<preset>.csv``. ``section``: ``reach`` (``item`` the axis; reach
 in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and y),
@@ -121,8 +142,10 @@ in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and 
 shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``) or
 ``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
 ``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
-``seeds``). ``meets_criterion``: ``yes``/``no`` (≥ 5 %), ``not recorded``, ``inactive``,
-``n/a``."""
+``seeds``) or ``reward_scale`` (protocol v8 rule 1 measured: ``item`` ``ga_of_success`` (a) or
+``idle_of_demo`` (b), ``where`` the policy, ``episodes`` the ratios' count, ``share_max``
+judged against the rule's bound). ``meets_criterion``: ``yes``/``no`` (≥ 5 %; rule 1: the
+largest within its bound), ``not recorded``, ``inactive``, ``n/a``."""
 
 COVER_TOLERANCE = 1e-9
 """Reach equal to the TC range up to rounding (m) covers it (the reach rule sets it equal)."""
@@ -229,7 +252,25 @@ def _csv_rows(reach: list[ReachGroup], table: MechanismTable) -> list[dict[str, 
         shares["active_fraction"] = _number(_mean(gradient.active_fraction))
         counts = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
         rows.append(named | shares | counts | {"section": "gradient_share"})
+    for plateau in table.plateau:
+        for item, ratios, bound in _rule_one(plateau):
+            keys = {"task": plateau.task, "method": plateau.method, "where": plateau.policy}
+            shares = {"share_mean": _number(_mean(ratios)), "share_max": _number(max(ratios))}
+            judged = {"meets_criterion": "yes" if max(ratios) <= bound else "no"}
+            counts = {"seeds": plateau.seeds, "episodes": len(ratios)}
+            named = keys | {"item": item, "section": "reward_scale"}
+            rows.append(named | shares | judged | counts)
     return rows
+
+
+def _rule_one(cell: PlateauCell) -> Iterator[tuple[str, tuple[float, ...], float]]:
+    """(item, ratios, bound) of rule 1's measured ratios in ``cell`` that have ratios."""
+    for item, ratios, bound in (
+        ("ga_of_success", cell.ga_of_success, MAX_GA_SHARE_OF_SUCCESS),
+        ("idle_of_demo", cell.idle_of_demo, MAX_IDLE_SHARE_OF_DEMO),
+    ):
+        if ratios:
+            yield item, ratios, bound
 
 
 def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
@@ -313,7 +354,19 @@ def _plateau_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[s
             str(cell.seeds),
             f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
             "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
+            _bounded(cell.ga_of_success, MAX_GA_SHARE_OF_SUCCESS),
+            _bounded(cell.idle_of_demo, MAX_IDLE_SHARE_OF_DEMO),
         ]
+
+
+def _bounded(ratios: Sequence[float], bound: float) -> str:
+    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of ``ratios``, marked against
+    rule 1's ``bound`` (✓ where the largest is within it); – without ratios."""
+    if not ratios:
+        return "–"
+    largest = max(ratios)
+    mark = MARKS["yes" if largest <= bound else "no"]
+    return f"max {_percent(largest)} (mean {_percent(_mean(ratios))}){mark}"
 
 
 LISTED_FAILURES = 4
@@ -370,6 +423,31 @@ def _verdict_lines(reach: list[ReachGroup], table: MechanismTable) -> list[str]:
         if gradients := [c for c in table.gradients if c.item == item]:
             judged = [(f"{c.task}/{c.method} {c.point}", c.verdict, c.mean) for c in gradients]
             lines.append(_verdict(TERM_LABELS[item], judged))
+    return lines + _rule_one_lines(table)
+
+
+RULE_ONE_LABELS = {
+    "ga_of_success": "Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc",
+    "idle_of_demo": "Rule 1 (b), an idle episode's return over the demonstration's mean r_tc",
+}
+"""The verdict line's name of each of rule 1's measured ratios."""
+
+
+def _rule_one_lines(table: MechanismTable) -> list[str]:
+    """Per rule-1 ratio: in how many plateau cells the largest measured ratio is within the
+    bound, and the largest of all with its cell."""
+    lines = []
+    for item, label in RULE_ONE_LABELS.items():
+        cells = [(c, r, b) for c in table.plateau for i, r, b in _rule_one(c) if i == item]
+        if not cells:
+            continue
+        within = sum(max(ratios) <= bound for _, ratios, bound in cells)
+        cell, ratios, bound = max(cells, key=lambda entry: max(entry[1]))
+        lines.append(
+            f"{label}, measured on the policies' evaluation episodes: within "
+            f"{100 * bound:.0f} % in {within} of {len(cells)} cells; largest "
+            f"{_percent(max(ratios))} ({cell.task}/{cell.method}, {cell.policy})."
+        )
     return lines
 
 
@@ -418,13 +496,19 @@ SECTIONS = (
         "share is judged.",
     ),
     (
-        "### The r_ga plateau",
-        ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"],
+        "### The r_ga plateau and rule 1's ratios, measured",
+        ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
+        + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * MAX_GA_SHARE_OF_SUCCESS:.0f} %)"]
+        + [f"(b) idle return / the demo's mean r_tc (≤ {100 * MAX_IDLE_SHARE_OF_DEMO:.0f} %)"],
         _plateau_rows,
         "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
         "still collects is paid for moving the via-points along ∇d "
-        '(docs/FINDINGS.md "The first v7 runs").',
+        '(docs/FINDINGS.md "The first v7 runs"). (a) and (b): protocol v8 rule 1\'s two ratios '
+        "(`distgprl.reward_scale`), bounded there from the reward terms' maxima, measured here "
+        "on the policies' evaluation episodes: (a) over every episode, (b) over the idle ones "
+        "(return r_tc + r_sd + λ_ga r_ga, over the demonstration's mean r_tc on the evaluation "
+        "TCs under the run's scale); ✓ where the largest is within the bound.",
     ),
 )
 """The Markdown's tables in order: (title, header, its rows of (reach groups, the ordered

@@ -198,12 +198,17 @@ def test_the_table_marks_each_cell_and_says_what_was_not_recorded(tmp_path):
     assert "7.5 % (median 7.5 %) ✓" in markdown  # dist-gprl r_ga
     assert NOT_RECORDED in markdown and "inactive" in markdown
     assert "| DCP | ProMP-RRL | residual, × gate ≤ 0.90 |" in markdown
-    assert len(verdicts) == 5 and all(f"- {line}" in markdown for line in verdicts)
+    assert len(verdicts) == 7 and all(f"- {line}" in markdown for line in verdicts)
     assert verdicts[0].startswith("Reach: the one-episode reach covers the TC range on x and y")
     assert "for 1 of 2 method–task pairs; not for dcp/promp-rrl" in verdicts[0]
     assert verdicts[1].startswith("r_sd / r_tc (episodes within d_min): meets the criterion")
     assert "not recorded: 1" in verdicts[1]
     assert "λ_hap L_hap / Q outside C_safe: does not meet the criterion" in verdicts[4]
+    assert verdicts[5].startswith("Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc")
+    assert verdicts[6].startswith("Rule 1 (b), an idle episode's return over the demonstration")
+    scale = [r for r in rows if r["section"] == "reward_scale"]
+    rule_one = {(r["method"], r["item"], r["where"]) for r in scale}
+    assert ("dist-gprl", "ga_of_success", "final") in rule_one
 
 
 def test_the_writer_imports_neither_torch_nor_pybullet(tmp_path):
@@ -238,17 +243,32 @@ def test_the_writer_imports_neither_torch_nor_pybullet(tmp_path):
 def test_the_plateau_counts_idle_episodes_and_the_alignment_reward_they_collect():
     """Idle = no success, no collision, r_tc below 5 % of the progress weight; their mean
     lambda_ga r_ga is reported; runs without the return's parts are left out."""
-    from distgprl.report.mechanism_shares import plateau_cell
+    from distgprl.report.mechanism_shares import TaskReturns, plateau_cell
 
     def row(success, collision, tc, ga):
         return {"success": success, "collision": collision, "return_tc": tc, "return_ga": ga}
 
+    unit, tenths = TaskReturns(1.0, 2.0, 1.5), TaskReturns(10.0, 20.0, 15.0)
     seed0 = [row(0, 0, 0.0, 0.55), row(1, 0, 2.0, 0.3), row(0, 1, -1.0, 0.1), row(0, 0, 0.04, 0.5)]
     seed1 = [row(0, 0, 0.2, 0.4), row(0, 0, 0.0, 0.6)]
     old = [{"success": 0, "collision": 0, "return_tc": "", "return_ga": ""}]
-    cell = plateau_cell("dcp", "dist-gprl", "best", [(seed0, 1.0), (seed1, 1.0), (old, 1.0)])
+    cell = plateau_cell("dcp", "dist-gprl", "best", [(seed0, unit), (seed1, unit), (old, unit)])
     assert (cell.seeds, cell.episodes, cell.idle) == (2, 6, 3)
     assert cell.share == 0.5 and abs(cell.mean_ga - (0.55 + 0.5 + 0.6) / 3) < 1e-12
-    # under a progress weight of 10 (the reward-unit study) 0.2 is still idle
-    assert plateau_cell("dcp", "dist-gprl", "best", [(seed1, 10.0)]).idle == 2
-    assert plateau_cell("dcp", "dist-gprl", "best", [(old, 1.0)]) is None
+    # under a progress weight of 10 (r_tc in tenths of a task) 0.2 is still idle
+    assert plateau_cell("dcp", "dist-gprl", "best", [(seed1, tenths)]).idle == 2
+    assert plateau_cell("dcp", "dist-gprl", "best", [(old, unit)]) is None
+
+
+def test_rule_one_ratios_are_measured_per_episode_against_the_runs_own_scale():
+    """(a): every episode's lambda_ga Σ r_ga over its run's success r_tc; (b): every idle
+    episode's whole return (r_tc + r_sd + lambda_ga r_ga) over its run's demonstration r_tc."""
+    from distgprl.report.mechanism_shares import TaskReturns, plateau_cell
+
+    rows = [
+        {"success": 1, "collision": 0, "return_tc": 20.0, "return_sd": -0.1, "return_ga": 0.5},
+        {"success": 0, "collision": 0, "return_tc": 0.2, "return_sd": -0.2, "return_ga": 0.6},
+    ]
+    cell = plateau_cell("dcp", "dist-gprl", "best", [(rows, TaskReturns(10.0, 20.0, 8.0))])
+    assert cell.ga_of_success == pytest.approx((0.5 / 20.0, 0.6 / 20.0))
+    assert cell.idle_of_demo == pytest.approx(((0.2 - 0.2 + 0.6) / 8.0,))
