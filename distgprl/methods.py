@@ -211,6 +211,10 @@ protocol rule 3, "ProMP-RRL as the paper defines it") — and ``promp-nominal-1d
 nominal with zero residual."""
 
 
+REPORTED_METHODS: tuple[str, ...] = tuple(name for name in METHODS if name not in STUDY_METHODS)
+"""The methods whose runs a preset's reports read by default: every one but `STUDY_METHODS`,
+whose runs share the preset's folder and are read only by the study's own table."""
+
 NO_SAFETY_LAYER = (
     "the plan-repair evaluation in simulation (Table I with the safety layer) re-plans a "
     "window's via-point plan; a residual-control method (promp-rrl, "

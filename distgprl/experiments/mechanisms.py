@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.adaptation.layout import ActionLayout
-from distgprl.methods import METHODS, STUDY_METHODS, MethodSpec
+from distgprl.methods import METHODS, REPORTED_METHODS, MethodSpec
 
 __all__ = [
     "AXES",
@@ -115,14 +115,15 @@ def env_reach(env: Any, method: MethodSpec) -> tuple[str, dict[str, np.ndarray],
 
 def run_pairs(root: str | Path, preset: str) -> list[tuple[str, str, int]]:
     """(task, method, seed) of the first seed folder of each trainable method's runs under
-    ``<root>/<preset>/<task>/<method>/seed<k>``, sorted by task and method; the study methods
-    beside Table I (`STUDY_METHODS`) left out, as every report leaves them out of Table I's."""
+    ``<root>/<preset>/<task>/<method>/seed<k>``, sorted by task and method, of the methods
+    the reports read (`REPORTED_METHODS`)."""
     base = Path(root) / preset
     pairs = []
     for method_dir in sorted(p for p in base.glob("*/*") if p.is_dir()):
-        spec = METHODS.get(method_dir.name)
         seeds = sorted(method_dir.glob("seed*"))
-        if spec is None or not spec.trainable or not seeds or spec.name in STUDY_METHODS:
+        if method_dir.name not in REPORTED_METHODS or not seeds:
+            continue
+        if not METHODS[method_dir.name].trainable:
             continue
         seed = int(seeds[0].name.removeprefix("seed"))
         pairs.append((method_dir.parent.name, method_dir.name, seed))

@@ -280,11 +280,11 @@ def plateau_cell(
         seeds += bool(recorded)
         episodes += len(recorded)
         for row in recorded:
-            ga = _number(row.get("return_ga"))
-            ga_of_success.append((ga or 0.0) / returns.success_return)
+            ga = _number(row.get("return_ga")) or 0.0
+            ga_of_success.append(ga / returns.success_return)
             done = bool(round(float(row["success"]))) or bool(round(float(row["collision"])))
             if not done and float(row["return_tc"]) < IDLE_PROGRESS * returns.progress_weight:
-                idle_ga.append(0.0 if ga is None else ga)
+                idle_ga.append(ga)
                 idle_of_demo.append(_episode_return(row) / returns.demo_return)
     if not seeds:
         return None

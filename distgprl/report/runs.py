@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from distgprl.errors import UserInputError
-from distgprl.methods import METHODS, STUDY_METHODS
+from distgprl.methods import METHODS, REPORTED_METHODS
 from distgprl.runstate import run_state
 from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
@@ -109,10 +109,10 @@ def select_runs(
     current configuration (module docstring); with ``seeds``, a trained method's runs of
     those seeds only (a study compares its readings at its own seeds,
     `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays); with
-    ``methods``, those methods' runs only (default: every method but `STUDY_METHODS`)."""
+    ``methods``, those methods' runs only (default: `REPORTED_METHODS`)."""
     checked = known_preset(preset)
     current, excluded = set(), []
-    wanted = set(METHODS) - set(STUDY_METHODS) if methods is None else set(methods)
+    wanted = set(REPORTED_METHODS if methods is None else methods)
     for folder in sorted((Path(root) / preset).glob("*/*/seed*")):
         if not folder.is_dir() or folder.parent.name not in wanted & set(METHODS):
             continue
