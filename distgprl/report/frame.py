@@ -1,9 +1,7 @@
-"""The committed runs of a preset as tidy pandas frames, the one input of every table, claim
-and figure: `run_frame` (per run's evaluation of one policy), `episode_frame` (per run ×
-evaluation episode) and `curve_frame` (per trained run × learning-curve point), keyed by
-`RUN_KEYS` (and the ``policy``). Values are the result files' own (a summary field its JSON
-type, a CSV cell a `number`; missing: None in the run frame, NaN in the others). Which runs
-count is `distgprl.report.runs`'; ``attrs["note"]`` says which did not.
+"""The committed runs as tidy pandas frames, the input of every table, claim and figure:
+`run_frame` (one row per run's evaluation), `episode_frame` (per run × evaluation episode) and
+`curve_frame` (per run × learning-curve point). Which runs count: `distgprl.report.runs`;
+``attrs["note"]`` says which did not.
 """
 
 from __future__ import annotations
@@ -24,27 +22,22 @@ RUN_KEYS = ("task", "method", "seed")
 """The columns naming a run in every frame."""
 
 EVALUATION_KEYS = (*RUN_KEYS, "policy")
-"""The columns naming a run's evaluation: the run and the policy evaluated (``best``,
-``final`` or ``untrained``)."""
+"""A run's columns and the policy evaluated (``best``, ``final`` or ``untrained``)."""
 
 COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""The summary field of MinCl (m), protocol v6, rule 5 (docs/findings/protocol.md); None where
-every episode collided. ``collision_free_episodes`` beside it counts the episodes it is over."""
+"""MinCl (m), protocol v6, rule 5 (docs/findings/protocol.md); None where every episode
+collided; ``collision_free_episodes`` counts the episodes it is over."""
 
 TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")
-"""The training record's (``done.json``) fields in `run_frame`: wall time (s) and process CPU
-time per RL step (s); missing for an untrained reference and for runs made before they were
-recorded."""
+"""``done.json``'s wall time (s) and process CPU time per RL step (s); None where absent."""
 
 RUN_COLUMNS = (*EVALUATION_KEYS, "folder", "config_hash", "numerics", *TRAINING_FIELDS)
 """The columns `run_frame` always has, before the summaries' fields."""
 
 
 def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> dict[str, Any]:
-    """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``: as recorded,
-    else computed from its per-episode rows ``episodes`` (`collision_free_min_clearance_p5`,
-    as `summarise` records them); unchanged without rows holding ``collision`` and
-    ``min_clearance``."""
+    """``summary`` with `COLLISION_FREE_MINCL` and ``collision_free_episodes``, computed from
+    the ``episodes`` rows where the summary lacks them (unchanged without such rows)."""
     if COLLISION_FREE_MINCL in summary or not episodes.exists():
         return summary
     rows = read_csv(episodes)[1]
@@ -55,8 +48,7 @@ def with_collision_free_clearance(summary: dict[str, Any], episodes: Path) -> di
 
 
 def _run_record(evaluation: RunEvaluation) -> dict[str, Any]:
-    """One `run_frame` row: the evaluation's keys, its summary's fields (the evaluation's
-    ``policy`` stands for the summary's own), the training record's and the hashes."""
+    """One `run_frame` row: keys, hashes, training fields, then the summary's fields."""
     document = read_json(evaluation.summary)
     summary = with_collision_free_clearance(document["summary"], evaluation.episodes)
     done_path = evaluation.folder / "done.json"
@@ -80,12 +72,9 @@ def run_frame(
     seeds: Collection[int] | None = None,
     methods: Collection[str] | None = None,
 ) -> pd.DataFrame:
-    """One row per run under ``<root>/<preset>`` that counts (`run_evaluations` of
-    ``policy``, ``seeds`` and ``methods`` as there) in folder order: `RUN_COLUMNS` —
-    `EVALUATION_KEYS`, ``folder`` (Path), ``config_hash``, ``numerics`` (the training
-    machine's fingerprint, "" before it was recorded), `TRAINING_FIELDS` — and every field of
-    the evaluation's summary (``object`` columns, None where a summary lacks a field).
-    ``attrs["note"]``: the runs left out or substituted."""
+    """One row per run that counts (`run_evaluations`), in folder order: `RUN_COLUMNS`
+    (``numerics``: the training machine's fingerprint, "" if unrecorded), then every summary
+    field (``object`` columns, None where a summary lacks it)."""
     selection = run_evaluations(root, preset, policy, seeds, methods)
     records = [_run_record(evaluation) for evaluation in selection.evaluations]
     columns = list(dict.fromkeys([*RUN_COLUMNS, *(key for record in records for key in record)]))
@@ -103,16 +92,14 @@ EvaluationKey = tuple[str, str, int, str]
 
 
 def summaries(frame: pd.DataFrame) -> Iterator[tuple[EvaluationKey, dict[str, Any]]]:
-    """(`EvaluationKey`, summary) per row of a `run_frame`: the row's fields it holds (None
-    left out, as a summary without the field)."""
+    """(`EvaluationKey`, the row's non-None fields) per row of a `run_frame`."""
     for record in frame.to_dict("records"):
         key = (str(record["task"]), str(record["method"]), int(record["seed"]))
         yield (*key, str(record["policy"])), {str(k): v for k, v in record.items() if v is not None}
 
 
 def number(text: str) -> int | float | str:
-    """A result CSV's cell as a number: Python's ``int`` where it is one, else its ``float``
-    (NaN for an empty cell); a cell that is no number stays its text."""
+    """A result CSV's cell as an ``int``, else a ``float`` (empty: NaN), else its text."""
     if text == "":
         return math.nan
     for kind in (int, float):
@@ -124,8 +111,7 @@ def number(text: str) -> int | float | str:
 
 
 def csv_frame(path: Path, keys: dict[str, Any]) -> pd.DataFrame:
-    """The rows of one result CSV (`read_csv`), every cell a `number`, ``keys`` (the run's
-    `RUN_KEYS`, say) in front as columns of their own."""
+    """One result CSV's rows as `number` cells, with ``keys`` in front as columns."""
     _, rows = read_csv(path)
     records = [{**keys, **{k: number(v) for k, v in row.items()}} for row in rows]
     return pd.DataFrame.from_records(records)
@@ -137,10 +123,8 @@ def episode_frame(
     policy: str = TABLE_POLICY,
     seeds: Collection[int] | None = None,
 ) -> pd.DataFrame:
-    """One row per run that counts (`run_evaluations` of ``policy``) × episode of its
-    evaluation (``evaluation[_best].csv``; a run without the file has no rows): the
-    `EVALUATION_KEYS`, then the file's columns as numbers (`number`). ``attrs["note"]``: the
-    runs left out or substituted."""
+    """One row per run that counts × episode of its ``evaluation[_best].csv``: the
+    `EVALUATION_KEYS`, then the file's columns as numbers."""
     selection = run_evaluations(root, preset, policy, seeds)
     parts = [csv_frame(e.episodes, e.keys) for e in selection.evaluations if e.episodes.exists()]
     frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=EVALUATION_KEYS)
@@ -149,9 +133,8 @@ def episode_frame(
 
 
 def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
-    """One row per run folder of ``folders`` (in their order) × point of its learning curve
-    (``progress.csv``; a run without one, or with an empty one, has no rows): `RUN_KEYS`,
-    then the file's columns as numbers (`number`; ``step`` an int)."""
+    """One row per folder (in order) × point of its ``progress.csv``: `RUN_KEYS`, then the
+    file's columns as numbers."""
     paths = [Path(folder) / "progress.csv" for folder in folders]
     parts = [
         csv_frame(path, dict(zip(RUN_KEYS, run_keys(path.parent), strict=True)))
@@ -165,9 +148,7 @@ def curves_of(folders: Iterable[Path]) -> pd.DataFrame:
 def curve_frame(
     root: str | Path, preset: str, seeds: Collection[int] | None = None
 ) -> pd.DataFrame:
-    """`curves_of` the finished runs of the current configuration (`select_runs` with
-    ``done.json``, ``seeds`` as there), in folder order. ``attrs["note"]``: the runs left
-    out."""
+    """`curves_of` the trained runs that count (`select_runs` by ``done.json``)."""
     selection = select_runs(root, preset, marker="done.json", seeds=seeds)
     frame = curves_of(sorted(selection.current))
     frame.attrs["note"] = selection.note()
@@ -184,15 +165,13 @@ def by_run(frame: pd.DataFrame) -> RunCurves:
 
 @dataclass(frozen=True)
 class Frames:
-    """One evaluation's frames, loaded once (`load_frames`) and passed to every table of it:
-    the `run_frame` and the learning curves of its runs (`RunCurves`)."""
+    """One evaluation's `run_frame` and its runs' learning curves, loaded once."""
 
     runs: pd.DataFrame
     curves: RunCurves
 
     def of_seeds(self, seeds: Collection[int]) -> Frames:
-        """These frames with a trained method's runs of ``seeds`` only, as `load_frames`
-        with ``seeds`` gives them (an untrained reference stays; ``attrs["note"]`` kept)."""
+        """These frames with trained methods' runs of ``seeds`` only (references stay)."""
         pairs = zip(self.runs["method"], self.runs["seed"], strict=True)
         keep = [not METHODS[method].trainable or int(seed) in seeds for method, seed in pairs]
         return Frames(self.runs[keep], self.curves)
@@ -205,7 +184,6 @@ def load_frames(
     seeds: Collection[int] | None = None,
     methods: Collection[str] | None = None,
 ) -> Frames:
-    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (``seeds`` and
-    ``methods`` as in `run_frame`)."""
+    """`Frames` of the ``policy`` evaluations of ``<root>/<preset>`` (as `run_frame`)."""
     runs = run_frame(root, preset, policy, seeds, methods)
     return Frames(runs, by_run(curves_of(runs["folder"])))

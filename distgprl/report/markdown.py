@@ -59,10 +59,8 @@ def latex_table(
     rows: Iterable[Sequence[str]],
     footnote: str = "",
 ) -> str:
-    """A LaTeX ``table`` float of a booktabs ``tabular`` (column spec ``columns``): the
-    ``header`` lines (each already a row, ``\\\\`` added), a rule, one line per row of cells,
-    and ``footnote`` in small type under the tabular if given; caption, cells and footnote
-    through `latex_text`."""
+    """A LaTeX ``table`` float of a booktabs ``tabular``: ``header`` lines (each a whole row),
+    a rule, a line per row of cells, ``footnote`` in small type; text through `latex_text`."""
     lines = ["\\begin{table}[htb]", "\\centering", f"\\caption{{{latex_text(caption)}}}"]
     lines += [f"\\label{{{label}}}", f"\\begin{{tabular}}{{{columns}}}", "\\toprule"]
     lines += [f"{line} \\\\" for line in header]
@@ -75,11 +73,9 @@ def latex_table(
 def csv_text(
     rows: Iterable[Mapping[str, Any]], columns: Sequence[str], significant: int | None = None
 ) -> str:
-    """``rows`` as CSV under the header ``columns`` (`pandas.DataFrame.to_csv`, ``\\n`` line
-    ends, fields quoted where needed): each value as `str` writes it (a float its shortest
-    repr, NaN ``nan``) or, with ``significant``, a column of numbers to that many significant
-    digits and NaN empty; a cell a row lacks or holds None empty, keys beyond ``columns``
-    left out."""
+    """``rows`` as CSV with header ``columns`` (pandas, ``\\n`` line ends): values as `str`
+    writes them (NaN ``nan``) or, with ``significant``, numbers to that many significant
+    digits (NaN empty); a missing or None cell empty, keys beyond ``columns`` dropped."""
     cells = [{c: "" if row.get(c) is None else row[c] for c in columns} for row in rows]
     frame = pd.DataFrame(cells, columns=list(columns), dtype=object)
     if significant is None:
@@ -91,11 +87,9 @@ def csv_text(
 
 
 def table_meta_text(text: str, preset: str, description: str, **extra: Any) -> str:
-    """The metadata sidecar (`csv_meta_path`) of a table's CSV ``text``, in the result files'
-    convention (``{"meta": ..., "columns": ...}``, `distgprl.schema.write_csv`) so that
-    `read_csv` reads the table and a plain ``pandas.read_csv`` reads the CSV; ``extra`` meta
-    fields follow the description. Only what the committed results determine (no time, no
-    commit): ``make tables`` stays byte for byte."""
+    """The metadata sidecar (`csv_meta_path`) of a table's CSV ``text``, as
+    `distgprl.schema.write_csv` writes one; no time or commit, so ``make tables`` is
+    byte-identical."""
     columns = next(csv.reader([text.split("\n", 1)[0]]))
     meta = {"schema_version": SCHEMA_VERSION, "kind": "table", "preset": preset}
     meta |= {"description": description, **extra}
@@ -110,9 +104,8 @@ def write_table_files(
     description: str,
     **extra: Any,
 ) -> list[Path]:
-    """Write ``texts`` (one per suffix) to ``stem`` + suffix, a CSV with its sidecar
-    (`table_meta_text`); with ``texts`` None (nothing to tabulate, e.g. no trial files any
-    more) remove those files instead, so no stale table from earlier results is left."""
+    """Write ``texts`` (one per suffix) to ``stem`` + suffix, a CSV with its sidecar; with
+    ``texts`` None (nothing to tabulate) remove those files, so no stale table is left."""
     paths = [Path(f"{stem}{suffix}") for suffix in suffixes]
     if texts is None:
         for path in paths:

@@ -1,20 +1,10 @@
-"""Which run folders the tables, paired analyses and curves may use.
+"""Which run folders the reports may use.
 
-A run counts when it has the result file a report reads — ``summary.json`` (evaluated) for the
-tables, ``done.json`` (trained) for the learning curves — and the config hash recorded there is
-the one the code resolves for it now; a run of an older configuration is left out and listed
-(`distgprl status`: "stale"). A damaged run (`distgprl.runstate` verdict ``damaged``) is an
-error naming the file and the reason (:class:`~distgprl.runstate.DamagedRunError`, exit 2 at
-the CLI), never quietly left out.
-
-**Which evaluation** (`run_evaluations`): a trained run has its final policy's
-(``evaluation.csv`` / ``summary.json``) and its best learning-curve policy's
-(``evaluation_best.csv`` / ``summary_best.json``); an untrained reference (`demo`,
-`promp-nominal`) has one, used for both. The tables report :data:`TABLE_POLICY`.
-
-**Which methods**: every method's runs under the preset, except the study methods reported
-beside Table I (`distgprl.methods.STUDY_METHODS`: their runs share the preset's folder), which a
-report reads only by asking for them (``methods``).
+A run counts when it has the file a report reads (``summary.json`` for the tables,
+``done.json`` for the learning curves) recorded under the config hash the code resolves for it
+now; an older configuration's run is left out and listed ("stale"), a damaged one is an error
+(:class:`~distgprl.runstate.DamagedRunError`, exit 2). Study methods
+(`distgprl.methods.STUDY_METHODS`) are read only when asked for.
 """
 
 from __future__ import annotations
@@ -31,26 +21,18 @@ from distgprl.runstate import run_state
 from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
 TABLE_POLICY = "best"
-"""The policy whose evaluation Table I (``table1_<preset>``), the per-run table, the aggregates
-and the claims report: the best learning-curve policy, Algorithm 1's output (protocol v6,
-rule 6, docs/findings/protocol.md); the final policy's Table I (``table1_final_<preset>``) is
-written beside it."""
+"""The policy the tables report: the best learning-curve policy, Algorithm 1's output
+(protocol v6, rule 6, docs/findings/protocol.md)."""
 
 UNTRAINED = "untrained"
-"""`RunEvaluation.policy` of an untrained reference: its only evaluation, in both tables."""
+"""`RunEvaluation.policy` of an untrained reference (one evaluation, used for both)."""
 
 
 @dataclass(frozen=True)
 class RunSelection:
-    """Run folders (``<root>/<preset>/<task>/<method>/seed<k>``) that count, and why others
-    do not.
-
-    Attributes:
-        current: the runs (with the marker file) of the current configuration.
-        excluded: one line per left-out run: its ``task/method/seed<k>`` and the reason.
-        checked: False if the preset is not one of this checkout's (``experiments/``), so
-            the config hashes could not be checked (only "finished" was).
-    """
+    """Run folders (``<root>/<preset>/<task>/<method>/seed<k>``) that count (``current``),
+    one line per run left out (``excluded``), and whether the config hashes could be checked
+    (``checked``: False for a preset not in ``experiments/``)."""
 
     current: frozenset[Path]
     excluded: tuple[str, ...]
@@ -72,13 +54,12 @@ def run_keys(folder: Path) -> tuple[str, str, int]:
 
 
 def _config_hash(path: Path) -> Any:
-    """The config hash a result file records (None if it records none)."""
     return read_json(path)["meta"].get("config_hash")
 
 
 @cache
 def known_preset(preset: str) -> bool:
-    """Whether ``preset`` is one of this checkout's (so its runs' hashes can be resolved)."""
+    """Whether ``preset`` is one of this checkout's."""
     from distgprl.config import load_config
 
     try:
@@ -90,8 +71,7 @@ def known_preset(preset: str) -> bool:
 
 @cache
 def current_hash(task: str, method: str, seed: int, preset: str) -> str:
-    """The config hash the code resolves for a run (fixed while the process runs; the reports
-    ask for the same runs once per table, figure and method)."""
+    """The config hash the code resolves for a run (cached: fixed while the process runs)."""
     from distgprl.identity import resolve_run
 
     return resolve_run(task, method, seed, preset).hash
@@ -104,12 +84,9 @@ def select_runs(
     seeds: Collection[int] | None = None,
     methods: Collection[str] | None = None,
 ) -> RunSelection:
-    """The run folders under ``<root>/<preset>`` holding ``marker`` (``summary.json`` or
-    ``done.json``; the untrained `demo` reference always by its ``summary.json``) of the
-    current configuration (module docstring); with ``seeds``, a trained method's runs of
-    those seeds only (a study compares its readings at its own seeds,
-    `distgprl.studies.Study.seeds`; an untrained reference, run once at seed 0, stays); with
-    ``methods``, those methods' runs only (default: `REPORTED_METHODS`)."""
+    """The current-configuration run folders under ``<root>/<preset>`` holding ``marker``
+    (an untrained reference: its ``summary.json``); ``seeds`` limits trained methods' runs,
+    ``methods`` the methods (default `REPORTED_METHODS`)."""
     checked = known_preset(preset)
     current, excluded = set(), []
     wanted = set(REPORTED_METHODS if methods is None else methods)
@@ -138,14 +115,8 @@ def select_runs(
 
 @dataclass(frozen=True)
 class RunEvaluation:
-    """One run's evaluation a table reports.
-
-    Attributes:
-        folder: the run folder (``<root>/<preset>/<task>/<method>/seed<k>``).
-        policy: the policy evaluated: ``"best"``, ``"final"`` or :data:`UNTRAINED`.
-        summary: its summary file (``summary[_best].json``).
-        episodes: its per-episode rows (``evaluation[_best].csv``; may be absent).
-    """
+    """One run's evaluation of ``policy`` (``best``, ``final`` or `UNTRAINED`): its
+    ``summary[_best].json`` and per-episode ``evaluation[_best].csv`` (may be absent)."""
 
     folder: Path
     policy: str
@@ -154,21 +125,16 @@ class RunEvaluation:
 
     @property
     def keys(self) -> dict[str, Any]:
-        """The evaluation's ``task``, ``method``, ``seed`` (`run_keys`) and ``policy``."""
+        """``task``, ``method``, ``seed`` and ``policy``."""
         task, method, seed = run_keys(self.folder)
         return {"task": task, "method": method, "seed": seed, "policy": self.policy}
 
 
 @dataclass(frozen=True)
 class EvaluationSelection:
-    """The evaluations of the runs that count (`run_evaluations`) and what stands in.
-
-    Attributes:
-        evaluations: one per run that counts, sorted by folder.
-        substituted: one line per trained run shown with its final policy because its best
-            policy has no evaluation of the run's configuration (``policy="best"`` only).
-        runs: the `select_runs` selection they come from.
-    """
+    """One evaluation per run that counts, by folder; ``substituted``: the trained runs
+    shown with their final policy for want of a best-policy evaluation; ``runs``: the
+    `select_runs` selection."""
 
     evaluations: tuple[RunEvaluation, ...]
     substituted: tuple[str, ...]
@@ -192,12 +158,9 @@ def run_evaluations(
     seeds: Collection[int] | None = None,
     methods: Collection[str] | None = None,
 ) -> EvaluationSelection:
-    """The evaluation of ``policy`` (``"best"`` or ``"final"``) of each run that counts
-    (`select_runs`: evaluated, current configuration). An untrained reference has only one
-    evaluation, used for either policy. A trained run whose best policy has no evaluation, or
-    one recorded under another config hash than its final evaluation's, is shown with its
-    final policy and listed (`EvaluationSelection.substituted`), never left out silently.
-    ``seeds``: as `select_runs`."""
+    """The ``policy`` (``best`` or ``final``) evaluation of each run `select_runs` counts. A
+    trained run without a best-policy evaluation of its final one's config hash is shown with
+    its final policy and listed in ``substituted``."""
     if policy not in POLICY_CHOICES:
         raise UserInputError(f"unknown policy {policy!r}; choose from {', '.join(POLICY_CHOICES)}")
     runs = select_runs(root, preset, seeds=seeds, methods=methods)
