@@ -65,49 +65,6 @@ class Verdict:
     detail: str = ""
     needs: tuple[str, ...] = ()
 
-    def on(self, task: str) -> TaskVerdict:
-        """The verdict on ``task`` (`ALL_TASKS`: the pooled one)."""
-        if task == ALL_TASKS and self.pooled is not None:
-            return self.pooled
-        return next(v for v in self.per_task if v.task == task)
-
-
-@dataclass(frozen=True)
-class PoiClaim:
-    """A claim tested by Dist-GPRL's probability of improvement over ``versus`` on ``key``."""
-
-    claim: str
-    versus: str
-    key: str
-    measure: str
-
-
-POI_CLAIMS = (
-    PoiClaim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
-    PoiClaim(
-        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
-    ),
-    PoiClaim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
-    PoiClaim(
-        "The HAP prior speeds convergence",
-        "gprl-d",
-        "steps_to_gain",
-        "fewer steps until the curve holds 0.2 above the untrained policy's",
-    ),
-    PoiClaim(
-        "The covariance transform improves stability",
-        "dist-gprl-nocov",
-        "learned_drop",
-        "smaller mean drop of curve success once learned (never learned: worst)",
-    ),
-    PoiClaim(
-        "The covariance transform improves sample efficiency",
-        "dist-gprl-nocov",
-        "learning_auc",
-        "larger mean gain of curve success over the untrained policy's",
-    ),
-)
-"""The claims tested by a probability of improvement, in the paper's order."""
 
 BALANCE = "Dist-GPRL balances success, collisions and kinematic retention"
 BALANCE_AXES = {"success_rate": True, "collision_rate": False, "mean_kinematic_retention": True}
@@ -160,13 +117,14 @@ def _iqms(scores: Scores, tasks: list[str], key: str, seed: int) -> dict[str, Es
     return {m: method_estimate(scores, tasks, m, key, "iqm", seed) for m in RANKED}
 
 
-def poi_verdict(scores: Scores, tasks: list[str], seed: int, claim: PoiClaim) -> TaskVerdict:
-    """``claim`` by the PoI rule; the detail counts the run pairs favouring Dist-GPRL on one
-    task and, for a curve claim, each method's runs that learned (a finite ``learned_drop``)."""
-    estimate = poi(scores, tasks, PROPOSED, claim.versus, claim.key, seed)
+def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: str) -> TaskVerdict:
+    """ "Dist-GPRL improves on ``versus`` in ``key``" by the PoI rule; the detail counts the
+    run pairs favouring Dist-GPRL on one task and, for a curve measure, each method's runs
+    that learned (a finite ``learned_drop``)."""
+    estimate = poi(scores, tasks, PROPOSED, versus, key, seed)
     parts = [f"{estimate.pairs_text()} favour Dist-GPRL"] if estimate.pairs_text() else []
-    if len(tasks) == 1 and claim.key in ("steps_to_gain", "learned_drop", "learning_auc"):
-        drops = {m: strata(scores, tasks, m, "learned_drop")[0] for m in (PROPOSED, claim.versus)}
+    if len(tasks) == 1 and key in ("steps_to_gain", "learned_drop", "learning_auc"):
+        drops = {m: strata(scores, tasks, m, "learned_drop")[0] for m in (PROPOSED, versus)}
         learned = [f"{short_label(m)} {np.isfinite(d).sum()}/{len(d)}" for m, d in drops.items()]
         parts.append(f"runs that learned: {', '.join(learned)}")
     low, high = estimate.low, estimate.high
@@ -251,15 +209,38 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
 Rule = Callable[[Scores, list[str], int], TaskVerdict]
 """A claim's test, ``rule(scores, tasks, seed)``, on one task or several pooled."""
 
-CLAIMS: tuple[tuple[str, str, Rule, tuple[str, ...]], ...] = (
-    *(
-        (
-            c.claim,
-            f"PoI of Dist-GPRL over {short_label(c.versus)}, {c.measure}",
-            partial(poi_verdict, claim=c),
-            (PROPOSED, c.versus),
-        )
-        for c in POI_CLAIMS
+Claim = tuple[str, str, Rule, tuple[str, ...]]
+"""A claim: (claim, test in words, rule, the methods whose runs it reads)."""
+
+
+def _poi_claim(claim: str, versus: str, key: str, measure: str) -> Claim:
+    test = f"PoI of Dist-GPRL over {short_label(versus)}, {measure}"
+    return claim, test, partial(poi_verdict, versus=versus, key=key), (PROPOSED, versus)
+
+
+CLAIMS: tuple[Claim, ...] = (
+    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
+    _poi_claim(
+        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
+    ),
+    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
+    _poi_claim(
+        "The HAP prior speeds convergence",
+        "gprl-d",
+        "steps_to_gain",
+        "fewer steps until the curve holds 0.2 above the untrained policy's",
+    ),
+    _poi_claim(
+        "The covariance transform improves stability",
+        "dist-gprl-nocov",
+        "learned_drop",
+        "smaller mean drop of curve success once learned (never learned: worst)",
+    ),
+    _poi_claim(
+        "The covariance transform improves sample efficiency",
+        "dist-gprl-nocov",
+        "learning_auc",
+        "larger mean gain of curve success over the untrained policy's",
     ),
     (
         "Dist-GPRL has the best success",
@@ -287,7 +268,7 @@ CLAIMS: tuple[tuple[str, str, Rule, tuple[str, ...]], ...] = (
         RANKED,
     ),
 )
-"""Every claim in the paper's order: (claim, test in words, rule, methods it reads)."""
+"""Every claim in the paper's order: the PoI claims, then the ranking claims."""
 
 
 def _waiting_for(scores: Scores, tasks: list[str], needs: tuple[str, ...]) -> str:
