@@ -141,14 +141,9 @@ def extreme_verdict(
     shown = estimates[rival].seeds
     detail = f"highest other: {short_label(rival)} {estimates[rival].text()}" if shown else ""
     others = list(estimates.values())
-    return _judge(
-        tasks,
-        own,
-        [own, *others],
-        all(_above(own, other) for other in others),
-        any(_above(other, own) for other in others),
-        detail,
-    )
+    highest = all(_above(own, other) for other in others)
+    beaten = any(_above(other, own) for other in others)
+    return _judge(tasks, own, [own, *others], highest, beaten, detail)
 
 
 def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
@@ -159,21 +154,19 @@ def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVer
     others = [m for m in RANKED if m != method]
     below = sum(_above(collision[m], collision[method]) for m in others)
     above = sum(_above(collision[method], collision[m]) for m in others)
+    conservative = _above(success[PROPOSED], success[method]) and below >= len(others) / 2
+    bold = _above(success[method], success[PROPOSED]) or above >= len(others) / 2
     detail = (
         f"success IQM {success[method].text()} vs Dist-GPRL {success[PROPOSED].text()}; "
         f"collision IQM below {below}, above {above} of {len(others)} others"
     )
-    return _judge(
-        tasks,
-        collision[method],
-        [*success.values(), *collision.values()],
-        _above(success[PROPOSED], success[method]) and below >= len(others) / 2,
-        _above(success[method], success[PROPOSED]) or above >= len(others) / 2,
-        detail if success[method].seeds and success[PROPOSED].seeds else "",
-    )
+    shown = detail if success[method].seeds and success[PROPOSED].seeds else ""
+    read = [*success.values(), *collision.values()]
+    return _judge(tasks, collision[method], read, conservative, bold, shown)
 
 
-def _labels(methods: list[str]) -> str:
+def labels(methods: Sequence[str]) -> str:
+    """The methods' short labels, comma-separated; ``none`` for no method."""
     return ", ".join(short_label(m) for m in methods) or "none"
 
 
@@ -189,21 +182,17 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
 
     dominated_by = {b: [a for a in RANKED if a != b and dominates(a, b)] for b in RANKED}
     dominating = [m for m in RANKED if PROPOSED in dominated_by[m]]
+    balances = not dominated_by[PROPOSED] and bool(dominating)
     read = [e for per in iqm.values() for e in per.values()]
     detail = (
         f"success IQM {iqm['success_rate'][PROPOSED].text()}, collision IQM "
-        f"{iqm['collision_rate'][PROPOSED].text()}; dominates {_labels(dominating)}; "
-        f"dominated by {_labels(dominated_by[PROPOSED])}; non-dominated: "
-        f"{_labels([m for m in RANKED if not dominated_by[m]])}"
+        f"{iqm['collision_rate'][PROPOSED].text()}; dominates {labels(dominating)}; "
+        f"dominated by {labels(dominated_by[PROPOSED])}; non-dominated: "
+        f"{labels([m for m in RANKED if not dominated_by[m]])}"
     )
-    return _judge(
-        tasks,
-        iqm["mean_kinematic_retention"][PROPOSED],
-        read,
-        not dominated_by[PROPOSED] and bool(dominating),
-        bool(dominated_by[PROPOSED]),
-        detail if all(e.has_interval for e in read) else "",
-    )
+    shown = detail if all(e.has_interval for e in read) else ""
+    own = iqm["mean_kinematic_retention"][PROPOSED]
+    return _judge(tasks, own, read, balances, bool(dominated_by[PROPOSED]), shown)
 
 
 Rule = Callable[[Scores, list[str], int], TaskVerdict]

@@ -10,13 +10,14 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
-from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, short_label, tasks_of
-from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims
+from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
+from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims, labels
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
-NOT_RUN = "not run under this reading"
-OUTSIDE = "not tested by this study"
+# A study reading's verdict on a claim reading a method it acts on without a run under it:
+NOT_RUN = "not run under this reading"  # the study trains the method: run it
+OUTSIDE = "not tested by this study"  # the study does not train it: no run will come
 UNEQUAL_SEEDS = "at unequal seeds"
 PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
 
@@ -67,16 +68,13 @@ def _not_run(verdict: Verdict, study: Study, reading: Reading, not_run: tuple[st
     lacking = [m for m in verdict.needs if m in not_run]
     if not lacking:
         return verdict
-    outside = ", ".join(short_label(m) for m in lacking if m not in study.methods)
-    detail = (
-        f"{', '.join(map(short_label, lacking))} under {reading.preset}: the reading changes it"
-    )
-    trained = ", ".join(map(short_label, study.methods))
-    detail += (
-        f", and the {study.name} study trains {trained} only (not {outside})"
-        if outside
-        else "; run it"
-    )
+    outside = [m for m in lacking if m not in study.methods]
+    detail = f"{labels(lacking)} under {reading.preset}: the reading changes it"
+    if outside:
+        trained = labels(study.methods)
+        detail += f", and the {study.name} study trains {trained} only (not {labels(outside)})"
+    else:
+        detail += "; run it"
     word = OUTSIDE if outside else NOT_RUN
     return replace(verdict, per_task=(), pooled=None, verdict=word, detail=detail)
 
@@ -190,9 +188,7 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
             "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
             "verdict there may be the seed count's.\n"
         )
-    missing = [
-        f"{r.reading.label}: {', '.join(map(short_label, r.not_run))}" for r in results if r.not_run
-    ]
+    missing = [f"{r.reading.label}: {labels(r.not_run)}" for r in results if r.not_run]
     if missing:
         markdown += (
             "\nMethods a reading acts on without runs under it (the claims reading them are "
