@@ -268,9 +268,8 @@ def test_the_overall_rule_combines_the_tasks():
 
 def test_flat_curves_cannot_reproduce_the_curve_claims(tmp_path):
     """End to end from progress files: Dist-GPRL's curves flat at the demo's level, NoCov's
-    falling to 0 and then learning to 0.8. The old measures scored the flat curve as fast
-    and stable; now Dist-GPRL has learned nothing (0/5 runs), so stability and sample
-    efficiency are refuted, not reproduced."""
+    falling to 0 and then learning to 0.8. A flat curve has learned nothing (0/5 runs), so
+    stability and sample efficiency are refuted, not reproduced."""
     for task in ("dcp", "dbm"):
         for seed in range(SEEDS):
             flat = [0.44] * 11
