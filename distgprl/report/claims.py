@@ -1,19 +1,15 @@
-"""The paper's claims, each tested by one statistic of the runs, per task, with a verdict.
+"""The paper's claims, each tested by one statistic of the runs on each task, the estimate
+pooling the tasks beside, and an overall verdict combined from the tasks' (`combine`).
 
-One row per claim the paper makes in its results and discussion: the statistic that tests it
-(`distgprl.report.aggregate`), its value, 95 % interval and verdict on each task alone, the
-estimate pooling both tasks (one stratum per task) beside it, never instead of it, then an
-overall verdict combined from the tasks' (`combine`). The rules ("protocol" below):
-docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them"; why
-each is as it is: "Claims rules that cannot mislead" there. Written as ``claims_<preset>.csv``
-(`CSV_FIELDS`) and ``.md`` by `claims_texts`.
+Rules: docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them".
+Written as ``claims_<preset>.csv`` (`CSV_FIELDS`) and ``.md`` by `claims_texts`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -42,22 +38,12 @@ REPRODUCED, REFUTED, INCONCLUSIVE = "reproduced", "refuted", "inconclusive"
 NO_RUNS = f"{INCONCLUSIVE} (no runs)"
 FEW_SEEDS = f"{INCONCLUSIVE} (fewer than 2 seeds)"
 TASKS_DISAGREE = "the tasks disagree"
-"""The overall verdict when one task reproduces a claim and another refutes it."""
-
-DECIDED = (REPRODUCED, REFUTED, INCONCLUSIVE)
-"""The verdicts a task with runs of every needed method (two or more seeds) can reach."""
 
 
 @dataclass(frozen=True)
 class TaskVerdict:
-    """A claim tested on one task alone (or, `ALL_TASKS`, on the tasks pooled).
-
-    Attributes:
-        task: the task's name, or `ALL_TASKS` for the pooled estimate.
-        estimate: the statistic's value and 95 % interval.
-        verdict: `REPRODUCED`, `REFUTED` or an `INCONCLUSIVE` text (protocol).
-        detail: what else the rule looked at on this task.
-    """
+    """A claim on one task (or `ALL_TASKS`, pooled): the statistic's estimate, the verdict,
+    and what else the rule read."""
 
     task: str
     estimate: Estimate
@@ -67,18 +53,9 @@ class TaskVerdict:
 
 @dataclass(frozen=True)
 class Verdict:
-    """A tested claim: its per-task verdicts, the overall one, the pooled estimate beside.
-
-    Attributes:
-        claim: the paper's claim in a few words.
-        test: the statistic that tests it, in words.
-        per_task: one `TaskVerdict` per task with runs, in the paper's order.
-        pooled: the same statistic pooling the tasks (one stratum each), shown beside the
-            per-task ones; None with a single task.
-        verdict: the overall verdict, `combine` of the per-task ones.
-        detail: what the overall verdict waits for (methods without runs), if anything.
-        needs: the methods whose runs the test reads.
-    """
+    """A tested claim: a `TaskVerdict` per task with runs (paper's order), the pooled one
+    beside (None with one task), the overall verdict and what it waits for, and the methods
+    whose runs the test reads (``needs``)."""
 
     claim: str
     test: str
@@ -88,85 +65,37 @@ class Verdict:
     detail: str = ""
     needs: tuple[str, ...] = ()
 
-    def on(self, task: str) -> TaskVerdict:
-        """The verdict on ``task`` (`ALL_TASKS`: the pooled one)."""
-        if task == ALL_TASKS and self.pooled is not None:
-            return self.pooled
-        return next(v for v in self.per_task if v.task == task)
-
-
-@dataclass(frozen=True)
-class PoiClaim:
-    """A claim tested by Dist-GPRL's probability of improvement over ``versus`` on ``key``."""
-
-    claim: str
-    versus: str
-    key: str
-    measure: str
-
-
-POI_CLAIMS = (
-    PoiClaim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
-    PoiClaim(
-        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
-    ),
-    PoiClaim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
-    PoiClaim(
-        "The HAP prior speeds convergence",
-        "gprl-d",
-        "steps_to_gain",
-        "fewer steps until the curve holds 0.2 above the untrained policy's",
-    ),
-    PoiClaim(
-        "The covariance transform improves stability",
-        "dist-gprl-nocov",
-        "learned_drop",
-        "smaller mean drop of curve success once learned (never learned: worst)",
-    ),
-    PoiClaim(
-        "The covariance transform improves sample efficiency",
-        "dist-gprl-nocov",
-        "learning_auc",
-        "larger mean gain of curve success over the untrained policy's",
-    ),
-)
-"""The claims tested by a probability of improvement, in the paper's order."""
 
 BALANCE = "Dist-GPRL balances success, collisions and kinematic retention"
-BALANCE_AXES = (
-    ("success_rate", True, "success"),
-    ("collision_rate", False, "collision"),
-    ("mean_kinematic_retention", True, "retention"),
-)
-"""The balance claim's axes: (score, higher is better, label)."""
+BALANCE_AXES = {"success_rate": True, "collision_rate": False, "mean_kinematic_retention": True}
+"""The balance claim's axes: {score: higher is better}."""
 
 
-def _availability(estimates: list[Estimate]) -> str | None:
-    """`NO_RUNS` or `FEW_SEEDS` if some estimate lacks runs or an interval, else None."""
-    if any(not e.seeds for e in estimates):
-        return NO_RUNS
-    if any(not e.has_interval for e in estimates):
-        return FEW_SEEDS
-    return None
-
-
-def _decide(reproduced: bool, refuted: bool) -> str:
-    """`REPRODUCED` if ``reproduced``, else `REFUTED` if ``refuted``, else `INCONCLUSIVE`."""
-    return REPRODUCED if reproduced else REFUTED if refuted else INCONCLUSIVE
-
-
-def _where(tasks: list[str]) -> str:
-    """The `TaskVerdict.task` of a test on ``tasks``: the one task, or `ALL_TASKS` pooled."""
-    return tasks[0] if len(tasks) == 1 else ALL_TASKS
+def _judge(
+    tasks: list[str],
+    value: Estimate,
+    read: list[Estimate],
+    reproduced: bool,
+    refuted: bool,
+    detail: str = "",
+) -> TaskVerdict:
+    """The verdict on ``tasks`` (one task, or `ALL_TASKS` pooled) of a rule whose estimates
+    ``read`` decide it; `NO_RUNS` or `FEW_SEEDS` while one lacks runs or an interval."""
+    if any(not e.seeds for e in read):
+        verdict = NO_RUNS
+    elif any(not e.has_interval for e in read):
+        verdict = FEW_SEEDS
+    else:
+        verdict = REPRODUCED if reproduced else REFUTED if refuted else INCONCLUSIVE
+    return TaskVerdict(tasks[0] if len(tasks) == 1 else ALL_TASKS, value, verdict, detail)
 
 
 def combine(per_task: Sequence[TaskVerdict]) -> str:
-    """The overall verdict from the per-task ones (protocol): every task must
-    reproduce for *reproduced*; one reproducing and another refuting is `TASKS_DISAGREE`."""
+    """The overall verdict from the per-task ones (protocol, `combine`)."""
     verdicts = [v.verdict for v in per_task]
     if not verdicts or NO_RUNS in verdicts:
         return NO_RUNS
-    if any(v not in DECIDED for v in verdicts):
+    if any(v not in (REPRODUCED, REFUTED, INCONCLUSIVE) for v in verdicts):
         return FEW_SEEDS
     reproducing = [v.task.upper() for v in per_task if v.verdict == REPRODUCED]
     refuting = [v.task.upper() for v in per_task if v.verdict == REFUTED]
@@ -178,14 +107,9 @@ def combine(per_task: Sequence[TaskVerdict]) -> str:
     return INCONCLUSIVE
 
 
-def _above(a: Estimate, b: Estimate) -> bool:
-    """Whether ``a``'s interval lies entirely above ``b``'s."""
-    return a.low > b.high
-
-
-def _better(a: Estimate, b: Estimate, higher_is_better: bool) -> bool:
+def _above(a: Estimate, b: Estimate, higher_is_better: bool = True) -> bool:
     """Whether ``a``'s interval lies entirely on the better side of ``b``'s."""
-    return _above(a, b) if higher_is_better else _above(b, a)
+    return a.low > b.high if higher_is_better else b.low > a.high
 
 
 def _iqms(scores: Scores, tasks: list[str], key: str, seed: int) -> dict[str, Estimate]:
@@ -193,223 +117,212 @@ def _iqms(scores: Scores, tasks: list[str], key: str, seed: int) -> dict[str, Es
     return {m: method_estimate(scores, tasks, m, key, "iqm", seed) for m in RANKED}
 
 
-CURVE_KEYS = ("steps_to_gain", "learned_drop", "learning_auc")
-"""The learning measures (`aggregate.curve_measures`); their claims also count the runs
-that learned, so a verdict driven by runs that never learned says so."""
-
-
-def _learned(scores: Scores, task: str, method: str) -> str:
-    """``k/n``: ``method``'s runs on ``task`` whose curve held `aggregate.GAIN_MARGIN` above
-    its start (a finite ``learned_drop``)."""
-    drops = strata(scores, [task], method, "learned_drop")[0]
-    return f"{int(np.isfinite(drops).sum())}/{len(drops)}"
-
-
-def poi_task_verdict(scores: Scores, tasks: list[str], claim: PoiClaim, seed: int) -> TaskVerdict:
-    """``claim`` on ``tasks`` (one task, or all pooled) by the PoI rule; its detail counts
-    the run pairs favouring Dist-GPRL on a single task (``25/25 run pairs``) and, for a
-    curve claim, the runs of each method that learned at all."""
-    estimate = poi(scores, tasks, PROPOSED, claim.versus, claim.key, seed)
+def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: str) -> TaskVerdict:
+    """ "Dist-GPRL improves on ``versus`` in ``key``" by the PoI rule; the detail counts the
+    run pairs favouring Dist-GPRL on one task and, for a curve measure, each method's runs
+    that learned (a finite ``learned_drop``)."""
+    estimate = poi(scores, tasks, PROPOSED, versus, key, seed)
     parts = [f"{estimate.pairs_text()} favour Dist-GPRL"] if estimate.pairs_text() else []
-    if len(tasks) == 1 and claim.key in CURVE_KEYS and estimate.seeds:
-        parts.append(
-            f"runs that learned: Dist-GPRL {_learned(scores, tasks[0], PROPOSED)}, "
-            f"{short_label(claim.versus)} {_learned(scores, tasks[0], claim.versus)}"
-        )
-    verdict = _availability([estimate]) or _decide(estimate.low > 0.5, estimate.high < 0.5)
-    return TaskVerdict(_where(tasks), estimate, verdict, ", ".join(parts))
+    if len(tasks) == 1 and key in ("steps_to_gain", "learned_drop", "learning_auc"):
+        drops = {m: strata(scores, tasks, m, "learned_drop")[0] for m in (PROPOSED, versus)}
+        learned = [f"{short_label(m)} {np.isfinite(d).sum()}/{len(d)}" for m, d in drops.items()]
+        parts.append(f"runs that learned: {', '.join(learned)}")
+    low, high = estimate.low, estimate.high
+    return _judge(tasks, estimate, [estimate], low > 0.5, high < 0.5, ", ".join(parts))
 
 
 def extreme_verdict(
-    scores: Scores, tasks: list[str], method: str, key: str, seed: int
+    scores: Scores, tasks: list[str], seed: int, method: str, key: str
 ) -> TaskVerdict:
-    """ "``method`` has the highest ``key``" on ``tasks`` by the IQM-interval rule."""
+    """ "``method`` has the highest ``key``" by the IQM-interval rule."""
     estimates = _iqms(scores, tasks, key, seed)
     own = estimates.pop(method)
     rival = max(estimates, key=lambda m: estimates[m].point if estimates[m].seeds else -1.0)
-    detail = f"highest other: {short_label(rival)} {estimates[rival].text()}"
-    verdict = _availability([own, *estimates.values()]) or _decide(
-        all(_above(own, other) for other in estimates.values()),
-        any(_above(other, own) for other in estimates.values()),
-    )
-    return TaskVerdict(_where(tasks), own, verdict, detail if estimates[rival].seeds else "")
+    shown = estimates[rival].seeds
+    detail = f"highest other: {short_label(rival)} {estimates[rival].text()}" if shown else ""
+    others = list(estimates.values())
+    highest = all(_above(own, other) for other in others)
+    beaten = any(_above(other, own) for other in others)
+    return _judge(tasks, own, [own, *others], highest, beaten, detail)
 
 
 def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
-    """ "ProMP-RRL is conservative" on ``tasks`` by its rule (protocol)."""
+    """ "ProMP-RRL is conservative"; the value is its collision IQM."""
     method = "promp-rrl"
     success = _iqms(scores, tasks, "success_rate", seed)
     collision = _iqms(scores, tasks, "collision_rate", seed)
     others = [m for m in RANKED if m != method]
     below = sum(_above(collision[m], collision[method]) for m in others)
     above = sum(_above(collision[method], collision[m]) for m in others)
+    conservative = _above(success[PROPOSED], success[method]) and below >= len(others) / 2
+    bold = _above(success[method], success[PROPOSED]) or above >= len(others) / 2
     detail = (
         f"success IQM {success[method].text()} vs Dist-GPRL {success[PROPOSED].text()}; "
         f"collision IQM below {below}, above {above} of {len(others)} others"
     )
-    verdict = _availability([*success.values(), *collision.values()]) or _decide(
-        _above(success[PROPOSED], success[method]) and below >= len(others) / 2,
-        _above(success[method], success[PROPOSED]) or above >= len(others) / 2,
-    )
-    shown = success[method].seeds and success[PROPOSED].seeds
-    return TaskVerdict(_where(tasks), collision[method], verdict, detail if shown else "")
+    shown = detail if success[method].seeds and success[PROPOSED].seeds else ""
+    read = [*success.values(), *collision.values()]
+    return _judge(tasks, collision[method], read, conservative, bold, shown)
 
 
-def non_dominated(estimates: dict[str, dict[str, Estimate]]) -> dict[str, list[str]]:
-    """{method: the methods dominating it} on `BALANCE_AXES` (protocol: decisively
-    better on one axis, decisively worse on none); a method with an empty list is in the
-    non-dominated set. ``estimates`` is {score: {method: IQM estimate}}."""
-    methods = list(next(iter(estimates.values())))
-
-    def dominates(a: str, b: str) -> bool:
-        better = [_better(estimates[k][a], estimates[k][b], up) for k, up, _ in BALANCE_AXES]
-        worse = [_better(estimates[k][b], estimates[k][a], up) for k, up, _ in BALANCE_AXES]
-        return any(better) and not any(worse)
-
-    return {b: [a for a in methods if a != b and dominates(a, b)] for b in methods}
-
-
-def _labels(methods: list[str]) -> str:
+def labels(methods: Sequence[str]) -> str:
+    """The methods' short labels, comma-separated; ``none`` for no method."""
     return ", ".join(short_label(m) for m in methods) or "none"
 
 
 def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
-    """ "Dist-GPRL balances success, collisions and kinematic retention" on ``tasks`` by the
-    three-axis dominance rule (protocol). The value is Dist-GPRL's retention IQM;
-    the detail gives its success and collision IQMs and the non-dominated set."""
-    estimates = {key: _iqms(scores, tasks, key, seed) for key, _, _ in BALANCE_AXES}
-    own = estimates["mean_kinematic_retention"][PROPOSED]
-    missing = _availability([e for per in estimates.values() for e in per.values()])
-    if missing is not None:
-        return TaskVerdict(_where(tasks), own, missing)
-    dominated_by = non_dominated(estimates)
+    """The balance claim by three-axis dominance on IQM intervals; the value is Dist-GPRL's
+    retention IQM, the detail its success and collision IQMs and the non-dominated set."""
+    iqm = {key: _iqms(scores, tasks, key, seed) for key in BALANCE_AXES}
+
+    def dominates(a: str, b: str) -> bool:
+        better = [_above(iqm[k][a], iqm[k][b], up) for k, up in BALANCE_AXES.items()]
+        worse = [_above(iqm[k][b], iqm[k][a], up) for k, up in BALANCE_AXES.items()]
+        return any(better) and not any(worse)
+
+    dominated_by = {b: [a for a in RANKED if a != b and dominates(a, b)] for b in RANKED}
     dominating = [m for m in RANKED if PROPOSED in dominated_by[m]]
-    verdict = _decide(not dominated_by[PROPOSED] and bool(dominating), bool(dominated_by[PROPOSED]))
+    balances = not dominated_by[PROPOSED] and bool(dominating)
+    read = [e for per in iqm.values() for e in per.values()]
     detail = (
-        f"success IQM {estimates['success_rate'][PROPOSED].text()}, collision IQM "
-        f"{estimates['collision_rate'][PROPOSED].text()}; dominates {_labels(dominating)}; "
-        f"dominated by {_labels(dominated_by[PROPOSED])}; non-dominated: "
-        f"{_labels([m for m in RANKED if not dominated_by[m]])}"
+        f"success IQM {iqm['success_rate'][PROPOSED].text()}, collision IQM "
+        f"{iqm['collision_rate'][PROPOSED].text()}; dominates {labels(dominating)}; "
+        f"dominated by {labels(dominated_by[PROPOSED])}; non-dominated: "
+        f"{labels([m for m in RANKED if not dominated_by[m]])}"
     )
-    return TaskVerdict(_where(tasks), own, verdict, detail)
+    shown = detail if all(e.has_interval for e in read) else ""
+    own = iqm["mean_kinematic_retention"][PROPOSED]
+    return _judge(tasks, own, read, balances, bool(dominated_by[PROPOSED]), shown)
 
 
-TaskRule = Callable[..., TaskVerdict]
-"""A claim's test, ``rule(scores, tasks, seed=seed)``, on one task or several pooled."""
+Rule = Callable[[Scores, list[str], int], TaskVerdict]
+"""A claim's test, ``rule(scores, tasks, seed)``, on one task or several pooled."""
 
-RANKING_CLAIMS: tuple[tuple[str, str, TaskRule], ...] = (
+Claim = tuple[str, str, Rule, tuple[str, ...]]
+"""A claim: (claim, test in words, rule, the methods whose runs it reads)."""
+
+
+def _poi_claim(claim: str, versus: str, key: str, measure: str) -> Claim:
+    test = f"PoI of Dist-GPRL over {short_label(versus)}, {measure}"
+    return claim, test, partial(poi_verdict, versus=versus, key=key), (PROPOSED, versus)
+
+
+CLAIMS: tuple[Claim, ...] = (
+    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
+    _poi_claim(
+        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
+    ),
+    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
+    _poi_claim(
+        "The HAP prior speeds convergence",
+        "gprl-d",
+        "steps_to_gain",
+        "fewer steps until the curve holds 0.2 above the untrained policy's",
+    ),
+    _poi_claim(
+        "The covariance transform improves stability",
+        "dist-gprl-nocov",
+        "learned_drop",
+        "smaller mean drop of curve success once learned (never learned: worst)",
+    ),
+    _poi_claim(
+        "The covariance transform improves sample efficiency",
+        "dist-gprl-nocov",
+        "learning_auc",
+        "larger mean gain of curve success over the untrained policy's",
+    ),
     (
         "Dist-GPRL has the best success",
         "Dist-GPRL's success IQM interval vs every other trained method's",
         partial(extreme_verdict, method=PROPOSED, key="success_rate"),
+        RANKED,
     ),
     (
         BALANCE,
         "Dist-GPRL's (success, collision, kinematic retention) IQM intervals vs each "
         "trained method's: the non-dominated set",
         balance_verdict,
+        RANKED,
     ),
     (
         "ProMP-RRL is conservative (few collisions, low success)",
         "ProMP-RRL's collision and success IQM intervals vs the other trained methods'",
         conservative_verdict,
+        RANKED,
     ),
     (
         "GPRL collides most",
         "GPRL's collision IQM interval vs every other trained method's",
         partial(extreme_verdict, method="gprl", key="collision_rate"),
+        RANKED,
     ),
 )
-"""The ranking claims, in the paper's order: (claim, test in words, rule); each reads the
-runs of every method of `RANKED`."""
+"""Every claim in the paper's order: the PoI claims, then the ranking claims."""
 
 
-def _claim(
-    scores: Scores, seed: int, claim: str, test: str, rule: TaskRule, needed: tuple[str, ...]
-) -> Verdict:
-    """``claim`` tested by ``rule`` on each task with runs, pooled beside, and combined; a
-    `NO_RUNS` verdict names in its detail the methods of ``needed`` it waits for (with the
-    tasks where only some lack a run)."""
-    tasks = tasks_of(scores)
-    per_task = tuple(rule(scores, [task], seed=seed) for task in tasks)
-    pooled = rule(scores, tasks, seed=seed) if len(tasks) > 1 else None
-    verdict = Verdict(claim, test, per_task, pooled, combine(per_task), needs=needed)
-    if verdict.verdict != NO_RUNS:
-        return verdict
+def _waiting_for(scores: Scores, tasks: list[str], needs: tuple[str, ...]) -> str:
+    """``no runs yet: GPRL-D (DCP), ...``: the methods of ``needs`` without runs (on which
+    tasks where only some lack one)."""
     missing = []
-    for method in needed:
+    for method in needs:
         lacking = [task.upper() for task in tasks if not scores.get((task, method))]
         if not tasks or len(lacking) == len(tasks):
             missing.append(short_label(method))
         elif lacking:
             missing.append(f"{short_label(method)} ({', '.join(lacking)})")
-    return replace(verdict, detail=f"no runs yet: {', '.join(missing)}")
+    return f"no runs yet: {', '.join(missing)}"
 
 
 def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]:
-    """Every claim of the paper tested on ``scores`` (protocol), in the paper's
-    order: the ablation claims by PoI (`POI_CLAIMS`), then the ranking claims."""
-    tests: list[tuple[str, str, TaskRule, tuple[str, ...]]] = [
-        (
-            c.claim,
-            f"PoI of Dist-GPRL over {short_label(c.versus)}, {c.measure}",
-            partial(poi_task_verdict, claim=c),
-            (PROPOSED, c.versus),
-        )
-        for c in POI_CLAIMS
-    ]
-    tests += [(*ranking, RANKED) for ranking in RANKING_CLAIMS]
-    return [_claim(scores, seed, *test) for test in tests]
+    """Every claim of `CLAIMS` tested on each task of ``scores``, pooled beside, combined."""
+    tasks = tasks_of(scores)
+    verdicts = []
+    for claim, test, rule, needs in CLAIMS:
+        per_task = tuple(rule(scores, [task], seed) for task in tasks)
+        pooled = rule(scores, tasks, seed) if len(tasks) > 1 else None
+        overall = combine(per_task)
+        detail = _waiting_for(scores, tasks, needs) if overall == NO_RUNS else ""
+        verdicts.append(Verdict(claim, test, per_task, pooled, overall, detail, needs))
+    return verdicts
 
 
 CSV_FIELDS = tuple("claim test task value ci_low ci_high seeds pairs verdict detail".split())
-"""Columns of ``claims_<preset>.csv``: one row per claim and task, then the claim's
-`ALL_TASKS` row, whose value and interval are the pooled estimate and whose verdict is the
-overall one (`combine` of the task rows; the pooled estimate does not decide it); value,
-interval, seeds and pairs as `aggregate.estimate_cells` writes them. The ProMP-RRL
-row's value is its collision IQM, its success IQM is in ``detail``; the balance row's value
-is Dist-GPRL's kinematic-retention IQM, its success and collision IQMs are in ``detail``."""
+"""Columns of ``claims_<preset>.csv``: one row per claim and task, then its `ALL_TASKS` row
+(the pooled estimate, the overall verdict); estimate cells as `estimate_cells` writes them.
+The value of the ProMP-RRL row is its collision IQM, of the balance row Dist-GPRL's
+kinematic-retention IQM (the other IQMs in ``detail``)."""
 
 
-def _estimate_text(estimate: Estimate) -> str:
-    """``value [low, high]``; a PoI with three digits, so that a bound just below 0.5 does
-    not print as 0.50 beside a decided verdict."""
+def _text(estimate: Estimate) -> str:
+    """``value [low, high]``; a PoI to three digits, so a bound just below 0.5 does not print
+    as 0.50 beside a decided verdict."""
     return estimate.text(3 if estimate.pairs else 2)
 
 
-def _csv_rows(claim: Verdict) -> list[dict[str, object]]:
-    """The `CSV_FIELDS` rows of ``claim``: one per task, then the overall one."""
-    pooled = claim.pooled.estimate if claim.pooled else Estimate(math.nan, 0, 0, ())
-    overall = TaskVerdict(ALL_TASKS, pooled, claim.verdict, claim.detail)
-    return [
-        {
-            "claim": claim.claim,
-            "test": claim.test,
-            "task": row.task,
-            **estimate_cells(row.estimate),
-            "verdict": row.verdict,
-            "detail": row.detail,
-        }
-        for row in (*claim.per_task, overall)
-    ]
-
-
-def _markdown_row(claim: Verdict) -> list[str]:
-    """``claim``'s Markdown row: each task's estimate and verdict, the pooled estimate with
-    several tasks, the overall verdict and the details."""
-    cells = [claim.claim, claim.test]
-    cells += [f"{_estimate_text(t.estimate)}: **{t.verdict}**" for t in claim.per_task]
-    cells += [_estimate_text(claim.pooled.estimate)] if claim.pooled is not None else []
-    also = [f"{t.task.upper()}: {t.detail}" for t in claim.per_task if t.detail]
-    also += [claim.detail] if claim.detail else []
-    return [*cells, f"**{claim.verdict}**", "; ".join(also) or "–"]
-
-
 def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
-    """(CSV, Markdown) of the claims table (`evaluate_claims`): per task first, pooled
-    beside, the overall verdict last."""
-    verdicts = evaluate_claims(scores, seed)
+    """(CSV, Markdown) of the claims table: per task first, pooled beside, overall last."""
     tasks = tasks_of(scores)
+    rows, cells = [], []
+    for claim in evaluate_claims(scores, seed):
+        pooled = claim.pooled.estimate if claim.pooled else Estimate(math.nan, 0, 0, ())
+        rows += [
+            {"claim": claim.claim, "test": claim.test, "task": t.task}
+            | estimate_cells(t.estimate)
+            | {"verdict": t.verdict, "detail": t.detail}
+            for t in (*claim.per_task, TaskVerdict(ALL_TASKS, pooled, claim.verdict, claim.detail))
+        ]
+        also = [f"{t.task.upper()}: {t.detail}" for t in claim.per_task if t.detail]
+        also += [claim.detail] if claim.detail else []
+        cells.append(
+            [
+                claim.claim,
+                claim.test,
+                *(f"{_text(t.estimate)}: **{t.verdict}**" for t in claim.per_task),
+                *([_text(pooled)] if claim.pooled else []),
+                f"**{claim.verdict}**",
+                "; ".join(also) or "–",
+            ]
+        )
     caption = (
         f"Claims of the paper ({preset} preset): the verdict on each task, then the overall "
         f"verdict combined from the tasks' (reproduced only if no task refutes; 'the tasks "
@@ -419,6 +332,5 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
     )
     header = ["Claim", "Test", *(f"{t.upper()} [95 % CI]" for t in tasks)]
     header += ["Pooled (beside)"] if len(tasks) > 1 else []
-    rows = [row for v in verdicts for row in _csv_rows(v)]
-    markdown = markdown_table(caption, [*header, "Verdict", "Also"], map(_markdown_row, verdicts))
+    markdown = markdown_table(caption, [*header, "Verdict", "Also"], cells)
     return csv_text(rows, CSV_FIELDS), markdown
