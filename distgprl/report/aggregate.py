@@ -96,17 +96,15 @@ def iqm(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.asarray(stats.trim_mean(np.concatenate(samples, axis=axis), 0.25, axis=axis))
 
 
-def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """P(X > Y) + P(X = Y) / 2 over run pairs, (reps, n_x), (reps, n_y) -> (reps,): the
-    Mann-Whitney U of X over n_x n_y."""
-    u = stats.mannwhitneyu(x, y, axis=-1, method="asymptotic", use_continuity=False).statistic
-    return np.asarray(u / (x.shape[-1] * y.shape[-1]))
-
-
-def mean_improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-    """The mean over strata of `improvement`, samples X and Y of each stratum in turn."""
-    pairs = zip(samples[::2], samples[1::2], strict=True)
-    return np.asarray(np.mean([improvement(x, y) for x, y in pairs], axis=0))
+def improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """P(X > Y) + P(X = Y) / 2 over run pairs (the Mann-Whitney U of X over n_x n_y), averaged
+    over strata: samples X and Y of each stratum in turn, (reps, n) each -> (reps,)."""
+    shares = [
+        stats.mannwhitneyu(x, y, axis=axis, method="asymptotic", use_continuity=False).statistic
+        / (x.shape[axis] * y.shape[axis])
+        for x, y in zip(samples[::2], samples[1::2], strict=True)
+    ]
+    return np.asarray(np.mean(shares, axis=0))
 
 
 def bootstrap_interval(
@@ -118,12 +116,7 @@ def bootstrap_interval(
     """The `CONFIDENCE` percentile interval (low, high) of ``statistic(*resamples, axis)`` by
     `scipy.stats.bootstrap`, each sample ((n_k,) or (n_k, m)) resampled on its own along axis 0."""
     result = stats.bootstrap(
-        tuple(samples),
-        statistic,
-        n_resamples=reps,
-        vectorized=True,
-        method="percentile",
-        rng=rng,
+        tuple(samples), statistic, n_resamples=reps, vectorized=True, method="percentile", rng=rng
     )
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
     low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
@@ -183,7 +176,7 @@ def probability_of_improvement(
         return _EMPTY
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    mean = interval_estimate([a for pair in pairs for a in pair], mean_improvement, rng, reps)
+    mean = interval_estimate([a for pair in pairs for a in pair], improvement, rng, reps)
     if not mean.has_interval:
         return Estimate(mean.point, math.nan, math.nan, seeds, sizes)
     bounds = [
@@ -274,14 +267,10 @@ def _estimate(
 def estimate_cells(estimate: Estimate) -> dict[str, object]:
     """An estimate's CSV cells: ``value``, ``ci_low``, ``ci_high`` (empty without them) and the
     ``;``-separated ``seeds`` and ``pairs`` per stratum."""
-    interval = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
-    return {
-        "value": estimate.point if estimate.seeds else "",
-        "ci_low": interval[0],
-        "ci_high": interval[1],
-        "seeds": ";".join(map(str, estimate.seeds)),
-        "pairs": ";".join(map(str, estimate.pairs)),
-    }
+    low, high = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
+    value = estimate.point if estimate.seeds else ""
+    seeds, pairs = (";".join(map(str, counts)) for counts in (estimate.seeds, estimate.pairs))
+    return {"value": value, "ci_low": low, "ci_high": high, "seeds": seeds, "pairs": pairs}
 
 
 CSV_FIELDS = tuple("task method versus metric statistic value ci_low ci_high seeds".split())
@@ -326,9 +315,7 @@ def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> 
     rows = aggregate_rows(scores, seed)
     frame = pd.DataFrame(rows, columns=[*CSV_FIELDS, "estimate"])
     frame["text"] = frame["estimate"].map(Estimate.text)
-    frame["label"] = frame["task"].map(
-        lambda t: "Both (stratified)" if t == ALL_TASKS else t.upper()
-    )
+    frame["label"] = frame["task"].str.upper().replace(ALL_TASKS.upper(), "Both (stratified)")
     frame["seeds"] = frame["seeds"].str.replace(";", "+")
     is_poi = frame["statistic"] == "poi"
     table = [

@@ -1,10 +1,8 @@
-"""The sensitivity figure of an operator study: a row per task, a panel per score (`PANELS`, on
-the evaluation TCs, Table I's policy). Each reading is a point at x = its mean operator gain on a
-raw action over the axes the task's TCs vary (1 passes an action through), y = the studied
-method's mean over seeds with its 95 % bootstrap interval; `REFERENCES` are dashed lines with
-bands; a control is hollow and grey, drawn `CONTROL_SHIFT_POINTS` right of its gain (the
-uncoupled control shares the signal reading's gain). Reads ``<root>/<study>/reach.json`` (the
-study sweep's) and the runs' result files."""
+"""The sensitivity figure of an operator study (docs/findings/operator.md, "The operator study
+and the noise curve"): per task and score (`PANELS`; evaluation TCs, Table I's policy) the
+studied method's mean over seeds (95 % interval) per reading at x = its mean operator gain on a
+raw action (1 passes it through); `REFERENCES` dashed; a control hollow, shifted right of the
+gain it shares. Reads ``<root>/<study>/reach.json`` and the runs' result files."""
 
 from __future__ import annotations
 
@@ -45,7 +43,7 @@ def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], f
 
 def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
     estimate = method_estimate(scores, [task], method, key, "mean", seed)
-    return estimate if scores.get((task, method)) and estimate.seeds else None
+    return estimate if estimate.seeds else None
 
 
 def write_sensitivity(
