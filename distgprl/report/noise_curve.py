@@ -22,21 +22,17 @@ ERROR = "perception_error_mm_median"
 def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
     """{method: its twin rows of `REPAIR` with a perception error, by increasing error} for
     every method with at least two such rows (table order)."""
-    twin = [
-        row
-        for row in rows
-        if row["backend"] == "twin"
-        and row["repair"] == REPAIR
-        and np.isfinite(row.get(ERROR, np.nan))
-    ]
-    methods = dict.fromkeys(row["method"] for row in twin)
-    series = {
-        method: sorted((row for row in twin if row["method"] == method), key=lambda r: r[ERROR])
-        for method in sorted(
-            methods, key=lambda m: TABLE_ORDER.index(m) if m in TABLE_ORDER else 99
-        )
+    series: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        error = row.get(ERROR, np.nan)
+        if row["backend"] == "twin" and row["repair"] == REPAIR and np.isfinite(error):
+            series.setdefault(row["method"], []).append(row)
+    ordered = sorted(series, key=lambda m: TABLE_ORDER.index(m) if m in TABLE_ORDER else 99)
+    return {
+        method: sorted(series[method], key=lambda r: r[ERROR])
+        for method in ordered
+        if len(series[method]) >= 2
     }
-    return {method: points for method, points in series.items() if len(points) >= 2}
 
 
 def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: str) -> list[Path]:
