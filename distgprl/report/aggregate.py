@@ -1,13 +1,6 @@
-"""Robust aggregates over seeds with stratified-bootstrap intervals (Agarwal et al. 2021).
-
-Per task and method, over seeds: the mean and the interquartile mean (IQM) of the success and
-collision rates, each with a 95 % percentile interval of the stratified bootstrap (one stratum
-per task; rows of task ``all`` pool the tasks); per ablation pair (`PROPOSED` against each of
-`PARTNERS`) the probability of improvement (PoI) with its interval, its score bound Newcombe's.
-What each statistic computes, and why (rliable 1.2.0's, by scipy.stats): "The aggregates'
-statistics" in docs/findings/protocol.md. Learning-curve measures per run (`curve_measures`)
-are scored here too (`run_scores`).
-"""
+"""Robust aggregates over seeds, rliable's by scipy.stats: means, IQMs and probabilities of
+improvement (PoI) with stratified-bootstrap intervals ("The aggregates' statistics",
+docs/findings/protocol.md)."""
 
 from __future__ import annotations
 
@@ -28,64 +21,34 @@ from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.markdown import csv_text, markdown_table
 
 BOOTSTRAP_REPS = 2000
-"""Bootstrap replicates per interval."""
-
 BOOTSTRAP_SEED = 0
-"""The seed `write_tables` passes in: the committed tables are reproducible byte for byte."""
-
+"""The seed of the committed tables (reproducible byte for byte)."""
 CONFIDENCE = 0.95
-"""Coverage of every interval."""
 
 PROPOSED = "dist-gprl"
-"""The method the ablation pairs compare against."""
-
 PARTNERS = ("dist-gprl-global", "gprl-d", "gprl-h", "dist-gprl-nocov", "gprl", "promp-rrl")
-"""The methods `PROPOSED` is compared with by probability of improvement."""
-
+"""The methods `PROPOSED` is compared with by PoI."""
 ALL_TASKS = "all"
-"""The task name of the rows pooling every task (one stratum per task)."""
-
+"""The task of the rows pooling every task (one stratum per task)."""
 RATES = (("success_rate", "Success"), ("collision_rate", "Collision"))
-"""The rates aggregated per task and method (key, label)."""
 
-HIGHER_IS_BETTER: dict[str, bool] = {
-    "success_rate": True,
-    "collision_rate": False,
-    "steps_to_gain": False,
-    "learned_drop": False,
-    "learning_auc": True,
-    "mean_kinematic_retention": True,
-}
-"""Every score `run_scores` gives, and whether a higher value is an improvement."""
+LOWER_IS_BETTER = ("collision_rate", "steps_to_gain", "learned_drop")
+"""The `run_scores` scores of which less is an improvement."""
 
 GAIN_MARGIN = 0.2
-"""`curve_measures`: the rise in curve success above the untrained policy's that counts as
-learning: two standard errors of the difference of two curve points at p = 1/2 on the paper's
-50 curve TCs (docs/findings/protocol.md, "The aggregates' statistics")."""
-
 GAIN_POINTS = 2
-"""`curve_measures`: consecutive curve points that must all lie `GAIN_MARGIN` above the
-start for the run to count as having learned (one point could be noise)."""
+"""`curve_measures`: the rise of curve success over the start that counts as learning, and the
+consecutive points that must hold it."""
 
-Strata = Sequence[np.ndarray]
-"""One 1-D array of per-run scores per stratum (task)."""
-
-Statistic = Callable[..., np.ndarray]
-"""A statistic of strata, ``statistic(*strata, axis=-1)``: arrays (reps, n_k) -> values
-(reps,), the runs along ``axis`` (`scipy.stats.bootstrap`'s vectorized form)."""
+Scores = Mapping[tuple[str, str], Sequence[Mapping[str, float]]]
+"""{(task, method): [`run_scores` per seed]}."""
 
 
 @dataclass(frozen=True)
 class Estimate:
-    """A point estimate with its bootstrap interval.
-
-    Attributes:
-        point: the statistic on the data (nan with no runs).
-        low, high: the `CONFIDENCE` interval (nan if a stratum has < 2 runs): the bootstrap
-            percentile interval, for a PoI widened to its score bound (`newcombe_interval`).
-        seeds: runs per stratum (for a PoI, the smaller of the two methods' per stratum).
-        pairs: for a PoI, the run pairs (n_X n_Y) per stratum; empty otherwise.
-    """
+    """A point estimate (nan without runs) with its interval (nan below two runs in a stratum);
+    ``seeds``: runs per stratum (a PoI: the fewer of the two methods'); ``pairs``: a PoI's run
+    pairs n_X n_Y per stratum."""
 
     point: float
     low: float
@@ -95,12 +58,10 @@ class Estimate:
 
     @property
     def has_interval(self) -> bool:
-        """Whether every stratum had at least two runs (so the interval exists)."""
         return bool(self.seeds) and min(self.seeds) >= 2
 
     def text(self, digits: int = 2) -> str:
-        """``point [low, high]``; ``point (1 seed: no interval)`` below two runs in a
-        stratum; ``–`` with no runs."""
+        """``point [low, high]``, ``point (1 seed: no interval)``, or ``–`` without runs."""
         if not self.seeds:
             return "–"
         if not self.has_interval:
@@ -108,8 +69,7 @@ class Estimate:
         return f"{self.point:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
 
     def pairs_text(self) -> str:
-        """For a PoI on one stratum, the run pairs that favour X (ties count half), e.g.
-        ``25/25 run pairs``; empty otherwise."""
+        """A one-stratum PoI's run pairs favouring X (ties half): ``25/25 run pairs``."""
         if len(self.pairs) != 1 or not self.seeds:
             return ""
         won = self.point * self.pairs[0]
@@ -117,9 +77,11 @@ class Estimate:
         return f"{count}/{self.pairs[0]} run pairs"
 
 
+_EMPTY = Estimate(math.nan, math.nan, math.nan, ())
+
+
 def estimate_rng(seed: int, *names: str) -> np.random.Generator:
-    """The generator of one estimate: seeded by ``seed`` and the estimate's names (CRC-32,
-    stable across processes, unlike `hash`)."""
+    """One estimate's generator, seeded by ``seed`` and the CRC-32 of its names."""
     key = zlib.crc32("/".join(names).encode())
     return np.random.default_rng(np.random.SeedSequence([seed, key]))
 
@@ -134,35 +96,27 @@ def iqm(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
     return np.asarray(stats.trim_mean(np.concatenate(samples, axis=axis), 0.25, axis=axis))
 
 
-def improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """P(X > Y) + P(X = Y) / 2 over all run pairs, per replicate: (reps, n_x), (reps, n_y)
-    -> (reps,): scipy's Mann-Whitney U of X over n_x n_y (rliable's
-    ``probability_of_improvement``), 1/2 for identical samples."""
-    u = stats.mannwhitneyu(x, y, axis=-1, method="asymptotic", use_continuity=False).statistic
-    probability: np.ndarray = np.asarray(u) / (x.shape[-1] * y.shape[-1])
-    return probability
+def improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+    """P(X > Y) + P(X = Y) / 2 over run pairs (the Mann-Whitney U of X over n_x n_y), averaged
+    over strata: samples X and Y of each stratum in turn, (reps, n) each -> (reps,)."""
+    shares = [
+        stats.mannwhitneyu(x, y, axis=axis, method="asymptotic", use_continuity=False).statistic
+        / (x.shape[axis] * y.shape[axis])
+        for x, y in zip(samples[::2], samples[1::2], strict=True)
+    ]
+    return np.asarray(np.mean(shares, axis=0))
 
 
 def bootstrap_interval(
     samples: Sequence[np.ndarray],
-    statistic: Statistic,
+    statistic: Callable[..., np.ndarray],
     rng: np.random.Generator,
     reps: int = BOOTSTRAP_REPS,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The `CONFIDENCE` percentile interval (low, high) of ``statistic`` over ``samples``
-    (each a (n_k,) or (n_k, m) array; statistic(*resamples, axis) -> values) by
-    `scipy.stats.bootstrap`: ``reps`` replicates, each resampling every sample (stratum) with
-    replacement on its own along its first axis; endpoints by `numpy.percentile` of scipy's
-    bootstrap distribution."""
+    """The `CONFIDENCE` percentile interval (low, high) of ``statistic(*resamples, axis)`` by
+    `scipy.stats.bootstrap`, each sample ((n_k,) or (n_k, m)) resampled on its own along axis 0."""
     result = stats.bootstrap(
-        tuple(samples),
-        statistic,
-        n_resamples=reps,
-        vectorized=True,
-        axis=0,
-        method="percentile",
-        confidence_level=CONFIDENCE,
-        rng=rng,
+        tuple(samples), statistic, n_resamples=reps, vectorized=True, method="percentile", rng=rng
     )
     tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
     low, high = np.percentile(result.bootstrap_distribution, [tail, 100.0 - tail], axis=-1)
@@ -170,15 +124,16 @@ def bootstrap_interval(
 
 
 def interval_estimate(
-    strata: Strata, statistic: Statistic, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
+    strata: Sequence[np.ndarray],
+    statistic: Callable[..., np.ndarray],
+    rng: np.random.Generator,
+    reps: int = BOOTSTRAP_REPS,
 ) -> Estimate:
-    """``statistic`` of ``strata`` (empty strata dropped) with its stratified-bootstrap
-    percentile interval (`bootstrap_interval`; rliable ``get_interval_estimates``, one score
-    array)."""
+    """``statistic`` of the non-empty ``strata`` (1-D runs each) with its bootstrap interval."""
     arrays = [np.asarray(s, dtype=float) for s in strata if len(s)]
-    seeds = tuple(len(a) for a in arrays)
     if not arrays:
-        return Estimate(math.nan, math.nan, math.nan, ())
+        return _EMPTY
+    seeds = tuple(len(a) for a in arrays)
     point = float(statistic(*(a[None, :] for a in arrays), axis=-1)[0])
     if min(seeds) < 2:
         return Estimate(point, math.nan, math.nan, seeds)
@@ -187,10 +142,7 @@ def interval_estimate(
 
 
 def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
-    """The `CONFIDENCE` score interval of a PoI ``theta`` (in [0, 1]) of ``n_x`` runs
-    against ``n_y``: every θ with (theta - θ)² <= z² V(θ), V Newcombe's (2006) method-5
-    Hanley-McNeil variance (docs/findings/protocol.md, "The aggregates' statistics"), so it is
-    not degenerate at 0 or 1 (5 vs 5 runs at 1: [0.65, 1])."""
+    """Newcombe's method-5 score interval of a PoI ``theta`` of ``n_x`` runs against ``n_y``."""
     z = stats.norm.ppf(0.5 + CONFIDENCE / 2.0)
     n = (n_x + n_y) / 2.0
 
@@ -205,24 +157,15 @@ def newcombe_interval(theta: float, n_x: int, n_y: int) -> tuple[float, float]:
     return float(low), float(high)
 
 
-def mean_improvement(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
-    """The mean over strata of `improvement`, a `Statistic` of X and Y of each stratum in
-    turn ((reps, n) each, the runs along the last axis)."""
-    pairs = zip(samples[::2], samples[1::2], strict=True)
-    return np.asarray(np.mean([improvement(x, y) for x, y in pairs], axis=0))
-
-
 def probability_of_improvement(
-    x_strata: Strata,
-    y_strata: Strata,
+    x_strata: Sequence[np.ndarray],
+    y_strata: Sequence[np.ndarray],
     rng: np.random.Generator,
     higher_is_better: bool = True,
     reps: int = BOOTSTRAP_REPS,
 ) -> Estimate:
-    """The PoI of X over Y (P(X > Y) + P(X = Y) / 2 over run pairs, `improvement`) averaged
-    over the strata where both have runs, with its independent stratified-bootstrap interval
-    (`interval_estimate` of `mean_improvement`) widened to the mean of the strata's
-    `newcombe_interval` bounds (docs/findings/protocol.md, "The aggregates' statistics")."""
+    """The PoI of X over Y averaged over the strata where both have runs, its independent
+    bootstrap interval widened to the mean of the strata's `newcombe_interval`."""
     sign = 1.0 if higher_is_better else -1.0
     pairs = [
         (sign * np.asarray(x, dtype=float), sign * np.asarray(y, dtype=float))
@@ -230,10 +173,10 @@ def probability_of_improvement(
         if len(x) and len(y)
     ]
     if not pairs:
-        return Estimate(math.nan, math.nan, math.nan, ())
+        return _EMPTY
     seeds = tuple(min(len(x), len(y)) for x, y in pairs)
     sizes = tuple(len(x) * len(y) for x, y in pairs)
-    mean = interval_estimate([a for pair in pairs for a in pair], mean_improvement, rng, reps)
+    mean = interval_estimate([a for pair in pairs for a in pair], improvement, rng, reps)
     if not mean.has_interval:
         return Estimate(mean.point, math.nan, math.nan, seeds, sizes)
     bounds = [
@@ -245,20 +188,9 @@ def probability_of_improvement(
 
 
 def curve_measures(points: pd.DataFrame) -> dict[str, float]:
-    """Learning-curve measures of one run's curve points (its rows of a
-    `distgprl.report.frame.curves_of` frame: ``step``, ``success_rate`` on the fixed curve
-    TCs), each against the run's start s0, the untrained policy's curve success at step 0
-    (definitions and reasons: docs/findings/protocol.md, "The aggregates' statistics"):
-
-    - ``learning_auc``: the mean gain over s0 during training (trapezoid area / steps), in
-      [-1, 1]; higher is better.
-    - ``steps_to_gain``: the first trained step from which `GAIN_POINTS` consecutive points
-      reach s0 + `GAIN_MARGIN`, censored one curve period past the last step; lower is better.
-    - ``learned_drop``: from that step on, the mean drop of curve success per curve period,
-      +inf for a run that never learned; lower is better.
-
-    Empty without a step-0 point or with fewer than two trained points.
-    """
+    """``learning_auc``, ``steps_to_gain`` and ``learned_drop`` of one run's curve points
+    (``step``, ``success_rate``; docs/findings/protocol.md); empty without a step-0 point or
+    with fewer than two trained points."""
     if points.empty:
         return {}
     steps = points["step"].to_numpy(dtype=float)
@@ -282,22 +214,15 @@ def curve_measures(points: pd.DataFrame) -> dict[str, float]:
 
 
 def run_scores(summary: Mapping[str, float], points: pd.DataFrame) -> dict[str, float]:
-    """Every `HIGHER_IS_BETTER` score of one run: its evaluation's rates and mean kinematic
-    retention (velocity cosine to the demonstration; ``summary``) and the `curve_measures` of
-    its curve ``points`` (none for an untrained reference)."""
+    """One run's scores: its evaluation ``summary``'s rates and kinematic retention, the
+    `curve_measures` of its curve ``points``."""
     keys = (*(key for key, _ in RATES), "mean_kinematic_retention")
     scores = {key: float(summary[key]) for key in keys if key in summary}
-    scores.update(curve_measures(points))
-    return scores
-
-
-Scores = Mapping[tuple[str, str], Sequence[Mapping[str, float]]]
-"""{(task, method): [`run_scores` per seed]}."""
+    return scores | curve_measures(points)
 
 
 def strata(scores: Scores, tasks: Sequence[str], method: str, key: str) -> list[np.ndarray]:
-    """One array per task in ``tasks``: ``method``'s runs' ``key`` score (runs without it
-    left out)."""
+    """Per task, ``method``'s runs' ``key`` scores (runs without it left out)."""
     return [
         np.array([run[key] for run in scores.get((task, method), ()) if key in run])
         for task in tasks
@@ -309,99 +234,74 @@ def tasks_of(scores: Scores) -> list[str]:
     return sorted({task for task, _ in scores}, key=task_order)
 
 
-def task_groups(scores: Scores) -> list[tuple[str, list[str]]]:
-    """(name, strata tasks): each task alone, then `ALL_TASKS` with every task if several."""
-    tasks = tasks_of(scores)
-    groups = [(task, [task]) for task in tasks]
-    return groups + ([(ALL_TASKS, tasks)] if len(tasks) > 1 else [])
-
-
 def poi(scores: Scores, tasks: Sequence[str], x: str, y: str, key: str, seed: int) -> Estimate:
-    """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks`` (its own generator)."""
-    x_strata, y_strata = (_bytes(strata(scores, tasks, m, key)) for m in (x, y))
-    return _poi(x_strata, y_strata, HIGHER_IS_BETTER[key], seed, "+".join(tasks), x, y, key)
+    """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks``."""
+    sides = (_key(scores, tasks, m, key) for m in (x, y))
+    return _estimate("poi", key not in LOWER_IS_BETTER, seed, ("+".join(tasks), x, y, key), *sides)
 
 
 def method_estimate(
     scores: Scores, tasks: Sequence[str], method: str, key: str, statistic: str, seed: int
 ) -> Estimate:
     """``statistic`` (``mean`` or ``iqm``) of ``method``'s ``key`` over ``tasks``."""
-    values = _bytes(strata(scores, tasks, method, key))
-    return _method_estimate(values, statistic, seed, "+".join(tasks), method, key)
+    side = _key(scores, tasks, method, key)
+    return _estimate(statistic, True, seed, ("+".join(tasks), method, key), side)
 
 
-def _bytes(arrays: list[np.ndarray]) -> tuple[bytes, ...]:
-    """Each stratum's float64 scores as bytes: the key of the estimate caches below, equal
-    exactly when the scores are (bit for bit, so -0.0 and each NaN stay apart)."""
-    return tuple(np.asarray(a, dtype=float).tobytes() for a in arrays)
+def _key(scores: Scores, tasks: Sequence[str], method: str, key: str) -> tuple[bytes, ...]:
+    """The strata as bytes, equal exactly when the scores are bit for bit: `_estimate`'s key."""
+    return tuple(np.asarray(a, dtype=float).tobytes() for a in strata(scores, tasks, method, key))
 
 
-# An estimate is a function of its strata, seed and names (its generator's seed): cached, the
-# claims and aggregates that read one estimate several times bootstrap it once.
-@functools.cache
-def _poi(
-    x: tuple[bytes, ...], y: tuple[bytes, ...], higher_is_better: bool, seed: int, *names: str
+@functools.cache  # claims and tables read one estimate several times: bootstrapped once
+def _estimate(
+    statistic: str, higher_is_better: bool, seed: int, names: tuple[str, ...], *sides: Any
 ) -> Estimate:
-    rng = estimate_rng(seed, "poi", *names)
-    x_strata, y_strata = ([np.frombuffer(v) for v in side] for side in (x, y))
-    return probability_of_improvement(x_strata, y_strata, rng, higher_is_better)
-
-
-@functools.cache
-def _method_estimate(values: tuple[bytes, ...], statistic: str, seed: int, *names: str) -> Estimate:
     rng = estimate_rng(seed, statistic, *names)
-    function = {"mean": mean_of_strata, "iqm": iqm}[statistic]
-    return interval_estimate([np.frombuffer(v) for v in values], function, rng)
+    arrays = [[np.frombuffer(v) for v in side] for side in sides]
+    if statistic == "poi":
+        return probability_of_improvement(arrays[0], arrays[1], rng, higher_is_better)
+    return interval_estimate(arrays[0], {"mean": mean_of_strata, "iqm": iqm}[statistic], rng)
 
 
 def estimate_cells(estimate: Estimate) -> dict[str, object]:
-    """An estimate's CSV cells: ``value`` (empty without runs), ``ci_low`` and ``ci_high``
-    (empty below two runs in a stratum), ``seeds`` (runs per task stratum) and ``pairs`` (a
-    PoI's run pairs per stratum), each ``;``-separated."""
-    interval = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
-    return {
-        "value": estimate.point if estimate.seeds else "",
-        "ci_low": interval[0],
-        "ci_high": interval[1],
-        "seeds": ";".join(map(str, estimate.seeds)),
-        "pairs": ";".join(map(str, estimate.pairs)),
-    }
+    """An estimate's CSV cells: ``value``, ``ci_low``, ``ci_high`` (empty without them) and the
+    ``;``-separated ``seeds`` and ``pairs`` per stratum."""
+    low, high = (estimate.low, estimate.high) if estimate.has_interval else ("", "")
+    value = estimate.point if estimate.seeds else ""
+    seeds, pairs = (";".join(map(str, counts)) for counts in (estimate.seeds, estimate.pairs))
+    return {"value": value, "ci_low": low, "ci_high": high, "seeds": seeds, "pairs": pairs}
 
 
 CSV_FIELDS = tuple("task method versus metric statistic value ci_low ci_high seeds".split())
-"""Columns of ``aggregates_<preset>.csv``, one row per estimate: ``statistic`` is ``mean``,
-``iqm`` or ``poi`` (of ``method`` over ``versus``, on ``metric``: collision's PoI is that of
-fewer collisions); the estimate's cells as `estimate_cells` writes them."""
+"""Columns of ``aggregates_<preset>.csv``: ``statistic`` ``mean``, ``iqm`` or ``poi`` (of
+``method`` over ``versus``; collision's PoI is that of fewer collisions)."""
 
 
 def aggregate_rows(scores: Scores, seed: int) -> list[dict[str, Any]]:
-    """Every estimate of the aggregates table (`CSV_FIELDS`, the `Estimate` beside as
-    ``estimate``): per task group and method (table order) the mean and IQM of each rate,
-    then per task group the PoI of `PROPOSED` over each of `PARTNERS` that both have runs
-    of."""
-    rows: list[dict[str, Any]] = []
-    for name, tasks in task_groups(scores):
-        for method in TABLE_ORDER:
-            if any((task, method) in scores for task in tasks):
-                for key, _ in RATES:
-                    for statistic in ("mean", "iqm"):
-                        estimate = method_estimate(scores, tasks, method, key, statistic, seed)
-                        rows.append(_row(name, method, "", key, statistic, estimate))
-    for name, tasks in task_groups(scores):
-        for partner in PARTNERS:
-            for key, _ in RATES:
-                estimate = poi(scores, tasks, PROPOSED, partner, key, seed)
-                if estimate.seeds:
-                    rows.append(_row(name, PROPOSED, partner, key, "poi", estimate))
-    return rows
-
-
-def _row(
-    task: str, method: str, versus: str, key: str, statistic: str, estimate: Estimate
-) -> dict[str, Any]:
-    """One `aggregate_rows` row."""
-    names = dict(task=task, method=method, versus=versus, metric=key, statistic=statistic)
-    return names | estimate_cells(estimate) | {"estimate": estimate}
+    """The `CSV_FIELDS` rows (with the ``estimate``): per task group (each task, then
+    `ALL_TASKS`) and method the mean and IQM of each rate, then the PoIs of `PROPOSED` over each
+    partner with runs."""
+    tasks = tasks_of(scores)
+    groups = [(task, [task]) for task in tasks] + ([(ALL_TASKS, tasks)] if len(tasks) > 1 else [])
+    rows: list[dict[str, Any]] = [
+        dict(task=name, method=method, versus="", metric=key, statistic=statistic)
+        | {"estimate": method_estimate(scores, group, method, key, statistic, seed)}
+        for name, group in groups
+        for method in TABLE_ORDER
+        if any((task, method) in scores for task in group)
+        for key, _ in RATES
+        for statistic in ("mean", "iqm")
+    ]
+    rows += [
+        dict(task=name, method=PROPOSED, versus=partner, metric=key, statistic="poi")
+        | {"estimate": estimate}
+        for name, group in groups
+        for partner in PARTNERS
+        for key, _ in RATES
+        if (estimate := poi(scores, group, PROPOSED, partner, key, seed)).seeds
+    ]
+    return [row | estimate_cells(row["estimate"]) for row in rows]
 
 
 def short_label(method: str) -> str:
@@ -410,14 +310,12 @@ def short_label(method: str) -> str:
 
 
 def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
-    """(CSV, Markdown) of the aggregates table (`aggregate_rows`): a table of the means and
-    IQMs per task group and method, and one of the PoIs per task group and partner."""
+    """(CSV, Markdown) of `aggregate_rows`: a table of the means and IQMs per task group and
+    method, and one of the PoIs per task group and partner."""
     rows = aggregate_rows(scores, seed)
     frame = pd.DataFrame(rows, columns=[*CSV_FIELDS, "estimate"])
     frame["text"] = frame["estimate"].map(Estimate.text)
-    frame["label"] = frame["task"].map(
-        lambda t: "Both (stratified)" if t == ALL_TASKS else t.upper()
-    )
+    frame["label"] = frame["task"].str.upper().replace(ALL_TASKS.upper(), "Both (stratified)")
     frame["seeds"] = frame["seeds"].str.replace(";", "+")
     is_poi = frame["statistic"] == "poi"
     table = [

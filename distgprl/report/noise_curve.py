@@ -1,12 +1,8 @@
-"""Where does each policy break? Twin success and collision against the perception error.
-
-One figure per preset (``table2_noise_<preset>.png`` / ``.pdf``): for every method with twin
-trials at two or more sensor-noise levels (plan repair on, `distgprl.experiments.table2_trials`),
-its success and collision rates at each level with their exact 95 % binomial intervals, against
-the median over that level's trials of each trial's largest marker position error (mm;
-`report.table2.hardware_rows`), each point labelled with its noise level. A level whose trials
-recorded no perception error is left out (the real robot has no ground truth).
-"""
+"""Where does each policy break? One figure per preset (``table2_noise_<preset>``): per method
+with twin trials at two or more sensor-noise levels (plan repair on), its success and collision
+rates with their exact 95 % binomial intervals against the median over trials of each trial's
+largest marker position error (mm; `distgprl.report.table2.hardware_rows`), each point labelled
+with its noise level. Levels without a recorded perception error are left out."""
 
 from __future__ import annotations
 
@@ -20,19 +16,20 @@ from distgprl.report.figure_files import remove_figure, subplots, write_or_remov
 
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
+ERROR = "perception_error_mm_median"
 
 
 def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
     """{method: its twin rows of `REPAIR` with a perception error, by increasing error} for
-    every method with at least two such levels (table order)."""
+    every method with at least two such rows (table order)."""
     series: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
-        error = row.get("perception_error_mm_median", float("nan"))
+        error = row.get(ERROR, np.nan)
         if row["backend"] == "twin" and row["repair"] == REPAIR and np.isfinite(error):
             series.setdefault(row["method"], []).append(row)
     ordered = sorted(series, key=lambda m: TABLE_ORDER.index(m) if m in TABLE_ORDER else 99)
     return {
-        method: sorted(series[method], key=lambda r: r["perception_error_mm_median"])
+        method: sorted(series[method], key=lambda r: r[ERROR])
         for method in ordered
         if len(series[method]) >= 2
     }
@@ -41,7 +38,6 @@ def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
 def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: str) -> list[Path]:
     """Draw `curve_series` of Table II's ``rows`` into ``<out_dir>/table2_noise_<preset>``
     (PNG, PDF); with no method at two levels, remove an earlier figure instead."""
-
     stem = Path(out_dir) / f"table2_noise_{preset}"
     series = curve_series(rows)
     if not series:
@@ -50,7 +46,7 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
     fig, axes = subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
     for index, (method, points) in enumerate(series.items()):
         bold = method == "dist-gprl"
-        x = np.array([p["perception_error_mm_median"] for p in points])
+        x = np.array([p[ERROR] for p in points])
         for ax, key in zip(axes[0], ("success_rate", "collision_rate"), strict=True):
             y, low, high = (
                 np.array([p[k] for p in points]) for k in (key, f"{key}_ci_low", f"{key}_ci_high")
@@ -59,12 +55,11 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
                 x, y, yerr=[y - low, high - y], marker="o", capsize=2, lw=1.5 if bold else 1.0,
                 color="black" if bold else f"C{index % 10}", label=METHODS[method].label,
             )  # fmt: skip
-            if index == 0:  # the noise levels, labelled once
-                for point, xi, yi in zip(points, x, y, strict=True):
-                    ax.annotate(
-                        f"{point['sensor_noise']}", (xi, yi), xytext=(4, 4),
-                        textcoords="offset points", fontsize=7, alpha=0.6,
-                    )  # fmt: skip
+            for point, xi, yi in zip(points, x, y, strict=True) if index == 0 else ():
+                ax.annotate(
+                    f"{point['sensor_noise']}", (xi, yi), xytext=(4, 4),
+                    textcoords="offset points", fontsize=7, alpha=0.6,
+                )  # fmt: skip
     for ax, label in zip(axes[0], ("twin success rate", "twin collision rate"), strict=True):
         ax.set_xlabel("median perception error (mm)")
         ax.set_ylabel(label)

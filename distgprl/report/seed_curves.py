@@ -1,5 +1,5 @@
-"""Learning curves seed by seed (``progress.csv``) and the panels in which a study reads them:
-one source for the curve figures, the onset tables and the onset figure."""
+"""Learning curves seed by seed and the panels a study reads them in: one source for the curve
+figures, the onset tables and the onset figure."""
 
 from __future__ import annotations
 
@@ -15,20 +15,17 @@ PANELS = (
     ("collision_rate", "collision rate", "collision rate (curve TCs)", True),
     ("mean_return", "episode return", "mean episode return", False),
 )
-"""The learning-curve metrics read and drawn: (``progress.csv`` column, panel title, y-axis
-label, whether it is a rate, its axis [0, 1]); evaluations on the fixed curve TCs, the
-deterministic policy."""
+"""The curve metrics drawn: (``progress.csv`` column, title, y label, is a rate in [0, 1])."""
 
 SEED_COLORS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C8", "C9")
-"""A seed's colour in the seed-by-seed figures (seed k: the k-th, cycling)."""
+"""Seed k's colour in the seed-by-seed figures: the k-th, cycling."""
 
 SeedCurves = dict[int, tuple[np.ndarray, dict[str, np.ndarray]]]
-"""{seed: (steps (k,), {`PANELS` metric: (k,)})}, each seed on its own steps."""
+"""{seed: (steps (k,), {`PANELS` metric: (k,)})}."""
 
 
 def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
-    """`SeedCurves` of ``task`` and ``method`` from a `distgprl.report.frame.curve_frame`
-    (finished runs of the current configuration), seeds ascending."""
+    """The `SeedCurves` of ``task`` and ``method`` in a `distgprl.report.frame.curve_frame`."""
     mine = frame[(frame["task"] == task) & (frame["method"] == method)]
     return {
         int(str(seed)): (
@@ -40,10 +37,8 @@ def run_curves(frame: pd.DataFrame, task: str, method: str) -> SeedCurves:
 
 
 def reading_columns(study: Study) -> list[tuple[str, str, str]]:
-    """The panels of `distgprl.report.curves.plot_reading_curves`, left to right: (preset,
-    method, title) — the studied method (Dist-GPRL where the study trains it) under each
-    reading, the reference's first, and for an operator study Dist-GPRL-NoCov from the
-    reference preset (no operator, so no reading changes it)."""
+    """(preset, method, title) per reading curve panel: the studied method (Dist-GPRL where
+    trained) under each reading, then for an operator study Dist-GPRL-NoCov (no operator)."""
     method = PROPOSED if PROPOSED in study.methods else study.methods[0]
     columns = [(r.preset, method, f"{short_label(method)}: {r.label}") for r in study.all_readings]
     if study.reads_the_operator:

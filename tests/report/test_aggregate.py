@@ -187,7 +187,8 @@ def test_one_seed_has_no_interval_and_says_so():
 
 
 def test_poi_rows_pair_the_proposed_method_with_each_partner_with_runs():
-    """PoI rows exist for the partners with runs only, per task and pooled over both."""
+    """PoI rows exist for the partners with runs only, per task and pooled over both; the
+    collision PoI is that of fewer collisions."""
     scores = {}
     for task in ("dcp", "dbm"):
         scores[(task, "dist-gprl")] = [{"success_rate": s, "collision_rate": 1 - s} for s in CLEAR]
@@ -196,6 +197,8 @@ def test_poi_rows_pair_the_proposed_method_with_each_partner_with_runs():
     assert {(r["task"], r["versus"]) for r in rows} == {(t, "gprl") for t in ("dcp", "dbm", "all")}
     pooled = next(r for r in rows if r["task"] == "all" and r["metric"] == "success_rate")
     assert pooled["seeds"] == "5;5" and pooled["ci_low"] > 0.5
+    fewer = next(r for r in rows if r["task"] == "all" and r["metric"] == "collision_rate")
+    assert fewer["value"] == 1.0  # every Dist-GPRL run collides less: collision is lower-better
 
 
 def _curve(successes, step=1000):
