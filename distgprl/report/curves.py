@@ -140,10 +140,9 @@ def plot_figure(
         for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
             _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
-    order = [m for m in methods if m in handles]
-    columns = min(len(order), 4)
-    legend_rows = -(-len(order) // columns) if order else 0
+    order, bottom = [m for m in methods if m in handles], 0.0
     if order:
+        columns = min(len(order), 4)
         labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
         legend = fig.legend(
             [handles[m] for m in order], labels, loc="lower center", ncol=columns,
@@ -152,9 +151,8 @@ def plot_figure(
         for text, method in zip(legend.get_texts(), order, strict=True):
             if method == HIGHLIGHT:
                 text.set_fontweight("bold")
-    height = fig.get_figheight()
-    bottom = (0.08 + 0.18 * legend_rows) / height if legend_rows else 0.0
-    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / height))
+        bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / fig.get_figheight()))
     return fig, sum(len(counts) for counts in seeds_of.values())
 
 
