@@ -1,8 +1,9 @@
 """Learning curves from ``progress.csv`` (paper Figs. HAP and covariance effect): per panel the
 mean over seeds (on their common steps) of a `PANELS` metric against training steps, with a
-95 % bootstrap band of the seeds (whole curves; none for one seed) from its own `estimate_rng`;
-`HIGHLIGHT` bold and on top, a method in one colour everywhere. Per study beside a preset: its
-curves seed by seed, its onset figure and, for an operator study, its sensitivity figure.
+95 % bootstrap band of the seeds (whole curves; none for one seed) from its own `estimate_rng`
+(adding a method leaves the other bands unchanged); `HIGHLIGHT` bold and on top, a method in
+one colour everywhere. Per study beside a preset: its curves seed by seed, its onset figure
+and, for an operator study, its sensitivity figure.
 """
 
 from __future__ import annotations
