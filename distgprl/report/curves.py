@@ -1,12 +1,9 @@
-"""Learning curves from ``progress.csv`` files only (paper Figs. HAP and covariance effect).
-
-Each panel: the mean over seeds (on their common steps) of a `PANELS` metric against training
-steps, with a 95 % bootstrap band (seeds the units, whole curves resampled; none for one seed)
-from its own generator (`estimate_rng` of the figure seed, task, method and metric), so the
-figures are byte-reproducible and adding a method leaves the other bands unchanged. Per study
-beside a preset: its curves seed by seed, its onset figure and, for an operator study, its
-sensitivity figure. The proposed method (`HIGHLIGHT`) is bold and on top, and a method keeps
-its colour everywhere.
+"""Learning curves from ``progress.csv`` (paper Figs. HAP and covariance effect): per panel the
+mean over seeds (on their common steps) of a `PANELS` metric against training steps, with a
+95 % bootstrap band of the seeds (whole curves; none for one seed) from its own `estimate_rng`
+(adding a method leaves the other bands unchanged); `HIGHLIGHT` bold and on top, a method in
+one colour everywhere. Per study beside a preset: its curves seed by seed, its onset figure
+and, for an operator study, its sensitivity figure.
 """
 
 from __future__ import annotations
@@ -27,7 +24,7 @@ from distgprl.report.aggregate import (
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
-from distgprl.report.onset_figure import write_onset_figure
+from distgprl.report.onset_figure import plot_onset_figure
 from distgprl.report.seed_curves import PANELS, SEED_COLORS, SeedCurves, reading_columns, run_curves
 from distgprl.report.sensitivity import write_sensitivity
 from distgprl.report.table1 import collect_scores
@@ -41,7 +38,7 @@ if TYPE_CHECKING:
 
 #: The proposed method, drawn bold and on top of the others.
 HIGHLIGHT = "dist-gprl"
-#: The method-comparison figures: {file name: (title, the paper's caption shortened; methods)}.
+#: The method-comparison figures: {file name: (title, methods)}.
 FIGURES = {
     "hap_effect": ("Effect of the HAP subspace prior", ("dist-gprl", "gprl-d")),
     "covariance_effect": (
@@ -70,25 +67,21 @@ def common_curves(seeds: SeedCurves) -> tuple[np.ndarray, dict[str, np.ndarray]]
 def mean_and_band(
     values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
-    """(mean (k,), (low, high) (k,) each) over seeds of a (seeds, k) array: the mean curve
-    and its percentile bootstrap band (`bootstrap_interval`: ``reps`` resamples of the seeds,
-    whole curves); the band is None for a single seed."""
+    """(mean (k,), (low, high) (k,) each) over the seeds of a (seeds, k) array: the mean curve
+    and its `bootstrap_interval` band (whole curves resampled); no band for a single seed."""
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
     return mean, bootstrap_interval([values], np.mean, rng, reps)
 
 
-def method_color(method: str) -> str:
-    """The method's colour, the same in every figure: black for `HIGHLIGHT`, else by its
-    place in `TABLE_ORDER`."""
+def _color(method: str) -> str:
     if method == HIGHLIGHT:
         return "black"
     return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
 
 
 def _seeds(count: int) -> str:
-    """``1 seed``, ``3 seeds``."""
     return f"{count} seed{'s' if count != 1 else ''}"
 
 
@@ -102,8 +95,8 @@ def _seed_note(seeds: dict[str, int]) -> str:
 def _style(
     ax: Axes, title: str, ylabel: str | None, rate: bool, fontsize: int | None = None
 ) -> None:
-    """Title, the training-steps x label, ``ylabel`` (if any), [0, 1] limits for a ``rate``
-    and the grid of a curve panel; ``fontsize`` for its texts (ticks 1 smaller), if given."""
+    """A curve panel's title, labels, grid and, for a ``rate``, [0, 1] limits; ``fontsize``
+    for its texts (ticks 1 smaller)."""
     font: dict[str, Any] = {} if fontsize is None else {"fontsize": fontsize}
     ax.set_title(title, **font)
     ax.set_xlabel("training steps", **font)
@@ -119,9 +112,8 @@ def _style(
 def plot_figure(
     root: str | Path, preset: str, tasks: list[str], methods: tuple[str, ...], title: str
 ) -> tuple[Figure, int]:
-    """The learning-curve figure of ``methods``: one row per task, one column per `PANELS`
-    entry, one legend below the panels. Returns (figure, number of (task, method) curves
-    drawn)."""
+    """The learning curves of ``methods``: a row per task, a column per `PANELS` entry, one
+    legend below. Returns (figure, (task, method) curves drawn)."""
     fig, axes = subplots(len(tasks), len(PANELS), figsize=(12, 3.2 * len(tasks)), squeeze=False)
     frame = curve_frame(root, preset)
     handles: dict[str, Line2D] = {}
@@ -132,7 +124,7 @@ def plot_figure(
             if data is None:
                 continue
             steps, values = data
-            bold, color = method == HIGHLIGHT, method_color(method)
+            bold, color = method == HIGHLIGHT, _color(method)
             seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
             for ax, (key, *_) in zip(axes[row], PANELS, strict=True):
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
@@ -149,10 +141,9 @@ def plot_figure(
         for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
             _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
-    order = [m for m in methods if m in handles]
-    columns = min(len(order), 4)
-    legend_rows = -(-len(order) // columns) if order else 0
+    order, bottom = [m for m in methods if m in handles], 0.0
     if order:
+        columns = min(len(order), 4)
         labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
         legend = fig.legend(
             [handles[m] for m in order], labels, loc="lower center", ncol=columns,
@@ -161,17 +152,15 @@ def plot_figure(
         for text, method in zip(legend.get_texts(), order, strict=True):
             if method == HIGHLIGHT:
                 text.set_fontweight("bold")
-    height = fig.get_figheight()
-    bottom = (0.08 + 0.18 * legend_rows) / height if legend_rows else 0.0
-    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / height))
+        bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / fig.get_figheight()))
     return fig, sum(len(counts) for counts in seeds_of.values())
 
 
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
-    """A study's learning curves seed by seed: one row per task, one panel per
-    `reading_columns` entry, each with the success rate on the curve TCs of every finished
-    seed (its colour the seed's in every panel) and their mean on the common steps (black,
-    bold), so that *when* each seed learns is visible. Returns (figure, panels drawn)."""
+    """A study's success curves seed by seed: a row per task, a panel per `reading_columns`
+    entry with every finished seed (in its seed's colour) and their mean on the common steps
+    (black). Returns (figure, panels drawn)."""
     columns = reading_columns(study)
     fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
@@ -217,9 +206,8 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write the `FIGURES`, per study beside ``preset`` its seed-by-seed curves, sensitivity
-    figure (an operator study) and onset figure, and Table II's noise curve, each as PNG and
-    PDF, or remove a figure with nothing to draw (`write_or_remove_figure`).
+    """Write (or, with nothing to draw, remove: `write_or_remove_figure`) the `FIGURES`, per
+    study beside ``preset`` its figures (module docstring) and Table II's noise curve.
 
     Raises:
         UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
@@ -234,20 +222,19 @@ def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Pat
             f"{folder}: no results of any task ({', '.join(TASK_NAMES)}); run a sweep first"
         )
     written = []
-
     for name, (title, methods) in FIGURES.items():
         figure = plot_figure(root, preset, tasks, methods, f"{title} ({preset} preset)")
         written += write_or_remove_figure(figure, out / f"{name}_{preset}")
-    for study in studies_of(preset):  # the readings' curves, seed by seed
+    for study in studies_of(preset):
         stem = out / f"curves_{study.name}_{preset}"
         written += write_or_remove_figure(plot_reading_curves(root, study, tasks), stem)
-        if study.reads_the_operator:  # an operator study's sensitivity figure
+        if study.reads_the_operator:
             scores_of = {
                 r.preset: collect_scores(load_frames(root, r.preset, seeds=study.seeds))
                 for r in study.all_readings
             }
             written += write_sensitivity(root, study, scores_of, out_dir)
-        written += write_onset_figure(root, study, tasks, out_dir, preset)  # when runs learn
-    # Table II's noise curve: twin success and collision against the perception error
+        onsets = plot_onset_figure(root, study, tasks, preset)
+        written += write_or_remove_figure(onsets, out / f"onsets_{study.name}_{preset}")
     written += write_noise_curve(hardware_rows(select_trial_files(root, preset)), out_dir, preset)
     return written

@@ -1,11 +1,8 @@
-"""The onset figure: the onset table (`distgprl.report.onsets`) of one study beside a preset
-drawn, one panel per task (x: training steps, 0 to the run length), one row per table line
-(top to bottom) and in it one marker per finished run at its onset step, or in the shaded
-"never" band right of the axis range. A seed keeps its colour
-(`distgprl.report.seed_curves.SEED_COLORS`), shape and small vertical offset in every row;
-markers are filled for the study's seeds (`Study.seeds`), hollow for the further seeds only a
-rule reads (`OnsetRule.seeds`); a rule's task has a dashed line at its ``by_step``. Reads
-result files only; `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
+"""The onset table (`distgprl.report.onsets`) of a study drawn: a panel per task (x: training
+steps to the run length, then a shaded "never" band), a line per table row (top to bottom), a
+marker per finished run at its onset step; a seed keeps its colour, shape and vertical offset,
+filled for the study's seeds, hollow for a rule's further seeds; a dashed line at a rule's
+``by_step`` on its task. `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
 """
 
 from __future__ import annotations
@@ -14,15 +11,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from distgprl.config import load_config
-from distgprl.report.figure_files import subplots, write_or_remove_figure
-from distgprl.report.onsets import (
-    onset_rows,
-    onset_threshold,
-    run_label,
-    seeds_text,
-    step_text,
-    study_rule,
-)
+from distgprl.report.figure_files import subplots
+from distgprl.report.onsets import onset_rows, run_label, seeds_text, step_text, study_rule
 from distgprl.report.seed_curves import SEED_COLORS
 from distgprl.studies import Study
 
@@ -30,45 +20,45 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-
 NEVER_X = 1.125
-"""Where a run that never reaches the threshold is drawn, as a multiple of the run length."""
-
+"""Where a run that never reaches the threshold is drawn, in run lengths."""
 NEVER_BAND = (1.05, 1.2)
-"""The shaded "never" band's extent, as multiples of the run length (its right end is the
-axis's)."""
-
-SEED_SPREAD = 0.7
-"""The vertical extent of a row's seed offsets, in rows (rows are 1 apart)."""
+"""The shaded "never" band, in run lengths (its right end the axis's)."""
+SEED_SHAPES = ("o", "s", "D", "^")
+"""A seed's marker shape, one per round of `SEED_COLORS` (distinct up to 36 seeds)."""
 
 
 def marker_gid(preset: str, method: str, task: str, seed: int) -> str:
-    """The group id of a run's marker (a `matplotlib.lines.Line2D`'s ``gid``): how a test or
-    a reader of the figure object finds the run's marker."""
+    """The ``gid`` of a run's marker, by which a reader of the figure finds it."""
     return f"onset {preset} {method} {task} seed{seed}"
 
 
 def seed_offsets(seeds: list[int]) -> dict[int, float]:
-    """{seed: vertical offset in rows} of ``seeds``: spread evenly over `SEED_SPREAD`, the
-    smallest seed highest (the rows' axis points down), one seed on the row's line."""
-    ordered = sorted(set(seeds))
+    """{seed: vertical offset in rows}: spread evenly over 0.7 rows, the smallest seed highest
+    (the rows' axis points down); a single seed on the row's line."""
+    ordered, spread = sorted(set(seeds)), 0.7
     if len(ordered) < 2:
         return dict.fromkeys(ordered, 0.0)
-    step = SEED_SPREAD / (len(ordered) - 1)
-    return {seed: -SEED_SPREAD / 2 + step * index for index, seed in enumerate(ordered)}
+    step = spread / (len(ordered) - 1)
+    return {seed: -spread / 2 + step * index for index, seed in enumerate(ordered)}
 
 
 def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
     """The x range's end on ``task``, in training steps: the longest ``run.total_steps`` of
-    ``presets`` on it (`distgprl.config.load_config`; a run counts only with the config hash,
-    which includes its length, that the code resolves for it now), or a later onset among
-    ``onsets``."""
-    lengths = [load_config(preset, task).run.total_steps for preset in presets]
-    return max([*lengths, *onsets])
+    ``presets`` (their current configuration), or a later one of ``onsets``."""
+    return max([*(load_config(preset, task).run.total_steps for preset in presets), *onsets])
+
+
+def seed_marker(seed: int, study: Study) -> dict[str, Any]:
+    """`matplotlib.lines.Line2D` keywords of a run marker at ``seed``: its colour and shape,
+    filled for one of the study's seeds, hollow for a further one."""
+    color = SEED_COLORS[seed % len(SEED_COLORS)]
+    shape = SEED_SHAPES[(seed // len(SEED_COLORS)) % len(SEED_SHAPES)]
+    fill = color if seed in study.seeds else "none"
+    return {"marker": shape, "ms": 6, "mew": 1.3, "ls": "none", "color": color, "mfc": fill}
 
 
 def _x_axis(ax: Axes, length: int, threshold: float) -> None:
-    """Ticks from 0 to ``length`` steps, the "never" band and its tick, the axis label."""
     from matplotlib.ticker import MaxNLocator
 
     ax.axvspan(NEVER_BAND[0] * length, NEVER_BAND[1] * length, color="0.9", lw=0, zorder=0)
@@ -81,32 +71,14 @@ def _x_axis(ax: Axes, length: int, threshold: float) -> None:
     ax.grid(axis="x", alpha=0.3, lw=0.5)
 
 
-SEED_SHAPES = ("o", "s", "D", "^")
-"""A seed's marker shape, one per round of `SEED_COLORS`: seed k and seed k + 9 share a colour,
-never a shape (distinct up to 36 seeds)."""
-
-
-def seed_marker(seed: int, study: Study) -> dict[str, Any]:
-    """A run marker's style (`matplotlib.lines.Line2D` keywords) at ``seed``: its seed's colour
-    and shape, filled for one of the study's seeds, hollow for a further one."""
-    color = SEED_COLORS[seed % len(SEED_COLORS)]
-    shape = SEED_SHAPES[(seed // len(SEED_COLORS)) % len(SEED_SHAPES)]
-    fill = color if seed in study.seeds else "none"
-    return {"marker": shape, "ms": 6, "mew": 1.3, "ls": "none", "color": color, "mfc": fill}
-
-
 def _draw_task(
-    ax: Axes,
-    rows: list[dict[str, Any]],
-    panels: list[tuple[str, str, str]],
-    study: Study,
-    length: int,
+    ax: Axes, rows: list[dict[str, Any]], panels: list[tuple[str, str]], study: Study, length: int
 ) -> None:
-    """One task's markers on ``ax``: a run of ``rows`` (the task's) in its panel's row of
-    ``panels``, at its onset step or `NEVER_X` times ``length``; a row without a run says so."""
+    """One task's ``rows`` on ``ax``: each run in its row of ``panels`` ((preset, method)), at
+    its onset step or `NEVER_X` ``length``; a row without a run says so."""
     offsets = seed_offsets([int(r["seed"]) for r in rows])
-    for index, (preset, method, _) in enumerate(panels):
-        runs = [r for r in rows if (r["preset"], r["method"]) == (preset, method)]
+    for index, panel in enumerate(panels):
+        runs = [r for r in rows if (r["preset"], r["method"]) == panel]
         if not runs:
             ax.text(length / 2, index, "no finished run", ha="center", va="center", fontsize=7,
                     color="0.5")  # fmt: skip
@@ -114,7 +86,7 @@ def _draw_task(
             seed, onset = int(run["seed"]), run["onset_step"]
             x = NEVER_X * length if onset == "" else int(onset)
             ax.plot([x], [index + offsets[seed]], zorder=3, **seed_marker(seed, study),
-                    gid=marker_gid(preset, method, run["task"], seed))  # fmt: skip
+                    gid=marker_gid(*panel, run["task"], seed))  # fmt: skip
     for boundary in range(len(panels) - 1):
         ax.axhline(boundary + 0.5, color="0.8", lw=0.6, zorder=1)
 
@@ -122,16 +94,16 @@ def _draw_task(
 def plot_onset_figure(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[Figure, int]:
-    """The onset figure of ``study`` beside ``preset`` (module docstring): one panel per task
-    of ``tasks``, one row per `onset_rows` panel with a finished run on any of them. Returns
-    (figure, number of markers drawn: one per finished run, `onset_rows`' rows)."""
+    """The onset figure of ``study`` beside ``preset``: a panel per task of ``tasks``, a row per
+    `onset_rows` panel with a run on any task. Returns (figure, markers drawn: one per row of
+    `onset_rows`)."""
     import matplotlib.figure
     from matplotlib.lines import Line2D
 
     rows = onset_rows(root, study, tasks)
-    if not rows:  # nothing to draw (`write_onset_figure` writes no file)
+    if not rows:
         return matplotlib.figure.Figure(), 0
-    rule, threshold = study_rule(study), onset_threshold(study)
+    (rule, threshold), rule_tasks = study_rule(study), {own.task for _, own in study.rules}
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset
@@ -139,12 +111,11 @@ def plot_onset_figure(
         1, len(tasks), figsize=(3.4 + 4.4 * len(tasks), 2.1 + row_height * len(panels)),
         squeeze=False, sharey=True,
     )  # fmt: skip
-    rule_tasks = {own.task for _, own in study.rules}
     for ax, task in zip(axes[0], tasks, strict=True):
         mine = [r for r in rows if r["task"] == task]
         onsets = [int(r["onset_step"]) for r in mine if r["onset_step"] != ""]
         length = run_length(sorted({p for p, _, _ in panels}), task, onsets)
-        _draw_task(ax, mine, panels, study, length)
+        _draw_task(ax, mine, [(p, m) for p, m, _ in panels], study, length)
         if rule is not None and task in rule_tasks:
             ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
             ax.text(rule.by_step, 1.005, f" early: ≤ {step_text(rule.by_step)}", fontsize=7,
@@ -170,14 +141,3 @@ def plot_onset_figure(
     bottom = (0.25 + 0.2 * -(-len(handles) // columns)) / height
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.05 / height))
     return fig, len(rows)
-
-
-def write_onset_figure(
-    root: str | Path, study: Study, tasks: list[str], out_dir: str | Path, preset: str
-) -> list[Path]:
-    """Write ``study``'s onset figure beside ``preset`` (`plot_onset_figure`) as
-    ``<out_dir>/onsets_<study>_<preset>.{png,pdf}``; without a finished run to draw, remove
-    an earlier one instead (figures are functions of the current results only). Returns the
-    paths written."""
-    stem = Path(out_dir) / f"onsets_{study.name}_{preset}"
-    return write_or_remove_figure(plot_onset_figure(root, study, tasks, preset), stem)

@@ -1,14 +1,11 @@
-"""When each run learns: per study read beside a preset (`distgprl.studies`), every panel of
-`onset_panels` (method × reading), task and seed, the learning-curve onset (`onset_step`; why
-step 0 does not count: docs/findings/operator.md, "Decision rule"), whether it is ``early``
-(at or before the `distgprl.studies.OnsetRule`'s ``by_step``) and the best and final policies'
-evaluation success and collision; then each rule's verdict (`rule_verdict`). `distgprl tables`
-writes ``onsets_<study>_<preset>.{csv,md}``.
+"""When each run learns, per study read beside a preset: a row per `onset_panels` panel, task
+and finished seed (`CSV_FIELDS`) and each rule's verdict (`rule_verdict`; the decision rule:
+docs/findings/operator.md, "Decision rule"). `distgprl tables` writes
+``onsets_<study>_<preset>.{csv,md}``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from itertools import groupby
 from pathlib import Path
 from typing import Any
@@ -16,17 +13,16 @@ from typing import Any
 from distgprl.methods import TABLE_ORDER
 from distgprl.report.aggregate import short_label
 from distgprl.report.frame import curve_frame, run_frame, summaries
-from distgprl.report.markdown import csv_text, markdown_table
+from distgprl.report.markdown import csv_text, markdown_table, number_text
 from distgprl.report.seed_curves import reading_columns, run_curves
 from distgprl.studies import OnsetRule, Study
 
-THRESHOLD = 0.5
-"""Curve success that counts as learned for a study without a control rule."""
-
-CSV_FIELDS = list(
+CSV_FIELDS = (
     "study task reading preset method seed onset_step early best_success best_collision "
-    "final_success final_collision".split()
-)
+    "final_success final_collision"
+).split()
+"""``onset_step``: `onset_step` (empty: never); ``early``: 1 if at or before the rule's
+``by_step`` (empty without a rule); best and final: the evaluation's success and collision."""
 
 
 def onset_step(steps: Any, success: Any, threshold: float) -> int | None:
@@ -36,16 +32,17 @@ def onset_step(steps: Any, success: Any, threshold: float) -> int | None:
     return next((int(s) for s, v in pairs if int(s) > 0 and float(v) >= threshold), None)
 
 
-def study_rule(study: Study) -> OnsetRule | None:
-    """The study's first decision rule (its threshold and ``by_step`` are every rule's:
-    `Study` checks), or None."""
-    return next((rule for _, rule in study.rules), None)
+def study_rule(study: Study) -> tuple[OnsetRule | None, float]:
+    """The study's first rule (its threshold and ``by_step`` are every rule's: `Study`
+    checks) or None, and the curve success that counts as learned (0.5 without a rule)."""
+    rule = next((rule for _, rule in study.rules), None)
+    return rule, rule.threshold if rule else 0.5
 
 
 def onset_panels(study: Study) -> list[tuple[str, str, str]]:
-    """(preset, method, reading label) per table row: each of the study's methods (Table I's
-    order) under each reading, the reference's first; an operator study adds NoCov from the
-    reference preset (`distgprl.report.seed_curves.reading_columns`' last panel)."""
+    """(preset, method, reading label) per table row: each study method (Table I's order)
+    under each reading, the reference's first; an operator study adds NoCov
+    (`reading_columns`' last panel)."""
     methods = [m for m in TABLE_ORDER if m in study.methods]
     panels = [(r.preset, m, r.label) for m in methods for r in study.all_readings]
     extra = [(p, m, title) for p, m, title in reading_columns(study) if m not in study.methods]
@@ -53,35 +50,25 @@ def onset_panels(study: Study) -> list[tuple[str, str, str]]:
 
 
 def run_label(study: Study, method: str, reading: str) -> str:
-    """A table row's or figure row's name for ``method`` under ``reading`` (a row's
-    ``reading``): "Dist-GPRL: correlation only"; a method the study does not train (an
-    operator study's NoCov) by its reading label alone, which names it."""
-    if method in study.methods:
-        return f"{short_label(method)}: {reading}"
-    return reading
-
-
-def onset_threshold(study: Study) -> float:
-    """The success that counts as learned: the study's rule's, else `THRESHOLD`."""
-    rule = study_rule(study)
-    return rule.threshold if rule else THRESHOLD
+    """A row's name, "Dist-GPRL: correlation only"; a method the study does not train (NoCov)
+    by its reading label alone, which names it."""
+    return f"{short_label(method)}: {reading}" if method in study.methods else reading
 
 
 def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[str, Any]]:
-    """One row per `onset_panels` panel, task and finished seed (CSV_FIELDS), panels in
-    their order; the threshold and ``early`` from `study_rule` (``early`` empty without)."""
-    rule, threshold = study_rule(study), onset_threshold(study)
-    presets = dict.fromkeys(preset for preset, _, _ in onset_panels(study))
+    """One `CSV_FIELDS` row per `onset_panels` panel, task and finished seed, in that order."""
+    rule, threshold = study_rule(study)
+    panels = onset_panels(study)
+    presets = dict.fromkeys(preset for preset, _, _ in panels)
     curves = {preset: curve_frame(root, preset) for preset in presets}
     results = {
-        (preset, policy): {
-            key[:3]: summary for key, summary in summaries(run_frame(root, preset, policy))
-        }
+        (preset, *key): summary
         for preset in presets
         for policy in ("best", "final")
+        for key, summary in summaries(run_frame(root, preset, policy))
     }
     rows = []
-    for preset, method, reading in onset_panels(study):
+    for preset, method, reading in panels:
         for task in tasks:
             for seed, (steps, values) in run_curves(curves[preset], task, method).items():
                 onset = onset_step(steps, values["success_rate"], threshold)
@@ -90,34 +77,23 @@ def onset_rows(root: str | Path, study: Study, tasks: list[str]) -> list[dict[st
                 row: dict[str, Any] = keys | {"method": method, "seed": seed, "early": early}
                 row["onset_step"] = "" if onset is None else onset
                 for policy in ("best", "final"):
-                    summary = results[(preset, policy)].get((task, method, seed), {})
+                    summary = results.get((preset, task, method, seed, policy), {})
                     row[f"{policy}_success"] = summary.get("success_rate", "")
                     row[f"{policy}_collision"] = summary.get("collision_rate", "")
                 rows.append(row)
     return rows
 
 
-@dataclass(frozen=True)
-class RuleVerdict:
-    """A rule's verdict: ``early`` of ``runs`` finished runs at the rule's seeds of its
-    reading and task learned early; ``verdict`` is the rule's conclusion, "awaiting", or
-    "void" where the rule it needs (`OnsetRule.given`) did not give its ``if_early``."""
-
-    early: int
-    runs: int
-    verdict: str
-
-
-def _early_count(
-    rows: list[dict[str, Any]], preset: str, method: str, task: str
-) -> tuple[int, int]:
-    mine = [r for r in rows if (r["preset"], r["method"], r["task"]) == (preset, method, task)]
+def _early_count(rows: list[dict[str, Any]], *panel: str) -> tuple[int, int]:
+    """(early, runs) among ``rows`` of ``panel`` = (preset, method, task)."""
+    mine = [r for r in rows if (r["preset"], r["method"], r["task"]) == panel]
     return sum(int(r["early"] == 1) for r in mine), len(mine)
 
 
-def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> RuleVerdict:
-    """The verdict of the study's rule ``name`` on its reading's runs among ``rows``
-    (`onset_rows`) at the rule's seeds only (a run at another seed does not change it)."""
+def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> tuple[int, int, str]:
+    """(early, runs, verdict) of the study's rule ``name`` on the `onset_rows` ``rows`` at its
+    seeds: ``early`` of ``runs`` finished runs learned early; the verdict is the rule's
+    conclusion, "awaiting", or "void" where the rule it needs did not give its ``if_early``."""
     reading, rule = study.rule(name)
     ruled = [r for r in rows if int(r["seed"]) in rule.seeds]
     early, runs = _early_count(ruled, reading.preset, study.methods[0], rule.task)
@@ -132,31 +108,20 @@ def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> RuleVer
         verdict = rule.if_between or f"undecided at {runs} seeds"
     if rule.given:
         _, given = study.rule(rule.given)
-        before = rule_verdict(rows, study, rule.given).verdict
+        before = rule_verdict(rows, study, rule.given)[2]
         if before.startswith("awaiting"):
             verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
         elif before != given.if_early:
             verdict = f"void: {rule.given} gave {_short(before)}"
-    return RuleVerdict(early, runs, verdict)
+    return early, runs, verdict
 
 
 def _short(conclusion: str) -> str:
-    """A conclusion's name: its text before the first colon."""
     return conclusion.split(":")[0]
 
 
-def _rate(value: Any) -> str:
-    return "–" if value in ("", None) else f"{float(value):.2f}"
-
-
-def _run_cell(row: dict[str, Any]) -> str:
-    """A run's table cell: "onset step: best (final) success"."""
-    best, final = _rate(row["best_success"]), _rate(row["final_success"])
-    return f"{step_text(row['onset_step'])}: {best} ({final})"
-
-
 def step_text(value: Any) -> str:
-    """A training step as the onset tables and figure write it (``4 500``; "—" for none)."""
+    """A training step as ``4 500``; "—" for none."""
     return "—" if value in ("", None) else f"{int(value):,}".replace(",", " ")
 
 
@@ -167,12 +132,17 @@ def seeds_text(seeds: tuple[int, ...]) -> str:
     return ", ".join(str(seed) for seed in seeds)
 
 
+def _run_cell(row: dict[str, Any]) -> str:
+    """A run's table cell: "onset step: best (final) success"."""
+    best, final = (number_text(row[f"{policy}_success"], 2) for policy in ("best", "final"))
+    return f"{step_text(row['onset_step'])}: {best} ({final})"
+
+
 def _onset_table(
     title: str, rows: list[dict[str, Any]], study: Study, threshold: float, by_step: int | None
 ) -> str:
-    """A Markdown table of ``rows`` (one task's): a line per (preset, method) panel in the
-    rows' order, a column per seed (onset: best (final) success), how many reached
-    ``threshold`` and, with ``by_step``, how many learned early."""
+    """One task's ``rows`` as a table: a line per panel, a cell per seed ("onset: best (final)
+    success"), how many reached ``threshold`` and, with ``by_step``, how many learned early."""
     seeds = sorted({r["seed"] for r in rows})
     header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
     header += [] if by_step is None else [f"early (by step {step_text(by_step)})"]
@@ -189,24 +159,43 @@ def _onset_table(
     return markdown_table(title, header, table)
 
 
+def _rule_text(
+    rows: list[dict[str, Any]], study: Study, reading_label: str, rule: OnsetRule
+) -> str:
+    """A rule's paragraph: the rule as fixed before its first run, then its verdict."""
+    early, runs, verdict = rule_verdict(rows, study, rule.name)
+    middle = needs = ""
+    if rule.at_least - rule.at_most > 1:  # a count between the two is possible
+        middle = f", otherwise {_short(rule.if_between) if rule.if_between else 'undecided'}"
+    if rule.given:
+        needs = f"; needs {rule.given} to give {_short(study.rule(rule.given)[1].if_early)}"
+    return (
+        f"**{reading_label}, {rule.name}** (its rule, fixed before its first run: on "
+        f"{rule.task.upper()} seeds {seeds_text(rule.seeds)} a run learns early if its "
+        f"curve reaches {rule.threshold:g} success after step 0 and by step "
+        f"{step_text(rule.by_step)}; {rule.at_least} or more of {len(rule.seeds)} → "
+        f"{_short(rule.if_early)}, {rule.at_most} or fewer → {_short(rule.if_late)}{middle}"
+        f"{needs}): **{early} of {runs} seeds learn early: {verdict}**"
+    )
+
+
 def onset_texts(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[str, str] | None:
-    """(CSV, Markdown) of the study's onsets beside ``preset``, or None without a finished
-    run of any panel. The CSV has every finished seed; the Markdown's tables the study's seeds
-    (`Study.seeds`) and, apart, the seeds only a rule reads; then each rule's verdict and, per
-    reading with rules, its early count over all its finished seeds (decides nothing)."""
+    """(CSV of every finished seed, Markdown) of the study's onsets beside ``preset``, or None
+    without a finished run. The Markdown: per task a table of the study's seeds and one of the
+    seeds only a rule reads, each rule's verdict, per ruled reading its early count over all
+    its finished seeds (descriptive)."""
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
-    rule, threshold = study_rule(study), onset_threshold(study)
+    rule, threshold = study_rule(study)
     parts = [
         f"When each run learns ({study.name} study, {preset} preset): per method, reading and "
-        "seed, "
-        f"the first training step after step 0 (the untrained policy) at which the learning "
-        f"curve's success (the curve TCs, the deterministic policy of that step) reaches "
-        f"{threshold:g} (— never), then the best (final) policy's success on the evaluation "
-        "TCs. Rules: `distgprl.report.onsets`."
+        "seed, the first training step after step 0 (the untrained policy) at which the "
+        "learning curve's success (the curve TCs, the deterministic policy of that step) "
+        f"reaches {threshold:g} (— never), then the best (final) policy's success on the "
+        "evaluation TCs. Rules: `distgprl.report.onsets`."
     ]
     rule_tasks = {r.task for _, r in study.rules}
     for task in tasks:
@@ -220,22 +209,7 @@ def onset_texts(
             mine = [r for r in rows if r["task"] == task and (r["seed"] in study.seeds) == inside]
             if mine:
                 parts.append(_onset_table(title, mine, study, threshold, by_step))
-    for reading, own in study.rules:
-        result = rule_verdict(rows, study, own.name)
-        middle = ""
-        if own.at_least - own.at_most > 1:  # a count between the two is possible
-            middle = f", otherwise {_short(own.if_between) if own.if_between else 'undecided'}"
-        needs = ""
-        if own.given:
-            needs = f"; needs {own.given} to give {_short(study.rule(own.given)[1].if_early)}"
-        parts.append(
-            f"**{reading.label}, {own.name}** (its rule, fixed before its first run: on "
-            f"{own.task.upper()} seeds {seeds_text(own.seeds)} a run learns early if its "
-            f"curve reaches {own.threshold:g} success after step 0 and by step "
-            f"{step_text(own.by_step)}; {own.at_least} or more of {len(own.seeds)} → "
-            f"{_short(own.if_early)}, {own.at_most} or fewer → {_short(own.if_late)}{middle}"
-            f"{needs}): **{result.early} of {result.runs} seeds learn early: {result.verdict}**"
-        )
+    parts += [_rule_text(rows, study, reading.label, own) for reading, own in study.rules]
     for reading in study.readings:
         for task in sorted({own.task for own in reading.rules}):
             early, runs = _early_count(rows, reading.preset, study.methods[0], task)

@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pytest
 
+from distgprl.report.figure_files import write_or_remove_figure
 from distgprl.report.onset_figure import (
     NEVER_BAND,
     NEVER_X,
@@ -19,7 +20,6 @@ from distgprl.report.onset_figure import (
     run_length,
     seed_marker,
     seed_offsets,
-    write_onset_figure,
 )
 from distgprl.report.onsets import onset_panels, onset_rows, run_label
 from distgprl.studies import get_study
@@ -189,12 +189,16 @@ def test_regenerating_gives_the_same_bytes_and_nothing_to_draw_removes_the_files
     finished run of the study the figure's earlier files are removed, none written."""
     study = get_study("operators")
     out = operators / "out"
-    written = write_onset_figure(operators, study, ["dcp", "dbm"], out, "paper")
+
+    def write(root, tasks):
+        figure = plot_onset_figure(root, study, tasks, "paper")
+        return write_or_remove_figure(figure, out / "onsets_operators_paper")
+
+    written = write(operators, ["dcp", "dbm"])
     assert [p.name for p in written] == ["onsets_operators_paper.png", "onsets_operators_paper.pdf"]
     first = [p.read_bytes() for p in written]
-    again = write_onset_figure(operators, study, ["dcp", "dbm"], out, "paper")
-    assert [p.read_bytes() for p in again] == first
-    assert write_onset_figure(operators / "none", study, ["dcp"], out, "paper") == []
+    assert [p.read_bytes() for p in write(operators, ["dcp", "dbm"])] == first
+    assert write(operators / "none", ["dcp"]) == []
     assert not any(out.iterdir())
 
 

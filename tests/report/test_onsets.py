@@ -87,9 +87,9 @@ def test_the_controls_first_rule_decides_from_its_own_runs_only(
     for seed in range(5):
         study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", seed, EARLY)
         study_run(tmp_path, CONTROL, "dbm", "dist-gprl", seed, EARLY)
-    result = rule_verdict(onset_rows(tmp_path, study, ["dcp", "dbm"]), study, "stage 1")
-    assert result.verdict.startswith(verdict)
-    assert result.runs == min(len(curves), 5)
+    _, runs, got = rule_verdict(onset_rows(tmp_path, study, ["dcp", "dbm"]), study, "stage 1")
+    assert got.startswith(verdict)
+    assert runs == min(len(curves), 5)
 
 
 @pytest.mark.parametrize(
@@ -123,12 +123,12 @@ def test_the_second_stage_reads_new_seeds_and_needs_the_signal_reading_replicate
     for index, seed in enumerate(range(5, 15)):
         study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, EARLY if index < control else START)
     rows = onset_rows(tmp_path, study, ["dcp"])
-    result = rule_verdict(rows, study, "stage 2")
-    assert (result.early, result.runs) == (control, 10)
-    assert result.verdict.startswith(verdict)
-    replication = rule_verdict(rows, study, "stage 2 replication")
-    assert replication.verdict.startswith("replicated" if signal >= 4 else "not replicated")
-    assert rule_verdict(rows, study, "stage 1").verdict.startswith("coupling")
+    early, runs, got = rule_verdict(rows, study, "stage 2")
+    assert (early, runs) == (control, 10)
+    assert got.startswith(verdict)
+    replication = rule_verdict(rows, study, "stage 2 replication")[2]
+    assert replication.startswith("replicated" if signal >= 4 else "not replicated")
+    assert rule_verdict(rows, study, "stage 1")[2].startswith("coupling")
 
 
 def test_the_second_stage_awaits_its_runs_and_the_replications(tmp_path, study_run):
@@ -137,15 +137,15 @@ def test_the_second_stage_awaits_its_runs_and_the_replications(tmp_path, study_r
     study = get_study("operators")
     for seed in range(5, 15):
         study_run(tmp_path, CONTROL, "dcp", "dist-gprl", seed, EARLY)
-    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
-    assert result.verdict.startswith("awaiting (10 of 10 runs finished; stage 2 replication")
+    verdict = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")[2]
+    assert verdict.startswith("awaiting (10 of 10 runs finished; stage 2 replication")
     (tmp_path / CONTROL / "dcp" / "dist-gprl" / "seed14" / "done.json").unlink()
-    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
-    assert result.verdict.startswith("awaiting (9 of 10 runs finished")
+    verdict = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")[2]
+    assert verdict.startswith("awaiting (9 of 10 runs finished")
     for seed in range(5, 10):  # the replication fails: void, whatever the control's runs say
         study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", seed, LATE)
-    result = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")
-    assert result.verdict == "void: stage 2 replication gave not replicated"
+    verdict = rule_verdict(onset_rows(tmp_path, study, ["dcp"]), study, "stage 2")[2]
+    assert verdict == "void: stage 2 replication gave not replicated"
 
 
 def test_the_table_shows_each_seed_the_early_counts_and_the_controls_verdict(tmp_path, study_run):
