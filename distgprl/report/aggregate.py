@@ -32,8 +32,15 @@ ALL_TASKS = "all"
 """The task of the rows pooling every task (one stratum per task)."""
 RATES = (("success_rate", "Success"), ("collision_rate", "Collision"))
 
-LOWER_IS_BETTER = ("collision_rate", "steps_to_gain", "learned_drop")
-"""The `run_scores` scores of which less is an improvement."""
+HIGHER_IS_BETTER = {
+    "success_rate": True,
+    "collision_rate": False,
+    "steps_to_gain": False,
+    "learned_drop": False,
+    "learning_auc": True,
+    "mean_kinematic_retention": True,
+}
+"""Every score `run_scores` gives, and whether a higher value is an improvement."""
 
 GAIN_MARGIN = 0.2
 GAIN_POINTS = 2
@@ -237,7 +244,7 @@ def tasks_of(scores: Scores) -> list[str]:
 def poi(scores: Scores, tasks: Sequence[str], x: str, y: str, key: str, seed: int) -> Estimate:
     """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks``."""
     sides = (_key(scores, tasks, m, key) for m in (x, y))
-    return _estimate("poi", key not in LOWER_IS_BETTER, seed, ("+".join(tasks), x, y, key), *sides)
+    return _estimate("poi", HIGHER_IS_BETTER[key], seed, ("+".join(tasks), x, y, key), *sides)
 
 
 def method_estimate(

@@ -302,3 +302,9 @@ def test_a_poi_interval_is_never_narrower_than_its_score_bound():
     own_width = 1.0 - newcombe_interval(1.0, 5, 5)[0]
     assert both.low < 0.5 < both.high
     assert both.high - both.low == pytest.approx(own_width)
+
+
+def test_a_score_without_a_known_direction_is_refused_not_guessed():
+    scores = {("dcp", "dist-gprl"): [{"success_rate": 1.0}], ("dcp", "gprl"): [{}]}
+    with pytest.raises(KeyError, match="no_such_score"):
+        poi(scores, ["dcp"], "dist-gprl", "gprl", "no_such_score", 0)
