@@ -1,8 +1,10 @@
-"""The mechanism table (protocol v6, rule 7 in docs/findings/protocol.md) of a preset's runs:
-the reach of a raw action against the TC range (rows of
-`distgprl.experiments.mechanisms.reach_rows`, passed in) and the cells of
-`distgprl.report.mechanism_shares`, each marked ✓/✗, with one verdict line per term; written
-as ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``.
+"""The mechanism table (protocol v6, rule 7 in docs/findings/protocol.md; protocol v8, rule 1
+in docs/findings/environment-v8.md) of a preset's runs: the reach of a raw action against the
+TC range (rows of `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares
+of the return, the regulariser shares of the actor gradient and the r_ga plateau, each marked
+against its criterion, with one verdict line per term. A cell is a dict of the table's
+`CSV_COLUMNS` (a share a fraction, None where there is none) and the values behind them,
+computed from result CSVs as frames (`distgprl.report.frame.csv_frame`: an empty cell NaN).
 """
 
 from __future__ import annotations
@@ -12,54 +14,176 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import replace
 from itertools import groupby
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
+from distgprl import reward_scale
 from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER, MethodSpec
 from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
-from distgprl.report.mechanism_shares import (
-    CRITERION,
-    GRADIENT_ITEMS,
-    NOT_RECORDED,
-    Cell,
-    gradient_cells,
-    mean,
-    plateau_cell,
-    return_cells,
-)
 from distgprl.report.runs import RunSelection, run_keys, select_runs
-from distgprl.reward_scale import (
-    MAX_GA_SHARE_OF_SUCCESS,
-    MAX_IDLE_SHARE_OF_DEMO,
-    demo_outcome,
-    demo_task_return,
-    success_task_return,
-)
 from distgprl.schema import evaluation_file_names
+
+CRITERION = 0.05
+"""The pre-registered share (rule 7): each shaping term ≥ 5 % of the return where it acts,
+each regulariser's actor gradient ≥ 5 % of the Q term's (L_hap: outside C_safe)."""
+
+NOT_RECORDED = "not recorded"
+"""The verdict of a cell whose result files predate the columns it needs."""
+
+POINTS = ("first", "middle", "last")
+"""The learning-curve points of the gradient shares."""
+
+RETURN_TERMS = {"r_ga": "return_ga", "r_sd": "return_sd"}
+"""Shaping term -> its evaluation column (``return_ga`` holds lambda_ga r_ga), in row order."""
+
+GRADIENT_ITEMS = {"l_sim": "grad_sim", "l_hap": "grad_hap", "l_hap_active": "grad_hap_active"}
+"""Regulariser item (``l_hap_active``: L_hap over the samples outside C_safe) -> its
+``progress.csv`` column, a share of ``grad_q``."""
+
+ACTIVE = "hap_active_fraction"
+"""The ``progress.csv`` column of the share of samples outside C_safe."""
+
+IDLE_PROGRESS = 0.05
+"""An episode that neither succeeded nor collided is idle if its r_tc is below this share of
+the task's progress weight."""
+
+RULE_ONE = {
+    "ga_of_success": reward_scale.MAX_GA_SHARE_OF_SUCCESS,
+    "idle_of_demo": reward_scale.MAX_IDLE_SHARE_OF_DEMO,
+}
+"""Rule 1's ratios, measured (`rule_one_cells`) -> their bound."""
+
+Cell = dict[str, Any]
+
+
+def _columns(frame: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """``frame`` with ``columns``, NaN where it lacks one."""
+    return frame.assign(**{column: frame.get(column, np.nan) for column in columns})
+
+
+def _mean(values: Sequence[float] | np.ndarray) -> float | None:
+    return float(np.mean(values)) if len(values) else None
+
+
+def _judged(share: float) -> str:
+    return "yes" if share >= CRITERION else "no"
+
+
+def return_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
+    """The r_ga and r_sd cells of one method's policy (``keys``: task, method, where) from the
+    evaluation ``episodes`` of its runs (with the run's ``seed`` and ``d_min``, m), pooled
+    over the ``recorded`` runs (return parts in every row): ``shares`` the per-episode
+    |Σ term| / |Σ r_tc| within d_min where Σ r_tc ≠ 0 (``n/a`` without any)."""
+    needed = ["return_tc", *RETURN_TERMS.values()]
+    parts = _columns(episodes, needed)
+    complete = parts[needed].notna().all(axis=1)
+    recorded = parts[complete.groupby(parts["seed"]).transform("all")]
+    within = recorded["min_clearance"] < recorded["d_min"]
+    paid = within & (recorded["return_tc"] != 0.0)
+    counts = {"seeds": episodes["seed"].nunique(), "recorded": recorded["seed"].nunique()}
+    counts |= {"episodes": len(recorded), "episodes_within_d_min": int(within.sum())}
+    counts["episodes_zero_tc"] = int(within.sum() - paid.sum())
+    cells = []
+    for term, column in RETURN_TERMS.items():
+        shares = (recorded[column].abs() / recorded["return_tc"].abs())[paid].to_numpy()
+        share = _mean(shares)
+        verdict = "n/a" if share is None else _judged(share)
+        cells.append(
+            {"section": "return_share", **keys, **counts, "item": term, "shares": shares}
+            | {"share_mean": share, "share_median": None if share is None else np.median(shares)}
+            | {"meets_criterion": verdict if counts["recorded"] else NOT_RECORDED}
+        )
+    return cells
+
+
+def rule_one_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
+    """Rule 1's ratios over one method's policy's episodes that record r_tc (``keys`` and
+    ``episodes`` as `return_cells`', with the run's scale, `_run_scale`): ``ga_of_success``
+    per episode, ``idle_of_demo`` per idle one; each row with the plateau's ``idle`` count
+    and their mean lambda_ga r_ga ``mean_ga``."""
+    rows = _columns(episodes, ["return_tc", "return_sd", "return_ga"])
+    rows = rows[rows["return_tc"].notna()]
+    ga = rows["return_ga"].fillna(0.0)
+    done = rows["success"].round().astype(bool) | rows["collision"].round().astype(bool)
+    idle = ~done & (rows["return_tc"] < IDLE_PROGRESS * rows["progress_weight"])
+    whole = rows["return_tc"] + rows["return_sd"].fillna(0.0) + ga
+    ratios = {"ga_of_success": ga / rows["success_return"]}
+    ratios["idle_of_demo"] = (whole / rows["demo_return"])[idle]
+    plateau: Cell = {"seeds": rows["seed"].nunique(), "idle": int(idle.sum())}
+    plateau["mean_ga"] = _mean(ga[idle].to_numpy())
+    return [
+        {"section": "reward_scale", **keys, **plateau, "item": item, "episodes": len(values)}
+        | {"share_mean": _mean(values.to_numpy()), "share_max": values.max()}
+        | {"meets_criterion": "yes" if values.max() <= RULE_ONE[item] else "no"}
+        for item, values in ratios.items()
+        if len(values)
+    ]
+
+
+def gradient_points(curve: pd.DataFrame) -> pd.DataFrame:
+    """The first, middle (row (n - 1) // 2 of n) and last rows by step of one run's learning
+    ``curve`` that recorded the actor's gradient norms (``grad_q`` > 0: not the step-0 point),
+    indexed by `POINTS`; empty if none did."""
+    recorded = curve[curve["grad_q"] > 0].sort_values("step", kind="stable")
+    last = len(recorded) - 1
+    return recorded.iloc[[0, last // 2, last]].set_axis(POINTS) if last >= 0 else recorded
+
+
+def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
+    """The cells of the items one method (``keys``: task, method) uses at each of `POINTS`
+    from its runs' learning ``curves``: ``shares`` grad_item / grad_q per run recording it;
+    ``inactive`` where every run lacks ``grad_hap_active`` with no sample outside C_safe;
+    ``l_hap`` (all samples) reported, not judged (``n/a``)."""
+    spec = METHODS[keys["method"]]
+    used = {"l_sim": spec.similarity_loss, "l_hap": spec.hap_prior, "l_hap_active": spec.hap_prior}
+    columns = ["step", "grad_q", ACTIVE, *GRADIENT_ITEMS.values()]
+    points = pd.concat([gradient_points(_columns(curve, columns)) for curve in curves])
+    cells = []
+    for point in POINTS:
+        rows = points[points.index == point]
+        low, high = rows["step"].astype(int).agg(["min", "max"]) if len(rows) else ("", "")
+        span = str(low) if low == high else f"{low}–{high}"
+        for item in (item for item in GRADIENT_ITEMS if used[item]):
+            value = rows[GRADIENT_ITEMS[item]]
+            shares = (value / rows["grad_q"])[value.notna()].to_numpy()
+            hap = item == "l_hap_active"
+            inactive = int((value.isna() & (rows[ACTIVE] == 0.0)).sum()) if hap else 0
+            missing = len(curves) - len(rows) + int(value.isna().sum()) - inactive
+            share = _mean(shares)
+            verdict = "inactive" if inactive and not missing else NOT_RECORDED
+            verdict = "n/a" if item == "l_hap" else verdict if share is None else _judged(share)
+            cells.append(
+                {"section": "gradient_share", **keys, "item": item, "where": point}
+                | {"step": span, "seeds": len(rows), "shares": shares, "share_mean": share}
+                | {"active_fraction": _mean(rows[ACTIVE].dropna().to_numpy()) if hap else None}
+                | {"meets_criterion": verdict}
+            )
+    return cells
 
 
 def _run_scale(folder: Path) -> dict[str, Any]:
-    """A run's ``seed``, ``d_min`` (m), ``progress_weight`` and, under its recorded reward scale
-    (`distgprl.reward_scale`; a field it lacks its default), a success's r_tc
-    ``success_return`` and the demonstration's mean r_tc ``demo_return``."""
+    """A run's ``seed``, ``d_min`` (m) and, under its recorded reward scale (a field it lacks:
+    the default), ``progress_weight``, a success's r_tc and the demonstration's mean r_tc."""
     document = json.loads((folder / "config.json").read_text())
     recorded = document.get("run", {}).get("config", {}).get("env", {})
     fields = ("sd_d_min", "progress_weight", "success_bonus", "collision_penalty")
-    values: dict[str, Any] = {
-        field: float(recorded.get(field, getattr(EnvConfig, field))) for field in fields
-    }
+    values: dict[str, Any] = {f: float(recorded.get(f, getattr(EnvConfig, f))) for f in fields}
     env = replace(EnvConfig(), **values)
     task, _, seed = run_keys(folder)
-    demo = demo_task_return(env, demo_outcome(task))
-    return {"seed": seed, "d_min": env.sd_d_min, "progress_weight": env.progress_weight} | {
-        "success_return": success_task_return(env),
-        "demo_return": demo,
+    return {
+        "seed": seed,
+        "d_min": env.sd_d_min,
+        "progress_weight": env.progress_weight,
+        "success_return": reward_scale.success_task_return(env),
+        "demo_return": reward_scale.demo_task_return(env, reward_scale.demo_outcome(task)),
     }
 
 
@@ -71,39 +195,39 @@ def _order(task: str, method: str) -> tuple[int, int, str]:
 
 def _by_method(
     selection: RunSelection, uses: Callable[[MethodSpec], bool]
-) -> list[tuple[tuple[str, str], list[Path]]]:
-    """((task, method), its run folders, sorted) of the selected runs whose method ``uses``,
-    in `_order`."""
+) -> list[tuple[Cell, list[Path]]]:
+    """((task, method) keys, the run folders) of the selected runs whose method ``uses``, in
+    `_order`."""
     runs: dict[tuple[str, str], list[Path]] = {}
     for folder in sorted(selection.current):
         if uses(METHODS[folder.parent.name]):
             runs.setdefault((folder.parent.parent.name, folder.parent.name), []).append(folder)
-    return sorted(runs.items(), key=lambda item: _order(*item[0]))
+    ordered = sorted(runs.items(), key=lambda item: _order(*item[0]))
+    return [({"task": task, "method": method}, folders) for (task, method), folders in ordered]
 
 
 def mechanism_cells(root: str | Path, preset: str) -> dict[str, Any]:
     """The cells of the preset's runs under ``root`` in the tables' order: ``returns`` and
-    ``plateau`` of the evaluated runs of the current configuration, ``gradients`` of the
+    ``scale`` (rule 1) of the evaluated runs of the current configuration, ``gradients`` of the
     trained ones (`distgprl.report.runs.select_runs`); ``note``: which runs were left out."""
     evaluated = select_runs(root, preset)
     trained = select_runs(root, preset, marker="done.json")
-    returns, plateau, gradients = [], [], []
-    for (task, method), folders in _by_method(evaluated, lambda spec: spec.distance_rewards):
+    returns, scale, gradients = [], [], []
+    for keys, folders in _by_method(evaluated, lambda spec: spec.distance_rewards):
         for policy in ("final", "best"):
             paths = [folder / evaluation_file_names(None, policy)[0] for folder in folders]
             runs = [csv_frame(path, _run_scale(path.parent)) for path in paths if path.exists()]
             if runs:
-                keys = {"task": task, "method": method, "where": policy}
                 episodes = pd.concat(runs, ignore_index=True)
-                returns += return_cells(keys, episodes)
-                plateau += [cell] if (cell := plateau_cell(keys, episodes)) else []
-    plateau.sort(key=lambda cell: (_order(cell["task"], cell["method"]), cell["where"]))
-    regularised = _by_method(trained, lambda s: s.trainable and (s.similarity_loss or s.hap_prior))
-    for (task, method), folders in regularised:
-        curves = [csv_frame(folder / "progress.csv", {}) for folder in folders]
-        gradients += gradient_cells(task, method, curves)
+                returns += return_cells(keys | {"where": policy}, episodes)
+                scale += rule_one_cells(keys | {"where": policy}, episodes)
+    scale.sort(key=lambda cell: (_order(cell["task"], cell["method"]), cell["where"]))
+    for keys, folders in _by_method(
+        trained, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
+    ):
+        gradients += gradient_cells(keys, [csv_frame(f / "progress.csv", {}) for f in folders])
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
-    return {"returns": returns, "gradients": gradients, "plateau": plateau, "note": note}
+    return {"returns": returns, "gradients": gradients, "scale": scale, "note": note}
 
 
 DESCRIPTION = (
@@ -139,33 +263,21 @@ in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and 
 shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``) or
 ``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
 ``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
-``seeds``) or ``reward_scale`` (protocol v8 rule 1 measured: ``item`` ``ga_of_success`` (a) or
+``seeds``) or ``reward_scale`` (rule 1 measured: ``item`` ``ga_of_success`` (a) or
 ``idle_of_demo`` (b), ``where`` the policy, ``episodes`` the ratios' count, ``share_max``
 judged against the rule's bound). ``meets_criterion``: ``yes``/``no`` (≥ 5 %; rule 1: the
 largest within its bound), ``not recorded``, ``inactive``, ``n/a``."""
 
-RULE_ONE = {
-    "ga_of_success": MAX_GA_SHARE_OF_SUCCESS,
-    "idle_of_demo": MAX_IDLE_SHARE_OF_DEMO,
-}
-"""Rule 1's measured ratios (`distgprl.report.mechanism_shares.plateau_cell`) -> bound."""
-
 MARKS = {"yes": " ✓", "no": " ✗"}
-TERM_LABELS = {
-    "r_sd": "r_sd / r_tc",
-    "r_ga": "λ_ga r_ga / r_tc",
+VERDICT_LABELS = {
+    "r_sd": "r_sd / r_tc (episodes within d_min)",
+    "r_ga": "λ_ga r_ga / r_tc (episodes within d_min)",
     "l_sim": "λ_sim L_sim / Q",
-    "l_hap": "λ_hap L_hap / Q (all samples)",
     "l_hap_active": "λ_hap L_hap / Q outside C_safe",
     "ga_of_success": "Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc",
     "idle_of_demo": "Rule 1 (b), an idle episode's return over the demonstration's mean r_tc",
 }
-
-
-def _csv_cell(value: Any) -> Any:
-    if isinstance(value, float):
-        return f"{value:.6g}"
-    return "" if value is None else value
+"""The name of each verdict line's term."""
 
 
 def _percent(value: float | None) -> str:
@@ -176,73 +288,54 @@ def _label(method: str) -> str:
     return METHODS[method].label if method in METHODS else method
 
 
-def _covers(rows: Sequence[Mapping[str, Any]]) -> str:
-    """``yes`` where a method and task's smallest one-episode reach is at least the TC range
-    on x and on y (up to rounding, 1e-9 m), ``no`` otherwise, ``n/a`` for reach in ProMP
-    weight units."""
-    if any(row["kind"] == "ProMP weight" for row in rows):
-        return "n/a"
-    planar = [row for row in rows if row["axis"] in ("x", "y")]
-    ok = all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in planar)
-    return "yes" if ok and planar else "no"
-
-
-def _reach(reach: Iterable[Mapping[str, Any]]) -> list[Cell]:
-    """The reach rows in `_order`, each with ``item`` (its axis) and `_covers` of its
-    method and task's."""
-    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
-    for row in reach:
-        groups.setdefault((row["task"], row["method"]), []).append(row)
-    return [
-        {**row, "section": "reach", "item": row["axis"], "covers_tc_range": _covers(group)}
-        for key, group in sorted(groups.items(), key=lambda item: _order(*item[0]))
-        for row in group
-    ]
-
-
-def _rule_one(plateau: Iterable[Cell]) -> list[Cell]:
-    """The ``reward_scale`` rows: per plateau cell and rule 1 ratio it has, the ratios' mean
-    and largest, judged against the bound."""
-    return [
-        {**cell, "section": "reward_scale", "item": item, "episodes": len(cell[item])}
-        | {"share_mean": mean(cell[item]), "share_max": max(cell[item])}
-        | {"meets_criterion": "yes" if max(cell[item]) <= bound else "no"}
-        for cell in plateau
-        for item, bound in RULE_ONE.items()
-        if len(cell[item])
-    ]
+def _reach(reach: Iterable[Mapping[str, Any]]) -> list[list[Cell]]:
+    """The reach rows per method and task in `_order`, each with ``item`` (its axis) and
+    ``covers_tc_range``: ``yes`` where the method and task's smallest one-episode reach is at
+    least the TC range on x and on y (up to rounding, 1e-9 m), ``no`` otherwise, ``n/a`` for
+    reach in ProMP weight units."""
+    groups = []
+    ordered = sorted(reach, key=lambda row: _order(row["task"], row["method"]))
+    for _, group in groupby(ordered, itemgetter("task", "method")):
+        axes = list(group)
+        planar = [row for row in axes if row["axis"] in ("x", "y")]
+        covered = planar and all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in planar)
+        covers = "yes" if covered else "no"
+        if any(row["kind"] == "ProMP weight" for row in axes):
+            covers = "n/a"
+        marks = {"section": "reach", "covers_tc_range": covers}
+        groups.append([{**row, "item": row["axis"], **marks} for row in axes])
+    return groups
 
 
 def _rows(cells: Iterable[Cell]) -> Iterator[tuple[list[str], dict[str, Cell]]]:
-    """Per (task, method, where) of consecutive ``cells``: the table row's first cells
-    (task, method) and {item: cell}."""
-    for (task, method, _), group in groupby(cells, lambda c: (c["task"], c["method"], c["where"])):
-        yield [task.upper(), _label(method)], {cell["item"]: cell for cell in group}
+    """Per (task, method, where) of consecutive ``cells``: the row's first texts and
+    {item: cell}."""
+    for (task, method, where), group in groupby(cells, itemgetter("task", "method", "where")):
+        yield [task.upper(), _label(method), where], {cell["item"]: cell for cell in group}
 
 
-def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
-    """The ``span`` (``one_step`` or ``episode``) reach's min–max (m) per axis of ``axes``."""
-    return " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
-
-
-def _reach_rows(reach: Sequence[Cell]) -> Iterator[list[str]]:
-    for _, group in groupby(reach, lambda row: (row["task"], row["method"])):
+def _reach_rows(reach: Sequence[list[Cell]]) -> Iterator[list[str]]:
+    for group in reach:
         axes = sorted(group, key=lambda row: "xyz".index(row["axis"]))
-        kind, gate, covers = axes[0]["kind"], axes[0].get("gate_max"), axes[0]["covers_tc_range"]
+        first, covers = axes[0], axes[0]["covers_tc_range"]
+        kind, gate = first["kind"], first.get("gate_max")
+        spans = [
+            " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
+            for span in ("one_step", "episode")
+        ]
         yield [
-            axes[0]["task"].upper(),
-            _label(axes[0]["method"]),
+            first["task"].upper(),
+            _label(first["method"]),
             kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
             " / ".join(f"{row['tc_range_m']:.3f}" for row in axes),
-            *(_spans(axes, span) for span in ("one_step", "episode")),
+            *spans,
             covers + MARKS.get(covers, ""),
         ]
 
 
 def _share_text(cell: Cell | None) -> str:
-    """A share cell's text: its mean as a percentage (a return share's with its median),
-    marked; else its verdict (a return share without a ratio: none within d_min); — where
-    the method has no such term."""
+    """A share's mean as a percentage, a return share's with its median, marked; else its
+    verdict (a return share's ``n/a``: no episode within d_min); — where no such term acts."""
     if cell is None:
         return "—"
     verdict, share = cell["meets_criterion"], cell["share_mean"]
@@ -257,7 +350,6 @@ def _return_rows(returns: Sequence[Cell]) -> Iterator[list[str]]:
         cell = terms["r_sd"]
         recorded = cell["recorded"] > 0
         yield first + [
-            cell["where"],
             str(cell["seeds"]),
             f"{cell['episodes_within_d_min']} of {cell['episodes']}" if recorded else NOT_RECORDED,
             str(cell["episodes_zero_tc"]) if recorded else "",
@@ -266,36 +358,38 @@ def _return_rows(returns: Sequence[Cell]) -> Iterator[list[str]]:
 
 
 def _gradient_rows(gradients: Sequence[Cell]) -> Iterator[list[str]]:
-    for first, items in _rows(gradients):
+    for (task, label, point), items in _rows(gradients):
         cell = next(iter(items.values()))
         fraction = items["l_hap_active"]["active_fraction"] if "l_hap_active" in items else None
-        yield first + [
-            f"{cell['where']} ({cell['step']})",
+        yield [
+            task,
+            label,
+            f"{point} ({cell['step']})",
             str(cell["seeds"]),
             *(_share_text(items.get(item)) for item in GRADIENT_ITEMS),
             "—" if fraction is None else _percent(fraction),
         ]
 
 
-def _bounded(ratios: Sequence[float], bound: float) -> str:
-    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of ``ratios``, marked against
-    rule 1's ``bound``; – without ratios."""
-    if not len(ratios):
+def _bounded(cell: Cell | None) -> str:
+    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of a rule 1 ratio, marked
+    against its bound; – without ratios."""
+    if cell is None:
         return "–"
-    mark = MARKS["yes" if max(ratios) <= bound else "no"]
-    return f"max {_percent(max(ratios))} (mean {_percent(mean(ratios))}){mark}"
+    maximum, average = _percent(cell["share_max"]), _percent(cell["share_mean"])
+    return f"max {maximum} (mean {average}){MARKS[cell['meets_criterion']]}"
 
 
-def _plateau_rows(plateau: Sequence[Cell]) -> Iterator[list[str]]:
-    for cell in plateau:
-        yield [
-            cell["task"].upper(),
-            _label(cell["method"]),
-            cell["where"],
+def _plateau_rows(scale: Sequence[Cell]) -> Iterator[list[str]]:
+    for first, items in _rows(scale):
+        cell = items["ga_of_success"]
+        idle = f"{cell['idle']} of {cell['episodes']} ({_percent(cell['idle'] / cell['episodes'])})"
+        mean_ga = "–" if cell["mean_ga"] is None else f"{cell['mean_ga']:.3f}"
+        yield first + [
             str(cell["seeds"]),
-            f"{cell['idle']} of {cell['episodes']} ({_percent(cell['idle'] / cell['episodes'])})",
-            "–" if cell["mean_ga"] is None else f"{cell['mean_ga']:.3f}",
-            *(_bounded(cell[item], bound) for item, bound in RULE_ONE.items()),
+            idle,
+            mean_ga,
+            *(_bounded(items.get(item)) for item in RULE_ONE),
         ]
 
 
@@ -303,62 +397,62 @@ OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (insid
 """How a verdict line names the cells the criterion does not judge."""
 
 
-def _verdict(label: str, cells: list[Cell], name: str) -> str:
-    """One line: how many ``cells`` meet the criterion, which do not (each ``name`` filled in
-    from the cell; at most 4 named, else their count and range), and the term's verdict."""
-    no = [(name.format_map(c), c["share_mean"]) for c in cells if c["meets_criterion"] == "no"]
+def _verdict(label: str, cells: Sequence[Cell], name: str) -> str:
+    """One line: how many ``cells`` meet the criterion, which do not (``name`` filled in from
+    the cell; more than 4: their count and range) and how many are not judged."""
+    no = [
+        (f"{name.format_map(cell)} {_percent(cell['share_mean'])}", cell["share_mean"])
+        for cell in cells
+        if cell["meets_criterion"] == "no"
+    ]
     other = Counter(cell["meets_criterion"] for cell in cells)
     decided = other.pop("yes", 0) + other.pop("no", 0)
-    if not decided:
-        line = f"{label}: undecided (no cell where it acts and is recorded)"
-    else:
+    if decided:
         outcome = "does not meet the criterion" if no else "meets the criterion"
         line = f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of "
         line += f"{decided} cells"
+    else:
+        line = f"{label}: undecided (no cell where it acts and is recorded)"
     if len(no) > 4:
-        (low, low_value), *_, (high, high_value) = sorted(no, key=lambda item: item[1] or 0.0)
-        line += (
-            f"; below in {len(no)} cells, from {low} {_percent(low_value)} "
-            f"to {high} {_percent(high_value)}"
-        )
+        (low, _), *_, (high, _) = sorted(no, key=lambda pair: pair[1])
+        line += f"; below in {len(no)} cells, from {low} to {high}"
     elif no:
-        line += "; below: " + ", ".join(f"{name} {_percent(value)}" for name, value in no)
+        line += "; below: " + ", ".join(text for text, _ in no)
     if other:
-        line += "; " + ", ".join(
-            f"{OTHER_VERDICTS.get(verdict, verdict)}: {count}"
-            for verdict, count in sorted(other.items())
-        )
+        counts = (f"{OTHER_VERDICTS.get(v, v)}: {n}" for v, n in sorted(other.items()))
+        line += "; " + ", ".join(counts)
     return line + "."
 
 
 def _verdict_lines(
-    reach: Sequence[Cell], returns: Sequence[Cell], gradients: Sequence[Cell], scale: Sequence[Cell]
+    reach: Sequence[list[Cell]],
+    returns: Sequence[Cell],
+    gradients: Sequence[Cell],
+    scale: Sequence[Cell],
 ) -> list[str]:
     """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim, lambda_hap L_hap
     (outside C_safe) and rule 1's two ratios."""
     lines = []
-    covers = {(r["task"], r["method"]): r["covers_tc_range"] for r in reach}
-    judged = [key for key, value in covers.items() if value != "n/a"]
-    if judged:
+    covers = {(g[0]["task"], g[0]["method"]): g[0]["covers_tc_range"] for g in reach}
+    if judged := [key for key, value in covers.items() if value != "n/a"]:
         missing = [f"{task}/{method}" for task, method in judged if covers[task, method] == "no"]
         line = (
             f"Reach: the one-episode reach covers the TC range on x and y for "
             f"{sum(covers[key] == 'yes' for key in judged)} of {len(judged)} method–task pairs"
         )
         lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
-    for term in ("r_sd", "r_ga"):
-        if cells := [c for c in returns if c["item"] == term]:
-            label = f"{TERM_LABELS[term]} (episodes within d_min)"
-            lines.append(_verdict(label, cells, "{task}/{method} ({where})"))
-    for item in ("l_sim", "l_hap_active"):
-        if cells := [c for c in gradients if c["item"] == item]:
-            lines.append(_verdict(TERM_LABELS[item], cells, "{task}/{method} {where}"))
+    for item in ("r_sd", "r_ga", "l_sim", "l_hap_active"):
+        if cells := [cell for cell in (*returns, *gradients) if cell["item"] == item]:
+            name = (
+                "{task}/{method} ({where})" if item in RETURN_TERMS else "{task}/{method} {where}"
+            )
+            lines.append(_verdict(VERDICT_LABELS[item], cells, name))
     for item, bound in RULE_ONE.items():
         if cells := [c for c in scale if c["item"] == item]:
             within = sum(c["meets_criterion"] == "yes" for c in cells)
             top = max(cells, key=lambda c: c["share_max"])
             lines.append(
-                f"{TERM_LABELS[item]}, measured on the policies' evaluation episodes: within "
+                f"{VERDICT_LABELS[item]}, measured on the policies' evaluation episodes: within "
                 f"{100 * bound:.0f} % in {within} of {len(cells)} cells; largest "
                 f"{_percent(top['share_max'])} ({top['task']}/{top['method']}, {top['where']})."
             )
@@ -373,7 +467,9 @@ INTRO = (
     "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell."
 )
 
-SECTIONS = (
+Section = tuple[str, list[str], Callable[[Any], Iterator[list[str]]], str]
+
+SECTIONS: tuple[Section, ...] = (
     (
         "### Reach of a raw action in [-1, 1]",
         ["Task", "Method", "Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
@@ -399,8 +495,15 @@ SECTIONS = (
     ),
     (
         "### Regulariser shares of the actor gradient",
-        ["Task", "Method", "Point (step)", "Seeds", *(TERM_LABELS[item] for item in GRADIENT_ITEMS)]
-        + ["Samples outside C_safe"],
+        [
+            "Task",
+            "Method",
+            "Point (step)",
+            "Seeds",
+            "λ_sim L_sim / Q",
+            "λ_hap L_hap / Q (all samples)",
+        ]
+        + ["λ_hap L_hap / Q outside C_safe", "Samples outside C_safe"],
         _gradient_rows,
         "grad_sim / grad_q, grad_hap / grad_q and grad_hap_active / grad_q of progress.csv "
         "(mean per-sample gradient norms on the actor's output, "
@@ -411,8 +514,8 @@ SECTIONS = (
     (
         "### The r_ga plateau and rule 1's ratios, measured",
         ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
-        + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * MAX_GA_SHARE_OF_SUCCESS:.0f} %)"]
-        + [f"(b) idle return / the demo's mean r_tc (≤ {100 * MAX_IDLE_SHARE_OF_DEMO:.0f} %)"],
+        + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * RULE_ONE['ga_of_success']:.0f} %)"]
+        + [f"(b) idle return / the demo's mean r_tc (≤ {100 * RULE_ONE['idle_of_demo']:.0f} %)"],
         _plateau_rows,
         "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
@@ -425,7 +528,7 @@ SECTIONS = (
     ),
 )
 """The Markdown's tables in order: (title, header, its rows from its cells, the definition
-written under it); the plateau's only where there are plateau cells."""
+written under it); the plateau's only where rule 1 has cells."""
 
 
 def mechanism_texts(
@@ -433,21 +536,21 @@ def mechanism_texts(
     reach: Sequence[Mapping[str, Any]],
     returns: Sequence[Cell] = (),
     gradients: Sequence[Cell] = (),
-    plateau: Sequence[Cell] = (),
+    scale: Sequence[Cell] = (),
     note: str = "",
 ) -> tuple[str, str, list[str]]:
     """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the cells of
     `mechanism_cells` (in its order); ``note`` closes the Markdown."""
-    reached, scale = _reach(reach), _rule_one(plateau)
+    reached = _reach(reach)
     verdicts = _verdict_lines(reached, returns, gradients, scale)
     markdown = f"## Mechanism table ({preset})\n\n{INTRO}\n\n"
-    parts = (reached, returns, gradients, plateau)[: 4 if plateau else 3]
+    parts = (reached, returns, gradients, scale)[: 4 if scale else 3]
     for (title, header, rows, definition), cells in zip(SECTIONS, parts, strict=False):
         markdown += f"{markdown_table(title, header, rows(cells))}\n{definition}\n\n"
     lines = ["", "### Verdicts", "", *(f"- {line}" for line in verdicts)]
     lines += ["", note + "."] if note else []
     csv_rows = [
-        {k: _csv_cell(v) for k, v in row.items()}
-        for row in [*reached, *returns, *gradients, *scale]
+        {key: f"{value:.6g}" if isinstance(value, float) else value for key, value in row.items()}
+        for row in [*(row for group in reached for row in group), *returns, *gradients, *scale]
     ]
     return csv_text(csv_rows, CSV_COLUMNS), markdown + "\n".join(lines) + "\n", verdicts

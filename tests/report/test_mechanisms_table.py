@@ -1,8 +1,7 @@
-"""The mechanism table's cells (`distgprl.report.mechanism_shares`) from synthetic result
-frames, and the table written from a synthetic results tree (`distgprl.report.mechanisms`):
-an episode that never comes within d_min is left out, one with r_tc = 0 is counted and left
-out, files that predate the columns say "not recorded", and the writer imports neither torch
-nor pybullet."""
+"""The mechanism table's cells (`distgprl.report.mechanisms`) from synthetic result frames,
+and the table written from a synthetic results tree: an episode that never comes within d_min
+is left out, one with r_tc = 0 is counted and left out, files that predate the columns say
+"not recorded", and the writer imports neither torch nor pybullet."""
 
 from __future__ import annotations
 
@@ -17,14 +16,14 @@ import pandas as pd
 import pytest
 
 from distgprl.identity import resolve_run
-from distgprl.report.mechanism_shares import (
+from distgprl.report.mechanisms import (
     NOT_RECORDED,
     gradient_cells,
     gradient_points,
-    plateau_cell,
     return_cells,
+    rule_one_cells,
+    write_mechanisms,
 )
-from distgprl.report.mechanisms import write_mechanisms
 from distgprl.schema import EVALUATION_FIELDS, PROGRESS_FIELDS, read_csv, write_csv, write_json
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,23 +62,23 @@ def runs(*seeds, **scale):
     return pd.concat(parts, ignore_index=True)
 
 
-def shares(seeds):
+def term_cells(seeds):
     """{term: its cell} of `return_cells` of ``seeds`` (rows per run)."""
     return {cell["item"]: cell for cell in return_cells(KEYS, runs(*seeds))}
 
 
 def test_return_shares_use_the_episodes_within_d_min_with_a_task_return():
-    cells = shares([EPISODES])
+    cells = term_cells([EPISODES])
     sd, ga = cells["r_sd"], cells["r_ga"]
     assert (sd["episodes"], sd["episodes_within_d_min"], sd["episodes_zero_tc"]) == (4, 3, 1)
     assert sd["shares"] == pytest.approx([0.25, 0.3])
     assert ga["shares"] == pytest.approx([0.1, 0.05])
 
 
-def test_return_shares_of_rows_without_the_return_parts_are_not_recorded():
+def test_return_term_cells_rows_without_the_return_parts_are_not_recorded():
     old = [{k: v for k, v in row.items() if not k.startswith("return_")} for row in EPISODES]
-    assert shares([old])["r_sd"]["meets_criterion"] == NOT_RECORDED
-    gap = shares([[{**EPISODES[0], "return_sd": math.nan}, EPISODES[1]]])["r_ga"]
+    assert term_cells([old])["r_sd"]["meets_criterion"] == NOT_RECORDED
+    gap = term_cells([[{**EPISODES[0], "return_sd": math.nan}, EPISODES[1]]])["r_ga"]
     assert gap["meets_criterion"] == NOT_RECORDED and gap["recorded"] == 0
 
 
@@ -96,11 +95,11 @@ def test_return_cells_pool_the_seeds_and_judge_the_mean_against_five_percent():
     assert sd["share_median"] == pytest.approx(0.25)
     assert ga["share_mean"] == pytest.approx(0.17 / 3)
     assert sd["meets_criterion"] == ga["meets_criterion"] == "yes"
-    assert shares([second])["r_ga"]["meets_criterion"] == "no"
+    assert term_cells([second])["r_ga"]["meets_criterion"] == "no"
     far = [episode(0.2, 1.0, 0.0, 0.1)]
-    assert shares([far])["r_sd"]["meets_criterion"] == "n/a"
+    assert term_cells([far])["r_sd"]["meets_criterion"] == "n/a"
     old = [{k: v for k, v in row.items() if k != "return_tc"} for row in EPISODES]
-    cell = shares([old])["r_sd"]
+    cell = term_cells([old])["r_sd"]
     assert cell["meets_criterion"] == NOT_RECORDED and cell["share_mean"] is None
 
 
@@ -138,7 +137,7 @@ def test_gradient_cells_share_of_the_q_term_per_point_over_seeds():
     a second seed's 5 % L_sim and inactive L_hap at every point average in. GPRL-D has L_sim
     only; an old file without grad_hap_active says "not recorded" for L_hap outside C_safe."""
     other = [progress(120 * k, 1.0, 0.05, 0.0, NAN, 0.0) for k in (1, 2, 3)]
-    found = gradient_cells("dcp", "dist-gprl", curves(CURVE, other))
+    found = gradient_cells({"task": "dcp", "method": "dist-gprl"}, curves(CURVE, other))
     cells = {(c["item"], c["where"]): c for c in found}
     assert set(cells) == {
         (item, point)
@@ -163,10 +162,12 @@ def test_gradient_cells_share_of_the_q_term_per_point_over_seeds():
     assert active["shares"] == pytest.approx((0.04,)) and active["meets_criterion"] == "no"
     assert active["active_fraction"] == pytest.approx(0.25)  # 0.5 and 0.0 over the seeds
     assert cells["l_hap_active", "last"]["meets_criterion"] == "inactive"
-    assert {c["item"] for c in gradient_cells("dcp", "gprl-d", curves(CURVE))} == {"l_sim"}
+    assert {
+        c["item"] for c in gradient_cells({"task": "dcp", "method": "gprl-d"}, curves(CURVE))
+    } == {"l_sim"}
     dropped = ("grad_hap_active", "hap_active_fraction")
     old = [{k: v for k, v in row.items() if k not in dropped} for row in CURVE]
-    stale = gradient_cells("dcp", "gprl-h", curves(old))
+    stale = gradient_cells({"task": "dcp", "method": "gprl-h"}, curves(old))
     verdicts = {c["meets_criterion"] for c in stale if c["item"] == "l_hap_active"}
     assert verdicts == {NOT_RECORDED}
 
@@ -288,12 +289,13 @@ def test_the_plateau_counts_idle_episodes_and_the_alignment_reward_they_collect(
     seed0 = [row(0, 0, 0.0, 0.55), row(1, 0, 2.0, 0.3), row(0, 1, -1.0, 0.1), row(0, 0, 0.04, 0.5)]
     seed1 = [row(0, 0, 0.2, 0.4), row(0, 0, 0.0, 0.6)]
     old = [{"success": 0, "collision": 0, "return_tc": NAN, "return_ga": NAN}]
-    cell = plateau_cell(KEYS, runs(seed0, seed1, old, **unit))
-    assert (cell["seeds"], cell["episodes"], cell["idle"]) == (2, 6, 3)
-    assert cell["mean_ga"] == pytest.approx((0.55 + 0.5 + 0.6) / 3, abs=1e-12)
+    ga, idle = rule_one_cells(KEYS, runs(seed0, seed1, old, **unit))
+    assert (ga["item"], idle["item"]) == ("ga_of_success", "idle_of_demo")
+    assert (ga["seeds"], ga["episodes"], ga["idle"], idle["episodes"]) == (2, 6, 3, 3)
+    assert ga["mean_ga"] == pytest.approx((0.55 + 0.5 + 0.6) / 3, abs=1e-12)
     # under a progress weight of 10 (r_tc in tenths of a task) 0.2 is still idle
-    assert plateau_cell(KEYS, runs(seed1, **tenths))["idle"] == 2
-    assert plateau_cell(KEYS, runs(old, **unit)) is None
+    assert rule_one_cells(KEYS, runs(seed1, **tenths))[0]["idle"] == 2
+    assert rule_one_cells(KEYS, runs(old, **unit)) == []
 
 
 def test_rule_one_ratios_are_measured_per_episode_against_the_runs_own_scale():
@@ -304,6 +306,10 @@ def test_rule_one_ratios_are_measured_per_episode_against_the_runs_own_scale():
         {"success": 0, "collision": 0, "return_tc": 0.2, "return_sd": -0.2, "return_ga": 0.6},
     ]
     scale = {"progress_weight": 10.0, "success_return": 20.0, "demo_return": 8.0}
-    cell = plateau_cell(KEYS, runs(rows, **scale))
-    assert cell["ga_of_success"] == pytest.approx((0.5 / 20.0, 0.6 / 20.0))
-    assert cell["idle_of_demo"] == pytest.approx(((0.2 - 0.2 + 0.6) / 8.0,))
+    ga, idle = rule_one_cells(KEYS, runs(rows, **scale))
+    assert ga["share_max"] == pytest.approx(0.6 / 20.0) and ga["episodes"] == 2
+    assert ga["share_mean"] == pytest.approx((0.5 / 20.0 + 0.6 / 20.0) / 2)
+    assert idle["share_max"] == pytest.approx((0.2 - 0.2 + 0.6) / 8.0) and idle["episodes"] == 1
+    assert ga["meets_criterion"] == idle["meets_criterion"] == "yes"  # 3 % <= 5 %, 7.5 % <= 10 %
+    _, over = rule_one_cells(KEYS, runs(rows, **{**scale, "demo_return": 5.0}))
+    assert over["meets_criterion"] == "no"  # 12 % > 10 %
