@@ -1,11 +1,9 @@
-"""The mechanism table (protocol v6, rule 7 in docs/findings/protocol.md; protocol v8, rule 1
-in docs/findings/environment-v8.md) of a preset's runs: the reach of a raw action against the
-TC range (rows of `distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares
-of the return, the regulariser shares of the actor gradient and the r_ga plateau, each marked
-against its criterion, with one verdict line per term. A cell is a dict of the table's
-`CSV_COLUMNS` (a share a fraction, None where there is none) and the values behind them,
-computed from result CSVs as frames (`distgprl.report.frame.csv_frame`: an empty cell NaN).
-"""
+"""The mechanism table of a preset's runs (protocol v6, rule 7, docs/findings/protocol.md;
+v8 rule 1, docs/findings/environment-v8.md): reach against the TC range (the rows of
+`distgprl.experiments.mechanisms.reach_rows`), shaping shares of the return, regulariser shares
+of the actor gradient and rule 1's ratios, each judged, with a verdict line per term. A cell:
+a dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them,
+from result CSVs as frames (`distgprl.report.frame.csv_frame`: an empty cell NaN)."""
 
 from __future__ import annotations
 
@@ -424,36 +422,29 @@ def _verdict(label: str, cells: Sequence[Cell], name: str) -> str:
     return line + "."
 
 
-def _verdict_lines(
-    reach: Sequence[list[Cell]],
-    returns: Sequence[Cell],
-    gradients: Sequence[Cell],
-    scale: Sequence[Cell],
-) -> list[str]:
+def _verdict_lines(reach: Sequence[list[Cell]], cells: Sequence[Cell]) -> list[str]:
     """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim, lambda_hap L_hap
-    (outside C_safe) and rule 1's two ratios."""
+    (outside C_safe) and rule 1's two ratios, from the `_reach` groups and the other cells."""
     lines = []
     covers = {(g[0]["task"], g[0]["method"]): g[0]["covers_tc_range"] for g in reach}
-    if judged := [key for key, value in covers.items() if value != "n/a"]:
-        missing = [f"{task}/{method}" for task, method in judged if covers[task, method] == "no"]
+    if pairs := [key for key, value in covers.items() if value != "n/a"]:
+        missing = [f"{task}/{method}" for task, method in pairs if covers[task, method] == "no"]
         line = (
             f"Reach: the one-episode reach covers the TC range on x and y for "
-            f"{sum(covers[key] == 'yes' for key in judged)} of {len(judged)} method–task pairs"
+            f"{sum(covers[key] == 'yes' for key in pairs)} of {len(pairs)} method–task pairs"
         )
         lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
     for item in ("r_sd", "r_ga", "l_sim", "l_hap_active"):
-        if cells := [cell for cell in (*returns, *gradients) if cell["item"] == item]:
-            name = (
-                "{task}/{method} ({where})" if item in RETURN_TERMS else "{task}/{method} {where}"
-            )
-            lines.append(_verdict(VERDICT_LABELS[item], cells, name))
+        if judged := [cell for cell in cells if cell["item"] == item]:
+            where = "({where})" if item in RETURN_TERMS else "{where}"
+            lines.append(_verdict(VERDICT_LABELS[item], judged, "{task}/{method} " + where))
     for item, bound in RULE_ONE.items():
-        if cells := [c for c in scale if c["item"] == item]:
-            within = sum(c["meets_criterion"] == "yes" for c in cells)
-            top = max(cells, key=lambda c: c["share_max"])
+        if judged := [cell for cell in cells if cell["item"] == item]:
+            within = sum(cell["meets_criterion"] == "yes" for cell in judged)
+            top = max(judged, key=itemgetter("share_max"))
             lines.append(
                 f"{VERDICT_LABELS[item]}, measured on the policies' evaluation episodes: within "
-                f"{100 * bound:.0f} % in {within} of {len(cells)} cells; largest "
+                f"{100 * bound:.0f} % in {within} of {len(judged)} cells; largest "
                 f"{_percent(top['share_max'])} ({top['task']}/{top['method']}, {top['where']})."
             )
     return lines
@@ -542,7 +533,7 @@ def mechanism_texts(
     """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the cells of
     `mechanism_cells` (in its order); ``note`` closes the Markdown."""
     reached = _reach(reach)
-    verdicts = _verdict_lines(reached, returns, gradients, scale)
+    verdicts = _verdict_lines(reached, [*returns, *gradients, *scale])
     markdown = f"## Mechanism table ({preset})\n\n{INTRO}\n\n"
     parts = (reached, returns, gradients, scale)[: 4 if scale else 3]
     for (title, header, rows, definition), cells in zip(SECTIONS, parts, strict=False):
