@@ -138,8 +138,8 @@ def gradient_points(curve: pd.DataFrame) -> pd.DataFrame:
 def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
     """The cells of the items one method (``keys``: task, method) uses at each of `POINTS`
     from its runs' learning ``curves``: ``shares`` grad_item / grad_q per run recording it;
-    ``inactive`` where every run lacks ``grad_hap_active`` with no sample outside C_safe;
-    ``l_hap`` (all samples) reported, not judged (``n/a``)."""
+    ``inactive`` where no run recorded a share and every run had no sample outside C_safe at
+    the point; ``l_hap`` (all samples) reported, not judged (``n/a``)."""
     spec = METHODS[keys["method"]]
     used = {"l_sim": spec.similarity_loss, "l_hap": spec.hap_prior, "l_hap_active": spec.hap_prior}
     columns = ["step", "grad_q", ACTIVE, *GRADIENT_ITEMS.values()]
@@ -148,21 +148,19 @@ def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
     for point in POINTS:
         rows = points[points.index == point]
         low, high = rows["step"].astype(int).agg(["min", "max"]) if len(rows) else ("", "")
-        span = str(low) if low == high else f"{low}–{high}"
+        inactive = len(rows) == len(curves) and bool((rows[ACTIVE] == 0.0).all())
+        fraction = _mean(rows[ACTIVE].dropna().to_numpy())
+        point_keys = {"where": point, "step": str(low) if low == high else f"{low}–{high}"}
         for item in (item for item in GRADIENT_ITEMS if used[item]):
             value = rows[GRADIENT_ITEMS[item]]
             shares = (value / rows["grad_q"])[value.notna()].to_numpy()
-            hap = item == "l_hap_active"
-            inactive = int((value.isna() & (rows[ACTIVE] == 0.0)).sum()) if hap else 0
-            missing = len(curves) - len(rows) + int(value.isna().sum()) - inactive
-            share = _mean(shares)
-            verdict = "inactive" if inactive and not missing else NOT_RECORDED
+            share, hap = _mean(shares), item == "l_hap_active"
+            verdict = "inactive" if hap and inactive else NOT_RECORDED
             verdict = "n/a" if item == "l_hap" else verdict if share is None else _judged(share)
             cells.append(
-                {"section": "gradient_share", **keys, "item": item, "where": point}
-                | {"step": span, "seeds": len(rows), "shares": shares, "share_mean": share}
-                | {"active_fraction": _mean(rows[ACTIVE].dropna().to_numpy()) if hap else None}
-                | {"meets_criterion": verdict}
+                {"section": "gradient_share", **keys, "item": item, **point_keys}
+                | {"seeds": len(rows), "shares": shares, "share_mean": share}
+                | {"active_fraction": fraction if hap else None, "meets_criterion": verdict}
             )
     return cells
 
@@ -204,10 +202,10 @@ def _by_method(
     return [({"task": task, "method": method}, folders) for (task, method), folders in ordered]
 
 
-def mechanism_cells(root: str | Path, preset: str) -> dict[str, Any]:
-    """The cells of the preset's runs under ``root`` in the tables' order: ``returns`` and
-    ``scale`` (rule 1) of the evaluated runs of the current configuration, ``gradients`` of the
-    trained ones (`distgprl.report.runs.select_runs`); ``note``: which runs were left out."""
+def mechanism_cells(root: str | Path, preset: str) -> tuple[list[Cell], str]:
+    """The cells of the preset's runs under ``root`` in the CSV's order — return shares,
+    gradient shares (of the trained runs), rule 1's ratios (`distgprl.report.runs.select_runs`:
+    of the current configuration) — and a note of the runs left out."""
     evaluated = select_runs(root, preset)
     trained = select_runs(root, preset, marker="done.json")
     returns, scale, gradients = [], [], []
@@ -225,7 +223,7 @@ def mechanism_cells(root: str | Path, preset: str) -> dict[str, Any]:
     ):
         gradients += gradient_cells(keys, [csv_frame(f / "progress.csv", {}) for f in folders])
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
-    return {"returns": returns, "gradients": gradients, "scale": scale, "note": note}
+    return returns + gradients + scale, note
 
 
 DESCRIPTION = (
@@ -239,10 +237,10 @@ def write_mechanisms(
 ) -> tuple[list[Path], list[str]]:
     """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar, `write_table_files`)
     and ``.md``; returns (the paths written, the one-line verdicts per term)."""
-    cells = mechanism_cells(root, preset)
-    if not (reach or cells["returns"] or cells["gradients"]):
+    cells, note = mechanism_cells(root, preset)
+    if not (reach or cells):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
-    csv, markdown, verdicts = mechanism_texts(preset, reach, **cells)
+    csv, markdown, verdicts = mechanism_texts(preset, reach, cells, note)
     stem = Path(out_dir) / f"mechanisms_{preset}"
     written = write_table_files(
         stem, (".csv", ".md"), (csv, markdown), preset, DESCRIPTION, criterion=CRITERION
@@ -458,10 +456,11 @@ INTRO = (
     "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell."
 )
 
-Section = tuple[str, list[str], Callable[[Any], Iterator[list[str]]], str]
+Section = tuple[str, str, list[str], Callable[[Any], Iterator[list[str]]], str]
 
 SECTIONS: tuple[Section, ...] = (
     (
+        "reach",
         "### Reach of a raw action in [-1, 1]",
         ["Task", "Method", "Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
         + ["One episode min–max x / y / z (m)", "Covers TC range (x, y)"],
@@ -473,6 +472,7 @@ SECTIONS: tuple[Section, ...] = (
         "the residual × the variance gate). Frozen via-points (GPRL's TC via-point) left out.",
     ),
     (
+        "return_share",
         "### Shaping shares of the return",
         ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
         + ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
@@ -485,6 +485,7 @@ SECTIONS: tuple[Section, ...] = (
         "columns.",
     ),
     (
+        "gradient_share",
         "### Regulariser shares of the actor gradient",
         [
             "Task",
@@ -503,6 +504,7 @@ SECTIONS: tuple[Section, ...] = (
         "share is judged.",
     ),
     (
+        "reward_scale",
         "### The r_ga plateau and rule 1's ratios, measured",
         ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
         + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * RULE_ONE['ga_of_success']:.0f} %)"]
@@ -518,30 +520,26 @@ SECTIONS: tuple[Section, ...] = (
         "TCs under the run's scale); ✓ where the largest is within the bound.",
     ),
 )
-"""The Markdown's tables in order: (title, header, its rows from its cells, the definition
-written under it); the plateau's only where rule 1 has cells."""
+"""The Markdown's tables in order: (the cells' section, title, header, its rows from those
+cells, the definition written under it); rule 1's only where it has cells."""
 
 
 def mechanism_texts(
-    preset: str,
-    reach: Sequence[Mapping[str, Any]],
-    returns: Sequence[Cell] = (),
-    gradients: Sequence[Cell] = (),
-    scale: Sequence[Cell] = (),
-    note: str = "",
+    preset: str, reach: Sequence[Mapping[str, Any]], cells: Sequence[Cell] = (), note: str = ""
 ) -> tuple[str, str, list[str]]:
-    """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the cells of
-    `mechanism_cells` (in its order); ``note`` closes the Markdown."""
+    """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the ``cells`` of
+    `mechanism_cells`; ``note`` closes the Markdown."""
     reached = _reach(reach)
-    verdicts = _verdict_lines(reached, [*returns, *gradients, *scale])
+    verdicts = _verdict_lines(reached, cells)
     markdown = f"## Mechanism table ({preset})\n\n{INTRO}\n\n"
-    parts = (reached, returns, gradients, scale)[: 4 if scale else 3]
-    for (title, header, rows, definition), cells in zip(SECTIONS, parts, strict=False):
-        markdown += f"{markdown_table(title, header, rows(cells))}\n{definition}\n\n"
+    for section, title, header, rows, definition in SECTIONS:
+        part = reached if section == "reach" else [c for c in cells if c["section"] == section]
+        if part or section != "reward_scale":
+            markdown += f"{markdown_table(title, header, rows(part))}\n{definition}\n\n"
     lines = ["", "### Verdicts", "", *(f"- {line}" for line in verdicts)]
     lines += ["", note + "."] if note else []
     csv_rows = [
         {key: f"{value:.6g}" if isinstance(value, float) else value for key, value in row.items()}
-        for row in [*(row for group in reached for row in group), *returns, *gradients, *scale]
+        for row in [*(row for group in reached for row in group), *cells]
     ]
     return csv_text(csv_rows, CSV_COLUMNS), markdown + "\n".join(lines) + "\n", verdicts
