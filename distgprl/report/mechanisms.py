@@ -334,10 +334,10 @@ def _share_text(cell: Cell | None) -> str:
     verdict (a return share's ``n/a``: no episode within d_min); — where no such term acts."""
     if cell is None:
         return "—"
-    verdict, share = cell["meets_criterion"], cell["share_mean"]
+    verdict, share, returned = cell["meets_criterion"], cell["share_mean"], "share_median" in cell
     if share is None:
-        return "– (no episode within d_min)" if verdict == "n/a" and "recorded" in cell else verdict
-    median = f" (median {_percent(cell['share_median'])})" if "share_median" in cell else ""
+        return "– (no episode within d_min)" if verdict == "n/a" and returned else verdict
+    median = f" (median {_percent(cell['share_median'])})" if returned else ""
     return _percent(share) + median + MARKS.get(verdict, "")
 
 
