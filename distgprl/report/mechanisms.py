@@ -1,115 +1,229 @@
-"""The mechanism table (protocol v6, rule 7 in docs/findings/protocol.md) of a preset's runs,
-in three parts — the reach of a raw action against the TC range (rows of
-`distgprl.experiments.mechanisms.reach_rows`, passed in), the shaping shares of the return and
-the regulariser shares of the actor gradient (the cells of `distgprl.report.mechanism_shares`),
-each share marked ✓/✗ against the pre-registered `CRITERION` — with a one-line verdict per term
-(`mechanism_texts` returns them). Writes ``mechanisms_<preset>.csv`` (`CSV_COLUMNS`) and ``.md``
-(`mechanism_texts`, which states each part's definition under its table).
-"""
+"""The mechanism table of a preset's runs (protocol v6, rule 7, docs/findings/protocol.md;
+v8 rule 1, docs/findings/environment-v8.md): reach against the TC range (the rows of
+`distgprl.experiments.mechanisms.reach_rows`), shaping shares of the return, regulariser shares
+of the actor gradient and rule 1's ratios, each judged, with a verdict line per term. A cell:
+a dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them,
+from result CSVs as frames (`distgprl.report.frame.csv_frame`: an empty cell NaN)."""
 
 from __future__ import annotations
 
 import json
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import asdict, replace
+from dataclasses import replace
 from itertools import groupby
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
+
+from distgprl import reward_scale
 from distgprl.config_types import EnvConfig
 from distgprl.data import task_order
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER, MethodSpec
+from distgprl.report.frame import csv_frame
 from distgprl.report.markdown import csv_text, markdown_table, write_table_files
-from distgprl.report.mechanism_shares import (
-    CRITERION,
-    GRADIENT_ITEMS,
-    NOT_RECORDED,
-    POINTS,
-    GradientCell,
-    MechanismTable,
-    PlateauCell,
-    ReturnCell,
-    TaskReturns,
-    gradient_cells,
-    plateau_cell,
-    return_cells,
-)
-from distgprl.report.runs import select_runs
-from distgprl.reward_scale import (
-    MAX_GA_SHARE_OF_SUCCESS,
-    MAX_IDLE_SHARE_OF_DEMO,
-    demo_outcome,
-    demo_task_return,
-    success_task_return,
-)
-from distgprl.schema import evaluation_file_names, read_csv
+from distgprl.report.runs import RunSelection, run_keys, select_runs
+from distgprl.schema import evaluation_file_names
+
+CRITERION = 0.05
+"""The pre-registered share (rule 7): each shaping term ≥ 5 % of the return where it acts,
+each regulariser's actor gradient ≥ 5 % of the Q term's (L_hap: outside C_safe)."""
+
+NOT_RECORDED = "not recorded"
+"""The verdict of a cell whose result files predate the columns it needs."""
+
+POINTS = ("first", "middle", "last")
+"""The learning-curve points of the gradient shares."""
+
+RETURN_TERMS = {"r_ga": "return_ga", "r_sd": "return_sd"}
+"""Shaping term -> its evaluation column (``return_ga`` holds lambda_ga r_ga), in row order."""
+
+GRADIENT_ITEMS = {"l_sim": "grad_sim", "l_hap": "grad_hap", "l_hap_active": "grad_hap_active"}
+"""Regulariser item (``l_hap_active``: L_hap over the samples outside C_safe) -> its
+``progress.csv`` column, a share of ``grad_q``."""
+
+ACTIVE = "hap_active_fraction"
+"""The ``progress.csv`` column of the share of samples outside C_safe."""
+
+IDLE_PROGRESS = 0.05
+"""An episode that neither succeeded nor collided is idle if its r_tc is below this share of
+the task's progress weight."""
+
+RULE_ONE = {
+    "ga_of_success": reward_scale.MAX_GA_SHARE_OF_SUCCESS,
+    "idle_of_demo": reward_scale.MAX_IDLE_SHARE_OF_DEMO,
+}
+"""Rule 1's ratios, measured (`rule_one_cells`) -> their bound."""
+
+Cell = dict[str, Any]
 
 
-def _env(folder: Path, field: str) -> float:
-    """An `EnvConfig` field of the run's recorded config (its default if absent)."""
+def _columns(frame: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """``frame`` with ``columns``, NaN where it lacks one."""
+    return frame.assign(**{column: frame.get(column, np.nan) for column in columns})
+
+
+def _mean(values: Sequence[float] | np.ndarray) -> float | None:
+    return float(np.mean(values)) if len(values) else None
+
+
+def _judged(share: float) -> str:
+    return "yes" if share >= CRITERION else "no"
+
+
+def return_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
+    """The r_ga and r_sd cells of one method's policy (``keys``: task, method, where) from the
+    evaluation ``episodes`` of its runs (with the run's ``seed`` and ``d_min``, m), pooled
+    over the ``recorded`` runs (return parts in every row): ``shares`` the per-episode
+    |Σ term| / |Σ r_tc| within d_min where Σ r_tc ≠ 0 (``n/a`` without any)."""
+    needed = ["return_tc", *RETURN_TERMS.values()]
+    parts = _columns(episodes, needed)
+    complete = parts[needed].notna().all(axis=1)
+    recorded = parts[complete.groupby(parts["seed"]).transform("all")]
+    within = recorded["min_clearance"] < recorded["d_min"]
+    paid = within & (recorded["return_tc"] != 0.0)
+    counts = {"seeds": episodes["seed"].nunique(), "recorded": recorded["seed"].nunique()}
+    counts |= {"episodes": len(recorded), "episodes_within_d_min": int(within.sum())}
+    counts["episodes_zero_tc"] = int(within.sum() - paid.sum())
+    cells = []
+    for term, column in RETURN_TERMS.items():
+        shares = (recorded[column].abs() / recorded["return_tc"].abs())[paid].to_numpy()
+        share = _mean(shares)
+        verdict = "n/a" if share is None else _judged(share)
+        cells.append(
+            {"section": "return_share", **keys, **counts, "item": term, "shares": shares}
+            | {"share_mean": share, "share_median": None if share is None else np.median(shares)}
+            | {"meets_criterion": verdict if counts["recorded"] else NOT_RECORDED}
+        )
+    return cells
+
+
+def rule_one_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
+    """Rule 1's ratios over one method's policy's episodes that record r_tc (``keys`` and
+    ``episodes`` as `return_cells`', with the run's scale, `_run_scale`): ``ga_of_success``
+    per episode, ``idle_of_demo`` per idle one; each row with the plateau's ``idle`` count
+    and their mean lambda_ga r_ga ``mean_ga``."""
+    rows = _columns(episodes, ["return_tc", "return_sd", "return_ga"])
+    rows = rows[rows["return_tc"].notna()]
+    ga = rows["return_ga"].fillna(0.0)
+    done = rows["success"].round().astype(bool) | rows["collision"].round().astype(bool)
+    idle = ~done & (rows["return_tc"] < IDLE_PROGRESS * rows["progress_weight"])
+    whole = rows["return_tc"] + rows["return_sd"].fillna(0.0) + ga
+    ratios = {"ga_of_success": ga / rows["success_return"]}
+    ratios["idle_of_demo"] = (whole / rows["demo_return"])[idle]
+    plateau: Cell = {"seeds": rows["seed"].nunique(), "idle": int(idle.sum())}
+    plateau["mean_ga"] = _mean(ga[idle].to_numpy())
+    return [
+        {"section": "reward_scale", **keys, **plateau, "item": item, "episodes": len(values)}
+        | {"share_mean": _mean(values.to_numpy()), "share_max": values.max()}
+        | {"meets_criterion": "yes" if values.max() <= RULE_ONE[item] else "no"}
+        for item, values in ratios.items()
+        if len(values)
+    ]
+
+
+def gradient_points(curve: pd.DataFrame) -> pd.DataFrame:
+    """The first, middle (row (n - 1) // 2 of n) and last rows by step of one run's learning
+    ``curve`` that recorded the actor's gradient norms (``grad_q`` > 0: not the step-0 point),
+    indexed by `POINTS`; empty if none did."""
+    recorded = curve[curve["grad_q"] > 0].sort_values("step", kind="stable")
+    last = len(recorded) - 1
+    return recorded.iloc[[0, last // 2, last]].set_axis(POINTS) if last >= 0 else recorded
+
+
+def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
+    """The cells of the items one method (``keys``: task, method) uses at each of `POINTS`
+    from its runs' learning ``curves``: ``shares`` grad_item / grad_q per run recording it;
+    ``inactive`` where no run recorded a share and every run had no sample outside C_safe at
+    the point; ``l_hap`` (all samples) reported, not judged (``n/a``)."""
+    spec = METHODS[keys["method"]]
+    used = {"l_sim": spec.similarity_loss, "l_hap": spec.hap_prior, "l_hap_active": spec.hap_prior}
+    columns = ["step", "grad_q", ACTIVE, *GRADIENT_ITEMS.values()]
+    points = pd.concat([gradient_points(_columns(curve, columns)) for curve in curves])
+    cells = []
+    for point in POINTS:
+        rows = points[points.index == point]
+        low, high = rows["step"].astype(int).agg(["min", "max"]) if len(rows) else ("", "")
+        inactive = len(rows) == len(curves) and bool((rows[ACTIVE] == 0.0).all())
+        fraction = _mean(rows[ACTIVE].dropna().to_numpy())
+        point_keys = {"where": point, "step": str(low) if low == high else f"{low}–{high}"}
+        for item in (item for item in GRADIENT_ITEMS if used[item]):
+            value = rows[GRADIENT_ITEMS[item]]
+            shares = (value / rows["grad_q"])[value.notna()].to_numpy()
+            share, hap = _mean(shares), item == "l_hap_active"
+            verdict = "inactive" if hap and inactive else NOT_RECORDED
+            verdict = "n/a" if item == "l_hap" else verdict if share is None else _judged(share)
+            cells.append(
+                {"section": "gradient_share", **keys, "item": item, **point_keys}
+                | {"seeds": len(rows), "shares": shares, "share_mean": share}
+                | {"active_fraction": fraction if hap else None, "meets_criterion": verdict}
+            )
+    return cells
+
+
+def _run_scale(folder: Path) -> dict[str, Any]:
+    """A run's ``seed``, ``d_min`` (m) and, under its recorded reward scale (a field it lacks:
+    the default), ``progress_weight``, a success's r_tc and the demonstration's mean r_tc."""
     document = json.loads((folder / "config.json").read_text())
-    env = document.get("run", {}).get("config", {}).get("env", {})
-    return float(env.get(field, getattr(EnvConfig, field)))
+    recorded = document.get("run", {}).get("config", {}).get("env", {})
+    fields = ("sd_d_min", "progress_weight", "success_bonus", "collision_penalty")
+    values: dict[str, Any] = {f: float(recorded.get(f, getattr(EnvConfig, f))) for f in fields}
+    env = replace(EnvConfig(), **values)
+    task, _, seed = run_keys(folder)
+    return {
+        "seed": seed,
+        "d_min": env.sd_d_min,
+        "progress_weight": env.progress_weight,
+        "success_return": reward_scale.success_task_return(env),
+        "demo_return": reward_scale.demo_task_return(env, reward_scale.demo_outcome(task)),
+    }
 
 
-def _task_returns(folder: Path, task: str) -> TaskReturns:
-    """The run's `TaskReturns` from its recorded reward scale (protocol v8, rule 1's terms:
-    `distgprl.reward_scale`) and the task's committed demonstration outcome."""
-    env = replace(
-        EnvConfig(),
-        progress_weight=_env(folder, "progress_weight"),
-        success_bonus=_env(folder, "success_bonus"),
-        collision_penalty=_env(folder, "collision_penalty"),
-    )
-    demo = demo_task_return(env, demo_outcome(task))
-    return TaskReturns(env.progress_weight, success_task_return(env), demo)
+def _order(task: str, method: str) -> tuple[int, int, str]:
+    """Tasks in the paper's order, methods in Table I's (unknown ones after)."""
+    index = TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER)
+    return task_order(task), index, method
 
 
-def _by_run(
-    folders: Iterable[Path], uses: Callable[[MethodSpec], bool]
-) -> dict[tuple[str, str], list[Path]]:
-    """{(task, method): its run folders, sorted} of the ``folders`` whose method ``uses``,
-    sorted by (task, method)."""
-    runs = sorted((f.parent.parent.name, f.parent.name, f) for f in folders)
-    used = [run for run in runs if uses(METHODS[run[1]])]
-    return {key: [run[2] for run in group] for key, group in groupby(used, lambda run: run[:2])}
+def _by_method(
+    selection: RunSelection, uses: Callable[[MethodSpec], bool]
+) -> list[tuple[Cell, list[Path]]]:
+    """((task, method) keys, the run folders) of the selected runs whose method ``uses``, in
+    `_order`."""
+    runs: dict[tuple[str, str], list[Path]] = {}
+    for folder in sorted(selection.current):
+        if uses(METHODS[folder.parent.name]):
+            runs.setdefault((folder.parent.parent.name, folder.parent.name), []).append(folder)
+    ordered = sorted(runs.items(), key=lambda item: _order(*item[0]))
+    return [({"task": task, "method": method}, folders) for (task, method), folders in ordered]
 
 
-def mechanism_table(
-    root: str | Path, preset: str, reach: Sequence[Mapping[str, Any]]
-) -> MechanismTable:
-    """The `MechanismTable` of the preset's runs under ``root`` (evaluated runs of the
-    current configuration for the return shares, trained ones for the gradient shares:
-    `distgprl.report.runs.select_runs`), with the ``reach`` rows of
-    `distgprl.experiments.mechanisms.reach_rows`."""
+def mechanism_cells(root: str | Path, preset: str) -> tuple[list[Cell], str]:
+    """The cells of the preset's runs under ``root`` in the CSV's order — return shares,
+    gradient shares (of the trained runs), rule 1's ratios (`distgprl.report.runs.select_runs`:
+    of the current configuration) — and a note of the runs left out."""
     evaluated = select_runs(root, preset)
     trained = select_runs(root, preset, marker="done.json")
-    returns, plateau = [], []
-    for (task, method), folders in _by_run(evaluated.current, lambda s: s.distance_rewards).items():
+    returns, scale, gradients = [], [], []
+    for keys, folders in _by_method(evaluated, lambda spec: spec.distance_rewards):
         for policy in ("final", "best"):
-            name = evaluation_file_names(None, policy)[0]
-            rows = {f: read_csv(f / name)[1] for f in folders if (f / name).exists()}
-            if rows:
-                runs = [(rows[f], _env(f, "sd_d_min")) for f in rows]
-                returns += return_cells(task, method, policy, runs)
-            scales = [(rows[f], _task_returns(f, task)) for f in rows]
-            if (cell := plateau_cell(task, method, policy, scales)) is not None:
-                plateau.append(cell)
-    gradients = []
-    regularised = _by_run(
-        trained.current, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
-    )
-    for (task, method), folders in regularised.items():
-        progress = [read_csv(f / "progress.csv")[1] for f in folders]
-        gradients += gradient_cells(task, method, progress)
-    if not (reach or returns or gradients):
-        raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
+            paths = [folder / evaluation_file_names(None, policy)[0] for folder in folders]
+            runs = [csv_frame(path, _run_scale(path.parent)) for path in paths if path.exists()]
+            if runs:
+                episodes = pd.concat(runs, ignore_index=True)
+                returns += return_cells(keys | {"where": policy}, episodes)
+                scale += rule_one_cells(keys | {"where": policy}, episodes)
+    scale.sort(key=lambda cell: (_order(cell["task"], cell["method"]), cell["where"]))
+    for keys, folders in _by_method(
+        trained, lambda s: s.trainable and (s.similarity_loss or s.hap_prior)
+    ):
+        gradients += gradient_cells(keys, [csv_frame(f / "progress.csv", {}) for f in folders])
     note = ". ".join(dict.fromkeys(part for part in (evaluated.note(), trained.note()) if part))
-    return MechanismTable(
-        preset, tuple(reach), tuple(returns), tuple(gradients), note, tuple(plateau)
-    )
+    return returns + gradients + scale, note
 
 
 DESCRIPTION = (
@@ -123,7 +237,10 @@ def write_mechanisms(
 ) -> tuple[list[Path], list[str]]:
     """Write ``<out_dir>/mechanisms_<preset>.csv`` (with its sidecar, `write_table_files`)
     and ``.md``; returns (the paths written, the one-line verdicts per term)."""
-    csv, markdown, verdicts = mechanism_texts(mechanism_table(root, preset, reach))
+    cells, note = mechanism_cells(root, preset)
+    if not (reach or cells):
+        raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
+    csv, markdown, verdicts = mechanism_texts(preset, reach, cells, note)
     stem = Path(out_dir) / f"mechanisms_{preset}"
     written = write_table_files(
         stem, (".csv", ".md"), (csv, markdown), preset, DESCRIPTION, criterion=CRITERION
@@ -142,312 +259,192 @@ in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and 
 shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``) or
 ``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
 ``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
-``seeds``) or ``reward_scale`` (protocol v8 rule 1 measured: ``item`` ``ga_of_success`` (a) or
+``seeds``) or ``reward_scale`` (rule 1 measured: ``item`` ``ga_of_success`` (a) or
 ``idle_of_demo`` (b), ``where`` the policy, ``episodes`` the ratios' count, ``share_max``
 judged against the rule's bound). ``meets_criterion``: ``yes``/``no`` (≥ 5 %; rule 1: the
 largest within its bound), ``not recorded``, ``inactive``, ``n/a``."""
 
-COVER_TOLERANCE = 1e-9
-"""Reach equal to the TC range up to rounding (m) covers it (the reach rule sets it equal)."""
-
 MARKS = {"yes": " ✓", "no": " ✗"}
-TERM_LABELS = {
-    "r_sd": "r_sd / r_tc",
-    "r_ga": "λ_ga r_ga / r_tc",
+VERDICT_LABELS = {
+    "r_sd": "r_sd / r_tc (episodes within d_min)",
+    "r_ga": "λ_ga r_ga / r_tc (episodes within d_min)",
     "l_sim": "λ_sim L_sim / Q",
-    "l_hap": "λ_hap L_hap / Q (all samples)",
     "l_hap_active": "λ_hap L_hap / Q outside C_safe",
+    "ga_of_success": "Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc",
+    "idle_of_demo": "Rule 1 (b), an idle episode's return over the demonstration's mean r_tc",
 }
-ITEMS = tuple(item for item, _ in GRADIENT_ITEMS)
-"""The gradient items, in their table's column order."""
-
-REACH_COLUMNS = ("one_step_min_m", "one_step_max_m", "episode_min_m", "episode_max_m", "tc_range_m")
-"""The reach rows' distances (m) in the CSV."""
-
-RETURN_CSV_NAMES = {"term": "item", "policy": "where"}
-RETURN_CSV_NAMES |= {"within": "episodes_within_d_min", "zero_tc": "episodes_zero_tc"}
-"""`ReturnCell` fields under their `CSV_COLUMNS` names (the others keep theirs)."""
-
-
-def _order(cell: ReturnCell | GradientCell | PlateauCell | tuple[str, str]) -> tuple[int, int, str]:
-    """Sort key of a cell or a (task, method): tasks in the paper's order, methods in Table
-    I's (unknown ones after)."""
-    task, method = cell if isinstance(cell, tuple) else (cell.task, cell.method)
-    index = TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER)
-    return task_order(task), index, method
-
-
-def _in_order(table: MechanismTable) -> MechanismTable:
-    """``table`` with its cells in the tables' order: by `_order`, then the return shares by
-    policy (final, best) and term, the gradient shares by point and item, the plateau by
-    policy."""
-    policy, point, item = ("final", "best").index, POINTS.index, ITEMS.index
-    returns = sorted(table.returns, key=lambda c: (*_order(c), policy(c.policy), c.term))
-    gradients = sorted(table.gradients, key=lambda c: (*_order(c), point(c.point), item(c.item)))
-    plateau = sorted(table.plateau, key=lambda c: (_order(c), c.policy))
-    return replace(table, returns=(*returns,), gradients=(*gradients,), plateau=(*plateau,))
-
-
-def _label(method: str) -> str:
-    return METHODS[method].label if method in METHODS else method
-
-
-def _number(value: float | None) -> str:
-    return "" if value is None else f"{value:.6g}"
+"""The name of each verdict line's term."""
 
 
 def _percent(value: float | None) -> str:
     return "–" if value is None else f"{100 * value:.1f} %"
 
 
-def _steps(steps: Sequence[int]) -> str:
-    if not steps:
-        return ""
-    return str(min(steps)) if min(steps) == max(steps) else f"{min(steps)}–{max(steps)}"
+def _label(method: str) -> str:
+    return METHODS[method].label if method in METHODS else method
 
 
-def _mean(values: Sequence[float]) -> float | None:
-    return sum(values) / len(values) if values else None
+def _reach(reach: Iterable[Mapping[str, Any]]) -> list[list[Cell]]:
+    """The reach rows per method and task in `_order`, each with ``item`` (its axis) and
+    ``covers_tc_range``: ``yes`` where the method and task's smallest one-episode reach is at
+    least the TC range on x and on y (up to rounding, 1e-9 m), ``no`` otherwise, ``n/a`` for
+    reach in ProMP weight units."""
+    groups = []
+    ordered = sorted(reach, key=lambda row: _order(row["task"], row["method"]))
+    for _, group in groupby(ordered, itemgetter("task", "method")):
+        axes = list(group)
+        planar = [row for row in axes if row["axis"] in ("x", "y")]
+        covered = planar and all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in planar)
+        covers = "yes" if covered else "no"
+        if any(row["kind"] == "ProMP weight" for row in axes):
+            covers = "n/a"
+        marks = {"section": "reach", "covers_tc_range": covers}
+        groups.append([{**row, "item": row["axis"], **marks} for row in axes])
+    return groups
 
 
-def covers_tc_range(rows: Sequence[Mapping[str, Any]]) -> str:
-    """``yes`` where a method and task's smallest one-episode reach is at least the TC range
-    on x and on y, ``no`` otherwise, ``n/a`` for reach in ProMP weight units."""
-    if any(row["kind"] == "ProMP weight" for row in rows):
-        return "n/a"
-    planar = [row for row in rows if row["axis"] in ("x", "y")]
-    ok = all(row["episode_min_m"] >= row["tc_range_m"] - COVER_TOLERANCE for row in planar)
-    return "yes" if ok and planar else "no"
+def _rows(cells: Iterable[Cell]) -> Iterator[tuple[list[str], dict[str, Cell]]]:
+    """Per (task, method, where) of consecutive ``cells``: the row's first texts and
+    {item: cell}."""
+    for (task, method, where), group in groupby(cells, itemgetter("task", "method", "where")):
+        yield [task.upper(), _label(method), where], {cell["item"]: cell for cell in group}
 
 
-ReachGroup = tuple[str, str, list[Mapping[str, Any]], str]
-"""(task, method, its reach rows, `covers_tc_range` of them)."""
-
-
-def _reach_groups(reach: Iterable[Mapping[str, Any]]) -> list[ReachGroup]:
-    """The reach rows per method and task, in `_order`."""
-    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
-    for row in reach:
-        groups.setdefault((row["task"], row["method"]), []).append(row)
-    ordered = sorted(groups.items(), key=lambda item: _order(item[0]))
-    return [(task, method, rows, covers_tc_range(rows)) for (task, method), rows in ordered]
-
-
-def _csv_rows(reach: list[ReachGroup], table: MechanismTable) -> list[dict[str, Any]]:
-    """The `CSV_COLUMNS` rows (keys beyond them left out): reach, then the return shares,
-    then the gradient shares."""
-    rows: list[dict[str, Any]] = [
-        {**row, **{key: _number(row[key]) for key in REACH_COLUMNS}, "item": row["axis"]}
-        | {"section": "reach", "covers_tc_range": covers}
-        for *_, group, covers in reach
-        for row in group
-    ]
-    for cell in table.returns:
-        named = {RETURN_CSV_NAMES.get(key, key): value for key, value in asdict(cell).items()}
-        shares = {"share_mean": _number(cell.mean), "share_median": _number(cell.median)}
-        rows.append(named | shares | {"section": "return_share", "meets_criterion": cell.verdict})
-    for gradient in table.gradients:
-        named = asdict(gradient) | {"where": gradient.point, "step": _steps(gradient.steps)}
-        shares = {"share_mean": _number(gradient.mean)}
-        shares["active_fraction"] = _number(_mean(gradient.active_fraction))
-        counts = {"seeds": len(gradient.steps), "meets_criterion": gradient.verdict}
-        rows.append(named | shares | counts | {"section": "gradient_share"})
-    for plateau in table.plateau:
-        for item, ratios, bound in _rule_one(plateau):
-            keys = {"task": plateau.task, "method": plateau.method, "where": plateau.policy}
-            shares = {"share_mean": _number(_mean(ratios)), "share_max": _number(max(ratios))}
-            judged = {"meets_criterion": "yes" if max(ratios) <= bound else "no"}
-            counts = {"seeds": plateau.seeds, "episodes": len(ratios)}
-            named = keys | {"item": item, "section": "reward_scale"}
-            rows.append(named | shares | judged | counts)
-    return rows
-
-
-def _rule_one(cell: PlateauCell) -> Iterator[tuple[str, tuple[float, ...], float]]:
-    """(item, ratios, bound) of rule 1's measured ratios in ``cell`` that have ratios."""
-    for item, ratios, bound in (
-        ("ga_of_success", cell.ga_of_success, MAX_GA_SHARE_OF_SUCCESS),
-        ("idle_of_demo", cell.idle_of_demo, MAX_IDLE_SHARE_OF_DEMO),
-    ):
-        if ratios:
-            yield item, ratios, bound
-
-
-def _spans(axes: Sequence[Mapping[str, Any]], span: str) -> str:
-    """The ``span`` (``one_step`` or ``episode``) reach's min–max (m) per axis of ``axes``."""
-    return " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
-
-
-def _reach_rows(reach: list[ReachGroup], _: MechanismTable) -> Iterator[list[str]]:
-    for task, method, group, covers in reach:
-        by_axis = sorted(group, key=lambda row: "xyz".index(row["axis"]))
-        kind, gate = group[0]["kind"], group[0].get("gate_max")
+def _reach_rows(reach: Sequence[list[Cell]]) -> Iterator[list[str]]:
+    for group in reach:
+        axes = sorted(group, key=lambda row: "xyz".index(row["axis"]))
+        first, covers = axes[0], axes[0]["covers_tc_range"]
+        kind, gate = first["kind"], first.get("gate_max")
+        spans = [
+            " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
+            for span in ("one_step", "episode")
+        ]
         yield [
-            task.upper(),
-            _label(method),
+            first["task"].upper(),
+            _label(first["method"]),
             kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
-            " / ".join(f"{row['tc_range_m']:.3f}" for row in by_axis),
-            *(_spans(by_axis, span) for span in ("one_step", "episode")),
+            " / ".join(f"{row['tc_range_m']:.3f}" for row in axes),
+            *spans,
             covers + MARKS.get(covers, ""),
         ]
 
 
-def _return_text(cell: ReturnCell) -> str:
-    if cell.verdict == NOT_RECORDED:
-        return NOT_RECORDED
-    if cell.mean is None:
-        return "– (no episode within d_min)"
-    return f"{_percent(cell.mean)} (median {_percent(cell.median)})" + MARKS[cell.verdict]
+def _share_text(cell: Cell | None) -> str:
+    """A share's mean as a percentage, a return share's with its median, marked; else its
+    verdict (a return share's ``n/a``: no episode within d_min); — where no such term acts."""
+    if cell is None:
+        return "—"
+    verdict, share, returned = cell["meets_criterion"], cell["share_mean"], "share_median" in cell
+    if share is None:
+        return "– (no episode within d_min)" if verdict == "n/a" and returned else verdict
+    median = f" (median {_percent(cell['share_median'])})" if returned else ""
+    return _percent(share) + median + MARKS.get(verdict, "")
 
 
-def _return_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
-    for (task, method, policy), group in groupby(
-        table.returns, key=lambda c: (c.task, c.method, c.policy)
-    ):
-        terms = {cell.term: cell for cell in group}
-        first = next(iter(terms.values()))
-        recorded = first.recorded > 0
-        yield [
-            task.upper(),
-            _label(method),
-            policy,
-            str(first.seeds),
-            f"{first.within} of {first.episodes}" if recorded else NOT_RECORDED,
-            str(first.zero_tc) if recorded else "",
-            _return_text(terms["r_sd"]),
-            _return_text(terms["r_ga"]),
+def _return_rows(returns: Sequence[Cell]) -> Iterator[list[str]]:
+    for first, terms in _rows(returns):
+        cell = terms["r_sd"]
+        recorded = cell["recorded"] > 0
+        yield first + [
+            str(cell["seeds"]),
+            f"{cell['episodes_within_d_min']} of {cell['episodes']}" if recorded else NOT_RECORDED,
+            str(cell["episodes_zero_tc"]) if recorded else "",
+            *(_share_text(terms[term]) for term in ("r_sd", "r_ga")),
         ]
 
 
-def _gradient_text(cell: GradientCell | None) -> str:
-    if cell is None:
-        return "—"
-    if cell.mean is None:
-        return cell.verdict
-    return _percent(cell.mean) + MARKS.get(cell.verdict, "")
-
-
-def _gradient_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
-    for (task, method, point), group in groupby(
-        table.gradients, key=lambda c: (c.task, c.method, c.point)
-    ):
-        items = {cell.item: cell for cell in group}
-        steps = next(iter(items.values())).steps
-        active = items.get("l_hap_active")
-        fraction = _mean(active.active_fraction) if active is not None else None
+def _gradient_rows(gradients: Sequence[Cell]) -> Iterator[list[str]]:
+    for (task, label, point), items in _rows(gradients):
+        cell = next(iter(items.values()))
+        fraction = items["l_hap_active"]["active_fraction"] if "l_hap_active" in items else None
         yield [
-            task.upper(),
-            _label(method),
-            f"{point} ({_steps(steps)})",
-            str(len(steps)),
-            *(_gradient_text(items.get(item)) for item in ITEMS),
+            task,
+            label,
+            f"{point} ({cell['step']})",
+            str(cell["seeds"]),
+            *(_share_text(items.get(item)) for item in GRADIENT_ITEMS),
             "—" if fraction is None else _percent(fraction),
         ]
 
 
-def _plateau_rows(_: list[ReachGroup], table: MechanismTable) -> Iterator[list[str]]:
-    for cell in table.plateau:
-        yield [
-            cell.task.upper(),
-            _label(cell.method),
-            cell.policy,
-            str(cell.seeds),
-            f"{cell.idle} of {cell.episodes} ({_percent(cell.share)})",
-            "–" if cell.mean_ga is None else f"{cell.mean_ga:.3f}",
-            _bounded(cell.ga_of_success, MAX_GA_SHARE_OF_SUCCESS),
-            _bounded(cell.idle_of_demo, MAX_IDLE_SHARE_OF_DEMO),
+def _bounded(cell: Cell | None) -> str:
+    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of a rule 1 ratio, marked
+    against its bound; – without ratios."""
+    if cell is None:
+        return "–"
+    maximum, average = _percent(cell["share_max"]), _percent(cell["share_mean"])
+    return f"max {maximum} (mean {average}){MARKS[cell['meets_criterion']]}"
+
+
+def _plateau_rows(scale: Sequence[Cell]) -> Iterator[list[str]]:
+    for first, items in _rows(scale):
+        cell = items["ga_of_success"]
+        idle = f"{cell['idle']} of {cell['episodes']} ({_percent(cell['idle'] / cell['episodes'])})"
+        mean_ga = "–" if cell["mean_ga"] is None else f"{cell['mean_ga']:.3f}"
+        yield first + [
+            str(cell["seeds"]),
+            idle,
+            mean_ga,
+            *(_bounded(items.get(item)) for item in RULE_ONE),
         ]
 
-
-def _bounded(ratios: Sequence[float], bound: float) -> str:
-    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of ``ratios``, marked against
-    rule 1's ``bound`` (✓ where the largest is within it); – without ratios."""
-    if not ratios:
-        return "–"
-    largest = max(ratios)
-    mark = MARKS["yes" if largest <= bound else "no"]
-    return f"max {_percent(largest)} (mean {_percent(_mean(ratios))}){mark}"
-
-
-LISTED_FAILURES = 4
-"""A verdict line names at most this many failing cells (else their count and range)."""
 
 OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
 """How a verdict line names the cells the criterion does not judge."""
 
 
-def _verdict(label: str, judged: list[tuple[str, str, float | None]]) -> str:
-    """One line: how many cells meet the criterion, which do not, and the term's verdict."""
-    no = [(name, value) for name, verdict, value in judged if verdict == "no"]
-    other = Counter(verdict for _, verdict, _ in judged)
+def _verdict(label: str, cells: Sequence[Cell], name: str) -> str:
+    """One line: how many ``cells`` meet the criterion, which do not (``name`` filled in from
+    the cell; more than 4: their count and range) and how many are not judged."""
+    no = [
+        (f"{name.format_map(cell)} {_percent(cell['share_mean'])}", cell["share_mean"])
+        for cell in cells
+        if cell["meets_criterion"] == "no"
+    ]
+    other = Counter(cell["meets_criterion"] for cell in cells)
     decided = other.pop("yes", 0) + other.pop("no", 0)
-    if not decided:
-        line = f"{label}: undecided (no cell where it acts and is recorded)"
-    else:
+    if decided:
         outcome = "does not meet the criterion" if no else "meets the criterion"
         line = f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of "
         line += f"{decided} cells"
-    if len(no) > LISTED_FAILURES:
-        (low, low_value), *_, (high, high_value) = sorted(no, key=lambda item: item[1] or 0.0)
-        line += (
-            f"; below in {len(no)} cells, from {low} {_percent(low_value)} "
-            f"to {high} {_percent(high_value)}"
-        )
+    else:
+        line = f"{label}: undecided (no cell where it acts and is recorded)"
+    if len(no) > 4:
+        (low, _), *_, (high, _) = sorted(no, key=lambda pair: pair[1])
+        line += f"; below in {len(no)} cells, from {low} to {high}"
     elif no:
-        line += "; below: " + ", ".join(f"{name} {_percent(value)}" for name, value in no)
+        line += "; below: " + ", ".join(text for text, _ in no)
     if other:
-        line += "; " + ", ".join(
-            f"{OTHER_VERDICTS.get(verdict, verdict)}: {count}"
-            for verdict, count in sorted(other.items())
-        )
+        counts = (f"{OTHER_VERDICTS.get(v, v)}: {n}" for v, n in sorted(other.items()))
+        line += "; " + ", ".join(counts)
     return line + "."
 
 
-def _verdict_lines(reach: list[ReachGroup], table: MechanismTable) -> list[str]:
-    """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim and lambda_hap
-    L_hap (outside C_safe), of the ordered (`_in_order`) ``table``."""
+def _verdict_lines(reach: Sequence[list[Cell]], cells: Sequence[Cell]) -> list[str]:
+    """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim, lambda_hap L_hap
+    (outside C_safe) and rule 1's two ratios, from the `_reach` groups and the other cells."""
     lines = []
-    if reach:
-        pairs = [(task, method, covers) for task, method, _, covers in reach if covers != "n/a"]
-        missing = [f"{task}/{method}" for task, method, covers in pairs if covers == "no"]
+    covers = {(g[0]["task"], g[0]["method"]): g[0]["covers_tc_range"] for g in reach}
+    if pairs := [key for key, value in covers.items() if value != "n/a"]:
+        missing = [f"{task}/{method}" for task, method in pairs if covers[task, method] == "no"]
         line = (
             f"Reach: the one-episode reach covers the TC range on x and y for "
-            f"{sum(covers == 'yes' for *_, covers in pairs)} of {len(pairs)} method–task pairs"
+            f"{sum(covers[key] == 'yes' for key in pairs)} of {len(pairs)} method–task pairs"
         )
         lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
-    for term in ("r_sd", "r_ga"):
-        if cells := [c for c in table.returns if c.term == term]:
-            judged = [(f"{c.task}/{c.method} ({c.policy})", c.verdict, c.mean) for c in cells]
-            lines.append(_verdict(f"{TERM_LABELS[term]} (episodes within d_min)", judged))
-    for item in ("l_sim", "l_hap_active"):
-        if gradients := [c for c in table.gradients if c.item == item]:
-            judged = [(f"{c.task}/{c.method} {c.point}", c.verdict, c.mean) for c in gradients]
-            lines.append(_verdict(TERM_LABELS[item], judged))
-    return lines + _rule_one_lines(table)
-
-
-RULE_ONE_LABELS = {
-    "ga_of_success": "Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc",
-    "idle_of_demo": "Rule 1 (b), an idle episode's return over the demonstration's mean r_tc",
-}
-"""The verdict line's name of each of rule 1's measured ratios."""
-
-
-def _rule_one_lines(table: MechanismTable) -> list[str]:
-    """Per rule-1 ratio: in how many plateau cells the largest measured ratio is within the
-    bound, and the largest of all with its cell."""
-    lines = []
-    for item, label in RULE_ONE_LABELS.items():
-        cells = [(c, r, b) for c in table.plateau for i, r, b in _rule_one(c) if i == item]
-        if not cells:
-            continue
-        within = sum(max(ratios) <= bound for _, ratios, bound in cells)
-        cell, ratios, bound = max(cells, key=lambda entry: max(entry[1]))
-        lines.append(
-            f"{label}, measured on the policies' evaluation episodes: within "
-            f"{100 * bound:.0f} % in {within} of {len(cells)} cells; largest "
-            f"{_percent(max(ratios))} ({cell.task}/{cell.method}, {cell.policy})."
-        )
+    for item in ("r_sd", "r_ga", "l_sim", "l_hap_active"):
+        if judged := [cell for cell in cells if cell["item"] == item]:
+            where = "({where})" if item in RETURN_TERMS else "{where}"
+            lines.append(_verdict(VERDICT_LABELS[item], judged, "{task}/{method} " + where))
+    for item, bound in RULE_ONE.items():
+        if judged := [cell for cell in cells if cell["item"] == item]:
+            within = sum(cell["meets_criterion"] == "yes" for cell in judged)
+            top = max(judged, key=itemgetter("share_max"))
+            lines.append(
+                f"{VERDICT_LABELS[item]}, measured on the policies' evaluation episodes: within "
+                f"{100 * bound:.0f} % in {within} of {len(judged)} cells; largest "
+                f"{_percent(top['share_max'])} ({top['task']}/{top['method']}, {top['where']})."
+            )
     return lines
 
 
@@ -458,10 +455,12 @@ INTRO = (
     f"{100 * CRITERION:.0f} % of the Q term's at the start, middle and end of a paper-size "
     "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell."
 )
-"""The Markdown's paragraph under its heading."""
 
-SECTIONS = (
+Section = tuple[str, str, list[str], Callable[[Any], Iterator[list[str]]], str]
+
+SECTIONS: tuple[Section, ...] = (
     (
+        "reach",
         "### Reach of a raw action in [-1, 1]",
         ["Task", "Method", "Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
         + ["One episode min–max x / y / z (m)", "Covers TC range (x, y)"],
@@ -473,6 +472,7 @@ SECTIONS = (
         "the residual × the variance gate). Frozen via-points (GPRL's TC via-point) left out.",
     ),
     (
+        "return_share",
         "### Shaping shares of the return",
         ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
         + ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
@@ -485,9 +485,17 @@ SECTIONS = (
         "columns.",
     ),
     (
+        "gradient_share",
         "### Regulariser shares of the actor gradient",
-        ["Task", "Method", "Point (step)", "Seeds", *(TERM_LABELS[item] for item in ITEMS)]
-        + ["Samples outside C_safe"],
+        [
+            "Task",
+            "Method",
+            "Point (step)",
+            "Seeds",
+            "λ_sim L_sim / Q",
+            "λ_hap L_hap / Q (all samples)",
+        ]
+        + ["λ_hap L_hap / Q outside C_safe", "Samples outside C_safe"],
         _gradient_rows,
         "grad_sim / grad_q, grad_hap / grad_q and grad_hap_active / grad_q of progress.csv "
         "(mean per-sample gradient norms on the actor's output, "
@@ -496,10 +504,11 @@ SECTIONS = (
         "share is judged.",
     ),
     (
+        "reward_scale",
         "### The r_ga plateau and rule 1's ratios, measured",
         ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
-        + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * MAX_GA_SHARE_OF_SUCCESS:.0f} %)"]
-        + [f"(b) idle return / the demo's mean r_tc (≤ {100 * MAX_IDLE_SHARE_OF_DEMO:.0f} %)"],
+        + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * RULE_ONE['ga_of_success']:.0f} %)"]
+        + [f"(b) idle return / the demo's mean r_tc (≤ {100 * RULE_ONE['idle_of_demo']:.0f} %)"],
         _plateau_rows,
         "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
@@ -511,22 +520,26 @@ SECTIONS = (
         "TCs under the run's scale); ✓ where the largest is within the bound.",
     ),
 )
-"""The Markdown's tables in order: (title, header, its rows of (reach groups, the ordered
-table), the definition written under it); the plateau's (a description, no verdict) only
-where the table has plateau cells."""
+"""The Markdown's tables in order: (the cells' section, title, header, its rows from those
+cells, the definition written under it); rule 1's only where it has cells."""
 
 
-def mechanism_texts(table: MechanismTable) -> tuple[str, str, list[str]]:
-    """(CSV text, Markdown text, verdict lines) of the table."""
-    table = _in_order(table)
-    reach = _reach_groups(table.reach)
-    verdicts = _verdict_lines(reach, table)
-    markdown = f"## Mechanism table ({table.preset})\n\n{INTRO}\n\n"
-    for title, header, rows, definition in SECTIONS[: 4 if table.plateau else 3]:
-        table_text = markdown_table(title, header, rows(reach, table))
-        markdown += f"{table_text}\n{definition}\n\n"
+def mechanism_texts(
+    preset: str, reach: Sequence[Mapping[str, Any]], cells: Sequence[Cell] = (), note: str = ""
+) -> tuple[str, str, list[str]]:
+    """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the ``cells`` of
+    `mechanism_cells`; ``note`` closes the Markdown."""
+    reached = _reach(reach)
+    verdicts = _verdict_lines(reached, cells)
+    markdown = f"## Mechanism table ({preset})\n\n{INTRO}\n\n"
+    for section, title, header, rows, definition in SECTIONS:
+        part = reached if section == "reach" else [c for c in cells if c["section"] == section]
+        if part or section != "reward_scale":
+            markdown += f"{markdown_table(title, header, rows(part))}\n{definition}\n\n"
     lines = ["", "### Verdicts", "", *(f"- {line}" for line in verdicts)]
-    if table.note:
-        lines += ["", table.note + "."]
-    csv = csv_text(_csv_rows(reach, table), CSV_COLUMNS)
-    return csv, markdown + "\n".join(lines) + "\n", verdicts
+    lines += ["", note + "."] if note else []
+    csv_rows = [
+        {key: f"{value:.6g}" if isinstance(value, float) else value for key, value in row.items()}
+        for row in [*(row for group in reached for row in group), *cells]
+    ]
+    return csv_text(csv_rows, CSV_COLUMNS), markdown + "\n".join(lines) + "\n", verdicts

@@ -107,11 +107,10 @@ REACH_TABLE = """
 import json, sys
 from distgprl.experiments.mechanisms import reach_rows
 from distgprl.machine import numerics_fingerprint
-from distgprl.report.mechanism_shares import MechanismTable
 from distgprl.report.mechanisms import mechanism_texts
 
 rows = reach_rows(sys.argv[1], "paper")
-csv_text, markdown, _ = mechanism_texts(MechanismTable("paper", tuple(rows), (), ()))
+csv_text, markdown, _ = mechanism_texts("paper", rows)
 exact = [{key: repr(value) for key, value in row.items()} for row in rows]
 print(json.dumps(
     {"numerics": numerics_fingerprint(), "csv": csv_text, "markdown": markdown, "rows": exact}

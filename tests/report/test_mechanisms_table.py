@@ -1,28 +1,29 @@
-"""The mechanism table's shares (`distgprl.report.mechanism_shares`) from synthetic result
-rows, and the table written from a synthetic results tree (`distgprl.report.mechanisms`):
-an episode that never comes within d_min is left out, one with r_tc = 0 is counted and left
-out, files that predate the columns say "not recorded", and the writer imports neither torch
-nor pybullet."""
+"""The mechanism table's cells (`distgprl.report.mechanisms`) from synthetic result frames,
+and the table written from a synthetic results tree: an episode that never comes within d_min
+is left out, one with r_tc = 0 is counted and left out, files that predate the columns say
+"not recorded", and the writer imports neither torch nor pybullet."""
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from distgprl.identity import resolve_run
-from distgprl.report.mechanism_shares import (
+from distgprl.report.mechanisms import (
     NOT_RECORDED,
-    episode_ratios,
     gradient_cells,
     gradient_points,
     return_cells,
+    rule_one_cells,
+    write_mechanisms,
 )
-from distgprl.report.mechanisms import write_mechanisms
 from distgprl.schema import EVALUATION_FIELDS, PROGRESS_FIELDS, read_csv, write_csv, write_json
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,18 +50,36 @@ EPISODES = [
 ]
 
 
-def test_episode_ratios_use_the_episodes_within_d_min_with_a_task_return():
-    ratios = episode_ratios(EPISODES, D_MIN)
-    assert ratios is not None
-    assert (ratios.episodes, ratios.within, ratios.zero_tc) == (4, 3, 1)
-    assert ratios.ratios["r_sd"] == pytest.approx([0.25, 0.3])
-    assert ratios.ratios["r_ga"] == pytest.approx([0.1, 0.05])
+KEYS = {"task": "dcp", "method": "dist-gprl", "where": "final"}
 
 
-def test_episode_ratios_of_rows_without_the_return_parts_are_not_recorded():
+def runs(*seeds, **scale):
+    """One method's evaluation frame: the rows of each of ``seeds`` as a run of its own, with
+    the run's d_min and ``scale`` columns."""
+    parts = [
+        pd.DataFrame(rows).assign(seed=k, d_min=D_MIN, **scale) for k, rows in enumerate(seeds)
+    ]
+    return pd.concat(parts, ignore_index=True)
+
+
+def term_cells(seeds):
+    """{term: its cell} of `return_cells` of ``seeds`` (rows per run)."""
+    return {cell["item"]: cell for cell in return_cells(KEYS, runs(*seeds))}
+
+
+def test_return_shares_use_the_episodes_within_d_min_with_a_task_return():
+    cells = term_cells([EPISODES])
+    sd, ga = cells["r_sd"], cells["r_ga"]
+    assert (sd["episodes"], sd["episodes_within_d_min"], sd["episodes_zero_tc"]) == (4, 3, 1)
+    assert sd["shares"] == pytest.approx([0.25, 0.3])
+    assert ga["shares"] == pytest.approx([0.1, 0.05])
+
+
+def test_return_term_cells_rows_without_the_return_parts_are_not_recorded():
     old = [{k: v for k, v in row.items() if not k.startswith("return_")} for row in EPISODES]
-    assert episode_ratios(old, D_MIN) is None
-    assert episode_ratios([{**EPISODES[0], "return_sd": ""}], D_MIN) is None
+    assert term_cells([old])["r_sd"]["meets_criterion"] == NOT_RECORDED
+    gap = term_cells([[{**EPISODES[0], "return_sd": math.nan}, EPISODES[1]]])["r_ga"]
+    assert gap["meets_criterion"] == NOT_RECORDED and gap["recorded"] == 0
 
 
 def test_return_cells_pool_the_seeds_and_judge_the_mean_against_five_percent():
@@ -68,71 +87,89 @@ def test_return_cells_pool_the_seeds_and_judge_the_mean_against_five_percent():
     r_sd's mean (0.25 + 0.3 + 0) / 3 passes, r_ga's (0.1 + 0.05 + 0.02) / 3 = 5.7 % too; with
     seed 1 alone r_ga is 2 %: below."""
     second = [episode(0.0, 1.0, 0.0, 0.02)]
-    sd, ga = return_cells("dcp", "dist-gprl", "final", [(EPISODES, D_MIN), (second, D_MIN)])
-    assert (sd.term, ga.term) == ("r_sd", "r_ga")
-    assert (sd.seeds, sd.recorded, sd.episodes, sd.within, sd.zero_tc) == (2, 2, 5, 4, 1)
-    assert sd.mean == pytest.approx(0.55 / 3) and sd.median == pytest.approx(0.25)
-    assert ga.mean == pytest.approx(0.17 / 3) and sd.verdict == ga.verdict == "yes"
-    (_, alone) = return_cells("dcp", "dist-gprl", "final", [(second, D_MIN)])
-    assert alone.verdict == "no"
+    ga, sd = return_cells(KEYS, runs(EPISODES, second))
+    assert (sd["item"], ga["item"]) == ("r_sd", "r_ga")
+    counts = ("seeds", "recorded", "episodes", "episodes_within_d_min", "episodes_zero_tc")
+    assert tuple(sd[key] for key in counts) == (2, 2, 5, 4, 1)
+    assert sd["share_mean"] == pytest.approx(0.55 / 3)
+    assert sd["share_median"] == pytest.approx(0.25)
+    assert ga["share_mean"] == pytest.approx(0.17 / 3)
+    assert sd["meets_criterion"] == ga["meets_criterion"] == "yes"
+    assert term_cells([second])["r_ga"]["meets_criterion"] == "no"
     far = [episode(0.2, 1.0, 0.0, 0.1)]
-    assert return_cells("dcp", "dist-gprl", "final", [(far, D_MIN)])[0].verdict == "n/a"
+    assert term_cells([far])["r_sd"]["meets_criterion"] == "n/a"
     old = [{k: v for k, v in row.items() if k != "return_tc"} for row in EPISODES]
-    cell = return_cells("dcp", "dist-gprl", "best", [(old, D_MIN)])[0]
-    assert cell.verdict == NOT_RECORDED and cell.mean is None
+    cell = term_cells([old])["r_sd"]
+    assert cell["meets_criterion"] == NOT_RECORDED and cell["share_mean"] is None
 
 
-def progress(step, grad_q, grad_sim, grad_hap, active="", fraction=""):
-    row = dict.fromkeys(PROGRESS_FIELDS, "")
+NAN = math.nan
+
+
+def progress(step, grad_q, grad_sim, grad_hap, active=NAN, fraction=NAN):
+    row = dict.fromkeys(PROGRESS_FIELDS, NAN)
     row.update(step=step, grad_q=grad_q, grad_sim=grad_sim, grad_hap=grad_hap)
     row.update(grad_hap_active=active, hap_active_fraction=fraction)
     return row
 
 
 CURVE = [
-    progress(0, "", "", ""),  # step 0: no transition, no gradient
+    progress(0, NAN, NAN, NAN),  # step 0: no transition, no gradient
     progress(120, 1.0, 0.2, 0.01, 0.02, 0.5),
     progress(240, 2.0, 0.2, 0.04, 0.08, 0.5),
-    progress(360, 4.0, 0.1, 0.0, "", 0.0),  # every sample inside C_safe
+    progress(360, 4.0, 0.1, 0.0, NAN, 0.0),  # every sample inside C_safe
 ]
 
 
+def curves(*seeds):
+    """Each of ``seeds`` (progress rows) as one run's learning curve."""
+    return [pd.DataFrame(rows) for rows in seeds]
+
+
 def test_gradient_points_are_the_first_middle_and_last_with_a_gradient():
-    points = gradient_points(list(reversed(CURVE)))
-    assert {p: int(r["step"]) for p, r in points.items()} == {
-        "first": 120,
-        "middle": 240,
-        "last": 360,
-    }
-    assert gradient_points(CURVE[:1]) == {}
+    points = gradient_points(pd.DataFrame(list(reversed(CURVE))))
+    assert points["step"].to_dict() == {"first": 120, "middle": 240, "last": 360}
+    assert gradient_points(pd.DataFrame(CURVE[:1])).empty
 
 
 def test_gradient_cells_share_of_the_q_term_per_point_over_seeds():
     """Dist-GPRL: L_sim 20 % / 10 % / 2.5 %, L_hap outside C_safe 2 %, 4 %, then inactive;
     a second seed's 5 % L_sim and inactive L_hap at every point average in. GPRL-D has L_sim
     only; an old file without grad_hap_active says "not recorded" for L_hap outside C_safe."""
-    other = [progress(120 * k, 1.0, 0.05, 0.0, "", 0.0) for k in (1, 2, 3)]
-    cells = {(c.item, c.point): c for c in gradient_cells("dcp", "dist-gprl", [CURVE, other])}
+    other = [progress(120 * k, 1.0, 0.05, 0.0, NAN, 0.0) for k in (1, 2, 3)]
+    found = gradient_cells({"task": "dcp", "method": "dist-gprl"}, curves(CURVE, other))
+    cells = {(c["item"], c["where"]): c for c in found}
     assert set(cells) == {
         (item, point)
         for item in ("l_sim", "l_hap", "l_hap_active")
         for point in ("first", "middle", "last")
     }
-    assert cells["l_sim", "first"].mean == pytest.approx(0.125)
-    assert cells["l_sim", "last"].mean == pytest.approx((0.025 + 0.05) / 2)
-    assert cells["l_sim", "first"].verdict == "yes" and cells["l_sim", "last"].verdict == "no"
-    assert cells["l_sim", "middle"].steps == (240, 240)
+    assert [(c["where"], c["item"]) for c in found[:4]] == [
+        ("first", "l_sim"),
+        ("first", "l_hap"),
+        ("first", "l_hap_active"),
+        ("middle", "l_sim"),
+    ]
+    assert cells["l_sim", "first"]["share_mean"] == pytest.approx(0.125)
+    assert cells["l_sim", "last"]["share_mean"] == pytest.approx((0.025 + 0.05) / 2)
+    assert cells["l_sim", "first"]["meets_criterion"] == "yes"
+    assert cells["l_sim", "last"]["meets_criterion"] == "no"
+    assert cells["l_sim", "middle"]["step"] == "240" and cells["l_sim", "middle"]["seeds"] == 2
     everywhere = cells["l_hap", "middle"]
-    assert everywhere.shares == pytest.approx((0.02, 0.0)) and everywhere.verdict == "n/a"
+    assert everywhere["shares"] == pytest.approx((0.02, 0.0))
+    assert everywhere["meets_criterion"] == "n/a"
     active = cells["l_hap_active", "middle"]
-    assert active.shares == pytest.approx((0.04,)) and active.inactive == 1
-    assert active.verdict == "no" and active.active_fraction == (0.5, 0.0)
-    assert cells["l_hap_active", "last"].verdict == "inactive"
-    assert {c.item for c in gradient_cells("dcp", "gprl-d", [CURVE])} == {"l_sim"}
+    assert active["shares"] == pytest.approx((0.04,)) and active["meets_criterion"] == "no"
+    assert active["active_fraction"] == pytest.approx(0.25)  # 0.5 and 0.0 over the seeds
+    assert cells["l_hap_active", "last"]["meets_criterion"] == "inactive"
+    assert {
+        c["item"] for c in gradient_cells({"task": "dcp", "method": "gprl-d"}, curves(CURVE))
+    } == {"l_sim"}
     dropped = ("grad_hap_active", "hap_active_fraction")
     old = [{k: v for k, v in row.items() if k not in dropped} for row in CURVE]
-    stale = gradient_cells("dcp", "gprl-h", [old])
-    assert {c.verdict for c in stale if c.item == "l_hap_active"} == {NOT_RECORDED}
+    stale = gradient_cells({"task": "dcp", "method": "gprl-h"}, curves(old))
+    verdicts = {c["meets_criterion"] for c in stale if c["item"] == "l_hap_active"}
+    assert verdicts == {NOT_RECORDED}
 
 
 REACH = [
@@ -243,32 +280,36 @@ def test_the_writer_imports_neither_torch_nor_pybullet(tmp_path):
 def test_the_plateau_counts_idle_episodes_and_the_alignment_reward_they_collect():
     """Idle = no success, no collision, r_tc below 5 % of the progress weight; their mean
     lambda_ga r_ga is reported; runs without the return's parts are left out."""
-    from distgprl.report.mechanism_shares import TaskReturns, plateau_cell
 
     def row(success, collision, tc, ga):
         return {"success": success, "collision": collision, "return_tc": tc, "return_ga": ga}
 
-    unit, tenths = TaskReturns(1.0, 2.0, 1.5), TaskReturns(10.0, 20.0, 15.0)
+    unit = {"progress_weight": 1.0, "success_return": 2.0, "demo_return": 1.5}
+    tenths = {"progress_weight": 10.0, "success_return": 20.0, "demo_return": 15.0}
     seed0 = [row(0, 0, 0.0, 0.55), row(1, 0, 2.0, 0.3), row(0, 1, -1.0, 0.1), row(0, 0, 0.04, 0.5)]
     seed1 = [row(0, 0, 0.2, 0.4), row(0, 0, 0.0, 0.6)]
-    old = [{"success": 0, "collision": 0, "return_tc": "", "return_ga": ""}]
-    cell = plateau_cell("dcp", "dist-gprl", "best", [(seed0, unit), (seed1, unit), (old, unit)])
-    assert (cell.seeds, cell.episodes, cell.idle) == (2, 6, 3)
-    assert cell.share == 0.5 and abs(cell.mean_ga - (0.55 + 0.5 + 0.6) / 3) < 1e-12
+    old = [{"success": 0, "collision": 0, "return_tc": NAN, "return_ga": NAN}]
+    ga, idle = rule_one_cells(KEYS, runs(seed0, seed1, old, **unit))
+    assert (ga["item"], idle["item"]) == ("ga_of_success", "idle_of_demo")
+    assert (ga["seeds"], ga["episodes"], ga["idle"], idle["episodes"]) == (2, 6, 3, 3)
+    assert ga["mean_ga"] == pytest.approx((0.55 + 0.5 + 0.6) / 3, abs=1e-12)
     # under a progress weight of 10 (r_tc in tenths of a task) 0.2 is still idle
-    assert plateau_cell("dcp", "dist-gprl", "best", [(seed1, tenths)]).idle == 2
-    assert plateau_cell("dcp", "dist-gprl", "best", [(old, unit)]) is None
+    assert rule_one_cells(KEYS, runs(seed1, **tenths))[0]["idle"] == 2
+    assert rule_one_cells(KEYS, runs(old, **unit)) == []
 
 
 def test_rule_one_ratios_are_measured_per_episode_against_the_runs_own_scale():
     """(a): every episode's lambda_ga Σ r_ga over its run's success r_tc; (b): every idle
     episode's whole return (r_tc + r_sd + lambda_ga r_ga) over its run's demonstration r_tc."""
-    from distgprl.report.mechanism_shares import TaskReturns, plateau_cell
-
     rows = [
         {"success": 1, "collision": 0, "return_tc": 20.0, "return_sd": -0.1, "return_ga": 0.5},
         {"success": 0, "collision": 0, "return_tc": 0.2, "return_sd": -0.2, "return_ga": 0.6},
     ]
-    cell = plateau_cell("dcp", "dist-gprl", "best", [(rows, TaskReturns(10.0, 20.0, 8.0))])
-    assert cell.ga_of_success == pytest.approx((0.5 / 20.0, 0.6 / 20.0))
-    assert cell.idle_of_demo == pytest.approx(((0.2 - 0.2 + 0.6) / 8.0,))
+    scale = {"progress_weight": 10.0, "success_return": 20.0, "demo_return": 8.0}
+    ga, idle = rule_one_cells(KEYS, runs(rows, **scale))
+    assert ga["share_max"] == pytest.approx(0.6 / 20.0) and ga["episodes"] == 2
+    assert ga["share_mean"] == pytest.approx((0.5 / 20.0 + 0.6 / 20.0) / 2)
+    assert idle["share_max"] == pytest.approx((0.2 - 0.2 + 0.6) / 8.0) and idle["episodes"] == 1
+    assert ga["meets_criterion"] == idle["meets_criterion"] == "yes"  # 3 % <= 5 %, 7.5 % <= 10 %
+    _, over = rule_one_cells(KEYS, runs(rows, **{**scale, "demo_return": 5.0}))
+    assert over["meets_criterion"] == "no"  # 12 % > 10 %
