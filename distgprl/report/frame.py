@@ -111,10 +111,11 @@ def number(text: str) -> int | float | str:
 
 
 def csv_frame(path: Path, keys: dict[str, Any]) -> pd.DataFrame:
-    """One result CSV's rows as `number` cells, with ``keys`` in front as columns."""
+    """One result CSV's rows as `number` cells, with ``keys`` in front as columns (a CSV
+    without rows: the ``keys`` columns only)."""
     _, rows = read_csv(path)
     records = [{**keys, **{k: number(v) for k, v in row.items()}} for row in rows]
-    return pd.DataFrame.from_records(records)
+    return pd.DataFrame.from_records(records, columns=None if records else list(keys))
 
 
 def episode_frame(

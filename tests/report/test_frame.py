@@ -8,6 +8,7 @@ import math
 from distgprl.report.frame import (
     EVALUATION_KEYS,
     RUN_COLUMNS,
+    csv_frame,
     curve_frame,
     episode_frame,
     number,
@@ -105,3 +106,10 @@ def test_a_cell_is_pythons_int_or_float_or_stays_text():
     assert type(number("3")) is int and number("0.1") == 0.1 and number("1e-05") == 1e-05
     assert math.isnan(number("")) and math.isnan(number("nan"))
     assert number("refused") == "refused"
+
+
+def test_a_result_csv_without_rows_still_has_its_key_columns(tmp_path):
+    path = write_csv(tmp_path / "evaluation.csv", [], EPISODE, config_hash="0" * 16)
+    frame = csv_frame(path, {"task": "dcp", "seed": 3})
+    assert list(frame.columns) == ["task", "seed"] and frame.empty
+    assert frame["seed"].nunique() == 0
