@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from distgprl.report.frame import load_frames
@@ -18,7 +19,6 @@ from distgprl.report.table1 import (
     UNTRAINED_NOTE,
     simulation_table,
     untrained_marks,
-    untrained_text,
 )
 from distgprl.report.tables import write_tables
 from distgprl.schema import write_json
@@ -66,16 +66,17 @@ def test_only_an_explicit_false_counts_and_the_untrained_figure_is_their_mean():
         best_summary(0.2, None, None)["summary"],
     ]
     marks = untrained_marks(summaries)
-    assert marks.seeds == 2 and marks.untrained_curve_success == pytest.approx(0.7)
-    assert untrained_marks(summaries[1:2]).seeds == 0
-    assert untrained_marks(summaries[3:]).seeds == 0  # unknown: not an error, not marked
-    assert untrained_text(marks, 4) == f" {UNTRAINED_MARK} (untrained 0.70, 2 of 4 seeds)"
-    assert untrained_text(untrained_marks(summaries[1:2]), 1) == ""
+    assert marks["untrained_best_seeds"] == 2
+    assert marks["untrained_curve_success_mean"] == pytest.approx(0.7)
+    assert untrained_marks(summaries[1:2])["untrained_best_seeds"] == 0
+    unknown = untrained_marks(summaries[3:])  # unknown: not an error, not marked
+    assert unknown["untrained_best_seeds"] == 0
+    assert np.isnan(unknown["untrained_curve_success_mean"])
 
 
 def test_a_cell_is_marked_exactly_where_a_seed_did_not_beat_the_untrained_policy(marked_tree):
     rows, _ = simulation_table(load_frames(marked_tree, "p"))
-    marks = {row["method"]: row["dcp_untrained"].seeds for row in rows}
+    marks = {row["method"]: row["dcp_untrained_best_seeds"] for row in rows}
     assert marks == {"gprl": 2, "dist-gprl": 0, "promp-rrl": 0, "demo": 0}
     out = marked_tree / "out"
     write_tables(marked_tree, "p", out)
