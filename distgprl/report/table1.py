@@ -61,8 +61,7 @@ IQM_METRICS = (("success_rate", "Success IQM"), ("collision_rate", "Collision IQ
 the CSV and the Markdown table, not the LaTeX one (the paper's layout)."""
 
 BEATS_UNTRAINED = "beats_untrained"
-"""The best-policy summary field: whether the selected curve point's curve success is above
-the untrained step-0 point's (None: unknown; `distgprl.experiments.policies.BestSelection`)."""
+"""The best-policy summary field: whether the selected point beat the untrained step-0 one."""
 
 UNTRAINED_CURVE_SUCCESS = "untrained_curve_success_rate"
 """The best-policy summary field: the untrained step-0 point's curve success (curve TCs)."""
@@ -234,10 +233,9 @@ def _run_cells(row: dict[str, Any]) -> list[str]:
         policy += f" {UNTRAINED_MARK} (untrained {number_text(row[UNTRAINED_CURVE_SUCCESS], 2)})"
     cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"]), policy]
     cells.append(str(free) or "–")
-    for key, _ in PER_SEED_COLUMNS:
-        collided = key == COLLISION_FREE_MINCL and row[key] == "" and free == 0
-        digits = 3 if key in CLEARANCE_METRICS else 2
-        cells.append(ALL_COLLIDED if collided else number_text(row[key], digits))
+    for key, _ in PER_SEED_COLUMNS:  # a run's value: a cell of one seed (none where empty)
+        cell = aggregate([] if row[key] == "" else [row[key]])
+        cells.append(_metric_text(key, cell, 1, int(free == 0)))
     return cells + [number_text(row[key], 1) for key in ("train_wall_min", "train_cpu_ms_per_step")]
 
 
@@ -270,9 +268,9 @@ def simulation_table(
     frames: Frames, order: tuple[str, ...] = TABLE_ORDER
 ) -> tuple[list[dict[str, Any]], list[str]]:
     """Rows of Table I, one per method of ``order`` with runs, and the tasks. Per task
-    ``<task>_seeds``, a `Cell` per `METRICS` key (``<task>_<key>``), ``<task>_all_collided_seeds``
-    (seeds whose every episode collided), ``<task>_untrained`` (`UntrainedMarks`) and an IQM
-    `Estimate` per `IQM_METRICS` key (``<task>_<key>_iqm``)."""
+    (``<task>_`` + ...): ``seeds``, a `Cell` per `METRICS` key, the seeds MinCl is over
+    (``<MinCl>_seeds``) and those whose every episode collided (``all_collided_seeds``),
+    `untrained_marks`, and per `IQM_METRICS` key the IQM (``<key>_iqm``, ``_low``, ``_high``)."""
     by_cell: dict[tuple[str, str], list[dict[str, Any]]] = {}
     for (task, method, _, _), summary in summaries(frames.runs):
         by_cell.setdefault((task, method), []).append(summary)
@@ -286,25 +284,23 @@ def simulation_table(
     return rows, tasks
 
 
+def _metric_text(key: str, cell: Cell, seeds: int, all_collided: int) -> str:
+    """``key``'s text of a `Cell` over ``seeds``: MinCl with ``(n=k)`` where only k of them have
+    one, `ALL_COLLIDED` where every episode of every seed collided."""
+    if key == COLLISION_FREE_MINCL and cell.n == 0 and seeds and seeds == all_collided:
+        return ALL_COLLIDED
+    text = cell.text(3 if key in CLEARANCE_METRICS else 2, interval=key in INTERVAL_METRICS)
+    if key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
+        text += f" (n={cell.n})"
+    return text
+
+
 def _task_cells(row: dict[str, Any], task: str, markdown: bool) -> list[str]:
-    """``row``'s `METRICS` cells of ``task``: MinCl with ``(n=k)`` over k of the seeds or
-    `ALL_COLLIDED`, Success with the `UNTRAINED_MARK`; in ``markdown`` also Success's seed count
-    in brackets and the `IQM_METRICS` cells."""
+    """``row``'s `METRICS` cells of ``task``, Success with the `UNTRAINED_MARK`; in ``markdown``
+    also Success's seed count in brackets and the `IQM_METRICS` cells."""
     seeds, marked = row[f"{task}_seeds"], row[f"{task}_untrained_best_seeds"]
-    cells = []
-    for key, _ in METRICS:
-        cell: Cell = row[f"{task}_{key}"]
-        text = cell.text(3 if key in CLEARANCE_METRICS else 2, interval=key in INTERVAL_METRICS)
-        if (
-            key == COLLISION_FREE_MINCL
-            and cell.n == 0
-            and seeds
-            and seeds == row[f"{task}_all_collided_seeds"]
-        ):
-            text = ALL_COLLIDED
-        elif key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
-            text += f" (n={cell.n})"
-        cells.append(text)
+    collided = row[f"{task}_all_collided_seeds"]
+    cells = [_metric_text(key, row[f"{task}_{key}"], seeds, collided) for key, _ in METRICS]
     cells[0] += f" [{seeds}]" if seeds and markdown else ""
     if marked:
         figure = number_text(row[f"{task}_untrained_curve_success_mean"], 2)
