@@ -1,9 +1,7 @@
-"""Table I (simulation), one row per method with runs: per task each metric's mean ± sample
-std over seeds with its 95 % t-interval (`aggregate`) and the success and collision IQM with
-its stratified-bootstrap interval; and Table I per run (`per_seed_rows`). Of the evaluation
-the `Frames` hold: `TABLE_POLICY`'s (protocol v6, rule 6, docs/findings/protocol.md) or the
-final policy's. MinCl is `COLLISION_FREE_MINCL` (rule 5); `UNTRAINED_MARK` marks a cell where
-no trained policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md).
+"""Table I (`simulation_table`) and Table I per run (`per_seed_rows`) of the evaluation the
+`Frames` hold: `TABLE_POLICY`'s (protocol v6, rule 6, docs/findings/protocol.md) or the final
+policy's. MinCl is `COLLISION_FREE_MINCL` (rule 5); `UNTRAINED_MARK` marks where no trained
+policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md).
 """
 
 from __future__ import annotations
@@ -47,9 +45,6 @@ METRICS = (
 all episodes (a colliding one counts 0), the signed clearance's 5th percentile (m; negative:
 penetration depth), completion regardless of collision and kinematic retention."""
 
-CLEARANCE_METRICS = (COLLISION_FREE_MINCL, "min_clearance_p5", "min_signed_clearance_p5")
-"""Metrics in metres, shown to the millimetre."""
-
 RATE_BOUNDS = (0.0, 1.0)
 """The range of a rate (``*_rate``): its interval is clipped to it."""
 
@@ -57,8 +52,7 @@ INTERVAL_METRICS = ("success_rate", "collision_rate")
 """Metrics whose cells also show the 95 % interval."""
 
 IQM_METRICS = (("success_rate", "Success IQM"), ("collision_rate", "Collision IQM"))
-"""Metrics with a column per task of the IQM over seeds (`method_estimate`, one stratum), in
-the CSV and the Markdown table, not the LaTeX one (the paper's layout)."""
+"""Metrics with an IQM column per task (`method_estimate`, one stratum; not in the LaTeX)."""
 
 BEATS_UNTRAINED = "beats_untrained"
 """The best-policy summary field: whether the selected point beat the untrained step-0 one."""
@@ -66,32 +60,26 @@ BEATS_UNTRAINED = "beats_untrained"
 UNTRAINED_CURVE_SUCCESS = "untrained_curve_success_rate"
 """The best-policy summary field: the untrained step-0 point's curve success (curve TCs)."""
 
-PER_SEED_EXTRA = (
-    ("peak_joint_speed_p95", "PeakJS p95 (rad/s)"),
-    ("joint_speed_over_limit_rate", "JS > limit"),
-)
-"""Per run beyond Table I: the 95th percentile of the episodes' peak commanded joint speed and
-the share of episodes above the hardware safety layer's joint speed limit."""
-
 LATE_CURVE_POINTS = 5
 """How many of the last learning-curve evaluations `late_curve` reads."""
 
-LATE_CURVE = (
+PER_SEED_COLUMNS = (
+    *METRICS,
+    ("peak_joint_speed_p95", "PeakJS p95 (rad/s)"),
+    ("joint_speed_over_limit_rate", "JS > limit"),
     ("late_curve_success", "Late curve succ"),
     ("late_curve_success_range", "Late curve range"),
 )
-"""Per run: the mean and the max - min of the curve success over the last `LATE_CURVE_POINTS`
-evaluations, how much the final policy depends on where training stopped (empty for `demo`)."""
-
-PER_SEED_COLUMNS = (*METRICS, *PER_SEED_EXTRA, *LATE_CURVE)
-"""The metric columns of Table I per run."""
+"""Table I per run's metric columns: `METRICS`, the 95th percentile of the episodes' peak
+commanded joint speed, the share of episodes above the hardware safety layer's joint speed
+limit, and `late_curve`: how much the final policy depends on where training stopped."""
 
 PER_SEED_SUMMARY = (
     "policy_step",
     BEATS_UNTRAINED,
     UNTRAINED_CURVE_SUCCESS,
     "collision_free_episodes",
-    *(key for key, _ in METRICS + PER_SEED_EXTRA),
+    *(key for key, _ in PER_SEED_COLUMNS[:-2]),
 )
 """The summary fields Table I per run copies (empty where a summary lacks one)."""
 
@@ -145,8 +133,8 @@ class Cell:
         return float(np.clip(self.ci_low, *RATE_BOUNDS)), float(np.clip(self.ci_high, *RATE_BOUNDS))
 
     def text(self, digits: int = 2, interval: bool = False) -> str:
-        """``mean ± std`` (``mean`` for one seed, ``–`` for none), with ``interval`` and two
-        seeds or more followed by ``[low, high]`` clipped to `RATE_BOUNDS`."""
+        """``mean ± std [low, high]`` (the interval with ``interval``, clipped); ``mean`` for one
+        seed, ``–`` for none."""
         if self.n < 2:
             return number_text(self.mean, digits)
         text = f"{self.mean:.{digits}f} ± {self.std:.{digits}f}"
@@ -196,12 +184,12 @@ def collect_scores(frames: Frames) -> Scores:
 
 
 def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
-    """`LATE_CURVE` of one run's curve points (empty strings without a trained point among the
-    last `LATE_CURVE_POINTS`)."""
+    """The mean and the max - min curve success of one run's last `LATE_CURVE_POINTS` curve
+    points (empty strings without a trained point among them: `demo`)."""
     late = points.tail(LATE_CURVE_POINTS)
     success = late["success_rate"][late["step"] != 0].tolist()
     if not success:
-        return {key: "" for key, _ in LATE_CURVE}
+        return dict.fromkeys(("late_curve_success", "late_curve_success_range"), "")
     return {
         "late_curve_success": float(np.mean(success)),
         "late_curve_success_range": float(max(success) - min(success)),
@@ -289,7 +277,8 @@ def _metric_text(key: str, cell: Cell, seeds: int, all_collided: int) -> str:
     one, `ALL_COLLIDED` where every episode of every seed collided."""
     if key == COLLISION_FREE_MINCL and cell.n == 0 and seeds and seeds == all_collided:
         return ALL_COLLIDED
-    text = cell.text(3 if key in CLEARANCE_METRICS else 2, interval=key in INTERVAL_METRICS)
+    digits = 3 if "clearance" in key else 2  # clearances in metres, to the millimetre
+    text = cell.text(digits, interval=key in INTERVAL_METRICS)
     if key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
         text += f" (n={cell.n})"
     return text

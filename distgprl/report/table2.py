@@ -1,8 +1,6 @@
-"""Table II (hardware) from a preset's trial files (`select_trial_files`): one CSV row per
-method, backend, protocol, repair setting and twin noise level (`hardware_rows`); one Markdown
-and LaTeX row per method, backend and noise level with the paper's protocol's columns first,
-then each safety-layer setting's (`hardware_texts`). Rates over all trials with the exact
-(Clopper-Pearson) 95 % interval; MinCl over the trials that moved the robot.
+"""Table II (hardware) and its twin-noise table from a preset's trial files: rates over all
+trials with the exact (Clopper-Pearson) 95 % interval, MinCl over the trials that moved the
+robot; the paper's protocol first, then the safety layer's settings.
 """
 
 from __future__ import annotations
@@ -87,9 +85,8 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
 
 
 def _twin_setting(method: str, meta: dict[str, Any]) -> tuple[Any, ...] | None:
-    """The setting of a twin file (None on the robot, whose trials are new executions): the
-    twin draws a seed's bar positions and sensor noise from the seed, so two files of one
-    policy, seed and setting run the same trials (an interrupted file's and its re-run's)."""
+    """A twin file's setting (None on the robot: its trials are new executions). The twin draws
+    bar positions and sensor noise from the seed: two files of one setting run the same trials."""
     if meta.get("backend") != "twin":
         return None
     repair = (bool(meta.get("repair")), bool(meta.get("repair_push")))
@@ -127,8 +124,7 @@ def _finite(cells: Iterable[Any]) -> list[float]:
 
 
 SETTING = ("method", "backend", "protocol", "repair", "sensor_noise")
-"""The columns naming a `hardware_rows` row (``sensor_noise``: the twin's level, ``–`` on the
-robot)."""
+"""The columns naming a `hardware_rows` row (``sensor_noise``: ``–`` on the robot)."""
 
 
 def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
@@ -138,8 +134,8 @@ def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
     for method, meta, trial_rows in files.counted:
         for row in trial_rows:
             backend = row.get("backend", "unknown")
-            level = meta.get("sensor_noise")
-            noise = "–" if backend != "twin" else "0" if level is None else str(level)
+            level = meta.get("sensor_noise") if backend == "twin" else "–"
+            noise = "0" if level is None else str(level)
             key = (method, backend, file_protocol(meta), repair_label(meta), noise)
             groups.setdefault(key, []).append(row)
     order = sorted(
