@@ -171,6 +171,7 @@ def _setting_row(key: tuple[str, ...], trials: list[dict[str, Any]]) -> dict[str
 
 
 INTERVAL_FIELDS = [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
+"""The CSV columns of the rates' exact 95 % intervals."""
 
 LABELS = {
     "trials": "Trials",
@@ -284,9 +285,8 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
     header = ["Method", "Backend", "Noise"]
     header += [f"{GROUP_TITLES[g]}: {LABELS[k]}" for g, keys in groups for k in keys]
     caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"
-    markdown = markdown_table(f"Table II: {caption}", header, body) + (
-        f"\n{note}.\n" if note else ""
-    )
+    markdown = markdown_table(f"Table II: {caption}", header, body)
+    markdown += f"\n{note}.\n" if note else ""
     latex_caption = caption.replace(" %", "\\,\\%").replace("pi rad/s", "$\\pi$ rad/s")
     latex_caption = latex_caption.replace("s^2", "s$^2$")
     titles = (f"\\multicolumn{{{len(keys)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, keys in groups)
