@@ -49,6 +49,10 @@ GRADIENT_ITEMS = {"l_sim": "grad_sim", "l_hap": "grad_hap", "l_hap_active": "gra
 ACTIVE = "hap_active_fraction"
 """The ``progress.csv`` column of the share of samples outside C_safe."""
 
+ZERO_TC = 1e-9
+"""|Σ r_tc| at most this counts as Σ r_tc = 0 (no ratio): an episode without net progress sums
+its per-step progress terms to 0 only up to floating-point rounding (residues ~1e-15)."""
+
 IDLE_PROGRESS = 0.05
 """An episode that neither succeeded nor collided is idle if its r_tc is below this share of
 the task's progress weight."""
@@ -85,7 +89,7 @@ def return_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
     complete = parts[needed].notna().all(axis=1)
     recorded = parts[complete.groupby(parts["seed"]).transform("all")]
     within = recorded["min_clearance"] < recorded["d_min"]
-    paid = within & (recorded["return_tc"] != 0.0)
+    paid = within & (recorded["return_tc"].abs() > ZERO_TC)
     counts = {"seeds": episodes["seed"].nunique(), "recorded": recorded["seed"].nunique()}
     counts |= {"episodes": len(recorded), "episodes_within_d_min": int(within.sum())}
     counts["episodes_zero_tc"] = int(within.sum() - paid.sum())
@@ -480,8 +484,9 @@ SECTIONS: tuple[Section, ...] = (
         _return_rows,
         "Per episode |Σ r_sd| / |Σ r_tc| and |Σ λ_ga r_ga| / |Σ r_tc| (the evaluation rows' "
         "return_sd, return_ga, return_tc), over the episodes whose minimum clearance is below "
-        "the run's d_min, pooled over seeds; episodes with Σ r_tc = 0 have no ratio and are "
-        f'left out (counted). "{NOT_RECORDED}": evaluation files written before those '
+        "the run's d_min, pooled over seeds; episodes with Σ r_tc = 0 (to within "
+        f'{ZERO_TC:g}, rounding) have no ratio and are left out (counted). "{NOT_RECORDED}": '
+        "evaluation files written before those "
         "columns.",
     ),
     (

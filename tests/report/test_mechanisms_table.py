@@ -75,6 +75,14 @@ def test_return_shares_use_the_episodes_within_d_min_with_a_task_return():
     assert ga["shares"] == pytest.approx([0.1, 0.05])
 
 
+def test_a_task_return_that_is_zero_up_to_rounding_has_no_ratio():
+    """An idle episode's progress terms sum to 0 only up to rounding (4.4e-16 recorded): like
+    an exact 0 it gets no ratio (a share of ~1e15 would swamp the mean) and is counted."""
+    residue = episode(0.015, 4.440892098500626e-16, -0.1, 0.1)
+    sd = term_cells([[*EPISODES, residue]])["r_sd"]
+    assert sd["episodes_zero_tc"] == 2 and sd["shares"] == pytest.approx([0.25, 0.3])
+
+
 def test_return_term_cells_rows_without_the_return_parts_are_not_recorded():
     old = [{k: v for k, v in row.items() if not k.startswith("return_")} for row in EPISODES]
     assert term_cells([old])["r_sd"]["meets_criterion"] == NOT_RECORDED
