@@ -7,6 +7,7 @@ for multiple comparisons.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, cast
 
@@ -49,6 +50,20 @@ def supplementary_sizes(root: str | Path, preset: str) -> list[int]:
     return sorted({int(n) for n in digits if n.isdigit()})
 
 
+def evaluated_runs(runs: Iterable[Path], *names: str) -> list[Path]:
+    """The run folders ``.../<task>/<method>/seed<k>`` of a method among ``runs`` that hold
+    every file of ``names``, in task, table and seed order."""
+    evaluated = [
+        r for r in runs if r.parent.name in METHODS and all((r / n).exists() for n in names)
+    ]
+    return sorted(evaluated, key=_run_order)
+
+
+def _run_order(run: Path) -> tuple[int, str, int, int]:
+    task, method, seed = run.parts[-3:]
+    return task_order(task), task, TABLE_ORDER.index(method), int(seed.removeprefix("seed"))
+
+
 def paired_rows(
     root: str | Path,
     preset: str,
@@ -56,13 +71,12 @@ def paired_rows(
     episodes: int | None = None,
     base_preset: str | None = None,
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows, one per run of ``preset`` that counts (`select_runs`) and outcome, in
-    task, table, seed and `OUTCOMES` order, against the ``reference`` method's run of the same
-    task (`UNADAPTED`: its seed 0; another: the same seed) on the preset's TCs (``episodes``
-    None) or its supplementary evaluation on N TCs; with `FINAL_POLICY`, each run's best
-    learning-curve policy (``evaluation_best.csv``) against its own final one; with
-    ``base_preset``, against the same run there. `UNADAPTED`'s and ``reference``'s runs are no
-    rows.
+    """`FIELDS` rows per run of ``preset`` that counts (`select_runs`) and outcome, in
+    `evaluated_runs` and `OUTCOMES` order: against ``reference``'s run of the same task
+    (`UNADAPTED`: its seed 0; another method: the same seed) on the preset's TCs (``episodes``
+    None) or its supplementary evaluation on N TCs; with `FINAL_POLICY` each run's best
+    learning-curve policy against its own final one; with ``base_preset`` against the same run
+    there. `UNADAPTED`'s and ``reference``'s runs are no rows.
 
     Raises:
         ValueError: ``reference`` is neither a method nor `FINAL_POLICY`; a pair's TCs differ.
@@ -76,10 +90,8 @@ def paired_rows(
     name = evaluation_file_names(episodes, "best")[0] if reference == FINAL_POLICY else final
     runs = select_runs(root, preset).current
     references = select_runs(root, base_preset).current if base_preset else runs
-    methods = set(METHODS) - {UNADAPTED, reference}
-    evaluated = [run for run in runs if run.parent.name in methods and (run / name).exists()]
     pairs = []
-    for run in sorted(evaluated, key=_run_order):
+    for run in evaluated_runs(runs, name):
         task, method, seed = run.parts[-3:]
         if base_preset:
             other = Path(root) / base_preset / task / method / seed
@@ -87,7 +99,8 @@ def paired_rows(
             other = run
         else:
             other = run.parents[1] / reference / ("seed0" if reference == UNADAPTED else seed)
-        if other in references and (other / final).exists():
+        counted = other in references and (other / final).exists()
+        if counted and method not in (UNADAPTED, reference):
             pairs.append((run / name, other / final))
     try:
         return [row for run_file, other_file in pairs for row in _pair(run_file, other_file)]
@@ -98,13 +111,8 @@ def paired_rows(
         raise UserInputError(message) from None
 
 
-def _run_order(run: Path) -> tuple[int, str, int, int]:
-    task, method, seed = run.parts[-3:]
-    return task_order(task), task, TABLE_ORDER.index(method), int(seed.removeprefix("seed"))
-
-
 def _pair(run_file: Path, reference_file: Path) -> list[dict[str, Any]]:
-    """The `FIELDS` rows of two evaluation files of the same TCs, one per outcome.
+    """The `FIELDS` rows of two evaluations of the same TCs, one per outcome.
 
     Raises:
         ValueError: the two files hold different TCs.
@@ -148,19 +156,15 @@ def _outcomes(episodes: pd.DataFrame) -> pd.DataFrame:
     return outcomes.assign(safe_success=safe.astype(int))
 
 
-Table = tuple[str, tuple[str, str] | None, str]
-"""One paired table as `write_tables` writes it: file stem, (CSV, Markdown) or None (no rows:
-no file), the CSV sidecar's description."""
-
-
 def paired_table(
     root: str | Path,
     preset: str,
     reference: str = UNADAPTED,
     episodes: int | None = None,
     base_preset: str | None = None,
-) -> Table:
-    """The table of `paired_rows` (arguments as there); its Markdown has one line per run.
+) -> tuple[str, tuple[str, str] | None, str]:
+    """The table of `paired_rows` (arguments as there) as `write_tables` writes it: file stem,
+    (CSV, Markdown with one line per run) or None without rows, the CSV sidecar's description.
 
     Raises:
         UserInputError: no run has a counterpart in ``base_preset``.
@@ -189,12 +193,8 @@ def paired_table(
         against = (
             "the unadapted reference" if reference == UNADAPTED else f"{label} of the same seed"
         )
-    return stem, _texts(rows, preset, against, episodes) if rows else None, about
-
-
-def _texts(
-    rows: list[dict[str, Any]], preset: str, against: str, episodes: int | None
-) -> tuple[str, str]:
+    if not rows:
+        return stem, None, about
     supplementary = f"; supplementary evaluation on the first {episodes} TCs" if episodes else ""
     title = (
         f"Each run against {against} on the same evaluation TCs ({preset} preset"
@@ -218,4 +218,4 @@ def _texts(
                 "< 0.001" if p < 0.001 else f"{p:.3f}",
             ]
         table.append(cells)
-    return csv_text(rows, FIELDS), markdown_table(title, header, table)
+    return stem, (csv_text(rows, FIELDS), markdown_table(title, header, table)), about

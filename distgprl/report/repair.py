@@ -1,15 +1,13 @@
 """Table I + repair: what the hardware safety layer costs and saves in simulation.
 
-One row per task and method of the current runs (`select_runs`) evaluated with the safety
-layer in the loop in both `MODES` (``check``: refuse every unsafe window; ``repair``: re-time
-what is too fast, then refuse what is still unsafe; `distgprl.experiments.repair_follow_ups`),
-over the seeds that have both, beside their plain evaluation on the same TCs. `FIELDS`:
-``<mode>_<outcome>`` the mean over seeds of the per-run rate (success is safe success; a
-refused episode is neither a success nor a collision); ``repair_retimed_windows`` the share of
-windows re-timed; ``repair_time_added_s`` the mean time added per episode (s); summed over
-seeds, the TCs the repair ``gained`` (plain failed, repair succeeded), ``lost`` (plain
-succeeded, repair did not) and where it ``averted`` a collision (plain collided, repair did
-not). An evaluation of another config hash or on other TCs is left out and listed.
+One row per task and method of the current runs evaluated with the safety layer in the loop
+in both `MODES` (``check``: refuse every unsafe window; ``repair``: re-time what is too fast,
+then refuse what is still unsafe; `distgprl.experiments.repair_follow_ups`), over the seeds
+that have both, beside their plain evaluation on the same TCs. `FIELDS`: `RATES`;
+``repair_retimed_windows`` the share of windows re-timed; ``repair_time_added_s`` the mean
+time added per episode (s); summed over seeds, the TCs the repair ``gained`` (plain failed,
+repair succeeded), ``lost`` (plain succeeded, repair did not) and ``averted`` (plain collided,
+repair did not). An evaluation of another config hash or on other TCs is left out and listed.
 """
 
 from __future__ import annotations
@@ -19,103 +17,91 @@ from typing import Any, cast
 
 import pandas as pd
 
-from distgprl.data import task_order
-from distgprl.methods import METHODS, TABLE_ORDER
+from distgprl.methods import METHODS
 from distgprl.report.markdown import csv_text, markdown_table
+from distgprl.report.paired import evaluated_runs
 from distgprl.report.runs import select_runs
-from distgprl.schema import (
-    EVALUATION_FIELDS,
-    evaluation_file_names,
-    read_csv,
-    read_json,
-    repair_evaluation_file_names,
-)
+from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, read_csv, read_json
+from distgprl.schema import repair_evaluation_file_names as repair_file_names
 
 MODES = ("check", "repair")
 """The sweep's modes (`distgprl.experiments.repair_follow_ups.SWEEP_REPAIR_MODES`)."""
 
-RATES: tuple[str, ...] = ("plain_success", "plain_collision")
-RATES += tuple(
-    f"{mode}_{outcome}" for mode in MODES for outcome in ("success", "collision", "refused")
+FIELDS = tuple(
+    "task method seeds n_seeds episodes plain_success plain_collision check_success "
+    "check_collision check_refused repair_success repair_collision repair_refused "
+    "repair_retimed_windows repair_time_added_s gained lost averted".split()
 )
-
-FIELDS: tuple[str, ...] = ("task", "method", "seeds", "n_seeds", "episodes", *RATES)
-FIELDS += ("repair_retimed_windows", "repair_time_added_s", "gained", "lost", "averted")
-
-
-def _outcomes(path: Path, mode: str) -> tuple[Any, pd.DataFrame, pd.DataFrame]:
-    """(config hash, TCs, ``<mode>_success``/``_collision``/``_refused`` per TC) of an
-    evaluation file; a file without a ``refused`` column refused nothing."""
-    meta, rows = read_csv(path)
-    columns = [*EVALUATION_FIELDS[:5], "success", "collision", "refused"]
-    frame = pd.DataFrame(rows).reindex(columns=columns, fill_value=0).astype(float)
-    success, collision, refused = (frame[name] == 1 for name in columns[-3:])
-    outcomes = {"success": success & ~collision, "collision": collision, "refused": refused}
-    tcs = frame[columns[:5]].round(9)  # episode index and offsets (m)
-    return meta.get("config_hash"), tcs, pd.DataFrame(outcomes).add_prefix(f"{mode}_")
+RATES = FIELDS[5:13]
+"""``<mode>_<outcome>``: the mean over seeds of the per-run rate; success is safe success, a
+refused episode neither a success nor a collision."""
 
 
 def _run(folder: Path) -> dict[str, Any] | str:
-    """One run's record (its rates, TC counts and repair summary) or why it is left out."""
+    """One run's record (rates, TC counts, repair summary), or why it is left out."""
     current = read_json(folder / "config.json").get("config_hash")
-    _, plain_tcs, plain = _outcomes(folder / evaluation_file_names()[0], "plain")
-    frames = [plain]
-    for mode in MODES:
-        config_hash, tcs, outcomes = _outcomes(
-            folder / repair_evaluation_file_names(None, "final", mode)[0], mode
-        )
-        if config_hash != current:
-            return f"{mode} evaluation of config hash {config_hash}, not the run's"
-        if not tcs.equals(plain_tcs):
+    names = {"plain": evaluation_file_names()[0]}
+    names |= {mode: repair_file_names(None, "final", mode)[0] for mode in MODES}
+    columns = [*EVALUATION_FIELDS[:5], "success", "collision", "refused"]  # TC, outcomes
+    tcs: dict[str, pd.DataFrame] = {}
+    flags: dict[str, pd.DataFrame] = {}
+    for mode, name in names.items():
+        meta, rows = read_csv(folder / name)
+        frame = pd.DataFrame(rows).reindex(columns=columns, fill_value=0).astype(float)
+        tcs[mode], flags[mode] = frame[columns[:5]].round(9), frame[columns[5:]] == 1
+        if mode != "plain" and meta.get("config_hash") != current:
+            return f"{mode} evaluation of config hash {meta.get('config_hash')}, not the run's"
+        if not tcs[mode].equals(tcs["plain"]):
             return f"{mode} evaluation on other TCs than the plain one"
-        frames.append(outcomes)
-    tc = pd.concat(frames, axis=1)
-    summary = read_json(folder / repair_evaluation_file_names(None, "final", "repair")[1])
-    counts = summary["summary"]
+    safe = {mode: f["success"] & ~f["collision"] for mode, f in flags.items()}
+    plain, repair = flags["plain"], flags["repair"]
+    summary = read_json(folder / repair_file_names(None, "final", "repair")[1])["summary"]
     task, method, seed = folder.parts[-3:]
     return {
         "task": task,
         "method": method,
         "seed": int(seed.removeprefix("seed")),
-        "episodes": len(tc),
-        **tc[list(RATES)].mean(),
-        "gained": (~tc.plain_success & tc.repair_success).sum(),
-        "lost": (tc.plain_success & ~tc.repair_success).sum(),
-        "averted": (tc.plain_collision & ~tc.repair_collision).sum(),
-        "retimed": counts["windows_retimed"],
-        "windows": sum(counts[f"windows_{kind}"] for kind in ("none", "retimed", "refused")),
-        "repair_time_added_s": counts["mean_time_added_s"],
+        "episodes": len(plain),
+        **{f"{mode}_success": success.mean() for mode, success in safe.items()},
+        **{
+            f"{mode}_{k}": f[k].mean()
+            for mode, f in flags.items()
+            for k in ("collision", "refused")
+        },
+        "gained": (~safe["plain"] & safe["repair"]).sum(),
+        "lost": (safe["plain"] & ~safe["repair"]).sum(),
+        "averted": (plain["collision"] & ~repair["collision"]).sum(),
+        "retimed": summary["windows_retimed"],
+        "windows": sum(summary[f"windows_{kind}"] for kind in ("none", "retimed", "refused")),
+        "repair_time_added_s": summary["mean_time_added_s"],
     }
 
 
 def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
-    """The `FIELDS` rows in table order, and one line per evaluation left out (run, why)."""
+    """The `FIELDS` rows in task and table order, and one line per run left out (why)."""
+    summaries = [repair_file_names(None, "final", mode)[1] for mode in MODES]
     runs, excluded = [], []
-    for folder in sorted(select_runs(root, preset).current):
-        modes = [repair_evaluation_file_names(None, "final", mode)[1] for mode in MODES]
-        if folder.parent.name in METHODS and all((folder / name).exists() for name in modes):
-            run = _run(folder)
-            if isinstance(run, str):
-                excluded.append(f"{'/'.join(folder.parts[-3:])} ({run})")
-            else:
-                runs.append(run)
+    for folder in evaluated_runs(select_runs(root, preset).current, *summaries):
+        run = _run(folder)
+        if isinstance(run, str):
+            excluded.append(f"{'/'.join(folder.parts[-3:])} ({run})")
+        else:
+            runs.append(run)
     if not runs:
         return [], excluded
-    runs.sort(
-        key=lambda r: (task_order(r["task"]), TABLE_ORDER.index(r["method"]), r["task"], r["seed"])
-    )
-    groups = pd.DataFrame(runs).groupby(["task", "method"], sort=False)
-    table = groups.agg(
-        seeds=("seed", lambda seeds: " ".join(map(str, seeds))),
-        n_seeds=("seed", "size"),
-        episodes=("episodes", "sum"),
-        **{rate: (rate, "mean") for rate in RATES},
-        retimed=("retimed", "sum"),
-        windows=("windows", "sum"),
-        repair_time_added_s=("repair_time_added_s", "mean"),
-        gained=("gained", "sum"),
-        lost=("lost", "sum"),
-        averted=("averted", "sum"),
+    table = (
+        pd.DataFrame(runs)
+        .groupby(["task", "method"], sort=False)
+        .agg(
+            seeds=("seed", lambda seeds: " ".join(map(str, seeds))),
+            n_seeds=("seed", "size"),
+            episodes=("episodes", "sum"),
+            **{rate: (rate, "mean") for rate in RATES},
+            retimed=("retimed", "sum"),
+            windows=("windows", "sum"),
+            repair_time_added_s=("repair_time_added_s", "mean"),
+            **{count: (count, "sum") for count in ("gained", "lost", "averted")},
+        )
     )
     table["repair_retimed_windows"] = table["retimed"] / table["windows"].clip(lower=1)
     return cast(list[dict[str, Any]], table.reset_index().to_dict("records")), excluded
@@ -133,9 +119,10 @@ def repair_texts(root: str | Path, preset: str) -> tuple[str, str] | None:
             row["task"].upper(),
             METHODS[row["method"]].label,
             row["seeds"],
-            " / ".join(f"{row[rate]:.2f}" for rate in RATES[:2]),
-            " / ".join(f"{row[rate]:.2f}" for rate in RATES[2:5]),
-            " / ".join(f"{row[rate]:.2f}" for rate in RATES[5:]),
+            *(
+                " / ".join(f"{row[rate]:.2f}" for rate in rates)
+                for rates in (RATES[:2], RATES[2:5], RATES[5:])
+            ),
             f"{row['repair_retimed_windows']:.2f}",
             f"{row['repair_time_added_s']:.2f}",
             f"{row['gained']} / {row['lost']} / {row['averted']}",
