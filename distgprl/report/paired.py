@@ -103,7 +103,9 @@ def paired_rows(
         if counted and method not in (UNADAPTED, reference):
             pairs.append((run / name, other / final))
     try:
-        return [row for run_file, other_file in pairs for row in _pair(run_file, other_file)]
+        return [
+            row for run_file, other_file in pairs for row in pair_evaluations(run_file, other_file)
+        ]
     except ValueError as exc:
         if base_preset is None:
             raise
@@ -111,8 +113,11 @@ def paired_rows(
         raise UserInputError(message) from None
 
 
-def _pair(run_file: Path, reference_file: Path) -> list[dict[str, Any]]:
-    """The `FIELDS` rows of two evaluations of the same TCs, one per outcome.
+def pair_evaluations(
+    run_file: Path, reference_file: Path, outcomes: tuple[str, ...] = tuple(OUTCOMES)
+) -> list[dict[str, Any]]:
+    """The `FIELDS` rows of two evaluations of the same TCs, one per outcome of ``outcomes``
+    (`OUTCOMES` and ``refused``).
 
     Raises:
         ValueError: the two files hold different TCs.
@@ -130,14 +135,14 @@ def _pair(run_file: Path, reference_file: Path) -> list[dict[str, Any]]:
             f"{run_file}: evaluation TC {mine['episode'][differs].iloc[0]} differs from the "
             f"reference's ({reference_file}); the pairs would compare different TCs"
         )
-    run, reference = _outcomes(mine), _outcomes(theirs)
+    run, reference = (_outcomes(episodes)[list(outcomes)] for episodes in (mine, theirs))
     task, method, seed = run_file.parts[-4:-1]
     pairs = pd.DataFrame(
         {
             "task": task,
             "method": method,
             "seed": int(seed.removeprefix("seed")),
-            "outcome": list(OUTCOMES),
+            "outcome": list(outcomes),
             "tcs": len(run),
             "run_rate": run.sum() / len(run),
             "reference_rate": reference.sum() / len(run),
@@ -150,10 +155,11 @@ def _pair(run_file: Path, reference_file: Path) -> list[dict[str, Any]]:
 
 
 def _outcomes(episodes: pd.DataFrame) -> pd.DataFrame:
-    """`OUTCOMES` of one evaluation's episodes: a column each, 0 or 1 per TC."""
-    outcomes = episodes[["success", "collision"]].astype(int)
-    safe = outcomes.apply(is_safe_success, axis=1)
-    return outcomes.assign(safe_success=safe.astype(int))
+    """`OUTCOMES` and ``refused`` of one evaluation's episodes, 0 or 1 per TC (no ``refused``
+    column: nothing refused)."""
+    flags = episodes.reindex(columns=["success", "collision", "refused"], fill_value=0)
+    safe = flags.apply(is_safe_success, axis=1)
+    return flags.astype(int).assign(safe_success=safe.astype(int))
 
 
 def paired_table(

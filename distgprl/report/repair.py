@@ -19,9 +19,9 @@ import pandas as pd
 
 from distgprl.methods import METHODS
 from distgprl.report.markdown import csv_text, markdown_table
-from distgprl.report.paired import evaluated_runs
+from distgprl.report.paired import evaluated_runs, pair_evaluations
 from distgprl.report.runs import select_runs
-from distgprl.schema import EVALUATION_FIELDS, evaluation_file_names, read_csv, read_json
+from distgprl.schema import evaluation_file_names, read_csv, read_json
 from distgprl.schema import repair_evaluation_file_names as repair_file_names
 
 MODES = ("check", "repair")
@@ -40,37 +40,29 @@ refused episode neither a success nor a collision."""
 def _run(folder: Path) -> dict[str, Any] | str:
     """One run's record (rates, TC counts, repair summary), or why it is left out."""
     current = read_json(folder / "config.json").get("config_hash")
-    names = {"plain": evaluation_file_names()[0]}
-    names |= {mode: repair_file_names(None, "final", mode)[0] for mode in MODES}
-    columns = [*EVALUATION_FIELDS[:5], "success", "collision", "refused"]  # TC, outcomes
-    tcs: dict[str, pd.DataFrame] = {}
-    flags: dict[str, pd.DataFrame] = {}
-    for mode, name in names.items():
-        meta, rows = read_csv(folder / name)
-        frame = pd.DataFrame(rows).reindex(columns=columns, fill_value=0).astype(float)
-        tcs[mode], flags[mode] = frame[columns[:5]].round(9), frame[columns[5:]] == 1
-        if mode != "plain" and meta.get("config_hash") != current:
-            return f"{mode} evaluation of config hash {meta.get('config_hash')}, not the run's"
-        if not tcs[mode].equals(tcs["plain"]):
+    plain = folder / evaluation_file_names()[0]
+    pairs = {}
+    for mode in MODES:
+        path = folder / repair_file_names(None, "final", mode)[0]
+        config_hash = read_csv(path)[0].get("config_hash")
+        if config_hash != current:
+            return f"{mode} evaluation of config hash {config_hash}, not the run's"
+        try:
+            rows = pair_evaluations(path, plain, ("safe_success", "collision", "refused"))
+        except ValueError:
             return f"{mode} evaluation on other TCs than the plain one"
-    safe = {mode: f["success"] & ~f["collision"] for mode, f in flags.items()}
-    plain, repair = flags["plain"], flags["repair"]
+        pairs[mode] = dict(zip(("success", "collision", "refused"), rows, strict=True))
     summary = read_json(folder / repair_file_names(None, "final", "repair")[1])["summary"]
-    task, method, seed = folder.parts[-3:]
+    success, collision = pairs["repair"]["success"], pairs["repair"]["collision"]
     return {
-        "task": task,
-        "method": method,
-        "seed": int(seed.removeprefix("seed")),
-        "episodes": len(plain),
-        **{f"{mode}_success": success.mean() for mode, success in safe.items()},
-        **{
-            f"{mode}_{k}": f[k].mean()
-            for mode, f in flags.items()
-            for k in ("collision", "refused")
-        },
-        "gained": (~safe["plain"] & safe["repair"]).sum(),
-        "lost": (safe["plain"] & ~safe["repair"]).sum(),
-        "averted": (plain["collision"] & ~repair["collision"]).sum(),
+        **{key: success[key] for key in ("task", "method", "seed")},
+        "episodes": success["tcs"],
+        "plain_success": success["reference_rate"],
+        "plain_collision": collision["reference_rate"],
+        **{f"{mode}_{k}": row["run_rate"] for mode in MODES for k, row in pairs[mode].items()},
+        "gained": success["only_run"],
+        "lost": success["only_reference"],
+        "averted": collision["only_reference"],
         "retimed": summary["windows_retimed"],
         "windows": sum(summary[f"windows_{kind}"] for kind in ("none", "retimed", "refused")),
         "repair_time_added_s": summary["mean_time_added_s"],
