@@ -71,12 +71,11 @@ def paired_rows(
     episodes: int | None = None,
     base_preset: str | None = None,
 ) -> list[dict[str, Any]]:
-    """`FIELDS` rows per run of ``preset`` that counts (`select_runs`) and outcome, in
-    `evaluated_runs` and `OUTCOMES` order: against ``reference``'s run of the same task
-    (`UNADAPTED`: its seed 0; another method: the same seed) on the preset's TCs (``episodes``
-    None) or its supplementary evaluation on N TCs; with `FINAL_POLICY` each run's best
-    learning-curve policy against its own final one; with ``base_preset`` against the same run
-    there. `UNADAPTED`'s and ``reference``'s runs are no rows.
+    """`FIELDS` rows per run of ``preset`` that counts and outcome (`evaluated_runs` and
+    `OUTCOMES` order) against ``reference``'s run of the task (`UNADAPTED`: its seed 0; a
+    method: the same seed), on the preset's TCs or its supplementary evaluation on
+    ``episodes`` TCs; `FINAL_POLICY`: the run's best policy against its final one;
+    ``base_preset``: against the same run there. No rows of `UNADAPTED` or ``reference``.
 
     Raises:
         ValueError: ``reference`` is neither a method nor `FINAL_POLICY`; a pair's TCs differ.
@@ -116,8 +115,8 @@ def paired_rows(
 def pair_evaluations(
     run_file: Path, reference_file: Path, outcomes: tuple[str, ...] = tuple(OUTCOMES)
 ) -> list[dict[str, Any]]:
-    """The `FIELDS` rows of two evaluations of the same TCs, one per outcome of ``outcomes``
-    (`OUTCOMES` and ``refused``).
+    """The `FIELDS` rows of two evaluations of the same TCs, one per ``outcomes`` (of
+    `OUTCOMES` and ``refused``).
 
     Raises:
         ValueError: the two files hold different TCs.
@@ -169,8 +168,8 @@ def paired_table(
     episodes: int | None = None,
     base_preset: str | None = None,
 ) -> tuple[str, tuple[str, str] | None, str]:
-    """The table of `paired_rows` (arguments as there) as `write_tables` writes it: file stem,
-    (CSV, Markdown with one line per run) or None without rows, the CSV sidecar's description.
+    """(file stem, (CSV, Markdown: a line per run) or None without rows, sidecar description)
+    of `paired_rows` (arguments as there).
 
     Raises:
         UserInputError: no run has a counterpart in ``base_preset``.

@@ -81,20 +81,12 @@ def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], l
             runs.append(run)
     if not runs:
         return [], excluded
-    table = (
-        pd.DataFrame(runs)
-        .groupby(["task", "method"], sort=False)
-        .agg(
-            seeds=("seed", lambda seeds: " ".join(map(str, seeds))),
-            n_seeds=("seed", "size"),
-            episodes=("episodes", "sum"),
-            **{rate: (rate, "mean") for rate in RATES},
-            retimed=("retimed", "sum"),
-            windows=("windows", "sum"),
-            repair_time_added_s=("repair_time_added_s", "mean"),
-            **{count: (count, "sum") for count in ("gained", "lost", "averted")},
-        )
-    )
+    groups = pd.DataFrame(runs).groupby(["task", "method"], sort=False)
+    table = groups[[*RATES, "repair_time_added_s"]].mean()
+    summed = ["episodes", "gained", "lost", "averted", "retimed", "windows"]
+    table[summed] = groups[summed].sum()
+    table["seeds"] = groups["seed"].agg(lambda seeds: " ".join(map(str, seeds)))
+    table["n_seeds"] = groups.size()
     table["repair_retimed_windows"] = table["retimed"] / table["windows"].clip(lower=1)
     return cast(list[dict[str, Any]], table.reset_index().to_dict("records")), excluded
 

@@ -53,10 +53,8 @@ ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nomina
 def write_tables(
     root: str | Path, preset: str, out_dir: str | Path, against: str | None = None
 ) -> list[Path]:
-    """Write every table of ``<root>/<preset>`` to ``out_dir`` and return the paths: Table I
-    of the best and final policy with their per-run tables, the one-demonstration study,
-    aggregates, claims, the studies beside the preset, the paired comparisons (with
-    ``against``, also each run with the same run of that preset) and the hardware tables."""
+    """Write every table of ``<root>/<preset>`` to ``out_dir`` and return the paths; with
+    ``against``, also each run paired with the same run of that preset."""
     best = load_frames(root, preset, TABLE_POLICY)
     tables = _table_one(best, root, preset, TABLE_POLICY)  # first: no runs, nothing written
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
