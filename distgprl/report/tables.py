@@ -47,7 +47,7 @@ ABOUT = {
 """Each table's sidecar description ({placeholders} filled per table)."""
 
 ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nominal-1demo")
-"""The one-demonstration study's rows (protocol v8, rule 3, docs/findings/protocol.md)."""
+"""The one-demonstration study's rows (protocol v8, rule 3, docs/findings/environment-v8.md)."""
 
 
 def write_tables(
