@@ -75,7 +75,8 @@ def paired_rows(
     `OUTCOMES` order) against ``reference``'s run of the task (`UNADAPTED`: its seed 0; a
     method: the same seed), on the preset's TCs or its supplementary evaluation on
     ``episodes`` TCs; `FINAL_POLICY`: the run's best policy against its final one;
-    ``base_preset``: against the same run there. No rows of `UNADAPTED` or ``reference``.
+    ``base_preset``: against the same run there. No rows of `UNADAPTED` or ``reference``, nor
+    of a run whose counterpart does not count or lacks the evaluation.
 
     Raises:
         ValueError: ``reference`` is neither a method nor `FINAL_POLICY`; a pair's TCs differ.
