@@ -1,162 +1,101 @@
 """Table I + repair: what the hardware safety layer costs and saves in simulation.
 
-From the runs of the current configuration (`select_runs`) whose folders hold the
-evaluations with the safety layer in the loop in both sweep modes (``check``: refuse every
-unsafe window at once; ``repair``: re-time what is too fast, then refuse what is still
-unsafe; `distgprl.experiments.repair_follow_ups`), one row per task and method pooling the
-seeds that have both, beside the plain evaluation of the same seeds and TCs:
-
-- Success / Collision (plain, check, repair) and Refused (check, repair): means over those
-  seeds of the per-run rates on the evaluation TCs (a refused episode is neither a success
-  nor a collision);
-- Retimed: the share of executed-or-refused windows the repair re-timed; Added: mean time
-  added per episode (s);
-- TC by TC against the plain evaluation, summed over the seeds: *gained* (plain failed,
-  repair succeeded), *lost* (plain succeeded, repair did not: refused, or the re-timed
-  motion failed) and *averted* (plain collided, repair did not).
-
-An evaluation whose recorded config hash is not its run's, or whose TCs differ from the plain
-evaluation's, is left out of the row and listed under the table.
+One row per task and method of the current runs evaluated with the safety layer in the loop
+in both `MODES` (``check``: refuse every unsafe window; ``repair``: re-time what is too fast,
+then refuse what is still unsafe; `distgprl.experiments.repair_follow_ups`), over the seeds
+that have both, beside their plain evaluation on the same TCs. `FIELDS`: `RATES`;
+``repair_retimed_windows`` the share of windows re-timed; ``repair_time_added_s`` the mean
+time added per episode (s); summed over seeds, the TCs the repair ``gained`` (plain failed,
+repair succeeded), ``lost`` (plain succeeded, repair did not) and ``averted`` (plain collided,
+repair did not). An evaluation of another config hash or on other TCs is left out and listed.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from itertools import groupby
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
-from distgprl.data import task_order
-from distgprl.methods import METHODS, TABLE_ORDER
+import pandas as pd
+
+from distgprl.methods import METHODS
 from distgprl.report.markdown import csv_text, markdown_table
+from distgprl.report.paired import evaluated_runs, pair_evaluations
 from distgprl.report.runs import select_runs
-from distgprl.schema import (
-    EVALUATION_FIELDS,
-    evaluation_file_names,
-    is_safe_success,
-    read_csv,
-    read_json,
-    repair_evaluation_file_names,
-)
+from distgprl.schema import evaluation_file_names, read_csv, read_json
+from distgprl.schema import repair_evaluation_file_names as repair_file_names
 
 MODES = ("check", "repair")
 """The sweep's modes (`distgprl.experiments.repair_follow_ups.SWEEP_REPAIR_MODES`)."""
-
-OUTCOMES = ("success", "collision", "refused")
-"""One TC's outcomes, each a bool: safe success (`is_safe_success`), collision, refused."""
 
 FIELDS = tuple(
     "task method seeds n_seeds episodes plain_success plain_collision check_success "
     "check_collision check_refused repair_success repair_collision repair_refused "
     "repair_retimed_windows repair_time_added_s gained lost averted".split()
 )
+RATES = FIELDS[5:13]
+"""``<mode>_<outcome>``: the mean over seeds of the per-run rate; success is safe success, a
+refused episode neither a success nor a collision."""
 
 
-@dataclass(frozen=True)
-class RunOutcomes:
-    """One run's `OUTCOMES` per TC in the plain evaluation (never refused) and each of
-    `MODES` (``outcomes``), and its repair evaluation's summary."""
-
-    task: str
-    method: str
-    seed: int
-    outcomes: dict[str, list[tuple[bool, bool, bool]]]
-    repair_summary: dict[str, Any]
-
-
-def _tc(row: dict[str, str]) -> tuple[float, ...]:
-    """A row's TC: its episode index and offsets (m), the columns both evaluations share."""
-    return tuple(round(float(row[name]), 9) for name in EVALUATION_FIELDS[:5])
-
-
-def _outcomes(rows: list[dict[str, str]]) -> list[tuple[bool, bool, bool]]:
-    """`OUTCOMES` of each row (a row without a ``refused`` column was not refused)."""
-    return [(is_safe_success(row), _flag(row, "collision"), _flag(row, "refused")) for row in rows]
-
-
-def _flag(row: dict[str, str], column: str) -> bool:
-    return int(float(row.get(column, "0"))) == 1
-
-
-def collect(root: str | Path, preset: str) -> tuple[list[RunOutcomes], list[str]]:
-    """The runs with both modes' evaluations of their configuration, and one line per
-    evaluation left out (its run and why)."""
-    runs, excluded = [], []
-    for folder in sorted(select_runs(root, preset).current):
-        task, method, seed = folder.parts[-3:]
-        paths = {
-            m: [folder / f for f in repair_evaluation_file_names(None, "final", m)] for m in MODES
-        }
-        if method not in METHODS or not all(summary.exists() for _, summary in paths.values()):
-            continue
-        current = read_json(folder / "config.json").get("config_hash")
-        _, plain_rows = read_csv(folder / evaluation_file_names()[0])
-        outcomes, reason = {"plain": _outcomes(plain_rows)}, ""
-        for mode, (csv_path, _) in paths.items():
-            meta, rows = read_csv(csv_path)
-            if meta.get("config_hash") != current:
-                reason = (
-                    f"{mode} evaluation of config hash {meta.get('config_hash')}, not the run's"
-                )
-            elif [_tc(r) for r in rows] != [_tc(r) for r in plain_rows]:
-                reason = f"{mode} evaluation on other TCs than the plain one"
-            if reason:
-                excluded.append(f"{task}/{method}/{seed} ({reason})")
-                break
-            outcomes[mode] = _outcomes(rows)
-        else:
-            summary = read_json(paths["repair"][1])["summary"]
-            runs.append(
-                RunOutcomes(task, method, int(seed.removeprefix("seed")), outcomes, summary)
-            )
-    return runs, excluded
-
-
-def _mean(values: list[float]) -> float:
-    return sum(values) / len(values)
-
-
-def _row(group: list[RunOutcomes]) -> dict[str, Any]:
-    """The `FIELDS` row of one task and method's runs (module docstring), by seed."""
-    group = sorted(group, key=lambda r: r.seed)
-    row: dict[str, Any] = {"task": group[0].task, "method": group[0].method}
-    row["seeds"] = " ".join(str(r.seed) for r in group)
-    row["n_seeds"], row["episodes"] = len(group), sum(len(r.outcomes["plain"]) for r in group)
-    for mode in ("plain", *MODES):
-        for index, name in enumerate(OUTCOMES[: 2 if mode == "plain" else 3]):
-            rates = [sum(o[index] for o in r.outcomes[mode]) / len(r.outcomes[mode]) for r in group]
-            row[f"{mode}_{name}"] = _mean(rates)
-    summaries = [r.repair_summary for r in group]
-    windows = sum(
-        s[f"windows_{kind}"] for s in summaries for kind in ("none", "retimed", "refused")
-    )
-    row["repair_retimed_windows"] = sum(s["windows_retimed"] for s in summaries) / max(windows, 1)
-    row["repair_time_added_s"] = _mean([s["mean_time_added_s"] for s in summaries])
-    pairs = [p for r in group for p in zip(r.outcomes["plain"], r.outcomes["repair"], strict=True)]
-    row["gained"] = sum(not p[0] and q[0] for p, q in pairs)
-    row["lost"] = sum(p[0] and not q[0] for p, q in pairs)
-    row["averted"] = sum(p[1] and not q[1] for p, q in pairs)
-    return row
+def _run(folder: Path) -> dict[str, Any] | str:
+    """One run's record (rates, TC counts, repair summary), or why it is left out."""
+    current = read_json(folder / "config.json").get("config_hash")
+    plain = folder / evaluation_file_names()[0]
+    pairs = {}
+    for mode in MODES:
+        path = folder / repair_file_names(None, "final", mode)[0]
+        config_hash = read_csv(path)[0].get("config_hash")
+        if config_hash != current:
+            return f"{mode} evaluation of config hash {config_hash}, not the run's"
+        try:
+            rows = pair_evaluations(path, plain, ("safe_success", "collision", "refused"))
+        except ValueError:
+            return f"{mode} evaluation on other TCs than the plain one"
+        pairs[mode] = dict(zip(("success", "collision", "refused"), rows, strict=True))
+    summary = read_json(folder / repair_file_names(None, "final", "repair")[1])["summary"]
+    success, collision = pairs["repair"]["success"], pairs["repair"]["collision"]
+    return {
+        **{key: success[key] for key in ("task", "method", "seed")},
+        "episodes": success["tcs"],
+        "plain_success": success["reference_rate"],
+        "plain_collision": collision["reference_rate"],
+        **{f"{mode}_{k}": row["run_rate"] for mode in MODES for k, row in pairs[mode].items()},
+        "gained": success["only_run"],
+        "lost": success["only_reference"],
+        "averted": collision["only_reference"],
+        "retimed": summary["windows_retimed"],
+        "windows": sum(summary[f"windows_{kind}"] for kind in ("none", "retimed", "refused")),
+        "repair_time_added_s": summary["mean_time_added_s"],
+    }
 
 
 def repair_table(root: str | Path, preset: str) -> tuple[list[dict[str, Any]], list[str]]:
-    """One row of :data:`FIELDS` per task and method (module docstring) of the runs
-    `collect` finds, in table order, and what it left out."""
-    runs, excluded = collect(root, preset)
-    runs.sort(key=lambda r: (task_order(r.task), TABLE_ORDER.index(r.method), r.task))
-    groups = groupby(runs, key=lambda r: (r.task, r.method))
-    return [_row(list(group)) for _, group in groups], excluded
+    """The `FIELDS` rows in task and table order, and one line per run left out (why)."""
+    summaries = [repair_file_names(None, "final", mode)[1] for mode in MODES]
+    runs, excluded = [], []
+    for folder in evaluated_runs(select_runs(root, preset).current, *summaries):
+        run = _run(folder)
+        if isinstance(run, str):
+            excluded.append(f"{'/'.join(folder.parts[-3:])} ({run})")
+        else:
+            runs.append(run)
+    if not runs:
+        return [], excluded
+    groups = pd.DataFrame(runs).groupby(["task", "method"], sort=False)
+    table = groups[[*RATES, "repair_time_added_s"]].mean()
+    summed = ["episodes", "gained", "lost", "averted", "retimed", "windows"]
+    table[summed] = groups[summed].sum()
+    table["seeds"] = groups["seed"].agg(lambda seeds: " ".join(map(str, seeds)))
+    table["n_seeds"] = groups.size()
+    table["repair_retimed_windows"] = table["retimed"] / table["windows"].clip(lower=1)
+    return cast(list[dict[str, Any]], table.reset_index().to_dict("records")), excluded
 
 
-def repair_texts(
-    rows: list[dict[str, Any]], preset: str, excluded: list[str]
-) -> tuple[str, str] | None:
-    """(CSV, Markdown) of `repair_table`'s rows; None if there are no rows."""
+def repair_texts(root: str | Path, preset: str) -> tuple[str, str] | None:
+    """(CSV, Markdown) of `repair_table`; None without rows."""
+    rows, excluded = repair_table(root, preset)
     if not rows:
         return None
-    rounded = [
-        {k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()} for r in rows
-    ]
     header = ["Task", "Method", "Seeds", "Plain S / C", "Check S / C / R", "Repair S / C / R"]
     header += ["Retimed", "Added (s)", "Gained / lost / averted"]
     table = [
@@ -164,8 +103,10 @@ def repair_texts(
             row["task"].upper(),
             METHODS[row["method"]].label,
             row["seeds"],
-            f"{row['plain_success']:.2f} / {row['plain_collision']:.2f}",
-            *(" / ".join(f"{row[f'{mode}_{k}']:.2f}" for k in OUTCOMES) for mode in MODES),
+            *(
+                " / ".join(f"{row[rate]:.2f}" for rate in rates)
+                for rates in (RATES[:2], RATES[2:5], RATES[5:])
+            ),
             f"{row['repair_retimed_windows']:.2f}",
             f"{row['repair_time_added_s']:.2f}",
             f"{row['gained']} / {row['lost']} / {row['averted']}",
@@ -183,4 +124,5 @@ def repair_texts(
     markdown = markdown_table(title, header, table)
     if excluded:
         markdown += f"\nNot tabulated ({len(excluded)}): " + "; ".join(excluded) + "\n"
+    rounded = [{k: round(v, 4) if isinstance(v, float) else v for k, v in r.items()} for r in rows]
     return csv_text(rounded, FIELDS), markdown

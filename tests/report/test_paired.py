@@ -13,11 +13,9 @@ from distgprl.errors import UserInputError
 from distgprl.report.paired import (
     FINAL_POLICY,
     OUTCOMES,
-    best_vs_final_rows,
-    cross_preset_rows,
     mcnemar_exact,
     paired_rows,
-    paired_texts,
+    paired_table,
     supplementary_sizes,
 )
 from distgprl.report.tables import write_tables
@@ -89,7 +87,7 @@ def test_discordant_tcs_are_counted_per_outcome(tmp_path):
     write_evaluation(tmp_path, "dcp", "demo", 0, reference)
     write_evaluation(tmp_path, "dcp", "dist-gprl", 0, run)
     rows = paired_rows(tmp_path, "p")
-    assert [r["outcome"] for r in rows] == [outcome for outcome, _ in OUTCOMES]
+    assert [r["outcome"] for r in rows] == list(OUTCOMES)
     pairs = by_outcome(rows, "dist-gprl", 0)
     # success: run only TC 2, reference only TC 1
     assert (pairs["success"]["only_run"], pairs["success"]["only_reference"]) == (1, 1)
@@ -117,7 +115,7 @@ def test_runs_in_table_order_and_only_tasks_with_a_reference(tmp_path):
     assert runs == [("dbm", "gprl", 0), ("dbm", "dist-gprl", 0), ("dbm", "dist-gprl", 1)]
     # Identical outcomes: nothing discordant, p = 1.
     assert {(r["only_run"], r["only_reference"], r["p_value"]) for r in rows} == {(0, 0, 1.0)}
-    _, markdown = paired_texts(rows, "p")
+    _, (_, markdown), _ = paired_table(tmp_path, "p")
     assert markdown.count("| DBM |") == 3
 
 
@@ -173,7 +171,8 @@ def test_a_method_reference_is_paired_seed_by_seed(tmp_path):
     assert (seed0["success"]["only_run"], seed0["success"]["only_reference"]) == (0, 2)
     assert (seed1["success"]["only_run"], seed1["success"]["only_reference"]) == (1, 0)
     assert seed1["success"]["reference_rate"] == 0.0
-    _, markdown = paired_texts(rows, "p", "dist-gprl")
+    stem, (_, markdown), _ = paired_table(tmp_path, "p", "dist-gprl")
+    assert stem == "paired_vs_dist-gprl_p"
     assert "against Dist-GPRL (ours) of the same seed" in markdown
     with pytest.raises(ValueError, match="unknown reference method"):
         paired_rows(tmp_path, "p", reference="bogus")
@@ -195,7 +194,8 @@ def test_supplementary_evaluations_are_paired_apart_from_the_presets(tmp_path):
     success = by_outcome(rows, "dist-gprl", 0)["success"]
     assert (success["tcs"], success["only_run"], success["only_reference"]) == (8, 6, 0)
     assert success["p_value"] == pytest.approx(2 * 0.5**6)
-    assert "first 8 TCs" in paired_texts(rows, "p", episodes=8)[1]
+    stem, (_, markdown), _ = paired_table(tmp_path, "p", episodes=8)
+    assert stem == "paired_vs_demo_p_n8" and "first 8 TCs" in markdown
 
 
 def test_write_tables_writes_supplementary_pairs_and_removes_them_when_gone(tmp_path):
@@ -226,7 +226,7 @@ def test_a_best_policy_is_paired_with_its_own_runs_final_policy(tmp_path):
     write_evaluation(tmp_path, "dcp", "dist-gprl", 0, [(0, 1)] * 4)  # its final only
     write_evaluation(tmp_path, "dcp", "gprl", 0, best)
     write_evaluation(tmp_path, "dcp", "gprl", 0, best, policy="best")
-    rows = best_vs_final_rows(tmp_path, "p")
+    rows = paired_rows(tmp_path, "p", FINAL_POLICY)
     runs = [(r["method"], r["seed"]) for r in rows[:: len(OUTCOMES)]]
     assert runs == [("gprl", 0), ("dist-gprl", 1)]
     pairs = by_outcome(rows, "dist-gprl", 1)
@@ -239,7 +239,7 @@ def test_a_best_policy_is_paired_with_its_own_runs_final_policy(tmp_path):
     assert {(r["only_run"], r["only_reference"]) for r in by_outcome(rows, "gprl", 0).values()} == {
         (0, 0)
     }
-    _, markdown = paired_texts(rows, "p", FINAL_POLICY)
+    _, (_, markdown), _ = paired_table(tmp_path, "p", FINAL_POLICY)
     assert "its own final policy" in markdown and markdown.count("| DCP |") == 2
 
 
@@ -247,7 +247,7 @@ def test_a_best_policy_evaluated_on_other_tcs_is_refused(tmp_path):
     write_evaluation(tmp_path, "dbm", "gprl-h", 2, [(1, 0), (0, 0)])
     write_evaluation(tmp_path, "dbm", "gprl-h", 2, [(1, 0), (0, 0)], shift=0.5, policy="best")
     with pytest.raises(ValueError, match="evaluation_best.csv: evaluation TC 0 differs"):
-        best_vs_final_rows(tmp_path, "p")
+        paired_rows(tmp_path, "p", FINAL_POLICY)
 
 
 def test_write_tables_writes_best_vs_final_pairs_and_removes_them_when_gone(tmp_path):
@@ -277,7 +277,7 @@ def test_a_preset_is_paired_run_by_run_with_the_same_run_of_another_preset(tmp_p
     write_evaluation(tmp_path, "dbm", "dist-gprl", 0, [(1, 0)] * 4)  # no counterpart
     write_evaluation(tmp_path, "dcp", "demo", 0, base)  # the reference is not a row
     write_evaluation(tmp_path, "dcp", "demo", 0, base, preset="base")
-    rows = cross_preset_rows(tmp_path, "p", "base")
+    rows = paired_rows(tmp_path, "p", base_preset="base")
     assert {(r["task"], r["method"], r["seed"]) for r in rows} == {("dcp", "dist-gprl", 0)}
     pairs = by_outcome(rows, "dist-gprl", 0)
     assert (pairs["success"]["only_run"], pairs["success"]["only_reference"]) == (2, 1)
@@ -287,7 +287,7 @@ def test_a_preset_is_paired_run_by_run_with_the_same_run_of_another_preset(tmp_p
         0,
     )
     assert pairs["success"]["reference_rate"] == pytest.approx(0.5)
-    _, markdown = paired_texts(rows, "p", base_preset="base")
+    _, (_, markdown), _ = paired_table(tmp_path, "p", base_preset="base")
     assert "same task, method and seed in the base preset" in markdown
     assert "| DCP | Dist-GPRL (ours) | 0 | 4 | 0.75 / 0.50 | 2 / 1 |" in markdown
 
@@ -296,9 +296,9 @@ def test_presets_evaluated_on_other_tcs_or_the_same_preset_are_refused(tmp_path)
     write_evaluation(tmp_path, "dcp", "gprl", 0, [(1, 0), (0, 0)], preset="base")
     write_evaluation(tmp_path, "dcp", "gprl", 0, [(1, 0)])
     with pytest.raises(UserInputError, match="presets p and base do not evaluate on the same"):
-        cross_preset_rows(tmp_path, "p", "base")
+        paired_rows(tmp_path, "p", base_preset="base")
     with pytest.raises(UserInputError, match="pair a preset with another preset"):
-        cross_preset_rows(tmp_path, "p", "p")
+        paired_rows(tmp_path, "p", base_preset="p")
 
 
 def test_write_tables_against_a_preset_writes_its_pairs_or_says_there_are_none(tmp_path):

@@ -63,7 +63,7 @@ def test_rates_are_seed_means_and_tc_counts_are_summed_over_seeds(tmp_path):
     assert row["repair_retimed_windows"] == 2 / 24 and row["repair_time_added_s"] == 0.1
     # seed 1's TC 1 collided plain and succeeds repaired; seed 0's TC 2 collided, refused
     assert (row["gained"], row["lost"], row["averted"]) == (1, 0, 2)
-    csv_text, markdown = repair_texts([row], PRESET, excluded)
+    csv_text, markdown = repair_texts(tmp_path, PRESET)
     assert csv_text.splitlines()[0].startswith("task,method,seeds,n_seeds")
     assert "| DBM | Dist-GPRL (ours) | 0 1 | 0.38 / 0.25 |" in markdown
 
@@ -77,7 +77,7 @@ def test_an_evaluation_of_another_configuration_or_other_tcs_is_left_out(tmp_pat
     assert rows == []
     assert excluded[0].startswith("dbm/dist-gprl/seed0 (check evaluation of config hash old")
     assert excluded[1] == "dbm/dist-gprl/seed1 (check evaluation on other TCs than the plain one)"
-    assert repair_texts(rows, PRESET, excluded) is None
+    assert repair_texts(tmp_path, PRESET) is None
 
 
 def test_a_run_without_both_modes_is_not_a_row(tmp_path):
