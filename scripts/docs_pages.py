@@ -501,10 +501,11 @@ def _figure(figures: Path, site_folder: str) -> str:
     name = "all_methods_paper.png"
     if not (figures / name).exists():
         return '<p class="awaiting">No learning curve yet: <code>make tables</code> draws it.</p>'
+    caption = glossed("Learning curves: mean over seeds, 95 % band, on the 50 curve TCs")
     return (
         f'<figure class="results-curves"><a href="{site_folder}/{name}">'
         f'<img src="{site_folder}/{name}" alt="Learning curves of every method with runs"></a>'
-        f"<figcaption>{glossed('Learning curves so far, on the 50 curve TCs')}</figcaption>"
+        f"<figcaption>{caption}</figcaption>"
         "</figure>"
     )
 
