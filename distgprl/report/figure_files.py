@@ -27,24 +27,21 @@ def subplots(rows: int, columns: int, **options: Any) -> tuple[Figure, Any]:
     return plt.subplots(rows, columns, **options)
 
 
-def remove_figure(stem: str | Path) -> None:
-    """Remove an earlier ``<stem>.png`` and ``<stem>.pdf`` if they exist."""
-    for suffix in METADATA:
-        Path(f"{stem}.{suffix}").unlink(missing_ok=True)
-
-
-def write_or_remove_figure(figure: tuple[Figure, int], stem: str | Path) -> list[Path]:
-    """Write ``(figure, number of things drawn)`` to ``<stem>.png`` and ``.pdf`` atomically, or
-    with nothing drawn remove them; close the figure. Returns the paths written."""
-    import matplotlib.pyplot as plt
-
-    fig, drawn = figure
+def write_or_remove_figure(figure: tuple[Figure, int] | None, stem: str | Path) -> list[Path]:
+    """Write ``(figure, number of things drawn)`` to ``<stem>.png`` and ``.pdf`` atomically and
+    close it; with nothing drawn (or None) remove them. Returns the paths written."""
+    fig, drawn = figure or (None, 0)
     written = []
-    for suffix, metadata in METADATA.items() if drawn else ():
+    for suffix, metadata in METADATA.items():
+        path = Path(f"{stem}.{suffix}")
+        if fig is None or not drawn:
+            path.unlink(missing_ok=True)
+            continue
         buffer = io.BytesIO()
         fig.savefig(buffer, format=suffix, dpi=PNG_DPI, metadata=metadata)
-        written.append(atomic_write_bytes(Path(f"{stem}.{suffix}"), buffer.getvalue()))
-    if not drawn:
-        remove_figure(stem)
-    plt.close(fig)
+        written.append(atomic_write_bytes(path, buffer.getvalue()))
+    if fig is not None:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
     return written

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.figure_files import remove_figure, subplots, write_or_remove_figure
+from distgprl.report.figure_files import subplots, write_or_remove_figure
 
 REPAIR = "retime"
 """The repair setting every noise level runs with."""
@@ -38,11 +38,7 @@ def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
 def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: str) -> list[Path]:
     """Draw `curve_series` of Table II's ``rows`` into ``<out_dir>/table2_noise_<preset>``
     (PNG, PDF); with no method at two levels, remove an earlier figure instead."""
-    stem = Path(out_dir) / f"table2_noise_{preset}"
     series = curve_series(rows)
-    if not series:
-        remove_figure(stem)
-        return []
     fig, axes = subplots(1, 2, figsize=(10.0, 4.0), squeeze=False)
     for index, (method, points) in enumerate(series.items()):
         bold = method == "dist-gprl"
@@ -75,4 +71,4 @@ def write_noise_curve(rows: list[dict[str, Any]], out_dir: str | Path, preset: s
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0.0, 0.08 + 0.04 * (len(labels) // 4), 1.0, 0.93))
-    return write_or_remove_figure((fig, len(series)), stem)
+    return write_or_remove_figure((fig, len(series)), Path(out_dir) / f"table2_noise_{preset}")

@@ -14,7 +14,7 @@ import numpy as np
 from distgprl.data import task_order
 from distgprl.methods import METHODS
 from distgprl.report.aggregate import BOOTSTRAP_SEED, Estimate, Scores, method_estimate, short_label
-from distgprl.report.figure_files import remove_figure, subplots, write_or_remove_figure
+from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.schema import read_json
 from distgprl.studies import Reading, Study
 
@@ -41,11 +41,6 @@ def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], f
     return {key: float(np.mean(values)) for key, values in gains.items()}
 
 
-def _mean(scores: Scores, task: str, method: str, key: str, seed: int) -> Estimate | None:
-    estimate = method_estimate(scores, [task], method, key, "mean", seed)
-    return estimate if estimate.seeds else None
-
-
 def write_sensitivity(
     root: str | Path,
     study: Study,
@@ -57,10 +52,7 @@ def write_sensitivity(
     (``scores_of``: {reading preset: its scores}); with nothing to draw, remove an earlier one."""
     stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
     fig = plot_sensitivity(root, study, scores_of, seed)
-    if fig is None:
-        remove_figure(stem)
-        return []
-    return write_or_remove_figure((fig, 1), stem)
+    return write_or_remove_figure(None if fig is None else (fig, 1), stem)
 
 
 def plot_sensitivity(
@@ -72,6 +64,10 @@ def plot_sensitivity(
         return None
     method = study.methods[0]
     gains = reading_gains(read_json(reach_path), method)
+
+    def mean(preset: str, task: str, of: str, key: str) -> Estimate:
+        return method_estimate(scores_of.get(preset, {}), [task], of, key, "mean", seed)
+
     tasks = sorted(
         sorted({task for scores in scores_of.values() for task, _ in scores}), key=task_order
     )
@@ -80,7 +76,7 @@ def plot_sensitivity(
             (reading, gain, estimate)
             for reading in study.all_readings
             if (gain := gains.get((reading.preset, task))) is not None
-            and (estimate := _mean(scores_of.get(reading.preset, {}), task, method, key, seed))
+            and (estimate := mean(reading.preset, task, method, key)).seeds
         ]
         for task in tasks
         for key, _ in PANELS
@@ -91,13 +87,12 @@ def plot_sensitivity(
     fig, axes = subplots(
         len(tasks), len(PANELS), figsize=(4.2 * len(PANELS), 3.2 * len(tasks)), squeeze=False
     )
-    reference = scores_of.get(study.reference.preset, {})
     markers = {r.preset: m for r, m in zip(study.all_readings, "o^sDvP", strict=False)}
     for row, task in enumerate(tasks):
         for col, (key, label) in enumerate(PANELS):
             ax = axes[row][col]
             for index, ref in enumerate(REFERENCES):  # dashed, the interval a band
-                if (estimate := _mean(reference, task, ref, key, seed)) is not None:
+                if (estimate := mean(study.reference.preset, task, ref, key)).seeds:
                     color = f"C{index + 1}"
                     ax.axhline(
                         estimate.point, color=color, lw=1.2, ls="--", label=METHODS[ref].label
@@ -105,9 +100,8 @@ def plot_sensitivity(
                     if estimate.has_interval:
                         ax.axhspan(estimate.low, estimate.high, color=color, alpha=0.15, lw=0)
             for reading, gain, estimate in panels[task, key]:
-                _draw_reading(
-                    ax, fig, markers.get(reading.preset, "o"), method, reading, gain, estimate
-                )
+                name = f"{short_label(method)}: {reading.label}"
+                _draw_reading(ax, markers.get(reading.preset, "o"), name, reading, gain, estimate)
             if key != "mean_kinematic_retention":
                 ax.set_ylim(-0.02, 1.02)
             ax.set_xlabel("mean operator gain on a raw action")
@@ -134,13 +128,7 @@ def plot_sensitivity(
 
 
 def _draw_reading(
-    ax: Any,
-    fig: Figure,
-    marker: str,
-    method: str,
-    reading: Reading,
-    gain: float,
-    estimate: Estimate,
+    ax: Any, marker: str, name: str, reading: Reading, gain: float, estimate: Estimate
 ) -> None:
     """A reading's estimate at its gain with its interval; a control hollow, shifted right."""
     from matplotlib.transforms import offset_copy
@@ -151,7 +139,7 @@ def _draw_reading(
     seeds = min(estimate.seeds)
     transform = ax.transData
     if reading.control:
-        transform = offset_copy(transform, fig=fig, x=CONTROL_SHIFT_POINTS, units="points")
+        transform = offset_copy(transform, fig=ax.figure, x=CONTROL_SHIFT_POINTS, units="points")
     ax.errorbar(
         [gain],
         [estimate.point],
@@ -161,5 +149,5 @@ def _draw_reading(
         markerfacecolor="white" if reading.control else None,
         transform=transform,
         capsize=3,
-        label=f"{short_label(method)}: {reading.label} ({seeds} seed{'s' if seeds != 1 else ''})",
+        label=f"{name} ({seeds} seed{'s' if seeds != 1 else ''})",
     )
