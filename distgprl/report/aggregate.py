@@ -198,8 +198,6 @@ def curve_measures(points: pd.DataFrame) -> dict[str, float]:
     """``learning_auc``, ``steps_to_gain`` and ``learned_drop`` of one run's curve points
     (``step``, ``success_rate``; docs/findings/protocol.md); empty without a step-0 point or
     with fewer than two trained points."""
-    if points.empty:
-        return {}
     steps = points["step"].to_numpy(dtype=float)
     success = points["success_rate"].to_numpy(dtype=float)
     trained = steps > 0
@@ -244,7 +242,7 @@ def tasks_of(scores: Scores) -> list[str]:
 def poi(scores: Scores, tasks: Sequence[str], x: str, y: str, key: str, seed: int) -> Estimate:
     """PoI of method ``x`` over ``y`` on score ``key`` over ``tasks``."""
     sides = (_key(scores, tasks, m, key) for m in (x, y))
-    return _estimate("poi", HIGHER_IS_BETTER[key], seed, ("+".join(tasks), x, y, key), *sides)
+    return _estimate("poi", seed, ("+".join(tasks), x, y, key), *sides)
 
 
 def method_estimate(
@@ -252,7 +250,7 @@ def method_estimate(
 ) -> Estimate:
     """``statistic`` (``mean`` or ``iqm``) of ``method``'s ``key`` over ``tasks``."""
     side = _key(scores, tasks, method, key)
-    return _estimate(statistic, True, seed, ("+".join(tasks), method, key), side)
+    return _estimate(statistic, seed, ("+".join(tasks), method, key), side)
 
 
 def _key(scores: Scores, tasks: Sequence[str], method: str, key: str) -> tuple[bytes, ...]:
@@ -261,13 +259,11 @@ def _key(scores: Scores, tasks: Sequence[str], method: str, key: str) -> tuple[b
 
 
 @functools.cache  # claims and tables read one estimate several times: bootstrapped once
-def _estimate(
-    statistic: str, higher_is_better: bool, seed: int, names: tuple[str, ...], *sides: Any
-) -> Estimate:
+def _estimate(statistic: str, seed: int, names: tuple[str, ...], *sides: Any) -> Estimate:
     rng = estimate_rng(seed, statistic, *names)
     arrays = [[np.frombuffer(v) for v in side] for side in sides]
     if statistic == "poi":
-        return probability_of_improvement(arrays[0], arrays[1], rng, higher_is_better)
+        return probability_of_improvement(arrays[0], arrays[1], rng, HIGHER_IS_BETTER[names[-1]])
     return interval_estimate(arrays[0], {"mean": mean_of_strata, "iqm": iqm}[statistic], rng)
 
 
@@ -320,35 +316,33 @@ def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> 
     """(CSV, Markdown) of `aggregate_rows`: a table of the means and IQMs per task group and
     method, and one of the PoIs per task group and partner."""
     rows = aggregate_rows(scores, seed)
-    frame = pd.DataFrame(rows, columns=[*CSV_FIELDS, "estimate"])
-    frame["text"] = frame["estimate"].map(Estimate.text)
-    frame["label"] = frame["task"].str.upper().replace(ALL_TASKS.upper(), "Both (stratified)")
-    frame["seeds"] = frame["seeds"].str.replace(";", "+")
-    is_poi = frame["statistic"] == "poi"
-    table = [
-        [group["label"].iloc[0], METHODS[str(method)].label, group["seeds"].iloc[0], *group["text"]]
-        for (_, method), group in frame[~is_poi].groupby(["task", "method"], sort=False)
-    ]
-    poi_table = [
-        [group["label"].iloc[0], METHODS[str(partner)].label, group["seeds"].iloc[0]]
-        + [group.set_index("metric")["text"].get(key, "–") for key, _ in RATES]
-        for (_, partner), group in frame[is_poi].groupby(["task", "versus"], sort=False)
-    ]
     caption = (
         f"Aggregates over seeds ({preset} preset): mean and IQM with 95 % stratified-bootstrap "
         f"intervals ({BOOTSTRAP_REPS} replicates, percentile; one stratum per task)"
     )
     header = ["Task", "Method", "Seeds"]
     header += [f"{label} {s}" for _, label in RATES for s in ("mean", "IQM")]
-    markdown = markdown_table(caption, header, table)
+    markdown = markdown_table(caption, header, _table_rows(rows, "method"))
     poi_header = ["Task", "Dist-GPRL vs", "Seeds", "PoI success", "PoI fewer collisions"]
     poi_caption = (
         "Probability of improvement of Dist-GPRL over each ablation and baseline "
         "(P(X > Y) + P(X = Y)/2 over seed pairs, averaged over tasks; 95 % independent "
         "stratified-bootstrap interval; > 0.5 favours Dist-GPRL)"
     )
-    if poi_table:
+    if poi_table := _table_rows(rows, "versus"):
         markdown += "\n" + markdown_table(poi_caption, poi_header, poi_table)
     else:
         markdown += f"\n{poi_caption}: no runs of Dist-GPRL and a partner yet.\n"
     return csv_text(rows, CSV_FIELDS), markdown
+
+
+def _table_rows(rows: list[dict[str, Any]], by: str) -> list[list[str]]:
+    """Per task group and ``by`` (``method``: its means and IQMs; ``versus``: its PoIs) of
+    `aggregate_rows`: its label, the method's, the seeds per stratum and the estimates."""
+    table: dict[tuple[str, str], list[str]] = {}
+    for row in rows:
+        if (row["statistic"] == "poi") == (by == "versus"):
+            task = "Both (stratified)" if row["task"] == ALL_TASKS else row["task"].upper()
+            first = [task, METHODS[row[by]].label, row["seeds"].replace(";", "+")]
+            table.setdefault((row["task"], row[by]), first).append(row["estimate"].text())
+    return list(table.values())
