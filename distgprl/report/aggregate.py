@@ -312,10 +312,10 @@ def short_label(method: str) -> str:
     return METHODS[method].label.removesuffix(" (ours)")
 
 
-def aggregate_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
+def aggregate_texts(scores: Scores, preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of `aggregate_rows`: a table of the means and IQMs per task group and
     method, and one of the PoIs per task group and partner."""
-    rows = aggregate_rows(scores, seed)
+    rows = aggregate_rows(scores, BOOTSTRAP_SEED)
     caption = (
         f"Aggregates over seeds ({preset} preset): mean and IQM with 95 % stratified-bootstrap "
         f"intervals ({BOOTSTRAP_REPS} replicates, percentile; one stratum per task)"

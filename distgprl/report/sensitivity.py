@@ -42,22 +42,16 @@ def reading_gains(reach: dict[str, Any], method: str) -> dict[tuple[str, str], f
 
 
 def write_sensitivity(
-    root: str | Path,
-    study: Study,
-    scores_of: dict[str, Scores],
-    out_dir: str | Path,
-    seed: int = BOOTSTRAP_SEED,
+    root: str | Path, study: Study, scores_of: dict[str, Scores], out_dir: str | Path
 ) -> list[Path]:
     """Draw `plot_sensitivity` into ``<out_dir>/sensitivity_<study>_<reference preset>.{png,pdf}``
     (``scores_of``: {reading preset: its scores}); with nothing to draw, remove an earlier one."""
     stem = Path(out_dir) / f"sensitivity_{study.name}_{study.reference.preset}"
-    fig = plot_sensitivity(root, study, scores_of, seed)
+    fig = plot_sensitivity(root, study, scores_of)
     return write_or_remove_figure(None if fig is None else (fig, 1), stem)
 
 
-def plot_sensitivity(
-    root: str | Path, study: Study, scores_of: dict[str, Scores], seed: int = BOOTSTRAP_SEED
-) -> Figure | None:
+def plot_sensitivity(root: str | Path, study: Study, scores_of: dict[str, Scores]) -> Figure | None:
     """The study's sensitivity figure, or None without a reach file or a run to draw."""
     reach_path = Path(root) / study.name / "reach.json"
     if not reach_path.exists():
@@ -66,7 +60,7 @@ def plot_sensitivity(
     gains = reading_gains(read_json(reach_path), method)
 
     def mean(preset: str, task: str, of: str, key: str) -> Estimate:
-        return method_estimate(scores_of.get(preset, {}), [task], of, key, "mean", seed)
+        return method_estimate(scores_of.get(preset, {}), [task], of, key, "mean", BOOTSTRAP_SEED)
 
     tasks = sorted(
         sorted({task for scores in scores_of.values() for task, _ in scores}), key=task_order
