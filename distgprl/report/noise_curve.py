@@ -1,8 +1,7 @@
-"""Where does each policy break? One figure per preset (``table2_noise_<preset>``): per method
-with twin trials at two or more sensor-noise levels (plan repair on), its success and collision
-rates with their exact 95 % binomial intervals against the median over trials of each trial's
-largest marker position error (mm; `distgprl.report.table2.hardware_rows`), each point labelled
-with its noise level. Levels without a recorded perception error are left out."""
+"""Where does each policy break? Per method with twin trials at two or more sensor-noise levels
+(plan repair on), its success and collision rates (exact 95 % binomial intervals) against the
+median over trials of each trial's largest marker position error (mm;
+`distgprl.report.table2.hardware_rows`), each point labelled with its noise level."""
 
 from __future__ import annotations
 
@@ -14,18 +13,16 @@ import numpy as np
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 
-REPAIR = "retime"
-"""The repair setting every noise level runs with."""
 ERROR = "perception_error_mm_median"
 
 
 def curve_series(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """{method: its twin rows of `REPAIR` with a perception error, by increasing error} for
-    every method with at least two such rows (table order)."""
+    """{method: its twin rows with repair ``retime`` and a perception error, by increasing
+    error} for every method with at least two such rows (table order)."""
     series: dict[str, list[dict[str, Any]]] = {}
     for row in rows:
         error = row.get(ERROR, np.nan)
-        if row["backend"] == "twin" and row["repair"] == REPAIR and np.isfinite(error):
+        if row["backend"] == "twin" and row["repair"] == "retime" and np.isfinite(error):
             series.setdefault(row["method"], []).append(row)
     ordered = sorted(series, key=lambda m: TABLE_ORDER.index(m) if m in TABLE_ORDER else 99)
     return {

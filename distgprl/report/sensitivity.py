@@ -26,7 +26,6 @@ PANELS = (
     ("collision_rate", "collision rate"),
     ("mean_kinematic_retention", "kinematic retention"),  # velocity cosine to the demonstration
 )
-CONTROL_SHIFT_POINTS = 9.0
 REFERENCES = ("dist-gprl-nocov", "demo")
 """Methods drawn as horizontal reference bands: no operator, no adaptation."""
 
@@ -133,7 +132,7 @@ def _draw_reading(
     seeds = min(estimate.seeds)
     transform = ax.transData
     if reading.control:
-        transform = offset_copy(transform, fig=ax.figure, x=CONTROL_SHIFT_POINTS, units="points")
+        transform = offset_copy(transform, fig=ax.figure, x=9.0, units="points")
     ax.errorbar(
         [gain],
         [estimate.point],
