@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import replace
 from itertools import groupby
 from operator import itemgetter
 from pathlib import Path
@@ -42,9 +41,6 @@ RETURN_TERMS = {"r_ga": "return_ga", "r_sd": "return_sd"}
 GRADIENT_ITEMS = {"l_sim": "grad_sim", "l_hap": "grad_hap", "l_hap_active": "grad_hap_active"}
 """Regulariser item (``l_hap_active``: outside C_safe) -> its ``progress.csv`` column."""
 
-ACTIVE = "hap_active_fraction"
-"""The ``progress.csv`` column of the share of samples outside C_safe."""
-
 ZERO_TC = 1e-9
 """|Σ r_tc| at most this counts as Σ r_tc = 0 (no ratio): rounding residues are ~1e-15."""
 
@@ -58,6 +54,8 @@ RULE_ONE = {
 """Rule 1's ratios, measured (`rule_one_cells`) -> their bound."""
 
 Cell = dict[str, Any]
+Columns = Callable[[Cell, dict[str, Cell]], list[str]]
+"""A section's Markdown columns after Task and Method from a row's first cell and its cells."""
 
 
 def _columns(frame: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
@@ -136,14 +134,15 @@ def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
     ``inactive``: no share and no run with a sample outside C_safe; ``l_hap`` not judged."""
     spec = METHODS[keys["method"]]
     used = {"l_sim": spec.similarity_loss, "l_hap": spec.hap_prior, "l_hap_active": spec.hap_prior}
-    columns = ["step", "grad_q", ACTIVE, *GRADIENT_ITEMS.values()]
+    active = "hap_active_fraction"  # progress.csv: the share of samples outside C_safe
+    columns = ["step", "grad_q", active, *GRADIENT_ITEMS.values()]
     points = pd.concat([gradient_points(_columns(curve, columns)) for curve in curves])
     cells = []
     for point in POINTS:
         rows = points[points.index == point]
         low, high = rows["step"].astype(int).agg(["min", "max"]) if len(rows) else ("", "")
-        inactive = len(rows) == len(curves) and bool((rows[ACTIVE] == 0.0).all())
-        fraction = _mean(rows[ACTIVE].dropna().to_numpy())
+        inactive = len(rows) == len(curves) and bool((rows[active] == 0.0).all())
+        fraction = _mean(rows[active].dropna().to_numpy())
         point_keys = {"where": point, "step": str(low) if low == high else f"{low}–{high}"}
         for item in (item for item in GRADIENT_ITEMS if used[item]):
             value = rows[GRADIENT_ITEMS[item]]
@@ -166,7 +165,7 @@ def _run_scale(folder: Path) -> dict[str, Any]:
     recorded = document.get("run", {}).get("config", {}).get("env", {})
     fields = ("sd_d_min", "progress_weight", "success_bonus", "collision_penalty")
     values: dict[str, Any] = {f: float(recorded[f]) for f in fields if f in recorded}
-    env = replace(EnvConfig(), **values)
+    env = EnvConfig(**values)
     task, _, seed = run_keys(folder)
     return {
         "seed": seed,
@@ -243,15 +242,9 @@ CSV_COLUMNS = tuple(
     "episode_max_m tc_range_m covers_tc_range seeds episodes episodes_within_d_min "
     "episodes_zero_tc share_mean share_median share_max active_fraction meets_criterion".split()
 )
-"""Columns of ``mechanisms_<preset>.csv``. ``section``: ``reach`` (``item`` the axis; reach
-in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and y),
-``return_share`` (``item`` ``r_sd`` or ``r_ga`` (= lambda_ga r_ga), ``where`` the policy,
-shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``),
-``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
-``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
-``seeds``) or ``reward_scale`` (rule 1: ``item`` ``ga_of_success`` (a) or ``idle_of_demo``
-(b), ``episodes`` the ratios' count, ``share_max`` judged against the rule's bound).
-``meets_criterion``: ``yes``/``no``, ``not recorded``, ``inactive``, ``n/a``."""
+"""Columns of ``mechanisms_<preset>.csv``, a row per cell: ``section`` its `SECTIONS` table,
+``item`` the axis (reach, m) or the term, ``where`` the policy or learning-curve point (its RL
+``step``s); ``meets_criterion`` ``yes``/``no``, ``not recorded``, ``inactive`` or ``n/a``."""
 
 MARKS = {"yes": " ✓", "no": " ✗"}
 VERDICT_LABELS = {
@@ -270,26 +263,21 @@ def _percent(value: float | None) -> str:
 
 
 def _reach(reach: Iterable[Mapping[str, Any]]) -> list[Cell]:
-    """The reach rows in `_order` as cells (``item`` the axis), ``covers_tc_range`` ``yes``
-    where the method's smallest one-episode reach is at least the task's TC range on x and y
-    (to 1e-9 m), ``n/a`` for reach in ProMP weight units."""
+    """The reach rows (x, y, z per task and method) in `_order` as cells, ``item`` the axis,
+    ``covers_tc_range`` ``yes`` where the smallest one-episode reach is at least the TC range on
+    x and y (to 1e-9 m), ``n/a`` for reach in ProMP weight units."""
     cells = []
     ordered = sorted(reach, key=lambda row: _order(row["task"], row["method"]))
     for _, group in groupby(ordered, itemgetter("task", "method")):
         axes = list(group)
-        planar = [row for row in axes if row["axis"] in ("x", "y")]
-        covered = planar and all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in planar)
-        covers = "yes" if covered else "no"
-        if any(row["kind"] == "ProMP weight" for row in axes):
-            covers = "n/a"
+        covered = all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in axes[:2])
+        covers = "n/a" if axes[0]["kind"] == "ProMP weight" else "yes" if covered else "no"
         marks = {"section": "reach", "where": None, "covers_tc_range": covers}
         cells += [{**row, "item": row["axis"], **marks} for row in axes]
     return cells
 
 
-def _rows(
-    cells: Iterable[Cell], columns: Callable[[Cell, dict[str, Cell]], list[str]]
-) -> Iterator[list[str]]:
+def _rows(cells: Iterable[Cell], columns: Columns) -> Iterator[list[str]]:
     """A Markdown row per (task, method, where) of consecutive ``cells``: the task, the method
     and the ``columns`` of its first cell and {item: cell}."""
     for (task, method, _), group in groupby(cells, itemgetter("task", "method", "where")):
@@ -368,36 +356,31 @@ def _plateau_columns(cell: Cell, items: dict[str, Cell]) -> list[str]:
 def _verdict(label: str, cells: Sequence[Cell], name: str) -> str:
     """One line: how many ``cells`` meet the criterion, which do not (``name`` filled in from
     the cell; more than 4: their count and range) and how many are not judged."""
-    no = [
-        (f"{name.format_map(cell)} {_percent(cell['share_mean'])}", cell["share_mean"])
-        for cell in cells
-        if cell["meets_criterion"] == "no"
-    ]
+    no = [cell for cell in cells if cell["meets_criterion"] == "no"]
+    below = [f"{name.format_map(cell)} {_percent(cell['share_mean'])}" for cell in no]
     other = Counter(cell["meets_criterion"] for cell in cells)
     decided = other.pop("yes", 0) + other.pop("no", 0)
     outcome = "does not meet the criterion" if no else "meets the criterion"
-    line = (
-        f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of {decided} cells"
-    )
+    share = f"≥ {100 * CRITERION:.0f} %"
+    line = f"{label}: {outcome} — {share} in {decided - len(no)} of {decided} cells"
     if not decided:
         line = f"{label}: undecided (no cell where it acts and is recorded)"
     if len(no) > 4:
-        (low, _), *_, (high, _) = sorted(no, key=itemgetter(1))
-        line += f"; below in {len(no)} cells, from {low} to {high}"
+        ranked = sorted(range(len(no)), key=lambda index: no[index]["share_mean"])
+        line += f"; below in {len(no)} cells, from {below[ranked[0]]} to {below[ranked[-1]]}"
     elif no:
-        line += "; below: " + ", ".join(text for text, _ in no)
-    names = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
+        line += "; below: " + ", ".join(below)
     if other:
+        names = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
         line += "; " + ", ".join(f"{names.get(v, v)}: {n}" for v, n in sorted(other.items()))
     return line + "."
 
 
 def _verdict_lines(rows: Sequence[Cell]) -> list[str]:
     """One line per mechanism: reach, then each of `VERDICT_LABELS`' items."""
-    covers = {
-        (r["task"], r["method"]): r["covers_tc_range"] for r in rows if r["section"] == "reach"
-    }
-    judged = {key: value for key, value in covers.items() if value != "n/a"}
+    reach = [row for row in rows if row["section"] == "reach"]
+    judged = {(r["task"], r["method"]): r["covers_tc_range"] for r in reach}
+    judged = {key: value for key, value in judged.items() if value != "n/a"}
     missing = [f"{task}/{method}" for (task, method), value in judged.items() if value == "no"]
     lines = []
     if judged:
@@ -431,9 +414,7 @@ INTRO = (
 )
 
 
-Section = tuple[str, str, list[str], Callable[[Cell, dict[str, Cell]], list[str]], str]
-
-SECTIONS: tuple[Section, ...] = (
+SECTIONS: tuple[tuple[str, str, list[str], Columns, str], ...] = (
     (
         "reach",
         "### Reach of a raw action in [-1, 1]",
