@@ -1,7 +1,6 @@
-"""The mechanism table of a preset's runs (protocol v6, rule 7, docs/findings/protocol.md):
-reach against the TC range, shaping shares of the return, regulariser shares of the actor
-gradient and rule 1's ratios (v8), each judged, with a verdict line per term. A cell: a dict of
-the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them."""
+"""The mechanism table of a preset's runs (protocol v6 rule 7, docs/findings/protocol.md; v8
+rule 1, docs/findings/environment-v8.md), each judged, with a verdict line per term. A cell: a
+dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them."""
 
 from __future__ import annotations
 
@@ -263,9 +262,8 @@ def _percent(value: float | None) -> str:
 
 
 def _reach(reach: Iterable[Mapping[str, Any]]) -> list[Cell]:
-    """The reach rows (x, y, z per task and method) in `_order` as cells, ``item`` the axis,
-    ``covers_tc_range`` ``yes`` where the smallest one-episode reach is at least the TC range on
-    x and y (to 1e-9 m), ``n/a`` for reach in ProMP weight units."""
+    """The reach rows (x, y, z per task and method) in `_order` as cells; ``covers_tc_range``
+    ``yes`` where the one-episode reach covers the TC range on x and y, ``n/a`` in ProMP units."""
     cells = []
     ordered = sorted(reach, key=lambda row: _order(row["task"], row["method"]))
     for _, group in groupby(ordered, itemgetter("task", "method")):
@@ -278,8 +276,7 @@ def _reach(reach: Iterable[Mapping[str, Any]]) -> list[Cell]:
 
 
 def _rows(cells: Iterable[Cell], columns: Columns) -> Iterator[list[str]]:
-    """A Markdown row per (task, method, where) of consecutive ``cells``: the task, the method
-    and the ``columns`` of its first cell and {item: cell}."""
+    """A Markdown row per (task, method, where) of consecutive ``cells``."""
     for (task, method, _), group in groupby(cells, itemgetter("task", "method", "where")):
         items = {cell["item"]: cell for cell in group}
         yield [task.upper(), METHODS[method].label, *columns(next(iter(items.values())), items)]
