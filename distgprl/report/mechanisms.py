@@ -185,10 +185,9 @@ def _by_method(
     selection: RunSelection, uses: Callable[[MethodSpec], bool]
 ) -> Iterator[tuple[Cell, list[Path]]]:
     """((task, method) keys, folders) of the selected runs whose method ``uses``, in `_order`."""
-    keys = itemgetter(slice(-3, -1))
     folders = [folder for folder in selection.current if uses(METHODS[folder.parent.name])]
-    ordered = sorted(folders, key=lambda folder: (_order(*keys(folder.parts)), folder))
-    for (task, method), group in groupby(ordered, lambda folder: keys(folder.parts)):
+    ordered = sorted(folders, key=lambda folder: (_order(*run_keys(folder)[:2]), folder))
+    for (task, method), group in groupby(ordered, lambda folder: run_keys(folder)[:2]):
         yield {"task": task, "method": method}, list(group)
 
 
