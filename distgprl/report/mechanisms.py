@@ -1,16 +1,12 @@
-"""The mechanism table of a preset's runs (protocol v6, rule 7, docs/findings/protocol.md;
-v8 rule 1, docs/findings/environment-v8.md): reach against the TC range (the rows of
-`distgprl.experiments.mechanisms.reach_rows`), shaping shares of the return, regulariser shares
-of the actor gradient and rule 1's ratios, each judged, with a verdict line per term. A cell:
-a dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them,
-from result CSVs as frames (`distgprl.report.frame.csv_frame`: an empty cell NaN)."""
+"""The mechanism table of a preset's runs (protocol v6 rule 7, docs/findings/protocol.md; v8
+rule 1, docs/findings/environment-v8.md), each judged, with a verdict line per term. A cell: a
+dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them."""
 
 from __future__ import annotations
 
 import json
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import replace
 from itertools import groupby
 from operator import itemgetter
 from pathlib import Path
@@ -30,8 +26,7 @@ from distgprl.report.runs import RunSelection, run_keys, select_runs
 from distgprl.schema import evaluation_file_names
 
 CRITERION = 0.05
-"""The pre-registered share (rule 7): each shaping term ≥ 5 % of the return where it acts,
-each regulariser's actor gradient ≥ 5 % of the Q term's (L_hap: outside C_safe)."""
+"""The pre-registered share (rule 7) a shaping term's return or a regulariser's gradient meets."""
 
 NOT_RECORDED = "not recorded"
 """The verdict of a cell whose result files predate the columns it needs."""
@@ -43,19 +38,13 @@ RETURN_TERMS = {"r_ga": "return_ga", "r_sd": "return_sd"}
 """Shaping term -> its evaluation column (``return_ga`` holds lambda_ga r_ga), in row order."""
 
 GRADIENT_ITEMS = {"l_sim": "grad_sim", "l_hap": "grad_hap", "l_hap_active": "grad_hap_active"}
-"""Regulariser item (``l_hap_active``: L_hap over the samples outside C_safe) -> its
-``progress.csv`` column, a share of ``grad_q``."""
-
-ACTIVE = "hap_active_fraction"
-"""The ``progress.csv`` column of the share of samples outside C_safe."""
+"""Regulariser item (``l_hap_active``: outside C_safe) -> its ``progress.csv`` column."""
 
 ZERO_TC = 1e-9
-"""|Σ r_tc| at most this counts as Σ r_tc = 0 (no ratio): an episode without net progress sums
-its per-step progress terms to 0 only up to floating-point rounding (residues ~1e-15)."""
+"""|Σ r_tc| at most this counts as Σ r_tc = 0 (no ratio): rounding residues are ~1e-15."""
 
 IDLE_PROGRESS = 0.05
-"""An episode that neither succeeded nor collided is idle if its r_tc is below this share of
-the task's progress weight."""
+"""An episode without success or collision is idle below this share of the progress weight."""
 
 RULE_ONE = {
     "ga_of_success": reward_scale.MAX_GA_SHARE_OF_SUCCESS,
@@ -64,6 +53,8 @@ RULE_ONE = {
 """Rule 1's ratios, measured (`rule_one_cells`) -> their bound."""
 
 Cell = dict[str, Any]
+Columns = Callable[[Cell, dict[str, Cell]], list[str]]
+"""A section's Markdown columns after Task and Method from a row's first cell and its cells."""
 
 
 def _columns(frame: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
@@ -80,10 +71,9 @@ def _judged(share: float) -> str:
 
 
 def return_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
-    """The r_ga and r_sd cells of one method's policy (``keys``: task, method, where) from the
-    evaluation ``episodes`` of its runs (with the run's ``seed`` and ``d_min``, m), pooled
-    over the ``recorded`` runs (return parts in every row): ``shares`` the per-episode
-    |Σ term| / |Σ r_tc| within d_min where Σ r_tc ≠ 0 (``n/a`` without any)."""
+    """The r_ga and r_sd cells of one policy (``keys``: task, method, where) from its runs'
+    evaluation ``episodes`` (with ``seed``, ``d_min`` in m), pooled over the runs recording the
+    return's parts: ``shares`` per episode |Σ term| / |Σ r_tc| within d_min, Σ r_tc ≠ 0."""
     needed = ["return_tc", *RETURN_TERMS.values()]
     parts = _columns(episodes, needed)
     complete = parts[needed].notna().all(axis=1)
@@ -107,10 +97,9 @@ def return_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
 
 
 def rule_one_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
-    """Rule 1's ratios over one method's policy's episodes that record r_tc (``keys`` and
-    ``episodes`` as `return_cells`', with the run's scale, `_run_scale`): ``ga_of_success``
-    per episode, ``idle_of_demo`` per idle one; each row with the plateau's ``idle`` count
-    and their mean lambda_ga r_ga ``mean_ga``."""
+    """Rule 1's ratios over the ``episodes`` recording r_tc (as `return_cells`', with the
+    `_run_scale` columns): ``ga_of_success`` per episode, ``idle_of_demo`` per idle one, each
+    with the ``idle`` count and their mean lambda_ga r_ga ``mean_ga``."""
     rows = _columns(episodes, ["return_tc", "return_sd", "return_ga"])
     rows = rows[rows["return_tc"].notna()]
     ga = rows["return_ga"].fillna(0.0)
@@ -131,29 +120,28 @@ def rule_one_cells(keys: Cell, episodes: pd.DataFrame) -> list[Cell]:
 
 
 def gradient_points(curve: pd.DataFrame) -> pd.DataFrame:
-    """The first, middle (row (n - 1) // 2 of n) and last rows by step of one run's learning
-    ``curve`` that recorded the actor's gradient norms (``grad_q`` > 0: not the step-0 point),
-    indexed by `POINTS`; empty if none did."""
+    """The first, middle (row (n - 1) // 2 of n) and last rows by step of a learning ``curve``
+    with ``grad_q`` > 0, indexed by `POINTS`; empty if none has."""
     recorded = curve[curve["grad_q"] > 0].sort_values("step", kind="stable")
     last = len(recorded) - 1
     return recorded.iloc[[0, last // 2, last]].set_axis(POINTS) if last >= 0 else recorded
 
 
 def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
-    """The cells of the items one method (``keys``: task, method) uses at each of `POINTS`
-    from its runs' learning ``curves``: ``shares`` grad_item / grad_q per run recording it;
-    ``inactive`` where no run recorded a share and every run had no sample outside C_safe at
-    the point; ``l_hap`` (all samples) reported, not judged (``n/a``)."""
+    """The cells of the items one method (``keys``: task, method) uses at each of `POINTS` of
+    its runs' learning ``curves``: ``shares`` grad_item / grad_q per run recording it;
+    ``inactive``: no share and no run with a sample outside C_safe; ``l_hap`` not judged."""
     spec = METHODS[keys["method"]]
     used = {"l_sim": spec.similarity_loss, "l_hap": spec.hap_prior, "l_hap_active": spec.hap_prior}
-    columns = ["step", "grad_q", ACTIVE, *GRADIENT_ITEMS.values()]
+    active = "hap_active_fraction"  # progress.csv: the share of samples outside C_safe
+    columns = ["step", "grad_q", active, *GRADIENT_ITEMS.values()]
     points = pd.concat([gradient_points(_columns(curve, columns)) for curve in curves])
     cells = []
     for point in POINTS:
         rows = points[points.index == point]
         low, high = rows["step"].astype(int).agg(["min", "max"]) if len(rows) else ("", "")
-        inactive = len(rows) == len(curves) and bool((rows[ACTIVE] == 0.0).all())
-        fraction = _mean(rows[ACTIVE].dropna().to_numpy())
+        inactive = len(rows) == len(curves) and bool((rows[active] == 0.0).all())
+        fraction = _mean(rows[active].dropna().to_numpy())
         point_keys = {"where": point, "step": str(low) if low == high else f"{low}–{high}"}
         for item in (item for item in GRADIENT_ITEMS if used[item]):
             value = rows[GRADIENT_ITEMS[item]]
@@ -170,13 +158,13 @@ def gradient_cells(keys: Cell, curves: Sequence[pd.DataFrame]) -> list[Cell]:
 
 
 def _run_scale(folder: Path) -> dict[str, Any]:
-    """A run's ``seed``, ``d_min`` (m) and, under its recorded reward scale (a field it lacks:
-    the default), ``progress_weight``, a success's r_tc and the demonstration's mean r_tc."""
+    """A run's ``seed``, ``d_min`` (m) and, under its recorded reward scale (defaults for
+    fields it lacks), ``progress_weight``, a success's r_tc and the demonstration's mean r_tc."""
     document = json.loads((folder / "config.json").read_text())
     recorded = document.get("run", {}).get("config", {}).get("env", {})
     fields = ("sd_d_min", "progress_weight", "success_bonus", "collision_penalty")
-    values: dict[str, Any] = {f: float(recorded.get(f, getattr(EnvConfig, f))) for f in fields}
-    env = replace(EnvConfig(), **values)
+    values: dict[str, Any] = {f: float(recorded[f]) for f in fields if f in recorded}
+    env = EnvConfig(**values)
     task, _, seed = run_keys(folder)
     return {
         "seed": seed,
@@ -188,28 +176,24 @@ def _run_scale(folder: Path) -> dict[str, Any]:
 
 
 def _order(task: str, method: str) -> tuple[int, int, str]:
-    """Tasks in the paper's order, methods in Table I's (unknown ones after)."""
+    """Tasks in the paper's order, methods in Table I's (others after)."""
     index = TABLE_ORDER.index(method) if method in TABLE_ORDER else len(TABLE_ORDER)
     return task_order(task), index, method
 
 
 def _by_method(
     selection: RunSelection, uses: Callable[[MethodSpec], bool]
-) -> list[tuple[Cell, list[Path]]]:
-    """((task, method) keys, the run folders) of the selected runs whose method ``uses``, in
-    `_order`."""
-    runs: dict[tuple[str, str], list[Path]] = {}
-    for folder in sorted(selection.current):
-        if uses(METHODS[folder.parent.name]):
-            runs.setdefault((folder.parent.parent.name, folder.parent.name), []).append(folder)
-    ordered = sorted(runs.items(), key=lambda item: _order(*item[0]))
-    return [({"task": task, "method": method}, folders) for (task, method), folders in ordered]
+) -> Iterator[tuple[Cell, list[Path]]]:
+    """((task, method) keys, folders) of the selected runs whose method ``uses``, in `_order`."""
+    folders = [folder for folder in selection.current if uses(METHODS[folder.parent.name])]
+    ordered = sorted(folders, key=lambda folder: (_order(*run_keys(folder)[:2]), folder))
+    for (task, method), group in groupby(ordered, lambda folder: run_keys(folder)[:2]):
+        yield {"task": task, "method": method}, list(group)
 
 
 def mechanism_cells(root: str | Path, preset: str) -> tuple[list[Cell], str]:
-    """The cells of the preset's runs under ``root`` in the CSV's order — return shares,
-    gradient shares (of the trained runs), rule 1's ratios (`distgprl.report.runs.select_runs`:
-    of the current configuration) — and a note of the runs left out."""
+    """The cells of the preset's current runs under ``root`` in the CSV's order (return
+    shares, gradient shares of the trained runs, rule 1's ratios) and a note of those left out."""
     evaluated = select_runs(root, preset)
     trained = select_runs(root, preset, marker="done.json")
     returns, scale, gradients = [], [], []
@@ -230,12 +214,6 @@ def mechanism_cells(root: str | Path, preset: str) -> tuple[list[Cell], str]:
     return returns + gradients + scale, note
 
 
-DESCRIPTION = (
-    "the mechanism table (FINDINGS Protocol v6 rule 7): reach against the TC range, shaping "
-    "shares of the return, regulariser shares of the actor gradient (distgprl.report.mechanisms)"
-)
-
-
 def write_mechanisms(
     root: str | Path, preset: str, out_dir: str | Path, reach: Sequence[Mapping[str, Any]]
 ) -> tuple[list[Path], list[str]]:
@@ -245,9 +223,14 @@ def write_mechanisms(
     if not (reach or cells):
         raise UserInputError(f"{Path(root) / preset}: no runs to tabulate; run a sweep first")
     csv, markdown, verdicts = mechanism_texts(preset, reach, cells, note)
+    description = (
+        "the mechanism table (FINDINGS Protocol v6 rule 7): reach against the TC range, "
+        "shaping shares of the return, regulariser shares of the actor gradient "
+        "(distgprl.report.mechanisms)"
+    )
     stem = Path(out_dir) / f"mechanisms_{preset}"
     written = write_table_files(
-        stem, (".csv", ".md"), (csv, markdown), preset, DESCRIPTION, criterion=CRITERION
+        stem, (".csv", ".md"), (csv, markdown), preset, description, criterion=CRITERION
     )
     return written, verdicts
 
@@ -257,16 +240,9 @@ CSV_COLUMNS = tuple(
     "episode_max_m tc_range_m covers_tc_range seeds episodes episodes_within_d_min "
     "episodes_zero_tc share_mean share_median share_max active_fraction meets_criterion".split()
 )
-"""Columns of ``mechanisms_<preset>.csv``. ``section``: ``reach`` (``item`` the axis; reach
-in m; ``covers_tc_range`` the method and task's ``yes``/``no``/``n/a`` on x and y),
-``return_share`` (``item`` ``r_sd`` or ``r_ga`` (= lambda_ga r_ga), ``where`` the policy,
-shares of |r_tc| over ``episodes_within_d_min`` less ``episodes_zero_tc``) or
-``gradient_share`` (``item`` ``l_sim``, ``l_hap`` or ``l_hap_active`` (outside C_safe),
-``where`` the learning-curve point, ``step`` its RL step(s), the share of grad_q the mean over
-``seeds``) or ``reward_scale`` (rule 1 measured: ``item`` ``ga_of_success`` (a) or
-``idle_of_demo`` (b), ``where`` the policy, ``episodes`` the ratios' count, ``share_max``
-judged against the rule's bound). ``meets_criterion``: ``yes``/``no`` (≥ 5 %; rule 1: the
-largest within its bound), ``not recorded``, ``inactive``, ``n/a``."""
+"""Columns of ``mechanisms_<preset>.csv``, a row per cell: ``section`` its `SECTIONS` table,
+``item`` the axis (reach, m) or the term, ``where`` the policy or learning-curve point (its RL
+``step``s); ``meets_criterion`` ``yes``/``no``, ``not recorded``, ``inactive`` or ``n/a``."""
 
 MARKS = {"yes": " ✓", "no": " ✗"}
 VERDICT_LABELS = {
@@ -277,60 +253,48 @@ VERDICT_LABELS = {
     "ga_of_success": "Rule 1 (a), λ_ga Σ r_ga of an episode over a success's r_tc",
     "idle_of_demo": "Rule 1 (b), an idle episode's return over the demonstration's mean r_tc",
 }
-"""The name of each verdict line's term."""
+"""The judged items in the verdicts' order -> the name of their verdict line's term."""
 
 
 def _percent(value: float | None) -> str:
     return "–" if value is None else f"{100 * value:.1f} %"
 
 
-def _label(method: str) -> str:
-    return METHODS[method].label if method in METHODS else method
-
-
-def _reach(reach: Iterable[Mapping[str, Any]]) -> list[list[Cell]]:
-    """The reach rows per method and task in `_order`, each with ``item`` (its axis) and
-    ``covers_tc_range``: ``yes`` where the method and task's smallest one-episode reach is at
-    least the TC range on x and on y (up to rounding, 1e-9 m), ``no`` otherwise, ``n/a`` for
-    reach in ProMP weight units."""
-    groups = []
+def _reach(reach: Iterable[Mapping[str, Any]]) -> list[Cell]:
+    """The reach rows (x, y, z per task and method) in `_order` as cells; ``covers_tc_range``
+    ``yes`` where the one-episode reach covers the TC range on x and y, ``n/a`` in ProMP units."""
+    cells = []
     ordered = sorted(reach, key=lambda row: _order(row["task"], row["method"]))
     for _, group in groupby(ordered, itemgetter("task", "method")):
         axes = list(group)
-        planar = [row for row in axes if row["axis"] in ("x", "y")]
-        covered = planar and all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in planar)
-        covers = "yes" if covered else "no"
-        if any(row["kind"] == "ProMP weight" for row in axes):
-            covers = "n/a"
-        marks = {"section": "reach", "covers_tc_range": covers}
-        groups.append([{**row, "item": row["axis"], **marks} for row in axes])
-    return groups
+        covered = all(row["episode_min_m"] >= row["tc_range_m"] - 1e-9 for row in axes[:2])
+        covers = "n/a" if axes[0]["kind"] == "ProMP weight" else "yes" if covered else "no"
+        marks = {"section": "reach", "where": None, "covers_tc_range": covers}
+        cells += [{**row, "item": row["axis"], **marks} for row in axes]
+    return cells
 
 
-def _rows(cells: Iterable[Cell]) -> Iterator[tuple[list[str], dict[str, Cell]]]:
-    """Per (task, method, where) of consecutive ``cells``: the row's first texts and
-    {item: cell}."""
-    for (task, method, where), group in groupby(cells, itemgetter("task", "method", "where")):
-        yield [task.upper(), _label(method), where], {cell["item"]: cell for cell in group}
+def _rows(cells: Iterable[Cell], columns: Columns) -> Iterator[list[str]]:
+    """A Markdown row per (task, method, where) of consecutive ``cells``."""
+    for (task, method, _), group in groupby(cells, itemgetter("task", "method", "where")):
+        items = {cell["item"]: cell for cell in group}
+        yield [task.upper(), METHODS[method].label, *columns(next(iter(items.values())), items)]
 
 
-def _reach_rows(reach: Sequence[list[Cell]]) -> Iterator[list[str]]:
-    for group in reach:
-        axes = sorted(group, key=lambda row: "xyz".index(row["axis"]))
-        first, covers = axes[0], axes[0]["covers_tc_range"]
-        kind, gate = first["kind"], first.get("gate_max")
-        spans = [
-            " / ".join(f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes)
-            for span in ("one_step", "episode")
-        ]
-        yield [
-            first["task"].upper(),
-            _label(first["method"]),
-            kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
-            " / ".join(f"{row['tc_range_m']:.3f}" for row in axes),
-            *spans,
-            covers + MARKS.get(covers, ""),
-        ]
+def _reach_columns(cell: Cell, axes: dict[str, Cell]) -> list[str]:
+    kind, gate, covers = cell["kind"], cell["gate_max"], cell["covers_tc_range"]
+    spans = [
+        " / ".join(
+            f"{row[f'{span}_min_m']:.3f}–{row[f'{span}_max_m']:.3f}" for row in axes.values()
+        )
+        for span in ("one_step", "episode")
+    ]
+    return [
+        kind if gate is None else f"{kind}, × gate ≤ {gate:.2f}",
+        " / ".join(f"{row['tc_range_m']:.3f}" for row in axes.values()),
+        *spans,
+        covers + MARKS.get(covers, ""),
+    ]
 
 
 def _share_text(cell: Cell | None) -> str:
@@ -345,110 +309,95 @@ def _share_text(cell: Cell | None) -> str:
     return _percent(share) + median + MARKS.get(verdict, "")
 
 
-def _return_rows(returns: Sequence[Cell]) -> Iterator[list[str]]:
-    for first, terms in _rows(returns):
-        cell = terms["r_sd"]
-        recorded = cell["recorded"] > 0
-        yield first + [
-            str(cell["seeds"]),
-            f"{cell['episodes_within_d_min']} of {cell['episodes']}" if recorded else NOT_RECORDED,
-            str(cell["episodes_zero_tc"]) if recorded else "",
-            *(_share_text(terms[term]) for term in ("r_sd", "r_ga")),
-        ]
+def _return_columns(cell: Cell, terms: dict[str, Cell]) -> list[str]:
+    recorded = cell["recorded"] > 0
+    return [
+        cell["where"],
+        str(cell["seeds"]),
+        f"{cell['episodes_within_d_min']} of {cell['episodes']}" if recorded else NOT_RECORDED,
+        str(cell["episodes_zero_tc"]) if recorded else "",
+        *(_share_text(terms[term]) for term in ("r_sd", "r_ga")),
+    ]
 
 
-def _gradient_rows(gradients: Sequence[Cell]) -> Iterator[list[str]]:
-    for (task, label, point), items in _rows(gradients):
-        cell = next(iter(items.values()))
-        fraction = items["l_hap_active"]["active_fraction"] if "l_hap_active" in items else None
-        yield [
-            task,
-            label,
-            f"{point} ({cell['step']})",
-            str(cell["seeds"]),
-            *(_share_text(items.get(item)) for item in GRADIENT_ITEMS),
-            "—" if fraction is None else _percent(fraction),
-        ]
+def _gradient_columns(cell: Cell, items: dict[str, Cell]) -> list[str]:
+    fraction = items.get("l_hap_active", {}).get("active_fraction")
+    return [
+        f"{cell['where']} ({cell['step']})",
+        str(cell["seeds"]),
+        *(_share_text(items.get(item)) for item in GRADIENT_ITEMS),
+        "—" if fraction is None else _percent(fraction),
+    ]
 
 
 def _bounded(cell: Cell | None) -> str:
-    """``max 2.1 % (mean 0.4 %) ✓``: the largest and the mean of a rule 1 ratio, marked
-    against its bound; – without ratios."""
+    """``max 2.1 % (mean 0.4 %) ✓``: a rule 1 ratio's largest and mean, marked; – without."""
     if cell is None:
         return "–"
     maximum, average = _percent(cell["share_max"]), _percent(cell["share_mean"])
     return f"max {maximum} (mean {average}){MARKS[cell['meets_criterion']]}"
 
 
-def _plateau_rows(scale: Sequence[Cell]) -> Iterator[list[str]]:
-    for first, items in _rows(scale):
-        cell = items["ga_of_success"]
-        idle = f"{cell['idle']} of {cell['episodes']} ({_percent(cell['idle'] / cell['episodes'])})"
-        mean_ga = "–" if cell["mean_ga"] is None else f"{cell['mean_ga']:.3f}"
-        yield first + [
-            str(cell["seeds"]),
-            idle,
-            mean_ga,
-            *(_bounded(items.get(item)) for item in RULE_ONE),
-        ]
-
-
-OTHER_VERDICTS = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
-"""How a verdict line names the cells the criterion does not judge."""
+def _plateau_columns(cell: Cell, items: dict[str, Cell]) -> list[str]:
+    idle, episodes = cell["idle"], cell["episodes"]
+    return [
+        cell["where"],
+        str(cell["seeds"]),
+        f"{idle} of {episodes} ({_percent(idle / episodes)})",
+        "–" if cell["mean_ga"] is None else f"{cell['mean_ga']:.3f}",
+        *(_bounded(items.get(item)) for item in RULE_ONE),
+    ]
 
 
 def _verdict(label: str, cells: Sequence[Cell], name: str) -> str:
     """One line: how many ``cells`` meet the criterion, which do not (``name`` filled in from
     the cell; more than 4: their count and range) and how many are not judged."""
-    no = [
-        (f"{name.format_map(cell)} {_percent(cell['share_mean'])}", cell["share_mean"])
-        for cell in cells
-        if cell["meets_criterion"] == "no"
-    ]
+    no = [cell for cell in cells if cell["meets_criterion"] == "no"]
+    below = [f"{name.format_map(cell)} {_percent(cell['share_mean'])}" for cell in no]
     other = Counter(cell["meets_criterion"] for cell in cells)
     decided = other.pop("yes", 0) + other.pop("no", 0)
-    if decided:
-        outcome = "does not meet the criterion" if no else "meets the criterion"
-        line = f"{label}: {outcome} — ≥ {100 * CRITERION:.0f} % in {decided - len(no)} of "
-        line += f"{decided} cells"
-    else:
+    outcome = "does not meet the criterion" if no else "meets the criterion"
+    share = f"≥ {100 * CRITERION:.0f} %"
+    line = f"{label}: {outcome} — {share} in {decided - len(no)} of {decided} cells"
+    if not decided:
         line = f"{label}: undecided (no cell where it acts and is recorded)"
     if len(no) > 4:
-        (low, _), *_, (high, _) = sorted(no, key=lambda pair: pair[1])
-        line += f"; below in {len(no)} cells, from {low} to {high}"
+        ranked = sorted(range(len(no)), key=lambda index: no[index]["share_mean"])
+        line += f"; below in {len(no)} cells, from {below[ranked[0]]} to {below[ranked[-1]]}"
     elif no:
-        line += "; below: " + ", ".join(text for text, _ in no)
+        line += "; below: " + ", ".join(below)
     if other:
-        counts = (f"{OTHER_VERDICTS.get(v, v)}: {n}" for v, n in sorted(other.items()))
-        line += "; " + ", ".join(counts)
+        names = {"n/a": "no episode within d_min", "inactive": "inactive (inside C_safe)"}
+        line += "; " + ", ".join(f"{names.get(v, v)}: {n}" for v, n in sorted(other.items()))
     return line + "."
 
 
-def _verdict_lines(reach: Sequence[list[Cell]], cells: Sequence[Cell]) -> list[str]:
-    """One line per mechanism: reach, r_sd, lambda_ga r_ga, lambda_sim L_sim, lambda_hap L_hap
-    (outside C_safe) and rule 1's two ratios, from the `_reach` groups and the other cells."""
+def _verdict_lines(rows: Sequence[Cell]) -> list[str]:
+    """One line per mechanism: reach, then each of `VERDICT_LABELS`' items."""
+    reach = [row for row in rows if row["section"] == "reach"]
+    judged = {(r["task"], r["method"]): r["covers_tc_range"] for r in reach}
+    judged = {key: value for key, value in judged.items() if value != "n/a"}
+    missing = [f"{task}/{method}" for (task, method), value in judged.items() if value == "no"]
     lines = []
-    covers = {(g[0]["task"], g[0]["method"]): g[0]["covers_tc_range"] for g in reach}
-    if pairs := [key for key, value in covers.items() if value != "n/a"]:
-        missing = [f"{task}/{method}" for task, method in pairs if covers[task, method] == "no"]
+    if judged:
         line = (
-            f"Reach: the one-episode reach covers the TC range on x and y for "
-            f"{sum(covers[key] == 'yes' for key in pairs)} of {len(pairs)} method–task pairs"
+            "Reach: the one-episode reach covers the TC range on x and y for "
+            f"{len(judged) - len(missing)} of {len(judged)} method–task pairs"
         )
         lines.append(line + (f"; not for {', '.join(missing)}." if missing else "."))
-    for item in ("r_sd", "r_ga", "l_sim", "l_hap_active"):
-        if judged := [cell for cell in cells if cell["item"] == item]:
-            where = "({where})" if item in RETURN_TERMS else "{where}"
-            lines.append(_verdict(VERDICT_LABELS[item], judged, "{task}/{method} " + where))
-    for item, bound in RULE_ONE.items():
-        if judged := [cell for cell in cells if cell["item"] == item]:
-            within = sum(cell["meets_criterion"] == "yes" for cell in judged)
-            top = max(judged, key=itemgetter("share_max"))
+    for item, label in VERDICT_LABELS.items():
+        cells = [row for row in rows if row["item"] == item]
+        if cells and item in RULE_ONE:
+            within = sum(cell["meets_criterion"] == "yes" for cell in cells)
+            top = max(cells, key=itemgetter("share_max"))
             lines.append(
-                f"{VERDICT_LABELS[item]}, measured on the policies' evaluation episodes: within "
-                f"{100 * bound:.0f} % in {within} of {len(judged)} cells; largest "
+                f"{label}, measured on the policies' evaluation episodes: within "
+                f"{100 * RULE_ONE[item]:.0f} % in {within} of {len(cells)} cells; largest "
                 f"{_percent(top['share_max'])} ({top['task']}/{top['method']}, {top['where']})."
             )
+        elif cells:
+            where = "({where})" if item in RETURN_TERMS else "{where}"
+            lines.append(_verdict(label, cells, "{task}/{method} " + where))
     return lines
 
 
@@ -460,15 +409,14 @@ INTRO = (
     "run (L_hap: over the samples outside C_safe, where it acts). ✓/✗ mark each cell."
 )
 
-Section = tuple[str, str, list[str], Callable[[Any], Iterator[list[str]]], str]
 
-SECTIONS: tuple[Section, ...] = (
+SECTIONS: tuple[tuple[str, str, list[str], Columns, str], ...] = (
     (
         "reach",
         "### Reach of a raw action in [-1, 1]",
-        ["Task", "Method", "Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
+        ["Adapts", "TC range x / y / z (m)", "One step min–max x / y / z (m)"]
         + ["One episode min–max x / y / z (m)", "Covers TC range (x, y)"],
-        _reach_rows,
+        _reach_columns,
         "Reach: one step = action scale × the smallest and largest row sum Σ_j |S_W,ij| over "
         "the adapted via-points (1 without S); one episode = summed over the steps that adapt "
         "a via-point (1 windowed, 2 at a window overlap, 3 global). ProMP-RRL: its residual, "
@@ -478,30 +426,22 @@ SECTIONS: tuple[Section, ...] = (
     (
         "return_share",
         "### Shaping shares of the return",
-        ["Task", "Method", "Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
+        ["Policy", "Seeds", "Episodes within d_min", "r_tc = 0 (left out)"]
         + ["\\|Σ r_sd\\| / \\|Σ r_tc\\| mean (median)"]
         + ["\\|Σ λ_ga r_ga\\| / \\|Σ r_tc\\| mean (median)"],
-        _return_rows,
+        _return_columns,
         "Per episode |Σ r_sd| / |Σ r_tc| and |Σ λ_ga r_ga| / |Σ r_tc| (the evaluation rows' "
         "return_sd, return_ga, return_tc), over the episodes whose minimum clearance is below "
         "the run's d_min, pooled over seeds; episodes with Σ r_tc = 0 (to within "
         f'{ZERO_TC:g}, rounding) have no ratio and are left out (counted). "{NOT_RECORDED}": '
-        "evaluation files written before those "
-        "columns.",
+        "evaluation files written before those columns.",
     ),
     (
         "gradient_share",
         "### Regulariser shares of the actor gradient",
-        [
-            "Task",
-            "Method",
-            "Point (step)",
-            "Seeds",
-            "λ_sim L_sim / Q",
-            "λ_hap L_hap / Q (all samples)",
-        ]
+        ["Point (step)", "Seeds", "λ_sim L_sim / Q", "λ_hap L_hap / Q (all samples)"]
         + ["λ_hap L_hap / Q outside C_safe", "Samples outside C_safe"],
-        _gradient_rows,
+        _gradient_columns,
         "grad_sim / grad_q, grad_hap / grad_q and grad_hap_active / grad_q of progress.csv "
         "(mean per-sample gradient norms on the actor's output, "
         "`RegularisedSAC.actor_loss_gradient_norms`), at the first, middle and last "
@@ -511,10 +451,10 @@ SECTIONS: tuple[Section, ...] = (
     (
         "reward_scale",
         "### The r_ga plateau and rule 1's ratios, measured",
-        ["Task", "Method", "Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
+        ["Policy", "Seeds", "Idle episodes", "Mean λ_ga r_ga in them"]
         + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * RULE_ONE['ga_of_success']:.0f} %)"]
         + [f"(b) idle return / the demo's mean r_tc (≤ {100 * RULE_ONE['idle_of_demo']:.0f} %)"],
-        _plateau_rows,
+        _plateau_columns,
         "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
         "task's progress weight — the policy did not do the task; the alignment reward it "
         "still collects is paid for moving the via-points along ∇d "
@@ -525,8 +465,8 @@ SECTIONS: tuple[Section, ...] = (
         "TCs under the run's scale); ✓ where the largest is within the bound.",
     ),
 )
-"""The Markdown's tables in order: (the cells' section, title, header, its rows from those
-cells, the definition written under it); rule 1's only where it has cells."""
+"""The Markdown's tables in order: (section, title, header after Task and Method, its
+columns of a row's cells, the definition under it); rule 1's only where it has cells."""
 
 
 def mechanism_texts(
@@ -534,17 +474,18 @@ def mechanism_texts(
 ) -> tuple[str, str, list[str]]:
     """(CSV text, Markdown text, verdict lines) of the ``reach`` rows and the ``cells`` of
     `mechanism_cells`; ``note`` closes the Markdown."""
-    reached = _reach(reach)
-    verdicts = _verdict_lines(reached, cells)
+    rows = [*_reach(reach), *cells]
+    verdicts = _verdict_lines(rows)
     markdown = f"## Mechanism table ({preset})\n\n{INTRO}\n\n"
-    for section, title, header, rows, definition in SECTIONS:
-        part = reached if section == "reach" else [c for c in cells if c["section"] == section]
+    for section, title, header, columns, definition in SECTIONS:
+        part = [row for row in rows if row["section"] == section]
         if part or section != "reward_scale":
-            markdown += f"{markdown_table(title, header, rows(part))}\n{definition}\n\n"
+            table = markdown_table(title, ["Task", "Method", *header], _rows(part, columns))
+            markdown += f"{table}\n{definition}\n\n"
     lines = ["", "### Verdicts", "", *(f"- {line}" for line in verdicts)]
     lines += ["", note + "."] if note else []
     csv_rows = [
         {key: f"{value:.6g}" if isinstance(value, float) else value for key, value in row.items()}
-        for row in [*(row for group in reached for row in group), *cells]
+        for row in rows
     ]
     return csv_text(csv_rows, CSV_COLUMNS), markdown + "\n".join(lines) + "\n", verdicts
