@@ -1,13 +1,11 @@
 """Table I (`simulation_table`) and Table I per run (`per_seed_rows`) of the evaluation the
 `Frames` hold: `TABLE_POLICY`'s (protocol v6, rule 6, docs/findings/protocol.md) or the final
 policy's. MinCl is `COLLISION_FREE_MINCL` (rule 5); `UNTRAINED_MARK` marks where no trained
-policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md).
-"""
+policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -102,8 +100,7 @@ POLICY_TITLES = {
 """How a table's title names the evaluation it reports."""
 
 
-@dataclass(frozen=True)
-class Cell:
+class Cell(NamedTuple):
     """One metric over seeds: mean, sample std, 95 % t-interval (NaN below two seeds), seeds."""
 
     mean: float
@@ -209,9 +206,8 @@ def _run_cells(row: dict[str, Any]) -> list[str]:
     step, free = row["policy_step"], row["collision_free_episodes"]
     policy = row["policy"] + ("" if step == "" else f" (step {step})")
     if row["beats_untrained"] is False:
-        policy += (
-            f" {UNTRAINED_MARK} (untrained {number_text(row['untrained_curve_success_rate'], 2)})"
-        )
+        untrained = number_text(row["untrained_curve_success_rate"], 2)
+        policy += f" {UNTRAINED_MARK} (untrained {untrained})"
     cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"]), policy]
     cells.append(str(free) or "–")
     for key, _ in PER_SEED_COLUMNS:

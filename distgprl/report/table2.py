@@ -1,7 +1,6 @@
 """Table II (hardware) and its twin-noise table from a preset's trial files: rates over all
 trials with the exact (Clopper-Pearson) 95 % interval, MinCl over the trials that moved the
-robot; the paper's protocol first, then the safety layer's settings.
-"""
+robot; the paper's protocol first, then the safety layer's settings."""
 
 from __future__ import annotations
 
