@@ -1,13 +1,11 @@
 """Table I (`simulation_table`) and Table I per run (`per_seed_rows`) of the evaluation the
 `Frames` hold: `TABLE_POLICY`'s (protocol v6, rule 6, docs/findings/protocol.md) or the final
 policy's. MinCl is `COLLISION_FREE_MINCL` (rule 5); `UNTRAINED_MARK` marks where no trained
-policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md).
-"""
+policy beat the untrained one (protocol v8, rule 2, docs/findings/environment-v8.md)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -41,9 +39,8 @@ METRICS = (
     ("completion_rate", "Completed"),
     ("mean_kinematic_retention", "KinRet"),
 )
-"""(summary field, label) per task: the paper's Success, Collision and MinCl, then MinCl over
-all episodes (a colliding one counts 0), the signed clearance's 5th percentile (m; negative:
-penetration depth), completion regardless of collision and kinematic retention."""
+"""(summary field, label) per task: the paper's three, MinCl over all episodes (a colliding one
+counts 0), the signed clearance's 5th percentile (m; negative: penetration), completion."""
 
 RATE_BOUNDS = (0.0, 1.0)
 """The range of a rate (``*_rate``): its interval is clipped to it."""
@@ -53,12 +50,6 @@ INTERVAL_METRICS = ("success_rate", "collision_rate")
 
 IQM_METRICS = (("success_rate", "Success IQM"), ("collision_rate", "Collision IQM"))
 """Metrics with an IQM column per task (`method_estimate`, one stratum; not in the LaTeX)."""
-
-BEATS_UNTRAINED = "beats_untrained"
-"""The best-policy summary field: whether the selected point beat the untrained step-0 one."""
-
-UNTRAINED_CURVE_SUCCESS = "untrained_curve_success_rate"
-"""The best-policy summary field: the untrained step-0 point's curve success (curve TCs)."""
 
 LATE_CURVE_POINTS = 5
 """How many of the last learning-curve evaluations `late_curve` reads."""
@@ -70,18 +61,8 @@ PER_SEED_COLUMNS = (
     ("late_curve_success", "Late curve succ"),
     ("late_curve_success_range", "Late curve range"),
 )
-"""Table I per run's metric columns: `METRICS`, the 95th percentile of the episodes' peak
-commanded joint speed, the share of episodes above the hardware safety layer's joint speed
-limit, and `late_curve`: how much the final policy depends on where training stopped."""
-
-PER_SEED_SUMMARY = (
-    "policy_step",
-    BEATS_UNTRAINED,
-    UNTRAINED_CURVE_SUCCESS,
-    "collision_free_episodes",
-    *(key for key, _ in PER_SEED_COLUMNS[:-2]),
-)
-"""The summary fields Table I per run copies (empty where a summary lacks one)."""
+"""Table I per run's metrics: `METRICS`, the episodes' peak commanded joint speed (95th
+percentile), the share above the safety layer's joint speed limit, `late_curve`."""
 
 ALL_COLLIDED = "– (all collided)"
 """MinCl's text where every episode collided (of the run; of every seed, in Table I)."""
@@ -119,8 +100,7 @@ POLICY_TITLES = {
 """How a table's title names the evaluation it reports."""
 
 
-@dataclass(frozen=True)
-class Cell:
+class Cell(NamedTuple):
     """One metric over seeds: mean, sample std, 95 % t-interval (NaN below two seeds), seeds."""
 
     mean: float
@@ -131,6 +111,12 @@ class Cell:
 
     def rate_interval(self) -> tuple[float, float]:
         return float(np.clip(self.ci_low, *RATE_BOUNDS)), float(np.clip(self.ci_high, *RATE_BOUNDS))
+
+    def columns(self, name: str) -> dict[str, float]:
+        """The CSV's ``<name>_mean``, ``_std``, ``_ci_low``, ``_ci_high`` (a rate's clipped)."""
+        low, high = self.rate_interval() if name.endswith("_rate") else (self.ci_low, self.ci_high)
+        parts = {"mean": self.mean, "std": self.std, "ci_low": low, "ci_high": high}
+        return {f"{name}_{part}": number for part, number in parts.items()}
 
     def text(self, digits: int = 2, interval: bool = False) -> str:
         """``mean ± std [low, high]`` (the interval with ``interval``, clipped); ``mean`` for one
@@ -162,10 +148,9 @@ def untrained_marks(summaries: list[dict[str, Any]]) -> dict[str, float]:
     """Of one cell's summaries: ``untrained_best_seeds``, how many record ``beats_untrained``
     false (a missing one is unknown, not counted), and ``untrained_curve_success_mean``, the
     mean of their untrained step-0 curve success (NaN: none)."""
-    beaten = [s for s in summaries if s.get(BEATS_UNTRAINED) is False]
-    figures = [
-        s[UNTRAINED_CURVE_SUCCESS] for s in beaten if s.get(UNTRAINED_CURVE_SUCCESS) is not None
-    ]
+    beaten = [s for s in summaries if s.get("beats_untrained") is False]
+    key = "untrained_curve_success_rate"
+    figures = [s[key] for s in beaten if s.get(key) is not None]
     mean = float(np.mean(figures)) if figures else float("nan")
     return {"untrained_best_seeds": len(beaten), "untrained_curve_success_mean": mean}
 
@@ -197,13 +182,16 @@ def late_curve(points: pd.DataFrame) -> dict[str, float | str]:
 
 
 def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
-    """One row per run, in task, table order and seed: `EVALUATION_KEYS`, `PER_SEED_SUMMARY`,
-    `late_curve`, training wall time (``train_wall_min``, min) and CPU time per RL step
-    (``train_cpu_ms_per_step``, ms; both empty for `demo`), ``numerics`` and ``config_hash``."""
+    """One row per run, in task, table order and seed: `EVALUATION_KEYS`, the summary's
+    ``fields`` ("" where it lacks one), `late_curve`, training wall time (``train_wall_min``, min)
+    and CPU time per RL step (``train_cpu_ms_per_step``, ms; both empty for `demo`), ``numerics``
+    and ``config_hash``."""
+    fields = ["policy_step", "beats_untrained", "untrained_curve_success_rate"]
+    fields += ["collision_free_episodes", *(key for key, _ in PER_SEED_COLUMNS[:-2])]
     rows = []
     for key, summary in summaries(frames.runs):
         row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))
-        row |= {name: summary.get(name, "") for name in PER_SEED_SUMMARY}
+        row |= {name: summary.get(name, "") for name in fields}
         row |= late_curve(frames.curves.get(key[:3], NO_POINTS))
         wall, cpu = summary.get("train_wall_time_s"), summary.get("cpu_s_per_step")
         row["train_wall_min"] = "" if wall is None else round(float(wall) / 60.0, 1)
@@ -217,13 +205,14 @@ def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
 def _run_cells(row: dict[str, Any]) -> list[str]:
     step, free = row["policy_step"], row["collision_free_episodes"]
     policy = row["policy"] + ("" if step == "" else f" (step {step})")
-    if row[BEATS_UNTRAINED] is False:
-        policy += f" {UNTRAINED_MARK} (untrained {number_text(row[UNTRAINED_CURVE_SUCCESS], 2)})"
+    if row["beats_untrained"] is False:
+        untrained = number_text(row["untrained_curve_success_rate"], 2)
+        policy += f" {UNTRAINED_MARK} (untrained {untrained})"
     cells = [row["task"].upper(), METHODS[row["method"]].label, str(row["seed"]), policy]
     cells.append(str(free) or "–")
-    for key, _ in PER_SEED_COLUMNS:  # a run's value: a cell of one seed (none where empty)
-        cell = aggregate([] if row[key] == "" else [row[key]])
-        cells.append(_metric_text(key, cell, 1, int(free == 0)))
+    for key, _ in PER_SEED_COLUMNS:
+        no_mincl = key == COLLISION_FREE_MINCL and row[key] == "" and free == 0
+        cells.append(ALL_COLLIDED if no_mincl else number_text(row[key], _digits(key)))
     return cells + [number_text(row[key], 1) for key in ("train_wall_min", "train_cpu_ms_per_step")]
 
 
@@ -233,7 +222,7 @@ def per_seed_texts(rows: list[dict[str, Any]], preset: str, policy: str) -> tupl
     header += [*(label for _, label in PER_SEED_COLUMNS), "Train wall (min)", "Train CPU (ms/step)"]
     title = f"Table I per run ({preset} preset, {POLICY_TITLES[policy]})"
     markdown = markdown_table(title, header, [_run_cells(row) for row in rows])
-    if any(row[BEATS_UNTRAINED] is False for row in rows):
+    if any(row["beats_untrained"] is False for row in rows):
         markdown += f"\n{UNTRAINED_RUN_NOTE}.\n"
     return csv_text(rows, list(rows[0])), markdown
 
@@ -245,9 +234,8 @@ def _task_row(task: str, method: str, seeds: list[dict[str, Any]]) -> dict[str, 
     row[f"{COLLISION_FREE_MINCL}_seeds"] = row[COLLISION_FREE_MINCL].n
     row["all_collided_seeds"] = sum(s.get("collision_free_episodes") == 0 for s in seeds)
     row |= untrained_marks(seeds)
-    scores = {(task, method): [{k: float(s[k]) for k, _ in IQM_METRICS} for s in seeds]}
     for key, _ in IQM_METRICS:
-        iqm = method_estimate(scores, [task], method, key, "iqm", BOOTSTRAP_SEED)
+        iqm = method_estimate({(task, method): seeds}, [task], method, key, "iqm", BOOTSTRAP_SEED)
         row |= {f"{key}_iqm": iqm.point, f"{key}_iqm_low": iqm.low, f"{key}_iqm_high": iqm.high}
     return {f"{task}_{name}": value for name, value in row.items()}
 
@@ -272,13 +260,16 @@ def simulation_table(
     return rows, tasks
 
 
+def _digits(key: str) -> int:
+    return 3 if "clearance" in key else 2  # clearances in metres, to the millimetre
+
+
 def _metric_text(key: str, cell: Cell, seeds: int, all_collided: int) -> str:
     """``key``'s text of a `Cell` over ``seeds``: MinCl with ``(n=k)`` where only k of them have
     one, `ALL_COLLIDED` where every episode of every seed collided."""
     if key == COLLISION_FREE_MINCL and cell.n == 0 and seeds and seeds == all_collided:
         return ALL_COLLIDED
-    digits = 3 if "clearance" in key else 2  # clearances in metres, to the millimetre
-    text = cell.text(digits, interval=key in INTERVAL_METRICS)
+    text = cell.text(_digits(key), interval=key in INTERVAL_METRICS)
     if key == COLLISION_FREE_MINCL and 0 < cell.n < seeds:
         text += f" (n={cell.n})"
     return text
@@ -299,18 +290,9 @@ def _task_cells(row: dict[str, Any], task: str, markdown: bool) -> list[str]:
 
 
 def _csv_row(row: dict[str, Any]) -> dict[str, Any]:
-    """``row`` with each `Cell` as its ``_mean``, ``_std``, ``_ci_low`` and ``_ci_high`` (a
-    rate's interval clipped to `RATE_BOUNDS`)."""
     out: dict[str, Any] = {}
     for name, value in row.items():
-        if not isinstance(value, Cell):
-            out[name] = value
-            continue
-        low, high = (
-            value.rate_interval() if name.endswith("_rate") else (value.ci_low, value.ci_high)
-        )
-        parts = {"mean": value.mean, "std": value.std, "ci_low": low, "ci_high": high}
-        out |= {f"{name}_{part}": number for part, number in parts.items()}
+        out |= value.columns(name) if isinstance(value, Cell) else {name: value}
     return out
 
 
@@ -327,7 +309,6 @@ def table1_texts(
     ``heading`` opens the Markdown's title (default ``Table I (<preset> preset, <policy>)``)."""
     heading = heading or f"Table I ({preset} preset, {POLICY_TITLES[policy]})"
     marked = any(row[f"{task}_untrained_best_seeds"] for row in rows for task in tasks)
-    table = [_csv_row(row) for row in rows]
     header = [
         "Method",
         *(f"{t.upper()} {name}" for t in tasks for _, name in METRICS + IQM_METRICS),
@@ -359,4 +340,5 @@ def table1_texts(
     columns = "l" + "c" * (len(tasks) * len(METRICS))
     footnote = f"{UNTRAINED_NOTE}." if marked else ""
     latex = latex_table(caption, label, columns, latex_header, latex_body, footnote)
+    table = [_csv_row(row) for row in rows]
     return csv_text(table, list(table[0]), significant=6), markdown, latex

@@ -1,11 +1,10 @@
 """Table II (hardware) and its twin-noise table from a preset's trial files: rates over all
 trials with the exact (Clopper-Pearson) 95 % interval, MinCl over the trials that moved the
-robot; the paper's protocol first, then the safety layer's settings.
-"""
+robot; the paper's protocol first, then the safety layer's settings."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,17 +25,14 @@ from distgprl.report.table1 import INTERVAL_METRICS
 from distgprl.schema import moved_robot, read_csv, trial_file_exclusion
 from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP, PROTOCOLS, file_protocol
 
-HARDWARE_TASK = "dbm"
-"""The task of the hardware cell (and of the policies its trials run)."""
-
 TrialFile = tuple[str, dict[str, Any], tuple[dict[str, Any], ...]]
 """(method, meta, rows) of one trial file (``meta``: backend, repair, twin sensor noise)."""
 
 
 @dataclass(frozen=True)
 class TrialFiles:
-    """The `TrialFile` of every file Table II counts (table order, then file name) and one
-    ``method/file (reason)`` per file of the preset it leaves out."""
+    """The files Table II counts (table order, then file name) and one ``method/file (reason)``
+    per file of the preset it leaves out."""
 
     counted: tuple[TrialFile, ...]
     excluded: tuple[str, ...]
@@ -49,10 +45,10 @@ class TrialFiles:
 
 
 def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
-    """The trial files ``<root>/hardware/<method>/*.csv`` of ``preset``'s policies Table II
-    counts: not those `trial_file_exclusion` refuses (for this checkout's presets also those of
-    a policy whose config hash is not the current one), and of the twin's repeats
-    (`_twin_setting`) only the file with the most trials, the newest on a tie."""
+    """The trial files ``<root>/hardware/<method>/*.csv`` of ``preset`` Table II counts: not
+    those `trial_file_exclusion` refuses (for this checkout's presets also a policy's whose
+    config hash is not the current one on the hardware task, DBM), and of the files of one
+    `_twin_setting` only the one with the most trials, the newest on a tie."""
     checked = known_preset(preset)
     files: list[tuple[str, dict[str, Any], tuple[dict[str, Any], ...], str]] = []
     excluded = []
@@ -62,19 +58,18 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
             if meta.get("preset") != preset:
                 continue
             seed, trainable = int(meta.get("seed", -1)), checked and METHODS[method].trainable
-            checked_hash = current_hash(HARDWARE_TASK, method, seed, preset) if trainable else None
-            reason = trial_file_exclusion(meta, checked_hash)
+            reason = trial_file_exclusion(
+                meta, current_hash("dbm", method, seed, preset) if trainable else None
+            )
             if reason:
                 excluded.append(f"{method}/{path.name} ({reason})")
             else:
                 files.append((method, meta, tuple(rows), path.name))
-    kept = {}  # twin setting: the name of its file with the most trials, the newest on a tie
-    for method, meta, _, name in sorted(files, key=lambda file: (len(file[2]), file[3])):
-        kept[_twin_setting(method, meta)] = name
+    ordered = sorted(files, key=lambda file: (len(file[2]), file[3]))  # the one kept last
+    kept = {_twin_setting(m, meta, name): name for m, meta, _, name in ordered}
     counted: list[TrialFile] = []
     for method, meta, trials, name in files:
-        setting = _twin_setting(method, meta)
-        if setting is None or kept[setting] == name:
+        if kept[setting := _twin_setting(method, meta, name)] == name:
             counted.append((method, meta, trials))
         else:
             excluded.append(
@@ -84,11 +79,11 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
     return TrialFiles(tuple(counted), tuple(excluded))
 
 
-def _twin_setting(method: str, meta: dict[str, Any]) -> tuple[Any, ...] | None:
-    """A twin file's setting (None on the robot: its trials are new executions). The twin draws
-    bar positions and sensor noise from the seed: two files of one setting run the same trials."""
+def _twin_setting(method: str, meta: dict[str, Any], name: str) -> tuple[Any, ...]:
+    """A twin file's setting, a robot file's ``(method, name)`` (its trials are new executions).
+    The twin draws bar positions and sensor noise from the seed: one setting, the same trials."""
     if meta.get("backend") != "twin":
-        return None
+        return (method, name)
     repair = (bool(meta.get("repair")), bool(meta.get("repair_push")))
     return (method, meta.get("seed"), file_protocol(meta), *repair, meta.get("sensor_noise") or 0)
 
@@ -107,10 +102,9 @@ def hardware_table(root: str | Path, preset: str) -> list[dict[str, Any]]:
 
 
 def repair_label(meta: dict[str, Any]) -> str:
-    """How a trial file's plans were handled: ``off`` (refused at once), ``retime`` (re-timed
-    when too fast, then refused if still unsafe), ``retime + push`` (via-points also pushed
-    along the distance field's gradient); ``–`` under the paper's protocol and for files
-    written before plan repair existed."""
+    """``off`` (unsafe plans refused), ``retime`` (re-timed, then refused if still unsafe),
+    ``retime + push`` (via-points also pushed off obstacles); ``–``: the paper's protocol, or a
+    file older than plan repair."""
     if "repair" not in meta or file_protocol(meta) == PAPER:
         return "–"
     if not meta["repair"]:
@@ -128,8 +122,12 @@ SETTING = ("method", "backend", "protocol", "repair", "sensor_noise")
 
 
 def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
-    """One row per `SETTING` of the trials of ``files``, the paper's protocol first within a
-    method and backend; ``setting``: ``paper`` or the safety layer's `repair_label`."""
+    """One row per `SETTING` of the counted trials (method, backend, then the paper's protocol
+    first): ``setting`` (``paper`` or the `repair_label`), ``trials``, ``refused`` and
+    ``protective_stops`` (failures without collision), ``success_rate`` and ``collision_rate``
+    with their exact 95 % ``_ci_low``/``_ci_high``, ``min_clearance_p5`` (m) over the
+    ``executed`` trials that moved the robot (NaN: none), ``perception_error_mm_median`` over the
+    trials' largest marker position errors (mm; NaN: none recorded)."""
     groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
     for method, meta, trial_rows in files.counted:
         for row in trial_rows:
@@ -145,11 +143,6 @@ def hardware_rows(files: TrialFiles) -> list[dict[str, Any]]:
 
 
 def _setting_row(key: tuple[str, ...], trials: list[dict[str, Any]]) -> dict[str, Any]:
-    """The row of one setting's trials. Refused trials and protective stops are failures without
-    collision, also counted apart; rates with their exact 95 % interval (``_ci_low``,
-    ``_ci_high``); ``min_clearance_p5`` (m) over the ``executed`` trials that moved the robot
-    (NaN if none did); ``perception_error_mm_median`` the median of each trial's largest marker
-    position error (mm; NaN where none recorded one)."""
     executed = [r for r in trials if moved_robot(r)]
     clearance = _finite(r["min_clearance"] for r in executed)
     errors = _finite(r.get("perception_error_mm") for r in trials)
@@ -171,7 +164,6 @@ def _setting_row(key: tuple[str, ...], trials: list[dict[str, Any]]) -> dict[str
 
 
 INTERVAL_FIELDS = [f"{key}_ci_{end}" for key in INTERVAL_METRICS for end in ("low", "high")]
-"""The CSV columns of the rates' exact 95 % intervals."""
 
 LABELS = {
     "trials": "Trials",
@@ -184,34 +176,22 @@ LABELS = {
 }
 """The label of each `hardware_rows` column the Markdown and LaTeX tables show."""
 
-PAPER_COLUMNS = ("trials", "success_rate", "collision_rate", "protective_stops", "min_clearance_p5")
-"""Table II's columns of the paper's protocol (protective stops: at the UR5e's own limits)."""
+SAFETY_COLUMNS = ("trials", "refused", "success_rate", "collision_rate", "min_clearance_p5")
 
-HARDWARE_COLUMNS = ("trials", "refused", "success_rate", "collision_rate", "min_clearance_p5")
-"""Table II's columns of each safety-layer setting."""
+GROUPS = {
+    "paper": (
+        "Paper",
+        ("trials", "success_rate", "collision_rate", "protective_stops", "min_clearance_p5"),
+    ),
+    "off": ("Safety layer, repair off", SAFETY_COLUMNS),
+    "retime": ("Safety layer, retime", SAFETY_COLUMNS),
+    "retime + push": ("Safety layer, retime + push", SAFETY_COLUMNS),
+    "–": ("Safety layer", SAFETY_COLUMNS),
+}
+"""Table II's column groups per ``setting`` in order: title, `LABELS` keys (the paper's
+protocol's protective stops: at the UR5e's own limits)."""
 
 NOISE_COLUMNS = ("perception_error_mm_median", "success_rate", "collision_rate")
-"""The robustness table's columns per sensor-noise level."""
-
-GROUP_TITLES = {
-    "paper": "Paper",
-    "off": "Safety layer, repair off",
-    "retime": "Safety layer, retime",
-    "retime + push": "Safety layer, retime + push",
-    "–": "Safety layer",
-}
-"""Column-group titles of Table II per ``setting``, in the groups' order."""
-
-HARDWARE_CAPTION = (
-    "Hardware trials (DBM). First columns: the paper's protocol — every trial executes the "
-    "policy's trajectory without a pre-flight check, only the UR5e's own joint speed "
-    "(pi rad/s) and acceleration (40 rad/s^2) limits apply, and a protective stop at them is "
-    "a failed trial (a collision only where the arm touched something). Then this project's "
-    "safety layer, repair off (refused at once) and retime: its pre-flight check against its "
-    "own, stricter limits; refused trials count as failures. Success and Collision with "
-    "the exact 95 % binomial interval over the trials; MinCl is over the trials that "
-    "moved the robot (n = their number where fewer than the trials; – if none did)"
-)
 
 
 def _cell(row: dict[str, Any] | None, key: str) -> str:
@@ -228,12 +208,22 @@ def _cell(row: dict[str, Any] | None, key: str) -> str:
     return number_text(row[key], 3) + moved
 
 
-def _wide(rows: list[dict[str, Any]], index: tuple[str, ...], column: str) -> dict[Any, Any]:
-    """{``index`` values: {``column`` value: row}} of ``rows``, in their order."""
+def _wide_cells(
+    rows: list[dict[str, Any]],
+    index: tuple[str, ...],
+    across: str,
+    groups: Sequence[tuple[Any, tuple[str, ...]]],
+) -> list[list[str]]:
+    """One line per ``index`` value of ``rows`` (in their order; the method by its label):
+    per (``across`` value, keys) of ``groups`` the `_cell` of each key."""
     wide: dict[tuple[Any, ...], dict[Any, dict[str, Any]]] = {}
     for row in rows:
-        wide.setdefault(tuple(row[name] for name in index), {})[row[column]] = row
-    return wide
+        wide.setdefault(tuple(row[name] for name in index), {})[row[across]] = row
+    return [
+        [METHODS[key[0]].label, *key[1:]]
+        + [_cell(found.get(value), k) for value, keys in groups for k in keys]
+        for key, found in wide.items()
+    ]
 
 
 def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | None:
@@ -248,11 +238,9 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     fields += ["trials", *INTERVAL_METRICS, *INTERVAL_FIELDS]
     header = ["Method", "Protocol / repair"]
     header += [f"Noise {level} {LABELS[key]}" for level in levels for key in NOISE_COLUMNS]
-    body = [
-        [METHODS[method].label, setting]
-        + [_cell(found.get(level), key) for level in levels for key in NOISE_COLUMNS]
-        for (method, setting), found in _wide(twin, ("method", "setting"), "sensor_noise").items()
-    ]
+    body = _wide_cells(
+        twin, ("method", "setting"), "sensor_noise", [(level, NOISE_COLUMNS) for level in levels]
+    )
     caption = (
         f"Digital twin robustness ({preset} preset policies, DBM): success and collision against "
         "the sensor-noise level (0 none, 1 mild, 2 strong: image noise, blur, exposure, marker "
@@ -266,30 +254,36 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
 def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> tuple[str, str, str]:
     """(CSV, Markdown, LaTeX) of Table II from `hardware_rows`: the CSV one row per row (MinCl
     empty where no trial moved), Markdown and LaTeX one per method, backend and noise level:
-    `PAPER_COLUMNS`, then `HARDWARE_COLUMNS` per safety-layer setting some row has; ``note``
-    (the files left out) under the Markdown."""
+    the `GROUPS` some row has; ``note`` (the files left out) under the Markdown."""
     fields = [*SETTING, "trials", "refused", "protective_stops"]
     fields += ["success_rate", "collision_rate", "min_clearance_p5", "executed", *INTERVAL_FIELDS]
     mincl = "min_clearance_p5"
     table = [row | {mincl: "" if np.isnan(row[mincl]) else row[mincl]} for row in rows]
     present = {row["setting"] for row in rows}
-    groups = [("paper", PAPER_COLUMNS)]
-    groups += [(s, HARDWARE_COLUMNS) for s in list(GROUP_TITLES)[1:] if s in present]
-    wide = _wide(rows, ("method", "backend", "sensor_noise"), "setting")
-    body = [
-        [METHODS[key[0]].label, *key[1:]]
-        + [_cell(wide[key].get(group), k) for group, keys in groups for k in keys]
-        for key in sorted(wide, key=lambda k: (TABLE_ORDER.index(k[0]), *k[1:]))
-    ]
+    groups = [(s, keys) for s, (_, keys) in GROUPS.items() if s == "paper" or s in present]
+    order = sorted(
+        rows, key=lambda r: (TABLE_ORDER.index(r["method"]), r["backend"], r["sensor_noise"])
+    )
+    body = _wide_cells(order, ("method", "backend", "sensor_noise"), "setting", groups)
     names = [LABELS[key] for _, keys in groups for key in keys]
     header = ["Method", "Backend", "Noise"]
-    header += [f"{GROUP_TITLES[g]}: {LABELS[k]}" for g, keys in groups for k in keys]
-    caption = f"{HARDWARE_CAPTION} ({preset} preset policies)"
+    header += [f"{GROUPS[g][0]}: {LABELS[k]}" for g, keys in groups for k in keys]
+    caption = (
+        "Hardware trials (DBM). First columns: the paper's protocol — every trial executes the "
+        "policy's trajectory without a pre-flight check, only the UR5e's own joint speed "
+        "(pi rad/s) and acceleration (40 rad/s^2) limits apply, and a protective stop at them is "
+        "a failed trial (a collision only where the arm touched something). Then this project's "
+        "safety layer, repair off (refused at once) and retime: its pre-flight check against its "
+        "own, stricter limits; refused trials count as failures. Success and Collision with "
+        "the exact 95 % binomial interval over the trials; MinCl is over the trials that "
+        f"moved the robot (n = their number where fewer than the trials; – if none did) ({preset} "
+        "preset policies)"
+    )
     markdown = markdown_table(f"Table II: {caption}", header, body)
     markdown += f"\n{note}.\n" if note else ""
     latex_caption = caption.replace(" %", "\\,\\%").replace("pi rad/s", "$\\pi$ rad/s")
     latex_caption = latex_caption.replace("s^2", "s$^2$")
-    titles = (f"\\multicolumn{{{len(keys)}}}{{c}}{{{GROUP_TITLES[g]}}}" for g, keys in groups)
+    titles = (f"\\multicolumn{{{len(keys)}}}{{c}}{{{GROUPS[g][0]}}}" for g, keys in groups)
     latex_header = [
         " & & & " + " & ".join(titles),
         " & ".join(["Method", "Backend", "Noise", *names]),
