@@ -34,6 +34,12 @@ def runs(success, collision, retention=0.5):
     ]
 
 
+def by_reading(results):
+    """{preset: {claim: its row}} of a `study_verdicts` frame."""
+    groups = results.groupby("preset", sort=False)
+    return {preset: {row.claim: row for row in group.itertuples()} for preset, group in groups}
+
+
 def both_tasks(methods):
     return {(task, m): r for task in ("dcp", "dbm") for m, r in methods.items()}
 
@@ -79,9 +85,9 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "operator-signal-uncoupled": worse,  # a control: no verdict reads it
     }
     results = study_verdicts([study], reference, runs_of.__getitem__, seed=0)
-    assert [r.reading.preset for r in results] == ["paper", *study.presets[:3]]
+    assert list(dict.fromkeys(results.preset)) == ["paper", *study.presets[:3]]
     assert [r.preset for r in study.claim_readings] == list(study.presets[:3])
-    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    verdict = by_reading(results)
     assert verdict["paper"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-unit"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-signal"][GLOBAL].verdict == REFUTED
@@ -101,7 +107,7 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "per-axis signal (v5), correlation only)" in across[HAP]
     )
     assert "under every reading," not in across[HAP]
-    assert markdown.count("\n| ") == 1 + len(results[0].verdicts)  # header + one row per claim
+    assert markdown.count("\n| ") == 1 + len(verdict["paper"])  # header + one row per claim
     assert "unit variance (v4): GPRL-D, GPRL-H" in markdown
 
 
@@ -142,7 +148,7 @@ def test_a_method_the_study_trains_but_has_not_run_is_awaited_not_untested():
     no run under a reading is NOT_RUN (awaited), not OUTSIDE."""
     study = get_study("operators")
     results = study_verdicts([study], both_tasks(FIELD), lambda preset: {}, seed=0)
-    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    verdict = by_reading(results)
     assert verdict["operator-unit"][GLOBAL].verdict == NOT_RUN
     assert verdict["operator-unit"][HAP].verdict == OUTSIDE
 
@@ -158,14 +164,14 @@ def test_a_reward_unit_reading_replaces_every_trained_method():
     assert {m for _, m in scores} == {"dist-gprl", "demo"}
     assert set(not_run) == set(FIELD) - {"dist-gprl"}
     results = study_verdicts([get_study("operators"), study], reference, lambda p: {}, seed=0)
-    assert [r.reading.preset for r in results] == [
+    assert list(dict.fromkeys(results.preset)) == [
         "paper",
         "operator-unit",
         "operator-signal",
         "operator-correlation",
         "reward-unit-10",
     ]
-    assert {v.verdict for v in results[-1].verdicts} == {NOT_RUN}
+    assert set(results[results.preset == "reward-unit-10"].verdict) == {NOT_RUN}
 
 
 def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
@@ -200,7 +206,7 @@ def test_with_two_studies_table_one_is_named_by_every_studied_constant():
     same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
     runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
     results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
-    assert results[0].reading == both
+    assert (results.reading[0], results.preset[0]) == (both.label, both.preset)
     csv_text, _ = robustness_texts(results, "paper")
     assert "zero-mean GP (Table I)" not in csv_text
     other = replace(reward, reference=replace(reward.reference, preset="ci"))
@@ -229,8 +235,9 @@ def test_a_verdict_across_readings_with_different_seed_counts_says_so():
     reference = both_tasks(FIELD)
     two = {key: value[:2] for key, value in both_tasks({"dist-gprl": FIELD["dist-gprl"]}).items()}
     results = study_verdicts([study], reference, lambda preset: two, seed=0)
-    assert results[0].seeds == (("dcp", 5), ("dbm", 5))
-    assert results[1].seeds == (("dcp", 2), ("dbm", 2))
+    seeds = dict(zip(results.preset, results.seeds, strict=True))
+    assert seeds["paper"] == (("dcp", 5), ("dbm", 5))
+    assert seeds["operator-unit"] == (("dcp", 2), ("dbm", 2))
     csv_text, markdown = robustness_texts(results, "paper")
     assert "at unequal seeds" in csv_text
     assert (
