@@ -9,16 +9,8 @@ from collections.abc import Callable, Hashable, Mapping, Sequence
 
 import pandas as pd
 
+from distgprl.report import claims
 from distgprl.report.aggregate import ALL_TASKS, BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
-from distgprl.report.claims import (
-    CLAIMS,
-    FEW_SEEDS,
-    NO_RUNS,
-    Row,
-    evaluate_claims,
-    labels,
-    records,
-)
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
@@ -26,7 +18,7 @@ from distgprl.studies import TABLE_ONE, Reading, Study
 NOT_RUN = "not run under this reading"  # the study trains the method: run it
 OUTSIDE = "not tested by this study"  # the study does not train it: no run will come
 UNEQUAL_SEEDS = "at unequal seeds"
-PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
+PENDING = (claims.NO_RUNS, claims.FEW_SEEDS, NOT_RUN)
 
 CSV_FIELDS = ("claim", "reading", "preset", "verdict", "detail")
 """Columns of ``claims_robustness_<preset>.csv``: per claim, a row per reading (its overall
@@ -57,20 +49,6 @@ def reference_reading(studies: Sequence[Study]) -> Reading:
     return Reading(presets.pop(), f"Table I ({'; '.join(values)})")
 
 
-def _not_run(study: Study, reading: Reading, lacking: list[str]) -> tuple[str, str]:
-    """(verdict, detail) of a claim reading the methods ``lacking`` (no run under ``reading``):
-    `NOT_RUN` where the study trains them, `OUTSIDE` where it does not."""
-    outside = [m for m in lacking if m not in study.methods]
-    detail = f"{labels(lacking)} under {reading.preset}: the reading changes it"
-    if not outside:
-        return NOT_RUN, detail + "; run it"
-    trained = labels(study.methods)
-    return (
-        OUTSIDE,
-        detail + f", and the {study.name} study trains {trained} only (not {labels(outside)})",
-    )
-
-
 def _verdicts(
     scores: Scores,
     seed: int,
@@ -81,16 +59,21 @@ def _verdicts(
     """A row per claim: ``claim``, its overall ``verdict`` and ``detail`` under ``reading``
     (label), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the methods it acts on
     without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task)."""
-    claims = evaluate_claims(scores, seed)
-    rows = records(claims[claims.task == ALL_TASKS])
+    frame = claims.evaluate_claims(scores, seed)
+    rows = claims.records(frame[frame.task == ALL_TASKS])
     seeds = tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks_of(scores))
     name = study.name if study else ""
-    for row, (_, _, _, needs) in zip(rows, CLAIMS, strict=True):
+    for row, (_, _, _, needs) in zip(rows, claims.CLAIMS, strict=True):
+        row |= dict(reading=reading.label, preset=reading.preset, study=name)
+        row |= dict(not_run=not_run, seeds=seeds)
         lacking = [m for m in needs if m in not_run]
-        if study and lacking:
-            row["verdict"], row["detail"] = _not_run(study, reading, lacking)
-        row |= dict(reading=reading.label, preset=reading.preset, study=name, seeds=seeds)
-        row |= {"not_run": not_run}
+        if not study or not lacking:
+            continue
+        outside = [m for m in lacking if m not in study.methods]
+        row["verdict"] = OUTSIDE if outside else NOT_RUN
+        row["detail"] = f"{claims.labels(lacking)} under {reading.preset}: the reading changes it"
+        trains = f", and the {name} study trains {claims.labels(study.methods)} only"
+        row["detail"] += f"{trains} (not {claims.labels(outside)})" if outside else "; run it"
     return pd.DataFrame(rows)
 
 
@@ -146,12 +129,12 @@ def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
     per_study = len(studies) > 1
     groups = [(f"across {s}", ("", s)) for s in studies if per_study]
     groups.append(("across", ("", *studies)))
-    readings = records(results.drop_duplicates("reading"))
+    readings = claims.records(results.drop_duplicates("reading"))
     seeds = {r["reading"]: r["seeds"] for r in readings}
-    csv_rows: list[Row] = []
+    csv_rows: list[claims.Row] = []
     rows = []
     for _, group in results.groupby("claim", sort=False):
-        own = records(group)
+        own = claims.records(group)
         claim = own[0]["claim"]
         across = {
             label: across_readings(
@@ -194,7 +177,7 @@ def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
             "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
             "verdict there may be the seed count's.\n"
         )
-    missing = [f"{r['reading']}: {labels(r['not_run'])}" for r in readings if r["not_run"]]
+    missing = [f"{r['reading']}: {claims.labels(r['not_run'])}" for r in readings if r["not_run"]]
     if missing:
         markdown += (
             "\nMethods a reading acts on without runs under it (the claims reading them are "
