@@ -51,24 +51,17 @@ def records(frame: pd.DataFrame) -> list[Row]:
     return cast(list[Row], frame.to_dict("records"))
 
 
-def _judge(
-    tasks: list[str],
-    value: Estimate,
-    read: list[Estimate],
-    reproduced: bool,
-    refuted: bool,
-    detail: str = "",
-) -> Row:
-    """The verdict on ``tasks`` (one task, or `ALL_TASKS` pooled) of a rule whose estimates
-    ``read`` decide it; `NO_RUNS` or `FEW_SEEDS` while one lacks runs or an interval."""
+def _judge(own: Estimate, read: list[Estimate], holds: bool, fails: bool, detail: str = "") -> Row:
+    """The row (no task) of a rule whose estimates ``read`` decide it: reproduced if it
+    ``holds``, refuted if it ``fails``; `NO_RUNS` or `FEW_SEEDS` while one lacks runs or an
+    interval."""
     if any(not e.seeds for e in read):
         verdict = NO_RUNS
     elif any(not e.has_interval for e in read):
         verdict = FEW_SEEDS
     else:
-        verdict = REPRODUCED if reproduced else REFUTED if refuted else INCONCLUSIVE
-    task = tasks[0] if len(tasks) == 1 else ALL_TASKS
-    return {"task": task, "estimate": value, "verdict": verdict, "detail": detail}
+        verdict = REPRODUCED if holds else REFUTED if fails else INCONCLUSIVE
+    return {"estimate": own, "verdict": verdict, "detail": detail}
 
 
 def combine(per_task: Sequence[tuple[str, str]]) -> str:
@@ -78,13 +71,12 @@ def combine(per_task: Sequence[tuple[str, str]]) -> str:
         return NO_RUNS
     if any(v not in (REPRODUCED, REFUTED, INCONCLUSIVE) for v in verdicts):
         return FEW_SEEDS
-    reproducing = [task.upper() for task, v in per_task if v == REPRODUCED]
-    refuting = [task.upper() for task, v in per_task if v == REFUTED]
-    if reproducing and refuting:
+    deciding = {w: [task.upper() for task, v in per_task if v == w] for w in (REPRODUCED, REFUTED)}
+    if all(deciding.values()):
         return TASKS_DISAGREE
-    for word, deciding in ((REPRODUCED, reproducing), (REFUTED, refuting)):
-        if deciding:
-            return word if len(deciding) == len(verdicts) else f"{word} on {', '.join(deciding)}"
+    for word, tasks in deciding.items():
+        if tasks:
+            return word if len(tasks) == len(verdicts) else f"{word} on {', '.join(tasks)}"
     return INCONCLUSIVE
 
 
@@ -109,7 +101,7 @@ def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: s
         learned = [f"{short_label(m)} {np.isfinite(d).sum()}/{len(d)}" for m, d in drops.items()]
         parts.append(f"runs that learned: {', '.join(learned)}")
     low, high = estimate.low, estimate.high
-    return _judge(tasks, estimate, [estimate], low > 0.5, high < 0.5, ", ".join(parts))
+    return _judge(estimate, [estimate], low > 0.5, high < 0.5, ", ".join(parts))
 
 
 def extreme_verdict(scores: Scores, tasks: list[str], seed: int, method: str, key: str) -> Row:
@@ -122,7 +114,7 @@ def extreme_verdict(scores: Scores, tasks: list[str], seed: int, method: str, ke
     others = list(estimates.values())
     highest = all(_above(own, other) for other in others)
     beaten = any(_above(other, own) for other in others)
-    return _judge(tasks, own, [own, *others], highest, beaten, detail)
+    return _judge(own, [own, *others], highest, beaten, detail)
 
 
 def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
@@ -141,7 +133,7 @@ def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
     )
     shown = detail if success[method].seeds and success[PROPOSED].seeds else ""
     read = [*success.values(), *collision.values()]
-    return _judge(tasks, collision[method], read, conservative, bold, shown)
+    return _judge(collision[method], read, conservative, bold, shown)
 
 
 def labels(methods: Sequence[str]) -> str:
@@ -171,44 +163,36 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
     )
     shown = detail if all(e.has_interval for e in read) else ""
     own = iqm["mean_kinematic_retention"][PROPOSED]
-    return _judge(tasks, own, read, balances, bool(dominated_by[PROPOSED]), shown)
+    return _judge(own, read, balances, bool(dominated_by[PROPOSED]), shown)
 
 
-Rule = Callable[[Scores, list[str], int], Row]
-"""A claim's test, ``rule(scores, tasks, seed)``, on one task or several pooled."""
+Claim = tuple[str, str, Callable[[Scores, list[str], int], Row], tuple[str, ...]]
+"""(claim, test in words, its rule ``rule(scores, tasks, seed)`` on one task or several
+pooled, the methods whose runs it reads)."""
 
-Claim = tuple[str, str, Rule, tuple[str, ...]]
-"""A claim: (claim, test in words, rule, the methods whose runs it reads)."""
+MEASURES = {
+    "success_rate": "success",
+    "collision_rate": "fewer collisions",
+    "steps_to_gain": "fewer steps until the curve holds 0.2 above the untrained policy's",
+    "learned_drop": "smaller mean drop of curve success once learned (never learned: worst)",
+    "learning_auc": "larger mean gain of curve success over the untrained policy's",
+}
+"""What a PoI claim's score measures, as its test says."""
 
 
-def _poi_claim(claim: str, versus: str, key: str, measure: str) -> Claim:
-    test = f"PoI of Dist-GPRL over {short_label(versus)}, {measure}"
+def _poi_claim(claim: str, versus: str, key: str) -> Claim:
+    test = f"PoI of Dist-GPRL over {short_label(versus)}, {MEASURES[key]}"
     return claim, test, partial(poi_verdict, versus=versus, key=key), (PROPOSED, versus)
 
 
 CLAIMS: tuple[Claim, ...] = (
-    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
+    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate"),
+    _poi_claim("The distance rewards lower collisions", "gprl-h", "collision_rate"),
+    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate"),
+    _poi_claim("The HAP prior speeds convergence", "gprl-d", "steps_to_gain"),
+    _poi_claim("The covariance transform improves stability", "dist-gprl-nocov", "learned_drop"),
     _poi_claim(
-        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
-    ),
-    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
-    _poi_claim(
-        "The HAP prior speeds convergence",
-        "gprl-d",
-        "steps_to_gain",
-        "fewer steps until the curve holds 0.2 above the untrained policy's",
-    ),
-    _poi_claim(
-        "The covariance transform improves stability",
-        "dist-gprl-nocov",
-        "learned_drop",
-        "smaller mean drop of curve success once learned (never learned: worst)",
-    ),
-    _poi_claim(
-        "The covariance transform improves sample efficiency",
-        "dist-gprl-nocov",
-        "learning_auc",
-        "larger mean gain of curve success over the untrained policy's",
+        "The covariance transform improves sample efficiency", "dist-gprl-nocov", "learning_auc"
     ),
     (
         "Dist-GPRL has the best success",
@@ -245,7 +229,7 @@ def _waiting_for(scores: Scores, tasks: list[str], needs: tuple[str, ...]) -> st
     missing = []
     for method in needs:
         lacking = [task.upper() for task in tasks if not scores.get((task, method))]
-        if not tasks or len(lacking) == len(tasks):
+        if len(lacking) == len(tasks):
             missing.append(short_label(method))
         elif lacking:
             missing.append(f"{short_label(method)} ({', '.join(lacking)})")
@@ -258,14 +242,12 @@ def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> pd.DataFrame:
     tasks = tasks_of(scores)
     rows = []
     for claim, test, rule, needs in CLAIMS:
-        per_task = [rule(scores, [task], seed) for task in tasks]
+        per_task = [{"task": task, **rule(scores, [task], seed)} for task in tasks]
         pooled = rule(scores, tasks, seed)["estimate"] if len(tasks) > 1 else _NONE
-        overall = combine([(row["task"], row["verdict"]) for row in per_task])
-        detail = _waiting_for(scores, tasks, needs) if overall == NO_RUNS else ""
-        per_task.append(
-            {"task": ALL_TASKS, "estimate": pooled, "verdict": overall, "detail": detail}
-        )
-        rows += [{"claim": claim, "test": test} | row for row in per_task]
+        verdict = combine([(row["task"], row["verdict"]) for row in per_task])
+        detail = _waiting_for(scores, tasks, needs) if verdict == NO_RUNS else ""
+        overall = {"task": ALL_TASKS, "estimate": pooled, "verdict": verdict, "detail": detail}
+        rows += [{"claim": claim, "test": test} | row for row in [*per_task, overall]]
     return pd.DataFrame(rows)
 
 
