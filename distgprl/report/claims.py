@@ -1,7 +1,6 @@
 """The paper's claims, each tested by one statistic of the runs on each task, the estimate
 pooling the tasks beside, and an overall verdict combined from the tasks' (`combine`).
-Rules: docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them".
-"""
+Rules: docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them"."""
 
 from __future__ import annotations
 
@@ -43,18 +42,18 @@ BALANCE_AXES = {"success_rate": True, "collision_rate": False, "mean_kinematic_r
 _NONE = Estimate(np.nan, np.nan, np.nan, ())
 
 Row = dict[str, Any]
-"""A claim on one task or `ALL_TASKS`: ``task``, ``estimate`` (an `Estimate`), ``verdict``,
-``detail`` (what else the rule read)."""
+"""A claim's ``task`` (or `ALL_TASKS`), ``estimate``, ``verdict`` and ``detail`` (what else
+the rule read)."""
 
 
 def records(frame: pd.DataFrame) -> list[Row]:
+    """The frame's rows as dicts."""
     return cast(list[Row], frame.to_dict("records"))
 
 
 def _judge(own: Estimate, read: list[Estimate], holds: bool, fails: bool, detail: str = "") -> Row:
-    """The row (no task) of a rule whose estimates ``read`` decide it: reproduced if it
-    ``holds``, refuted if it ``fails``; `NO_RUNS` or `FEW_SEEDS` while one lacks runs or an
-    interval."""
+    """A rule's row (no task yet): reproduced if it ``holds``, refuted if it ``fails``;
+    `NO_RUNS` or `FEW_SEEDS` while an estimate it ``read`` lacks runs or an interval."""
     if any(not e.seeds for e in read):
         verdict = NO_RUNS
     elif any(not e.has_interval for e in read):
@@ -167,8 +166,8 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
 
 
 Claim = tuple[str, str, Callable[[Scores, list[str], int], Row], tuple[str, ...]]
-"""(claim, test in words, its rule ``rule(scores, tasks, seed)`` on one task or several
-pooled, the methods whose runs it reads)."""
+"""(claim, test in words, rule(scores, tasks, seed) on one task or several pooled, the
+methods whose runs it reads)."""
 
 MEASURES = {
     "success_rate": "success",
@@ -277,7 +276,7 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
                 *(f"{_text(row['estimate'])}: **{row['verdict']}**" for row in per_task),
                 *([_text(overall["estimate"])] if len(tasks) > 1 else []),
                 f"**{overall['verdict']}**",
-                "; ".join([*also, overall["detail"]] if overall["detail"] else also) or "–",
+                "; ".join(filter(None, [*also, overall["detail"]])) or "–",
             ]
         )
     caption = (

@@ -1,7 +1,6 @@
 """Claims per reading: every claim of `distgprl.report.claims` tested under Table I's reading
 and each study reading (`study_verdicts`), and judged across them (`across_readings`).
-Rules: docs/findings/protocol.md, "The claims per reading".
-"""
+Rules: docs/findings/protocol.md, "The claims per reading"."""
 
 from __future__ import annotations
 
