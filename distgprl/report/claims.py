@@ -85,7 +85,6 @@ def _above(a: Estimate, b: Estimate, higher_is_better: bool = True) -> bool:
 
 
 def _iqms(scores: Scores, tasks: list[str], key: str, seed: int) -> dict[str, Estimate]:
-    """{method: its ``key`` IQM estimate on ``tasks``} for every method of `RANKED`."""
     return {m: method_estimate(scores, tasks, m, key, "iqm", seed) for m in RANKED}
 
 

@@ -49,15 +49,12 @@ def reference_reading(studies: Sequence[Study]) -> Reading:
 
 
 def _verdicts(
-    scores: Scores,
-    seed: int,
-    reading: Reading,
-    study: Study | None = None,
-    not_run: tuple[str, ...] = (),
+    reference: Scores, runs: Scores, seed: int, reading: Reading, study: Study | None = None
 ) -> pd.DataFrame:
     """A row per claim: ``claim``, its overall ``verdict`` and ``detail`` under ``reading``
-    (label), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the methods it acts on
-    without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task)."""
+    (label; ``runs`` its study's), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the
+    methods it acts on without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task)."""
+    scores, not_run = reading_scores(reference, runs, study.acted_on) if study else (reference, ())
     frame = claims.evaluate_claims(scores, seed)
     rows = claims.records(frame[frame.task == ALL_TASKS])
     seeds = tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks_of(scores))
@@ -86,11 +83,10 @@ def study_verdicts(
     readings; ``runs_of(preset)`` gives a study preset's scores."""
     if not studies:
         raise ValueError("no study to read")
-    frames = [_verdicts(reference, seed, reference_reading(studies))]
+    frames = [_verdicts(reference, {}, seed, reference_reading(studies))]
     for study in studies:
         for reading in study.claim_readings:
-            scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
-            frames.append(_verdicts(scores, seed, reading, study, not_run))
+            frames.append(_verdicts(reference, runs_of(reading.preset), seed, reading, study))
     return pd.concat(frames, ignore_index=True)
 
 
@@ -165,17 +161,16 @@ def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
             "the last column judges them all."
         )
     markdown = markdown_table(intro, [*header, "Across readings"], rows)
-    if readings[0]["seeds"]:
-        tasks = " / ".join(task.upper() for task, _ in readings[0]["seeds"])
-        counts = "; ".join(
-            f"{r['reading']} {' / '.join(str(n) for _, n in r['seeds'])}" for r in readings
-        )
-        markdown += (
-            f"\nSeeds of Dist-GPRL per reading ({tasks}): {counts}. A verdict "
-            f"across readings ending '{UNEQUAL_SEEDS}' compares readings with different "
-            "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
-            "verdict there may be the seed count's.\n"
-        )
+    tasks = " / ".join(task.upper() for task, _ in readings[0]["seeds"])
+    counts = "; ".join(
+        f"{r['reading']} {' / '.join(str(n) for _, n in r['seeds'])}" for r in readings
+    )
+    markdown += (
+        f"\nSeeds of Dist-GPRL per reading ({tasks}): {counts}. A verdict "
+        f"across readings ending '{UNEQUAL_SEEDS}' compares readings with different "
+        "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
+        "verdict there may be the seed count's.\n"
+    )
     missing = [f"{r['reading']}: {claims.labels(r['not_run'])}" for r in readings if r["not_run"]]
     if missing:
         markdown += (
