@@ -98,8 +98,7 @@ def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: s
         drops = {m: strata(scores, tasks, m, "learned_drop")[0] for m in (PROPOSED, versus)}
         learned = [f"{short_label(m)} {np.isfinite(d).sum()}/{len(d)}" for m, d in drops.items()]
         parts.append(f"runs that learned: {', '.join(learned)}")
-    low, high = estimate.low, estimate.high
-    return _judge(estimate, [estimate], low > 0.5, high < 0.5, ", ".join(parts))
+    return _judge(estimate, [estimate], estimate.low > 0.5, estimate.high < 0.5, ", ".join(parts))
 
 
 def extreme_verdict(scores: Scores, tasks: list[str], seed: int, method: str, key: str) -> Row:
@@ -267,17 +266,12 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
     cells = []
     for _, group in frame.groupby(["claim", "test"], sort=False):
         *per_task, overall = records(group)
-        also = [f"{row['task'].upper()}: {row['detail']}" for row in per_task if row["detail"]]
-        cells.append(
-            [
-                overall["claim"],
-                overall["test"],
-                *(f"{_text(row['estimate'])}: **{row['verdict']}**" for row in per_task),
-                *([_text(overall["estimate"])] if len(tasks) > 1 else []),
-                f"**{overall['verdict']}**",
-                "; ".join(filter(None, [*also, overall["detail"]])) or "–",
-            ]
-        )
+        shown = [f"{_text(row['estimate'])}: **{row['verdict']}**" for row in per_task]
+        shown += [_text(overall["estimate"])] if len(tasks) > 1 else []
+        notes = [f"{row['task'].upper()}: {row['detail']}" for row in per_task if row["detail"]]
+        also = "; ".join(filter(None, [*notes, overall["detail"]])) or "–"
+        verdict = f"**{overall['verdict']}**"
+        cells.append([overall["claim"], overall["test"], *shown, verdict, also])
     caption = (
         f"Claims of the paper ({preset} preset): the verdict on each task, then the overall "
         f"verdict combined from the tasks' (reproduced only if no task refutes; 'the tasks "
