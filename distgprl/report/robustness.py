@@ -51,25 +51,28 @@ def reference_reading(studies: Sequence[Study]) -> Reading:
 def _verdicts(
     reference: Scores, runs: Scores, seed: int, reading: Reading, study: Study | None = None
 ) -> pd.DataFrame:
-    """A row per claim: ``claim``, its overall ``verdict`` and ``detail`` under ``reading``
-    (label; ``runs`` its study's), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the
-    methods it acts on without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task)."""
+    """`evaluate_claims`' rows under ``reading`` (``runs`` its study's runs) with ``reading``
+    (label), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the methods it acts on
+    without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task); a claim reading a
+    method of ``not_run`` keeps its `ALL_TASKS` row alone, `NOT_RUN` or `OUTSIDE`."""
     scores, not_run = reading_scores(reference, runs, study.acted_on) if study else (reference, ())
-    frame = claims.evaluate_claims(scores, seed)
-    rows = claims.records(frame[frame.task == ALL_TASKS])
     seeds = tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks_of(scores))
     name = study.name if study else ""
-    for row, (_, _, _, needs) in zip(rows, claims.CLAIMS, strict=True):
+    needs = {claim: methods for claim, _, _, methods in claims.CLAIMS}
+    rows = []
+    for row in claims.records(claims.evaluate_claims(scores, seed)):
         row |= dict(reading=reading.label, preset=reading.preset, study=name)
         row |= dict(not_run=not_run, seeds=seeds)
-        lacking = [m for m in needs if m in not_run]
-        if not study or not lacking:
-            continue
-        outside = [m for m in lacking if m not in study.methods]
-        row["verdict"] = OUTSIDE if outside else NOT_RUN
-        row["detail"] = f"{claims.labels(lacking)} under {reading.preset}: the reading changes it"
-        trains = f", and the {name} study trains {claims.labels(study.methods)} only"
-        row["detail"] += f"{trains} (not {claims.labels(outside)})" if outside else "; run it"
+        lacking = [m for m in needs[row["claim"]] if m in not_run]
+        if study and lacking:
+            if row["task"] != ALL_TASKS:
+                continue  # no estimate per task of a claim reading a method without a run
+            outside = [m for m in lacking if m not in study.methods]
+            detail = f"{claims.labels(lacking)} under {reading.preset}: the reading changes it"
+            trains = f", and the {name} study trains {claims.labels(study.methods)} only"
+            detail += f"{trains} (not {claims.labels(outside)})" if outside else "; run it"
+            row |= {"estimate": None, "verdict": OUTSIDE if outside else NOT_RUN, "detail": detail}
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -120,6 +123,7 @@ def across_readings(
 def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
     """(CSV, Markdown) of the claims per reading (`study_verdicts`): a column per reading, then
     with several studies one per study, the verdict across them all last."""
+    results = results[results.task == ALL_TASKS]
     studies = list(dict.fromkeys(s for s in results.study if s))
     per_study = len(studies) > 1
     groups = [(f"across {s}", ("", s)) for s in studies if per_study]

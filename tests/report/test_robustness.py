@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from distgprl.report.aggregate import ALL_TASKS
 from distgprl.report.claims import NO_RUNS, REFUTED, REPRODUCED
 from distgprl.report.robustness import (
     NOT_RUN,
@@ -35,8 +36,8 @@ def runs(success, collision, retention=0.5):
 
 
 def by_reading(results):
-    """{preset: {claim: its row}} of a `study_verdicts` frame."""
-    groups = results.groupby("preset", sort=False)
+    """{preset: {claim: its overall row}} of a `study_verdicts` frame."""
+    groups = results[results.task == ALL_TASKS].groupby("preset", sort=False)
     return {preset: {row.claim: row for row in group.itertuples()} for preset, group in groups}
 
 
@@ -73,7 +74,8 @@ def test_a_reading_replaces_only_the_methods_the_operator_acts_on():
 def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
     """Dist-GPRL beats Global under Table I's operator (0.9 vs 0.3) and loses under one study
     reading (0.1): the claim is reproduced there, refuted here, and reading-dependent across;
-    a claim needing GPRL-D is not run under the study readings, so it is never robust."""
+    a claim needing GPRL-D is not run under the study readings, so it is never robust. Each
+    reading keeps its per-task estimates, except a claim not run under it."""
     study = get_study("operators")
     reference = both_tasks(FIELD)
     worse = both_tasks({"dist-gprl": runs(0.1, 0.8)})
@@ -95,6 +97,14 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
     assert verdict["operator-unit"][HAP].verdict == OUTSIDE  # the study trains Dist-GPRL only
     assert "GPRL-D under operator-unit" in verdict["operator-unit"][HAP].detail
     assert "trains Dist-GPRL only" in verdict["operator-unit"][HAP].detail
+    signal = results[(results.preset == "operator-signal") & (results.claim == GLOBAL)]
+    assert [(row.task, row.estimate.point) for row in signal.itertuples()][:2] == [
+        ("dcp", 0.0),
+        ("dbm", 0.0),
+    ]  # each task's PoI under the reading: Dist-GPRL at 0.1 below Global at 0.3
+    assert set(results[results.claim == HAP].task) == {"dcp", "dbm", ALL_TASKS}
+    unit_hap = results[(results.preset == "operator-unit") & (results.claim == HAP)]
+    assert list(unit_hap.task) == [ALL_TASKS]  # not run under the reading: its overall row alone
     csv_text, markdown = robustness_texts(results, "paper")
     across = {line.split(",")[0]: line for line in csv_text.splitlines() if ",across,," in line}
     assert (
