@@ -1,18 +1,15 @@
 """The paper's claims, each tested by one statistic of the runs on each task, the estimate
 pooling the tasks beside, and an overall verdict combined from the tasks' (`combine`).
-
-Rules: docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them".
-Written as ``claims_<preset>.csv`` (`CSV_FIELDS`) and ``.md`` by `claims_texts`.
-"""
+Rules: docs/findings/protocol.md, "The claims rules as `distgprl.report.claims` applies them"."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from functools import partial
+from typing import Any, cast
 
 import numpy as np
+import pandas as pd
 
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import (
@@ -39,71 +36,46 @@ NO_RUNS = f"{INCONCLUSIVE} (no runs)"
 FEW_SEEDS = f"{INCONCLUSIVE} (fewer than 2 seeds)"
 TASKS_DISAGREE = "the tasks disagree"
 
-
-@dataclass(frozen=True)
-class TaskVerdict:
-    """A claim on one task (or `ALL_TASKS`, pooled): the statistic's estimate, the verdict,
-    and what else the rule read."""
-
-    task: str
-    estimate: Estimate
-    verdict: str
-    detail: str = ""
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """A tested claim: a `TaskVerdict` per task with runs (paper's order), the pooled one
-    beside (None with one task), the overall verdict and what it waits for, and the methods
-    whose runs the test reads (``needs``)."""
-
-    claim: str
-    test: str
-    per_task: tuple[TaskVerdict, ...]
-    pooled: TaskVerdict | None
-    verdict: str
-    detail: str = ""
-    needs: tuple[str, ...] = ()
-
-
 BALANCE = "Dist-GPRL balances success, collisions and kinematic retention"
 BALANCE_AXES = {"success_rate": True, "collision_rate": False, "mean_kinematic_retention": True}
 """The balance claim's axes: {score: higher is better}."""
+_NONE = Estimate(np.nan, np.nan, np.nan, ())
+
+Row = dict[str, Any]
+"""A claim's ``task`` (or `ALL_TASKS`), ``estimate``, ``verdict`` and ``detail`` (what else
+the rule read)."""
 
 
-def _judge(
-    tasks: list[str],
-    value: Estimate,
-    read: list[Estimate],
-    reproduced: bool,
-    refuted: bool,
-    detail: str = "",
-) -> TaskVerdict:
-    """The verdict on ``tasks`` (one task, or `ALL_TASKS` pooled) of a rule whose estimates
-    ``read`` decide it; `NO_RUNS` or `FEW_SEEDS` while one lacks runs or an interval."""
+def records(frame: pd.DataFrame) -> list[Row]:
+    """The frame's rows as dicts."""
+    return cast(list[Row], frame.to_dict("records"))
+
+
+def _judge(own: Estimate, read: list[Estimate], holds: bool, fails: bool, detail: str = "") -> Row:
+    """A rule's row (no task yet): reproduced if it ``holds``, refuted if it ``fails``;
+    `NO_RUNS` or `FEW_SEEDS` while an estimate it ``read`` lacks runs or an interval."""
     if any(not e.seeds for e in read):
         verdict = NO_RUNS
     elif any(not e.has_interval for e in read):
         verdict = FEW_SEEDS
     else:
-        verdict = REPRODUCED if reproduced else REFUTED if refuted else INCONCLUSIVE
-    return TaskVerdict(tasks[0] if len(tasks) == 1 else ALL_TASKS, value, verdict, detail)
+        verdict = REPRODUCED if holds else REFUTED if fails else INCONCLUSIVE
+    return {"estimate": own, "verdict": verdict, "detail": detail}
 
 
-def combine(per_task: Sequence[TaskVerdict]) -> str:
-    """The overall verdict from the per-task ones (protocol, `combine`)."""
-    verdicts = [v.verdict for v in per_task]
+def combine(per_task: Sequence[tuple[str, str]]) -> str:
+    """The overall verdict from (task, verdict) pairs (protocol, `combine`)."""
+    verdicts = [v for _, v in per_task]
     if not verdicts or NO_RUNS in verdicts:
         return NO_RUNS
     if any(v not in (REPRODUCED, REFUTED, INCONCLUSIVE) for v in verdicts):
         return FEW_SEEDS
-    reproducing = [v.task.upper() for v in per_task if v.verdict == REPRODUCED]
-    refuting = [v.task.upper() for v in per_task if v.verdict == REFUTED]
-    if reproducing and refuting:
+    deciding = {w: [task.upper() for task, v in per_task if v == w] for w in (REPRODUCED, REFUTED)}
+    if all(deciding.values()):
         return TASKS_DISAGREE
-    for word, deciding in ((REPRODUCED, reproducing), (REFUTED, refuting)):
-        if deciding:
-            return word if len(deciding) == len(verdicts) else f"{word} on {', '.join(deciding)}"
+    for word, tasks in deciding.items():
+        if tasks:
+            return word if len(tasks) == len(verdicts) else f"{word} on {', '.join(tasks)}"
     return INCONCLUSIVE
 
 
@@ -113,11 +85,10 @@ def _above(a: Estimate, b: Estimate, higher_is_better: bool = True) -> bool:
 
 
 def _iqms(scores: Scores, tasks: list[str], key: str, seed: int) -> dict[str, Estimate]:
-    """{method: its ``key`` IQM estimate on ``tasks``} for every method of `RANKED`."""
     return {m: method_estimate(scores, tasks, m, key, "iqm", seed) for m in RANKED}
 
 
-def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: str) -> TaskVerdict:
+def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: str) -> Row:
     """ "Dist-GPRL improves on ``versus`` in ``key``" by the PoI rule; the detail counts the
     run pairs favouring Dist-GPRL on one task and, for a curve measure, each method's runs
     that learned (a finite ``learned_drop``)."""
@@ -127,13 +98,10 @@ def poi_verdict(scores: Scores, tasks: list[str], seed: int, versus: str, key: s
         drops = {m: strata(scores, tasks, m, "learned_drop")[0] for m in (PROPOSED, versus)}
         learned = [f"{short_label(m)} {np.isfinite(d).sum()}/{len(d)}" for m, d in drops.items()]
         parts.append(f"runs that learned: {', '.join(learned)}")
-    low, high = estimate.low, estimate.high
-    return _judge(tasks, estimate, [estimate], low > 0.5, high < 0.5, ", ".join(parts))
+    return _judge(estimate, [estimate], estimate.low > 0.5, estimate.high < 0.5, ", ".join(parts))
 
 
-def extreme_verdict(
-    scores: Scores, tasks: list[str], seed: int, method: str, key: str
-) -> TaskVerdict:
+def extreme_verdict(scores: Scores, tasks: list[str], seed: int, method: str, key: str) -> Row:
     """ "``method`` has the highest ``key``" by the IQM-interval rule."""
     estimates = _iqms(scores, tasks, key, seed)
     own = estimates.pop(method)
@@ -143,10 +111,10 @@ def extreme_verdict(
     others = list(estimates.values())
     highest = all(_above(own, other) for other in others)
     beaten = any(_above(other, own) for other in others)
-    return _judge(tasks, own, [own, *others], highest, beaten, detail)
+    return _judge(own, [own, *others], highest, beaten, detail)
 
 
-def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
+def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
     """ "ProMP-RRL is conservative"; the value is its collision IQM."""
     method = "promp-rrl"
     success = _iqms(scores, tasks, "success_rate", seed)
@@ -162,7 +130,7 @@ def conservative_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVer
     )
     shown = detail if success[method].seeds and success[PROPOSED].seeds else ""
     read = [*success.values(), *collision.values()]
-    return _judge(tasks, collision[method], read, conservative, bold, shown)
+    return _judge(collision[method], read, conservative, bold, shown)
 
 
 def labels(methods: Sequence[str]) -> str:
@@ -170,7 +138,7 @@ def labels(methods: Sequence[str]) -> str:
     return ", ".join(short_label(m) for m in methods) or "none"
 
 
-def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
+def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
     """The balance claim by three-axis dominance on IQM intervals; the value is Dist-GPRL's
     retention IQM, the detail its success and collision IQMs and the non-dominated set."""
     iqm = {key: _iqms(scores, tasks, key, seed) for key in BALANCE_AXES}
@@ -192,44 +160,36 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> TaskVerdict:
     )
     shown = detail if all(e.has_interval for e in read) else ""
     own = iqm["mean_kinematic_retention"][PROPOSED]
-    return _judge(tasks, own, read, balances, bool(dominated_by[PROPOSED]), shown)
+    return _judge(own, read, balances, bool(dominated_by[PROPOSED]), shown)
 
 
-Rule = Callable[[Scores, list[str], int], TaskVerdict]
-"""A claim's test, ``rule(scores, tasks, seed)``, on one task or several pooled."""
+Claim = tuple[str, str, Callable[[Scores, list[str], int], Row], tuple[str, ...]]
+"""(claim, test in words, rule(scores, tasks, seed) on one task or several pooled, the
+methods whose runs it reads)."""
 
-Claim = tuple[str, str, Rule, tuple[str, ...]]
-"""A claim: (claim, test in words, rule, the methods whose runs it reads)."""
+MEASURES = {
+    "success_rate": "success",
+    "collision_rate": "fewer collisions",
+    "steps_to_gain": "fewer steps until the curve holds 0.2 above the untrained policy's",
+    "learned_drop": "smaller mean drop of curve success once learned (never learned: worst)",
+    "learning_auc": "larger mean gain of curve success over the untrained policy's",
+}
+"""What a PoI claim's score measures, as its test says."""
 
 
-def _poi_claim(claim: str, versus: str, key: str, measure: str) -> Claim:
-    test = f"PoI of Dist-GPRL over {short_label(versus)}, {measure}"
+def _poi_claim(claim: str, versus: str, key: str) -> Claim:
+    test = f"PoI of Dist-GPRL over {short_label(versus)}, {MEASURES[key]}"
     return claim, test, partial(poi_verdict, versus=versus, key=key), (PROPOSED, versus)
 
 
 CLAIMS: tuple[Claim, ...] = (
-    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate", "success"),
+    _poi_claim("Windowed adaptation beats global", "dist-gprl-global", "success_rate"),
+    _poi_claim("The distance rewards lower collisions", "gprl-h", "collision_rate"),
+    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate"),
+    _poi_claim("The HAP prior speeds convergence", "gprl-d", "steps_to_gain"),
+    _poi_claim("The covariance transform improves stability", "dist-gprl-nocov", "learned_drop"),
     _poi_claim(
-        "The distance rewards lower collisions", "gprl-h", "collision_rate", "fewer collisions"
-    ),
-    _poi_claim("The HAP prior raises final success", "gprl-d", "success_rate", "success"),
-    _poi_claim(
-        "The HAP prior speeds convergence",
-        "gprl-d",
-        "steps_to_gain",
-        "fewer steps until the curve holds 0.2 above the untrained policy's",
-    ),
-    _poi_claim(
-        "The covariance transform improves stability",
-        "dist-gprl-nocov",
-        "learned_drop",
-        "smaller mean drop of curve success once learned (never learned: worst)",
-    ),
-    _poi_claim(
-        "The covariance transform improves sample efficiency",
-        "dist-gprl-nocov",
-        "learning_auc",
-        "larger mean gain of curve success over the untrained policy's",
+        "The covariance transform improves sample efficiency", "dist-gprl-nocov", "learning_auc"
     ),
     (
         "Dist-GPRL has the best success",
@@ -266,63 +226,52 @@ def _waiting_for(scores: Scores, tasks: list[str], needs: tuple[str, ...]) -> st
     missing = []
     for method in needs:
         lacking = [task.upper() for task in tasks if not scores.get((task, method))]
-        if not tasks or len(lacking) == len(tasks):
+        if len(lacking) == len(tasks):
             missing.append(short_label(method))
         elif lacking:
             missing.append(f"{short_label(method)} ({', '.join(lacking)})")
     return f"no runs yet: {', '.join(missing)}"
 
 
-def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> list[Verdict]:
-    """Every claim of `CLAIMS` tested on each task of ``scores``, pooled beside, combined."""
+def evaluate_claims(scores: Scores, seed: int = BOOTSTRAP_SEED) -> pd.DataFrame:
+    """A `Row` per claim of `CLAIMS` and task of ``scores``, then its `ALL_TASKS` row (the
+    pooled estimate beside, empty with one task; the overall verdict), with ``claim``, ``test``."""
     tasks = tasks_of(scores)
-    verdicts = []
+    rows = []
     for claim, test, rule, needs in CLAIMS:
-        per_task = tuple(rule(scores, [task], seed) for task in tasks)
-        pooled = rule(scores, tasks, seed) if len(tasks) > 1 else None
-        overall = combine(per_task)
-        detail = _waiting_for(scores, tasks, needs) if overall == NO_RUNS else ""
-        verdicts.append(Verdict(claim, test, per_task, pooled, overall, detail, needs))
-    return verdicts
+        per_task = [{"task": task, **rule(scores, [task], seed)} for task in tasks]
+        pooled = rule(scores, tasks, seed)["estimate"] if len(tasks) > 1 else _NONE
+        verdict = combine([(row["task"], row["verdict"]) for row in per_task])
+        detail = _waiting_for(scores, tasks, needs) if verdict == NO_RUNS else ""
+        overall = {"task": ALL_TASKS, "estimate": pooled, "verdict": verdict, "detail": detail}
+        rows += [{"claim": claim, "test": test} | row for row in [*per_task, overall]]
+    return pd.DataFrame(rows)
 
 
 CSV_FIELDS = tuple("claim test task value ci_low ci_high seeds pairs verdict detail".split())
-"""Columns of ``claims_<preset>.csv``: one row per claim and task, then its `ALL_TASKS` row
-(the pooled estimate, the overall verdict); estimate cells as `estimate_cells` writes them.
-The value of the ProMP-RRL row is its collision IQM, of the balance row Dist-GPRL's
-kinematic-retention IQM (the other IQMs in ``detail``)."""
+"""Columns of ``claims_<preset>.csv``: the rows of `evaluate_claims`, the estimate's cells as
+`estimate_cells` writes them. The value of the ProMP-RRL row is its collision IQM, of the
+balance row Dist-GPRL's kinematic-retention IQM (the other IQMs in ``detail``)."""
 
 
 def _text(estimate: Estimate) -> str:
-    """``value [low, high]``; a PoI to three digits, so a bound just below 0.5 does not print
-    as 0.50 beside a decided verdict."""
+    # a PoI to three digits: a bound just below 0.5 does not print 0.50 beside a decided verdict
     return estimate.text(3 if estimate.pairs else 2)
 
 
 def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tuple[str, str]:
     """(CSV, Markdown) of the claims table: per task first, pooled beside, overall last."""
     tasks = tasks_of(scores)
-    rows, cells = [], []
-    for claim in evaluate_claims(scores, seed):
-        pooled = claim.pooled.estimate if claim.pooled else Estimate(math.nan, 0, 0, ())
-        rows += [
-            {"claim": claim.claim, "test": claim.test, "task": t.task}
-            | estimate_cells(t.estimate)
-            | {"verdict": t.verdict, "detail": t.detail}
-            for t in (*claim.per_task, TaskVerdict(ALL_TASKS, pooled, claim.verdict, claim.detail))
-        ]
-        also = [f"{t.task.upper()}: {t.detail}" for t in claim.per_task if t.detail]
-        also += [claim.detail] if claim.detail else []
-        cells.append(
-            [
-                claim.claim,
-                claim.test,
-                *(f"{_text(t.estimate)}: **{t.verdict}**" for t in claim.per_task),
-                *([_text(pooled)] if claim.pooled else []),
-                f"**{claim.verdict}**",
-                "; ".join(also) or "–",
-            ]
-        )
+    frame = evaluate_claims(scores, seed)
+    cells = []
+    for _, group in frame.groupby(["claim", "test"], sort=False):
+        *per_task, overall = records(group)
+        shown = [f"{_text(row['estimate'])}: **{row['verdict']}**" for row in per_task]
+        shown += [_text(overall["estimate"])] if len(tasks) > 1 else []
+        notes = [f"{row['task'].upper()}: {row['detail']}" for row in per_task if row["detail"]]
+        also = "; ".join(filter(None, [*notes, overall["detail"]])) or "–"
+        verdict = f"**{overall['verdict']}**"
+        cells.append([overall["claim"], overall["test"], *shown, verdict, also])
     caption = (
         f"Claims of the paper ({preset} preset): the verdict on each task, then the overall "
         f"verdict combined from the tasks' (reproduced only if no task refutes; 'the tasks "
@@ -333,4 +282,5 @@ def claims_texts(scores: Scores, preset: str, seed: int = BOOTSTRAP_SEED) -> tup
     header = ["Claim", "Test", *(f"{t.upper()} [95 % CI]" for t in tasks)]
     header += ["Pooled (beside)"] if len(tasks) > 1 else []
     markdown = markdown_table(caption, [*header, "Verdict", "Also"], cells)
+    rows = [row | estimate_cells(row["estimate"]) for row in records(frame)]
     return csv_text(rows, CSV_FIELDS), markdown

@@ -1,17 +1,15 @@
 """Claims per reading: every claim of `distgprl.report.claims` tested under Table I's reading
 and each study reading (`study_verdicts`), and judged across them (`across_readings`).
-
-Rules: docs/findings/protocol.md, "The claims per reading". Written as
-``claims_robustness_<preset>.csv`` (`CSV_FIELDS`) and ``.md`` by `robustness_texts`.
-"""
+Rules: docs/findings/protocol.md, "The claims per reading"."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping, Sequence
-from dataclasses import dataclass, replace
 
-from distgprl.report.aggregate import BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
-from distgprl.report.claims import FEW_SEEDS, NO_RUNS, Verdict, evaluate_claims, labels
+import pandas as pd
+
+from distgprl.report import claims
+from distgprl.report.aggregate import ALL_TASKS, BOOTSTRAP_SEED, PROPOSED, Scores, tasks_of
 from distgprl.report.markdown import csv_text, markdown_table
 from distgprl.studies import TABLE_ONE, Reading, Study
 
@@ -19,24 +17,12 @@ from distgprl.studies import TABLE_ONE, Reading, Study
 NOT_RUN = "not run under this reading"  # the study trains the method: run it
 OUTSIDE = "not tested by this study"  # the study does not train it: no run will come
 UNEQUAL_SEEDS = "at unequal seeds"
-PENDING = (NO_RUNS, FEW_SEEDS, NOT_RUN)
+PENDING = (claims.NO_RUNS, claims.FEW_SEEDS, NOT_RUN)
 
 CSV_FIELDS = ("claim", "reading", "preset", "verdict", "detail")
 """Columns of ``claims_robustness_<preset>.csv``: per claim, a row per reading (its overall
 verdict), then with several studies a row per study (reading ``across <study>``: Table I's
 reading and that study's), then the verdict across every reading (reading ``across``)."""
-
-
-@dataclass(frozen=True)
-class ReadingVerdicts:
-    """Every claim's verdict under one reading, the methods it acts on without a run under it
-    (sorted), its study's name ("" for Table I's) and (task, Dist-GPRL's seeds) per task."""
-
-    reading: Reading
-    verdicts: tuple[Verdict, ...]
-    not_run: tuple[str, ...]
-    study: str = ""
-    seeds: tuple[tuple[str, int], ...] = ()
 
 
 def reading_scores(
@@ -62,21 +48,32 @@ def reference_reading(studies: Sequence[Study]) -> Reading:
     return Reading(presets.pop(), f"Table I ({'; '.join(values)})")
 
 
-def _not_run(verdict: Verdict, study: Study, reading: Reading, not_run: tuple[str, ...]) -> Verdict:
-    """``verdict``, or where its test reads a method of ``not_run``, `NOT_RUN` (the study
-    trains that method) or `OUTSIDE` (it does not), naming the methods."""
-    lacking = [m for m in verdict.needs if m in not_run]
-    if not lacking:
-        return verdict
-    outside = [m for m in lacking if m not in study.methods]
-    detail = f"{labels(lacking)} under {reading.preset}: the reading changes it"
-    if outside:
-        trained = labels(study.methods)
-        detail += f", and the {study.name} study trains {trained} only (not {labels(outside)})"
-    else:
-        detail += "; run it"
-    word = OUTSIDE if outside else NOT_RUN
-    return replace(verdict, per_task=(), pooled=None, verdict=word, detail=detail)
+def _verdicts(
+    reference: Scores, runs: Scores, seed: int, reading: Reading, study: Study | None = None
+) -> pd.DataFrame:
+    """`evaluate_claims`' rows under ``reading`` (``runs`` its study's runs) with ``reading``
+    (label), ``preset``, ``study`` ("" for Table I's), ``not_run`` (the methods it acts on
+    without a run) and ``seeds`` ((task, Dist-GPRL's seeds) per task); a claim reading a
+    method of ``not_run`` keeps its `ALL_TASKS` row alone, `NOT_RUN` or `OUTSIDE`."""
+    scores, not_run = reading_scores(reference, runs, study.acted_on) if study else (reference, ())
+    seeds = tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks_of(scores))
+    name = study.name if study else ""
+    needs = {claim: methods for claim, _, _, methods in claims.CLAIMS}
+    rows = []
+    for row in claims.records(claims.evaluate_claims(scores, seed)):
+        row |= dict(reading=reading.label, preset=reading.preset, study=name)
+        row |= dict(not_run=not_run, seeds=seeds)
+        lacking = [m for m in needs[row["claim"]] if m in not_run]
+        if study and lacking:
+            if row["task"] != ALL_TASKS:
+                continue  # no estimate per task of a claim reading a method without a run
+            outside = [m for m in lacking if m not in study.methods]
+            detail = f"{claims.labels(lacking)} under {reading.preset}: the reading changes it"
+            trains = f", and the {name} study trains {claims.labels(study.methods)} only"
+            detail += f"{trains} (not {claims.labels(outside)})" if outside else "; run it"
+            row |= {"estimate": None, "verdict": OUTSIDE if outside else NOT_RUN, "detail": detail}
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def study_verdicts(
@@ -84,25 +81,16 @@ def study_verdicts(
     reference: Scores,
     runs_of: Callable[[str], Scores],
     seed: int = BOOTSTRAP_SEED,
-) -> list[ReadingVerdicts]:
-    """Every claim under the reference reading (first), then under each of ``studies``'
-    claim readings; ``runs_of(preset)`` gives a study preset's scores."""
+) -> pd.DataFrame:
+    """`_verdicts` under the reference reading (first), then under each of ``studies``' claim
+    readings; ``runs_of(preset)`` gives a study preset's scores."""
     if not studies:
         raise ValueError("no study to read")
-    tasks = tasks_of(reference)
-
-    def seeds(scores: Scores) -> tuple[tuple[str, int], ...]:
-        return tuple((task, len(scores.get((task, PROPOSED), ()))) for task in tasks)
-
-    verdicts = tuple(evaluate_claims(reference, seed))
-    out = [ReadingVerdicts(reference_reading(studies), verdicts, (), seeds=seeds(reference))]
+    frames = [_verdicts(reference, {}, seed, reference_reading(studies))]
     for study in studies:
         for reading in study.claim_readings:
-            scores, not_run = reading_scores(reference, runs_of(reading.preset), study.acted_on)
-            claims = evaluate_claims(scores, seed)
-            verdicts = tuple(_not_run(v, study, reading, not_run) for v in claims)
-            out.append(ReadingVerdicts(reading, verdicts, not_run, study.name, seeds(scores)))
-    return out
+            frames.append(_verdicts(reference, runs_of(reading.preset), seed, reading, study))
+    return pd.concat(frames, ignore_index=True)
 
 
 def across_readings(
@@ -132,34 +120,34 @@ def across_readings(
     return f"{distinct[0]} under every reading{caveat}"
 
 
-def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[str, str]:
-    """(CSV, Markdown) of the claims per reading: a column per reading, then with several
-    studies one per study, the verdict across them all last."""
-    studies = list(dict.fromkeys(r.study for r in results if r.study))
+def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
+    """(CSV, Markdown) of the claims per reading (`study_verdicts`): a column per reading, then
+    with several studies one per study, the verdict across them all last."""
+    results = results[results.task == ALL_TASKS]
+    studies = list(dict.fromkeys(s for s in results.study if s))
     per_study = len(studies) > 1
-    groups = [(f"across {s}", [r for r in results if r.study in ("", s)]) for s in studies]
-    groups = [*(groups if per_study else []), ("across", list(results))]
-    seeds = {r.reading.label: r.seeds for r in results}
-    csv_rows: list[dict[str, str]] = []
+    groups = [(f"across {s}", ("", s)) for s in studies if per_study]
+    groups.append(("across", ("", *studies)))
+    readings = claims.records(results.drop_duplicates("reading"))
+    seeds = {r["reading"]: r["seeds"] for r in readings}
+    csv_rows: list[claims.Row] = []
     rows = []
-    for index, claim in enumerate(v.claim for v in results[0].verdicts):
-        own = [(r.reading, r.verdicts[index]) for r in results]
-        csv_rows += [
-            dict(claim=claim, reading=r.label, preset=r.preset, verdict=v.verdict, detail=v.detail)
-            for r, v in own
-        ]
+    for _, group in results.groupby("claim", sort=False):
+        own = claims.records(group)
+        claim = own[0]["claim"]
         across = {
             label: across_readings(
-                [(r.reading.label, r.verdicts[index].verdict) for r in group], seeds
+                [(r["reading"], r["verdict"]) for r in own if r["study"] in names], seeds
             )
-            for label, group in groups
+            for label, names in groups
         }
+        csv_rows += own
         csv_rows += [
             dict(claim=claim, reading=label, verdict=text) for label, text in across.items()
         ]
         *each, overall = across.values()
-        rows.append([claim, *(v.verdict for _, v in own), *each, f"**{overall}**"])
-    header = ["Claim", *(f"{r.reading.label} (`{r.reading.preset}`)" for r in results)]
+        rows.append([claim, *(r["verdict"] for r in own), *each, f"**{overall}**"])
+    header = ["Claim", *(f"{r['reading']} (`{r['preset']}`)" for r in readings)]
     header += [f"Across Table I and the {name} study" for name in studies if per_study]
     intro = (
         f"Claims per reading ({preset} preset beside its studies): each claim's overall "
@@ -177,18 +165,17 @@ def robustness_texts(results: Sequence[ReadingVerdicts], preset: str) -> tuple[s
             "the last column judges them all."
         )
     markdown = markdown_table(intro, [*header, "Across readings"], rows)
-    if any(r.seeds for r in results):
-        tasks = " / ".join(task.upper() for task, _ in results[0].seeds)
-        counts = "; ".join(
-            f"{r.reading.label} {' / '.join(str(n) for _, n in r.seeds)}" for r in results
-        )
-        markdown += (
-            f"\nSeeds of Dist-GPRL per reading ({tasks}): {counts}. A verdict "
-            f"across readings ending '{UNEQUAL_SEEDS}' compares readings with different "
-            "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
-            "verdict there may be the seed count's.\n"
-        )
-    missing = [f"{r.reading.label}: {labels(r.not_run)}" for r in results if r.not_run]
+    tasks = " / ".join(task.upper() for task, _ in readings[0]["seeds"])
+    counts = "; ".join(
+        f"{r['reading']} {' / '.join(str(n) for _, n in r['seeds'])}" for r in readings
+    )
+    markdown += (
+        f"\nSeeds of Dist-GPRL per reading ({tasks}): {counts}. A verdict "
+        f"across readings ending '{UNEQUAL_SEEDS}' compares readings with different "
+        "numbers of runs; fewer seeds widen a reading's intervals, so a reading-dependent "
+        "verdict there may be the seed count's.\n"
+    )
+    missing = [f"{r['reading']}: {claims.labels(r['not_run'])}" for r in readings if r["not_run"]]
     if missing:
         markdown += (
             "\nMethods a reading acts on without runs under it (the claims reading them are "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from distgprl.report.aggregate import ALL_TASKS
 from distgprl.report.claims import (
     BALANCE,
     FEW_SEEDS,
@@ -12,7 +13,6 @@ from distgprl.report.claims import (
     REFUTED,
     REPRODUCED,
     TASKS_DISAGREE,
-    TaskVerdict,
     combine,
     evaluate_claims,
 )
@@ -40,8 +40,14 @@ def scores_of(methods):
     return {(task, m): r for task in ("dcp", "dbm") for m, r in methods.items()}
 
 
-def by_claim(verdicts):
-    return {v.claim: v for v in verdicts}
+def by_claim(frame):
+    """{claim: its `ALL_TASKS` row}: the overall verdict and detail, the pooled estimate."""
+    return {row.claim: row for row in frame[frame.task == ALL_TASKS].itertuples()}
+
+
+def per(frame, claim):
+    """The claim's row on each task, in the frame's order."""
+    return list(frame[(frame.claim == claim) & (frame.task != ALL_TASKS)].itertuples())
 
 
 FIELD = {  # every trained method; Dist-GPRL best, GPRL collides most, ProMP-RRL conservative
@@ -58,14 +64,15 @@ FIELD = {  # every trained method; Dist-GPRL best, GPRL collides most, ProMP-RRL
 def test_a_clear_improvement_is_reproduced():
     """Dist-GPRL at 0.9 against Global at 0.3 (5 seeds, both tasks): PoI 1, interval above
     0.5, "reproduced"; so are the ranking claims the field was built to satisfy."""
-    verdicts = by_claim(evaluate_claims(scores_of(FIELD), seed=0))
+    frame = evaluate_claims(scores_of(FIELD), seed=0)
+    verdicts = by_claim(frame)
     windowed = verdicts["Windowed adaptation beats global"]
-    assert [t.task for t in windowed.per_task] == ["dcp", "dbm"]
-    for task in windowed.per_task:
+    assert [t.task for t in per(frame, windowed.claim)] == ["dcp", "dbm"]
+    for task in per(frame, windowed.claim):
         assert task.estimate.point == 1.0 and task.estimate.low > 0.5
         assert task.estimate.seeds == (SEEDS,) and task.verdict == REPRODUCED
         assert task.detail == "25/25 run pairs favour Dist-GPRL"
-    assert windowed.pooled.estimate.seeds == (SEEDS, SEEDS)
+    assert windowed.estimate.seeds == (SEEDS, SEEDS)
     assert windowed.verdict == REPRODUCED
     assert verdicts["The distance rewards lower collisions"].verdict == REPRODUCED
     assert verdicts["Dist-GPRL has the best success"].verdict == REPRODUCED
@@ -81,9 +88,9 @@ def test_a_method_better_on_all_three_axes_dominates_and_refutes_balance():
     apart) dominates Dist-GPRL: "balances" is refuted and Dist-GPRL leaves the
     non-dominated set."""
     field = {**FIELD, "promp-rrl": runs(0.95, 0.02, retention=0.9)}
-    verdict = by_claim(evaluate_claims(scores_of(field), seed=0))[BALANCE]
-    assert verdict.verdict == REFUTED
-    for task in verdict.per_task:
+    frame = evaluate_claims(scores_of(field), seed=0)
+    assert by_claim(frame)[BALANCE].verdict == REFUTED
+    for task in per(frame, BALANCE):
         assert "dominated by ProMP-RRL" in task.detail
         assert task.detail.endswith("non-dominated: ProMP-RRL")
 
@@ -100,18 +107,19 @@ def test_balance_is_inconclusive_when_nobody_is_apart():
     """Every method overlapping Dist-GPRL on every axis: no one dominates anyone, and a
     non-dominated Dist-GPRL that dominates no one does not "balance" anything."""
     flat = {m: runs(0.5, 0.2, retention=0.5) for m in FIELD}
-    verdict = by_claim(evaluate_claims(scores_of(flat), seed=0))[BALANCE]
-    assert verdict.verdict == INCONCLUSIVE
-    assert "dominates none; dominated by none" in verdict.per_task[0].detail
+    frame = evaluate_claims(scores_of(flat), seed=0)
+    assert by_claim(frame)[BALANCE].verdict == INCONCLUSIVE
+    assert "dominates none; dominated by none" in per(frame, BALANCE)[0].detail
 
 
 def test_identical_distributions_are_inconclusive():
     """Dist-GPRL and GPRL-D with the same scores: PoI 1/2, "inconclusive"; two methods with
     overlapping top success intervals leave "best success" inconclusive."""
     field = {**FIELD, "gprl-d": FIELD["dist-gprl"]}
-    verdicts = by_claim(evaluate_claims(scores_of(field), seed=0))
+    frame = evaluate_claims(scores_of(field), seed=0)
+    verdicts = by_claim(frame)
     hap = verdicts["The HAP prior raises final success"]
-    dcp = hap.per_task[0].estimate
+    dcp = per(frame, hap.claim)[0].estimate
     assert dcp.point == 0.5 and hap.verdict == INCONCLUSIVE
     assert dcp.low < 0.5 < dcp.high
     assert verdicts["Dist-GPRL has the best success"].verdict == INCONCLUSIVE
@@ -135,7 +143,7 @@ def test_learning_curve_claims_use_their_measures():
     field = {**FIELD, "dist-gprl": runs(0.9, 0.1, fast)}
     field["gprl-d"] = runs(0.6, 0.2, slow)
     field["dist-gprl-nocov"] = runs(0.7, 0.15, slow)
-    verdicts = evaluate_claims(scores_of(field), seed=0)
+    verdicts = by_claim(evaluate_claims(scores_of(field), seed=0)).values()
     curve_claims = {
         "The HAP prior speeds convergence",
         "The covariance transform improves stability",
@@ -144,14 +152,14 @@ def test_learning_curve_claims_use_their_measures():
     assert {v.verdict for v in verdicts if v.claim in curve_claims} == {REPRODUCED}
     swapped = {**field, "dist-gprl": runs(0.9, 0.1, slow), "gprl-d": runs(0.6, 0.2, fast)}
     swapped["dist-gprl-nocov"] = runs(0.7, 0.15, fast)
-    verdicts = evaluate_claims(scores_of(swapped), seed=0)
+    verdicts = by_claim(evaluate_claims(scores_of(swapped), seed=0)).values()
     assert {v.verdict for v in verdicts if v.claim in curve_claims} == {REFUTED}
 
 
 def test_no_runs_and_single_seeds_are_inconclusive_with_the_reason():
     """Without runs every verdict is "inconclusive (no runs)"; with one seed of a method the
     claims needing it say "fewer than 2 seeds"."""
-    assert {v.verdict for v in evaluate_claims({}, seed=0)} == {NO_RUNS}
+    assert set(evaluate_claims({}, seed=0).verdict) == {NO_RUNS}
     field = {**FIELD, "dist-gprl-global": FIELD["dist-gprl-global"][:1]}
     verdicts = by_claim(evaluate_claims(scores_of(field), seed=0))
     assert verdicts["Windowed adaptation beats global"].verdict == FEW_SEEDS
@@ -180,8 +188,8 @@ def test_claims_are_reproducible_for_a_seed():
     """The same runs and seed give the same table; the bootstrap seed changes intervals."""
     field = {**FIELD, "gprl-d": runs(0.85, 0.12)}
     first, again = evaluate_claims(scores_of(field), 0), evaluate_claims(scores_of(field), 0)
-    assert first == again
-    assert first != evaluate_claims(scores_of(field), 1)
+    assert first.equals(again)
+    assert not first.equals(evaluate_claims(scores_of(field), 1))
 
 
 def _write_run(root, task, method, seed, success, curve):
@@ -233,37 +241,33 @@ def test_opposite_decisive_effects_read_tasks_disagree_with_a_real_interval():
     field["dist-gprl-nocov"] = runs(0.7, 0.15, curve={"learning_auc": 0.9})
     scores = scores_of(field)
     scores[("dcp", "dist-gprl-nocov")] = runs(0.7, 0.15, curve={"learning_auc": 0.1})
-    verdicts = by_claim(evaluate_claims(scores, seed=0))
-    efficiency = verdicts["The covariance transform improves sample efficiency"]
+    frame = evaluate_claims(scores, seed=0)
+    efficiency = by_claim(frame)["The covariance transform improves sample efficiency"]
     assert efficiency.verdict == TASKS_DISAGREE
-    dcp, dbm = efficiency.per_task
+    dcp, dbm = per(frame, efficiency.claim)
     assert (dcp.task, dcp.verdict, dbm.task, dbm.verdict) == ("dcp", REPRODUCED, "dbm", REFUTED)
     assert dcp.detail.startswith("25/25 run pairs")
     assert dbm.detail.startswith("0/25 run pairs")
-    pooled = efficiency.pooled.estimate
+    pooled = efficiency.estimate
     assert pooled.point == 0.5 and pooled.high - pooled.low > 0.3
-    for task in (*efficiency.per_task, efficiency.pooled):
+    for task in (dcp, dbm, efficiency):
         assert task.estimate.high - task.estimate.low > 0.3
     one_task = {key: value for key, value in scores.items() if key[0] == "dcp"}
     single = by_claim(evaluate_claims(one_task, seed=0))["Windowed adaptation beats global"]
-    assert single.pooled is None and single.verdict == REPRODUCED
-
-
-def _task(task, verdict):
-    return TaskVerdict(task, None, verdict)
+    assert not single.estimate.seeds and single.verdict == REPRODUCED  # nothing pooled
 
 
 def test_the_overall_rule_combines_the_tasks():
     """Reproduced only where every task reproduces; "reproduced on T" where the others are
     inconclusive; the same for refuted; one each way disagrees; missing runs win."""
-    assert combine([_task("dcp", REPRODUCED), _task("dbm", REPRODUCED)]) == REPRODUCED
-    assert combine([_task("dcp", REPRODUCED), _task("dbm", INCONCLUSIVE)]) == ("reproduced on DCP")
-    assert combine([_task("dcp", INCONCLUSIVE), _task("dbm", REFUTED)]) == "refuted on DBM"
-    assert combine([_task("dcp", REFUTED), _task("dbm", REFUTED)]) == REFUTED
-    assert combine([_task("dcp", REPRODUCED), _task("dbm", REFUTED)]) == TASKS_DISAGREE
-    assert combine([_task("dcp", INCONCLUSIVE), _task("dbm", INCONCLUSIVE)]) == INCONCLUSIVE
-    assert combine([_task("dcp", REPRODUCED), _task("dbm", FEW_SEEDS)]) == FEW_SEEDS
-    assert combine([_task("dcp", NO_RUNS), _task("dbm", FEW_SEEDS)]) == NO_RUNS
+    assert combine([("dcp", REPRODUCED), ("dbm", REPRODUCED)]) == REPRODUCED
+    assert combine([("dcp", REPRODUCED), ("dbm", INCONCLUSIVE)]) == ("reproduced on DCP")
+    assert combine([("dcp", INCONCLUSIVE), ("dbm", REFUTED)]) == "refuted on DBM"
+    assert combine([("dcp", REFUTED), ("dbm", REFUTED)]) == REFUTED
+    assert combine([("dcp", REPRODUCED), ("dbm", REFUTED)]) == TASKS_DISAGREE
+    assert combine([("dcp", INCONCLUSIVE), ("dbm", INCONCLUSIVE)]) == INCONCLUSIVE
+    assert combine([("dcp", REPRODUCED), ("dbm", FEW_SEEDS)]) == FEW_SEEDS
+    assert combine([("dcp", NO_RUNS), ("dbm", FEW_SEEDS)]) == NO_RUNS
 
 
 def test_flat_curves_cannot_reproduce_the_curve_claims(tmp_path):

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from distgprl.report.aggregate import ALL_TASKS
 from distgprl.report.claims import NO_RUNS, REFUTED, REPRODUCED
 from distgprl.report.robustness import (
     NOT_RUN,
@@ -32,6 +33,12 @@ def runs(success, collision, retention=0.5):
         }
         for j in JITTER
     ]
+
+
+def by_reading(results):
+    """{preset: {claim: its overall row}} of a `study_verdicts` frame."""
+    groups = results[results.task == ALL_TASKS].groupby("preset", sort=False)
+    return {preset: {row.claim: row for row in group.itertuples()} for preset, group in groups}
 
 
 def both_tasks(methods):
@@ -67,7 +74,8 @@ def test_a_reading_replaces_only_the_methods_the_operator_acts_on():
 def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
     """Dist-GPRL beats Global under Table I's operator (0.9 vs 0.3) and loses under one study
     reading (0.1): the claim is reproduced there, refuted here, and reading-dependent across;
-    a claim needing GPRL-D is not run under the study readings, so it is never robust."""
+    a claim needing GPRL-D is not run under the study readings, so it is never robust. Each
+    reading keeps its per-task estimates, except a claim not run under it."""
     study = get_study("operators")
     reference = both_tasks(FIELD)
     worse = both_tasks({"dist-gprl": runs(0.1, 0.8)})
@@ -79,9 +87,9 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "operator-signal-uncoupled": worse,  # a control: no verdict reads it
     }
     results = study_verdicts([study], reference, runs_of.__getitem__, seed=0)
-    assert [r.reading.preset for r in results] == ["paper", *study.presets[:3]]
+    assert list(dict.fromkeys(results.preset)) == ["paper", *study.presets[:3]]
     assert [r.preset for r in study.claim_readings] == list(study.presets[:3])
-    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    verdict = by_reading(results)
     assert verdict["paper"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-unit"][GLOBAL].verdict == REPRODUCED
     assert verdict["operator-signal"][GLOBAL].verdict == REFUTED
@@ -89,6 +97,14 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
     assert verdict["operator-unit"][HAP].verdict == OUTSIDE  # the study trains Dist-GPRL only
     assert "GPRL-D under operator-unit" in verdict["operator-unit"][HAP].detail
     assert "trains Dist-GPRL only" in verdict["operator-unit"][HAP].detail
+    signal = results[(results.preset == "operator-signal") & (results.claim == GLOBAL)]
+    assert [(row.task, row.estimate.point) for row in signal.itertuples()][:2] == [
+        ("dcp", 0.0),
+        ("dbm", 0.0),
+    ]  # each task's PoI under the reading: Dist-GPRL at 0.1 below Global at 0.3
+    assert set(results[results.claim == HAP].task) == {"dcp", "dbm", ALL_TASKS}
+    unit_hap = results[(results.preset == "operator-unit") & (results.claim == HAP)]
+    assert list(unit_hap.task) == [ALL_TASKS]  # not run under the reading: its overall row alone
     csv_text, markdown = robustness_texts(results, "paper")
     across = {line.split(",")[0]: line for line in csv_text.splitlines() if ",across,," in line}
     assert (
@@ -101,7 +117,7 @@ def test_a_verdict_that_flips_with_the_reading_is_reading_dependent():
         "per-axis signal (v5), correlation only)" in across[HAP]
     )
     assert "under every reading," not in across[HAP]
-    assert markdown.count("\n| ") == 1 + len(results[0].verdicts)  # header + one row per claim
+    assert markdown.count("\n| ") == 1 + len(verdict["paper"])  # header + one row per claim
     assert "unit variance (v4): GPRL-D, GPRL-H" in markdown
 
 
@@ -142,7 +158,7 @@ def test_a_method_the_study_trains_but_has_not_run_is_awaited_not_untested():
     no run under a reading is NOT_RUN (awaited), not OUTSIDE."""
     study = get_study("operators")
     results = study_verdicts([study], both_tasks(FIELD), lambda preset: {}, seed=0)
-    verdict = {r.reading.preset: {v.claim: v for v in r.verdicts} for r in results}
+    verdict = by_reading(results)
     assert verdict["operator-unit"][GLOBAL].verdict == NOT_RUN
     assert verdict["operator-unit"][HAP].verdict == OUTSIDE
 
@@ -158,14 +174,14 @@ def test_a_reward_unit_reading_replaces_every_trained_method():
     assert {m for _, m in scores} == {"dist-gprl", "demo"}
     assert set(not_run) == set(FIELD) - {"dist-gprl"}
     results = study_verdicts([get_study("operators"), study], reference, lambda p: {}, seed=0)
-    assert [r.reading.preset for r in results] == [
+    assert list(dict.fromkeys(results.preset)) == [
         "paper",
         "operator-unit",
         "operator-signal",
         "operator-correlation",
         "reward-unit-10",
     ]
-    assert {v.verdict for v in results[-1].verdicts} == {NOT_RUN}
+    assert set(results[results.preset == "reward-unit-10"].verdict) == {NOT_RUN}
 
 
 def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
@@ -200,7 +216,7 @@ def test_with_two_studies_table_one_is_named_by_every_studied_constant():
     same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
     runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
     results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
-    assert results[0].reading == both
+    assert (results.reading[0], results.preset[0]) == (both.label, both.preset)
     csv_text, _ = robustness_texts(results, "paper")
     assert "zero-mean GP (Table I)" not in csv_text
     other = replace(reward, reference=replace(reward.reference, preset="ci"))
@@ -229,8 +245,9 @@ def test_a_verdict_across_readings_with_different_seed_counts_says_so():
     reference = both_tasks(FIELD)
     two = {key: value[:2] for key, value in both_tasks({"dist-gprl": FIELD["dist-gprl"]}).items()}
     results = study_verdicts([study], reference, lambda preset: two, seed=0)
-    assert results[0].seeds == (("dcp", 5), ("dbm", 5))
-    assert results[1].seeds == (("dcp", 2), ("dbm", 2))
+    seeds = dict(zip(results.preset, results.seeds, strict=True))
+    assert seeds["paper"] == (("dcp", 5), ("dbm", 5))
+    assert seeds["operator-unit"] == (("dcp", 2), ("dbm", 2))
     csv_text, markdown = robustness_texts(results, "paper")
     assert "at unequal seeds" in csv_text
     assert (
