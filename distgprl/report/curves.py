@@ -1,10 +1,7 @@
-"""Learning curves from ``progress.csv`` (paper Figs. HAP and covariance effect): per panel the
-mean over seeds (on their common steps) of a `PANELS` metric against training steps, with a
-95 % bootstrap band of the seeds (whole curves; none for one seed) from its own `estimate_rng`
-(adding a method leaves the other bands unchanged); `HIGHLIGHT` bold and on top, a method in
-one colour everywhere. Per study beside a preset: its curves seed by seed, its onset figure
-and, for an operator study, its sensitivity figure.
-"""
+"""Learning-curve figures (paper Figs. HAP and covariance effect): per panel a `PANELS` metric's
+mean over seeds on their common steps and its 95 % bootstrap band (own `estimate_rng` per
+curve), `HIGHLIGHT` bold on top; per study beside a preset its seed-by-seed, onset and
+(operator study) sensitivity figures."""
 
 from __future__ import annotations
 
@@ -75,12 +72,6 @@ def mean_and_band(
     return mean, bootstrap_interval([values], np.mean, rng, reps)
 
 
-def _color(method: str) -> str:
-    if method == HIGHLIGHT:
-        return "black"
-    return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
-
-
 def _seeds(count: int) -> str:
     return f"{count} seed{'s' if count != 1 else ''}"
 
@@ -124,7 +115,8 @@ def plot_figure(
             if data is None:
                 continue
             steps, values = data
-            bold, color = method == HIGHLIGHT, _color(method)
+            bold = method == HIGHLIGHT
+            color = "black" if bold else f"C{TABLE_ORDER.index(method) % 10}"
             seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
             for ax, (key, *_) in zip(axes[row], PANELS, strict=True):
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
@@ -141,18 +133,19 @@ def plot_figure(
         for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
             _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
-    order, bottom = [m for m in methods if m in handles], 0.0
-    if order:
-        columns = min(len(order), 4)
-        labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
-        legend = fig.legend(
-            [handles[m] for m in order], labels, loc="lower center", ncol=columns,
-            fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
-        )  # fmt: skip
-        for text, method in zip(legend.get_texts(), order, strict=True):
-            if method == HIGHLIGHT:
-                text.set_fontweight("bold")
-        bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
+    order = [m for m in methods if m in handles]
+    if not order:  # nothing drawn: the figure is not written
+        return fig, 0
+    columns = min(len(order), 4)
+    labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
+    legend = fig.legend(
+        [handles[m] for m in order], labels, loc="lower center", ncol=columns,
+        fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
+    )  # fmt: skip
+    for text, method in zip(legend.get_texts(), order, strict=True):
+        if method == HIGHLIGHT:
+            text.set_fontweight("bold")
+    bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / fig.get_figheight()))
     return fig, sum(len(counts) for counts in seeds_of.values())
 
@@ -194,14 +187,16 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
             ylabel = PANELS[0][2] if col == 0 else None  # the success rate's
             _style(ax, f"{task.upper()}: {title}\n({preset}, {count})", ylabel, True, fontsize=8)
     fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")
-    lines = [seed_lines[seed] for seed in sorted(seed_lines)] + mean_lines[:1]
-    labels = [f"seed {seed}" for seed in sorted(seed_lines)] + ["mean over seeds"] * bool(
-        mean_lines
+    if not drawn:  # the figure is not written
+        return fig, 0
+    key = {f"seed {seed}": line for seed, line in sorted(seed_lines.items())}
+    if mean_lines:
+        key["mean over seeds"] = mean_lines[0]
+    fig.legend(
+        list(key.values()), list(key), loc="lower center", ncol=len(key), fontsize=8, frameon=False
     )
-    if lines:
-        fig.legend(lines, labels, loc="lower center", ncol=len(lines), fontsize=8, frameon=False)
     height = fig.get_figheight()
-    fig.tight_layout(rect=(0.0, 0.3 / height if lines else 0.0, 1.0, 1.0 - 0.1 / height))
+    fig.tight_layout(rect=(0.0, 0.3 / height, 1.0, 1.0 - 0.1 / height))
     return fig, drawn
 
 

@@ -1,9 +1,6 @@
-"""The onset table (`distgprl.report.onsets`) of a study drawn: a panel per task (x: training
-steps to the run length, then a shaded "never" band), a line per table row (top to bottom), a
-marker per finished run at its onset step; a seed keeps its colour, shape and vertical offset,
-filled for the study's seeds, hollow for a rule's further seeds; a dashed line at a rule's
-``by_step`` on its task. `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
-"""
+"""A study's onset table drawn (``onsets_<study>_<preset>.{png,pdf}``): a panel per task, a
+line per table row, a marker per finished run at its onset step or in a "never" band, filled
+for the study's seeds; a dashed line at a rule's ``by_step`` on its task."""
 
 from __future__ import annotations
 
@@ -20,17 +17,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-NEVER_X = 1.125
-"""Where a run that never reaches the threshold is drawn, in run lengths."""
-NEVER_BAND = (1.05, 1.2)
-"""The shaded "never" band, in run lengths (its right end the axis's)."""
-SEED_SHAPES = ("o", "s", "D", "^")
-"""A seed's marker shape, one per round of `SEED_COLORS` (distinct up to 36 seeds)."""
-
-
-def marker_gid(preset: str, method: str, task: str, seed: int) -> str:
-    """The ``gid`` of a run's marker, by which a reader of the figure finds it."""
-    return f"onset {preset} {method} {task} seed{seed}"
+NEVER_X = 1.125  # where a run that never reaches the threshold sits, in run lengths
+NEVER_BAND = (1.05, 1.2)  # the shaded "never" band, in run lengths (its right end the axis's)
+SEED_SHAPES = ("o", "s", "D", "^")  # one per round of `SEED_COLORS`: distinct up to 36 seeds
 
 
 def seed_offsets(seeds: list[int]) -> dict[int, float]:
@@ -74,8 +63,8 @@ def _x_axis(ax: Axes, length: int, threshold: float) -> None:
 def _draw_task(
     ax: Axes, rows: list[dict[str, Any]], panels: list[tuple[str, str]], study: Study, length: int
 ) -> None:
-    """One task's ``rows`` on ``ax``: each run in its row of ``panels`` ((preset, method)), at
-    its onset step or `NEVER_X` ``length``; a row without a run says so."""
+    """One task's ``rows`` on ``ax``, each run in its row of ``panels`` ((preset, method)); its
+    marker's ``gid``: "onset <preset> <method> <task> seed<seed>"."""
     offsets = seed_offsets([int(r["seed"]) for r in rows])
     for index, panel in enumerate(panels):
         runs = [r for r in rows if (r["preset"], r["method"]) == panel]
@@ -85,8 +74,8 @@ def _draw_task(
         for run in runs:
             seed, onset = int(run["seed"]), run["onset_step"]
             x = NEVER_X * length if onset == "" else int(onset)
-            ax.plot([x], [index + offsets[seed]], zorder=3, **seed_marker(seed, study),
-                    gid=marker_gid(*panel, run["task"], seed))  # fmt: skip
+            gid = f"onset {' '.join(panel)} {run['task']} seed{seed}"
+            ax.plot([x], [index + offsets[seed]], zorder=3, gid=gid, **seed_marker(seed, study))
     for boundary in range(len(panels) - 1):
         ax.axhline(boundary + 0.5, color="0.8", lw=0.6, zorder=1)
 

@@ -15,7 +15,6 @@ from distgprl.report.figure_files import write_or_remove_figure
 from distgprl.report.onset_figure import (
     NEVER_BAND,
     NEVER_X,
-    marker_gid,
     plot_onset_figure,
     run_length,
     seed_marker,
@@ -34,6 +33,11 @@ DCP_STEPS = 30_000  # the paper preset's DCP run length (distgprl/presets/paper.
 def markers(ax):
     """{gid: Line2D} of the run markers of ``ax``."""
     return {line.get_gid(): line for line in ax.lines if (line.get_gid() or "").startswith("onset")}
+
+
+def marker_gid(preset, method, task, seed):
+    """The ``gid`` by which a reader of the figure finds a run's marker."""
+    return f"onset {preset} {method} {task} seed{seed}"
 
 
 def point(line):
