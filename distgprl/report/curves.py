@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from distgprl.data import TASK_NAMES
+from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
 from distgprl.report.aggregate import (
     BOOTSTRAP_REPS,
@@ -201,15 +203,9 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write (or, with nothing to draw, remove: `write_or_remove_figure`) the `FIGURES`, per
-    study beside ``preset`` its figures (module docstring) and Table II's noise curve.
-
-    Raises:
-        UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
-    """
-    from distgprl.data import TASK_NAMES
-    from distgprl.errors import UserInputError
-
+    """Write (or, with nothing to draw, remove) the `FIGURES`, each study's figures and Table
+    II's noise curve; the paths written. `UserInputError` if ``<root>/<preset>`` holds no task
+    folder (a wrong preset or root)."""
     folder, out = Path(root) / preset, Path(out_dir)
     tasks = [t for t in TASK_NAMES if (folder / t).is_dir()]
     if not tasks:
