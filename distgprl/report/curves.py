@@ -14,12 +14,7 @@ import numpy as np
 from distgprl.data import TASK_NAMES
 from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.aggregate import (
-    BOOTSTRAP_REPS,
-    BOOTSTRAP_SEED,
-    bootstrap_interval,
-    estimate_rng,
-)
+from distgprl.report.aggregate import BOOTSTRAP_SEED, bootstrap_interval, estimate_rng
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
@@ -64,14 +59,14 @@ def common_curves(seeds: SeedCurves) -> tuple[np.ndarray, dict[str, np.ndarray]]
 
 
 def mean_and_band(
-    values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
+    values: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """(mean (k,), (low, high) (k,) each) over the seeds of a (seeds, k) array: the mean curve
     and its `bootstrap_interval` band (whole curves resampled); no band for a single seed."""
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
-    return mean, bootstrap_interval([values], np.mean, rng, reps)
+    return mean, bootstrap_interval([values], np.mean, rng)
 
 
 def _seeds(count: int) -> str:
