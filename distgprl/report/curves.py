@@ -83,8 +83,7 @@ def _seed_note(seeds: dict[str, int]) -> str:
 def _style(
     ax: Axes, title: str, ylabel: str | None, rate: bool, fontsize: int | None = None
 ) -> None:
-    """A curve panel's title, labels, grid and, for a ``rate``, [0, 1] limits; ``fontsize``
-    for its texts (ticks 1 smaller)."""
+    """A panel's title, labels, grid, [0, 1] limits for a ``rate``, ``fontsize`` (ticks 1 less)."""
     font: dict[str, Any] = {} if fontsize is None else {"fontsize": fontsize}
     ax.set_title(title, **font)
     ax.set_xlabel("training steps", **font)
@@ -148,9 +147,8 @@ def plot_figure(
 
 
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
-    """A study's success curves seed by seed: a row per task, a panel per `reading_columns`
-    entry with every finished seed (in its seed's colour) and their mean on the common steps
-    (black). Returns (figure, panels drawn)."""
+    """A study's success curves (a row per task, a panel per `reading_columns` entry: each
+    finished seed in its colour, their mean in black) and the panels drawn."""
     columns = reading_columns(study)
     fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),

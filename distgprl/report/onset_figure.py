@@ -39,8 +39,7 @@ def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
 
 
 def seed_marker(seed: int, study: Study) -> dict[str, Any]:
-    """`matplotlib.lines.Line2D` keywords of a run marker at ``seed``: its colour and shape,
-    filled for one of the study's seeds, hollow for a further one."""
+    """`Line2D` keywords of ``seed``'s marker: its colour and shape, hollow beyond the study's."""
     color = SEED_COLORS[seed % len(SEED_COLORS)]
     shape = SEED_SHAPES[(seed // len(SEED_COLORS)) % len(SEED_SHAPES)]
     fill = color if seed in study.seeds else "none"
@@ -83,9 +82,8 @@ def _draw_task(
 def plot_onset_figure(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[Figure, int]:
-    """The onset figure of ``study`` beside ``preset``: a panel per task of ``tasks``, a row per
-    `onset_rows` panel with a run on any task. Returns (figure, markers drawn: one per row of
-    `onset_rows`)."""
+    """``study``'s onset figure beside ``preset`` (a panel per task, a row per panel with a run)
+    and the markers drawn, one per `onset_rows` row."""
     import matplotlib.figure
     from matplotlib.lines import Line2D
 

@@ -86,9 +86,8 @@ def _early_count(rows: list[dict[str, Any]], *panel: str) -> tuple[int, int]:
 
 
 def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> tuple[int, int, str]:
-    """(early, runs, verdict) of the study's rule ``name`` on the `onset_rows` ``rows`` at its
-    seeds: ``early`` of ``runs`` finished runs learned early; the verdict is the rule's
-    conclusion, "awaiting", or "void" where the rule it needs did not give its ``if_early``."""
+    """(early, runs, verdict) of the study's rule ``name`` on `onset_rows` at its seeds: the
+    rule's conclusion, "awaiting", or "void" where its ``given`` rule did not give ``if_early``."""
     reading, rule = study.rule(name)
     ruled = [r for r in rows if int(r["seed"]) in rule.seeds]
     early, runs = _early_count(ruled, reading.preset, study.methods[0], rule.task)
@@ -102,11 +101,10 @@ def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> tuple[i
     else:
         verdict = rule.if_between or f"undecided at {runs} seeds"
     if rule.given:
-        _, given = study.rule(rule.given)
         before = rule_verdict(rows, study, rule.given)[2]
         if before.startswith("awaiting"):
             verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
-        elif before != given.if_early:
+        elif before != study.rule(rule.given)[1].if_early:
             verdict = f"void: {rule.given} gave {_short(before)}"
     return early, runs, verdict
 
