@@ -69,14 +69,12 @@ def mean_and_band(
     return mean, bootstrap_interval([values], np.mean, rng)
 
 
-def _seeds(count: int) -> str:
-    return f"{count} seed{'s' if count != 1 else ''}"
-
-
 def _seed_note(seeds: dict[str, int]) -> str:
-    """``3 seeds``, or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
-    if len(set(seeds.values())) == 1:
-        return _seeds(next(iter(seeds.values())))
+    """``3 seeds`` ({task: seeds}), or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
+    counts = set(seeds.values())
+    if len(counts) == 1:
+        (count,) = counts
+        return f"{count} seed{'s' if count != 1 else ''}"
     return ", ".join(f"{task.upper()} {n}" for task, n in seeds.items()) + " seeds"
 
 
@@ -178,7 +176,7 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
             if not seeds:
                 ax.text(0.5, 0.5, "no finished runs", ha="center", va="center", fontsize=8,
                         transform=ax.transAxes, color="0.4")  # fmt: skip
-            count = _seeds(len(seeds)) if seeds else "no runs"
+            count = _seed_note({task: len(seeds)}) if seeds else "no runs"
             ylabel = PANELS[0][2] if col == 0 else None  # the success rate's
             _style(ax, f"{task.upper()}: {title}\n({preset}, {count})", ylabel, True, fontsize=8)
     fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")

@@ -32,12 +32,6 @@ def seed_offsets(seeds: list[int]) -> dict[int, float]:
     return {seed: -spread / 2 + step * index for index, seed in enumerate(ordered)}
 
 
-def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
-    """The x range's end on ``task``, in training steps: the longest ``run.total_steps`` of
-    ``presets`` (their current configuration), or a later one of ``onsets``."""
-    return max([*(load_config(preset, task).run.total_steps for preset in presets), *onsets])
-
-
 def seed_marker(seed: int, study: Study) -> dict[str, Any]:
     """`Line2D` keywords of ``seed``'s marker: its colour and shape, hollow beyond the study's."""
     color = SEED_COLORS[seed % len(SEED_COLORS)]
@@ -82,8 +76,8 @@ def _draw_task(
 def plot_onset_figure(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[Figure, int]:
-    """``study``'s onset figure beside ``preset`` (a panel per task, a row per panel with a run)
-    and the markers drawn, one per `onset_rows` row."""
+    """``study``'s onset figure beside ``preset`` (a panel per task, x to the presets' longest
+    ``run.total_steps`` or a later onset; a row per panel with a run) and the markers drawn."""
     import matplotlib.figure
     from matplotlib.lines import Line2D
 
@@ -93,6 +87,7 @@ def plot_onset_figure(
     (rule, threshold), rule_tasks = study_rule(study), {own.task for _, own in study.rules}
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
+    presets = sorted({p for p, _, _ in panels})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset
     fig, axes = subplots(
         1, len(tasks), figsize=(3.4 + 4.4 * len(tasks), 2.1 + row_height * len(panels)),
@@ -101,7 +96,7 @@ def plot_onset_figure(
     for ax, task in zip(axes[0], tasks, strict=True):
         mine = [r for r in rows if r["task"] == task]
         onsets = [int(r["onset_step"]) for r in mine if r["onset_step"] != ""]
-        length = run_length(sorted({p for p, _, _ in panels}), task, onsets)
+        length = max([*(load_config(p, task).run.total_steps for p in presets), *onsets])
         _draw_task(ax, mine, [(p, m) for p, m, _ in panels], study, length)
         if rule is not None and task in rule_tasks:
             ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
