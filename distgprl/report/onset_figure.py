@@ -78,12 +78,11 @@ def plot_onset_figure(
 ) -> tuple[Figure, int]:
     """``study``'s onset figure beside ``preset`` (a panel per task, x to the presets' longest
     ``run.total_steps`` or a later onset; a row per panel with a run) and the markers drawn."""
-    import matplotlib.figure
     from matplotlib.lines import Line2D
 
     rows = onset_rows(root, study, tasks)
     if not rows:
-        return matplotlib.figure.Figure(), 0
+        return subplots(1, 1)[0], 0
     (rule, threshold), rule_tasks = study_rule(study), {own.task for _, own in study.rules}
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
@@ -104,10 +103,9 @@ def plot_onset_figure(
                     ha="left", va="bottom", transform=ax.get_xaxis_transform())  # fmt: skip
         _x_axis(ax, length, threshold)
         ax.set_title(f"{task.upper()} (runs of {step_text(length)} steps)", fontsize=9, pad=12)
-    first = axes[0, 0]
-    first.set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
-    first.set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
-    first.tick_params(axis="y", labelsize=8, length=0)
+    axes[0, 0].set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
+    axes[0, 0].set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
+    axes[0, 0].tick_params(axis="y", labelsize=8, length=0)
     fig.suptitle(
         f"When each run first reaches {threshold:g} success ({study.name} study, {preset} preset)"
     )
