@@ -1,10 +1,7 @@
-"""Learning curves from ``progress.csv`` (paper Figs. HAP and covariance effect): per panel the
-mean over seeds (on their common steps) of a `PANELS` metric against training steps, with a
-95 % bootstrap band of the seeds (whole curves; none for one seed) from its own `estimate_rng`
-(adding a method leaves the other bands unchanged); `HIGHLIGHT` bold and on top, a method in
-one colour everywhere. Per study beside a preset: its curves seed by seed, its onset figure
-and, for an operator study, its sensitivity figure.
-"""
+"""Learning-curve figures (paper Figs. HAP and covariance effect): per panel a `PANELS` metric's
+mean over seeds on their common steps and its 95 % bootstrap band (own `estimate_rng` per
+curve), `HIGHLIGHT` bold on top; per study beside a preset its seed-by-seed, onset and
+(operator study) sensitivity figures."""
 
 from __future__ import annotations
 
@@ -14,13 +11,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from distgprl.data import TASK_NAMES
+from distgprl.errors import UserInputError
 from distgprl.methods import METHODS, TABLE_ORDER
-from distgprl.report.aggregate import (
-    BOOTSTRAP_REPS,
-    BOOTSTRAP_SEED,
-    bootstrap_interval,
-    estimate_rng,
-)
+from distgprl.report.aggregate import BOOTSTRAP_SEED, bootstrap_interval, estimate_rng
 from distgprl.report.figure_files import subplots, write_or_remove_figure
 from distgprl.report.frame import curve_frame, load_frames
 from distgprl.report.noise_curve import write_noise_curve
@@ -65,38 +59,29 @@ def common_curves(seeds: SeedCurves) -> tuple[np.ndarray, dict[str, np.ndarray]]
 
 
 def mean_and_band(
-    values: np.ndarray, rng: np.random.Generator, reps: int = BOOTSTRAP_REPS
+    values: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """(mean (k,), (low, high) (k,) each) over the seeds of a (seeds, k) array: the mean curve
     and its `bootstrap_interval` band (whole curves resampled); no band for a single seed."""
     mean = values.mean(axis=0)
     if values.shape[0] < 2:
         return mean, None
-    return mean, bootstrap_interval([values], np.mean, rng, reps)
-
-
-def _color(method: str) -> str:
-    if method == HIGHLIGHT:
-        return "black"
-    return f"C{TABLE_ORDER.index(method) % 10}" if method in TABLE_ORDER else "0.5"
-
-
-def _seeds(count: int) -> str:
-    return f"{count} seed{'s' if count != 1 else ''}"
+    return mean, bootstrap_interval([values], np.mean, rng)
 
 
 def _seed_note(seeds: dict[str, int]) -> str:
-    """``3 seeds``, or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
-    if len(set(seeds.values())) == 1:
-        return _seeds(next(iter(seeds.values())))
+    """``3 seeds`` ({task: seeds}), or per task (``DCP 3, DBM 2 seeds``) when the tasks differ."""
+    counts = set(seeds.values())
+    if len(counts) == 1:
+        (count,) = counts
+        return f"{count} seed{'s' if count != 1 else ''}"
     return ", ".join(f"{task.upper()} {n}" for task, n in seeds.items()) + " seeds"
 
 
 def _style(
     ax: Axes, title: str, ylabel: str | None, rate: bool, fontsize: int | None = None
 ) -> None:
-    """A curve panel's title, labels, grid and, for a ``rate``, [0, 1] limits; ``fontsize``
-    for its texts (ticks 1 smaller)."""
+    """A panel's title, labels, grid, [0, 1] limits for a ``rate``, ``fontsize`` (ticks 1 less)."""
     font: dict[str, Any] = {} if fontsize is None else {"fontsize": fontsize}
     ax.set_title(title, **font)
     ax.set_xlabel("training steps", **font)
@@ -124,7 +109,8 @@ def plot_figure(
             if data is None:
                 continue
             steps, values = data
-            bold, color = method == HIGHLIGHT, _color(method)
+            bold = method == HIGHLIGHT
+            color = "black" if bold else f"C{TABLE_ORDER.index(method) % 10}"
             seeds_of.setdefault(method, {})[task] = len(values["success_rate"])
             for ax, (key, *_) in zip(axes[row], PANELS, strict=True):
                 rng = estimate_rng(BOOTSTRAP_SEED, "curve", task, method, key)
@@ -141,26 +127,26 @@ def plot_figure(
         for ax, (_, label, ylabel, rate) in zip(axes[row], PANELS, strict=True):
             _style(ax, f"{task.upper()}: {label}", ylabel, rate)
     fig.suptitle(title)
-    order, bottom = [m for m in methods if m in handles], 0.0
-    if order:
-        columns = min(len(order), 4)
-        labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
-        legend = fig.legend(
-            [handles[m] for m in order], labels, loc="lower center", ncol=columns,
-            fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
-        )  # fmt: skip
-        for text, method in zip(legend.get_texts(), order, strict=True):
-            if method == HIGHLIGHT:
-                text.set_fontweight("bold")
-        bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
+    order = [m for m in methods if m in handles]
+    if not order:  # nothing drawn: the figure is not written
+        return fig, 0
+    columns = min(len(order), 4)
+    labels = [f"{METHODS[m].label} ({_seed_note(seeds_of[m])})" for m in order]
+    legend = fig.legend(
+        [handles[m] for m in order], labels, loc="lower center", ncol=columns,
+        fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0),
+    )  # fmt: skip
+    for text, method in zip(legend.get_texts(), order, strict=True):
+        if method == HIGHLIGHT:
+            text.set_fontweight("bold")
+    bottom = (0.08 + 0.18 * -(-len(order) // columns)) / fig.get_figheight()
     fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0 - 0.1 / fig.get_figheight()))
     return fig, sum(len(counts) for counts in seeds_of.values())
 
 
 def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tuple[Figure, int]:
-    """A study's success curves seed by seed: a row per task, a panel per `reading_columns`
-    entry with every finished seed (in its seed's colour) and their mean on the common steps
-    (black). Returns (figure, panels drawn)."""
+    """A study's success curves (a row per task, a panel per `reading_columns` entry: each
+    finished seed in its colour, their mean in black) and the panels drawn."""
     columns = reading_columns(study)
     fig, axes = subplots(
         len(tasks), len(columns), figsize=(3.4 * len(columns), 2.9 * len(tasks)),
@@ -190,31 +176,27 @@ def plot_reading_curves(root: str | Path, study: Study, tasks: list[str]) -> tup
             if not seeds:
                 ax.text(0.5, 0.5, "no finished runs", ha="center", va="center", fontsize=8,
                         transform=ax.transAxes, color="0.4")  # fmt: skip
-            count = _seeds(len(seeds)) if seeds else "no runs"
+            count = _seed_note({task: len(seeds)}) if seeds else "no runs"
             ylabel = PANELS[0][2] if col == 0 else None  # the success rate's
             _style(ax, f"{task.upper()}: {title}\n({preset}, {count})", ylabel, True, fontsize=8)
     fig.suptitle(f"The {study.name} study: success rate during training, seed by seed")
-    lines = [seed_lines[seed] for seed in sorted(seed_lines)] + mean_lines[:1]
-    labels = [f"seed {seed}" for seed in sorted(seed_lines)] + ["mean over seeds"] * bool(
-        mean_lines
+    if not drawn:  # the figure is not written
+        return fig, 0
+    key = {f"seed {seed}": line for seed, line in sorted(seed_lines.items())}
+    if mean_lines:
+        key["mean over seeds"] = mean_lines[0]
+    fig.legend(
+        list(key.values()), list(key), loc="lower center", ncol=len(key), fontsize=8, frameon=False
     )
-    if lines:
-        fig.legend(lines, labels, loc="lower center", ncol=len(lines), fontsize=8, frameon=False)
     height = fig.get_figheight()
-    fig.tight_layout(rect=(0.0, 0.3 / height if lines else 0.0, 1.0, 1.0 - 0.1 / height))
+    fig.tight_layout(rect=(0.0, 0.3 / height, 1.0, 1.0 - 0.1 / height))
     return fig, drawn
 
 
 def write_curves(root: str | Path, preset: str, out_dir: str | Path) -> list[Path]:
-    """Write (or, with nothing to draw, remove: `write_or_remove_figure`) the `FIGURES`, per
-    study beside ``preset`` its figures (module docstring) and Table II's noise curve.
-
-    Raises:
-        UserInputError: if ``<root>/<preset>`` holds no task folder (wrong preset or root).
-    """
-    from distgprl.data import TASK_NAMES
-    from distgprl.errors import UserInputError
-
+    """Write (or, with nothing to draw, remove) the `FIGURES`, each study's figures and Table
+    II's noise curve; the paths written. `UserInputError` if ``<root>/<preset>`` holds no task
+    folder (a wrong preset or root)."""
     folder, out = Path(root) / preset, Path(out_dir)
     tasks = [t for t in TASK_NAMES if (folder / t).is_dir()]
     if not tasks:

@@ -1,9 +1,6 @@
-"""The onset table (`distgprl.report.onsets`) of a study drawn: a panel per task (x: training
-steps to the run length, then a shaded "never" band), a line per table row (top to bottom), a
-marker per finished run at its onset step; a seed keeps its colour, shape and vertical offset,
-filled for the study's seeds, hollow for a rule's further seeds; a dashed line at a rule's
-``by_step`` on its task. `distgprl curves` writes ``onsets_<study>_<preset>.{png,pdf}``.
-"""
+"""A study's onset table drawn (``onsets_<study>_<preset>.{png,pdf}``): a panel per task, a
+line per table row, a marker per finished run at its onset step or in a "never" band, filled
+for the study's seeds; a dashed line at a rule's ``by_step`` on its task."""
 
 from __future__ import annotations
 
@@ -20,17 +17,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-NEVER_X = 1.125
-"""Where a run that never reaches the threshold is drawn, in run lengths."""
-NEVER_BAND = (1.05, 1.2)
-"""The shaded "never" band, in run lengths (its right end the axis's)."""
-SEED_SHAPES = ("o", "s", "D", "^")
-"""A seed's marker shape, one per round of `SEED_COLORS` (distinct up to 36 seeds)."""
-
-
-def marker_gid(preset: str, method: str, task: str, seed: int) -> str:
-    """The ``gid`` of a run's marker, by which a reader of the figure finds it."""
-    return f"onset {preset} {method} {task} seed{seed}"
+NEVER_X = 1.125  # where a run that never reaches the threshold sits, in run lengths
+NEVER_BAND = (1.05, 1.2)  # the shaded "never" band, in run lengths (its right end the axis's)
+SEED_SHAPES = ("o", "s", "D", "^")  # one per round of `SEED_COLORS`: distinct up to 36 seeds
 
 
 def seed_offsets(seeds: list[int]) -> dict[int, float]:
@@ -43,15 +32,8 @@ def seed_offsets(seeds: list[int]) -> dict[int, float]:
     return {seed: -spread / 2 + step * index for index, seed in enumerate(ordered)}
 
 
-def run_length(presets: list[str], task: str, onsets: list[int]) -> int:
-    """The x range's end on ``task``, in training steps: the longest ``run.total_steps`` of
-    ``presets`` (their current configuration), or a later one of ``onsets``."""
-    return max([*(load_config(preset, task).run.total_steps for preset in presets), *onsets])
-
-
 def seed_marker(seed: int, study: Study) -> dict[str, Any]:
-    """`matplotlib.lines.Line2D` keywords of a run marker at ``seed``: its colour and shape,
-    filled for one of the study's seeds, hollow for a further one."""
+    """`Line2D` keywords of ``seed``'s marker: its colour and shape, hollow beyond the study's."""
     color = SEED_COLORS[seed % len(SEED_COLORS)]
     shape = SEED_SHAPES[(seed // len(SEED_COLORS)) % len(SEED_SHAPES)]
     fill = color if seed in study.seeds else "none"
@@ -74,8 +56,8 @@ def _x_axis(ax: Axes, length: int, threshold: float) -> None:
 def _draw_task(
     ax: Axes, rows: list[dict[str, Any]], panels: list[tuple[str, str]], study: Study, length: int
 ) -> None:
-    """One task's ``rows`` on ``ax``: each run in its row of ``panels`` ((preset, method)), at
-    its onset step or `NEVER_X` ``length``; a row without a run says so."""
+    """One task's ``rows`` on ``ax``, each run in its row of ``panels`` ((preset, method)); its
+    marker's ``gid``: "onset <preset> <method> <task> seed<seed>"."""
     offsets = seed_offsets([int(r["seed"]) for r in rows])
     for index, panel in enumerate(panels):
         runs = [r for r in rows if (r["preset"], r["method"]) == panel]
@@ -85,8 +67,8 @@ def _draw_task(
         for run in runs:
             seed, onset = int(run["seed"]), run["onset_step"]
             x = NEVER_X * length if onset == "" else int(onset)
-            ax.plot([x], [index + offsets[seed]], zorder=3, **seed_marker(seed, study),
-                    gid=marker_gid(*panel, run["task"], seed))  # fmt: skip
+            gid = f"onset {' '.join(panel)} {run['task']} seed{seed}"
+            ax.plot([x], [index + offsets[seed]], zorder=3, gid=gid, **seed_marker(seed, study))
     for boundary in range(len(panels) - 1):
         ax.axhline(boundary + 0.5, color="0.8", lw=0.6, zorder=1)
 
@@ -94,18 +76,17 @@ def _draw_task(
 def plot_onset_figure(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[Figure, int]:
-    """The onset figure of ``study`` beside ``preset``: a panel per task of ``tasks``, a row per
-    `onset_rows` panel with a run on any task. Returns (figure, markers drawn: one per row of
-    `onset_rows`)."""
-    import matplotlib.figure
+    """``study``'s onset figure beside ``preset`` (a panel per task, x to the presets' longest
+    ``run.total_steps`` or a later onset; a row per panel with a run) and the markers drawn."""
     from matplotlib.lines import Line2D
 
     rows = onset_rows(root, study, tasks)
     if not rows:
-        return matplotlib.figure.Figure(), 0
+        return subplots(1, 1)[0], 0
     (rule, threshold), rule_tasks = study_rule(study), {own.task for _, own in study.rules}
     panels = list(dict.fromkeys((r["preset"], r["method"], r["reading"]) for r in rows))
     seeds = sorted({int(r["seed"]) for r in rows})
+    presets = sorted({p for p, _, _ in panels})
     row_height = max(0.42, 0.07 * len(seeds))  # inches: room for every seed's offset
     fig, axes = subplots(
         1, len(tasks), figsize=(3.4 + 4.4 * len(tasks), 2.1 + row_height * len(panels)),
@@ -114,7 +95,7 @@ def plot_onset_figure(
     for ax, task in zip(axes[0], tasks, strict=True):
         mine = [r for r in rows if r["task"] == task]
         onsets = [int(r["onset_step"]) for r in mine if r["onset_step"] != ""]
-        length = run_length(sorted({p for p, _, _ in panels}), task, onsets)
+        length = max([*(load_config(p, task).run.total_steps for p in presets), *onsets])
         _draw_task(ax, mine, [(p, m) for p, m, _ in panels], study, length)
         if rule is not None and task in rule_tasks:
             ax.axvline(rule.by_step, color="0.2", ls="--", lw=1.1, zorder=2, gid="rule")
@@ -122,10 +103,9 @@ def plot_onset_figure(
                     ha="left", va="bottom", transform=ax.get_xaxis_transform())  # fmt: skip
         _x_axis(ax, length, threshold)
         ax.set_title(f"{task.upper()} (runs of {step_text(length)} steps)", fontsize=9, pad=12)
-    first = axes[0, 0]
-    first.set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
-    first.set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
-    first.tick_params(axis="y", labelsize=8, length=0)
+    axes[0, 0].set_yticks(range(len(panels)), [run_label(study, m, r) for _, m, r in panels])
+    axes[0, 0].set_ylim(len(panels) - 0.5, -0.5)  # the table's first row at the top
+    axes[0, 0].tick_params(axis="y", labelsize=8, length=0)
     fig.suptitle(
         f"When each run first reaches {threshold:g} success ({study.name} study, {preset} preset)"
     )

@@ -1,8 +1,5 @@
-"""When each run learns, per study read beside a preset: a row per `onset_panels` panel, task
-and finished seed (`CSV_FIELDS`) and each rule's verdict (`rule_verdict`; the decision rule:
-docs/findings/operator.md, "Decision rule"). `distgprl tables` writes
-``onsets_<study>_<preset>.{csv,md}``.
-"""
+"""When each run learns (``onsets_<study>_<preset>.{csv,md}``): a `CSV_FIELDS` row per panel,
+task and finished seed, and each rule's verdict (docs/findings/operator.md, "Decision rule")."""
 
 from __future__ import annotations
 
@@ -33,16 +30,15 @@ def onset_step(steps: Any, success: Any, threshold: float) -> int | None:
 
 
 def study_rule(study: Study) -> tuple[OnsetRule | None, float]:
-    """The study's first rule (its threshold and ``by_step`` are every rule's: `Study`
-    checks) or None, and the curve success that counts as learned (0.5 without a rule)."""
+    """The study's first rule (whose threshold and ``by_step`` are every rule's) or None, and
+    the curve success that counts as learned (0.5 without a rule)."""
     rule = next((rule for _, rule in study.rules), None)
     return rule, rule.threshold if rule else 0.5
 
 
 def onset_panels(study: Study) -> list[tuple[str, str, str]]:
     """(preset, method, reading label) per table row: each study method (Table I's order)
-    under each reading, the reference's first; an operator study adds NoCov
-    (`reading_columns`' last panel)."""
+    under each reading, the reference's first, then NoCov for an operator study."""
     methods = [m for m in TABLE_ORDER if m in study.methods]
     panels = [(r.preset, m, r.label) for m in methods for r in study.all_readings]
     extra = [(p, m, title) for p, m, title in reading_columns(study) if m not in study.methods]
@@ -50,8 +46,7 @@ def onset_panels(study: Study) -> list[tuple[str, str, str]]:
 
 
 def run_label(study: Study, method: str, reading: str) -> str:
-    """A row's name, "Dist-GPRL: correlation only"; a method the study does not train (NoCov)
-    by its reading label alone, which names it."""
+    """A row's name, "Dist-GPRL: correlation only"; NoCov (not a study method) by its label."""
     return f"{short_label(method)}: {reading}" if method in study.methods else reading
 
 
@@ -91,9 +86,8 @@ def _early_count(rows: list[dict[str, Any]], *panel: str) -> tuple[int, int]:
 
 
 def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> tuple[int, int, str]:
-    """(early, runs, verdict) of the study's rule ``name`` on the `onset_rows` ``rows`` at its
-    seeds: ``early`` of ``runs`` finished runs learned early; the verdict is the rule's
-    conclusion, "awaiting", or "void" where the rule it needs did not give its ``if_early``."""
+    """(early, runs, verdict) of the study's rule ``name`` on `onset_rows` at its seeds: the
+    rule's conclusion, "awaiting", or "void" where its ``given`` rule did not give ``if_early``."""
     reading, rule = study.rule(name)
     ruled = [r for r in rows if int(r["seed"]) in rule.seeds]
     early, runs = _early_count(ruled, reading.preset, study.methods[0], rule.task)
@@ -107,11 +101,10 @@ def rule_verdict(rows: list[dict[str, Any]], study: Study, name: str) -> tuple[i
     else:
         verdict = rule.if_between or f"undecided at {runs} seeds"
     if rule.given:
-        _, given = study.rule(rule.given)
         before = rule_verdict(rows, study, rule.given)[2]
         if before.startswith("awaiting"):
             verdict = f"awaiting ({runs} of {needed} runs finished; {rule.given}: {before})"
-        elif before != given.if_early:
+        elif before != study.rule(rule.given)[1].if_early:
             verdict = f"void: {rule.given} gave {_short(before)}"
     return early, runs, verdict
 
@@ -138,13 +131,11 @@ def _run_cell(row: dict[str, Any]) -> str:
     return f"{step_text(row['onset_step'])}: {best} ({final})"
 
 
-def _onset_table(
-    title: str, rows: list[dict[str, Any]], study: Study, threshold: float, by_step: int | None
-) -> str:
+def _onset_table(title: str, rows: list[dict[str, Any]], study: Study, by_step: int | None) -> str:
     """One task's ``rows`` as a table: a line per panel, a cell per seed ("onset: best (final)
-    success"), how many reached ``threshold`` and, with ``by_step``, how many learned early."""
+    success"), how many reached the threshold and, with ``by_step``, how many learned early."""
     seeds = sorted({r["seed"] for r in rows})
-    header = ["Run", *[f"seed {s}" for s in seeds], f"reached {threshold:g}"]
+    header = ["Run", *[f"seed {s}" for s in seeds], f"reached {study_rule(study)[1]:g}"]
     header += [] if by_step is None else [f"early (by step {step_text(by_step)})"]
     table = []
     for (preset, method), group in groupby(rows, key=lambda r: (r["preset"], r["method"])):
@@ -159,18 +150,17 @@ def _onset_table(
     return markdown_table(title, header, table)
 
 
-def _rule_text(
-    rows: list[dict[str, Any]], study: Study, reading_label: str, rule: OnsetRule
-) -> str:
+def _rule_text(rows: list[dict[str, Any]], study: Study, name: str) -> str:
     """A rule's paragraph: the rule as fixed before its first run, then its verdict."""
-    early, runs, verdict = rule_verdict(rows, study, rule.name)
+    reading, rule = study.rule(name)
+    early, runs, verdict = rule_verdict(rows, study, name)
     middle = needs = ""
     if rule.at_least - rule.at_most > 1:  # a count between the two is possible
         middle = f", otherwise {_short(rule.if_between) if rule.if_between else 'undecided'}"
     if rule.given:
         needs = f"; needs {rule.given} to give {_short(study.rule(rule.given)[1].if_early)}"
     return (
-        f"**{reading_label}, {rule.name}** (its rule, fixed before its first run: on "
+        f"**{reading.label}, {name}** (its rule, fixed before its first run: on "
         f"{rule.task.upper()} seeds {seeds_text(rule.seeds)} a run learns early if its "
         f"curve reaches {rule.threshold:g} success after step 0 and by step "
         f"{step_text(rule.by_step)}; {rule.at_least} or more of {len(rule.seeds)} → "
@@ -183,9 +173,8 @@ def onset_texts(
     root: str | Path, study: Study, tasks: list[str], preset: str
 ) -> tuple[str, str] | None:
     """(CSV of every finished seed, Markdown) of the study's onsets beside ``preset``, or None
-    without a finished run. The Markdown: per task a table of the study's seeds and one of the
-    seeds only a rule reads, each rule's verdict, per ruled reading its early count over all
-    its finished seeds (descriptive)."""
+    without a finished run. Per task a table of the study's seeds and one of a rule's further
+    seeds, then each rule's verdict and each ruled reading's early count over all its seeds."""
     rows = onset_rows(root, study, tasks)
     if not rows:
         return None
@@ -208,8 +197,8 @@ def onset_texts(
         for title, inside in ((f"**{task.upper()}**", True), (beyond, False)):
             mine = [r for r in rows if r["task"] == task and (r["seed"] in study.seeds) == inside]
             if mine:
-                parts.append(_onset_table(title, mine, study, threshold, by_step))
-    parts += [_rule_text(rows, study, reading.label, own) for reading, own in study.rules]
+                parts.append(_onset_table(title, mine, study, by_step))
+    parts += [_rule_text(rows, study, own.name) for _, own in study.rules]
     for reading in study.readings:
         for task in sorted({own.task for own in reading.rules}):
             early, runs = _early_count(rows, reading.preset, study.methods[0], task)

@@ -15,9 +15,7 @@ from distgprl.report.figure_files import write_or_remove_figure
 from distgprl.report.onset_figure import (
     NEVER_BAND,
     NEVER_X,
-    marker_gid,
     plot_onset_figure,
-    run_length,
     seed_marker,
     seed_offsets,
 )
@@ -34,6 +32,11 @@ DCP_STEPS = 30_000  # the paper preset's DCP run length (distgprl/presets/paper.
 def markers(ax):
     """{gid: Line2D} of the run markers of ``ax``."""
     return {line.get_gid(): line for line in ax.lines if (line.get_gid() or "").startswith("onset")}
+
+
+def marker_gid(preset, method, task, seed):
+    """The ``gid`` by which a reader of the figure finds a run's marker."""
+    return f"onset {preset} {method} {task} seed{seed}"
 
 
 def point(line):
@@ -170,17 +173,21 @@ def test_the_rule_line_is_at_by_step_on_the_rules_task_only(operators, study_run
     plt.close(fig)
 
 
-def test_the_axis_spans_the_presets_run_length_per_task(operators):
+def test_the_axis_spans_the_presets_run_length_per_task(operators, study_run):
     """The x range ends at the presets' run length on each task (DCP 30 000, DBM 45 000
     steps, distgprl/presets/paper.yaml), or at a later onset; the panel's title says it."""
-    assert run_length(["paper", "operator-signal"], "dcp", [3000]) == DCP_STEPS
-    assert run_length(["paper"], "dbm", []) == 45_000
-    assert run_length(["paper"], "dcp", [31_500]) == 31_500
     fig, _ = plot_onset_figure(operators, get_study("operators"), ["dcp", "dbm"], "paper")
     dcp, dbm = fig.axes[:2]
+    assert dcp.get_xlim()[1] == pytest.approx(NEVER_BAND[1] * DCP_STEPS)
     assert dbm.get_xlim()[1] == pytest.approx(NEVER_BAND[1] * 45_000)
     assert "30 000 steps" in dcp.get_title() and "45 000 steps" in dbm.get_title()
     assert "first reaches 0.5 success (operators study, paper preset)" in fig._suptitle.get_text()
+    plt.close(fig)
+    study_run(operators, "paper", "dcp", "dist-gprl", 2, [0.0] * 21 + [0.6])  # onset 31 500
+    fig, _ = plot_onset_figure(operators, get_study("operators"), ["dcp"], "paper")
+    (dcp,) = fig.axes
+    assert dcp.get_xlim()[1] == pytest.approx(NEVER_BAND[1] * 31_500)
+    assert "31 500 steps" in dcp.get_title()
     plt.close(fig)
 
 
