@@ -16,6 +16,7 @@ from distgprl.report.aggregate import (
     ALL_TASKS,
     BOOTSTRAP_REPS,
     BOOTSTRAP_SEED,
+    HIGHER_IS_BETTER,
     PROPOSED,
     Estimate,
     Scores,
@@ -37,8 +38,8 @@ FEW_SEEDS = f"{INCONCLUSIVE} (fewer than 2 seeds)"
 TASKS_DISAGREE = "the tasks disagree"
 
 BALANCE = "Dist-GPRL balances success, collisions and kinematic retention"
-BALANCE_AXES = {"success_rate": True, "collision_rate": False, "mean_kinematic_retention": True}
-"""The balance claim's axes: {score: higher is better}."""
+BALANCE_AXES = ("success_rate", "collision_rate", "mean_kinematic_retention")
+"""The balance claim's axes (their direction: `HIGHER_IS_BETTER`)."""
 _NONE = Estimate(np.nan, np.nan, np.nan, ())
 
 Row = dict[str, Any]
@@ -144,8 +145,8 @@ def balance_verdict(scores: Scores, tasks: list[str], seed: int) -> Row:
     iqm = {key: _iqms(scores, tasks, key, seed) for key in BALANCE_AXES}
 
     def dominates(a: str, b: str) -> bool:
-        better = [_above(iqm[k][a], iqm[k][b], up) for k, up in BALANCE_AXES.items()]
-        worse = [_above(iqm[k][b], iqm[k][a], up) for k, up in BALANCE_AXES.items()]
+        better = [_above(iqm[k][a], iqm[k][b], HIGHER_IS_BETTER[k]) for k in BALANCE_AXES]
+        worse = [_above(iqm[k][b], iqm[k][a], HIGHER_IS_BETTER[k]) for k in BALANCE_AXES]
         return any(better) and not any(worse)
 
     dominated_by = {b: [a for a in RANKED if a != b and dominates(a, b)] for b in RANKED}

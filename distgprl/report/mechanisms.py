@@ -455,9 +455,10 @@ SECTIONS: tuple[tuple[str, str, list[str], Columns, str], ...] = (
         + [f"(a) λ_ga Σ r_ga / a success's r_tc (≤ {100 * RULE_ONE['ga_of_success']:.0f} %)"]
         + [f"(b) idle return / the demo's mean r_tc (≤ {100 * RULE_ONE['idle_of_demo']:.0f} %)"],
         _plateau_columns,
-        "Idle: an evaluation episode with no success, no collision and r_tc below 5 % of the "
-        "task's progress weight — the policy did not do the task; the alignment reward it "
-        "still collects is paid for moving the via-points along ∇d "
+        "Idle: an evaluation episode with no success, no collision and r_tc below "
+        f"{100 * IDLE_PROGRESS:.0f} % of the task's progress weight — the policy did not do "
+        "the task; the alignment reward it still collects is paid for moving the via-points "
+        "along ∇d "
         '(docs/FINDINGS.md "The first v7 runs"). (a) and (b): protocol v8 rule 1\'s two ratios '
         "(`distgprl.reward_scale`), bounded there from the reward terms' maxima, measured here "
         "on the policies' evaluation episodes: (a) over every episode, (b) over the idle ones "

@@ -187,7 +187,8 @@ def per_seed_rows(frames: Frames) -> list[dict[str, Any]]:
     and CPU time per RL step (``train_cpu_ms_per_step``, ms; both empty for `demo`), ``numerics``
     and ``config_hash``."""
     fields = ["policy_step", "beats_untrained", "untrained_curve_success_rate"]
-    fields += ["collision_free_episodes", *(key for key, _ in PER_SEED_COLUMNS[:-2])]
+    summary_keys = (key for key, _ in PER_SEED_COLUMNS if not key.startswith("late_curve"))
+    fields += ["collision_free_episodes", *summary_keys]
     rows = []
     for key, summary in summaries(frames.runs):
         row: dict[str, Any] = dict(zip(EVALUATION_KEYS, key, strict=True))

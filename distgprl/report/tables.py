@@ -44,7 +44,8 @@ ABOUT = {
     "repair": "Table I + repair: the hardware safety layer in the loop in simulation "
     "(distgprl.report.repair)",
 }
-"""Each table's sidecar description ({placeholders} filled per table)."""
+"""Each table's sidecar description; ``which``, ``names`` and ``name`` are formatted in per
+table."""
 
 ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nominal-1demo")
 """The one-demonstration study's rows (protocol v8, rule 3, docs/findings/environment-v8.md)."""
