@@ -5,9 +5,10 @@ One line stands for the whole sweep: runs done of all, training steps done of al
 elapsed and the ETA. The ETA is the training left, each unfinished run's steps left at the
 pace of its task and method (`distgprl.experiments.pace.Paces`: measured from the sweep's
 runs finished or in progress, else estimated), handed out to the workers in the sweep's
-order (`distgprl.experiments.pace.makespan`), plus, per run, the median time the sweep's
-finished jobs took beyond their training (building the environment, evaluating, twin
-trials: most of a `ci` job), once a job has finished.
+order (`distgprl.experiments.pace.makespan`), plus, per job left (an untrained reference's
+too), the median time the sweep's finished jobs of its task took beyond their training
+(building the environment, evaluating, twin trials: most of a `ci` job; of any task until one
+of its own has finished).
 
 - On a terminal (``live``) that line is a progress bar redrawn in place every refresh, with
   one line per running job beneath it (its step, curve rates, minutes left) and a line per
@@ -110,7 +111,7 @@ class SweepProgress:
         self._lock = threading.Lock()
         self._bars: list[Any] = []
         self._last_paces: Paces | None = None
-        self.overheads: list[float] = []  # seconds finished jobs took beyond their training
+        self.overheads: dict[str, list[float]] = {}  # task -> seconds beyond training per job
 
     # --- what the numbers are -------------------------------------------------------------
 
@@ -137,14 +138,21 @@ class SweepProgress:
         text += f"{format_steps(steps)}/{format_steps(total_steps)} steps, elapsed {elapsed}"
         return text + f", ETA {format_duration(self.eta_s())}"
 
+    def overhead_s(self, task: str) -> float:
+        """The median time the sweep's finished jobs of ``task`` took beyond their training
+        (of every task's while none of its own has finished; 0 before any has)."""
+        every_task = [second for seconds in self.overheads.values() for second in seconds]
+        seconds = self.overheads.get(task) or every_task
+        return statistics.median(seconds) if seconds else 0.0
+
     def eta_s(self) -> float:
-        """Seconds of training left for the sweep on its workers (module docstring)."""
+        """Seconds the sweep has left on its workers (module docstring)."""
         paces = self._paces()
-        overhead = statistics.median(self.overheads) if self.overheads else 0.0
         durations = [
-            paces.lookup(status)[0] * steps_left(status) + overhead
+            (paces.lookup(status)[0] * steps_left(status) if status.total_steps else 0.0)
+            + self.overhead_s(status.job.task)
             for status in (self.statuses[job] for job in self.unfinished)
-            if status.state != "done" and status.total_steps
+            if status.state != "done"
         ]
         running = min(self.workers, len(durations))
         return makespan(durations[:running], durations[running:], self.workers)
@@ -220,9 +228,10 @@ class SweepProgress:
             if job in self.unfinished:
                 self.unfinished.remove(job)
             self.statuses[job] = status = self._read(job)
-            if result.status == "done" and status.seconds_per_step and status.total_steps:
-                training = status.seconds_per_step * status.total_steps
-                self.overheads.append(max(result.seconds - training, 0.0))
+            if result.status == "done" and (status.seconds_per_step or not status.total_steps):
+                training = (status.seconds_per_step or 0.0) * status.total_steps
+                overheads = self.overheads.setdefault(job.task, [])
+                overheads.append(max(result.seconds - training, 0.0))
             if result.status == "skipped" and job in self.found_done:
                 self.found_done.discard(job)  # reported once, by `opening`
                 if not (result.trials or result.repairs):

@@ -25,7 +25,7 @@ EVALUATION_KEYS = (*RUN_KEYS, "policy")
 """A run's columns and the policy evaluated (``best``, ``final`` or ``untrained``)."""
 
 COLLISION_FREE_MINCL = "min_clearance_p5_collision_free"
-"""MinCl (m), protocol v6, rule 5 (docs/findings/protocol.md); None where every episode
+"""MinCl (m), docs/findings/protocol.md, rule 5; None where every episode
 collided; ``collision_free_episodes`` counts the episodes it is over."""
 
 TRAINING_FIELDS = ("train_wall_time_s", "cpu_s_per_step")

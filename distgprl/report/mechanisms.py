@@ -1,5 +1,5 @@
-"""The mechanism table of a preset's runs (protocol v6 rule 7, docs/findings/protocol.md; v8
-rule 1, docs/findings/environment-v8.md), each judged, with a verdict line per term. A cell: a
+"""The mechanism table of a preset's runs (docs/findings/protocol.md, rule 7;
+protocol rule 1), each judged, with a verdict line per term. A cell: a
 dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values behind them."""
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
 TABLE_POLICY = "best"
 """The policy the tables report: the best learning-curve policy, Algorithm 1's output
-(protocol v6, rule 6, docs/findings/protocol.md)."""
+(docs/findings/protocol.md, rule 6)."""
 
 UNTRAINED = "untrained"
 """`RunEvaluation.policy` of an untrained reference (one evaluation, used for both)."""

@@ -1,7 +1,7 @@
 """Every results table of a preset from its result files only (`write_tables`), each made by
 its module, written with a metadata sidecar per CSV; a table the results no longer make is
 removed. Table I, its per-run table, the aggregates and the claims report `TABLE_POLICY`'s
-evaluations (protocol v6, rule 6, docs/findings/protocol.md)."""
+evaluations (docs/findings/protocol.md, rule 6)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ ABOUT = {
 table."""
 
 ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nominal-1demo")
-"""The one-demonstration study's rows (protocol v8, rule 3, docs/findings/environment-v8.md)."""
+"""The one-demonstration study's rows (protocol rule 3)."""
 
 
 def write_tables(

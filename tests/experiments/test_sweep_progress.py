@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from distgprl.cli import app
 from distgprl.experiments import sweep
+from distgprl.experiments.pace import DEFAULT_SECONDS_PER_STEP
 from distgprl.experiments.run_control import ResumePoint
 from distgprl.experiments.status import RunStatus
 from distgprl.experiments.sweep_progress import SweepProgress, format_steps
@@ -86,6 +87,30 @@ def test_the_sweep_line_counts_runs_and_steps_and_its_eta_follows_the_measured_p
     progress.finished(sweep.JobResult(running, "done", 300.0), 2, 3)  # 60 s beyond training
     # the pair's median finished pace is now 0.75 s/step
     assert progress.eta_s() == pytest.approx(240 * 0.75 + 60.0)
+
+
+def test_the_eta_counts_the_references_left_at_their_tasks_measured_time(tmp_path):
+    """An untrained reference trains nothing but still takes time (evaluation, twin trials):
+    each job left adds the median time beyond training of its task's finished jobs, of every
+    task's while its own has none (so the ETA is not 0 s while references are left)."""
+    jobs = sweep.plan_jobs("ci", ["demo", "gprl-d"], ["dcp", "dbm"], [0], root=tmp_path)
+    by_name = {job.name: job for job in jobs}
+    progress = _progress(jobs)
+    _finish(tmp_path, "dbm", "gprl-d", wall_s=120.0)  # 0.5 s/step
+    progress.finished(sweep.JobResult(by_name["dbm/gprl-d/seed0"], "done", 150.0), 1, 4)
+    write_json(
+        run_dir(tmp_path, "ci", "dbm", "demo", 0) / "summary.json",
+        {"summary": {}},
+        kind="summary",
+        config_hash=resolve_run("dbm", "demo", 0, "ci").hash,
+    )
+    progress.finished(sweep.JobResult(by_name["dbm/demo/seed0"], "done", 40.0), 2, 4)
+    assert progress.overhead_s("dbm") == pytest.approx((30.0 + 40.0) / 2)
+    assert progress.overhead_s("dcp") == pytest.approx(35.0)  # no dcp job finished: all tasks
+    progress.unfinished = [by_name["dcp/demo/seed0"], by_name["dcp/gprl-d/seed0"]]
+    # one worker: the dcp demo's 35 s, then the dcp run's 240 steps at the default pace (no
+    # dcp run measured, none committed here) and 35 s
+    assert progress.eta_s() == pytest.approx(35.0 + 240 * DEFAULT_SECONDS_PER_STEP + 35.0)
 
 
 def test_plain_output_prints_each_finished_job_with_the_sweeps_line(tmp_path):
