@@ -341,6 +341,8 @@ def test_killed_sweep_completes_on_restart_without_lost_or_duplicated_runs(tmp_p
         assert len(rows) == 6
     leftovers = [p for p in tmp_path.rglob("*.tmp*")]
     assert leftovers == []
+    if how != "SIGKILL":  # once: the resumed runs are checked above for every way of stopping
+        return
     # Tables and curves are pure functions of the result files.
     out_a, out_b = tmp_path / "fig_a", tmp_path / "fig_b"
     files_a = write_tables(tmp_path, "ci", out_a) + write_curves(tmp_path, "ci", out_a)
