@@ -27,11 +27,10 @@ from dataclasses import dataclass
 
 from distgprl.errors import UserInputError
 from distgprl.identity import SWEEP_SEEDS
-from distgprl.methods import EXPLORATION_METHODS, METHODS, STUDY_METHODS
+from distgprl.methods import METHODS
 
 __all__ = [
     "STUDIES",
-    "TRAINED",
     "OnsetRule",
     "Reading",
     "Study",
@@ -132,7 +131,7 @@ class Study:
         question: one sentence: what the study answers.
         acts_on: the `MethodSpec` flag that marks the methods whose runs a reading changes
             (``covariance_transform``: the operator acts on the methods that apply S_W;
-            ``trainable``: a reward unit changes every trained method).
+            ``trainable``: a reward constant changes every trained method).
         seeds: the seeds at which the readings are compared (Table I's): every table,
             figure and verdict of the study reads these; runs at other seeds are read by
             the rules that name them only (`OnsetRule.seeds`).
@@ -237,8 +236,6 @@ class Study:
         return (self.reference, *self.readings)
 
 
-TRAINED = tuple(name for name, spec in METHODS.items() if spec.trainable)
-
 REACH = (
     "reach: the signal reading's early escape is its smaller per-via-point step; its "
     "coupling is not needed for it"
@@ -322,32 +319,6 @@ STUDIES: dict[str, Study] = {
             "Is a claim the paper's, or one reading of K_tt in the covariance operator "
             "S = K (K + lambda I)^-1 the paper leaves open?"
         ),
-    ),
-    "reward-unit": Study(
-        name="reward-unit",
-        reference=table_one_reading("r_tc in units of one task"),
-        readings=(
-            Reading(
-                "reward-unit-10",
-                "r_tc in tenths of a task (v5's unit)",
-                (
-                    ("env.progress_weight", 10.0),
-                    ("env.success_bonus", 10.0),
-                    ("env.collision_penalty", 10.0),
-                    ("env.sd_beta", 5e-4),
-                    ("env.signature_weight", 1.0),
-                    ("sac.ent_coef_init", 0.1),
-                    ("sac.anneal_start", 0.2),
-                    ("sac.anneal_end", 0.002),
-                ),
-            ),
-        ),
-        methods=tuple(m for m in TRAINED if m not in EXPLORATION_METHODS + STUDY_METHODS),
-        question=(
-            "Is a claim the paper's, or the unit of r_tc the paper leaves open, which sets "
-            "what lambda_ga = 0.2, lambda_sim = 0.5 and lambda_hap = 0.2 weigh against the task?"
-        ),
-        acts_on="trainable",
     ),
 }
 """Every study, by name."""

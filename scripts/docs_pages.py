@@ -79,9 +79,8 @@ RESULT_TABLES: tuple[tuple[str, str], ...] = (
     ("table2_paper.md", "Table II: hardware trials (digital twin)"),
     ("table2_noise_paper.md", "The twin's robustness to perception error"),
     ("claims_paper.md", "The claims"),
-    ("claims_robustness_paper.md", "The claims per reading (operator and reward-unit studies)"),
+    ("claims_robustness_paper.md", "The claims per reading (the operator study)"),
     ("onsets_operators_paper.md", "When each run learns: the operator study and its control"),
-    ("onsets_reward-unit_paper.md", "When each run learns: the reward-unit study"),
     ("mechanisms_paper.md", "The mechanism table"),
     ("paired_vs_demo_paper.md", "Every run against the unadapted demonstration, TC by TC"),
     ("paired_vs_dist-gprl_paper.md", "Every run against Dist-GPRL of the same seed, TC by TC"),
@@ -97,9 +96,7 @@ RESULT_FIGURES: tuple[tuple[str, str], ...] = (
     ("table2_noise_paper.png", "Twin success and collision against the perception error"),
     ("sensitivity_operators_paper.png", "The operator study: Dist-GPRL per reading of S"),
     ("curves_operators_paper.png", "The operator study: learning curves per reading, seed by seed"),
-    ("curves_reward-unit_paper.png", "The reward-unit study: learning curves, seed by seed"),
     ("onsets_operators_paper.png", "The operator study: when each run first reaches 0.5 success"),
-    ("onsets_reward-unit_paper.png", "The reward-unit study: when each run first reaches 0.5"),
     ("rollout_dcp.gif", "A DCP rollout: Dist-GPRL's Table I policy (left) beside the demo"),
     ("rollout_dbm.gif", "A DBM rollout: the TC-conditioned demonstration"),
     ("dcp_scene.png", "The DCP scene"),
@@ -198,30 +195,44 @@ def reference_presets() -> tuple[str, ...]:
     return tuple(dict.fromkeys(presets))
 
 
-def is_published(name: str) -> bool:
+def archived_presets(figures: Path) -> tuple[str, ...] | None:
+    """The presets of an archived environment whose ``paper_figures/`` is ``figures``: its
+    run folders beside it (``results/archive/env-vN/<preset>/``; not ``ci``), which may name
+    presets no longer shipped; None for outputs that are not an archive's."""
+    runs = figures.parent
+    if not (runs / "paper").is_dir():
+        return None
+    skip = {figures.name, "hardware", "ci"}
+    return tuple(sorted(p.name for p in runs.iterdir() if p.is_dir() and p.name not in skip))
+
+
+def is_published(name: str, reference: tuple[str, ...] | None = None) -> bool:
     """Whether the output file ``name`` (of a ``paper_figures/`` folder) is on the site: a
     Markdown table or a figure whose name is ``<kind>_<preset>[_<more>]`` for a reference
-    preset (`reference_presets`) and names no other shipped preset, or a listed illustration
-    (`ILLUSTRATIONS`). ``table1_ci.md``, ``all_methods_ci.png`` and files named by no preset
-    are not published."""
+    preset (`reference_presets`, or an archive's ``reference``) and names no other shipped
+    preset, or a listed illustration (`ILLUSTRATIONS`). ``table1_ci.md``,
+    ``all_methods_ci.png`` and files named by no preset are not published."""
     if not name.endswith(PUBLISHED_SUFFIXES):
         return False
     if name in ILLUSTRATIONS:
         return True
     tokens = set(name.split(".", 1)[0].split("_"))
-    reference = set(reference_presets())
-    others = set(shipped_presets()) - reference
-    return bool(tokens & reference) and not tokens & others
+    presets = set(reference_presets() if reference is None else reference)
+    others = set(shipped_presets()) - presets
+    return bool(tokens & presets) and not tokens & others
 
 
 def published_files(figures: Path, pattern: str) -> list[Path]:
-    """The files of ``figures`` matching ``pattern`` that the site publishes, by name; the
-    ones left out are logged (mkdocs' info level: shown, never a failure of --strict)."""
+    """The files of ``figures`` matching ``pattern`` that the site publishes, by name (an
+    archive's by its own presets, `archived_presets`); the ones left out are logged (mkdocs'
+    info level: shown, never a failure of --strict)."""
+    reference = archived_presets(figures)
     found = sorted(figures.glob(pattern))
-    left_out = [path.name for path in found if not is_published(path.name)]
+    kept = [path for path in found if is_published(path.name, reference)]
+    left_out = [path.name for path in found if path not in kept]
     if left_out:
         LOG.info("not published (no reference preset's output): %s", ", ".join(left_out))
-    return [path for path in found if is_published(path.name)]
+    return kept
 
 
 # -- the results page's first screen ----------------------------------------------------------

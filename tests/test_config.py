@@ -147,7 +147,6 @@ def test_shipped_presets_are_package_data_not_files_of_the_checkout():
         "operator-signal-uncoupled",
         "operator-unit",
         "paper",
-        "reward-unit-10",
     )
     shipped = resources.files("distgprl") / "presets" / "ci.yaml"
     assert shipped.is_file()

@@ -196,8 +196,8 @@ def _output_tree(folder: Path) -> Path:
     for name in (
         "table1_paper.md",
         "table1_paper_per_seed.md",
-        "onsets_reward-unit_paper.md",
-        "table1_reward-unit-10.md",
+        "onsets_operators_paper.md",
+        "table1_operator-unit.md",
         "table1_ci.md",
         "table1_ci_per_seed.md",
         "claims_ci.md",
@@ -219,9 +219,9 @@ def test_only_the_reference_presets_outputs_are_published(pages, tmp_path):
     archived = _output_tree(tmp_path / "archived")
     tables, shown = pages.results_tables(figures), pages.result_figures(figures)
     copied = pages.figure_files(figures, archived)
-    for name in ("table1_paper.md", "table1_paper_per_seed.md", "onsets_reward-unit_paper.md"):
+    for name in ("table1_paper.md", "table1_paper_per_seed.md", "onsets_operators_paper.md"):
         assert f"| {name} |" in tables, name
-    assert "| table1_reward-unit-10.md |" in tables
+    assert "| table1_operator-unit.md |" in tables
     for name in ("all_methods_paper.png", "dcp_scene.png"):
         assert f"](figures/{name})" in shown
         assert f"results/figures/{name}" in copied and f"results/figures/env-v7/{name}" in copied

@@ -40,7 +40,6 @@ STUDY_PRESETS = (
     "operator-signal",
     "operator-signal-uncoupled",
     "operator-unit",
-    "reward-unit-10",
 )
 
 COMMITTED_CONFIG_HASHES = {
@@ -54,8 +53,6 @@ COMMITTED_CONFIG_HASHES = {
     ("operator-unit", "dbm"): "e35eef7116c65e23",
     ("paper", "dcp"): "24720bb451218cab",
     ("paper", "dbm"): "6818e3b88c650e3b",
-    ("reward-unit-10", "dcp"): "a6d08ea7619a122a",
-    ("reward-unit-10", "dbm"): "cd9d58d6c834c76f",
 }
 """`distgprl.io.config_hash` of each preset's resolved configuration per task, as the presets
 resolved when the study presets still copied `paper`'s run block (before ``extends``): their

@@ -18,7 +18,9 @@ from distgprl.studies import STUDIES, get_study
 @pytest.mark.parametrize("name", sorted(STUDIES))
 def test_every_reading_differs_from_the_reference_in_exactly_its_stated_changes(name):
     """Each reading's preset is shipped and its configuration equals the reference preset's
-    but for the (section.field, value) pairs the study states, on both tasks."""
+    but for the (section.field, value) pairs the study states, on both tasks; each stated
+    value differs from the reference's (a reading at Table I's own value re-runs Table I, as
+    v7's reward-unit reading did once v8 made its unit Table I's)."""
     study = get_study(name)
     assert name not in shipped_presets()  # a study is not a preset: no run folder of its own
     for reading in study.all_readings:
@@ -30,6 +32,7 @@ def test_every_reading_differs_from_the_reference_in_exactly_its_stated_changes(
             for key, value in reading.changes:
                 section, field = key.split(".")
                 assert config[section][field] == value, (reading.preset, key)
+                assert reference[section][field] != value, (reading.preset, key, "Table I's")
                 stated[(section, field)] = value
             for section in ("env", "sac", "run"):
                 for field, value in reference[section].items():
@@ -71,8 +74,6 @@ def test_a_study_without_seeds_plans_its_seeds_then_its_rules_runs(tmp_path):
     assert all(job.twin_trials == 0 and not job.repair_evaluations for job in jobs)
     assert len(plan_jobs("operators", tasks=["dbm"], root=tmp_path)) == readings // 2
     assert len(plan_jobs("operators", methods=["gprl-d"], root=tmp_path)) == readings
-    reward = get_study("reward-unit")
-    assert len(plan_jobs("reward-unit", root=tmp_path)) == len(reward.methods) * 2 * 5
 
 
 def test_status_accepts_a_study(tmp_path):

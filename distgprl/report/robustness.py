@@ -152,9 +152,9 @@ def robustness_texts(results: pd.DataFrame, preset: str) -> tuple[str, str]:
     intro = (
         f"Claims per reading ({preset} preset beside its studies): each claim's overall "
         "verdict (`distgprl.report.claims`) under Table I's readings and under each study "
-        "reading, where a study reading replaces the methods it acts on (the operator: those "
-        "with the covariance transform; the unit of r_tc: every trained method) by their runs "
-        "under its preset and keeps the other methods' Table I runs. A claim counts as "
+        "reading, where a study reading replaces the methods it acts on (the operator's: "
+        "those with the covariance transform) by their runs under its preset and keeps the "
+        "other methods' Table I runs. A claim counts as "
         "reproduced only where it is reproduced under every reading; a verdict that changes "
         "with the reading is reading-dependent (rules: `distgprl.report.robustness`)."
     )

@@ -48,3 +48,44 @@ def study_tree(tmp_path):
     write_study_run(tmp_path, "paper", "dcp", "dist-gprl-nocov", 0, [0.0, 0.0, 0.0, 0.0])
     write_study_run(tmp_path, "operator-signal", "dcp", "dist-gprl", 0, [0.5, 0.8, 0.9, 0.9])
     return tmp_path
+
+
+UNIT_PRESET = "unit-study-20"
+"""The preset of `unit_study`'s one reading (`unit_study_preset` registers it)."""
+
+
+def unit_study():
+    """A study of every trained method (``acts_on="trainable"``, as a reward constant's): one
+    reading, r_tc in twentieths of a task, beside Table I's tenths. No such study ships (the
+    reward-unit study is v7's, archived); it stands for any second study of another kind."""
+    from distgprl.methods import EXPLORATION_METHODS, METHODS, STUDY_METHODS
+    from distgprl.studies import Reading, Study, table_one_reading
+
+    others = EXPLORATION_METHODS + STUDY_METHODS
+
+    return Study(
+        name="unit",
+        reference=table_one_reading("r_tc in tenths of a task"),
+        readings=(
+            Reading(UNIT_PRESET, "r_tc in twentieths of a task", (("env.progress_weight", 20.0),)),
+        ),
+        methods=tuple(m for m, spec in METHODS.items() if spec.trainable and m not in others),
+        question="Does a claim hold under another unit of r_tc?",
+        acts_on="trainable",
+    )
+
+
+@pytest.fixture
+def unit_study_preset(tmp_path_factory, monkeypatch):
+    """`unit_study`, its reading's preset registered for this test (`register_preset`) and
+    the study read beside ``paper`` (in `distgprl.studies.STUDIES`)."""
+    from distgprl import config as config_module
+    from distgprl import studies
+
+    monkeypatch.setenv(config_module.USER_PRESETS_ENV, "")
+    path = tmp_path_factory.mktemp("presets") / f"{UNIT_PRESET}.yaml"
+    path.write_text("extends: paper\nenv: {progress_weight: 20.0}\n")
+    config_module.register_preset(path)
+    study = unit_study()
+    monkeypatch.setitem(studies.STUDIES, study.name, study)
+    return study

@@ -300,7 +300,9 @@ def test_a_studys_curves_leave_out_seeds_beyond_its_own(study_tree, study_run):
     assert len(signal.get_lines()) == 1
 
 
-def test_write_curves_writes_each_studys_curves_and_removes_them_without_runs(study_tree):
+def test_write_curves_writes_each_studys_curves_and_removes_them_without_runs(
+    study_tree, unit_study_preset
+):
     import shutil
 
     from distgprl.report.curves import write_curves
@@ -308,7 +310,7 @@ def test_write_curves_writes_each_studys_curves_and_removes_them_without_runs(st
     out = study_tree / "out"
     names = {p.name for p in write_curves(study_tree, "paper", out)}
     assert {"curves_operators_paper.png", "curves_operators_paper.pdf"} <= names
-    assert {"curves_reward-unit_paper.png", "curves_reward-unit_paper.pdf"} <= names
+    assert {"curves_unit_paper.png", "curves_unit_paper.pdf"} <= names
     for preset in ("paper", "operator-signal"):
         shutil.rmtree(study_tree / preset / "dcp")
     (study_tree / "paper" / "dbm" / "gprl" / "seed0").mkdir(parents=True)  # a task folder

@@ -156,9 +156,9 @@ def test_the_studys_seeds_are_filled_and_a_rules_further_seeds_hollow(operators)
     plt.close(fig)
 
 
-def test_the_rule_line_is_at_by_step_on_the_rules_task_only(operators, study_run):
+def test_the_rule_line_is_at_by_step_on_the_rules_task_only(operators, unit_study_preset):
     """The operator study's rules read DCP: a dashed line at step 4 500 labelled "early: ≤
-    4 500" on DCP, none on DBM; the reward-unit study has no rule and no line."""
+    4 500" on DCP, none on DBM; a study without rules has no line."""
     fig, _ = plot_onset_figure(operators, get_study("operators"), ["dcp", "dbm"], "paper")
     dcp, dbm = fig.axes[:2]
     (line,) = [line for line in dcp.lines if line.get_gid() == "rule"]
@@ -167,7 +167,7 @@ def test_the_rule_line_is_at_by_step_on_the_rules_task_only(operators, study_run
     assert not [line for line in dbm.lines if line.get_gid() == "rule"]
     assert not [t for t in dbm.texts if "early" in t.get_text()]
     plt.close(fig)
-    fig, drawn = plot_onset_figure(operators, get_study("reward-unit"), ["dcp", "dbm"], "paper")
+    fig, drawn = plot_onset_figure(operators, unit_study_preset, ["dcp", "dbm"], "paper")
     assert drawn == 4  # Table I's Dist-GPRL seeds 0, 1 and NoCov seed 0 on DCP, seed 0 on DBM
     assert not [line for ax in fig.axes for line in ax.lines if line.get_gid() == "rule"]
     plt.close(fig)
@@ -209,11 +209,11 @@ def test_regenerating_gives_the_same_bytes_and_nothing_to_draw_removes_the_files
     assert not any(out.iterdir())
 
 
-def test_distgprl_curves_writes_every_studys_onset_figure(operators):
+def test_distgprl_curves_writes_every_studys_onset_figure(operators, unit_study_preset):
     """`write_curves` (``distgprl curves``) writes the onset figure of each study read beside
-    the preset (operators and reward-unit beside ``paper``)."""
+    the preset (here the operators and a second study beside ``paper``)."""
     from distgprl.report.curves import write_curves
 
     names = {p.name for p in write_curves(operators, "paper", operators / "out")}
-    for study in ("operators", "reward-unit"):
+    for study in ("operators", unit_study_preset.name):
         assert {f"onsets_{study}_paper.png", f"onsets_{study}_paper.pdf"} <= names

@@ -41,21 +41,25 @@ def test_every_panel_gets_a_row_per_seed_with_its_onset_and_both_policies(tmp_pa
     assert (rows[0]["best_success"], rows[0]["final_success"]) == (0.9, 0.7)
 
 
-def test_a_study_of_every_trained_method_has_a_row_per_method_and_reading(tmp_path, study_run):
-    """The reward-unit study acts on every trained method: its table lists each method (Table
-    I's order) under Table I's unit and under the study's, no NoCov extra, no rule column."""
+def test_a_study_of_every_trained_method_has_a_row_per_method_and_reading(
+    tmp_path, study_run, unit_study_preset
+):
+    """A study of every trained method (a reward constant's): its table lists each method
+    (Table I's order) under Table I's reading and under the study's, no NoCov extra, no rule
+    column."""
     from distgprl.report.onsets import onset_panels
 
-    study = get_study("reward-unit")
+    study = unit_study_preset
+    (reading,) = study.presets
     panels = onset_panels(study)
     assert len(panels) == 2 * len(study.methods)
     assert [p[1] for p in panels[:2]] == ["gprl", "gprl"]
-    assert [p[0] for p in panels[:2]] == ["paper", "reward-unit-10"]
+    assert [p[0] for p in panels[:2]] == ["paper", reading]
     study_run(tmp_path, "paper", "dcp", "gprl-h", 0, EARLY)
-    study_run(tmp_path, "reward-unit-10", "dcp", "gprl-h", 0, LATE)
+    study_run(tmp_path, reading, "dcp", "gprl-h", 0, LATE)
     _, markdown = onset_texts(tmp_path, study, ["dcp"], "paper")
     assert (
-        "| GPRL-H: r_tc in units of one task (Table I) (`paper`) | 3 000: 0.80 (0.80) | 1/1 |"
+        "| GPRL-H: r_tc in tenths of a task (Table I) (`paper`) | 3 000: 0.80 (0.80) | 1/1 |"
         in (markdown)
     )
     assert "early" not in markdown

@@ -163,11 +163,12 @@ def test_a_method_the_study_trains_but_has_not_run_is_awaited_not_untested():
     assert verdict["operator-unit"][HAP].verdict == OUTSIDE
 
 
-def test_a_reward_unit_reading_replaces_every_trained_method():
-    """The reward unit changes every trained method's rewards: under its reading no Table I
-    run of a trained method is kept (the references are), and a method without a run under it
-    makes its claims not run."""
-    study = get_study("reward-unit")
+def test_a_study_of_every_trained_method_replaces_every_trained_method(unit_study_preset):
+    """A reading of a reward constant changes every trained method's rewards: under it no
+    Table I run of a trained method is kept (the references are), and a method without a run
+    under it makes its claims not run."""
+    study = unit_study_preset
+    (reading,) = study.presets
     reference = both_tasks({**FIELD, "demo": runs(0.5, 0.3)})
     reading_runs = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
     scores, not_run = reading_scores(reference, reading_runs, study.acted_on)
@@ -179,47 +180,47 @@ def test_a_reward_unit_reading_replaces_every_trained_method():
         "operator-unit",
         "operator-signal",
         "operator-correlation",
-        "reward-unit-10",
+        reading,
     ]
-    assert set(results[results.preset == "reward-unit-10"].verdict) == {NOT_RUN}
+    assert set(results[results.preset == reading].verdict) == {NOT_RUN}
 
 
-def test_with_two_studies_each_has_its_own_column_beside_the_overall_one():
-    """The operator study's verdict does not wait for the reward-unit study's runs: with both
-    read, each study's column judges Table I's reading and that study's readings only."""
-    operators, reward = get_study("operators"), get_study("reward-unit")
+def test_with_two_studies_each_has_its_own_column_beside_the_overall_one(unit_study_preset):
+    """The operator study's verdict does not wait for another study's runs: with both read,
+    each study's column judges Table I's reading and that study's readings only."""
+    operators, unit = get_study("operators"), unit_study_preset
     reference = both_tasks(FIELD)
     same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
-    runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
-    results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
+    runs_of = {p: same for p in operators.presets} | {unit.presets[0]: {}}
+    results = study_verdicts([operators, unit], reference, runs_of.__getitem__, seed=0)
     csv_text, markdown = robustness_texts(results, "paper")
     rows = [line.split(",") for line in csv_text.splitlines()]
     of_global = {row[1]: row[3] for row in rows if row[0] == GLOBAL}
     assert of_global["across operators"] == "reproduced under every reading"
-    assert of_global["across reward-unit"].startswith("incomplete: reproduced under 1 of 2")
+    assert of_global["across unit"].startswith("incomplete: reproduced under 1 of 2")
     assert of_global["across"].startswith("incomplete: reproduced under 4 of 5")
     assert "Across Table I and the operators study" in markdown
-    assert "Across Table I and the reward-unit study" in markdown
+    assert "Across Table I and the unit study" in markdown
 
 
-def test_with_two_studies_table_one_is_named_by_every_studied_constant():
-    """With the operator and reward-unit studies read together, Table I's reading is named by
-    both constants' Table I values, never by one study's alone (a reward-unit verdict naming
-    "zero-mean GP" would name the operator); one study keeps its own reference label, and
-    studies of different Table I presets are refused."""
-    operators, reward = get_study("operators"), get_study("reward-unit")
-    both = reference_reading([operators, reward])
+def test_with_two_studies_table_one_is_named_by_every_studied_constant(unit_study_preset):
+    """With the operator and a unit study read together, Table I's reading is named by both
+    constants' Table I values, never by one study's alone (a unit verdict naming "zero-mean
+    GP" would name the operator); one study keeps its own reference label, and studies of
+    different Table I presets are refused."""
+    operators, unit = get_study("operators"), unit_study_preset
+    both = reference_reading([operators, unit])
     assert both.preset == "paper"
-    assert both.label == "Table I (zero-mean GP; r_tc in units of one task)"
-    assert reference_reading([reward]) == reward.reference
+    assert both.label == "Table I (zero-mean GP; r_tc in tenths of a task)"
+    assert reference_reading([unit]) == unit.reference
     reference = both_tasks(FIELD)
     same = both_tasks({"dist-gprl": FIELD["dist-gprl"]})
-    runs_of = {p: same for p in operators.presets} | {"reward-unit-10": {}}
-    results = study_verdicts([operators, reward], reference, runs_of.__getitem__, seed=0)
+    runs_of = {p: same for p in operators.presets} | {unit.presets[0]: {}}
+    results = study_verdicts([operators, unit], reference, runs_of.__getitem__, seed=0)
     assert (results.reading[0], results.preset[0]) == (both.label, both.preset)
     csv_text, _ = robustness_texts(results, "paper")
     assert "zero-mean GP (Table I)" not in csv_text
-    other = replace(reward, reference=replace(reward.reference, preset="ci"))
+    other = replace(unit, reference=replace(unit.reference, preset="ci"))
     with pytest.raises(ValueError, match="different Table I presets"):
         reference_reading([operators, other])
 
