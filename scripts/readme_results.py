@@ -106,7 +106,32 @@ def claims_table(figures: Path = REPOSITORY / "paper_figures") -> str:
     ]
     for claim in claims:
         lines.append(f"| {claim} | {table_one.get(claim, '–')} | {across.get(claim, '–')} |")
+    lines += ["", line] if (line := readings_without_runs(rows)) else []
     return "\n".join(lines) + "\n"
+
+
+def readings_without_runs(rows: list[dict[str, str]]) -> str:
+    """A sentence naming the study readings (not Table I's, not an across row) under which no
+    claim has runs (every verdict `NOT_RUN` or `OUTSIDE`), by study, with the command that
+    trains them; "" where every reading has runs."""
+    sys.path.insert(0, str(REPOSITORY))
+    from distgprl.report.robustness import NOT_RUN, OUTSIDE
+    from distgprl.studies import study_of_reading
+
+    verdicts: dict[tuple[str, str], set[str]] = {}
+    for row in rows:
+        if row["preset"] and row["preset"] != TABLE_ONE_READING:
+            verdicts.setdefault((row["reading"], row["preset"]), set()).add(row["verdict"])
+    by_study: dict[str, list[str]] = {}
+    for (label, preset), seen in verdicts.items():
+        if seen <= {NOT_RUN, OUTSIDE}:
+            study = study_of_reading(preset)
+            by_study.setdefault(study.name if study else preset, []).append(label)
+    parts = [
+        f"the {name} study's {', '.join(labels)} (`distgprl sweep --preset {name}`)"
+        for name, labels in by_study.items()
+    ]
+    return f"No runs yet under {'; '.join(parts)}." if parts else ""
 
 
 def _replace_block(text: str, start: str, end: str, block: str) -> str | None:

@@ -181,6 +181,31 @@ def test_the_claims_table_is_table_one_beside_every_reading(tmp_path):
     assert "No claims" in load_script("readme_results").claims_table(tmp_path / "none")
 
 
+def test_the_claims_table_names_the_readings_without_runs_and_how_to_train_them(tmp_path):
+    """A study reading under which no claim has runs (each verdict "not run under this
+    reading" or "not tested by this study") is named under the table with its study's sweep
+    command; a reading with a verdict of its own is not, and without such readings nothing is
+    added."""
+    header = "claim,reading,preset,verdict,detail\n"
+    rows = (
+        "A claim,zero-mean GP (Table I),paper,reproduced,\n"
+        "A claim,unit variance (v4),operator-unit,not run under this reading,\n"
+        "B claim,unit variance (v4),operator-unit,not tested by this study,\n"
+        "A claim,correlation only,operator-correlation,reproduced,\n"
+        "A claim,across,,incomplete: awaiting unit variance (v4),\n"
+    )
+    (tmp_path / "claims_robustness_paper.csv").write_text(header + rows)
+    table = load_script("readme_results").claims_table(tmp_path)
+    assert table.endswith(
+        "\nNo runs yet under the operators study's unit variance (v4) "
+        "(`distgprl sweep --preset operators`).\n"
+    )
+    (tmp_path / "claims_robustness_paper.csv").write_text(
+        header + rows.replace("not run under this reading", "refuted")
+    )
+    assert "No runs yet" not in load_script("readme_results").claims_table(tmp_path)
+
+
 def test_the_site_shows_the_committed_hardware_and_repair_tables():
     """The site's copies of Table II, the twin robustness table and Table I + repair are the
     committed ones (where they exist)."""
