@@ -59,7 +59,7 @@ def short_table(figures: Path = REPOSITORY / "paper_figures") -> str:
     with path.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
     lines = [
-        f"**Table I v{version} so far** (`paper` preset, Algorithm 1's best policy, 100 "
+        f"**Table I v{version}** (`paper` preset, Algorithm 1's best policy, 100 "
         "evaluation TCs): success and collision rates, mean over seeds (their number in "
         f"brackets); {links}.",
         "",
