@@ -293,8 +293,10 @@ class ResidualRLEnv(TaskEnv):
         """Whether the nominal is the object-centric ProMP of the expert demonstrations."""
         return self.method.demonstrations == "expert"
 
-    def _start_episode(self, tc: TaskConfig, tcp_pose: np.ndarray) -> None:
-        """Condition the nominal on ``tc`` and blend the TCP pose (6,) in at its start."""
+    def start_plan(self, tc: TaskConfig, tcp_pose: np.ndarray, start_time: float) -> None:
+        """Condition the nominal on ``tc`` and blend the TCP pose (6,) in at its start; step 0.
+        ``start_time`` (s) is the via-point env's `start_plan`'s: the nominal keeps the
+        demonstration's timing, so it does not use it."""
         self.tc = tc
         if self._fits_expert:
             offset = np.r_[np.asarray(tc.object_offset, dtype=float), 0.0]
@@ -390,7 +392,7 @@ class ResidualRLEnv(TaskEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         tc = self.episode_tc(seed, options)
         self.sim.reset(tc)
-        self._start_episode(tc, self.sim.tcp_pose())
+        self.start_plan(tc, self.sim.tcp_pose(), float(self.sim.time))
         self._episode_over = False
         self._progress = self.sim.task_progress()
         self.tally = EpisodeTally()  # what the episode's RL steps add up to

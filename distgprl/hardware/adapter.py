@@ -281,11 +281,7 @@ def begin_trial(adapter: TrialAdapter, tcp_pose: np.ndarray, start_time: float) 
     env, scene = adapter.env, adapter.world
     scene.set_robot(tcp_pose, start_time)
     tc = perceived_tc(scene, start_time)
-    if isinstance(env, ResidualRLEnv):
-        env._start_episode(tc, tcp_pose)
-        env._episode_over = False
-    else:
-        env.start_plan(tc, tcp_pose, start_time)
+    env.start_plan(tc, tcp_pose, start_time)
     env.field.update(scene.obstacle_shapes())
     return tc
 

@@ -236,7 +236,8 @@ class _Builder:
         self.ik_calls = 0
         self._edge_cache: dict[bytes, bool] = {}
 
-    def _report(self, stage: str, done: int, total: int) -> None:
+    def report_progress(self, stage: str, done: int, total: int) -> None:
+        """Pass ``done`` of ``total`` items of ``stage`` to the progress callback, if any."""
         if self.progress is not None:
             self.progress(stage, done, total)
 
@@ -264,7 +265,7 @@ class _Builder:
             keep = [q for q in raw if not self._collides(q)]
             self.solutions.append(np.asarray(keep).reshape(-1, 6))
             if i % 50 == 0 or i == n_poses - 1:
-                self._report("ik", i + 1, n_poses)
+                self.report_progress("ik", i + 1, n_poses)
         self.reachable = np.flatnonzero([len(s) > 0 for s in self.solutions])
 
     def build_graph(self) -> None:
@@ -396,7 +397,7 @@ def build_subspace(
         mapped, total = builder.expand(root, q)
         if best is None or total < best[1] - 1e-9:
             best = (mapped, total, root)
-        builder._report("expand", k + 1, len(jobs))
+        builder.report_progress("expand", k + 1, len(jobs))
     mapped, total, root = best if best is not None else ({}, 0.0, -1)
     # Arrays in pose-grid order; parents re-indexed into the mapped arrays.
     poses = np.array(sorted(mapped), dtype=int)
