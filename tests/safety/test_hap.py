@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 import ur_analytic_ik
-from conftest import SphereRobotChecker, ur5e_ik_all
+from _sphere_robot import SphereRobotChecker, ur5e_ik_all
 from scipy.spatial.transform import Rotation
 
 from distgprl.safety.edf import DistanceField
