@@ -120,8 +120,9 @@ def load_policy(
     """Load the policy of the trained run ``<root>/<preset>/<task>/<method>/seed<k>``.
 
     Args:
-        policy: ``final`` (``model.zip``, what Table I evaluates) or ``best`` (Algorithm 1's
-            best learning-curve policy; `distgprl.experiments.policies.best_curve_row`).
+        policy: ``final`` (``model.zip``, the run's last step: Table I of the final policy)
+            or ``best`` (Algorithm 1's best trained learning-curve policy, what Table I
+            reports; `distgprl.experiments.policies.best_curve_row`).
 
     Raises:
         UserInputError: unknown names, no trained model there, or a model of a configuration

@@ -255,7 +255,7 @@ STUDIES: dict[str, Study] = {
                 "operator-signal",
                 "per-axis signal (v5)",
                 (("env.covariance_scale", "signal"),),
-                # docs/findings/operator.md, "The uncoupled-signal control, stage 2" (session 39)
+                # docs/findings/operator.md, "The uncoupled-signal control, stage 2"
                 rules=(
                     OnsetRule(
                         name="stage 2 replication",
@@ -282,7 +282,7 @@ STUDIES: dict[str, Study] = {
                 (("env.covariance_scale", "signal-uncoupled"),),
                 control=True,
                 rules=(
-                    # docs/findings/operator.md, "The uncoupled-signal control" (session 38)
+                    # docs/findings/operator.md, "The uncoupled-signal control"
                     OnsetRule(
                         name="stage 1",
                         task="dcp",
@@ -294,7 +294,7 @@ STUDIES: dict[str, Study] = {
                         if_early=REACH,
                         if_late=COUPLING,
                     ),
-                    # docs/findings/operator.md, "… stage 2" (session 39): independent seeds
+                    # docs/findings/operator.md, "… stage 2": independent seeds
                     OnsetRule(
                         name="stage 2",
                         task="dcp",

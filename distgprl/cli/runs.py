@@ -73,8 +73,9 @@ def sweep(
         typer.Option(
             min=0,
             help="Digital-twin trials per Table II setting each DBM run gets right after "
-            "training, while its model is on disk (repair on/off; noise levels for "
-            "dist-gprl and the references); 0: none.",
+            "training, while its model is on disk (seven settings: the paper's protocol, the "
+            "safety layer with repair on and off, and with repair on at noise levels 1-4); "
+            "0: none.",
         ),
     ] = TABLE2_TRIALS,
     repair_evaluations: Annotated[
@@ -337,9 +338,10 @@ def evaluate(
         str,
         typer.Option(
             metavar="final|best",
-            help="`final` (the trained policy, what Table I evaluates) or `best` (Algorithm "
-            "1's best policy: the best learning-curve point, by curve success, then collision, "
-            "then return), which writes evaluation_best*.csv / summary_best*.json.",
+            help="`final` (the policy at the run's last step: Table I of the final policy) or "
+            "`best` (Algorithm 1's best policy, what Table I reports: the best trained "
+            "learning-curve point, by curve success, then collision, then return), which "
+            "writes evaluation_best*.csv / summary_best*.json.",
         ),
     ] = "final",
     plan_repair: Annotated[

@@ -15,6 +15,7 @@ from distgprl.cli.common import (
     resolve_preset,
     user_errors,
 )
+from distgprl.errors import UserInputError
 
 
 @user_errors
@@ -56,12 +57,13 @@ def hardware(
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
     root: RootOption = Path("results"),
     repair: Annotated[
-        bool,
+        bool | None,
         typer.Option(
-            help="Safety-layer protocol: retime too-fast plans before refusing (with "
-            "--repair-push also push too-close via-points; --no-repair: refuse at once)."
+            help="Safety-layer protocol only: retime too-fast plans before refusing (the "
+            "default; with --repair-push also push too-close via-points; --no-repair: refuse "
+            "at once)."
         ),
-    ] = True,
+    ] = None,
     sensor_noise: Annotated[
         int,
         typer.Option(
@@ -87,7 +89,13 @@ def hardware(
     from distgprl.hardware.trial_rows import describe_summary
     from distgprl.hardware.trials import run_trials
     from distgprl.safety_layer.retime import RepairConfig
+    from distgprl.trial_protocol import PAPER
 
+    if protocol == PAPER and (repair is not None or repair_push):
+        raise UserInputError(
+            "--repair/--no-repair and --repair-push set the safety layer's repair: use them "
+            "with --protocol safety-layer (the paper's protocol checks nothing before it moves)"
+        )
     preset = resolve_preset(preset, config)
     report = run_trials(
         trials=trials,
@@ -103,7 +111,7 @@ def hardware(
         root=root,
         preset=preset,
         model_path=model,
-        repair=repair,
+        repair=True if repair is None else repair,
         repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
         protocol=protocol,

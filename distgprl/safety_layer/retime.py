@@ -33,11 +33,11 @@ class RepairConfig:
     Attributes:
         retime: re-time plans that are too fast.
         repair: push via-points out of the clearance margin. Off by default: in the twin
-            (session of 2026-12-01, `--method demo`, 10 trials) both trials it pushed (by
+            (2026-12-01, `--method demo`, 10 trials) both trials it pushed (by
             3.6-3.9 mm, predicted clearance raised to 5.7 mm) still collided, at the same
             depth as with ``--force``: the predicted clearance it acts on was 7-12 mm off
             the actual contact, so a pushed plan is not known to be safer than the refused
-            one. ``distgprl hardware --repair-push`` turns it on.
+            one. ``distgprl hardware --protocol safety-layer --repair-push`` turns it on.
         limit_scales: fractions of the safety limits handed to TOPP-RA, tried in order until
             the sampled plan passes the discrete check.
         grid_per_step: TOPP-RA grid points per control period of the original plan.

@@ -328,6 +328,35 @@ def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
 
 
+def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_protocol(
+    monkeypatch, tmp_path
+):
+    """The paper's protocol has no check to repair for: ``--no-repair``, ``--repair`` or
+    ``--repair-push`` with it is a user error (exit 2, naming the protocol to use) before any
+    trial, not a flag silently dropped; with ``--protocol safety-layer`` they pass."""
+    from typer.testing import CliRunner
+
+    import distgprl.hardware.trials as trials
+    from distgprl.cli import app
+
+    called = []
+
+    def fake_run_trials(**kwargs):
+        called.append(kwargs)
+        return trials.TrialReport([], tmp_path / "t.csv", trials.summarise_trials([]))
+
+    monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    runner = CliRunner()
+    for flag in ("--no-repair", "--repair", "--repair-push"):
+        result = runner.invoke(app, ["hardware", flag])
+        assert result.exit_code == 2, (flag, result.output)
+        assert "--protocol safety-layer" in result.output
+    assert called == []
+    result = runner.invoke(app, ["hardware", "--protocol", "safety-layer", "--repair-push"])
+    assert result.exit_code == 0, result.output
+    assert called[0]["repair"] is True and called[0]["repair_config"].repair is True
+
+
 def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_path):
     """Residual control has no window plan: the twin trial of ProMP-RRL's nominal (zero
     residual) decides and checks every 0.1 s RL step before it moves (50 per DBM trial when
