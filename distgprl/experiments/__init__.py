@@ -12,14 +12,19 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``checkpoints/curve_policies/step<k>.pt``  the actor at each learning-curve point that
                       beat every earlier one (`curve_rank`), for ``--policy best`` (never
                       committed);
-- ``model.zip``       the final policy, the one Table I evaluates (never committed);
+- ``model.zip``       the final policy (never committed; Table I reports the best
+                      learning-curve policy, ``summary_best.json``);
 - ``evaluation.csv``  one row per evaluation episode;
 - ``summary.json``    success rate, collision rate, MinCl (5th percentile), means;
 - ``evaluation_n<N>.csv``, ``summary_n<N>.json``  optional supplementary evaluation on the
                       first N evaluation TCs (``distgprl evaluate --episodes N``);
-- ``evaluation_best[_n<N>].csv``, ``summary_best[_n<N>].json``  optional evaluation of the
-                      best learning-curve policy, Algorithm 1's "best policy"
-                      (``distgprl evaluate --policy best``, `best_curve_row`);
+- ``evaluation_best[_n<N>].csv``, ``summary_best[_n<N>].json``  evaluation of the best
+                      trained learning-curve policy, Algorithm 1's "best policy", the one
+                      Table I reports (written after training where its actor was kept;
+                      ``distgprl evaluate --policy best``, `best_curve_row`);
+- ``policy_best.pt``, ``policy_best.json``  that policy's actor, shipped with the run's small
+                      files, and its record (step, SHA-256, ``beats_untrained``;
+                      `distgprl.experiments.policies.SHIPPED_POLICY`);
 - ``tb/``             TensorBoard event files (losses, alpha, regulariser terms, gradient
                       norms, training episodes, learning curve; `training_logger`; only with
                       the optional ``tensorboard`` package; never committed);

@@ -10,12 +10,13 @@ two modes of :data:`SWEEP_REPAIR_MODES`:
 - ``check``: the layer refuses every unsafe window at once (no retiming, no push): what
   the pre-flight check alone saves and costs;
 - ``repair``: the layer re-times a plan that is too fast and refuses what is still unsafe
-  (``distgprl evaluate --plan-repair``, the hardware default).
+  (``distgprl evaluate --plan-repair``, the default of the hardware trials' ``safety-layer``
+  protocol).
 
 The via-point push (``--repair-push``) is left out, as it is off by default on hardware
-(FINDINGS "Hardware plan repair and camera noise"). An evaluation counts as done when its
-summary exists and records the run's current config hash. `distgprl.report.repair` tabulates
-them beside the plain evaluation.
+(docs/findings/safety-layer.md, "Hardware plan repair and camera noise"). An evaluation counts
+as done when its summary exists and records the run's current config hash.
+`distgprl.report.repair` tabulates them beside the plain evaluation.
 """
 
 from __future__ import annotations

@@ -27,7 +27,8 @@ def run_episode(env, tc, policy=None) -> dict[str, Any]:
 
     The row's ``return`` is the episode's undiscounted return; ``return_tc``, ``return_sd``
     and ``return_ga`` are its parts (`RETURN_TERMS`, summed over the steps' ``info``), in
-    the reward's unit (one task); GPRL's r_signature is in ``return`` only."""
+    the reward's unit (r_tc in tenths of a task: a task's whole progress is worth
+    ``progress_weight`` = 10); GPRL's r_signature is in ``return`` only."""
     obs, _ = env.reset(options={"tc": tc})
     total, policy_time = 0.0, 0.0
     parts = dict.fromkeys(RETURN_TERMS, 0.0)

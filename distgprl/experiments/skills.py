@@ -51,7 +51,7 @@ def correlation_summary(
     scale of K (``candidates``: ``"signal"`` — the GP's covariance in via-point units;
     ``"unit"`` — the unit-variance correlation matrix), so `distgprl fit` shows them side
     by side. When every eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the
-    identity: the transform then barely correlates the update (see docs/FINDINGS.md).
+    identity: the transform then barely correlates the update (docs/findings/operator.md).
 
     The *reach* of an axis is the largest displacement one step's action can give one
     via-point along it: every raw action entry saturated at +-1 with the signs of S_W's row,

@@ -1,6 +1,6 @@
 """What the sweeps into a results root were asked for, so that `distgprl status` without
 ``--methods``, ``--tasks`` or ``--seeds`` reports those runs (after ``sweep --seeds 0``, the
-seed-0 runs: "14/14 done", not "14/74 done" for seeds nobody asked for).
+seed-0 runs: "18/18 done", not "18/74 done" for seeds nobody asked for).
 
 Each sweep adds its request (methods, tasks, seeds; None: the preset's defaults) to
 ``<root>/<preset>/.sweeps.json`` (`SWEEPS_FILE`, git-ignored) before it trains; the runs

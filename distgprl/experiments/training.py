@@ -74,9 +74,10 @@ def train_run(
     show_progress: bool = True,
     evaluate_after: bool = True,
 ) -> Path:
-    """Train one run (resumable) and, by default, evaluate it: its final policy (Table I)
-    and its best learning-curve policy (``policy="best"`` of `evaluate_run`; skipped, with a
-    note, when that point's actor was not kept). Returns the run folder.
+    """Train one run (resumable) and, by default, evaluate it: its final policy and its best
+    trained learning-curve policy, the one Table I reports (``policy="best"`` of
+    `evaluate_run`; skipped, with a note, when the curve has no trained point or that point's
+    actor was not kept). Returns the run folder.
 
     The request is validated (`resolve_run`) before anything touches the disk, and the run
     folder is locked while it trains (see `run_lock`). A start that fails before training

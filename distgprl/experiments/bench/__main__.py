@@ -1,4 +1,4 @@
-"""``python -m distgprl.experiments.bench [--quick] [--out DIR] [--worker ...]``."""
+"""``python -m distgprl.experiments.bench [--quick] [--out DIR]``."""
 
 from distgprl.experiments.bench.cli import main
 
