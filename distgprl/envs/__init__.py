@@ -1,4 +1,6 @@
-"""Gymnasium environments: the adaptation MDP and the ProMP-RRL residual MDP.
+"""Gymnasium environments: the adaptation MDP and the windowed-weights ProMP-RRL residual MDP
+(Table I's ProMP-RRL, residual RL at 10 Hz, is `distgprl.envs.residual_control_env`, built by
+`distgprl.experiments.factories.make_env`, not registered).
 
 Registered ids (``gymnasium.make(id, method=...)``), one pair per task of
 `distgprl.data.TASK_NAMES`:

@@ -1,7 +1,11 @@
-"""ProMP-RRL: residual SAC on an object-centric ProMP (Carvalho et al. 2022; Johannink et al. 2018).
+"""ProMP-RRL's object-centric ProMP and its demonstration sets (`load_task_promp`: the 20
+expert demonstrations of Table I's ProMP-RRL, or the one demonstration's conditioned copies),
+and the windowed-weights residual env of the exploration methods ``promp-rrl-windowed`` and
+``promp-rrl-expert`` (`ResidualEnv`; Carvalho et al. 2022; Johannink et al. 2018). Table I's
+ProMP-RRL is residual RL at 10 Hz: `distgprl.envs.residual_control_env`.
 
-Env ids: ``ProMPRRL-DCP-v<N>`` and ``ProMPRRL-DBM-v<N>``, N the environment version
-(registered in `distgprl.envs`).
+Env ids: ``ProMPRRL-DCP-v<N>`` and ``ProMPRRL-DBM-v<N>`` (`ResidualEnv`), N the environment
+version (registered in `distgprl.envs`).
 """
 
 from __future__ import annotations
@@ -39,8 +43,10 @@ __all__ = [
 DEMONSTRATION_SOURCES = ("one", "expert")
 
 ONE_DEMONSTRATION_TC_SEED = 20_251_201
-"""Seed of the training-distribution TCs the one demonstration is conditioned on to give
-ProMP-RRL its demonstration set (distinct from the evaluation and learning-curve seeds)."""
+"""Seed of the training-distribution TCs the one demonstration is conditioned on to give a
+``one``-demonstration ProMP-RRL method its demonstration set (`one_demonstration_set`: the
+gate of ``promp-rrl-1demo``, the ProMP of ``promp-rrl-windowed``; distinct from the evaluation
+and learning-curve seeds)."""
 
 ONE_DEMONSTRATION_SET_SIZE = PROMP_DEMONSTRATIONS["expert"]
 """As many conditioned copies as the expert set has demonstrations."""
