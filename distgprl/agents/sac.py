@@ -156,8 +156,9 @@ def training_logger(tb_dir: Path | None, start_step: int = 0) -> Logger:
 
 class EpisodeLogCallback(BaseCallback):
     """Records each finished training episode into the model's logger and dumps it at the
-    episode's last step: ``rollout/episode_return`` (sum of the rewards, r_tc + r_ga),
-    ``rollout/episode_length`` (steps = windows), ``rollout/episode_success`` and
+    episode's last step: ``rollout/episode_return`` (sum of the rewards: r_tc, and where the
+    method has them r_sd, lambda_ga r_ga and GPRL's r_signature), ``rollout/episode_length``
+    (steps: windows, or ProMP-RRL's 0.1 s RL steps), ``rollout/episode_success`` and
     ``rollout/episode_collision`` (0/1, from the final step's ``info``). The dump also
     writes the latest ``train/*`` records (losses, alpha, regulariser terms)."""
 
@@ -482,8 +483,9 @@ class RegularisedSAC(SAC):
         not depend on the squashed action), ``grad_sim`` for lambda_sim L_sim and ``grad_hap``
         for lambda_hap L_hap (only the terms the method uses; each batch-mean loss's gradient
         times the batch size, so every norm is per sample). Raw action units. Empty before
-        the replay buffer holds a transition. With L_hap also where it acts (0 inside
-        C_safe): ``hap_active_fraction`` and ``grad_hap_active`` (`active_hap_norms`).
+        the replay buffer holds a transition. With L_hap also its pull on the samples
+        outside C_safe (`HapPrior.outside_threshold`): ``hap_active_fraction`` and
+        ``grad_hap_active`` (`active_hap_norms`).
         """
         buffer = self.replay_buffer
         assert buffer is not None  # set up with the model
