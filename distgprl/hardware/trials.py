@@ -125,7 +125,8 @@ def run_trials(
         camera: camera device index or URL (``ur``), or an object with
             ``capture() -> (image, stamp)`` on the robot backend's clock.
         calibration: calibration file (YAML/JSON); the twin defaults to its exact one.
-        dry_run: perceive, adapt and check every window without moving the robot.
+        dry_run: perceive and adapt every decision (and, under the ``safety-layer``
+            protocol, check it) without moving the robot.
         judge: ``auto`` (twin: simulation; ur: perceived lift + protective stops) or
             ``operator`` (ask success/collision after each trial).
         force: execute plans that violate a safety limit (violations still recorded);
@@ -137,14 +138,15 @@ def run_trials(
         ask: prompt function (operator judge, bar placement); echo: progress output.
         rtde_factory: ``ip -> (control, receive)`` for the ur backend (tests inject a fake).
         repair: retime / repair unsafe window plans (residual control: 0.1 s RL steps)
-            before refusing them (False: refuse at once, the behaviour before plan repair);
+            before refusing them (False: refuse at once);
             the ``safety-layer`` protocol only (the paper's has no check to repair for).
         repair_config: settings of the repair (default :class:`RepairConfig`); its push
             (``repair=True``) does not apply to the residual ProMP methods, which have no
             via-points: the trial file's ``safety_layer`` says so and ``repair_push`` is
             False (`distgprl.safety_layer.window_check.safety_layer`).
         sensor_noise: twin sensor-noise level (:data:`~distgprl.hardware.twin.SENSOR_NOISE`:
-            0 none, 1 mild, 2 strong); None keeps ``twin_config.noise`` (default none).
+            0 none, 1 mild, 2 strong, 3 and 4 level 2's camera with a two and four times
+            worse calibration); None keeps ``twin_config.noise`` (default none).
             Ignored by the ur backend (a real camera).
         protocol: ``paper`` (the default: the policy's poses execute as made, only the
             robot's own limits apply) or ``safety-layer`` (this project's pre-flight check
