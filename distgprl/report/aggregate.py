@@ -196,8 +196,8 @@ def probability_of_improvement(
 
 def curve_measures(points: pd.DataFrame) -> dict[str, float]:
     """``learning_auc``, ``steps_to_gain`` and ``learned_drop`` of one run's curve points
-    (``step``, ``success_rate``; docs/findings/protocol.md); empty without a step-0 point or
-    with fewer than two trained points."""
+    (``step``, ``success_rate``; docs/findings/protocol.md), measured against the step-0
+    point's success; empty without a step-0 point or with fewer than two points after it."""
     steps = points["step"].to_numpy(dtype=float)
     success = points["success_rate"].to_numpy(dtype=float)
     trained = steps > 0
