@@ -26,7 +26,8 @@
   and left to that process; nothing is written. So two sweeps of overlapping jobs can run
   side by side (e.g. one per CPU core, in different orders), each training what the other
   is not.
-- The `demo` reference is evaluated once per task (seed 0); it has no training.
+- The untrained references (`demo`, `promp-nominal`) are evaluated once per task (seed 0);
+  they have no training.
 - With ``twin_trials`` (`distgprl sweep --twin-trials N`), a DBM job also runs the digital-
   twin trials Table II counts for its policy (`distgprl.experiments.table2_trials`), in the
   same process, right after training: a policy's weights are not committed, so its trials
@@ -103,9 +104,10 @@ def plan_jobs(
     repair_evaluations: bool = False,
 ) -> list[Job]:
     """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
-    tasks innermost. The `demo` reference runs once (seed 0). ``twin_trials``: trials per
-    Table II setting each DBM job runs after training (0: none); ``repair_evaluations``:
-    each job also evaluates its run with the safety layer in the loop.
+    tasks innermost. An untrained reference (`demo`, `promp-nominal`) runs once (seed 0),
+    with the first seed's jobs. ``twin_trials``: trials per Table II setting each DBM job
+    runs after training (0: none); ``repair_evaluations``: each job also evaluates its run
+    with the safety layer in the loop.
 
     Every name, seed and the preset are validated first (`resolve_run` for every job), so
     a bad request is a `UserInputError` before anything touches the disk.

@@ -1,4 +1,4 @@
-"""Section 2b: the environment's step against the bare physics inside it (issue 29).
+"""Section 2: the environment's step against the bare physics inside it (issue 29).
 
 For each task, the paper preset's environment (`BENCH_METHOD`) runs episodes on the first
 evaluation TCs with the zero action (the TC-conditioned demonstration, full segments). Each
@@ -38,11 +38,11 @@ def _episode(env, tc, action: np.ndarray) -> tuple[float, int]:
 
 
 def bench_env_step(task: str, episodes: int, method: str = BENCH_METHOD) -> dict[str, Any]:
-    """Section 2b: per-episode env-step CPU time vs the ``stepSimulation`` CPU time in it.
+    """Section 2: per-episode env-step CPU time vs the ``stepSimulation`` CPU time in it.
 
     Returns medians (``Timing``, microseconds per episode) of ``env_step`` and
     ``bare_physics``, their per-step medians ``env_step_cpu_ms`` and ``bare_physics_cpu_ms``
-    (the suite floor's physics, section 7), and ``env_step_over_bare_physics`` (ratio of the
+    (the suite floor's physics, section 5), and ``env_step_over_bare_physics`` (ratio of the
     per-episode medians).
     """
     from distgprl.experiments.factories import make_env

@@ -1,11 +1,11 @@
-"""Section 7: the suite's arithmetic floor, what no faster code of the same algorithm avoids
+"""Section 5: the suite's arithmetic floor, what no faster code of the same algorithm avoids
 (issue 29).
 
 A training step is one env step and one SAC gradient step. Two of its costs belong to the
 algorithm, not to how it is coded: the **matrix products of a plain SAC update** (the actor's
 and both critics' linear layers, forward and backward, on the paper's networks and batch;
 timed inside real updates by `MatrixProductClock`) and the **bare physics** of the env step
-(its ``stepSimulation`` calls, section 2b). With everything else free (the regulariser,
+(its ``stepSimulation`` calls, section 2). With everything else free (the regulariser,
 autograd, Adam, SB3's loop, IK, contact and clearance queries, the observation), a run
 still costs
 
@@ -14,7 +14,7 @@ still costs
 of process CPU time (SB3 makes no gradient step before ``learning_starts``). `suite_floor`
 sums that over the paper suite's runs: a lower bound, on this machine, of the CPU-hours any
 implementation of the same algorithm and environment pays, beside the measured
-``suite.cpu_hours`` of section 6.
+``suite.cpu_hours`` of section 4.
 """
 
 from __future__ import annotations
@@ -178,12 +178,12 @@ def bench_floor(
     environment: Mapping[str, Mapping[str, Any]],
     suite: Mapping[str, Any],
 ) -> dict[str, Any]:
-    """Section 7: the paper suite's floor from the measured pieces, over the runs of section 6.
+    """Section 5: the paper suite's floor from the measured pieces, over the runs of section 4.
 
     Args:
         update: `sac_update_matrix_products` of the bench's model.
-        environment: section 2b by task (`bench_env_step`: ``bare_physics_cpu_ms``).
-        suite: section 6 (`bench_suite`): its ``methods``, ``seeds`` and per-task
+        environment: section 2 by task (`bench_env_step`: ``bare_physics_cpu_ms``).
+        suite: section 4 (`bench_suite`): its ``methods``, ``seeds`` and per-task
             ``total_steps`` are the runs the floor covers.
     """
     from distgprl.config import load_config

@@ -84,7 +84,7 @@ def run_benchmarks(
             "env_step_over_bare_physics": {
                 task: section["env_step_over_bare_physics"] for task, section in environment.items()
             },
-            # The suite's measured CPU-hours over its floor's (section 6 over section 7).
+            # The suite's measured CPU-hours over its floor's (section 4 over section 5).
             "suite_over_floor": suite["cpu_hours"] / suite["floor"]["cpu_hours"],
         },
         "suite": suite,

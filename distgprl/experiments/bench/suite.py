@@ -1,4 +1,4 @@
-"""Section 6: the CPU cost of the whole paper suite, from measured per-step costs (issue 29).
+"""Section 4: the CPU cost of the whole paper suite, from measured per-step costs (issue 29).
 
 Every trainable method of Table I on every task trains a few real steps (env step + one
 gradient step, the paper preset, one torch thread) timed in process CPU time; the suite's
@@ -63,7 +63,7 @@ def training_step_cpu_s(task: str, method: str, learning_starts: int, steps: int
 
 
 def bench_suite(sizes: BenchSizes) -> dict[str, Any]:
-    """Section 6: per-step CPU cost of every trainable Table I method on ``sizes.tasks`` and
+    """Section 4: per-step CPU cost of every trainable Table I method on ``sizes.tasks`` and
     the paper suite's CPU-hours (all of `distgprl.data.TASK_NAMES` are needed for the
     suite: with fewer tasks measured, ``cpu_hours`` covers only those)."""
     from distgprl.config import load_config
