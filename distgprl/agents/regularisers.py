@@ -1,4 +1,5 @@
-"""The actor-loss regularisers of Dist-GPRL in torch (paper §IV-B, Eq. actor_final_compact).
+"""The actor-loss regularisers of Dist-GPRL (paper §IV-B, Eq. actor_final_compact): a torch
+module whose fused path computes the losses and their gradient in NumPy.
 
 Both terms are functions of the *actor's sampled action*: the action is mapped to
 adapted via-points exactly as the environment does (scale, S_W, frozen rows), and the
@@ -8,8 +9,9 @@ Speed (issue 29): the whole action -> (velocity, acceleration, L_hap positions) 
 precomputed matrix applied to the batch in one batched product per axis (`ActorRegulariser.
 readout`, axis-major), and with a `HapPrior` the loss and its gradient w.r.t. the actions are
 computed together by hand (L_sim in one compiled pass, `distgprl.agents.similarity`) and
-attached to autograd as a single node (`ActorRegulariser._fused`). Values and gradients equal
-the earlier per-window autograd implementation to 1e-9 in float64 (tests/agents).
+attached to autograd as a single node (`ActorRegulariser._fused`). Values and gradients are
+tested against a per-window autograd reference implementation to 1e-9 in float64
+(tests/agents/test_regularisers.py).
 """
 
 from __future__ import annotations

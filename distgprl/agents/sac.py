@@ -1,16 +1,22 @@
 """SAC with the regularised actor loss of Dist-GPRL (Eq. actor_final_compact).
 
 `RegularisedSAC.train` is a minimal copy of ``stable_baselines3.sac.SAC.train`` as of
-stable-baselines3 **2.9.2** (pinned in pyproject.toml / constraints.txt). The only
-changes, each marked ``# distgprl:``, are
+stable-baselines3 **2.9.2** (pinned in pyproject.toml / constraints.txt). The changes of
+what it computes, each marked ``# distgprl:``, are
 
 1. the actor loss adds ``regulariser(aux, actions_pi)`` — lambda_sim L_sim +
    lambda_hap L_hap computed from the actor's sampled actions — and logs its terms;
 2. an optional entropy-coefficient schedule (GPRL's annealed exploration) replaces the
    fixed coefficient when SAC's automatic tuning is off.
 
+The other ``# distgprl:`` marks are speed work on the same random draws, equal to SB3's to
+float rounding (the replay batch gathered into preallocated tensors, the actor's action and
+log-probability without a ``torch.distributions`` object, the critic frozen in the actor
+loss's backward, the target update as one foreach lerp: `distgprl.agents.update`).
+
 Networks see only the ``state`` key of the Dict observation (`StateOnlyExtractor`); the
-``aux`` key (current via-points, step one-hot) feeds the regulariser.
+``aux`` key (current via-points, step one-hot and, with the HAP prior, the moving obstacles'
+anchors; `distgprl.adaptation.layout.AuxLayout`) feeds the regulariser.
 
 Outside the copy, `RegularisedSAC._setup_learn` gives a silent model (``verbose=0``, no
 tensorboard) an in-memory logger: SB3's default makes an empty ``SB3-<time>`` folder in the

@@ -36,8 +36,7 @@ class TimedClearance:
     perceived bar of the hardware adapter; L_hap's `MovingObstacleFilter` relies on the same),
     so point p_j's clearance against them at time t_j is their clearance, as ``field`` holds
     them, at p_j - (anchor(t_j) - anchor now): one query of ``field`` for all points, the
-    static obstacles included (`DistanceField.distance`'s ``dynamic_shift``; issue 49, before:
-    a field update and a one-point query per point).
+    static obstacles included (`DistanceField.distance`'s ``dynamic_shift``; issue 49).
 
     Args:
         shapes: all obstacle shapes of the scene (static and dynamic).
