@@ -1,7 +1,8 @@
 """Where does each policy break? Per method with twin trials at two or more sensor-noise levels
-(plan repair on), its success and collision rates (exact 95 % binomial intervals) against the
-median over trials of each trial's largest marker position error (mm;
-`distgprl.report.table2.hardware_rows`), each point labelled with its noise level."""
+(the safety layer's protocol, plan repair on), its success and collision rates (exact 95 %
+binomial intervals) against the median over trials of each trial's largest marker position
+error (mm; `distgprl.report.table2.hardware_rows`), each point labelled with its noise
+level."""
 
 from __future__ import annotations
 
