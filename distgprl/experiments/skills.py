@@ -47,11 +47,13 @@ def correlation_summary(
     per window: the eigenvalue range of S_W over its axes (its shrink of a raw action along its
     eigenvectors; 1 = unchanged), the largest off-diagonal entry (how much a via-point's raw
     action moves its neighbours) and the same per axis. Also the kernel's correlation between
-    neighbouring via-points, k(spacing) / k(0), and the same spectrum under every candidate
-    scale of K (``candidates``: ``"signal"`` — the GP's covariance in via-point units;
-    ``"unit"`` — the unit-variance correlation matrix), so `distgprl fit` shows them side
-    by side. When every eigenvalue is near 1 and the off-diagonals near 0, S_W is nearly the
-    identity: the transform then barely correlates the update (docs/findings/operator.md).
+    neighbouring via-points, k(spacing) / k(0), and the same spectrum under every scale of K
+    of `distgprl.adaptation.layout.COVARIANCE_SCALES` (``candidates``: ``"zero-mean"``, Table
+    I's; ``"signal"`` — the GP's covariance in via-point units; ``"unit"`` — the
+    unit-variance correlation matrix; ``"correlation"`` and ``"signal-uncoupled"``), so
+    `distgprl fit` shows them side by side. When every eigenvalue is near 1 and the
+    off-diagonals near 0, S_W is nearly the identity: the transform then barely correlates
+    the update (docs/findings/operator.md).
 
     The *reach* of an axis is the largest displacement one step's action can give one
     via-point along it: every raw action entry saturated at +-1 with the signs of S_W's row,
@@ -69,11 +71,13 @@ def correlation_summary(
         the fitted one unless ``env_config.correlation_length_scale`` sets it),
         ``via_point_spacing`` (normalised time), ``neighbour_correlation``, ``windows``: one dict
         per window with ``via_points`` (indices), ``eigenvalue_min``, ``eigenvalue_max``,
-        ``max_off_diagonal`` and ``axes`` (the same three, and ``reach``, per axis x..rz),
-        ``reach``: per axis, the largest reach over the windows, and ``candidates``: per scale,
-        ``eigenvalue_min`` / ``eigenvalue_max`` over all windows and axes and ``reach`` per
-        axis (absent for a scale the skill cannot build, e.g. ``"signal"`` without its axis
-        scale), and ``"none"`` (no transform: S_W = I) with its ``reach``.
+        ``max_off_diagonal`` and ``axes`` (the same three, ``reach`` and ``reach_min``, per
+        axis x..rz), ``action_scale_rule`` and ``action_scale`` (per axis), ``reach`` and
+        ``reach_min``: per axis, the largest reach and the smallest ``reach_min`` over the
+        windows, and ``candidates``: per scale, ``eigenvalue_min`` / ``eigenvalue_max`` over
+        all windows and axes and ``reach`` and ``reach_min`` per axis (absent for a scale the
+        skill cannot build, e.g. ``"signal"`` without its axis scale), and ``"none"`` (no
+        transform: S_W = I) with its ``reach``.
     """
     from distgprl.adaptation.layout import COVARIANCE_SCALES, build_action_layout
     from distgprl.methods import get_method
