@@ -1,10 +1,12 @@
 """Evaluation in simulation with the hardware safety layer between the plan and execution.
 
-`evaluate_with_repair` runs a trained policy (or the untrained ``demo`` / ``promp-nominal``
-references) on the fixed evaluation TCs exactly as `~distgprl.experiments.evaluation.evaluate_run`
-does, except that every window's plan passes the safety layer of the hardware trials
+`evaluate_with_repair` runs a trained policy with a window plan (or the untrained ``demo``
+reference; not the residual-control methods, `distgprl.methods.NO_SAFETY_LAYER`) on the fixed
+evaluation TCs exactly as `~distgprl.experiments.evaluation.evaluate_run` does, except that
+every window's plan passes the safety layer of the hardware trials
 (:mod:`distgprl.safety_layer.plan_check`, :mod:`distgprl.safety_layer.repair`) before it is
-executed, as in :func:`~distgprl.hardware.trials.run_trials`: the episode loop's decisions
+executed, as in :func:`~distgprl.hardware.trials.run_trials` under its ``safety-layer``
+protocol (`distgprl.trial_protocol`): the episode loop's decisions
 (`distgprl.envs.episode`) in the simulator world (`distgprl.envs.world.SimWorld`) behind
 the safety layer's `~distgprl.safety_layer.gates.RepairGate`:
 

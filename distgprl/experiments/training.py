@@ -1,6 +1,7 @@
 """Train one run, resumably: the lock on its folder, its start (fresh or from the
 checkpoint), the training loop (learning-curve points every ``eval_every`` steps,
-checkpoints every ``checkpoint_every``), the final model, its evaluation and ``done.json``.
+checkpoints every ``checkpoint_every``), the final model, its evaluations (the final and the
+best trained learning-curve policy) and ``done.json``.
 
 A start that fails before training begins leaves nothing behind (`train_run`); an interrupt
 raises `TrainingInterrupted`, which says where training stopped and how to resume it.
@@ -350,7 +351,8 @@ class _TrainingLoop:
         """Save a checkpoint at the end of the current episode."""
         # Checkpoints are taken between episodes (`rng_state`); a collision can end an
         # episode early, so a checkpoint step can fall inside one: train
-        # on to the episode's end first (at most n_windows - 1 steps).
+        # on to the episode's end first (at most an episode's steps - 1: n_windows - 1, or
+        # ProMP-RRL's 0.1 s RL steps - 1).
         while not self.started.env.at_episode_start and self.model.num_timesteps < self.total:
             self.learn(1)
         extra = {
