@@ -14,8 +14,8 @@ two modes of :data:`SWEEP_REPAIR_MODES`:
   protocol).
 
 The via-point push (``--repair-push``) is left out, as it is off by default on hardware
-(docs/findings/safety-layer.md, "Hardware plan repair and camera noise"). An evaluation counts
-as done when its summary exists and records the run's current config hash.
+(docs/FINDINGS.md "Hardware plan repair and camera noise"). An evaluation counts as done
+when its summary exists and records the run's current config hash.
 `distgprl.report.repair` tabulates them beside the plain evaluation.
 """
 
