@@ -9,9 +9,9 @@ Layout of a run folder ``<root>/<preset>/<task>/<method>/seed<k>/``:
 - ``progress.csv``    learning-curve evaluations (success, collision, return) every
                       ``eval_every`` steps on the fixed learning-curve TCs;
 - ``checkpoints/``    latest model, replay buffer and RNG state (never committed);
-- ``checkpoints/curve_policies/step<k>.pt``  the actor at each learning-curve point that
-                      beat every earlier one (`curve_rank`), for ``--policy best`` (never
-                      committed);
+- ``checkpoints/curve_policies/step<k>.pt``  the actor at each trained learning-curve point
+                      that ranks at least as high as every earlier trained one
+                      (`beats_every_earlier`), for ``--policy best`` (never committed);
 - ``model.zip``       the final policy (never committed; Table I reports the best
                       learning-curve policy, ``summary_best.json``);
 - ``evaluation.csv``  one row per evaluation episode;
