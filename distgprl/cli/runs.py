@@ -45,7 +45,12 @@ def sweep(
     seeds: SeedsOption = None,
     workers: Annotated[
         int | None,
-        typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
+        typer.Option(
+            min=1,
+            help="Parallel jobs (default: one per CPU core this process may use). On a Ray "
+            "cluster (--address) its CPUs say how many run at once; --workers then only sizes "
+            "the progress report's estimate.",
+        ),
     ] = None,
     executor: Annotated[
         Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
