@@ -361,6 +361,7 @@ def train(
 
 @user_errors
 def evaluate(
+    ctx: typer.Context,
     method: Annotated[
         str,
         typer.Option(
@@ -415,10 +416,16 @@ def evaluate(
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.evaluation import describe, evaluate_run, summary_table
+    from distgprl.methods import get_method
 
     preset = resolve_preset(preset, config)
     if repair_push and not plan_repair:
         raise UserInputError("--repair-push needs --plan-repair")
+    if given_options(ctx, "policy") and not get_method(method).trainable:
+        raise UserInputError(
+            f"--policy: {method} is a reference, not trained: it has no final or best policy "
+            "to choose (it is evaluated as it is); leave --policy out"
+        )
     if plan_repair:
         from distgprl.experiments.safety_layer_evaluation import evaluate_with_repair
         from distgprl.safety_layer.retime import RepairConfig
