@@ -129,3 +129,38 @@ def test_fit_task_with_a_missing_skill_file_exits_2_naming_it(tmp_path):
     assert result.exit_code == 2
     assert f"{tmp_path / 'dcp.json'}: the committed skill file is missing" in result.output
     assert result.output.strip().count("\n") == 0
+
+
+def test_fit_refuses_options_its_mode_would_not_read(tmp_path, smooth_demo_file, monkeypatch):
+    """``--out-dir`` or ``--compare`` with ``--write`` (it writes the committed skill file and
+    says how it moved) and ``--compare`` or ``--skills-dir`` with ``--demo`` (no committed
+    skill) are user errors (exit 2, one line), nothing fitted or written; ``--write
+    --skills-dir`` still refits."""
+    import distgprl.cli.skills as cli_skills
+    import distgprl.experiments.skills as skills
+
+    called = []
+
+    def never(*args, **kwargs):
+        called.append(args)
+        raise AssertionError("ran")
+
+    monkeypatch.setattr(skills, "fit_demonstration", never)
+    monkeypatch.setattr(skills, "show_committed_skill", never)
+    monkeypatch.setattr(cli_skills, "refit_task", lambda *args: called.append(args))
+    demo = str(smooth_demo_file)
+    refused = {
+        ("--write", "--out-dir", str(tmp_path / "out")): "--out-dir: --write writes",
+        ("--task", "dcp", "--write", "--compare"): "--compare: --write writes",
+        ("--write", "--compare", "--out-dir", "o"): "--out-dir and --compare: --write writes",
+        ("--demo", demo, "--compare"): "--compare: a task's committed skill's",
+        ("--demo", demo, "--skills-dir", str(tmp_path)): "--skills-dir: a task's committed",
+    }
+    for options, message in refused.items():
+        result = runner.invoke(app, ["fit", *options])
+        assert result.exit_code == 2, (options, result.output)
+        assert result.output.strip().count("\n") == 0 and message in result.output
+    assert called == [] and not (tmp_path / "out").exists()
+    result = runner.invoke(app, ["fit", "--task", "dcp", "--write", "--skills-dir", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert called == [("dcp", 15, tmp_path)]

@@ -50,3 +50,37 @@ def test_evaluate_prints_a_table_or_with_json_the_whole_summary(tmp_path, monkey
     result = CliRunner().invoke(app, [*arguments, "--json"])
     assert result.exit_code == 0, result.output
     assert json.loads(result.output) == {**SUMMARY, "collision_rate": 0.1667}
+
+
+def test_evaluate_refuses_a_policy_choice_for_a_reference(tmp_path, monkeypatch):
+    """A reference (``demo``, ``promp-nominal``) is not trained: ``--policy final`` or
+    ``--policy best`` with it is a user error (exit 2, one line), not dropped; with
+    ``--plan-repair`` too. A trained method still takes it; a reference without it passes."""
+    from distgprl.experiments import safety_layer_evaluation
+
+    evaluated = []
+
+    def fake_evaluate(*args, **kwargs):
+        evaluated.append((args, kwargs))
+        return dict(SUMMARY)
+
+    monkeypatch.setattr(evaluation, "evaluate_run", fake_evaluate)
+    monkeypatch.setattr(safety_layer_evaluation, "evaluate_with_repair", fake_evaluate)
+    base = ["evaluate", "--task", "dbm", "--preset", "ci", "--root", str(tmp_path)]
+    for options in (
+        ["--method", "demo", "--policy", "final"],
+        ["--method", "demo", "--policy", "best"],
+        ["--method", "promp-nominal", "--policy", "final"],
+        ["--method", "demo", "--policy", "final", "--plan-repair"],
+    ):
+        result = CliRunner().invoke(app, [*base, *options])
+        assert result.exit_code == 2, (options, result.output)
+        assert result.output.strip().splitlines() == [
+            f"error: --policy: {options[1]} is a reference, not trained: it has no final or "
+            "best policy to choose (it is evaluated as it is); leave --policy out"
+        ]
+    assert evaluated == []
+    for options in (["--method", "demo"], ["--method", "gprl", "--policy", "best"]):
+        result = CliRunner().invoke(app, [*base, *options])
+        assert result.exit_code == 0, (options, result.output)
+    assert [kwargs["policy"] for _, kwargs in evaluated] == ["final", "best"]

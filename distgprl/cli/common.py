@@ -194,6 +194,22 @@ def parse_seeds(text: str | None) -> list[int] | None:
         raise UserInputError(f"--seeds must be comma-separated integers, got {text!r}") from None
 
 
+def given_options(ctx: typer.Context, *names: str) -> list[str]:
+    """The options among ``names`` (the command's parameter names) that the command line gave,
+    as it spells them (``--seed``, ``--no-repair-evaluations``), in the command's order; an
+    option left at its default is not one. For refusing an option that would have no effect."""
+    given = []
+    for param in ctx.command.params:
+        source = ctx.get_parameter_source(param.name) if param.name in names else None
+        # by name: typer's ParameterSource is its own copy of click's
+        if source is None or source.name in ("DEFAULT", "DEFAULT_MAP"):
+            continue
+        secondary: list[str] = getattr(param, "secondary_opts", None) or []
+        negated = bool(secondary) and ctx.params.get(param.name) is False
+        given.append((secondary if negated else param.opts)[0])
+    return given
+
+
 def main() -> None:
     """Console entry for `python -m distgprl` and `python -m distgprl.cli`."""
     app(prog_name="distgprl")

@@ -15,6 +15,7 @@ from distgprl.cli.common import (
     PresetOption,
     RootOption,
     TaskOption,
+    given_options,
     resolve_preset,
     user_errors,
 )
@@ -80,6 +81,7 @@ def curves(
 
 @user_errors
 def render(
+    ctx: typer.Context,
     task: TaskOption,
     out: Annotated[
         Path | None,
@@ -116,6 +118,12 @@ def render(
     check_task_name(task)
     out = out if out is not None else default_render_path(task, method, seed)
     if method == "demo":
+        run_only = given_options(ctx, "seed", "preset", "config", "root", "policy")
+        if run_only:
+            raise UserInputError(
+                f"{', '.join(run_only)}: a trained run's (--method demo renders the GP skill "
+                "alone, from no run): give a trained --method, or leave them out"
+            )
         from distgprl.envs.render import render_demo_episode
 
         summary = render_demo_episode(task, tc, out)

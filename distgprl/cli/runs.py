@@ -22,6 +22,7 @@ from distgprl.cli.common import (
     SweepPresetOption,
     TaskOption,
     TasksOption,
+    given_options,
     parse_seeds,
     resolve_preset,
     runs_text,
@@ -35,6 +36,7 @@ from distgprl.studies import get_study, is_study, study_of_reading
 
 @user_errors
 def sweep(
+    ctx: typer.Context,
     preset: SweepPresetOption = None,
     config: ConfigOption = None,
     overrides: SetOption = None,
@@ -43,7 +45,12 @@ def sweep(
     seeds: SeedsOption = None,
     workers: Annotated[
         int | None,
-        typer.Option(min=1, help="Parallel jobs (default: one per CPU core this process may use)."),
+        typer.Option(
+            min=1,
+            help="Parallel jobs (default: one per CPU core this process may use). On a Ray "
+            "cluster (--address) its CPUs say how many run at once; --workers then only sizes "
+            "the progress report's estimate.",
+        ),
     ] = None,
     executor: Annotated[
         Literal["local", "ray"], typer.Option(help="Where the jobs run (ray: extra distgprl[ray]).")
@@ -107,8 +114,10 @@ def sweep(
     preset = resolve_preset(preset, config, overrides)
     asked = (split_list(methods), split_list(tasks), parse_seeds(seeds))
     jobs = plan_jobs(preset, *asked, root, twin_trials, repair_evaluations)
-    if workers is None:
-        workers = default_workers()
+    refuse_unread_sweep_options(
+        ctx, jobs, is_study(preset), executor, address, twin_trials, repair_evaluations
+    )
+    workers = workers or default_workers()  # --workers is at least 1
     if is_study(preset):
         from distgprl.experiments.operator_study import write_study_reach
 
@@ -191,6 +200,44 @@ def sweep(
         raise typer.Exit(code=1)
     if busy:  # not complete yet: `make reproduce` must not go on to the tables as if it were
         raise typer.Exit(code=3)
+
+
+def refuse_unread_sweep_options(
+    ctx: typer.Context,
+    jobs: list,
+    study: bool,
+    executor: str,
+    address: str | None,
+    twin_trials: int,
+    repair_evaluations: bool,
+) -> None:
+    """A `UserInputError` for a `sweep` option that none of its ``jobs`` would read:
+    ``--address`` without ``--executor ray``; ``--twin-trials N`` or ``--repair-evaluations``
+    given for a study (``study``: its runs have no follow-ups); ``--twin-trials N`` for a
+    sweep without a DBM run; ``--repair-evaluations`` for residual-control methods only.
+    Their defaults apply where they can and are never refused."""
+    from distgprl.methods import NO_SAFETY_LAYER, get_method, has_via_point_plan
+
+    if address is not None and executor != "ray":
+        raise UserInputError(
+            "--address is a Ray cluster's: use it with --executor ray (the local executor "
+            "runs the jobs on this machine)"
+        )
+    asked_trials = twin_trials > 0 and bool(given_options(ctx, "twin_trials"))
+    asked_repairs = repair_evaluations and bool(given_options(ctx, "repair_evaluations"))
+    if study and (asked_trials or asked_repairs):
+        names = " and ".join(given_options(ctx, "twin_trials", "repair_evaluations"))
+        raise UserInputError(
+            f"{names}: a study's runs have no follow-ups (the twin trials and safety-layer "
+            "evaluations are Table I's): leave them out, or sweep a preset"
+        )
+    if asked_trials and not any(job.task == "dbm" for job in jobs):
+        raise UserInputError(
+            "--twin-trials: the twin trials are Table II's, of DBM runs, and this sweep has "
+            "none: add dbm to --tasks, or leave --twin-trials out"
+        )
+    if asked_repairs and not any(has_via_point_plan(get_method(job.method)) for job in jobs):
+        raise UserInputError(f"--repair-evaluations: {NO_SAFETY_LAYER}")
 
 
 @user_errors
@@ -314,6 +361,7 @@ def train(
 
 @user_errors
 def evaluate(
+    ctx: typer.Context,
     method: Annotated[
         str,
         typer.Option(
@@ -368,10 +416,16 @@ def evaluate(
 ) -> None:
     """Evaluate a trained policy (deterministic) on the fixed evaluation TCs."""
     from distgprl.experiments.evaluation import describe, evaluate_run, summary_table
+    from distgprl.methods import get_method
 
     preset = resolve_preset(preset, config)
     if repair_push and not plan_repair:
         raise UserInputError("--repair-push needs --plan-repair")
+    if given_options(ctx, "policy") and not get_method(method).trainable:
+        raise UserInputError(
+            f"--policy: {method} is a reference, not trained: it has no final or best policy "
+            "to choose (it is evaluated as it is); leave --policy out"
+        )
     if plan_repair:
         from distgprl.experiments.safety_layer_evaluation import evaluate_with_repair
         from distgprl.safety_layer.retime import RepairConfig

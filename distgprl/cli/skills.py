@@ -11,6 +11,7 @@ import typer
 from distgprl.cli.common import (
     TASKS_HELP,
     TaskOption,
+    given_options,
     user_errors,
 )
 from distgprl.errors import UserInputError
@@ -22,6 +23,7 @@ if TYPE_CHECKING:
 
 @user_errors
 def fit(
+    ctx: typer.Context,
     task: Annotated[
         str | None,
         typer.Option(metavar="TASK", help=f"Show the task's committed skill: {TASKS_HELP}."),
@@ -56,11 +58,24 @@ def fit(
     if write:
         if demo is not None:
             raise UserInputError("--write refits a task's committed skill: give --task, not --demo")
+        unread = given_options(ctx, "out_dir", "compare")
+        if unread:
+            raise UserInputError(
+                f"{' and '.join(unread)}: --write writes the committed skill file only (to "
+                "--skills-dir) and says how it moved; leave them out, or show the skill "
+                "without --write"
+            )
         for name in (check_task_name(task),) if task is not None else TASK_NAMES:
             refit_task(name, n_via_points, skills_dir)
         return
     if (task is None) == (demo is None):
         raise UserInputError("give exactly one of --task or --demo (or --write)")
+    committed_only = given_options(ctx, "compare", "skills_dir") if demo is not None else []
+    if committed_only:
+        raise UserInputError(
+            f"{' and '.join(committed_only)}: a task's committed skill's (--demo fits the "
+            "demonstration afresh): give --task instead, or leave them out"
+        )
     if task is not None:
         output = show_committed_skill(check_task_name(task), out_dir, n_via_points, skills_dir)
         committed = cast("CommittedSkill", output.committed)  # a committed skill's output

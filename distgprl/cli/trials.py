@@ -12,6 +12,7 @@ from distgprl.cli.common import (
     ConfigOption,
     PresetOption,
     RootOption,
+    given_options,
     resolve_preset,
     user_errors,
 )
@@ -20,6 +21,7 @@ from distgprl.errors import UserInputError
 
 @user_errors
 def hardware(
+    ctx: typer.Context,
     trials: Annotated[int, typer.Option(min=1, help="Number of trials.")] = 10,
     method: Annotated[
         str,
@@ -88,6 +90,7 @@ def hardware(
     from distgprl.experiments.trial_policy import load_trial_policy
     from distgprl.hardware.trial_rows import describe_summary
     from distgprl.hardware.trials import run_trials
+    from distgprl.methods import get_method
     from distgprl.safety_layer.retime import RepairConfig
     from distgprl.trial_protocol import PAPER
 
@@ -96,12 +99,34 @@ def hardware(
             "--repair/--no-repair and --repair-push set the safety layer's repair: use them "
             "with --protocol safety-layer (the paper's protocol checks nothing before it moves)"
         )
+    backend = backend or ("ur" if robot_ip else "twin")
+    ur_only = given_options(ctx, "robot_ip", "camera")
+    if backend == "twin" and ur_only:
+        raise UserInputError(
+            f"{' and '.join(ur_only)}: the ur backend's (the twin simulates its robot and "
+            "camera): use --backend ur, or leave them out"
+        )
+    if backend == "ur" and given_options(ctx, "sensor_noise"):
+        raise UserInputError(
+            "--sensor-noise sets the twin's simulated sensor noise; the ur backend's camera is "
+            "a real one: leave it out (or use --backend twin)"
+        )
+    if model is not None and not get_method(method).trainable:
+        raise UserInputError(
+            f"--model: {method} is a reference and runs no trained policy; leave --model out "
+            "(or give a trained --method)"
+        )
+    if dry_run and judge == "operator":
+        raise UserInputError(
+            "--judge operator judges trials that moved; a --dry-run never moves, so there is "
+            "nothing to judge: drop one of them"
+        )
     preset = resolve_preset(preset, config)
     report = run_trials(
         trials=trials,
         method=method,
         seed=seed,
-        backend=backend or ("ur" if robot_ip else "twin"),
+        backend=backend,
         robot_ip=robot_ip,
         camera=camera,
         calibration=calibration,

@@ -142,3 +142,40 @@ def test_render_without_out_writes_the_run_named_png_in_the_current_folder(
     assert result.exit_code == 0, result.output
     assert result.output.strip().splitlines()[-1].startswith("wrote dcp_dist-gprl_seed0.png (1 ")
     assert iio.imread(tmp_path / "dcp_dist-gprl_seed0.png").ndim == 3
+
+
+def test_render_of_the_demo_refuses_the_options_of_a_trained_run(tmp_path, monkeypatch):
+    """``--method demo`` renders the GP skill from no run: ``--seed``, ``--preset``,
+    ``--preset-file``, ``--root`` or ``--policy`` with it is a user error (exit 2, one line
+    naming them) instead of dropped; ``--task``, ``--tc`` and ``--out`` still render."""
+    import distgprl.envs.render as render
+
+    rendered = []
+
+    def fake_render_demo_episode(task, tc, out):
+        rendered.append((task, tc, out))
+        return {"tc_index": tc, "frames": 1, "success": 1, "collision": 0, "min_clearance": 0.02}
+
+    monkeypatch.setattr(render, "render_demo_episode", fake_render_demo_episode)
+    runner = CliRunner()
+    out = tmp_path / "demo.png"
+    for options in (
+        ["--seed", "1"],
+        ["--seed", "0"],
+        ["--preset", "ci"],
+        ["--preset-file", str(tmp_path / "mine.yaml")],
+        ["--root", str(tmp_path)],
+        ["--policy", "final"],
+        ["--method", "demo", "--seed", "2", "--policy", "best"],
+    ):
+        result = runner.invoke(app, ["render", "--task", "dcp", "--out", str(out), *options])
+        assert result.exit_code == 2, (options, result.output)
+        assert result.output.strip().splitlines() == [
+            f"error: {', '.join(o for o in options if o.startswith('--') and o != '--method')}:"
+            " a trained run's (--method demo renders the GP skill alone, from no run): give a "
+            "trained --method, or leave them out"
+        ]
+    assert rendered == []
+    result = runner.invoke(app, ["render", "--task", "dcp", "--tc", "3", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert rendered == [("dcp", 3, out)]

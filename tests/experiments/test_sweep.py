@@ -175,6 +175,60 @@ def test_sweep_command_exits_3_when_runs_were_left_to_another_process(tmp_path, 
     assert "0/1 runs complete, 1 left to the other process training them" in result.output
 
 
+def test_sweep_command_refuses_options_its_jobs_would_not_read(tmp_path, monkeypatch):
+    """An option no job of the sweep would read is a user error (exit 2, one line naming what
+    to do) before anything runs or is recorded: ``--address`` without ``--executor ray``,
+    ``--twin-trials N`` / ``--repair-evaluations`` for a study (no follow-ups),
+    ``--twin-trials N`` without a DBM run, ``--repair-evaluations`` for residual-control
+    methods only. Their defaults, 0 and ``--no-repair-evaluations`` still pass."""
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+
+    swept = []
+
+    def fake_run_sweep(jobs, workers, executor, address, **kwargs):
+        swept.append((jobs, executor, address))
+        return []
+
+    monkeypatch.setattr(sweep, "run_sweep", fake_run_sweep)
+    base = ["sweep", "--preset", "ci", "--seeds", "0", "--heartbeat", "0"]
+    refused = {
+        ("--address", "127.0.0.1:6379"): "use it with --executor ray",
+        ("--executor", "local", "--address", "auto"): "use it with --executor ray",
+        ("--preset", "operators", "--twin-trials", "2"): "a study's runs have no follow-ups",
+        ("--preset", "operators", "--repair-evaluations"): "a study's runs have no follow-ups",
+        ("--tasks", "dcp", "--twin-trials", "3"): "add dbm to --tasks",
+        ("--methods", "demo,gprl", "--tasks", "dcp", "--twin-trials", "1"): "add dbm to --tasks",
+        ("--methods", "promp-rrl,promp-nominal", "--repair-evaluations"): "not implemented",
+    }
+    runner = CliRunner()
+    for options, advice in refused.items():
+        root = tmp_path / f"refused{len(swept)}"
+        result = runner.invoke(app, [*base, "--root", str(root), *options])
+        assert result.exit_code == 2, (options, result.output)
+        assert len(result.output.strip().splitlines()) == 1 and advice in result.output
+        assert not root.exists()
+    assert swept == []
+    accepted = [
+        ("--executor", "ray", "--address", "127.0.0.1:6379"),
+        ("--tasks", "dcp"),  # the default --twin-trials: DBM runs only, none here
+        ("--tasks", "dcp", "--twin-trials", "0"),
+        ("--methods", "gprl", "--tasks", "dbm", "--twin-trials", "3"),
+        ("--methods", "promp-rrl"),  # the default --repair-evaluations: via-point methods only
+        ("--methods", "promp-rrl", "--no-repair-evaluations"),
+        ("--methods", "gprl,promp-rrl", "--tasks", "dcp", "--repair-evaluations"),
+    ]
+    for options in accepted:
+        result = runner.invoke(app, [*base, "--root", str(tmp_path / "ok"), *options])
+        assert result.exit_code == 0, (options, result.output)
+    assert [(executor, address) for _, executor, address in swept[:2]] == [
+        ("ray", "127.0.0.1:6379"),
+        ("local", None),
+    ]
+    assert {job.twin_trials for job in swept[3][0]} == {3}
+
+
 def _children(pid: int) -> list[int]:
     """Process ids whose parent is ``pid`` (from /proc)."""
     children = []

@@ -357,6 +357,52 @@ def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_proto
     assert called[0]["repair"] is True and called[0]["repair_config"].repair is True
 
 
+def test_the_cli_refuses_options_the_trials_would_not_read(monkeypatch, tmp_path):
+    """An option the trials would not read is a user error (exit 2, naming what to do) before
+    any trial, not dropped: ``--robot-ip`` / ``--camera`` with the twin, ``--sensor-noise``
+    with the ur backend, ``--model`` for a reference (no trained policy), ``--judge operator``
+    with ``--dry-run`` (nothing moved to judge). Where they apply they pass."""
+    from typer.testing import CliRunner
+
+    import distgprl.hardware.trials as trials
+    from distgprl.cli import app
+
+    called = []
+
+    def fake_run_trials(**kwargs):
+        called.append(kwargs)
+        return trials.TrialReport([], tmp_path / "t.csv", trials.summarise_trials([]))
+
+    monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    runner = CliRunner()
+    refused = {
+        ("--backend", "twin", "--robot-ip", "10.0.0.2"): "--backend ur",
+        ("--camera", "0"): "--backend ur",
+        ("--backend", "twin", "--robot-ip", "10.0.0.2", "--camera", "0"): "--backend ur",
+        ("--robot-ip", "10.0.0.2", "--sensor-noise", "0"): "--backend twin",
+        ("--backend", "ur", "--sensor-noise", "2"): "--backend twin",
+        ("--method", "demo", "--model", "m.zip"): "leave --model out",
+        ("--method", "promp-nominal", "--model", "m.zip"): "leave --model out",
+        ("--dry-run", "--judge", "operator"): "drop one of them",
+    }
+    for options, advice in refused.items():
+        result = runner.invoke(app, ["hardware", *options])
+        assert result.exit_code == 2, (options, result.output)
+        assert len(result.output.strip().splitlines()) == 1 and advice in result.output
+    assert called == []
+    accepted = [
+        ("--robot-ip", "10.0.0.2", "--camera", "0"),  # the ur backend, as --robot-ip implies
+        ("--backend", "twin", "--sensor-noise", "2", "--judge", "operator"),
+        ("--method", "dist-gprl", "--model", "m.zip"),
+        ("--method", "demo", "--dry-run"),
+    ]
+    for options in accepted:
+        result = runner.invoke(app, ["hardware", *options])
+        assert result.exit_code == 0, (options, result.output)
+    assert [kwargs["backend"] for kwargs in called] == ["ur", "twin", "twin", "twin"]
+    assert called[0]["sensor_noise"] == 0 and called[1]["sensor_noise"] == 2
+
+
 def test_the_promp_nominal_reference_runs_in_the_twin_one_rl_step_at_a_time(tmp_path):
     """Residual control has no window plan: the twin trial of ProMP-RRL's nominal (zero
     residual) decides and checks every 0.1 s RL step before it moves (50 per DBM trial when
