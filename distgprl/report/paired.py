@@ -190,7 +190,8 @@ def paired_table(
         about = "each run's best learning-curve policy paired TC by TC with its final one (McNemar)"
         against = (
             "its own final policy (run: its best learning-curve policy, "
-            "`distgprl evaluate --policy best`; reference: the final policy Table I evaluates)"
+            "`distgprl evaluate --policy best`, Table I's; reference: its final policy, "
+            "`table1_final`)"
         )
     else:
         stem = f"paired_vs_{reference}_{preset}{f'_n{episodes}' if episodes else ''}"

@@ -4,6 +4,7 @@ robot; the paper's protocol first, then the safety layer's settings."""
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,10 +39,48 @@ class TrialFiles:
     excluded: tuple[str, ...]
 
     def note(self) -> str:
-        """A sentence for the table: what was left out (empty if nothing)."""
-        if not self.excluded:
-            return ""
-        return f"Not tabulated ({len(self.excluded)}): " + "; ".join(self.excluded)
+        """Sentences for the table: which trained policies the counted files ran
+        (`policy_note`) and what was left out (empty if neither)."""
+        parts = [policy_note(self.counted)]
+        if self.excluded:
+            parts.append(f"Not tabulated ({len(self.excluded)}): " + "; ".join(self.excluded))
+        return ". ".join(part for part in parts if part)
+
+
+POLICY_NAMES = {
+    "final": "the run's final policy (`model.zip`)",
+    "best": "the run's shipped best policy (Table I's)",
+    "given": "a policy file given by `--model`",
+}
+"""What `trial_policy` names, as Table II's note says it."""
+
+
+def trial_policy(meta: dict[str, Any]) -> str | None:
+    """Which policy a trial file's trials ran, from its provenance (``meta["policy"]``,
+    `distgprl.experiments.trial_policy`): ``best`` (the shipped best policy), ``final`` (a
+    ``model.zip``), ``given`` (another file); None for a reference (no policy)."""
+    policy = meta.get("policy") or {}
+    if not policy:
+        return None
+    if str(policy.get("policy", "")).startswith("best"):
+        return "best"
+    return "final" if Path(str(policy.get("model", ""))).name == "model.zip" else "given"
+
+
+def policy_note(files: Iterable[TrialFile]) -> str:
+    """Which trained policies ``files`` ran, counted per `POLICY_NAMES`, beside the policy
+    Table I reports (empty without a trained policy's file)."""
+    kinds = Counter(kind for _, meta, _ in files if (kind := trial_policy(meta)))
+    if not kinds:
+        return ""
+    total = sum(kinds.values())
+    ran = ", ".join(
+        f"{POLICY_NAMES[kind]}: {n} of {total} files" for kind, n in sorted(kinds.items())
+    )
+    return (
+        f"Trained policies run (trial files): {ran}; Table I reports each run's best trained "
+        "policy (protocol v8 rule 2)"
+    )
 
 
 def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
