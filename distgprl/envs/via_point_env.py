@@ -113,8 +113,8 @@ class AdaptationEnv(TaskEnv):
     demonstration), ``adaptation_time_s`` (s, per step) and ``final_parameters`` (Gamma,
     N x 6).
 
-    How these rules read the paper's equations, with their arguments: protocol v8 rule 4
-    ("Equations as written", docs/findings/environment-v8.md); what each replaced:
+    How these rules read the paper's equations, with their arguments: protocol rule 4
+    ("Equations as written"); what each replaced:
     CHANGELOG.md.
 
     Args:

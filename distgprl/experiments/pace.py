@@ -40,7 +40,7 @@ COMMITTED_PRESET = "paper"
 
 DEFAULT_SECONDS_PER_STEP = 0.035
 """Wall seconds per RL step of a run nothing measured: a paper-size run on one of two busy
-cores (the 70 committed environment-v8 Table I runs took 0.014–0.143 s per step, median
+cores (the 70 committed Table I runs took 0.014–0.143 s per step, median
 0.033: their ``done.json``)."""
 
 SOURCES = ("own", "sweep", "reference", "committed", "default")

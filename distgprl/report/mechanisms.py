@@ -1,5 +1,5 @@
-"""The mechanism table of a preset's runs (docs/findings/protocol.md, rule 7; protocol v8
-rule 1's ratios, docs/findings/environment-v8.md), each judged, with a verdict line per term.
+"""The mechanism table of a preset's runs (docs/findings/protocol.md, rule 7; protocol
+rule 1's ratios), each judged, with a verdict line per term.
 A cell: a dict of the `CSV_COLUMNS` (shares as fractions, None where none) and the values
 behind them."""
 

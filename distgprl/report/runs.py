@@ -22,8 +22,7 @@ from distgprl.schema import POLICY_CHOICES, evaluation_file_names, read_json
 
 TABLE_POLICY = "best"
 """The policy the tables report: the best trained learning-curve policy, Algorithm 1's output
-(docs/findings/protocol.md, rule 6; never the untrained step-0 actor: protocol v8 rule 2,
-docs/findings/environment-v8.md)."""
+(docs/findings/protocol.md, rule 6; never the untrained step-0 actor: protocol rule 2)."""
 
 UNTRAINED = "untrained"
 """`RunEvaluation.policy` of an untrained reference (one evaluation, used for both)."""

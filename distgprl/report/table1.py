@@ -1,7 +1,7 @@
 """Table I (`simulation_table`) and Table I per run (`per_seed_rows`) of the evaluation the
 `Frames` hold: `TABLE_POLICY`'s (docs/findings/protocol.md, rule 6) or the final
 policy's. MinCl is `COLLISION_FREE_MINCL` (rule 5); `UNTRAINED_MARK` marks where no trained
-policy beat the untrained one (protocol v8 rule 2, docs/findings/environment-v8.md)."""
+policy beat the untrained one (protocol rule 2)."""
 
 from __future__ import annotations
 

@@ -48,7 +48,7 @@ ABOUT = {
 table."""
 
 ONE_DEMO_STUDY = ("promp-rrl", "promp-rrl-1demo", "promp-nominal", "promp-nominal-1demo")
-"""The one-demonstration study's rows (protocol v8 rule 3, docs/findings/environment-v8.md)."""
+"""The one-demonstration study's rows (protocol rule 3)."""
 
 
 def write_tables(
