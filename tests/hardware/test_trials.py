@@ -328,16 +328,10 @@ def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
 
 
-def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_protocol(
-    monkeypatch, tmp_path
-):
-    """The paper's protocol has no check to repair for: ``--no-repair``, ``--repair`` or
-    ``--repair-push`` with it is a user error (exit 2, naming the protocol to use) before any
-    trial, not a flag silently dropped; with ``--protocol safety-layer`` they pass."""
-    from typer.testing import CliRunner
-
+@pytest.fixture
+def recorded_trials(monkeypatch, tmp_path):
+    """The keyword arguments of each `run_trials` call the CLI makes (none is run)."""
     import distgprl.hardware.trials as trials
-    from distgprl.cli import app
 
     called = []
 
@@ -346,6 +340,20 @@ def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_proto
         return trials.TrialReport([], tmp_path / "t.csv", trials.summarise_trials([]))
 
     monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    return called
+
+
+def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_protocol(
+    recorded_trials,
+):
+    """The paper's protocol has no check to repair for: ``--no-repair``, ``--repair`` or
+    ``--repair-push`` with it is a user error (exit 2, naming the protocol to use) before any
+    trial, not a flag silently dropped; with ``--protocol safety-layer`` they pass."""
+    from typer.testing import CliRunner
+
+    from distgprl.cli import app
+
+    called = recorded_trials
     runner = CliRunner()
     for flag in ("--no-repair", "--repair", "--repair-push"):
         result = runner.invoke(app, ["hardware", flag])
@@ -357,23 +365,16 @@ def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_proto
     assert called[0]["repair"] is True and called[0]["repair_config"].repair is True
 
 
-def test_the_cli_refuses_options_the_trials_would_not_read(monkeypatch, tmp_path):
+def test_the_cli_refuses_options_the_trials_would_not_read(recorded_trials):
     """An option the trials would not read is a user error (exit 2, naming what to do) before
     any trial, not dropped: ``--robot-ip`` / ``--camera`` with the twin, ``--sensor-noise``
     with the ur backend, ``--model`` for a reference (no trained policy), ``--judge operator``
     with ``--dry-run`` (nothing moved to judge). Where they apply they pass."""
     from typer.testing import CliRunner
 
-    import distgprl.hardware.trials as trials
     from distgprl.cli import app
 
-    called = []
-
-    def fake_run_trials(**kwargs):
-        called.append(kwargs)
-        return trials.TrialReport([], tmp_path / "t.csv", trials.summarise_trials([]))
-
-    monkeypatch.setattr(trials, "run_trials", fake_run_trials)
+    called = recorded_trials
     runner = CliRunner()
     refused = {
         ("--backend", "twin", "--robot-ip", "10.0.0.2"): "--backend ur",
