@@ -59,13 +59,12 @@ def hardware(
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
     root: RootOption = Path("results"),
     repair: Annotated[
-        bool | None,
+        bool,
         typer.Option(
-            help="Safety-layer protocol only: retime too-fast plans before refusing (the "
-            "default; with --repair-push also push too-close via-points; --no-repair: refuse "
-            "at once)."
+            help="Safety-layer protocol only: retime too-fast plans before refusing (with "
+            "--repair-push also push too-close via-points; --no-repair: refuse at once)."
         ),
-    ] = None,
+    ] = True,
     sensor_noise: Annotated[
         int,
         typer.Option(
@@ -94,10 +93,11 @@ def hardware(
     from distgprl.safety_layer.retime import RepairConfig
     from distgprl.trial_protocol import PAPER
 
-    if protocol == PAPER and (repair is not None or repair_push):
+    repairs = given_options(ctx, "repair", "repair_push")
+    if protocol == PAPER and repairs:
         raise UserInputError(
-            "--repair/--no-repair and --repair-push set the safety layer's repair: use them "
-            "with --protocol safety-layer (the paper's protocol checks nothing before it moves)"
+            f"{' and '.join(repairs)}: the safety layer's repair: use --protocol safety-layer "
+            "(the paper's protocol checks nothing before it moves), or leave them out"
         )
     backend = backend or ("ur" if robot_ip else "twin")
     ur_only = given_options(ctx, "robot_ip", "camera")
@@ -136,7 +136,7 @@ def hardware(
         root=root,
         preset=preset,
         model_path=model,
-        repair=True if repair is None else repair,
+        repair=repair,
         repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
         protocol=protocol,
