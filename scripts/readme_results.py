@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 REPOSITORY = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPOSITORY))  # this checkout's package, imported where it is needed
 START, END = "<!-- results:start -->", "<!-- results:end -->"
 CLAIMS_START, CLAIMS_END = "<!-- claims:start -->", "<!-- claims:end -->"
 TABLE_ONE_READING = "paper"
@@ -29,7 +30,6 @@ TASKS = ("dcp", "dbm")
 
 
 def _environment_version() -> int:
-    sys.path.insert(0, str(REPOSITORY))
     from distgprl.config_types import ENVIRONMENT_VERSION
 
     return ENVIRONMENT_VERSION
@@ -114,7 +114,6 @@ def readings_without_runs(rows: list[dict[str, str]]) -> str:
     """A sentence naming the study readings (not Table I's, not an across row) under which no
     claim has runs (every verdict `NOT_RUN` or `OUTSIDE`), by study, with the command that
     trains them; "" where every reading has runs."""
-    sys.path.insert(0, str(REPOSITORY))
     from distgprl.report.robustness import NOT_RUN, OUTSIDE
     from distgprl.studies import study_of_reading
 
