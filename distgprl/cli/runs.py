@@ -223,13 +223,13 @@ def refuse_unread_sweep_options(
             "--address is a Ray cluster's: use it with --executor ray (the local executor "
             "runs the jobs on this machine)"
         )
-    asked_trials = twin_trials > 0 and bool(given_options(ctx, "twin_trials"))
-    asked_repairs = repair_evaluations and bool(given_options(ctx, "repair_evaluations"))
+    given = given_options(ctx, "twin_trials", "repair_evaluations")
+    asked_trials = twin_trials > 0 and "--twin-trials" in given
+    asked_repairs = repair_evaluations and "--repair-evaluations" in given
     if study and (asked_trials or asked_repairs):
-        names = " and ".join(given_options(ctx, "twin_trials", "repair_evaluations"))
         raise UserInputError(
-            f"{names}: a study's runs have no follow-ups (the twin trials and safety-layer "
-            "evaluations are Table I's): leave them out, or sweep a preset"
+            f"{' and '.join(given)}: a study's runs have no follow-ups (the twin trials and "
+            "safety-layer evaluations are Table I's): leave them out, or sweep a preset"
         )
     if asked_trials and not any(job.task == "dbm" for job in jobs):
         raise UserInputError(
