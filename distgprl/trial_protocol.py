@@ -13,20 +13,33 @@ first; a contact is a collision.
 :class:`~distgprl.limits.SafetyLimits` before they move, and refuses (or retimes) what fails;
 reported beside the paper's protocol, never in its place.
 
+Which trained policy a trial runs is named here too (`TRIAL_POLICIES`): the run's final
+policy (``model.zip``, on disk only where the run was trained) or its shipped best policy
+(``policy_best.pt``, Table I's, in every clone). Table II counts `TABLE2_POLICY`'s trials.
+
 Ground floor (no hardware import), so that the report layer reads trial files by these names.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from distgprl.errors import UserInputError
 
 __all__ = [
+    "BEST_POLICY",
+    "FINAL_POLICY",
+    "GIVEN_POLICY",
     "PAPER",
     "PROTECTIVE_STOP",
     "PROTOCOLS",
     "SAFETY_LAYER",
+    "TABLE2_POLICY",
+    "TRIAL_POLICIES",
     "UNCHECKED",
     "check_protocol",
+    "check_trial_policy",
+    "file_policy",
     "file_protocol",
 ]
 
@@ -60,3 +73,44 @@ def file_protocol(meta: dict) -> str:
     `SAFETY_LAYER` for a file written before the paper's protocol existed (every trial then
     ran behind the safety layer's pre-flight check)."""
     return str(meta.get("protocol") or SAFETY_LAYER)
+
+
+FINAL_POLICY = "final"
+"""A trial runs the run's final policy, its ``model.zip`` (only where the run was trained)."""
+
+BEST_POLICY = "best"
+"""A trial runs the run's shipped best policy (``policy_best.pt``: Table I's, in every clone)."""
+
+GIVEN_POLICY = "given"
+"""A trial file's policy when ``--model`` named the file (`file_policy`)."""
+
+TRIAL_POLICIES = (FINAL_POLICY, BEST_POLICY)
+"""The trained policies a trial can run, by name."""
+
+TABLE2_POLICY = FINAL_POLICY
+"""The policy Table II's trials run and count: the final one, the policy Table II v8's
+trials ran (docs/findings/environment-v8.md, note of 2026-12-08); a trial file of another
+named policy is listed under the table, not counted."""
+
+
+def check_trial_policy(policy: str) -> str:
+    """``policy`` if it is one of `TRIAL_POLICIES`, else :class:`UserInputError` naming them."""
+    if policy not in TRIAL_POLICIES:
+        raise UserInputError(f"policy must be one of {', '.join(TRIAL_POLICIES)}, got {policy!r}")
+    return policy
+
+
+def file_policy(meta: dict) -> str | None:
+    """Which trained policy a trial file's trials ran, from its provenance (``meta["policy"]``):
+    its ``policy`` (`BEST_POLICY`, `FINAL_POLICY` or `GIVEN_POLICY`, a file ``--model`` named),
+    or for a file that predates it `FINAL_POLICY` for a ``model.zip`` and `GIVEN_POLICY` for
+    another file; None for a reference, which runs no policy."""
+    policy = meta.get("policy") or {}
+    if not policy:
+        return None
+    named = str(policy.get("policy", ""))
+    if named.startswith(BEST_POLICY):
+        return BEST_POLICY
+    if named in (FINAL_POLICY, GIVEN_POLICY):
+        return named
+    return FINAL_POLICY if Path(str(policy.get("model", ""))).name == "model.zip" else GIVEN_POLICY

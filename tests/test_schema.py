@@ -281,11 +281,15 @@ def test_every_committed_csv_of_the_earlier_format_still_reads():
         ({"policy": {"run_config_hash": "old"}}, "abc", "policy config hash old"),
         ({}, "abc", "not recorded"),
         ({"policy": {"run_config_hash": "old"}}, None, None),
+        ({"policy": {"run_config_hash": "abc", "policy": "best (shipped)"}}, "abc", "best"),
+        ({"policy": {"run_config_hash": "abc", "policy": "final"}}, "abc", None),
+        ({"policy": {"run_config_hash": "abc", "policy": "given"}}, "abc", None),
     ],
 )
 def test_trial_file_exclusion_names_why_table2_leaves_a_file_out(meta, current, reason):
-    """A forced or dry-run trial file, or one of a policy whose hash is not the current one
-    (checked only where a current hash is given), is excluded with its reason; else counted."""
+    """A forced or dry-run trial file, one of a named policy other than Table II's (the final
+    one), or one of a policy whose hash is not the current one (checked only where a current
+    hash is given), is excluded with its reason; else counted."""
     got = schema.trial_file_exclusion(meta, current)
     if reason is None:
         assert got is None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import Annotated
 
@@ -17,6 +18,7 @@ from distgprl.cli.common import (
     user_errors,
 )
 from distgprl.errors import UserInputError
+from distgprl.trial_protocol import BEST_POLICY, TABLE2_POLICY, check_trial_policy
 
 
 @user_errors
@@ -57,6 +59,15 @@ def hardware(
     preset: PresetOption = None,
     config: ConfigOption = None,
     model: Annotated[Path | None, typer.Option(help="Model file instead of the run's.")] = None,
+    policy: Annotated[
+        str,
+        typer.Option(
+            metavar="final|best",
+            help="final: the run's model.zip, on disk where the run was trained (Table II "
+            "counts its trials); best: the best policy the run ships, Table I's, in every "
+            "clone (Table II lists its files apart).",
+        ),
+    ] = TABLE2_POLICY,
     root: RootOption = Path("results"),
     repair: Annotated[
         bool,
@@ -111,10 +122,16 @@ def hardware(
             "--sensor-noise sets the twin's simulated sensor noise; the ur backend's camera is "
             "a real one: leave it out (or use --backend twin)"
         )
-    if model is not None and not get_method(method).trainable:
+    policy_options = given_options(ctx, "model", "policy")
+    if policy_options and not get_method(method).trainable:
         raise UserInputError(
-            f"--model: {method} is a reference and runs no trained policy; leave --model out "
-            "(or give a trained --method)"
+            f"{' and '.join(policy_options)}: {method} is a reference and runs no trained "
+            "policy; leave them out (or give a trained --method)"
+        )
+    if model is not None and policy == BEST_POLICY:
+        raise UserInputError(
+            "--model runs the file it names; --policy best runs the best policy the run "
+            "ships: give one of them"
         )
     if dry_run and judge == "operator":
         raise UserInputError(
@@ -140,6 +157,6 @@ def hardware(
         repair_config=RepairConfig(repair=repair_push),
         sensor_noise=sensor_noise,
         protocol=protocol,
-        load_policy=load_trial_policy,
+        load_policy=partial(load_trial_policy, policy=check_trial_policy(policy)),
     )
     typer.echo(f"{describe_summary(report.summary, protocol)} -> {report.path}")

@@ -1,8 +1,7 @@
-"""Which trained policy a hardware or twin trial runs (`load_trial_policy`): the run's final
-``model.zip`` where it is on disk (or the one ``--model`` names), else the best policy the run
-ships (`distgprl.experiments.policies.SHIPPED_POLICY`, hash-checked), so that a fresh clone
-runs Table I's policy without training; the provenance (file, SHA-256, config hash, which
-policy) goes into the trial file."""
+"""Which trained policy a hardware or twin trial runs (`load_trial_policy`), by name: the
+run's final ``model.zip`` (or the file ``--model`` names), or the best policy the run ships
+(`distgprl.experiments.policies.SHIPPED_POLICY`, hash-checked), which a fresh clone has without
+training; the provenance (file, SHA-256, config hash, which policy) goes into the trial file."""
 
 from __future__ import annotations
 
@@ -10,6 +9,13 @@ from pathlib import Path
 from typing import Any
 
 from distgprl.errors import UserInputError
+from distgprl.trial_protocol import (
+    BEST_POLICY,
+    FINAL_POLICY,
+    GIVEN_POLICY,
+    TABLE2_POLICY,
+    check_trial_policy,
+)
 
 __all__ = ["load_trial_policy"]
 
@@ -41,33 +47,63 @@ def _shipped_policy(method: str, seed: int, preset: str, folder: Path, env):
     return deterministic_policy(model), provenance
 
 
-def load_trial_policy(method: str, seed: int, preset: str, root, model_path, env):
+def load_trial_policy(
+    method: str,
+    seed: int,
+    preset: str,
+    root,
+    model_path,
+    env,
+    policy: str = TABLE2_POLICY,
+):
     """(policy or None, provenance): the deterministic policy of the trained run and which
-    model it is (path, SHA-256, the config hash of the run folder it sits in, if any): its
-    final ``model.zip`` where it is on disk (or ``model_path``), else the best policy the run
-    ships (`_shipped_policy`: a fresh clone runs Table I's policy without training)."""
+    model it is (path, SHA-256, the config hash of the run folder it sits in, which policy).
+
+    ``policy`` names it (`distgprl.trial_protocol.TRIAL_POLICIES`): ``final``, the run's
+    ``model.zip`` (or ``model_path``), on disk only where the run was trained; ``best``, the
+    best policy the run ships (`_shipped_policy`: Table I's, in every clone). A missing one
+    is a `UserInputError` that says what is on disk, never a silent switch to the other.
+    A reference (``demo``, ``promp-nominal``) runs no policy: (None, {})."""
     from distgprl.experiments.factories import load_model
-    from distgprl.experiments.policies import SHIPPED_POLICY
     from distgprl.experiments.rollout import deterministic_policy
     from distgprl.io import file_sha256
     from distgprl.schema import read_json, run_dir
 
+    check_trial_policy(policy)
     if not env.method.trainable:  # the references (`demo`, `promp-nominal`) run no policy
         return None, {}
-    path = (
-        Path(model_path) if model_path else run_dir(root, preset, "dbm", method, seed) / "model.zip"
-    )
     folder = run_dir(root, preset, "dbm", method, seed)
-    if not path.exists() and not model_path and (folder / SHIPPED_POLICY).exists():
+    if policy == BEST_POLICY:
+        if model_path:
+            raise UserInputError(
+                f"{model_path}: a policy file runs as given; the best policy is the one the "
+                "run ships: give --model or --policy best, not both"
+            )
         return _shipped_policy(method, seed, preset, folder, env)
+    path = Path(model_path) if model_path else folder / "model.zip"
     if not path.exists():
         raise UserInputError(
-            f"{path}: no trained model; run `distgprl train --method {method} --task dbm "
-            f"--seed {seed} --preset {preset}` first (or pass --model)"
+            f"{path}: {_no_final_policy(method, seed, preset, folder, model_path)}"
         )
     model = load_model(path, env, "dbm", method)
     provenance: dict[str, Any] = {"model": str(path), "model_sha256": file_sha256(path)}
     config_path = path.parent / "config.json"
     if config_path.exists():
         provenance["run_config_hash"] = read_json(config_path).get("config_hash")
+    provenance["policy"] = FINAL_POLICY if not model_path else GIVEN_POLICY
     return deterministic_policy(model), provenance
+
+
+def _no_final_policy(method: str, seed: int, preset: str, folder: Path, model_path) -> str:
+    """What to do when the final policy is not on disk: the run's best policy where it ships
+    one (a clone), else train the run (or give ``--model``)."""
+    from distgprl.experiments.policies import SHIPPED_POLICY
+
+    train = f"`distgprl train --method {method} --task dbm --seed {seed} --preset {preset}`"
+    if model_path or not (folder / SHIPPED_POLICY).exists():
+        return f"no trained model; run {train} first (or pass --model)"
+    return (
+        f"no final policy on disk (the run ships its best policy, {SHIPPED_POLICY}, only): "
+        "pass --policy best to run that one, Table I's (Table II counts the final policy's "
+        f"trials, so it lists those files apart), or run {train} to train the final one"
+    )

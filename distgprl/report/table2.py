@@ -24,7 +24,16 @@ from distgprl.report.markdown import (
 from distgprl.report.runs import current_hash, known_preset
 from distgprl.report.table1 import INTERVAL_METRICS
 from distgprl.schema import moved_robot, read_csv, trial_file_exclusion
-from distgprl.trial_protocol import PAPER, PROTECTIVE_STOP, PROTOCOLS, file_protocol
+from distgprl.trial_protocol import (
+    BEST_POLICY,
+    FINAL_POLICY,
+    GIVEN_POLICY,
+    PAPER,
+    PROTECTIVE_STOP,
+    PROTOCOLS,
+    file_policy,
+    file_protocol,
+)
 
 TrialFile = tuple[str, dict[str, Any], tuple[dict[str, Any], ...]]
 """(method, meta, rows) of one trial file (``meta``: backend, repair, twin sensor noise)."""
@@ -48,29 +57,17 @@ class TrialFiles:
 
 
 POLICY_NAMES = {
-    "final": "the run's final policy (`model.zip`)",
-    "best": "the run's shipped best policy (Table I's)",
-    "given": "a policy file given by `--model`",
+    FINAL_POLICY: "the run's final policy (`model.zip`)",
+    BEST_POLICY: "the run's shipped best policy (Table I's)",
+    GIVEN_POLICY: "a policy file given by `--model`",
 }
-"""What `trial_policy` names, as Table II's note says it."""
-
-
-def trial_policy(meta: dict[str, Any]) -> str | None:
-    """Which policy a trial file's trials ran, from its provenance (``meta["policy"]``,
-    `distgprl.experiments.trial_policy`): ``best`` (the shipped best policy), ``final`` (a
-    ``model.zip``), ``given`` (another file); None for a reference (no policy)."""
-    policy = meta.get("policy") or {}
-    if not policy:
-        return None
-    if str(policy.get("policy", "")).startswith("best"):
-        return "best"
-    return "final" if Path(str(policy.get("model", ""))).name == "model.zip" else "given"
+"""What `distgprl.trial_protocol.file_policy` names, as Table II's note says it."""
 
 
 def policy_note(files: Iterable[TrialFile]) -> str:
     """Which trained policies ``files`` ran, counted per `POLICY_NAMES`, beside the policy
     Table I reports (empty without a trained policy's file)."""
-    kinds = Counter(kind for _, meta, _ in files if (kind := trial_policy(meta)))
+    kinds = Counter(kind for _, meta, _ in files if (kind := file_policy(meta)))
     if not kinds:
         return ""
     total = sum(kinds.values())

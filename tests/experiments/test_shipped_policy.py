@@ -104,12 +104,17 @@ def test_a_changed_shipped_actor_is_refused_with_both_hashes(shipped_run, tmp_pa
         distgprl.load_policy("dcp", "dist-gprl", 0, preset="ci", root=tmp_path, policy="best")
 
 
-def test_twin_trials_run_the_shipped_policy_without_the_model(tmp_path):
-    """`distgprl hardware --backend twin` on a run folder with only its small files: the
-    trials run Table I's shipped best actor, and the trial file names it."""
+def test_twin_trials_run_the_policy_they_name_and_never_switch(tmp_path):
+    """`distgprl hardware --backend twin` on a run folder with only its small files (a clone):
+    the final policy Table II counts is not there, so the default is an error that names
+    ``--policy best`` (no silent switch to another policy); ``policy="best"`` runs Table I's
+    shipped best actor, and the trial file names it; a file `trial_file_exclusion` lists."""
+    from functools import partial
+
     from distgprl.experiments.trial_policy import load_trial_policy
     from distgprl.hardware.trials import run_trials
     from distgprl.hardware.twin import TwinConfig
+    from distgprl.schema import trial_file_exclusion
 
     folder = distgprl.train(
         "dbm", "gprl", seed=0, preset="ci", steps=120, root=tmp_path, evaluate=False,
@@ -118,18 +123,16 @@ def test_twin_trials_run_the_shipped_policy_without_the_model(tmp_path):
     ship_best_policy(folder)
     (folder / "model.zip").unlink()
     shutil.rmtree(checkpoint_dir(folder))
-    report = run_trials(
-        trials=1,
-        method="gprl",
-        seed=0,
-        root=tmp_path,
-        preset="ci",
-        twin_config=TwinConfig(width=640, height=480),
-        echo=lambda _: None,
-        load_policy=load_trial_policy,
-    )
+    trials = dict(
+        trials=1, method="gprl", seed=0, root=tmp_path, preset="ci",
+        twin_config=TwinConfig(width=640, height=480), echo=lambda _: None,
+    )  # fmt: skip
+    with pytest.raises(UserInputError, match="no final policy on disk.*--policy best"):
+        run_trials(**trials, load_policy=load_trial_policy)
+    report = run_trials(**trials, load_policy=partial(load_trial_policy, policy="best"))
     meta, rows = read_csv(report.path)
     provenance = meta["policy"]
     assert provenance["model"].endswith(SHIPPED_POLICY)
     assert provenance["policy"].startswith("best (shipped")
     assert len(rows) == 1
+    assert "ran the best policy" in trial_file_exclusion(meta, provenance["run_config_hash"])

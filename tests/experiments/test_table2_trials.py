@@ -72,11 +72,13 @@ def _trial_file(root, method, name, rows=2, **meta):
 
 
 def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
-    """Force, dry runs, pushes, another preset or backend, a stale policy hash and too few
-    trials leave the setting due; a counted file of repair off removes exactly that one, a
-    paper-protocol file the paper's setting, and a file without a protocol (written before
-    the paper's protocol existed) counts as the safety layer's."""
+    """Force, dry runs, pushes, another preset or backend, a stale policy hash, the best
+    policy's trials (Table II counts the final one's) and too few trials leave the setting
+    due; a counted file of repair off removes exactly that one, a paper-protocol file the
+    paper's setting, and a file without a protocol (written before the paper's protocol
+    existed) counts as the safety layer's."""
     stale = {"run_config_hash": "0" * 16}
+    current = resolve_run("dbm", "gprl", 0, "ci").hash
     for index, meta in enumerate(
         [
             {"force": True},
@@ -85,6 +87,7 @@ def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
             {"preset": "paper"},
             {"backend": "ur"},
             {"policy": stale},
+            {"policy": {"run_config_hash": current, "policy": "best (shipped, step 60)"}},
             {"repair": False, "rows": 1},
         ]
     ):

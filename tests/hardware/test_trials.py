@@ -301,7 +301,8 @@ def test_sensor_noise_level_is_recorded_with_the_perception_error(tmp_path):
 
 def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
     """`distgprl hardware --no-repair --sensor-noise 2 --protocol safety-layer` reaches
-    run_trials; the paper's protocol is the default; noise 5 is rejected."""
+    run_trials; the paper's protocol and the final policy are the defaults; noise 5 and an
+    unknown policy are rejected."""
     from pathlib import Path
 
     from typer.testing import CliRunner
@@ -322,10 +323,13 @@ def test_cli_passes_repair_sensor_noise_and_the_protocol(monkeypatch, tmp_path):
     assert result.exit_code == 0, result.output
     assert seen["repair"] is False and seen["sensor_noise"] == 2
     assert seen["protocol"] == "safety-layer"
-    assert seen["load_policy"] is load_trial_policy  # the run's trained policy, or the shipped one
+    # the run's final policy, the one Table II counts, by default
+    assert seen["load_policy"].func is load_trial_policy
+    assert seen["load_policy"].keywords == {"policy": "final"}
     assert runner.invoke(app, ["hardware"]).exit_code == 0
     assert seen["repair"] is True and seen["sensor_noise"] == 0 and seen["protocol"] == "paper"
     assert runner.invoke(app, ["hardware", "--sensor-noise", "5"]).exit_code != 0
+    assert runner.invoke(app, ["hardware", "--policy", "latest"]).exit_code == 2
 
 
 @pytest.fixture
@@ -368,8 +372,9 @@ def test_the_cli_refuses_the_safety_layers_repair_options_under_the_papers_proto
 def test_the_cli_refuses_options_the_trials_would_not_read(recorded_trials):
     """An option the trials would not read is a user error (exit 2, naming what to do) before
     any trial, not dropped: ``--robot-ip`` / ``--camera`` with the twin, ``--sensor-noise``
-    with the ur backend, ``--model`` for a reference (no trained policy), ``--judge operator``
-    with ``--dry-run`` (nothing moved to judge). Where they apply they pass."""
+    with the ur backend, ``--model`` or ``--policy`` for a reference (no trained policy),
+    ``--model`` with ``--policy best`` (two policies named), ``--judge operator`` with
+    ``--dry-run`` (nothing moved to judge). Where they apply they pass."""
     from typer.testing import CliRunner
 
     from distgprl.cli import app
@@ -382,8 +387,10 @@ def test_the_cli_refuses_options_the_trials_would_not_read(recorded_trials):
         ("--backend", "twin", "--robot-ip", "10.0.0.2", "--camera", "0"): "--backend ur",
         ("--robot-ip", "10.0.0.2", "--sensor-noise", "0"): "--backend twin",
         ("--backend", "ur", "--sensor-noise", "2"): "--backend twin",
-        ("--method", "demo", "--model", "m.zip"): "leave --model out",
-        ("--method", "promp-nominal", "--model", "m.zip"): "leave --model out",
+        ("--method", "demo", "--model", "m.zip"): "leave them out",
+        ("--method", "promp-nominal", "--model", "m.zip"): "leave them out",
+        ("--method", "demo", "--policy", "final"): "leave them out",
+        ("--model", "m.zip", "--policy", "best"): "give one of them",
         ("--dry-run", "--judge", "operator"): "drop one of them",
     }
     for options, advice in refused.items():
@@ -396,11 +403,13 @@ def test_the_cli_refuses_options_the_trials_would_not_read(recorded_trials):
         ("--backend", "twin", "--sensor-noise", "2", "--judge", "operator"),
         ("--method", "dist-gprl", "--model", "m.zip"),
         ("--method", "demo", "--dry-run"),
+        ("--policy", "best"),
     ]
     for options in accepted:
         result = runner.invoke(app, ["hardware", *options])
         assert result.exit_code == 0, (options, result.output)
-    assert [kwargs["backend"] for kwargs in called] == ["ur", "twin", "twin", "twin"]
+    assert [kwargs["backend"] for kwargs in called] == ["ur", "twin", "twin", "twin", "twin"]
+    assert called[-1]["load_policy"].keywords == {"policy": "best"}
     assert called[0]["sensor_noise"] == 0 and called[1]["sensor_noise"] == 2
 
 

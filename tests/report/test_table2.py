@@ -96,19 +96,23 @@ def test_a_paper_file_and_a_safety_layer_file_of_one_setting_are_no_repeats(tmp_
 
 
 def test_the_note_says_which_trained_policy_the_counted_trials_ran(tmp_path):
-    """From each counted file's provenance: a run's ``model.zip`` is its final policy, the
-    shipped best actor is Table I's, another file is a given one; a reference's file (no
-    policy) is not counted; the note sets them beside the policy Table I reports."""
+    """From each file's provenance: a run's ``model.zip`` is its final policy, which Table II
+    counts; another file is a given one, counted too; the shipped best actor (Table I's) is
+    another named policy, listed apart, not counted; a reference's file (no policy) is not
+    a policy's. The note sets the counted ones beside the policy Table I reports."""
     final = {"model": "/x/paper/dbm/gprl/seed0/model.zip", "model_sha256": "0"}
+    given = {"model": "/x/other.zip", "model_sha256": "1", "policy": "given"}
     best = {"model": "/x/policy_best.pt", "policy": "best (shipped, curve step 300)"}
     _trials(tmp_path, "trials_twin_seed0_1.csv", CHECKED, protocol="paper", policy=final)
     _trials(tmp_path, "trials_twin_seed1_1.csv", CHECKED, protocol="paper", seed=1, policy=best)
-    _trials(tmp_path, "trials_twin_seed2_1.csv", CHECKED, protocol="paper", seed=2, policy=final)
+    _trials(tmp_path, "trials_twin_seed2_1.csv", CHECKED, protocol="paper", seed=2, policy=given)
     _trials(tmp_path, "trials_twin_seed0_2.csv", CHECKED, method="demo", protocol="paper")
-    note = select_trial_files(tmp_path, "p").note()
-    assert note == (
-        "Trained policies run (trial files): the run's shipped best policy (Table I's): 1 of 3 "
-        "files, the run's final policy (`model.zip`): 2 of 3 files; Table I reports each run's "
-        "best trained policy (protocol v8 rule 2)"
+    selection = select_trial_files(tmp_path, "p")
+    assert selection.note() == (
+        "Trained policies run (trial files): the run's final policy (`model.zip`): 1 of 2 "
+        "files, a policy file given by `--model`: 1 of 2 files; Table I reports each run's "
+        "best trained policy (protocol v8 rule 2). Not tabulated (1): "
+        "gprl/trials_twin_seed1_1.csv (ran the best policy; Table II counts the final "
+        "policy's trials)"
     )
     assert select_trial_files(tmp_path / "none", "p").note() == ""
