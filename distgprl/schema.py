@@ -44,7 +44,7 @@ import numpy as np
 from distgprl.errors import UserInputError
 from distgprl.io import atomic_write_text
 from distgprl.machine import machine_info
-from distgprl.trial_protocol import GIVEN_POLICY, TABLE2_POLICY, file_policy
+from distgprl.trial_protocol import TABLE2_POLICY, counts_for, file_policy
 from distgprl.version import __version__
 
 __all__ = [
@@ -468,13 +468,17 @@ def moved_robot(trial: dict[str, Any]) -> bool:
     return execution not in ("", None) and float(execution) > 0.0
 
 
-def trial_file_exclusion(meta: dict[str, Any], current_policy_hash: str | None) -> str | None:
-    """Why Table II does not count a hardware trial file, from its meta; None when it does.
+def trial_file_exclusion(
+    meta: dict[str, Any], current_policy_hash: str | None, policy: str = TABLE2_POLICY
+) -> str | None:
+    """Why Table II (of ``policy``'s trials, `distgprl.trial_protocol.TRIAL_POLICIES`) does
+    not count a hardware trial file, from its meta; None when it does.
 
     Not counted: trials run with the pre-flight check overridden (``force``: the safety
     layer's refusals were not applied, so they are not the method's hardware result), dry
-    runs, trials of a named policy other than `distgprl.trial_protocol.TABLE2_POLICY`, and
-    trials of a policy whose recorded config hash is not ``current_policy_hash``
+    runs, trials of another policy than ``policy`` (`distgprl.trial_protocol.counts_for`), and
+    trials of a policy whose
+    recorded config hash is not ``current_policy_hash``
     (the hash the code resolves now for the policy's run; None where it is not checked: an
     untrained reference, or a preset this checkout does not know). The one rule both Table II
     (`distgprl.report.table2`) and the sweep's trial bookkeeping
@@ -483,9 +487,9 @@ def trial_file_exclusion(meta: dict[str, Any], current_policy_hash: str | None) 
         return "pre-flight check overridden, --force"
     if meta.get("dry_run"):
         return "dry run"
-    policy = file_policy(meta)
-    if policy not in (None, GIVEN_POLICY, TABLE2_POLICY):
-        return f"ran the {policy} policy; Table II counts the {TABLE2_POLICY} policy's trials"
+    ran = file_policy(meta)
+    if not counts_for(ran, policy):
+        return f"ran the {ran} policy; this table counts the {policy} policy's trials"
     if current_policy_hash is not None:
         recorded = (meta.get("policy") or {}).get("run_config_hash")
         if recorded != current_policy_hash:

@@ -39,6 +39,7 @@ __all__ = [
     "UNCHECKED",
     "check_protocol",
     "check_trial_policy",
+    "counts_for",
     "file_policy",
     "file_protocol",
 ]
@@ -114,3 +115,10 @@ def file_policy(meta: dict) -> str | None:
     if named in (FINAL_POLICY, GIVEN_POLICY):
         return named
     return FINAL_POLICY if Path(str(policy.get("model", ""))).name == "model.zip" else GIVEN_POLICY
+
+
+def counts_for(ran: str | None, policy: str) -> bool:
+    """True if trials that ran ``ran`` (`file_policy`) count in the table of ``policy``'s
+    trials: their own policy's; a reference's (None: no policy) in every one; a policy file
+    ``--model`` named (`GIVEN_POLICY`) in Table II's (`TABLE2_POLICY`)."""
+    return ran in (None, policy) or (ran == GIVEN_POLICY and policy == TABLE2_POLICY)

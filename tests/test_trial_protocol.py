@@ -29,3 +29,12 @@ def test_table_two_counts_a_named_trial_policy_and_an_unknown_one_is_refused():
     assert [check_trial_policy(policy) for policy in TRIAL_POLICIES] == list(TRIAL_POLICIES)
     with pytest.raises(UserInputError, match="final, best"):
         check_trial_policy("latest")
+
+
+def test_a_reference_counts_in_every_table_and_a_given_file_in_table_twos():
+    from distgprl.trial_protocol import counts_for
+
+    assert counts_for(None, "final") and counts_for(None, "best")
+    assert counts_for("final", "final") and not counts_for("final", "best")
+    assert counts_for("best", "best") and not counts_for("best", "final")
+    assert counts_for("given", TABLE2_POLICY) and not counts_for("given", "best")

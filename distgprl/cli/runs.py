@@ -32,6 +32,7 @@ from distgprl.cli.common import (
 from distgprl.errors import UserInputError
 from distgprl.experiments.table2_trials import TABLE2_TRIALS
 from distgprl.studies import get_study, is_study, study_of_reading
+from distgprl.trial_protocol import TABLE2_POLICY
 
 
 @user_errors
@@ -85,6 +86,15 @@ def sweep(
             "0: none.",
         ),
     ] = TABLE2_TRIALS,
+    trial_policy: Annotated[
+        str,
+        typer.Option(
+            metavar="final|best",
+            help="The trained policy the twin trials run: final (the run's model.zip, on "
+            "disk where it was trained; Table II's) or best (the best policy the run ships, "
+            "Table I's; Table II's three noise-free settings, tabulated beside Table II).",
+        ),
+    ] = TABLE2_POLICY,
     repair_evaluations: Annotated[
         bool,
         typer.Option(
@@ -113,7 +123,7 @@ def sweep(
 
     preset = resolve_preset(preset, config, overrides)
     asked = (split_list(methods), split_list(tasks), parse_seeds(seeds))
-    jobs = plan_jobs(preset, *asked, root, twin_trials, repair_evaluations)
+    jobs = plan_jobs(preset, *asked, root, twin_trials, repair_evaluations, trial_policy)
     refuse_unread_sweep_options(
         ctx, jobs, is_study(preset), executor, address, twin_trials, repair_evaluations
     )
@@ -223,8 +233,13 @@ def refuse_unread_sweep_options(
             "--address is a Ray cluster's: use it with --executor ray (the local executor "
             "runs the jobs on this machine)"
         )
-    given = given_options(ctx, "twin_trials", "repair_evaluations")
-    asked_trials = twin_trials > 0 and "--twin-trials" in given
+    given = given_options(ctx, "twin_trials", "repair_evaluations", "trial_policy")
+    if "--trial-policy" in given and twin_trials == 0:
+        raise UserInputError(
+            "--trial-policy names the policy the twin trials run, and --twin-trials 0 runs "
+            "none: give --twin-trials N, or leave --trial-policy out"
+        )
+    asked_trials = twin_trials > 0 and bool({"--twin-trials", "--trial-policy"} & set(given))
     asked_repairs = repair_evaluations and "--repair-evaluations" in given
     if study and (asked_trials or asked_repairs):
         raise UserInputError(

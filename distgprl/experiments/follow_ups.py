@@ -65,7 +65,7 @@ def trials_due(job: Job) -> bool:
         return False
     from distgprl.experiments.table2_trials import trials_due as due
 
-    return due(job.method, job.seed, job.preset, job.root, job.twin_trials)
+    return due(job.method, job.seed, job.preset, job.root, job.twin_trials, job.trial_policy)
 
 
 def run_job_trials(job: Job) -> str:
@@ -74,4 +74,6 @@ def run_job_trials(job: Job) -> str:
     (`table2_trials.run_and_report`)."""
     from distgprl.experiments.table2_trials import run_and_report
 
-    return run_and_report(job.method, job.seed, job.preset, job.root, job.twin_trials)
+    return run_and_report(
+        job.method, job.seed, job.preset, job.root, job.twin_trials, job.trial_policy
+    )

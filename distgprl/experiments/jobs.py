@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from distgprl.trial_protocol import TABLE2_POLICY
+
 
 @dataclass(frozen=True)
 class Job:
@@ -22,6 +24,7 @@ class Job:
     twin_trials: int = 0  # trials per Table II setting after a DBM job (0: none)
     repair_evaluations: bool = False  # safety-layer evaluations after the run
     named_with_preset: bool = False  # a study's job: its name says which preset (reading)
+    trial_policy: str = TABLE2_POLICY  # the trained policy its twin trials run
 
     @property
     def name(self) -> str:

@@ -80,6 +80,7 @@ from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.runstate import job_state
 from distgprl.schema import run_dir, write_json
 from distgprl.studies import get_study, is_study
+from distgprl.trial_protocol import TABLE2_POLICY, check_trial_policy
 
 
 @dataclass(frozen=True)
@@ -102,12 +103,14 @@ def plan_jobs(
     root: str | Path = "results",
     twin_trials: int = 0,
     repair_evaluations: bool = False,
+    trial_policy: str = TABLE2_POLICY,
 ) -> list[Job]:
     """All jobs of a sweep: seed by seed, methods in the given order (default: table order),
     tasks innermost. An untrained reference (`demo`, `promp-nominal`) runs once (seed 0),
     with the first seed's jobs. ``twin_trials``: trials per Table II setting each DBM job
-    runs after training (0: none); ``repair_evaluations``: each job also evaluates its run
-    with the safety layer in the loop.
+    runs after training (0: none), of the trained policy ``trial_policy`` names
+    (`distgprl.trial_protocol.TRIAL_POLICIES`); ``repair_evaluations``: each job also
+    evaluates its run with the safety layer in the loop.
 
     Every name, seed and the preset are validated first (`resolve_run` for every job), so
     a bad request is a `UserInputError` before anything touches the disk.
@@ -158,6 +161,7 @@ def plan_jobs(
                         str(root),
                         int(twin_trials),
                         bool(repair_evaluations),
+                        trial_policy=check_trial_policy(trial_policy),
                     )
                 )
     for job in jobs:

@@ -20,13 +20,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 from distgprl.hardware.trial_rows import describe_summary
 from distgprl.identity import resolve_run
 from distgprl.methods import TABLE_ORDER, get_method
 from distgprl.schema import read_csv, run_dir, trial_file_exclusion
-from distgprl.trial_protocol import PAPER, SAFETY_LAYER, file_protocol
+from distgprl.trial_protocol import (
+    FINAL_POLICY,
+    PAPER,
+    SAFETY_LAYER,
+    TABLE2_POLICY,
+    check_trial_policy,
+    file_protocol,
+)
 
 __all__ = [
     "PAPER_SETTING",
@@ -78,12 +86,14 @@ PAPER_SETTING = TrialSetting(False, 0, PAPER)
 """Table II's primary setting: the paper's protocol on the noiseless twin."""
 
 
-def table2_settings(method: str) -> tuple[TrialSetting, ...]:
+def table2_settings(method: str, policy: str = TABLE2_POLICY) -> tuple[TrialSetting, ...]:
     """The settings Table II wants for ``method``: the paper's protocol (`PAPER_SETTING`)
     first, then the safety layer with repair on and off without sensor noise, and
-    (`ROBUSTNESS_METHODS`) the safety layer with repair on at every noise level."""
+    (`ROBUSTNESS_METHODS`) the safety layer with repair on at every noise level. Of another
+    ``policy`` than Table II's (`distgprl.trial_protocol.TRIAL_POLICIES`; its table beside
+    Table II) the first three: Table II's table, not its noise curve."""
     settings = [PAPER_SETTING, TrialSetting(True, 0), TrialSetting(False, 0)]
-    if method in ROBUSTNESS_METHODS:
+    if method in ROBUSTNESS_METHODS and check_trial_policy(policy) == TABLE2_POLICY:
         settings += [TrialSetting(True, level) for level in NOISE_LEVELS]
     return tuple(settings)
 
@@ -94,9 +104,10 @@ def model_path(root: str | Path, preset: str, method: str, seed: int) -> Path:
 
 
 def _done_settings(
-    root: str | Path, preset: str, method: str, seed: int, trials: int
+    root: str | Path, preset: str, method: str, seed: int, trials: int, policy: str
 ) -> set[TrialSetting]:
-    """Settings with a trial file Table II counts (module docstring)."""
+    """Settings with a trial file of ``policy`` Table II (or its table of ``policy``) counts
+    (module docstring)."""
     folder = Path(root) / "hardware" / method
     trainable = get_method(method).trainable
     current = resolve_run(HARDWARE_TASK, method, seed, preset).hash if trainable else None
@@ -108,7 +119,7 @@ def _done_settings(
             or meta.get("backend") != "twin"
             or meta.get("repair_push")
             or len(rows) < trials
-            or trial_file_exclusion(meta, current)
+            or trial_file_exclusion(meta, current, policy)
         ):
             continue
         protocol = file_protocol(meta)
@@ -118,11 +129,28 @@ def _done_settings(
 
 
 def missing_settings(
-    root: str | Path, preset: str, method: str, seed: int, trials: int = TABLE2_TRIALS
+    root: str | Path,
+    preset: str,
+    method: str,
+    seed: int,
+    trials: int = TABLE2_TRIALS,
+    policy: str = TABLE2_POLICY,
 ) -> tuple[TrialSetting, ...]:
-    """The settings of `table2_settings` without a counted trial file of ``trials`` trials."""
-    done = _done_settings(root, preset, method, seed, trials)
-    return tuple(s for s in table2_settings(method) if s not in done)
+    """The settings of `table2_settings` without a counted trial file of ``trials`` trials
+    of ``policy`` (a reference's files, which run no policy, count for every one)."""
+    done = _done_settings(root, preset, method, seed, trials, policy)
+    return tuple(s for s in table2_settings(method, policy) if s not in done)
+
+
+def policy_on_disk(root: str | Path, preset: str, method: str, seed: int, policy: str) -> bool:
+    """True if the DBM run's ``policy`` can run here: a reference (no policy), the final
+    policy's ``model.zip``, or the best policy the run ships (or keeps beside its model)."""
+    from distgprl.experiments.policies import SHIPPED_POLICY
+
+    if not get_method(method).trainable:
+        return True
+    final = model_path(root, preset, method, seed)
+    return final.exists() or (policy != FINAL_POLICY and (final.parent / SHIPPED_POLICY).exists())
 
 
 def run_table2_trials(
@@ -132,8 +160,10 @@ def run_table2_trials(
     root: str | Path = "results",
     trials: int = TABLE2_TRIALS,
     echo: Callable[[str], None] = print,
+    policy: str = TABLE2_POLICY,
 ) -> list[Path]:
-    """Run the twin trials of every missing setting of the DBM policy (method, seed, preset).
+    """Run the twin trials of every missing setting of the DBM policy (method, seed, preset)
+    that ``policy`` names (`distgprl.trial_protocol.TRIAL_POLICIES`).
 
     Returns the trial files written (none if every setting is done).
 
@@ -146,7 +176,8 @@ def run_table2_trials(
     from distgprl.safety_layer.retime import RepairConfig
 
     written = []
-    for setting in missing_settings(root, preset, method, seed, trials):
+    load_policy = partial(load_trial_policy, policy=policy)
+    for setting in missing_settings(root, preset, method, seed, trials, policy):
         report = run_trials(
             trials=trials,
             method=method,
@@ -159,31 +190,47 @@ def run_table2_trials(
             sensor_noise=setting.sensor_noise,
             protocol=setting.protocol,
             echo=lambda line: None,
-            load_policy=load_trial_policy,
+            load_policy=load_policy,
         )
         echo(
-            f"twin trials {method} seed {seed} ({setting.describe()}): "
+            f"twin trials {method} seed {seed} ({setting.describe()}, {policy} policy): "
             f"{describe_summary(report.summary, setting.protocol)} -> {report.path}"
         )
         written.append(report.path)
     return written
 
 
-def trials_due(method: str, seed: int, preset: str, root: str | Path, trials: int) -> bool:
-    """True if the DBM policy's trials can and should run now: its model is on disk (a
-    trained method) and a setting is still without ``trials`` counted trials."""
-    if get_method(method).trainable and not model_path(root, preset, method, seed).exists():
+def trials_due(
+    method: str,
+    seed: int,
+    preset: str,
+    root: str | Path,
+    trials: int,
+    policy: str = TABLE2_POLICY,
+) -> bool:
+    """True if the DBM policy's trials can and should run now: ``policy`` is on disk
+    (`policy_on_disk`) and a setting is still without ``trials`` counted trials of it."""
+    if not policy_on_disk(root, preset, method, seed, policy):
         return False
-    return bool(missing_settings(root, preset, method, seed, trials))
+    return bool(missing_settings(root, preset, method, seed, trials, policy))
 
 
-def run_and_report(method: str, seed: int, preset: str, root: str | Path, trials: int) -> str:
+def run_and_report(
+    method: str,
+    seed: int,
+    preset: str,
+    root: str | Path,
+    trials: int,
+    policy: str = TABLE2_POLICY,
+) -> str:
     """`run_table2_trials` as a report for a sweep's log: one line per setting run, or what
     failed (a trial failure never raises here: the run it follows is done, and the next
     sweep tries again)."""
     lines: list[str] = []
     try:
-        written = run_table2_trials(method, seed, preset, root, trials, echo=lines.append)
+        written = run_table2_trials(
+            method, seed, preset, root, trials, echo=lines.append, policy=policy
+        )
     except Exception as exc:  # reported with the job
         return f"twin trials failed: {type(exc).__name__}: {exc}"
     return "\n  ".join([f"twin trials: {len(written)} setting(s) run", *lines])

@@ -31,6 +31,9 @@ from distgprl.trial_protocol import (
     PAPER,
     PROTECTIVE_STOP,
     PROTOCOLS,
+    TABLE2_POLICY,
+    TRIAL_POLICIES,
+    counts_for,
     file_policy,
     file_protocol,
 )
@@ -41,16 +44,23 @@ TrialFile = tuple[str, dict[str, Any], tuple[dict[str, Any], ...]]
 
 @dataclass(frozen=True)
 class TrialFiles:
-    """The files Table II counts (table order, then file name) and one ``method/file (reason)``
-    per file of the preset it leaves out."""
+    """The files Table II (or its table of another trial policy) counts (table order, then
+    file name), one ``method/file (reason)`` per file of the preset it leaves out, and how
+    many files of each other named policy (`TRIAL_POLICIES`) the preset has, tabulated apart."""
 
     counted: tuple[TrialFile, ...]
     excluded: tuple[str, ...]
+    apart: tuple[tuple[str, int], ...] = ()
 
     def note(self) -> str:
         """Sentences for the table: which trained policies the counted files ran
-        (`policy_note`) and what was left out (empty if neither)."""
+        (`policy_note`), the other policies' files and what was left out (empty if none)."""
         parts = [policy_note(self.counted)]
+        parts += [
+            f"Trial files of the {policy} policy, tabulated apart in "
+            f"`{table2_stem(policy)}_<preset>`: {n}"
+            for policy, n in self.apart
+        ]
         if self.excluded:
             parts.append(f"Not tabulated ({len(self.excluded)}): " + "; ".join(self.excluded))
         return ". ".join(part for part in parts if part)
@@ -80,22 +90,35 @@ def policy_note(files: Iterable[TrialFile]) -> str:
     )
 
 
-def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
-    """The trial files ``<root>/hardware/<method>/*.csv`` of ``preset`` Table II counts: not
-    those `trial_file_exclusion` refuses (for this checkout's presets also a policy's whose
-    config hash is not the current one on the hardware task, DBM), and of the files of one
-    `_twin_setting` only the one with the most trials, the newest on a tie."""
+def table2_stem(policy: str = TABLE2_POLICY) -> str:
+    """The file stem (before ``_<preset>``) of the Table II of ``policy``'s trials:
+    ``table2`` for Table II's own policy, ``table2_<policy>`` beside it."""
+    return "table2" if policy == TABLE2_POLICY else f"table2_{policy}"
+
+
+def select_trial_files(root: str | Path, preset: str, policy: str = TABLE2_POLICY) -> TrialFiles:
+    """The trial files ``<root>/hardware/<method>/*.csv`` of ``preset`` Table II counts, of
+    the trained ``policy`` (`TRIAL_POLICIES`; a reference's files run none and count for
+    each): not those `trial_file_exclusion` refuses (for this checkout's presets also a
+    policy's whose config hash is not the current one on the hardware task, DBM), and of the
+    files of one `_twin_setting` only the one with the most trials, the newest on a tie."""
     checked = known_preset(preset)
     files: list[tuple[str, dict[str, Any], tuple[dict[str, Any], ...], str]] = []
     excluded = []
+    apart: Counter[str] = Counter()
     for method in TABLE_ORDER:
         for path in sorted((Path(root) / "hardware" / method).glob("*.csv")):
             meta, rows = read_csv(path)
             if meta.get("preset") != preset:
                 continue
+            kind = file_policy(meta)
+            if not counts_for(kind, policy):
+                if kind in TRIAL_POLICIES:  # else a given file: Table II's
+                    apart[str(kind)] += 1
+                continue
             seed, trainable = int(meta.get("seed", -1)), checked and METHODS[method].trainable
             reason = trial_file_exclusion(
-                meta, current_hash("dbm", method, seed, preset) if trainable else None
+                meta, current_hash("dbm", method, seed, preset) if trainable else None, policy
             )
             if reason:
                 excluded.append(f"{method}/{path.name} ({reason})")
@@ -112,7 +135,7 @@ def select_trial_files(root: str | Path, preset: str) -> TrialFiles:
                 f"{method}/{name} (repeats the twin trials of {kept[setting]}: same seed and "
                 f"setting, same bar positions; {len(trials)} trials)"
             )
-    return TrialFiles(tuple(counted), tuple(excluded))
+    return TrialFiles(tuple(counted), tuple(excluded), tuple(sorted(apart.items())))
 
 
 def _twin_setting(method: str, meta: dict[str, Any], name: str) -> tuple[Any, ...]:
@@ -287,10 +310,21 @@ def noise_texts(rows: list[dict[str, Any]], preset: str) -> tuple[str, str] | No
     return csv_text(twin, fields), markdown_table(caption, header, body)
 
 
-def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> tuple[str, str, str]:
-    """(CSV, Markdown, LaTeX) of Table II from `hardware_rows`: the CSV one row per row (MinCl
-    empty where no trial moved), Markdown and LaTeX one per method, backend and noise level:
-    the `GROUPS` some row has; ``note`` (the files left out) under the Markdown."""
+POLICY_TITLES = {
+    TABLE2_POLICY: "Table II",
+    BEST_POLICY: "Table II of the best policies, Table I's (beside Table II, whose trials run "
+    "each run's final policy)",
+}
+"""The title that opens the Table II of each trial policy's trials (`table2_stem`)."""
+
+
+def hardware_texts(
+    rows: list[dict[str, Any]], preset: str, note: str = "", policy: str = TABLE2_POLICY
+) -> tuple[str, str, str]:
+    """(CSV, Markdown, LaTeX) of Table II (of the trained ``policy``'s trials, `POLICY_TITLES`)
+    from `hardware_rows`: the CSV one row per row (MinCl empty where no trial moved), Markdown
+    and LaTeX one per method, backend and noise level: the `GROUPS` some row has; ``note``
+    (the files left out) under the Markdown."""
     fields = [*SETTING, "trials", "refused", "protective_stops"]
     fields += ["success_rate", "collision_rate", "min_clearance_p5", "executed", *INTERVAL_FIELDS]
     mincl = "min_clearance_p5"
@@ -315,7 +349,7 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
         f"moved the robot (n = their number where fewer than the trials; – if none did) ({preset} "
         "preset policies)"
     )
-    markdown = markdown_table(f"Table II: {caption}", header, body)
+    markdown = markdown_table(f"{POLICY_TITLES[policy]}: {caption}", header, body)
     markdown += f"\n{note}.\n" if note else ""
     latex_caption = caption.replace(" %", "\\,\\%").replace("pi rad/s", "$\\pi$ rad/s")
     latex_caption = latex_caption.replace("s^2", "s$^2$")
@@ -325,5 +359,6 @@ def hardware_texts(rows: list[dict[str, Any]], preset: str, note: str = "") -> t
         " & ".join(["Method", "Backend", "Noise", *names]),
     ]
     columns = "lll" + "c" * len(names)
-    latex = latex_table(latex_caption, "tab:hardware_results", columns, latex_header, body)
+    label = "tab:hardware_results" + ("" if policy == TABLE2_POLICY else f"_{policy}")
+    latex = latex_table(latex_caption, label, columns, latex_header, body)
     return csv_text(table, fields), markdown, latex

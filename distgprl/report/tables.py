@@ -20,6 +20,7 @@ from distgprl.report.repair import repair_texts
 from distgprl.report.robustness import robustness_texts, study_verdicts
 from distgprl.report.runs import TABLE_POLICY
 from distgprl.studies import studies_of
+from distgprl.trial_protocol import TABLE2_POLICY, TRIAL_POLICIES, file_policy
 
 Table = tuple[str, tuple[str, ...] | None, str]
 """One table: file stem, its texts (CSV, Markdown and for Tables I and II LaTeX; None: remove
@@ -61,9 +62,6 @@ def write_tables(
     tables += _table_one(load_frames(root, preset, "final"), root, preset, "final")
     scores = table1.collect_scores(best)  # the claims follow Table I
     sizes = (None, *paired.supplementary_sizes(root, preset))
-    trials = table2.select_trial_files(root, preset)
-    hardware = table2.hardware_rows(trials)
-    hardware_texts = table2.hardware_texts(hardware, preset, trials.note()) if hardware else None
     tables += [
         _one_demo_study(root, preset),
         (f"aggregates_{preset}", aggregate_texts(scores, preset), ABOUT["aggregates"]),
@@ -72,8 +70,7 @@ def write_tables(
         *(paired.paired_table(root, preset, ref, n) for ref in paired.REFERENCES for n in sizes),
         paired.paired_table(root, preset, paired.FINAL_POLICY),
         *([paired.paired_table(root, preset, base_preset=against)] if against else []),
-        (f"table2_{preset}", hardware_texts, ABOUT["table2"]),
-        (f"table2_noise_{preset}", table2.noise_texts(hardware, preset), ABOUT["noise"]),
+        *_table_two(root, preset),
         (f"table1_repair_{preset}", repair_texts(root, preset), ABOUT["repair"]),
     ]
     out_dir = Path(out_dir)
@@ -86,6 +83,21 @@ def write_tables(
         if stale not in written:
             stale.unlink()
     return written
+
+
+def _table_two(root: str | Path, preset: str) -> list[Table]:
+    """Table II of each trial policy's trials (`TRIAL_POLICIES`: Table II's own first, then
+    beside it `table2_<policy>` where a trained policy's trials ran it), and Table II's noise
+    table."""
+    tables, rows_of = [], {}
+    for policy in TRIAL_POLICIES:
+        trials = table2.select_trial_files(root, preset, policy)
+        ran = policy == TABLE2_POLICY or any(file_policy(m) == policy for _, m, _ in trials.counted)
+        rows = rows_of[policy] = table2.hardware_rows(trials) if ran else []
+        texts = table2.hardware_texts(rows, preset, trials.note(), policy) if rows else None
+        tables.append((f"{table2.table2_stem(policy)}_{preset}", texts, ABOUT["table2"]))
+    noise = table2.noise_texts(rows_of[TABLE2_POLICY], preset)
+    return [*tables, (f"table2_noise_{preset}", noise, ABOUT["noise"])]
 
 
 def _table_one(frames: Frames, root: str | Path, preset: str, policy: str) -> list[Table]:

@@ -180,7 +180,8 @@ def test_sweep_command_refuses_options_its_jobs_would_not_read(tmp_path, monkeyp
     to do) before anything runs or is recorded: ``--address`` without ``--executor ray``,
     ``--twin-trials N`` / ``--repair-evaluations`` for a study (no follow-ups),
     ``--twin-trials N`` without a DBM run, ``--repair-evaluations`` for residual-control
-    methods only. Their defaults, 0 and ``--no-repair-evaluations`` still pass."""
+    methods only, ``--trial-policy`` with no trials, for a study or without a DBM run (and an
+    unknown one). Their defaults, 0 and ``--no-repair-evaluations`` still pass."""
     from typer.testing import CliRunner
 
     from distgprl.cli import app
@@ -201,6 +202,10 @@ def test_sweep_command_refuses_options_its_jobs_would_not_read(tmp_path, monkeyp
         ("--tasks", "dcp", "--twin-trials", "3"): "add dbm to --tasks",
         ("--methods", "demo,gprl", "--tasks", "dcp", "--twin-trials", "1"): "add dbm to --tasks",
         ("--methods", "promp-rrl,promp-nominal", "--repair-evaluations"): "not implemented",
+        ("--twin-trials", "0", "--trial-policy", "best"): "give --twin-trials N",
+        ("--preset", "operators", "--trial-policy", "best"): "a study's runs have no follow-ups",
+        ("--tasks", "dcp", "--trial-policy", "best"): "add dbm to --tasks",
+        ("--trial-policy", "latest"): "final, best",
     }
     runner = CliRunner()
     for options, advice in refused.items():
@@ -218,6 +223,7 @@ def test_sweep_command_refuses_options_its_jobs_would_not_read(tmp_path, monkeyp
         ("--methods", "promp-rrl"),  # the default --repair-evaluations: via-point methods only
         ("--methods", "promp-rrl", "--no-repair-evaluations"),
         ("--methods", "gprl,promp-rrl", "--tasks", "dcp", "--repair-evaluations"),
+        ("--methods", "gprl", "--tasks", "dbm", "--trial-policy", "best"),
     ]
     for options in accepted:
         result = runner.invoke(app, [*base, "--root", str(tmp_path / "ok"), *options])
@@ -227,6 +233,8 @@ def test_sweep_command_refuses_options_its_jobs_would_not_read(tmp_path, monkeyp
         ("local", None),
     ]
     assert {job.twin_trials for job in swept[3][0]} == {3}
+    assert {job.trial_policy for job in swept[3][0]} == {"final"}  # Table II's, by default
+    assert {job.trial_policy for job in swept[-1][0]} == {"best"}
 
 
 def _children(pid: int) -> list[int]:

@@ -9,6 +9,7 @@ from distgprl.experiments import sweep
 from distgprl.experiments.follow_ups import run_job_trials, trials_due
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.table2_trials import (
+    PAPER_SETTING,
     TrialSetting,
     missing_settings,
     model_path,
@@ -105,6 +106,50 @@ def test_only_a_file_table_ii_would_count_makes_a_setting_done(tmp_path):
     assert missing_settings(tmp_path, "ci", "gprl", 0, trials=2) == due
     # another seed's files do not count for seed 0, and vice versa
     assert missing_settings(tmp_path, "ci", "gprl", 1, trials=2) == table2_settings("gprl")
+
+
+def test_the_best_policys_trials_are_settings_of_their_own(tmp_path):
+    """Of the best policy (Table I's) Table II's three noise-free settings; a final-policy file
+    does not make a best-policy setting done, nor the other way round; a reference's file
+    (no policy) counts for both; the best policy can run from the actor the run ships."""
+    from distgprl.experiments.policies import SHIPPED_POLICY
+    from distgprl.experiments.table2_trials import policy_on_disk
+
+    assert table2_settings("gprl", "best") == table2_settings("gprl")[:3]
+    current = resolve_run("dbm", "gprl", 0, "ci").hash
+    final = {"run_config_hash": current, "model": "/r/ci/dbm/gprl/seed0/model.zip"}
+    best = {"run_config_hash": current, "model": "/r/policy_best.pt", "policy": "best (x)"}
+    paper = {"protocol": "paper", "repair": False}
+    _trial_file(tmp_path, "gprl", "trials_twin_seed0_final.csv", policy=final, **paper)
+    assert PAPER_SETTING not in missing_settings(tmp_path, "ci", "gprl", 0, 2)
+    assert PAPER_SETTING in missing_settings(tmp_path, "ci", "gprl", 0, 2, "best")
+    _trial_file(tmp_path, "gprl", "trials_twin_seed0_best.csv", policy=best)
+    assert missing_settings(tmp_path, "ci", "gprl", 0, 2, "best") == (
+        PAPER_SETTING,
+        TrialSetting(False, 0),
+    )
+    assert TrialSetting(True, 0) in missing_settings(tmp_path, "ci", "gprl", 0, 2)
+    _trial_file(tmp_path, "demo", "trials_twin_seed0_demo.csv", policy={}, **paper)
+    for policy in ("final", "best"):
+        assert PAPER_SETTING not in missing_settings(tmp_path, "ci", "demo", 0, 2, policy)
+    folder = model_path(tmp_path, "ci", "gprl", 0).parent
+    folder.mkdir(parents=True)
+    (folder / SHIPPED_POLICY).write_bytes(b"")
+    assert policy_on_disk(tmp_path, "ci", "gprl", 0, "best")
+    assert not policy_on_disk(tmp_path, "ci", "gprl", 0, "final")
+    assert policy_on_disk(tmp_path, "ci", "demo", 0, "final")
+
+
+def test_a_jobs_trial_policy_reaches_its_trials(monkeypatch):
+    """The sweep's follow-up asks for and runs the trials of the policy its job names."""
+    from distgprl.experiments import table2_trials
+
+    seen = []
+    monkeypatch.setattr(table2_trials, "trials_due", lambda *args: seen.append(args) or True)
+    monkeypatch.setattr(table2_trials, "run_and_report", lambda *args: seen.append(args) or "")
+    job = Job("dbm", "gprl", 0, "ci", "r", twin_trials=2, trial_policy="best")
+    assert trials_due(job) and run_job_trials(job) == ""
+    assert seen == [("gprl", 0, "ci", "r", 2, "best")] * 2
 
 
 @pytest.fixture(scope="module")

@@ -98,8 +98,9 @@ def test_a_paper_file_and_a_safety_layer_file_of_one_setting_are_no_repeats(tmp_
 def test_the_note_says_which_trained_policy_the_counted_trials_ran(tmp_path):
     """From each file's provenance: a run's ``model.zip`` is its final policy, which Table II
     counts; another file is a given one, counted too; the shipped best actor (Table I's) is
-    another named policy, listed apart, not counted; a reference's file (no policy) is not
-    a policy's. The note sets the counted ones beside the policy Table I reports."""
+    another named policy, counted in its own table beside Table II, and each table's note
+    says how many files the other has; a reference's file (no policy) counts in both. The
+    note sets the counted ones beside the policy Table I reports."""
     final = {"model": "/x/paper/dbm/gprl/seed0/model.zip", "model_sha256": "0"}
     given = {"model": "/x/other.zip", "model_sha256": "1", "policy": "given"}
     best = {"model": "/x/policy_best.pt", "policy": "best (shipped, curve step 300)"}
@@ -111,8 +112,51 @@ def test_the_note_says_which_trained_policy_the_counted_trials_ran(tmp_path):
     assert selection.note() == (
         "Trained policies run (trial files): the run's final policy (`model.zip`): 1 of 2 "
         "files, a policy file given by `--model`: 1 of 2 files; Table I reports each run's "
-        "best trained policy (protocol v8 rule 2). Not tabulated (1): "
-        "gprl/trials_twin_seed1_1.csv (ran the best policy; Table II counts the final "
-        "policy's trials)"
+        "best trained policy (protocol v8 rule 2). Trial files of the best policy, tabulated "
+        "apart in `table2_best_<preset>`: 1"
+    )
+    best_table = select_trial_files(tmp_path, "p", "best")
+    assert [(method, meta["seed"]) for method, meta, _ in best_table.counted] == [
+        ("gprl", 1),
+        ("demo", 0),
+    ]  # the reference's file runs no policy: it counts for every table
+    assert best_table.note().startswith(
+        "Trained policies run (trial files): the run's shipped best policy (Table I's): 1 of 1"
+    )
+    assert "Trial files of the final policy, tabulated apart in `table2_<preset>`: 1" in (
+        best_table.note()
     )
     assert select_trial_files(tmp_path / "none", "p").note() == ""
+
+
+def test_the_best_policys_table_is_written_beside_table_ii_only_where_trials_ran_it(
+    tmp_path, study_run
+):
+    """`write_tables`: ``table2_best_<preset>`` exists only where a trained policy's trials
+    ran the best policy (the references' files, which run none, do not make one); its title
+    says whose policies it holds, and Table II's note counts its files."""
+    from distgprl.report.runs import current_hash
+    from distgprl.report.tables import write_tables
+
+    study_run(tmp_path, "paper", "dbm", "gprl", 0, [0.0, 0.5])
+    current = current_hash("dbm", "gprl", 0, "paper")
+    paper = {"preset": "paper", "protocol": "paper"}
+    _trials(tmp_path, "trials_twin_seed0_d.csv", PAPER, method="demo", **paper)
+    final = {"run_config_hash": current, "model": "/r/model.zip"}
+    _trials(tmp_path, "trials_twin_seed0_f.csv", PAPER, policy=final, **paper)
+    out = tmp_path / "out"
+    written = {path.name for path in write_tables(tmp_path, "paper", out)}
+    assert "table2_paper.md" in written and "table2_best_paper.md" not in written
+    best = {"run_config_hash": current, "model": "/r/policy_best.pt", "policy": "best (x)"}
+    _trials(tmp_path, "trials_twin_seed0_b.csv", PAPER[:2], policy=best, **paper)
+    written = {path.name for path in write_tables(tmp_path, "paper", out)}
+    assert {"table2_best_paper.md", "table2_best_paper.csv", "table2_best_paper.tex"} <= written
+    markdown = (out / "table2_best_paper.md").read_text()
+    assert markdown.startswith("Table II of the best policies, Table I's (beside Table II")
+    assert "| GPRL | twin | 0 | 2 |" in markdown and "| Demo (no adaptation) | twin | 0 | 4 |" in (
+        markdown
+    )
+    assert "Trial files of the best policy, tabulated apart in `table2_best_<preset>`: 1" in (
+        (out / "table2_paper.md").read_text()
+    )
+    assert "tab:hardware_results_best" in (out / "table2_best_paper.tex").read_text()
