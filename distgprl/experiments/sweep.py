@@ -218,7 +218,8 @@ def run_job(job: Job) -> JobResult:
         if finished.status == "skipped" and get_method(job.method).trainable:
             ship_if_missing(run_dir(job.root, job.preset, job.task, job.method, job.seed))
         if finished.status == "skipped" and follow_up_due(job):
-            return replace(finished, **run_follow_ups(job))
+            reports = run_follow_ups(job)
+            return replace(finished, seconds=time.perf_counter() - start, **reports)
         return finished
     folder = run_dir(job.root, job.preset, job.task, job.method, job.seed)
     busy = JobResult(job, "busy", 0.0, "another process is training this run")

@@ -8,7 +8,10 @@ runs finished or in progress, else estimated), handed out to the workers in the 
 order (`distgprl.experiments.pace.makespan`), plus, per job left (an untrained reference's
 too), the median time the sweep's finished jobs of its task took beyond their training
 (building the environment, evaluating, twin trials: most of a `ci` job; of any task until one
-of its own has finished).
+of its own has finished). A run done when the sweep started that still has follow-ups due
+(`distgprl.experiments.follow_ups`: twin trials, safety-layer evaluations) is a job too: the
+line counts those done of all (``follow-ups 3/35``) and the ETA adds, per one left, the median
+time of the sweep's finished follow-up jobs (0 until one has finished).
 
 - On a terminal (``live``) that line is a progress bar redrawn in place every refresh, with
   one line per running job beneath it (its step, curve rates, minutes left) and a line per
@@ -35,6 +38,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+from distgprl.experiments.follow_ups import follow_up_due
 from distgprl.experiments.jobs import Job
 from distgprl.experiments.pace import Paces, makespan, steps_left
 from distgprl.experiments.status import RunStatus, format_duration, run_status
@@ -108,6 +112,10 @@ class SweepProgress:
         self.unfinished: list[Job] = list(self.jobs)
         # done when the sweep started: `opening` counts them, their "skipped" is not repeated
         self.found_done = {job for job in self.jobs if self.statuses[job].state == "done"}
+        # of those, the runs the sweep picks up for their follow-ups alone, and the time each took
+        self.follow_ups = {job for job in self.found_done if follow_up_due(job)}
+        self.follow_ups_left = set(self.follow_ups)
+        self.follow_up_seconds: list[float] = []
         self._lock = threading.Lock()
         self._bars: list[Any] = []
         self._last_paces: Paces | None = None
@@ -135,8 +143,11 @@ class SweepProgress:
         steps = sum(s.total_steps if s.state == "done" else s.start_step for s in statuses)
         elapsed = format_duration(self.clock() - self.started_at)
         text = f"sweep: {done}/{len(statuses)} runs, "
-        text += f"{format_steps(steps)}/{format_steps(total_steps)} steps, elapsed {elapsed}"
-        return text + f", ETA {format_duration(self.eta_s())}"
+        text += f"{format_steps(steps)}/{format_steps(total_steps)} steps, "
+        if self.follow_ups:
+            followed = len(self.follow_ups) - len(self.follow_ups_left)
+            text += f"follow-ups {followed}/{len(self.follow_ups)}, "
+        return text + f"elapsed {elapsed}, ETA {format_duration(self.eta_s())}"
 
     def overhead_s(self, task: str) -> float:
         """The median time the sweep's finished jobs of ``task`` took beyond their training
@@ -148,11 +159,14 @@ class SweepProgress:
     def eta_s(self) -> float:
         """Seconds the sweep has left on its workers (module docstring)."""
         paces = self._paces()
+        follow_up = statistics.median(self.follow_up_seconds) if self.follow_up_seconds else 0.0
         durations = [
-            (paces.lookup(status)[0] * steps_left(status) if status.total_steps else 0.0)
+            follow_up
+            if status.state == "done"
+            else (paces.lookup(status)[0] * steps_left(status) if status.total_steps else 0.0)
             + self.overhead_s(status.job.task)
             for status in (self.statuses[job] for job in self.unfinished)
-            if status.state != "done"
+            if status.state != "done" or status.job in self.follow_ups_left
         ]
         running = min(self.workers, len(durations))
         return makespan(durations[:running], durations[running:], self.workers)
@@ -232,6 +246,10 @@ class SweepProgress:
                 training = (status.seconds_per_step or 0.0) * status.total_steps
                 overheads = self.overheads.setdefault(job.task, [])
                 overheads.append(max(result.seconds - training, 0.0))
+            if result.status == "skipped" and job in self.follow_ups_left:
+                self.follow_ups_left.discard(job)
+                if result.trials or result.repairs:
+                    self.follow_up_seconds.append(result.seconds)
             if result.status == "skipped" and job in self.found_done:
                 self.found_done.discard(job)  # reported once, by `opening`
                 if not (result.trials or result.repairs):

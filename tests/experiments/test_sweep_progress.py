@@ -113,6 +113,28 @@ def test_the_eta_counts_the_references_left_at_their_tasks_measured_time(tmp_pat
     assert progress.eta_s() == pytest.approx(35.0 + 240 * DEFAULT_SECONDS_PER_STEP + 35.0)
 
 
+def test_runs_done_with_follow_ups_due_count_in_the_line_and_the_eta(tmp_path, monkeypatch):
+    """A sweep of runs done already whose follow-ups are due (here twin trials): the line
+    counts the follow-ups done of all, and the ETA is the median finished follow-up's time per
+    one left (0 s before one has finished), not 0 s because no training is left."""
+    from distgprl.experiments import sweep_progress
+
+    jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dbm"], [0, 1, 2], root=tmp_path, twin_trials=1)
+    for job in jobs:
+        _finish(tmp_path, "dbm", "gprl-d", seed=job.seed)
+    monkeypatch.setattr(sweep_progress, "follow_up_due", lambda job: job.seed != 2)
+    progress = _progress(jobs)
+    assert progress.follow_ups == set(jobs[:2]) and progress.eta_s() == 0.0
+    assert progress.summary().startswith("sweep: 3/3 runs, 720/720 steps, follow-ups 0/2, ")
+    progress.finished(sweep.JobResult(jobs[0], "skipped", 90.0, trials="twin trials: 3"), 1, 3)
+    progress.unfinished = jobs[1:]
+    assert progress.eta_s() == pytest.approx(90.0)  # one left; the run without follow-ups: none
+    assert progress.summary().endswith("follow-ups 1/2, elapsed 0 s, ETA 1 min")
+    progress.finished(sweep.JobResult(jobs[1], "skipped", 70.0, trials="twin trials: 3"), 2, 3)
+    progress.unfinished = jobs[2:]
+    assert progress.eta_s() == 0.0 and "follow-ups 2/2" in progress.summary()
+
+
 def test_plain_output_prints_each_finished_job_with_the_sweeps_line(tmp_path):
     jobs = sweep.plan_jobs("ci", ["gprl-d"], ["dcp", "dbm"], [0], root=tmp_path)
     stream = io.StringIO()

@@ -170,7 +170,8 @@ def gprl_on_disk(tmp_path_factory, untrained_dbm_policy):
 
 def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkeypatch):
     """A finished DBM run with its model on disk is picked up for its trials alone (no
-    training), every setting runs once, and the next sweep finds nothing due."""
+    training, the job's time theirs), every setting runs once, and the next sweep finds
+    nothing due."""
     root = gprl_on_disk
     job = Job("dbm", "gprl", 0, "ci", str(root), twin_trials=1)
     assert trials_due(job)
@@ -185,6 +186,7 @@ def test_the_sweep_runs_a_finished_runs_missing_trials_once(gprl_on_disk, monkey
     monkeypatch.setattr(sweep, "train_run", lambda *a, **k: pytest.fail("trained again"))
     results = sweep.run_sweep([job], workers=1)
     assert [r.status for r in results] == ["skipped"]
+    assert results[0].seconds > 0  # the follow-ups' time, which the sweep's ETA reads
     settings = table2_settings("gprl")
     assert results[0].trials.startswith(f"twin trials: {len(settings)} setting(s) run\n")
     files = sorted((root / "hardware" / "gprl").glob("trials_twin_seed0_*.csv"))
