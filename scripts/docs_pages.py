@@ -77,6 +77,7 @@ RESULT_TABLES: tuple[tuple[str, str], ...] = (
     ("aggregates_paper.md", "Aggregates over seeds (IQM)"),
     ("table1_repair_paper.md", "Table I + repair: the safety layer in the loop"),
     ("table2_paper.md", "Table II: hardware trials (digital twin)"),
+    ("table2_best_paper.md", "Beside Table II: the trials of Table I's policies (the best)"),
     ("table2_noise_paper.md", "The twin's robustness to perception error"),
     ("claims_paper.md", "The claims"),
     ("claims_robustness_paper.md", "The claims per reading (the operator study)"),
