@@ -87,13 +87,15 @@ def write_tables(
 
 def _table_two(root: str | Path, preset: str) -> list[Table]:
     """Table II of each trial policy's trials (`TRIAL_POLICIES`: Table II's own first, then
-    beside it `table2_<policy>` where a trained policy's trials ran it), and Table II's noise
-    table."""
+    beside it `table2_<policy>` where a trained policy's trials ran it, of the noise-free
+    settings its trials run), and Table II's noise table."""
     tables, rows_of = [], {}
     for policy in TRIAL_POLICIES:
         trials = table2.select_trial_files(root, preset, policy)
         ran = policy == TABLE2_POLICY or any(file_policy(m) == policy for _, m, _ in trials.counted)
         rows = rows_of[policy] = table2.hardware_rows(trials) if ran else []
+        if policy != TABLE2_POLICY:  # its trials' settings: Table II's noise-free ones
+            rows = [row for row in rows if row["sensor_noise"] in ("0", "–")]
         texts = table2.hardware_texts(rows, preset, trials.note(), policy) if rows else None
         tables.append((f"{table2.table2_stem(policy)}_{preset}", texts, ABOUT["table2"]))
     noise = table2.noise_texts(rows_of[TABLE2_POLICY], preset)

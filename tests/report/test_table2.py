@@ -133,8 +133,9 @@ def test_the_best_policys_table_is_written_beside_table_ii_only_where_trials_ran
     tmp_path, study_run
 ):
     """`write_tables`: ``table2_best_<preset>`` exists only where a trained policy's trials
-    ran the best policy (the references' files, which run none, do not make one); its title
-    says whose policies it holds, and Table II's note counts its files."""
+    ran the best policy (the references' files, which run none, do not make one), of the
+    noise-free settings its trials run; its title says whose policies it holds, and Table
+    II's note counts its files."""
     from distgprl.report.runs import current_hash
     from distgprl.report.tables import write_tables
 
@@ -142,6 +143,8 @@ def test_the_best_policys_table_is_written_beside_table_ii_only_where_trials_ran
     current = current_hash("dbm", "gprl", 0, "paper")
     paper = {"preset": "paper", "protocol": "paper"}
     _trials(tmp_path, "trials_twin_seed0_d.csv", PAPER, method="demo", **paper)
+    noisy = {"preset": "paper", "repair": True, "sensor_noise": 2}  # Table II's noise series
+    _trials(tmp_path, "trials_twin_seed0_n.csv", CHECKED, method="demo", **noisy)
     final = {"run_config_hash": current, "model": "/r/model.zip"}
     _trials(tmp_path, "trials_twin_seed0_f.csv", PAPER, policy=final, **paper)
     out = tmp_path / "out"
@@ -156,6 +159,8 @@ def test_the_best_policys_table_is_written_beside_table_ii_only_where_trials_ran
     assert "| GPRL | twin | 0 | 2 |" in markdown and "| Demo (no adaptation) | twin | 0 | 4 |" in (
         markdown
     )
+    assert "| Demo (no adaptation) | twin | 2 |" not in markdown  # the best's settings only
+    assert "| Demo (no adaptation) | twin | 2 |" in (out / "table2_paper.md").read_text()
     assert "Trial files of the best policy, tabulated apart in `table2_best_<preset>`: 1" in (
         (out / "table2_paper.md").read_text()
     )
