@@ -20,19 +20,22 @@ amplifies ulp differences. What is expected to hold across machines, and tested 
     bonus and the collision penalty, and r_ga's and r_sd's bounds) over the TC count; the
     clearance percentile by what two seeds' untrained actors differ (below); every other
     column (episodes 0, the initial entropy coefficient, no losses yet) is exact.
-  - *The first trained point* (1 000 warm-up steps, 500 gradient steps): the warm-up
-    episodes' rewards differ by ulps that contacts amplify, so the replay buffer and every
-    gradient step after it differ: a retrained run on another CPU is another draw of the same
-    training process, and its curve point is compared as one. Success and collision rates
-    are counts over the curve TCs (the preset's ``curve_episodes``) and the share of the
-    batch with L_hap active a count over the batch: Fisher's exact test must not reject
-    "same rate" at `ALPHA`. Every other column must lie within what two draws of the process
-    differ: t(n - 1, 1 - ALPHA / 2) sqrt(2) s (`_two_draws_tolerance`), s the standard
-    deviation of that column at that curve point over the reference seeds — the committed
-    runs of the same method and task, each a draw with another seed (`reference_runs`). A
-    draw with the same seed on another machine shares the initial networks and every random
-    stream, so it differs less than two seeds do (measured below): the bound is
-    conservative, not a guess.
+  - *The first trained point* (1 000 warm-up steps, 500 gradient steps): the warm-up episodes'
+    rewards differ by ulps that contacts amplify, so the replay buffer and every gradient step
+    after it differ: a retrained run on another CPU is another draw of the same training
+    process, and its curve point is compared as one. The share of the batch with L_hap active
+    is a count over the batch: Fisher's exact test must not reject "same rate" at `ALPHA`.
+    Success and collision rates are counts over the curve TCs (the preset's ``curve_episodes``)
+    of another draw's policy: Fisher's test, or where the reference seeds' own rates spread
+    wider, their spread as below (measured on a Sapphire Rapids CPU under
+    `OPENBLAS_CORETYPE=Haswell`, 2026-12-08: DCP Dist-GPRL-Global's retrained seed 0 collided
+    on 4 of 50 curve TCs against the committed 16, Fisher p = 0.005, while the five committed
+    seeds give 0.00–0.32 there). Every other column must lie within what two draws of the
+    process differ: t(n - 1, 1 - ALPHA / 2) sqrt(2) s (`_two_draws_tolerance`), s the standard
+    deviation of that column at that curve point over the reference seeds — the committed runs
+    of the same method and task, each a draw with another seed (`reference_runs`). A draw with
+    the same seed on another machine shares the initial networks and every random stream, so it
+    differs less than two seeds do (measured below): the bound is conservative, not a guess.
 
   Reference seeds: the current environment's `REFERENCE_SEEDS` committed seeds once they are
   made; before that the archived environment v7's five seeds (results/archive/env-v7/paper,
@@ -51,10 +54,11 @@ check of the environment — DBM ProMP-RRL with its rewards in v7's unit (a tent
 nominal (success 0.18 against 0.56, return -0.17); the first trained point is a loose check
 of the learning (five seeds' spread, t with 4 degrees of freedom) that larger changes fail:
 DCP Dist-GPRL-Global without TC conditioning (`conditioning_weights` zero; at step 0 every
-curve TC collides either way) fails on its collision rate (0.00 against 0.32), the batch
-share with L_hap active and the return; GPRL retrained for 1 500 steps, its annealed
-temperature then at its end value (0.002 against 0.17), on the entropy coefficient and
-grad_q. Measured on one
+curve TC collides either way) fails on the batch share with L_hap active (measured on the
+Sapphire Rapids CPU: 0.76 under the default kernel, 0.61 under Haswell, against 0.89; its
+collision rate, 0.10 and 0.00 against 0.32, lies within the seeds' spread); GPRL
+retrained for 1 500 steps, its annealed temperature then at its end value (0.002 against
+0.17), on the entropy coefficient and grad_q. Measured on one
 AVX-512 machine (2026-12-07), retraining seed 0 under the default kernel against the
 committed runs (made under `OPENBLAS_CORETYPE=Haswell`, which reproduces them bit for bit):
 ProMP-RRL's grad_q differs by 0.8 % (DBM) and 1.1 % (DCP) against bounds of a factor 5.4
@@ -285,16 +289,22 @@ def _trained_point_differences(
     row: dict[str, str], old: dict[str, str], reference: Reference, n: int, batch: int, unit: float
 ) -> tuple[list[tuple], list[str]]:
     """(where the first trained point differs from the committed one by more than two draws
-    of the training process can, the columns not compared): rates and the batch share by
-    Fisher's exact test; the other columns by `_two_draws_tolerance` of the reference's
-    spread (on the log scale, in reward units converted to ``unit``, or in metres)."""
+    of the training process can, the columns not compared): the batch share by Fisher's
+    exact test; a curve rate by Fisher's exact test or, where the reference seeds' own rates
+    spread wider, by `_two_draws_tolerance` of that spread (the retrained policy is another
+    draw, so its rate varies by the draws' spread as well as by the TCs' sampling); the other
+    columns by `_two_draws_tolerance` of the reference's spread (on the log scale, in reward
+    units converted to ``unit``, or in metres)."""
     differences, uncompared = [], []
     for column in sorted(row.keys() - {"wall_time_s", "step"}):
         new_value, old_value = row[column], old[column]
         if old_value == "" or new_value == "":
             far = new_value != old_value
-        elif column in RATE_COLUMNS:
+        elif column in RATE_COLUMNS:  # a count of TCs, of a policy that is another draw
+            difference = abs(float(new_value) - float(old_value))
+            spread = _two_draws_tolerance(reference.values(column))
             far = not _counts_consistent(float(new_value), float(old_value), n)
+            far = far and difference > spread
         elif column in BATCH_RATE_COLUMNS:
             far = not _counts_consistent(float(new_value), float(old_value), batch)
         elif column in SCALE_FREE_COLUMNS:
