@@ -90,8 +90,8 @@ TRIAL_POLICIES = (FINAL_POLICY, BEST_POLICY)
 
 TABLE2_POLICY = FINAL_POLICY
 """The policy Table II's trials run and count: the final one, the policy Table II v8's
-trials ran (docs/findings/environment-v8.md, note of 2026-12-08); a trial file of another
-named policy is listed under the table, not counted."""
+trials ran (docs/findings/environment-v8.md, note of 2026-12-08); the trials of another
+named policy are not counted in it but tabulated beside it (`distgprl.report.table2`)."""
 
 
 def check_trial_policy(policy: str) -> str:

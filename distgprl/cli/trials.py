@@ -65,7 +65,7 @@ def hardware(
             metavar="final|best",
             help="final: the run's model.zip, on disk where the run was trained (Table II "
             "counts its trials); best: the best policy the run ships, Table I's, in every "
-            "clone (Table II lists its files apart).",
+            "clone (tabulated beside Table II, in table2_best).",
         ),
     ] = TABLE2_POLICY,
     root: RootOption = Path("results"),

@@ -105,5 +105,6 @@ def _no_final_policy(method: str, seed: int, preset: str, folder: Path, model_pa
     return (
         f"no final policy on disk (the run ships its best policy, {SHIPPED_POLICY}, only): "
         "pass --policy best to run that one, Table I's (Table II counts the final policy's "
-        f"trials, so it lists those files apart), or run {train} to train the final one"
+        f"trials; the best policy's are tabulated beside it), or run {train} to train the "
+        "final one"
     )
