@@ -477,9 +477,8 @@ def trial_file_exclusion(
     Not counted: trials run with the pre-flight check overridden (``force``: the safety
     layer's refusals were not applied, so they are not the method's hardware result), dry
     runs, trials of another policy than ``policy`` (`distgprl.trial_protocol.counts_for`), and
-    trials of a policy whose
-    recorded config hash is not ``current_policy_hash``
-    (the hash the code resolves now for the policy's run; None where it is not checked: an
+    trials of a policy whose recorded config hash is not ``current_policy_hash`` (the hash
+    the code resolves now for the policy's run; None where it is not checked: an
     untrained reference, or a preset this checkout does not know). The one rule both Table II
     (`distgprl.report.table2`) and the sweep's trial bookkeeping
     (`distgprl.experiments.table2_trials`) apply."""

@@ -142,6 +142,7 @@ def plan_jobs(
         raise UserInputError("no seeds given")
     if twin_trials < 0:
         raise UserInputError(f"twin_trials must be >= 0, got {twin_trials}")
+    check_trial_policy(trial_policy)
     # a repeated seed: one job
     seeds = list(dict.fromkeys(check_seed(seed) for seed in seeds))
     jobs = []
@@ -161,7 +162,7 @@ def plan_jobs(
                         str(root),
                         int(twin_trials),
                         bool(repair_evaluations),
-                        trial_policy=check_trial_policy(trial_policy),
+                        trial_policy=trial_policy,
                     )
                 )
     for job in jobs:

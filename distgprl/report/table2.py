@@ -359,6 +359,6 @@ def hardware_texts(
         " & ".join(["Method", "Backend", "Noise", *names]),
     ]
     columns = "lll" + "c" * len(names)
-    label = "tab:hardware_results" + ("" if policy == TABLE2_POLICY else f"_{policy}")
+    label = "tab:hardware_results" + table2_stem(policy).removeprefix("table2")
     latex = latex_table(latex_caption, label, columns, latex_header, body)
     return csv_text(table, fields), markdown, latex

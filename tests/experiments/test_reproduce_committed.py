@@ -301,10 +301,9 @@ def _trained_point_differences(
         if old_value == "" or new_value == "":
             far = new_value != old_value
         elif column in RATE_COLUMNS:  # a count of TCs, of a policy that is another draw
-            difference = abs(float(new_value) - float(old_value))
             spread = _two_draws_tolerance(reference.values(column))
-            far = not _counts_consistent(float(new_value), float(old_value), n)
-            far = far and difference > spread
+            far = abs(float(new_value) - float(old_value)) > spread
+            far = far and not _counts_consistent(float(new_value), float(old_value), n)
         elif column in BATCH_RATE_COLUMNS:
             far = not _counts_consistent(float(new_value), float(old_value), batch)
         elif column in SCALE_FREE_COLUMNS:
